@@ -1,0 +1,39 @@
+"""benchbus: a Modbus RTU master for lab automation.
+
+Drive RS485 motor drives and process controllers from Python scripts, notebooks and pytest
+benches, with the wire timing done right and every failure raised as a clear exception::
+
+    import benchbus as bb
+
+    with bb.Bus("/dev/ttyUSB0", baudrate=19200, timeout=0.1, retries=2) as bus:
+        speed = bus.read_holding_registers(1, 0x3006, 1)[0]
+        bus.write_register(1, 0x2001, 1500)
+
+Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
+"""
+
+from __future__ import annotations
+
+from benchbus._core import Bus, Stats, __version__, crc16, refresh_logging
+from benchbus.exceptions import (
+    BenchbusError,
+    CrcError,
+    FrameError,
+    ModbusException,
+    PortError,
+    ResponseTimeout,
+)
+
+__all__ = [
+    "BenchbusError",
+    "Bus",
+    "CrcError",
+    "FrameError",
+    "ModbusException",
+    "PortError",
+    "ResponseTimeout",
+    "Stats",
+    "__version__",
+    "crc16",
+    "refresh_logging",
+]

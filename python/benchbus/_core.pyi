@@ -1,0 +1,138 @@
+"""Type stubs for the compiled core (``benchbus._core``)."""
+
+import os
+from collections.abc import Iterable
+from types import TracebackType
+
+from typing_extensions import Self
+
+__version__: str
+
+def crc16(data: bytes) -> int:
+    """CRC-16/MODBUS of ``data`` (sent low byte first on the wire)."""
+
+def refresh_logging() -> None:
+    """Re-read the Python logging levels (cached for speed; a Bus reads them when it opens)."""
+
+class Stats:
+    """Counters of what happened on a Bus since it was opened."""
+
+    @property
+    def transactions(self) -> int:
+        """Requests completed with a reply (normal or exception) or sent as a broadcast."""
+    @property
+    def retries(self) -> int:
+        """Attempts repeated after a timeout or a corrupt frame."""
+    @property
+    def timeouts(self) -> int:
+        """Attempts that got no complete reply in time."""
+    @property
+    def crc_errors(self) -> int:
+        """Replies with a bad CRC."""
+    @property
+    def frame_errors(self) -> int:
+        """Other malformed replies (wrong unit, function, length or echo)."""
+    @property
+    def exceptions(self) -> int:
+        """Exception replies."""
+    @property
+    def stale_bytes(self) -> int:
+        """Stale bytes dropped from the input before a request."""
+    @property
+    def broadcasts(self) -> int:
+        """Broadcast requests sent."""
+    def as_dict(self) -> dict[str, int]:
+        """The counters as a dict."""
+
+class Bus:
+    """A Modbus RTU master on one serial line.
+
+    One transaction at a time: threads sharing a Bus wait their turn, and the GIL is released
+    while a call waits for the wire. Before each request the line is kept silent for t3.5;
+    replies are read by their expected length; a timeout or a corrupt reply is retried up to
+    ``retries`` times, an exception reply never is.
+    """
+
+    def __init__(
+        self,
+        port: str | os.PathLike[str],
+        baudrate: int = 19200,
+        parity: str = "N",
+        stopbits: int = 1,
+        timeout: float = 0.1,
+        retries: int = 2,
+        *,
+        turnaround: float = 0.1,
+    ) -> None:
+        """Open ``port`` (e.g. ``/dev/ttyUSB0``) at the given line format.
+
+        ``timeout`` is per attempt, in seconds; ``turnaround`` is the quiet time after a
+        broadcast. Raises PortError if the port cannot be opened, ValueError / TypeError for
+        bad arguments.
+        """
+    def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
+        """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""
+    def write_register(
+        self, unit: int, address: int, value: int, *, accept_count_echo: bool = False
+    ) -> None:
+        """Write one register (function 0x06).
+
+        With ``accept_count_echo``, a reply carrying a register count of 1 in place of the
+        value (as PBL drives send) is accepted.
+        """
+    def write_registers(self, unit: int, address: int, values: Iterable[int]) -> None:
+        """Write 1..123 consecutive registers from ``address`` (function 0x10)."""
+    def read_device_identification(
+        self, unit: int, read_code: int = 1, object_id: int = 0
+    ) -> dict[int, str]:
+        """Read device identification objects (0x2B / MEI 0x0E) as ``{object_id: text}``."""
+    def broadcast_write_register(self, address: int, value: int) -> None:
+        """Write one register on every unit (unit 0); waits no reply."""
+    def scan(
+        self, units: Iterable[int] | None = None, timeout: float = 0.05, address: int = 0
+    ) -> list[int]:
+        """The units (default 1..247) that answer a read of ``address`` within ``timeout``."""
+    @property
+    def stats(self) -> Stats:
+        """Counters of what happened on this bus."""
+    def close(self) -> None:
+        """Close the port; further calls raise PortError. Closing twice is harmless."""
+    @property
+    def closed(self) -> bool:
+        """True once the bus is closed."""
+    def __enter__(self) -> Self:
+        """Return the bus itself."""
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool:
+        """Close the bus."""
+    @property
+    def port(self) -> str:
+        """The port path."""
+    @property
+    def baudrate(self) -> int:
+        """Bits per second."""
+    @property
+    def parity(self) -> str:
+        """Parity letter: "N", "E" or "O"."""
+    @property
+    def stopbits(self) -> int:
+        """Stop bits: 1 or 2."""
+    @property
+    def timeout(self) -> float:
+        """Reply timeout per attempt, in seconds."""
+    @property
+    def retries(self) -> int:
+        """Further attempts after a timeout or a corrupt frame."""
+    @property
+    def turnaround(self) -> float:
+        """Quiet time after a broadcast, in seconds."""
+    @property
+    def char_time(self) -> float:
+        """Time one character takes on the wire, in seconds."""
+    @property
+    def t3_5(self) -> float:
+        """The silence between frames (t3.5), in seconds."""

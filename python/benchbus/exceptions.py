@@ -1,0 +1,97 @@
+"""The benchbus exception tree, defined once here and raised from the Rust core.
+
+::
+
+    BenchbusError(Exception)                       base of everything below
+    ├── PortError(BenchbusError, OSError)          port cannot be opened, vanished, I/O failed
+    ├── ResponseTimeout(BenchbusError, TimeoutError)   no (complete) reply in time
+    ├── FrameError(BenchbusError)                  reply malformed: wrong unit, function,
+    │   └── CrcError(FrameError)                   length or echo; bad CRC
+    └── ModbusException(BenchbusError)             the device answered with an exception
+
+Bad arguments raise ``ValueError`` / ``TypeError`` before anything is sent.
+
+Every exception carries ``unit`` and ``function`` (``None`` where they do not apply) and
+``frame``, the raw bytes involved as uppercase hex (``"01 83 02 C0 F1"``) or ``None``.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "BenchbusError",
+    "CrcError",
+    "FrameError",
+    "ModbusException",
+    "PortError",
+    "ResponseTimeout",
+]
+
+
+class BenchbusError(Exception):
+    """Base class of every error benchbus raises about the bus or a device."""
+
+    unit: int | None
+    """The unit addressed, if any."""
+    function: int | None
+    """The Modbus function code of the request, if any."""
+    frame: str | None
+    """The raw frame involved, as uppercase hex bytes, if any."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        unit: int | None = None,
+        function: int | None = None,
+        frame: str | None = None,
+    ) -> None:
+        super().__init__(message)
+        self.unit = unit
+        self.function = function
+        self.frame = frame
+
+
+class PortError(BenchbusError, OSError):
+    """The port cannot be opened, has vanished, or an I/O call on it failed."""
+
+
+class ResponseTimeout(BenchbusError, TimeoutError):
+    """No complete reply arrived within the timeout, on every attempt.
+
+    ``frame`` holds the bytes of an incomplete reply, if some arrived.
+    """
+
+
+class FrameError(BenchbusError):
+    """A reply arrived but is malformed: wrong unit, function, length or echo."""
+
+
+class CrcError(FrameError):
+    """A reply arrived with a CRC that does not match its contents."""
+
+
+class ModbusException(BenchbusError):
+    """The device answered with a Modbus exception response.
+
+    ``code`` is the exception code and ``meaning`` its text, in the device family's words
+    where its manual gives them (e.g. 0x08 "not changeable while running" on a Drive).
+    """
+
+    code: int
+    """The exception code (1 illegal function, 2 illegal data address, ...)."""
+    meaning: str
+    """What the code means for this device."""
+
+    def __init__(
+        self,
+        message: str,
+        *,
+        code: int,
+        meaning: str,
+        unit: int | None = None,
+        function: int | None = None,
+        frame: str | None = None,
+    ) -> None:
+        super().__init__(message, unit=unit, function=function, frame=frame)
+        self.code = code
+        self.meaning = meaning

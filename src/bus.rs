@@ -1,0 +1,532 @@
+//! The Bus: one Modbus transaction at a time on one line, with retries, wire timing, per-unit
+//! write pacing, statistics and a hex trace of every frame (log target `benchbus::wire`).
+//!
+//! One transaction, as it runs on the wire:
+//!
+//! ```text
+//!  master  ...quiet >= t3.5 | request (n chars) |                         | quiet >= t3.5 | next
+//!  slave                                        | turnaround | reply     |
+//!                                               ^ timeout counts from the end of the request
+//! ```
+//!
+//! Stale bytes in the input buffer are dropped (and counted) before each request; the reply
+//! is read by its expected length ([`reply_needed`]), never by waiting for a timeout; only a
+//! timeout or a corrupt frame is retried, never an exception reply.
+
+use crate::codec::{
+    check_echo, decode_reply, encode_request, exception_meaning, reply_needed,
+    DeviceIdentification, Echo, FrameError, Needed, Reply, Request, Response, BROADCAST,
+};
+use crate::error::{hex, Error, Result};
+use crate::timing::{LineFormat, SilenceGuard};
+use crate::transport::{SerialTransport, Transport};
+use std::collections::HashMap;
+use std::sync::{Mutex, MutexGuard};
+use std::time::{Duration, Instant};
+
+/// Unit addresses a request may go to (serial line spec 2.2: 1..=247; 0 is broadcast).
+pub const UNITS: std::ops::RangeInclusive<u8> = 1..=247;
+
+/// How a Bus is opened.
+#[derive(Debug, Clone)]
+pub struct BusConfig {
+    /// Port path, e.g. `/dev/ttyUSB0` or `/dev/pts/3`.
+    pub port: String,
+    /// Line format (baud, parity, stop bits).
+    pub line: LineFormat,
+    /// How long to wait for a reply, per attempt.
+    pub timeout: Duration,
+    /// Further attempts after a timeout or a corrupt frame.
+    pub retries: u32,
+    /// Quiet time after a broadcast, for every device to act on it.
+    pub turnaround: Duration,
+}
+
+impl BusConfig {
+    /// A config with the usual defaults: 100 ms timeout, 2 retries, 100 ms turnaround.
+    pub fn new(port: &str, line: LineFormat) -> BusConfig {
+        BusConfig {
+            port: port.to_string(),
+            line,
+            timeout: Duration::from_millis(100),
+            retries: 2,
+            turnaround: Duration::from_millis(100),
+        }
+    }
+}
+
+/// Per-request options a device layer sets for its family.
+#[derive(Debug, Clone, Copy)]
+pub struct TxOptions {
+    /// How strictly a write reply must echo the request.
+    pub echo: Echo,
+    /// Least time between two write requests to the same unit (J2: 150 ms).
+    pub write_interval: Duration,
+    /// Overrides the Bus timeout for this request.
+    pub timeout: Option<Duration>,
+    /// Overrides the Bus retries for this request.
+    pub retries: Option<u32>,
+    /// The device family's meaning of an exception code.
+    pub meaning: fn(u8) -> &'static str,
+}
+
+impl Default for TxOptions {
+    fn default() -> Self {
+        TxOptions {
+            echo: Echo::Strict,
+            write_interval: Duration::ZERO,
+            timeout: None,
+            retries: None,
+            meaning: exception_meaning,
+        }
+    }
+}
+
+/// Counters of what happened on the bus since it was opened.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Stats {
+    /// Requests completed with a reply (normal or exception) or sent as a broadcast.
+    pub transactions: u64,
+    /// Attempts repeated after a timeout or a corrupt frame.
+    pub retries: u64,
+    /// Attempts that got no complete reply in time.
+    pub timeouts: u64,
+    /// Replies with a bad CRC.
+    pub crc_errors: u64,
+    /// Other malformed replies (wrong unit, function, length or echo).
+    pub frame_errors: u64,
+    /// Exception replies.
+    pub exceptions: u64,
+    /// Stale bytes dropped from the input before a request.
+    pub stale_bytes: u64,
+    /// Broadcast requests sent.
+    pub broadcasts: u64,
+}
+
+struct State {
+    transport: Option<Box<dyn Transport>>,
+    silence: SilenceGuard,
+    last_write: HashMap<u8, Instant>,
+    stats: Stats,
+}
+
+/// A Modbus RTU master on one line. Thread-safe: a second caller waits its turn.
+pub struct Bus {
+    config: BusConfig,
+    state: Mutex<State>,
+}
+
+impl std::fmt::Debug for Bus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Bus").field("config", &self.config).finish()
+    }
+}
+
+impl Bus {
+    /// Opens the serial port of `config`.
+    ///
+    /// # Errors
+    /// [`Error::Port`] if the port cannot be opened; [`Error::InvalidArgument`] for a bad
+    /// line format.
+    pub fn open(config: BusConfig) -> Result<Bus> {
+        check_config(&config)?;
+        let transport =
+            SerialTransport::open(&config.port, &config.line).map_err(|e| Error::Port {
+                port: config.port.clone(),
+                message: format!("cannot open: {e}"),
+                source: None,
+            })?;
+        Ok(Bus::with_transport(config, Box::new(transport)))
+    }
+
+    /// A Bus over any transport (used by tests and other transports).
+    pub fn with_transport(config: BusConfig, transport: Box<dyn Transport>) -> Bus {
+        Bus {
+            config,
+            state: Mutex::new(State {
+                transport: Some(transport),
+                silence: SilenceGuard::new(),
+                last_write: HashMap::new(),
+                stats: Stats::default(),
+            }),
+        }
+    }
+
+    /// The configuration the bus was opened with.
+    pub fn config(&self) -> &BusConfig {
+        &self.config
+    }
+
+    /// A snapshot of the counters.
+    pub fn stats(&self) -> Stats {
+        self.lock().stats
+    }
+
+    /// Whether [`Bus::close`] was called.
+    pub fn is_closed(&self) -> bool {
+        self.lock().transport.is_none()
+    }
+
+    /// Closes the port; later calls fail with [`Error::Closed`]. Closing twice is harmless.
+    pub fn close(&self) {
+        self.lock().transport = None;
+    }
+
+    /// Reads `count` holding registers (0x03).
+    ///
+    /// # Errors
+    /// Any [`Error`]: bad arguments, port, timeout, frame or exception.
+    pub fn read_holding_registers(
+        &self,
+        unit: u8,
+        address: u16,
+        count: u16,
+        opts: &TxOptions,
+    ) -> Result<Vec<u16>> {
+        match self.transact(
+            unit,
+            &Request::ReadHoldingRegisters { address, count },
+            opts,
+        )? {
+            Response::Registers(values) => Ok(values),
+            other => Err(unexpected(unit, 0x03, &other)),
+        }
+    }
+
+    /// Writes one register (0x06).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_register(
+        &self,
+        unit: u8,
+        address: u16,
+        value: u16,
+        opts: &TxOptions,
+    ) -> Result<()> {
+        self.transact(unit, &Request::WriteSingleRegister { address, value }, opts)
+            .map(|_| ())
+    }
+
+    /// Writes consecutive registers (0x10).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_registers(
+        &self,
+        unit: u8,
+        address: u16,
+        values: &[u16],
+        opts: &TxOptions,
+    ) -> Result<()> {
+        let request = Request::WriteMultipleRegisters {
+            address,
+            values: values.to_vec(),
+        };
+        self.transact(unit, &request, opts).map(|_| ())
+    }
+
+    /// Reads device identification objects (0x2B / 0x0E) from `object_id` on, following
+    /// "more follows" until the device has sent them all.
+    ///
+    /// # Errors
+    /// Any [`Error`]; a device without the function answers exception 1.
+    pub fn read_device_identification(
+        &self,
+        unit: u8,
+        read_code: u8,
+        object_id: u8,
+        opts: &TxOptions,
+    ) -> Result<DeviceIdentification> {
+        let mut all = DeviceIdentification::default();
+        let mut next = object_id;
+        // A device may split its objects over several replies; 256 bounds a device that
+        // keeps saying "more follows".
+        for _ in 0..256 {
+            let request = Request::ReadDeviceIdentification {
+                read_code,
+                object_id: next,
+            };
+            let page = match self.transact(unit, &request, opts)? {
+                Response::DeviceIdentification(page) => page,
+                other => return Err(unexpected(unit, 0x2B, &other)),
+            };
+            let advanced = page.next_object > next || page.objects.keys().any(|&k| k >= next);
+            all.read_code = page.read_code;
+            all.conformity = page.conformity;
+            all.objects.extend(page.objects);
+            if !page.more_follows || !advanced {
+                break;
+            }
+            next = page.next_object;
+        }
+        Ok(all)
+    }
+
+    /// Writes one register on every unit (unit 0). Waits for no reply, then keeps the line
+    /// quiet for the turnaround delay; any answer a device sends anyway is dropped.
+    ///
+    /// # Errors
+    /// [`Error::Port`] or [`Error::Closed`].
+    pub fn broadcast_write_register(&self, address: u16, value: u16) -> Result<()> {
+        let request = Request::WriteSingleRegister { address, value };
+        let frame = encode_request(BROADCAST, &request);
+        let mut st = self.lock();
+        let st = &mut *st;
+        self.send(st, &frame)?;
+        st.stats.broadcasts += 1;
+        st.stats.transactions += 1;
+        std::thread::sleep(self.config.turnaround);
+        let transport = self.transport(st)?;
+        let answers = transport.discard_input().map_err(|e| self.io_error(e))?;
+        if !answers.is_empty() {
+            log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", hex(&answers));
+        }
+        st.silence.busy_until(Instant::now());
+        Ok(())
+    }
+
+    /// Whether `unit` answers a read of one register at `address` within `timeout` (an
+    /// exception reply counts as an answer). One attempt, no retries.
+    ///
+    /// # Errors
+    /// [`Error::Port`] or [`Error::Closed`]; timeouts and corrupt frames mean "absent".
+    pub fn probe(&self, unit: u8, address: u16, timeout: Duration) -> Result<bool> {
+        let opts = TxOptions {
+            timeout: Some(timeout),
+            retries: Some(0),
+            ..TxOptions::default()
+        };
+        match self.read_holding_registers(unit, address, 1, &opts) {
+            Ok(_) | Err(Error::Exception { .. }) => Ok(true),
+            Err(Error::Timeout { .. } | Error::Frame { .. }) => Ok(false),
+            Err(e) => Err(e),
+        }
+    }
+
+    /// One request, retried after a timeout or a corrupt frame, and its checked response.
+    ///
+    /// # Errors
+    /// Any [`Error`]: bad arguments before anything is sent, then port, timeout (after the
+    /// last attempt), frame or exception.
+    pub fn transact(&self, unit: u8, request: &Request, opts: &TxOptions) -> Result<Response> {
+        if !UNITS.contains(&unit) {
+            return Err(Error::InvalidArgument(format!(
+                "unit must be 1..=247, got {unit} (unit 0 is broadcast: use broadcast_write_register)"
+            )));
+        }
+        request.validate()?;
+        let frame = encode_request(unit, request);
+        let is_write = !matches!(
+            request,
+            Request::ReadHoldingRegisters { .. } | Request::ReadDeviceIdentification { .. }
+        );
+        let timeout = opts.timeout.unwrap_or(self.config.timeout);
+        let attempts = opts
+            .retries
+            .unwrap_or(self.config.retries)
+            .saturating_add(1);
+
+        let mut st = self.lock();
+        let st = &mut *st;
+        self.transport(st)?;
+        if is_write && !opts.write_interval.is_zero() {
+            if let Some(&last) = st.last_write.get(&unit) {
+                let ready = last + opts.write_interval;
+                let now = Instant::now();
+                if ready > now {
+                    std::thread::sleep(ready - now);
+                }
+            }
+        }
+        let mut last_error = None;
+        for attempt in 0..attempts {
+            if attempt > 0 {
+                st.stats.retries += 1;
+            }
+            let outcome = self.attempt(st, unit, request, &frame, timeout);
+            if is_write {
+                st.last_write.insert(unit, Instant::now());
+            }
+            let error = match outcome {
+                Ok((Reply::Normal(response), reply)) => {
+                    match check_echo(request, &response, opts.echo) {
+                        Ok(()) => {
+                            st.stats.transactions += 1;
+                            return Ok(response);
+                        }
+                        Err(kind) => frame_error(unit, request.function(), kind, reply),
+                    }
+                }
+                Ok((Reply::Exception { function, code }, reply)) => {
+                    st.stats.transactions += 1;
+                    st.stats.exceptions += 1;
+                    return Err(Error::Exception {
+                        unit,
+                        function,
+                        code,
+                        meaning: (opts.meaning)(code).to_string(),
+                        frame: reply,
+                    });
+                }
+                Err(e) => e,
+            };
+            match &error {
+                Error::Timeout { .. } => st.stats.timeouts += 1,
+                Error::Frame {
+                    kind: FrameError::Crc { .. },
+                    ..
+                } => st.stats.crc_errors += 1,
+                Error::Frame { .. } => st.stats.frame_errors += 1,
+                _ => return Err(error),
+            }
+            last_error = Some(error);
+        }
+        Err(last_error.unwrap_or_else(|| Error::InvalidArgument("no attempt made".into())))
+    }
+
+    /// One attempt: drop stale input, wait for silence, send, read the reply by its length.
+    fn attempt(
+        &self,
+        st: &mut State,
+        unit: u8,
+        request: &Request,
+        frame: &[u8],
+        timeout: Duration,
+    ) -> Result<(Reply, Vec<u8>)> {
+        let sent_end = self.send(st, frame)?;
+        let deadline = sent_end + timeout;
+        let function = request.function();
+        let mut buf = Vec::with_capacity(64);
+        let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
+        let line = self.config.line;
+        let State {
+            transport, silence, ..
+        } = st;
+        let transport = transport.as_mut().ok_or_else(|| self.closed())?;
+        loop {
+            let (want, wait) = match reply_needed(request, &buf) {
+                Needed::Complete(_) => break,
+                Needed::More(n) => (n, deadline.saturating_duration_since(Instant::now())),
+                // Not a reply to this request: take what follows until the line is quiet, so
+                // the whole bad frame is reported and nothing of it is left for the next call.
+                Needed::Unknown => (chunk.len(), line.t3_5().max(Duration::from_millis(2))),
+            };
+            let want = want
+                .min(chunk.len())
+                .min(crate::codec::rtu::MAX_ADU.saturating_sub(buf.len()));
+            let n = if want == 0 || wait.is_zero() {
+                0
+            } else {
+                transport
+                    .read(&mut chunk[..want], wait)
+                    .map_err(|e| self.io_error(e))?
+            };
+            if n == 0 {
+                if matches!(reply_needed(request, &buf), Needed::Unknown) || want == 0 {
+                    break;
+                }
+                silence.busy_until(Instant::now());
+                if !buf.is_empty() {
+                    log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", hex(&buf));
+                }
+                return Err(Error::Timeout {
+                    unit,
+                    function,
+                    timeout,
+                    received: buf,
+                });
+            }
+            buf.extend_from_slice(&chunk[..n]);
+        }
+        silence.busy_until(Instant::now());
+        log::debug!(target: "benchbus::wire", "<- {}", hex(&buf));
+        match decode_reply(unit, request, &buf) {
+            Ok(reply) => Ok((reply, buf)),
+            Err(kind) => Err(frame_error(unit, function, kind, buf)),
+        }
+    }
+
+    /// Drops stale input, waits out the silence, writes `frame`; returns when its last
+    /// character will have left the wire.
+    fn send(&self, st: &mut State, frame: &[u8]) -> Result<Instant> {
+        let line = self.config.line;
+        let transport = st.transport.as_mut().ok_or_else(|| self.closed())?;
+        let serial = transport.is_serial_line();
+        let stale = transport.discard_input().map_err(|e| self.io_error(e))?;
+        if !stale.is_empty() {
+            st.stats.stale_bytes += stale.len() as u64;
+            log::debug!(target: "benchbus::wire", "stale input dropped: {}", hex(&stale));
+        }
+        if serial {
+            st.silence.wait(line.t3_5());
+        }
+        log::debug!(target: "benchbus::wire", "-> {}", hex(frame));
+        let start = Instant::now();
+        transport.write_all(frame).map_err(|e| self.io_error(e))?;
+        let end = if serial {
+            start + line.frame_time(frame.len())
+        } else {
+            start
+        };
+        st.silence.busy_until(end);
+        Ok(end)
+    }
+
+    fn transport<'a>(&self, st: &'a mut State) -> Result<&'a mut Box<dyn Transport>> {
+        st.transport.as_mut().ok_or_else(|| self.closed())
+    }
+
+    fn closed(&self) -> Error {
+        Error::Closed {
+            port: self.config.port.clone(),
+        }
+    }
+
+    fn io_error(&self, e: std::io::Error) -> Error {
+        Error::Port {
+            port: self.config.port.clone(),
+            message: format!("I/O failed: {e}"),
+            source: Some(e),
+        }
+    }
+
+    fn lock(&self) -> MutexGuard<'_, State> {
+        // A panic while holding the lock leaves consistent state (counters, a port): go on.
+        self.state
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
+fn check_config(config: &BusConfig) -> Result<()> {
+    let line = &config.line;
+    if line.baudrate == 0 {
+        return Err(Error::InvalidArgument("baudrate must be positive".into()));
+    }
+    if !(1..=2).contains(&line.stop_bits) {
+        return Err(Error::InvalidArgument(format!(
+            "stopbits must be 1 or 2, got {}",
+            line.stop_bits
+        )));
+    }
+    Ok(())
+}
+
+fn frame_error(unit: u8, function: u8, kind: FrameError, frame: Vec<u8>) -> Error {
+    Error::Frame {
+        unit,
+        function,
+        kind,
+        frame,
+    }
+}
+
+fn unexpected(unit: u8, function: u8, response: &Response) -> Error {
+    Error::Frame {
+        unit,
+        function,
+        kind: FrameError::Length(format!("unexpected response {response:?}")),
+        frame: Vec::new(),
+    }
+}

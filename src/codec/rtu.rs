@@ -1,0 +1,444 @@
+//! The RTU application data unit: `unit | PDU | CRC-16 (low byte first)`, and the
+//! incremental reply decoder that tells the caller how many more bytes a reply needs.
+//!
+//! Modbus over Serial Line V1.02, 2.5.1 (RTU frame: at most 256 bytes) and 6.2.2 (CRC-16,
+//! polynomial 0xA001 reflected, initial value 0xFFFF, low byte sent first).
+
+use super::pdu::{DeviceIdentification, Request, Response, MEI_READ_DEVICE_ID};
+use crc::{Crc, CRC_16_MODBUS};
+
+/// Longest RTU frame (serial line spec 2.5.1).
+pub const MAX_ADU: usize = 256;
+/// Length of an exception reply: unit, function | 0x80, code, CRC (2).
+pub const EXCEPTION_LEN: usize = 5;
+/// Unit address that every device accepts and none answers (serial line spec 2.2).
+pub const BROADCAST: u8 = 0;
+
+const CRC16: Crc<u16> = Crc::<u16>::new(&CRC_16_MODBUS);
+
+/// CRC-16/MODBUS of `data`.
+pub fn crc16(data: &[u8]) -> u16 {
+    CRC16.checksum(data)
+}
+
+/// The whole RTU frame for `request` to `unit`, CRC appended low byte first.
+pub fn encode_request(unit: u8, request: &Request) -> Vec<u8> {
+    let mut out = Vec::with_capacity(16);
+    out.push(unit);
+    request.encode(&mut out);
+    let crc = crc16(&out);
+    out.extend_from_slice(&crc.to_le_bytes());
+    out
+}
+
+/// What the incremental decoder knows about a reply from the bytes received so far.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Needed {
+    /// At least this many more bytes are needed; reading exactly this many never reads past
+    /// the end of the reply.
+    More(usize),
+    /// The reply is complete and is this many bytes long (the buffer may hold more).
+    Complete(usize),
+    /// These bytes cannot begin a reply to the request (another function code, or a length
+    /// past the longest RTU frame): the length is unknown; read until the line is silent.
+    Unknown,
+}
+
+/// How many more bytes a reply to `request` needs, given the bytes `buf` received so far.
+///
+/// An exception reply is known after two bytes (5 bytes long); a 0x03 reply after three
+/// (its byte count); 0x06 and 0x10 replies are 8 bytes; a Read Device Identification reply
+/// is walked object by object.
+pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
+    if buf.len() < 2 {
+        return Needed::More(EXCEPTION_LEN - buf.len());
+    }
+    let function = request.function();
+    let total = if buf[1] == function | 0x80 {
+        EXCEPTION_LEN
+    } else if buf[1] != function {
+        return Needed::Unknown;
+    } else {
+        match request {
+            Request::ReadHoldingRegisters { .. } => match buf.get(2) {
+                None => return Needed::More(EXCEPTION_LEN - buf.len()),
+                Some(&n) => 5 + usize::from(n),
+            },
+            Request::WriteSingleRegister { .. } | Request::WriteMultipleRegisters { .. } => 8,
+            Request::ReadDeviceIdentification { .. } => match device_id_len(buf) {
+                Ok(total) => total,
+                Err(Some(more)) => return Needed::More(more),
+                Err(None) => return Needed::Unknown,
+            },
+        }
+    };
+    if total > MAX_ADU {
+        Needed::Unknown
+    } else if buf.len() >= total {
+        Needed::Complete(total)
+    } else {
+        Needed::More(total - buf.len())
+    }
+}
+
+/// Total length of a Read Device Identification reply, or how many more bytes are needed
+/// to know it (`Err(Some(n))`), or `Err(None)` if the header is not MEI 0x0E.
+fn device_id_len(buf: &[u8]) -> Result<usize, Option<usize>> {
+    // unit, 0x2B, 0x0E, read code, conformity, more follows, next object, object count
+    const HEADER: usize = 8;
+    if let Some(&mei) = buf.get(2) {
+        if mei != MEI_READ_DEVICE_ID {
+            return Err(None);
+        }
+    }
+    if buf.len() < HEADER {
+        return Err(Some(HEADER - buf.len()));
+    }
+    let mut pos = HEADER;
+    for _ in 0..buf[7] {
+        match buf.get(pos + 1) {
+            None => return Err(Some(pos + 2 - buf.len())),
+            Some(&len) => pos += 2 + usize::from(len),
+        }
+        if pos > MAX_ADU {
+            return Err(None);
+        }
+    }
+    Ok(pos + 2)
+}
+
+/// A decoded reply: a normal response, or the device's exception response (which is data,
+/// not a transport failure).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Reply {
+    /// A normal response.
+    Normal(Response),
+    /// An exception response: the request's function and the exception code.
+    Exception {
+        /// The request's function code (without the 0x80 bit).
+        function: u8,
+        /// The exception code.
+        code: u8,
+    },
+}
+
+/// Why a reply frame was rejected.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum FrameError {
+    /// Fewer bytes than the shortest reply.
+    #[error("reply too short ({0} bytes)")]
+    TooShort(usize),
+    /// The CRC does not match the frame's contents.
+    #[error("CRC mismatch: computed {computed:#06x}, received {received:#06x}")]
+    Crc {
+        /// CRC computed over the frame.
+        computed: u16,
+        /// CRC carried by the frame.
+        received: u16,
+    },
+    /// The reply came from another unit.
+    #[error("reply from unit {received}, expected {expected}")]
+    WrongUnit {
+        /// Unit asked.
+        expected: u8,
+        /// Unit in the reply.
+        received: u8,
+    },
+    /// The reply carries another function code.
+    #[error("reply function {received:#04x}, expected {expected:#04x}")]
+    WrongFunction {
+        /// Function asked.
+        expected: u8,
+        /// Function in the reply.
+        received: u8,
+    },
+    /// The reply's byte count or length does not fit the request.
+    #[error("reply length wrong: {0}")]
+    Length(String),
+    /// A write reply does not echo the request.
+    #[error("write not echoed: sent {sent}, reply carries {received}")]
+    Echo {
+        /// What the request carried (address, value or count).
+        sent: String,
+        /// What the reply carried.
+        received: String,
+    },
+}
+
+/// Decodes a complete reply `frame` to `request` sent to `unit`.
+///
+/// Checks, in order: CRC, unit, function, then the length and byte count. The echo of a
+/// write is checked separately by [`check_echo`], so a caller may relax it.
+///
+/// # Errors
+/// [`FrameError`] saying what is wrong with the frame.
+pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, FrameError> {
+    if frame.len() < EXCEPTION_LEN {
+        return Err(FrameError::TooShort(frame.len()));
+    }
+    let (body, crc) = frame.split_at(frame.len() - 2);
+    let received = u16::from_le_bytes([crc[0], crc[1]]);
+    let computed = crc16(body);
+    if computed != received {
+        return Err(FrameError::Crc { computed, received });
+    }
+    if body[0] != unit {
+        return Err(FrameError::WrongUnit {
+            expected: unit,
+            received: body[0],
+        });
+    }
+    let function = request.function();
+    if body[1] == function | 0x80 {
+        if body.len() != 3 {
+            return Err(FrameError::Length(format!(
+                "exception reply of {} bytes",
+                frame.len()
+            )));
+        }
+        return Ok(Reply::Exception {
+            function,
+            code: body[2],
+        });
+    }
+    if body[1] != function {
+        return Err(FrameError::WrongFunction {
+            expected: function,
+            received: body[1],
+        });
+    }
+    let data = &body[2..];
+    let word = |i: usize| u16::from_be_bytes([data[i], data[i + 1]]);
+    let response = match request {
+        Request::ReadHoldingRegisters { count, .. } => {
+            let want = 2 * usize::from(*count);
+            if data.len() != 1 + want || usize::from(data[0]) != want {
+                return Err(FrameError::Length(format!(
+                    "byte count {} with {} data bytes, expected {want}",
+                    data[0],
+                    data.len() - 1
+                )));
+            }
+            Response::Registers(
+                data[1..]
+                    .chunks_exact(2)
+                    .map(|c| u16::from_be_bytes([c[0], c[1]]))
+                    .collect(),
+            )
+        }
+        Request::WriteSingleRegister { .. } | Request::WriteMultipleRegisters { .. } => {
+            if data.len() != 4 {
+                return Err(FrameError::Length(format!(
+                    "{} data bytes, expected 4",
+                    data.len()
+                )));
+            }
+            if matches!(request, Request::WriteSingleRegister { .. }) {
+                Response::WriteSingleRegister {
+                    address: word(0),
+                    value: word(2),
+                }
+            } else {
+                Response::WriteMultipleRegisters {
+                    address: word(0),
+                    count: word(2),
+                }
+            }
+        }
+        Request::ReadDeviceIdentification { .. } => {
+            Response::DeviceIdentification(decode_device_id(data)?)
+        }
+    };
+    Ok(Reply::Normal(response))
+}
+
+/// Parses the data of a Read Device Identification reply (after the function code).
+fn decode_device_id(data: &[u8]) -> Result<DeviceIdentification, FrameError> {
+    let bad = |what: &str| FrameError::Length(format!("device identification: {what}"));
+    if data.len() < 6 || data[0] != MEI_READ_DEVICE_ID {
+        return Err(bad("header"));
+    }
+    let mut id = DeviceIdentification {
+        read_code: data[1],
+        conformity: data[2],
+        more_follows: data[3] == 0xFF,
+        next_object: data[4],
+        objects: Default::default(),
+    };
+    let mut rest = &data[6..];
+    for _ in 0..data[5] {
+        let (&[obj, len], tail) = rest.split_first_chunk::<2>().ok_or_else(|| bad("object"))?;
+        let len = usize::from(len);
+        if tail.len() < len {
+            return Err(bad("object length"));
+        }
+        id.objects.insert(obj, tail[..len].to_vec());
+        rest = &tail[len..];
+    }
+    if !rest.is_empty() {
+        return Err(bad("trailing bytes"));
+    }
+    Ok(id)
+}
+
+/// Whether a write reply must echo the request exactly.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Echo {
+    /// The reply to 0x06 and 0x10 must echo address and value / count (the Modbus rule).
+    #[default]
+    Strict,
+    /// As `Strict`, but a 0x06 reply may carry a register count of 1 in place of the value,
+    /// as PBL drives do (`11 06 00 01 00 01 1B 5A` answering a write of 3).
+    CountForSingleWrite,
+}
+
+/// Checks that a write reply echoes its request.
+///
+/// # Errors
+/// [`FrameError::Echo`] when address, value or count differ.
+pub fn check_echo(request: &Request, response: &Response, echo: Echo) -> Result<(), FrameError> {
+    let mismatch = |sent: String, received: String| Err(FrameError::Echo { sent, received });
+    match (request, response) {
+        (
+            Request::WriteSingleRegister { address, value },
+            Response::WriteSingleRegister {
+                address: a,
+                value: v,
+            },
+        ) => {
+            let value_ok = v == value || (echo == Echo::CountForSingleWrite && *v == 1);
+            if a != address || !value_ok {
+                return mismatch(
+                    format!("address {address:#06x} value {value:#06x}"),
+                    format!("address {a:#06x} value {v:#06x}"),
+                );
+            }
+            Ok(())
+        }
+        (
+            Request::WriteMultipleRegisters { address, values },
+            Response::WriteMultipleRegisters {
+                address: a,
+                count: c,
+            },
+        ) => {
+            if a != address || usize::from(*c) != values.len() {
+                return mismatch(
+                    format!("address {address:#06x} count {}", values.len()),
+                    format!("address {a:#06x} count {c}"),
+                );
+            }
+            Ok(())
+        }
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn hex(s: &str) -> Vec<u8> {
+        s.split_whitespace()
+            .map(|b| u8::from_str_radix(b, 16).unwrap())
+            .collect()
+    }
+
+    #[test]
+    fn crc_of_known_frame() {
+        // 000 B.4: 01 06 20 00 00 01 43 CA (run forward)
+        assert_eq!(crc16(&hex("01 06 20 00 00 01")), 0xCA43);
+    }
+
+    #[test]
+    fn needed_for_exception_is_known_after_two_bytes() {
+        let req = Request::ReadHoldingRegisters {
+            address: 0x32,
+            count: 1,
+        };
+        assert_eq!(reply_needed(&req, &[]), Needed::More(5));
+        assert_eq!(reply_needed(&req, &[1, 0x83]), Needed::More(3));
+        assert_eq!(
+            reply_needed(&req, &hex("01 83 02 C0 F1")),
+            Needed::Complete(5)
+        );
+        assert_eq!(reply_needed(&req, &[1, 0x03]), Needed::More(3));
+        assert_eq!(reply_needed(&req, &[1, 0x03, 2]), Needed::More(4));
+        assert_eq!(reply_needed(&req, &[1, 0x04]), Needed::Unknown);
+    }
+
+    #[test]
+    fn needed_walks_device_id_objects() {
+        let req = Request::ReadDeviceIdentification {
+            read_code: 1,
+            object_id: 0,
+        };
+        let mut f = hex("02 2B 0E 01 01 00 00 02 00 03 41 42 43 01 01 58");
+        let crc = crc16(&f);
+        f.extend_from_slice(&crc.to_le_bytes());
+        assert_eq!(reply_needed(&req, &f[..8]), Needed::More(2));
+        assert_eq!(reply_needed(&req, &f[..10]), Needed::More(5));
+        assert_eq!(reply_needed(&req, &f[..15]), Needed::More(3));
+        assert_eq!(reply_needed(&req, &f[..17]), Needed::More(1));
+        assert_eq!(reply_needed(&req, &f), Needed::Complete(f.len()));
+        let Ok(Reply::Normal(Response::DeviceIdentification(id))) = decode_reply(2, &req, &f)
+        else {
+            panic!("not decoded");
+        };
+        assert_eq!(id.objects[&0], b"ABC");
+        assert_eq!(id.objects[&1], b"X");
+    }
+
+    #[test]
+    fn echo_rules() {
+        let req = Request::WriteSingleRegister {
+            address: 1,
+            value: 3,
+        };
+        let count_reply = Response::WriteSingleRegister {
+            address: 1,
+            value: 1,
+        };
+        assert!(check_echo(&req, &count_reply, Echo::Strict).is_err());
+        assert!(check_echo(&req, &count_reply, Echo::CountForSingleWrite).is_ok());
+        let wrong_addr = Response::WriteSingleRegister {
+            address: 2,
+            value: 3,
+        };
+        assert!(check_echo(&req, &wrong_addr, Echo::CountForSingleWrite).is_err());
+    }
+
+    #[test]
+    fn decode_checks_crc_then_unit_then_function() {
+        let req = Request::ReadHoldingRegisters {
+            address: 0x2100,
+            count: 1,
+        };
+        let good = hex("01 03 02 00 05 78 47");
+        assert_eq!(
+            decode_reply(1, &req, &good),
+            Ok(Reply::Normal(Response::Registers(vec![5])))
+        );
+        let mut bad = good.clone();
+        bad[4] ^= 1;
+        assert!(matches!(
+            decode_reply(1, &req, &bad),
+            Err(FrameError::Crc { .. })
+        ));
+        assert!(matches!(
+            decode_reply(2, &req, &good),
+            Err(FrameError::WrongUnit {
+                expected: 2,
+                received: 1
+            })
+        ));
+        let req2 = Request::ReadHoldingRegisters {
+            address: 0x2100,
+            count: 2,
+        };
+        assert!(matches!(
+            decode_reply(1, &req2, &good),
+            Err(FrameError::Length(_))
+        ));
+    }
+}

@@ -1,0 +1,114 @@
+//! The crate's one error type. Each variant keeps its evidence: the unit, the function and
+//! the raw frame, so the caller (and the Python exception built from it) can show them.
+
+use crate::codec::{FrameError, RequestError};
+use std::time::Duration;
+
+/// Result with the crate's [`Error`].
+pub type Result<T> = std::result::Result<T, Error>;
+
+/// Everything that can go wrong talking to a device.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// A bad argument, refused before anything was sent.
+    #[error("{0}")]
+    InvalidArgument(String),
+    /// The port cannot be opened, vanished, or an I/O call failed.
+    #[error("port {port}: {message}")]
+    Port {
+        /// The port's path.
+        port: String,
+        /// What failed.
+        message: String,
+        /// The underlying I/O error, if any.
+        #[source]
+        source: Option<std::io::Error>,
+    },
+    /// The bus was closed.
+    #[error("bus on {port} is closed")]
+    Closed {
+        /// The port's path.
+        port: String,
+    },
+    /// No (complete) reply in time.
+    #[error("unit {unit}, function {function:#04x}: no complete reply within {timeout:?}{}", partial(.received))]
+    Timeout {
+        /// Unit asked.
+        unit: u8,
+        /// Function asked.
+        function: u8,
+        /// The per-attempt timeout.
+        timeout: Duration,
+        /// Bytes of an incomplete reply, if any arrived.
+        received: Vec<u8>,
+    },
+    /// A reply arrived but is malformed.
+    #[error("unit {unit}, function {function:#04x}: {kind} (frame {})", hex(.frame))]
+    Frame {
+        /// Unit asked.
+        unit: u8,
+        /// Function asked.
+        function: u8,
+        /// What is wrong with it.
+        kind: FrameError,
+        /// The bytes received.
+        frame: Vec<u8>,
+    },
+    /// The device answered with an exception response.
+    #[error("unit {unit}, function {function:#04x}: exception {code:#04x}: {meaning}")]
+    Exception {
+        /// Unit that answered.
+        unit: u8,
+        /// Function of the request.
+        function: u8,
+        /// The exception code.
+        code: u8,
+        /// Its meaning (device-specific where the device's manual gives one).
+        meaning: String,
+        /// The exception reply frame.
+        frame: Vec<u8>,
+    },
+}
+
+impl Error {
+    /// Whether another attempt may succeed: after a timeout or a corrupt frame, never after
+    /// an exception response.
+    pub fn is_retryable(&self) -> bool {
+        matches!(self, Error::Timeout { .. } | Error::Frame { .. })
+    }
+
+    /// The raw frame the error carries, if any.
+    pub fn frame(&self) -> Option<&[u8]> {
+        match self {
+            Error::Timeout { received, .. } if !received.is_empty() => Some(received),
+            Error::Frame { frame, .. } | Error::Exception { frame, .. } => Some(frame),
+            _ => None,
+        }
+    }
+}
+
+impl From<RequestError> for Error {
+    fn from(e: RequestError) -> Error {
+        Error::InvalidArgument(e.to_string())
+    }
+}
+
+/// Bytes as space-separated uppercase hex, the way the manuals print frames.
+pub fn hex(bytes: &[u8]) -> String {
+    let mut s = String::with_capacity(bytes.len() * 3);
+    for (i, b) in bytes.iter().enumerate() {
+        if i > 0 {
+            s.push(' ');
+        }
+        s.push_str(&format!("{b:02X}"));
+    }
+    s
+}
+
+fn partial(received: &[u8]) -> String {
+    if received.is_empty() {
+        String::new()
+    } else {
+        format!(" (partial reply {})", hex(received))
+    }
+}

@@ -1,0 +1,547 @@
+//! PyO3 bindings: argument conversion, exception mapping, GIL release. Nothing else.
+//!
+//! Every call that touches the wire runs inside `py.detach`, so other Python threads (and
+//! other buses) go on while one waits for its device.
+
+use crate::bus::{self, BusConfig, TxOptions, UNITS};
+use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
+use crate::codec::{Echo, FrameError};
+use crate::error::{hex, Error};
+use crate::timing::{LineFormat, Parity};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::sync::PyOnceLock;
+use pyo3::types::{PyBytes, PyDict, PyInt, PyModule, PyString};
+use std::sync::{Arc, OnceLock};
+use std::time::Duration;
+
+static LOG_RESET: OnceLock<pyo3_log::ResetHandle> = OnceLock::new();
+static EXCEPTIONS: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
+
+/// Maps a crate error to the Python exception tree of `benchbus.exceptions` (the one place
+/// this happens).
+fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
+    let message = err.to_string();
+    let frame = err.frame().map(hex);
+    let (class, unit, function) = match &err {
+        Error::InvalidArgument(m) => return PyValueError::new_err(m.clone()),
+        Error::Port { .. } | Error::Closed { .. } => ("PortError", None, None),
+        Error::Timeout { unit, function, .. } => ("ResponseTimeout", Some(*unit), Some(*function)),
+        Error::Frame {
+            unit,
+            function,
+            kind: FrameError::Crc { .. },
+            ..
+        } => ("CrcError", Some(*unit), Some(*function)),
+        Error::Frame { unit, function, .. } => ("FrameError", Some(*unit), Some(*function)),
+        Error::Exception { unit, function, .. } => {
+            ("ModbusException", Some(*unit), Some(*function))
+        }
+    };
+    let build = || -> PyResult<PyErr> {
+        let module = EXCEPTIONS.get_or_try_init(py, || {
+            PyModule::import(py, "benchbus.exceptions").map(Bound::unbind)
+        })?;
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("unit", unit)?;
+        kwargs.set_item("function", function)?;
+        kwargs.set_item("frame", frame)?;
+        if let Error::Exception { code, meaning, .. } = &err {
+            kwargs.set_item("code", *code)?;
+            kwargs.set_item("meaning", meaning.as_str())?;
+        }
+        let instance = module
+            .bind(py)
+            .getattr(class)?
+            .call((message,), Some(&kwargs))?;
+        Ok(PyErr::from_value(instance))
+    };
+    build().unwrap_or_else(|e| e)
+}
+
+/// An int argument in `lo..=hi`: TypeError for a non-int, ValueError (never OverflowError)
+/// for an int out of range.
+fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64> {
+    if !obj.is_instance_of::<PyInt>() {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be an int, got {}",
+            obj.get_type().name()?
+        )));
+    }
+    match obj.extract::<i64>() {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v),
+        _ => Err(PyValueError::new_err(format!(
+            "{name} must be {lo}..={hi}, got {obj}"
+        ))),
+    }
+}
+
+/// An optional argument: its default when absent (or None), else converted by `f`.
+fn opt<'py, T>(
+    obj: Option<&Bound<'py, PyAny>>,
+    default: T,
+    f: impl FnOnce(&Bound<'py, PyAny>) -> PyResult<T>,
+) -> PyResult<T> {
+    match obj {
+        Some(o) if !o.is_none() => f(o),
+        _ => Ok(default),
+    }
+}
+
+fn u8_in(obj: &Bound<'_, PyAny>, name: &str, lo: u8, hi: u8) -> PyResult<u8> {
+    int_in(obj, name, lo.into(), hi.into()).map(|v| v as u8)
+}
+
+fn u16_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<u16> {
+    int_in(obj, name, 0, 0xFFFF).map(|v| v as u16)
+}
+
+fn unit_arg(obj: &Bound<'_, PyAny>) -> PyResult<u8> {
+    u8_in(obj, "unit", *UNITS.start(), *UNITS.end())
+}
+
+fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Duration> {
+    let value: f64 = obj
+        .extract()
+        .map_err(|_| PyTypeError::new_err(format!("{name} must be a number of seconds")))?;
+    let ok = value.is_finite() && (value > 0.0 || (allow_zero && value == 0.0)) && value <= 3600.0;
+    if !ok || obj.is_instance_of::<PyString>() {
+        let range = if allow_zero {
+            "0..=3600"
+        } else {
+            "0 < seconds <= 3600"
+        };
+        return Err(PyValueError::new_err(format!(
+            "{name} must be {range} seconds, got {value}"
+        )));
+    }
+    Ok(Duration::from_secs_f64(value))
+}
+
+fn register_values(obj: &Bound<'_, PyAny>) -> PyResult<Vec<u16>> {
+    if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
+        return Err(PyTypeError::new_err(
+            "values must be a sequence of ints, not str or bytes",
+        ));
+    }
+    let values = obj
+        .try_iter()
+        .map_err(|_| PyTypeError::new_err("values must be a sequence of ints"))?
+        .map(|item| u16_arg(&item?, "each value"))
+        .collect::<PyResult<Vec<u16>>>()?;
+    if values.is_empty() || values.len() > usize::from(MAX_WRITE_COUNT) {
+        return Err(PyValueError::new_err(format!(
+            "values must hold 1..={MAX_WRITE_COUNT} registers, got {}",
+            values.len()
+        )));
+    }
+    Ok(values)
+}
+
+/// Counters of what happened on a Bus since it was opened.
+#[pyclass(frozen, get_all, module = "benchbus._core", name = "Stats")]
+#[derive(Clone)]
+struct PyStats {
+    transactions: u64,
+    retries: u64,
+    timeouts: u64,
+    crc_errors: u64,
+    frame_errors: u64,
+    exceptions: u64,
+    stale_bytes: u64,
+    broadcasts: u64,
+}
+
+impl From<bus::Stats> for PyStats {
+    fn from(s: bus::Stats) -> Self {
+        PyStats {
+            transactions: s.transactions,
+            retries: s.retries,
+            timeouts: s.timeouts,
+            crc_errors: s.crc_errors,
+            frame_errors: s.frame_errors,
+            exceptions: s.exceptions,
+            stale_bytes: s.stale_bytes,
+            broadcasts: s.broadcasts,
+        }
+    }
+}
+
+#[pymethods]
+impl PyStats {
+    /// The counters as a dict.
+    fn as_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for (k, v) in self.fields() {
+            d.set_item(k, v)?;
+        }
+        Ok(d)
+    }
+
+    fn __repr__(&self) -> String {
+        let parts: Vec<String> = self
+            .fields()
+            .iter()
+            .map(|(k, v)| format!("{k}={v}"))
+            .collect();
+        format!("Stats({})", parts.join(", "))
+    }
+
+    fn __eq__(&self, other: &Bound<'_, PyAny>) -> bool {
+        other
+            .cast::<PyStats>()
+            .map(|o| o.get().fields() == self.fields())
+            .unwrap_or(false)
+    }
+}
+
+impl PyStats {
+    fn fields(&self) -> [(&'static str, u64); 8] {
+        [
+            ("transactions", self.transactions),
+            ("retries", self.retries),
+            ("timeouts", self.timeouts),
+            ("crc_errors", self.crc_errors),
+            ("frame_errors", self.frame_errors),
+            ("exceptions", self.exceptions),
+            ("stale_bytes", self.stale_bytes),
+            ("broadcasts", self.broadcasts),
+        ]
+    }
+}
+
+/// A Modbus RTU master on one serial line.
+#[pyclass(frozen, module = "benchbus._core", name = "Bus")]
+struct PyBus {
+    bus: Arc<bus::Bus>,
+}
+
+impl PyBus {
+    /// Runs `f` on the bus with the GIL released and maps its error.
+    fn wire<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&bus::Bus) -> crate::Result<T> + Send,
+    ) -> PyResult<T> {
+        let bus = Arc::clone(&self.bus);
+        py.detach(move || f(&bus)).map_err(|e| to_pyerr(py, e))
+    }
+}
+
+#[pymethods]
+impl PyBus {
+    #[new]
+    #[pyo3(signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        port: &Bound<'_, PyAny>,
+        baudrate: Option<&Bound<'_, PyAny>>,
+        parity: Option<&Bound<'_, PyAny>>,
+        stopbits: Option<&Bound<'_, PyAny>>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
+        turnaround: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let port: std::path::PathBuf = port
+            .extract()
+            .map_err(|_| PyTypeError::new_err("port must be a str or os.PathLike"))?;
+        let port = port.to_string_lossy().into_owned();
+        if let Some((scheme, _)) = port.split_once("://") {
+            return Err(PyValueError::new_err(format!(
+                "port {port:?}: transport {scheme:?} is not supported by this version; \
+                 give a serial port path such as /dev/ttyUSB0"
+            )));
+        }
+        if port.is_empty() {
+            return Err(PyValueError::new_err("port must not be empty"));
+        }
+        let baudrate = opt(baudrate, 19_200, |b| int_in(b, "baudrate", 50, 4_000_000))? as u32;
+        let parity_str: String = opt(parity, "N".to_string(), |p| {
+            p.extract()
+                .map_err(|_| PyTypeError::new_err("parity must be 'N', 'E' or 'O'"))
+        })?;
+        let parity = Parity::from_letter(&parity_str).ok_or_else(|| {
+            PyValueError::new_err(format!(
+                "parity must be 'N', 'E' or 'O', got {parity_str:?}"
+            ))
+        })?;
+        let stop_bits = opt(stopbits, 1, |s| u8_in(s, "stopbits", 1, 2))?;
+        let mut config = BusConfig::new(&port, LineFormat::new(baudrate, parity, stop_bits));
+        config.timeout = opt(timeout, config.timeout, |t| seconds(t, "timeout", false))?;
+        config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, 100))? as u32;
+        config.turnaround = opt(turnaround, config.turnaround, |t| {
+            seconds(t, "turnaround", true)
+        })?;
+        // Logging levels are read when a bus opens (pyo3-log caches them).
+        if let Some(handle) = LOG_RESET.get() {
+            handle.reset();
+        }
+        let bus = py
+            .detach(move || bus::Bus::open(config))
+            .map_err(|e| to_pyerr(py, e))?;
+        Ok(PyBus { bus: Arc::new(bus) })
+    }
+
+    /// Reads `count` (1..=125) holding registers from `address` (function 0x03).
+    fn read_holding_registers(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<u16>> {
+        let unit = unit_arg(unit)?;
+        let address = u16_arg(address, "address")?;
+        let count = int_in(count, "count", 1, MAX_READ_COUNT.into())? as u16;
+        if usize::from(address) + usize::from(count) > 0x1_0000 {
+            return Err(PyValueError::new_err(format!(
+                "registers {address:#06x}+{count} run past address 0xFFFF"
+            )));
+        }
+        self.wire(py, |b| {
+            b.read_holding_registers(unit, address, count, &TxOptions::default())
+        })
+    }
+
+    /// Writes one register (function 0x06).
+    #[pyo3(signature = (unit, address, value, *, accept_count_echo=false))]
+    fn write_register(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
+        accept_count_echo: bool,
+    ) -> PyResult<()> {
+        let unit = unit_arg(unit)?;
+        let address = u16_arg(address, "address")?;
+        let value = u16_arg(value, "value")?;
+        let opts = TxOptions {
+            echo: if accept_count_echo {
+                Echo::CountForSingleWrite
+            } else {
+                Echo::Strict
+            },
+            ..TxOptions::default()
+        };
+        self.wire(py, |b| b.write_register(unit, address, value, &opts))
+    }
+
+    /// Writes 1..=123 consecutive registers from `address` (function 0x10).
+    fn write_registers(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let unit = unit_arg(unit)?;
+        let address = u16_arg(address, "address")?;
+        let values = register_values(values)?;
+        if usize::from(address) + values.len() > 0x1_0000 {
+            return Err(PyValueError::new_err(format!(
+                "registers {address:#06x}+{} run past address 0xFFFF",
+                values.len()
+            )));
+        }
+        self.wire(py, |b| {
+            b.write_registers(unit, address, &values, &TxOptions::default())
+        })
+    }
+
+    /// Reads the device identification objects (function 0x2B, MEI 0x0E) as
+    /// `{object_id: text}`, following "more follows".
+    #[pyo3(signature = (unit, read_code=None, object_id=None))]
+    fn read_device_identification(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        read_code: Option<&Bound<'_, PyAny>>,
+        object_id: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<std::collections::BTreeMap<u8, String>> {
+        let unit = unit_arg(unit)?;
+        let read_code = opt(read_code, 1, |r| u8_in(r, "read_code", 1, 4))?;
+        let object_id = opt(object_id, 0, |o| u8_in(o, "object_id", 0, 255))?;
+        let id = self.wire(py, |b| {
+            b.read_device_identification(unit, read_code, object_id, &TxOptions::default())
+        })?;
+        Ok(id
+            .objects
+            .into_iter()
+            .map(|(k, v)| (k, String::from_utf8_lossy(&v).into_owned()))
+            .collect())
+    }
+
+    /// Writes one register on every unit (unit 0); waits no reply.
+    fn broadcast_write_register(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let address = u16_arg(address, "address")?;
+        let value = u16_arg(value, "value")?;
+        self.wire(py, |b| b.broadcast_write_register(address, value))
+    }
+
+    /// The units among `units` that answer a read of register `address` within `timeout`
+    /// seconds (an exception reply counts as an answer). Ctrl-C stops the scan.
+    #[pyo3(signature = (units=None, timeout=None, address=None))]
+    fn scan(
+        &self,
+        py: Python<'_>,
+        units: Option<&Bound<'_, PyAny>>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        address: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Vec<u8>> {
+        let units: Vec<u8> = match units {
+            None => UNITS.collect(),
+            Some(obj) => obj
+                .try_iter()
+                .map_err(|_| PyTypeError::new_err("units must be an iterable of ints"))?
+                .map(|u| unit_arg(&u?))
+                .collect::<PyResult<_>>()?,
+        };
+        let timeout = opt(timeout, Duration::from_millis(50), |t| {
+            seconds(t, "timeout", false)
+        })?;
+        let address = opt(address, 0, |a| u16_arg(a, "address"))?;
+        let mut found = Vec::new();
+        for unit in units {
+            if self.wire(py, |b| b.probe(unit, address, timeout))? {
+                found.push(unit);
+            }
+            py.check_signals()?;
+        }
+        Ok(found)
+    }
+
+    /// Counters of what happened on this bus.
+    #[getter]
+    fn stats(&self) -> PyStats {
+        self.bus.stats().into()
+    }
+
+    /// Closes the port. Further calls raise PortError; closing twice is harmless.
+    fn close(&self, py: Python<'_>) {
+        let bus = Arc::clone(&self.bus);
+        py.detach(move || bus.close());
+    }
+
+    /// True once the bus is closed.
+    #[getter]
+    fn closed(&self) -> bool {
+        self.bus.is_closed()
+    }
+
+    fn __enter__(slf: Py<Self>) -> Py<Self> {
+        slf
+    }
+
+    #[pyo3(signature = (*_args))]
+    fn __exit__(&self, py: Python<'_>, _args: &Bound<'_, pyo3::types::PyTuple>) -> bool {
+        self.close(py);
+        false
+    }
+
+    /// The port path.
+    #[getter]
+    fn port(&self) -> String {
+        self.bus.config().port.clone()
+    }
+
+    /// Bits per second.
+    #[getter]
+    fn baudrate(&self) -> u32 {
+        self.bus.config().line.baudrate
+    }
+
+    /// Parity letter: "N", "E" or "O".
+    #[getter]
+    fn parity(&self) -> String {
+        self.bus.config().line.parity.letter().to_string()
+    }
+
+    /// Stop bits: 1 or 2.
+    #[getter]
+    fn stopbits(&self) -> u8 {
+        self.bus.config().line.stop_bits
+    }
+
+    /// Reply timeout per attempt, in seconds.
+    #[getter]
+    fn timeout(&self) -> f64 {
+        self.bus.config().timeout.as_secs_f64()
+    }
+
+    /// Further attempts after a timeout or a corrupt frame.
+    #[getter]
+    fn retries(&self) -> u32 {
+        self.bus.config().retries
+    }
+
+    /// Quiet time after a broadcast, in seconds.
+    #[getter]
+    fn turnaround(&self) -> f64 {
+        self.bus.config().turnaround.as_secs_f64()
+    }
+
+    /// Time one character takes on the wire, in seconds.
+    #[getter]
+    fn char_time(&self) -> f64 {
+        self.bus.config().line.char_time().as_secs_f64()
+    }
+
+    /// The silence between frames (t3.5), in seconds.
+    #[getter]
+    fn t3_5(&self) -> f64 {
+        self.bus.config().line.t3_5().as_secs_f64()
+    }
+
+    fn __repr__(&self) -> String {
+        let c = self.bus.config();
+        format!(
+            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{})",
+            c.port.replace('\\', "\\\\").replace('\'', "\\'"),
+            c.line.baudrate,
+            c.line.parity.letter(),
+            c.line.stop_bits,
+            c.timeout.as_secs_f64(),
+            c.retries,
+            if self.bus.is_closed() { ", closed" } else { "" }
+        )
+    }
+}
+
+/// CRC-16/MODBUS of `data` (as sent: low byte first on the wire).
+#[pyfunction]
+fn crc16(data: &[u8]) -> u16 {
+    crate::codec::crc16(data)
+}
+
+/// Re-reads the Python logging levels (they are cached for speed; a Bus reads them when it
+/// opens). Call after changing the level of `benchbus.wire` while a Bus is open.
+#[pyfunction]
+fn refresh_logging() {
+    if let Some(handle) = LOG_RESET.get() {
+        handle.reset();
+    }
+}
+
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    let py = m.py();
+    if LOG_RESET.get().is_none() {
+        let logger = pyo3_log::Logger::new(py, pyo3_log::Caching::LoggersAndLevels)?;
+        if let Ok(handle) = logger.install() {
+            let _ = LOG_RESET.set(handle);
+        }
+    }
+    m.add_class::<PyBus>()?;
+    m.add_class::<PyStats>()?;
+    m.add_function(wrap_pyfunction!(crc16, m)?)?;
+    m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}
