@@ -4,7 +4,9 @@ import os
 from collections.abc import Iterable
 from types import TracebackType
 
-from typing_extensions import Self
+from typing_extensions import Self, final
+
+__all__ = ["Bus", "Stats", "__version__", "crc16", "refresh_logging"]
 
 __version__: str
 
@@ -14,6 +16,7 @@ def crc16(data: bytes) -> int:
 def refresh_logging() -> None:
     """Re-read the Python logging levels (cached for speed; a Bus reads them when it opens)."""
 
+@final
 class Stats:
     """Counters of what happened on a Bus since it was opened."""
 
@@ -44,6 +47,7 @@ class Stats:
     def as_dict(self) -> dict[str, int]:
         """The counters as a dict."""
 
+@final
 class Bus:
     """A Modbus RTU master on one serial line.
 
@@ -53,8 +57,8 @@ class Bus:
     ``retries`` times, an exception reply never is.
     """
 
-    def __init__(
-        self,
+    def __new__(
+        cls,
         port: str | os.PathLike[str],
         baudrate: int = 19200,
         parity: str = "N",
@@ -63,7 +67,7 @@ class Bus:
         retries: int = 2,
         *,
         turnaround: float = 0.1,
-    ) -> None:
+    ) -> Self:
         """Open ``port`` (e.g. ``/dev/ttyUSB0``) at the given line format.
 
         ``timeout`` is per attempt, in seconds; ``turnaround`` is the quiet time after a

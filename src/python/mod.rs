@@ -231,7 +231,10 @@ impl PyBus {
 #[pymethods]
 impl PyBus {
     #[new]
-    #[pyo3(signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None))]
+    #[pyo3(
+        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None),
+        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1)"
+    )]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -352,7 +355,10 @@ impl PyBus {
 
     /// Reads the device identification objects (function 0x2B, MEI 0x0E) as
     /// `{object_id: text}`, following "more follows".
-    #[pyo3(signature = (unit, read_code=None, object_id=None))]
+    #[pyo3(
+        signature = (unit, read_code=None, object_id=None),
+        text_signature = "($self, unit, read_code=1, object_id=0)"
+    )]
     fn read_device_identification(
         &self,
         py: Python<'_>,
@@ -387,7 +393,10 @@ impl PyBus {
 
     /// The units among `units` that answer a read of register `address` within `timeout`
     /// seconds (an exception reply counts as an answer). Ctrl-C stops the scan.
-    #[pyo3(signature = (units=None, timeout=None, address=None))]
+    #[pyo3(
+        signature = (units=None, timeout=None, address=None),
+        text_signature = "($self, units=None, timeout=0.05, address=0)"
+    )]
     fn scan(
         &self,
         py: Python<'_>,

@@ -1,0 +1,259 @@
+//! Bus logic against a scripted transport: retries, exception replies, echo rules, stale input.
+
+use benchbus::bus::{Bus, BusConfig, TxOptions};
+use benchbus::codec::{crc16, Echo};
+use benchbus::timing::{LineFormat, Parity};
+use benchbus::transport::Transport;
+use benchbus::Error;
+use std::collections::VecDeque;
+use std::io;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// What the scripted device does with the next request.
+enum Act {
+    Reply(Vec<u8>),
+    Silent,
+}
+
+#[derive(Default)]
+struct Script {
+    acts: VecDeque<Act>,
+    pending: VecDeque<u8>,
+    sent: Vec<Vec<u8>>,
+}
+
+#[derive(Clone, Default)]
+struct Scripted(Arc<Mutex<Script>>);
+
+impl Transport for Scripted {
+    fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
+        let mut s = self.0.lock().unwrap();
+        s.sent.push(frame.to_vec());
+        if let Some(Act::Reply(bytes)) = s.acts.pop_front() {
+            s.pending.extend(bytes);
+        }
+        Ok(())
+    }
+    fn read(&mut self, buf: &mut [u8], _timeout: Duration) -> io::Result<usize> {
+        let mut s = self.0.lock().unwrap();
+        let n = buf.len().min(s.pending.len());
+        for b in buf.iter_mut().take(n) {
+            *b = s.pending.pop_front().unwrap();
+        }
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> io::Result<Vec<u8>> {
+        Ok(self.0.lock().unwrap().pending.drain(..).collect())
+    }
+    fn is_serial_line(&self) -> bool {
+        false
+    }
+}
+
+fn with_crc(body: &[u8]) -> Vec<u8> {
+    let mut f = body.to_vec();
+    f.extend_from_slice(&crc16(body).to_le_bytes());
+    f
+}
+
+fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
+    let t = Scripted::default();
+    t.0.lock().unwrap().acts = acts.into();
+    let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1));
+    cfg.retries = retries;
+    cfg.timeout = Duration::from_millis(5);
+    cfg.turnaround = Duration::ZERO;
+    (Bus::with_transport(cfg, Box::new(t.clone())), t)
+}
+
+#[test]
+fn corrupt_reply_is_retried_and_recovers() {
+    let good = with_crc(&[1, 3, 2, 0x13, 0x88]);
+    let mut bad = good.clone();
+    bad[3] ^= 0x40;
+    let (bus, t) = bus(vec![Act::Reply(bad), Act::Reply(good)], 2);
+    let v = bus
+        .read_holding_registers(1, 0x000A, 1, &TxOptions::default())
+        .unwrap();
+    assert_eq!(v, vec![0x1388]);
+    let s = bus.stats();
+    assert_eq!((s.crc_errors, s.retries, s.transactions), (1, 1, 1));
+    assert_eq!(t.0.lock().unwrap().sent.len(), 2);
+}
+
+#[test]
+fn silent_unit_times_out_after_every_attempt() {
+    let (bus, t) = bus(vec![Act::Silent, Act::Silent, Act::Silent], 2);
+    let e = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Timeout {
+                unit: 1,
+                function: 3,
+                ..
+            }
+        ),
+        "{e}"
+    );
+    assert_eq!(t.0.lock().unwrap().sent.len(), 3);
+    assert_eq!(bus.stats().timeouts, 3);
+}
+
+#[test]
+fn exception_reply_is_not_retried() {
+    // 000 B.4 读失败: reading F00.50 answers exception 0x02.
+    let (bus, t) = bus(vec![Act::Reply(vec![0x01, 0x83, 0x02, 0xC0, 0xF1])], 2);
+    let e = bus
+        .read_holding_registers(1, 0x0032, 1, &TxOptions::default())
+        .unwrap_err();
+    match e {
+        Error::Exception {
+            unit,
+            function,
+            code,
+            ref frame,
+            ..
+        } => {
+            assert_eq!((unit, function, code), (1, 3, 2));
+            assert_eq!(frame, &vec![0x01, 0x83, 0x02, 0xC0, 0xF1]);
+        }
+        other => panic!("{other}"),
+    }
+    assert_eq!(t.0.lock().unwrap().sent.len(), 1);
+    assert_eq!(bus.stats().exceptions, 1);
+}
+
+#[test]
+fn device_meaning_replaces_standard_text() {
+    fn drive_meaning(code: u8) -> &'static str {
+        if code == 8 {
+            "not changeable while running"
+        } else {
+            "other"
+        }
+    }
+    let (bus, _) = bus(vec![Act::Reply(with_crc(&[1, 0x86, 0x08]))], 0);
+    let opts = TxOptions {
+        meaning: drive_meaning,
+        ..TxOptions::default()
+    };
+    let e = bus.write_register(1, 0x2002, 4, &opts).unwrap_err();
+    assert!(
+        e.to_string().contains("not changeable while running"),
+        "{e}"
+    );
+}
+
+#[test]
+fn non_echo_is_refused_unless_the_device_allows_it() {
+    // 002 §2.2: answer to a write of 3 carries a register count of 1.
+    let reply = vec![0x11, 0x06, 0x00, 0x01, 0x00, 0x01, 0x1B, 0x5A];
+    let (strict, _) = bus(vec![Act::Reply(reply.clone())], 0);
+    let e = strict
+        .write_register(0x11, 1, 3, &TxOptions::default())
+        .unwrap_err();
+    assert!(matches!(e, Error::Frame { .. }), "{e}");
+    let (lenient, t) = bus(vec![Act::Reply(reply)], 0);
+    let opts = TxOptions {
+        echo: Echo::CountForSingleWrite,
+        ..TxOptions::default()
+    };
+    lenient.write_register(0x11, 1, 3, &opts).unwrap();
+    assert_eq!(
+        t.0.lock().unwrap().sent[0],
+        vec![0x11, 0x06, 0x00, 0x01, 0x00, 0x03, 0x9A, 0x9B]
+    );
+}
+
+#[test]
+fn stale_input_is_dropped_and_counted() {
+    let (bus, t) = bus(vec![Act::Reply(with_crc(&[1, 3, 2, 0, 7]))], 0);
+    t.0.lock().unwrap().pending.extend([0xAA, 0xBB, 0xCC]);
+    let v = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap();
+    assert_eq!(v, vec![7]);
+    assert_eq!(bus.stats().stale_bytes, 3);
+}
+
+#[test]
+fn reply_from_wrong_unit_is_a_frame_error() {
+    let (bus, _) = bus(vec![Act::Reply(with_crc(&[2, 3, 2, 0, 7]))], 0);
+    let e = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    assert!(matches!(e, Error::Frame { .. }), "{e}");
+    assert_eq!(bus.stats().frame_errors, 1);
+}
+
+#[test]
+fn bad_arguments_send_nothing() {
+    let (bus, t) = bus(vec![], 0);
+    let opts = TxOptions::default();
+    assert!(matches!(
+        bus.read_holding_registers(0, 0, 1, &opts),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(
+        bus.read_holding_registers(1, 0, 126, &opts),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(
+        bus.read_holding_registers(1, 0xFFFF, 2, &opts),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(
+        bus.write_registers(1, 0, &[0; 124], &opts),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(t.0.lock().unwrap().sent.is_empty());
+}
+
+#[test]
+fn closed_bus_refuses_calls() {
+    let (bus, _) = bus(vec![], 0);
+    bus.close();
+    bus.close();
+    assert!(matches!(
+        bus.read_holding_registers(1, 0, 1, &TxOptions::default()),
+        Err(Error::Closed { .. })
+    ));
+}
+
+#[test]
+fn write_interval_spaces_writes_to_one_unit() {
+    let echo = with_crc(&[1, 6, 0, 6, 3, 0xE8]);
+    let (bus, _) = bus(vec![Act::Reply(echo.clone()), Act::Reply(echo)], 0);
+    let opts = TxOptions {
+        write_interval: Duration::from_millis(150),
+        ..TxOptions::default()
+    };
+    let start = std::time::Instant::now();
+    bus.write_register(1, 6, 1000, &opts).unwrap();
+    bus.write_register(1, 6, 1000, &opts).unwrap();
+    assert!(start.elapsed() >= Duration::from_millis(150));
+}
+
+#[test]
+fn device_identification_follows_more_follows() {
+    // Page 1: objects 0 and 1, more follows, next object 2. Page 2: object 2.
+    let p1 = with_crc(&[
+        2, 0x2B, 0x0E, 1, 1, 0xFF, 2, 2, 0, 2, b'A', b'B', 1, 1, b'C',
+    ]);
+    let p2 = with_crc(&[2, 0x2B, 0x0E, 1, 1, 0, 0, 1, 2, 4, b'0', b'2', b'0', b'1']);
+    let (bus, t) = bus(vec![Act::Reply(p1), Act::Reply(p2)], 0);
+    let id = bus
+        .read_device_identification(2, 1, 0, &TxOptions::default())
+        .unwrap();
+    assert_eq!(id.objects[&0], b"AB");
+    assert_eq!(id.objects[&1], b"C");
+    assert_eq!(id.objects[&2], b"0201");
+    assert_eq!(
+        t.0.lock().unwrap().sent[1],
+        with_crc(&[2, 0x2B, 0x0E, 1, 2])
+    );
+}

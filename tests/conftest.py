@@ -1,0 +1,71 @@
+"""Shared fixtures: a scripted raw slave on a pseudo-terminal, for golden-frame tests."""
+
+from __future__ import annotations
+
+import os
+import select
+import termios
+import threading
+import time
+import tty
+from collections.abc import Iterator
+
+import pytest
+
+
+class ScriptedSlave:
+    """The far end of a pty pair that answers each request with scripted bytes.
+
+    The library opens ``port``; each call of :meth:`expect` queues one exchange: read a
+    request of a given length, record it, then write the reply (or stay silent).
+    """
+
+    def __init__(self) -> None:
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        attrs = termios.tcgetattr(self._slave)
+        attrs[3] &= ~termios.ECHO
+        termios.tcsetattr(self._slave, termios.TCSANOW, attrs)
+        self.port = os.ttyname(self._slave)
+        self.received: list[bytes] = []
+        self._thread: threading.Thread | None = None
+
+    def _read_exact(self, n: int, timeout: float) -> bytes:
+        data = b""
+        deadline = time.monotonic() + timeout
+        while len(data) < n:
+            left = deadline - time.monotonic()
+            if left <= 0 or not select.select([self.master], [], [], left)[0]:
+                break
+            data += os.read(self.master, n - len(data))
+        return data
+
+    def expect(self, request_len: int, reply: bytes | None, timeout: float = 2.0) -> None:
+        """In the background: read ``request_len`` bytes, then write ``reply`` (None: silent)."""
+
+        def run() -> None:
+            self.received.append(self._read_exact(request_len, timeout))
+            if reply is not None:
+                os.write(self.master, reply)
+
+        self._thread = threading.Thread(target=run, daemon=True)
+        self._thread.start()
+
+    def join(self) -> None:
+        """Wait for the queued exchange to finish."""
+        if self._thread is not None:
+            self._thread.join(5)
+
+    def close(self) -> None:
+        """Close both ends of the pty pair."""
+        self.join()
+        for fd in (self.master, self._slave):
+            os.close(fd)
+
+
+@pytest.fixture
+def slave() -> Iterator[ScriptedSlave]:
+    """A scripted slave on a fresh pseudo-terminal pair."""
+    s = ScriptedSlave()
+    yield s
+    s.close()
