@@ -290,14 +290,15 @@ def test_properties_and_line_timing(sim: Simulator) -> None:
     with bb.Bus(sim.port, baudrate=115200, parity="E", stopbits=1, timeout=0.25, retries=3) as bus:
         assert (bus.port, bus.baudrate, bus.parity, bus.stopbits) == (sim.port, 115200, "E", 1)
         assert (bus.timeout, bus.retries) == (0.25, 3)
-        assert bus.char_time == pytest.approx(11 / 115200)  # 8E1: 11 bits a character
+        # 8E1: 11 bits a character (times are kept to the nanosecond).
+        assert bus.char_time == pytest.approx(11 / 115200, abs=1e-9)
         assert bus.t3_5 == pytest.approx(0.00175)  # fixed above 19200 baud
         # 8E1 on a pseudo-terminal (no parity bit) still works.
         assert bus.read_holding_registers(1, 0x3006, 1) == [1450]
         assert "115200" in repr(bus)
     with bb.Bus(sim.port, baudrate=19200) as bus:
-        assert bus.char_time == pytest.approx(10 / 19200)
-        assert bus.t3_5 == pytest.approx(3.5 * 10 / 19200)
+        assert bus.char_time == pytest.approx(10 / 19200, abs=1e-9)
+        assert bus.t3_5 == pytest.approx(3.5 * 10 / 19200, abs=1e-9)
 
 
 def test_silence_before_each_request(sim: Simulator) -> None:

@@ -403,7 +403,7 @@ impl PyBus {
         units: Option<&Bound<'_, PyAny>>,
         timeout: Option<&Bound<'_, PyAny>>,
         address: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Vec<u8>> {
+    ) -> PyResult<Vec<u16>> {
         let units: Vec<u8> = match units {
             None => UNITS.collect(),
             Some(obj) => obj
@@ -416,10 +416,11 @@ impl PyBus {
             seconds(t, "timeout", false)
         })?;
         let address = opt(address, 0, |a| u16_arg(a, "address"))?;
-        let mut found = Vec::new();
+        // u16, not u8: PyO3 turns a Vec<u8> into bytes, and scan promises a list of ints.
+        let mut found: Vec<u16> = Vec::new();
         for unit in units {
             if self.wire(py, |b| b.probe(unit, address, timeout))? {
-                found.push(unit);
+                found.push(u16::from(unit));
             }
             py.check_signals()?;
         }
