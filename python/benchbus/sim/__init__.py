@@ -1,0 +1,22 @@
+"""Simulated Modbus RTU devices on pseudo-terminals, for tests without hardware.
+
+::
+
+    import benchbus as bb
+    from benchbus.sim import RegisterDevice, Simulator
+
+    with Simulator({1: RegisterDevice({0x3006: 1450})}) as sim, bb.Bus(sim.port) as bus:
+        assert bus.read_holding_registers(1, 0x3006, 1) == [1450]
+        sim.set_silent(1)  # now unit 1 times out
+
+A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) and raises
+:class:`SimException` from its handlers to answer with an exception reply. Pure Python on
+pymodbus and pyserial (``pip install "benchbus[sim]"``); it does not need the compiled core.
+"""
+
+from __future__ import annotations
+
+from benchbus.sim._device import RegisterDevice, SimDevice, SimException
+from benchbus.sim._simulator import Simulator
+
+__all__ = ["RegisterDevice", "SimDevice", "SimException", "Simulator"]

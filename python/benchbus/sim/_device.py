@@ -1,0 +1,159 @@
+"""Simulated device behaviour: what one Modbus unit answers (pure Python, no pymodbus)."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Mapping
+
+__all__ = ["RegisterDevice", "SimDevice", "SimException"]
+
+_REGISTER_SPACE = 0x10000
+
+
+class SimException(Exception):
+    """Raise from a device handler to answer with a Modbus exception reply.
+
+    The reply is ``unit, function | 0x80, code, CRC``. Any code 1..255 can be given; the
+    class constants name the standard ones (device simulators may give them their vendor
+    meanings, e.g. 0x08 "not changeable while running" on a BLD drive).
+    """
+
+    ILLEGAL_FUNCTION = 0x01
+    ILLEGAL_DATA_ADDRESS = 0x02
+    ILLEGAL_DATA_VALUE = 0x03
+    SERVER_DEVICE_FAILURE = 0x04
+    ACKNOWLEDGE = 0x05
+    SERVER_DEVICE_BUSY = 0x06
+    NEGATIVE_ACKNOWLEDGE = 0x07
+    MEMORY_PARITY_ERROR = 0x08
+    GATEWAY_PATH_UNAVAILABLE = 0x0A
+    GATEWAY_TARGET_FAILED = 0x0B
+
+    def __init__(self, code: int) -> None:
+        """Exception reply with exception ``code`` (1..255)."""
+        if isinstance(code, bool) or not isinstance(code, int) or not 1 <= code <= 0xFF:
+            raise ValueError(f"a Modbus exception code is 1..255, not {code!r}")
+        super().__init__(f"Modbus exception code {code:#04x}")
+        self.code: int = code
+
+
+class SimDevice:
+    """The behaviour of ONE simulated unit; device simulators subclass it.
+
+    The simulator calls :meth:`read_holding` for function 0x03 and :meth:`write_holding` for
+    0x06 and 0x10 (from its server thread, one request at a time); raising
+    :class:`SimException` from either answers with that exception code, and any other
+    exception answers code 4 (server device failure) and is kept in ``Simulator.errors``.
+    The base class has no registers: every access answers exception 2 (illegal data address).
+    """
+
+    #: Read Device Identification (0x2B / MEI 0x0E) objects, ``{object id: text}``: 0 vendor
+    #: name, 1 product code, 2 revision, 3 vendor URL, 4 product name, 5 model name,
+    #: 6 user application name, 0x80..0xFF private. None: the function is not supported
+    #: (answered with exception 1, illegal function).
+    identity: dict[int, str] | None = None
+
+    #: Whether this unit answers a broadcast (unit 0) as if it had been addressed itself, with
+    #: its own unit address in the reply. Standard Modbus units act on a broadcast silently;
+    #: the PBL manual says its drives answer.
+    answers_broadcast: bool = False
+
+    def read_holding(self, address: int, count: int) -> list[int]:
+        """Values of the ``count`` holding registers from ``address`` (each 0..0xFFFF).
+
+        Raise :class:`SimException` to answer with an exception reply instead.
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def write_holding(self, address: int, values: list[int]) -> None:
+        """Write ``values`` to the holding registers from ``address`` (0x06 gives one value).
+
+        Raise :class:`SimException` to answer with an exception reply instead (then nothing
+        should have been written).
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+
+class RegisterDevice(SimDevice):
+    """A plain table of 65536 holding registers, all 0 unless given.
+
+    ``registers`` is a list of 65536 ints that a test reads and sets directly
+    (``dev.registers[0x2000] = 5``). Requests for more than ``max_read`` (0x03) or
+    ``max_write`` (0x06 / 0x10) registers answer exception 3 (illegal data value), requests
+    past address 0xFFFF exception 2 (illegal data address), and a write touching a register
+    in ``readonly`` answers :attr:`readonly_code` (2, illegal data address, unless a
+    subclass changes it) and writes nothing.
+    """
+
+    #: Exception code answered to a write that touches a read-only register.
+    readonly_code: int = SimException.ILLEGAL_DATA_ADDRESS
+
+    def __init__(
+        self,
+        registers: Mapping[int, int] | None = None,
+        *,
+        identity: Mapping[int, str] | None = None,
+        max_read: int = 125,
+        max_write: int = 123,
+        readonly: Iterable[int] = (),
+    ) -> None:
+        """Registers from ``{address: value}``; the others are 0.
+
+        ``max_read`` is at most 125 and ``max_write`` at most 123 (the protocol's limits).
+        """
+        if not 1 <= max_read <= 125:
+            raise ValueError(f"max_read must be 1..125, not {max_read}")
+        if not 1 <= max_write <= 123:
+            raise ValueError(f"max_write must be 1..123, not {max_write}")
+        self.registers: list[int] = [0] * _REGISTER_SPACE
+        for address, value in (registers or {}).items():
+            _check_address(address)
+            _check_value(value)
+            self.registers[address] = value
+        self.identity = dict(identity) if identity is not None else None
+        self.max_read: int = max_read
+        self.max_write: int = max_write
+        self.readonly: set[int] = set(readonly)
+        for address in self.readonly:
+            _check_address(address)
+
+    def read_holding(self, address: int, count: int) -> list[int]:
+        """The registers ``address .. address + count - 1`` from :attr:`registers`."""
+        if not 1 <= count <= self.max_read:
+            raise SimException(SimException.ILLEGAL_DATA_VALUE)
+        if not 0 <= address <= _REGISTER_SPACE - count:
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        return self.registers[address : address + count]
+
+    def write_holding(self, address: int, values: list[int]) -> None:
+        """Store ``values`` from ``address``, all or nothing."""
+        count = len(values)
+        if not 1 <= count <= self.max_write:
+            raise SimException(SimException.ILLEGAL_DATA_VALUE)
+        if not 0 <= address <= _REGISTER_SPACE - count:
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        if any(a in self.readonly for a in range(address, address + count)):
+            raise SimException(self.readonly_code)
+        for value in values:
+            _check_value(value)
+        self.registers[address : address + count] = values
+
+    def __repr__(self) -> str:
+        """Class name and the registers that are not 0."""
+        nonzero = {a: v for a, v in enumerate(self.registers) if v}
+        shown = ", ".join(f"{a:#06x}: {v}" for a, v in list(nonzero.items())[:8])
+        more = ", ..." if len(nonzero) > 8 else ""
+        return f"{type(self).__name__}({{{shown}{more}}})"
+
+
+def _check_address(address: int) -> None:
+    if isinstance(address, bool) or not isinstance(address, int):
+        raise TypeError(f"a register address is an int, not {type(address).__name__}")
+    if not 0 <= address < _REGISTER_SPACE:
+        raise ValueError(f"a register address is 0..0xFFFF, not {address}")
+
+
+def _check_value(value: int) -> None:
+    if isinstance(value, bool) or not isinstance(value, int):
+        raise TypeError(f"a register value is an int, not {type(value).__name__}")
+    if not 0 <= value <= 0xFFFF:
+        raise ValueError(f"a register value is 0..0xFFFF, not {value}")

@@ -1,0 +1,440 @@
+"""The simulated RS485 line: two pseudo-terminal pairs and a forwarder thread between them.
+
+::
+
+    library <-> /dev/pts/A | master A <-> Forwarder <-> master B | /dev/pts/B <-> server
+
+The forwarder cuts both byte streams into frames, logs them, applies the faults and routes
+each request: to the server (one at a time, as on a real half-duplex line), to several units
+(a broadcast), or to nobody. Pure Python, no pymodbus.
+"""
+
+from __future__ import annotations
+
+import collections
+import contextlib
+import dataclasses
+import logging
+import os
+import select
+import threading
+import time
+import tty
+from collections.abc import Callable
+
+from benchbus.sim._rtu import (
+    crc_ok,
+    exception_frame,
+    frame_gap,
+    reply_length,
+    request_length,
+    with_crc,
+)
+
+__all__ = ["Forwarder", "LineState", "PtyPair"]
+
+log = logging.getLogger("benchbus.sim")
+
+#: How long the forwarder waits for the server's reply before giving the request up.
+SERVER_REPLY_TIMEOUT = 1.0
+#: Functions routed to the server; any other is answered exception 1 by the forwarder.
+SERVER_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
+_MAX_OUTPUT = 1 << 20  # drop bytes toward a port nobody reads past this
+
+
+class PtyPair:
+    """A pseudo-terminal pair in raw mode; the slave end stays open so it never hangs up."""
+
+    def __init__(self) -> None:
+        """Open the pair; ``path`` is the slave's /dev/pts/N."""
+        self.master, self.slave = os.openpty()
+        try:
+            tty.setraw(self.slave)
+            self.path = os.ttyname(self.slave)
+            os.set_blocking(self.master, False)
+        except BaseException:
+            self.close()
+            raise
+
+    def close(self) -> None:
+        """Close both ends (idempotent)."""
+        for fd in (self.master, self.slave):
+            if fd >= 0:
+                os.close(fd)
+        self.master = self.slave = -1
+
+
+@dataclasses.dataclass
+class _ExceptionRule:
+    code: int
+    remaining: int
+    unit: int | None
+
+
+class LineState:
+    """Faults and frame logs, shared by the Simulator (any thread) and the forwarder thread."""
+
+    def __init__(self) -> None:
+        """No fault; empty logs."""
+        self.lock = threading.Lock()
+        self.reply_delay = 0.0
+        self.silent_all = False
+        self.silent_units: set[int] = set()
+        self.corrupt = 0
+        self.exception_rules: list[_ExceptionRule] = []
+        self.requests: list[bytes] = []
+        self.replies: list[bytes] = []
+
+    def add_exception_rule(self, code: int, n: int, unit: int | None) -> None:
+        """The next ``n`` requests (to ``unit``; None = any) get exception ``code``."""
+        with self.lock:
+            self.exception_rules.append(_ExceptionRule(code, n, unit))
+
+    def is_silent(self, unit: int) -> bool:
+        """Whether requests to ``unit`` are swallowed (call with the lock held)."""
+        return self.silent_all or unit in self.silent_units
+
+    def take_exception(self, unit: int) -> int | None:
+        """Consume one forced exception for ``unit`` (call with the lock held)."""
+        for rule in self.exception_rules:
+            if rule.unit is None or rule.unit == unit:
+                rule.remaining -= 1
+                if rule.remaining <= 0:
+                    self.exception_rules.remove(rule)
+                return rule.code
+        return None
+
+
+@dataclasses.dataclass
+class _Job:
+    """One request for the server, or an already-made reply, waiting for its turn."""
+
+    frame: bytes
+    deliver: bool  # send the reply on to the library
+    made_reply: bytes | None = None  # answered by the forwarder itself, not the server
+    done: threading.Event | None = None  # internal probe: set when answered
+    reply: bytes | None = None
+
+
+class _Framer:
+    """Cuts a byte stream into frames by length, or by a silent gap when it is unknown."""
+
+    def __init__(self, length: Callable[[bytes], int | None], gap: float) -> None:
+        self.buf = b""
+        self.last = 0.0
+        self._length = length
+        self._gap = gap
+
+    def feed(self, data: bytes, now: float) -> None:
+        self.buf += data
+        self.last = now
+
+    def frames(self, now: float) -> list[bytes]:
+        out = []
+        while self.buf:
+            n = self._length(self.buf)
+            if n and len(self.buf) >= n:
+                out.append(self.buf[:n])
+                self.buf = self.buf[n:]
+            elif now - self.last >= self._gap:
+                out.append(self.buf)
+                self.buf = b""
+            else:
+                break
+        return out
+
+    def deadline(self) -> float | None:
+        return self.last + self._gap if self.buf else None
+
+
+class Forwarder:
+    """The thread between master A (library side) and master B (server side)."""
+
+    def __init__(
+        self,
+        state: LineState,
+        library: PtyPair,
+        server: PtyPair,
+        *,
+        units: frozenset[int],
+        broadcast: bool,
+        answers_broadcast: Callable[[int], bool],
+        baudrate: int,
+    ) -> None:
+        """Forward between ``library`` and ``server`` for the simulated ``units``."""
+        self._state = state
+        self._a = library.master
+        self._b = server.master
+        self._units = units
+        self._broadcast = broadcast
+        self._answers_broadcast = answers_broadcast
+        gap = frame_gap(baudrate)
+        self._rx_a = _Framer(request_length, gap)
+        self._rx_b = _Framer(reply_length, gap)
+        self._jobs: collections.deque[_Job] = collections.deque()
+        self._inflight: _Job | None = None
+        self._inflight_deadline = 0.0
+        self._held: collections.deque[tuple[float, bytes]] = collections.deque()
+        self._last_release = 0.0
+        self._out_a = bytearray()
+        self._out_b = bytearray()
+        self._inject: collections.deque[tuple[bytes, threading.Event]] = collections.deque()
+        self._code_rewrite: int | None = None
+        self._lock = threading.Lock()  # guards _jobs (from probe), _inject, _code_rewrite
+        self._stopping = False
+        self._wake_r, self._wake_w = os.pipe()
+        os.set_blocking(self._wake_r, False)
+        os.set_blocking(self._wake_w, False)
+        self._thread = threading.Thread(target=self._run, name="benchbus-sim-line", daemon=True)
+
+    # ---- called from other threads -------------------------------------------------------
+
+    def start(self) -> None:
+        """Start the forwarder thread."""
+        self._thread.start()
+
+    def stop(self, timeout: float = 5.0) -> None:
+        """Stop the thread and close the wake-up pipe (the pty pairs are the caller's)."""
+        self._stopping = True
+        self._wake()
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+        if self._thread.is_alive():  # pragma: no cover - the loop always ends within a select
+            log.error("simulator line thread did not stop")
+            return
+        for fd in (self._wake_r, self._wake_w):
+            os.close(fd)
+        self._wake_r = self._wake_w = -1
+
+    def inject(self, data: bytes, timeout: float = 2.0) -> None:
+        """Put ``data`` on the line toward the library; returns once it is written."""
+        written = threading.Event()
+        with self._lock:
+            self._inject.append((bytes(data), written))
+        self._wake()
+        if not written.wait(timeout):
+            raise TimeoutError("the simulator did not get the bytes onto the line")
+
+    def probe(self, frame: bytes, timeout: float) -> bytes | None:
+        """Send ``frame`` to the server outside the logs and faults; its reply, or None."""
+        job = _Job(frame=frame, deliver=False, done=threading.Event())
+        with self._lock:
+            self._jobs.append(job)
+        self._wake()
+        assert job.done is not None
+        job.done.wait(timeout)
+        return job.reply
+
+    def rewrite_exception_code(self, code: int) -> None:
+        """Make the server's exception reply now being built carry ``code`` instead.
+
+        For codes the server cannot produce itself: it answers some exception code, and the
+        forwarder replaces that code in the reply (and fixes its CRC).
+        """
+        with self._lock:
+            self._code_rewrite = code
+
+    def _wake(self) -> None:
+        if self._wake_w >= 0:
+            with contextlib.suppress(BlockingIOError):  # already full of wake-ups
+                os.write(self._wake_w, b"x")
+
+    # ---- the forwarder thread ----------------------------------------------------------------
+
+    def _run(self) -> None:
+        try:
+            while not self._stopping:
+                self._step()
+        except Exception:  # pragma: no cover - a bug here must not pass silently
+            log.exception("simulator line thread failed")
+        finally:
+            self._fail_pending()
+
+    def _fail_pending(self) -> None:
+        with self._lock:
+            pending = [*self._jobs, *([self._inflight] if self._inflight else [])]
+            injects = list(self._inject)
+        for job in pending:
+            if job.done is not None:
+                job.done.set()
+        for _, event in injects:
+            event.set()
+
+    def _step(self) -> None:
+        timeout = self._timeout(time.monotonic())
+        readers = [self._a, self._b, self._wake_r]
+        writers = [fd for fd, buf in ((self._a, self._out_a), (self._b, self._out_b)) if buf]
+        readable, writable, _ = select.select(readers, writers, [], timeout)
+        now = time.monotonic()
+        if self._wake_r in readable:
+            _drain(self._wake_r)
+        if self._a in readable:
+            data = _read(self._a)
+            if data:
+                self._rx_a.feed(data, now)
+        if self._b in readable:
+            data = _read(self._b)
+            if data:
+                self._rx_b.feed(data, now)
+        for frame in self._rx_a.frames(now):
+            self._on_request(frame)
+        for frame in self._rx_b.frames(now):
+            self._on_server_reply(frame)
+        if self._inflight is not None and now >= self._inflight_deadline:
+            log.warning("simulator: no reply from the server to %s", self._inflight.frame.hex(" "))
+            self._finish(None)
+        self._dispatch(now)
+        self._release(now)
+        self._take_injects()
+        if self._b in writable or self._out_b:
+            _write(self._b, self._out_b)
+        if self._a in writable or self._out_a:
+            _write(self._a, self._out_a)
+        if len(self._out_a) > _MAX_OUTPUT:  # nobody reads the library's end
+            del self._out_a[:]
+
+    def _timeout(self, now: float) -> float | None:
+        deadlines = [self._rx_a.deadline(), self._rx_b.deadline()]
+        if self._inflight is not None:
+            deadlines.append(self._inflight_deadline)
+        if self._held:
+            deadlines.append(self._held[0][0])
+        due = [d for d in deadlines if d is not None]
+        return max(0.0, min(due) - now) if due else None
+
+    def _take_injects(self) -> None:
+        with self._lock:
+            injects = list(self._inject)
+            self._inject.clear()
+        for data, written in injects:
+            self._out_a += data
+            _write(self._a, self._out_a)
+            written.set()
+
+    # requests from the library
+
+    def _on_request(self, frame: bytes) -> None:
+        state = self._state
+        with state.lock:
+            state.requests.append(frame)
+        if not crc_ok(frame):
+            log.debug("simulator: request with a bad CRC ignored: %s", frame.hex(" "))
+            return
+        unit, pdu = frame[0], frame[1:-2]
+        if unit == 0:
+            if self._broadcast:
+                self._on_broadcast(pdu)
+            return
+        if unit not in self._units:
+            return
+        with state.lock:
+            if state.is_silent(unit):
+                return
+            forced = state.take_exception(unit)
+        if forced is not None:
+            self._queue(_Job(frame, True, made_reply=exception_frame(unit, pdu[0], forced)))
+        else:
+            self._queue(self._unit_job(frame, deliver=True))
+
+    def _on_broadcast(self, pdu: bytes) -> None:
+        with self._state.lock:
+            units = [u for u in sorted(self._units) if not self._state.is_silent(u)]
+        for unit in units:
+            frame = with_crc(bytes([unit]) + pdu)
+            self._queue(self._unit_job(frame, deliver=self._answers_broadcast(unit)))
+
+    def _unit_job(self, frame: bytes, deliver: bool) -> _Job:
+        unit, function = frame[0], frame[1]
+        if function not in SERVER_FUNCTIONS:
+            return _Job(frame, deliver, made_reply=exception_frame(unit, function, 0x01))
+        if function == 0x03 and not 1 <= int.from_bytes(frame[4:6], "big") <= 125:
+            # pymodbus cannot decode such a request and would answer function 0x80.
+            return _Job(frame, deliver, made_reply=exception_frame(unit, function, 0x03))
+        return _Job(frame, deliver)
+
+    def _queue(self, job: _Job) -> None:
+        with self._lock:
+            self._jobs.append(job)
+
+    def _dispatch(self, now: float) -> None:
+        while self._inflight is None:
+            with self._lock:
+                if not self._jobs:
+                    return
+                job = self._jobs.popleft()
+                self._code_rewrite = None
+            self._inflight = job
+            if job.made_reply is not None:
+                self._finish(job.made_reply)
+                continue
+            self._rx_b.buf = b""
+            self._out_b += job.frame
+            self._inflight_deadline = now + SERVER_REPLY_TIMEOUT
+
+    # replies from the server
+
+    def _on_server_reply(self, frame: bytes) -> None:
+        if self._inflight is None:
+            log.debug("simulator: unexpected bytes from the server: %s", frame.hex(" "))
+            return
+        with self._lock:
+            code, self._code_rewrite = self._code_rewrite, None
+        if code is not None and len(frame) == 5 and frame[1] & 0x80:
+            frame = with_crc(frame[:2] + bytes([code]))
+        self._finish(frame)
+
+    def _finish(self, reply: bytes | None) -> None:
+        job, self._inflight = self._inflight, None
+        if job is None:
+            return
+        job.reply = reply
+        if job.done is not None:
+            job.done.set()
+        elif job.deliver and reply is not None:
+            self._hold(reply)
+
+    def _hold(self, reply: bytes) -> None:
+        now = time.monotonic()
+        with self._state.lock:
+            delay = self._state.reply_delay
+            if self._state.corrupt > 0:
+                self._state.corrupt -= 1
+                reply = reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1] ^ 0xFF])
+        release = max(now + delay, self._last_release)
+        self._last_release = release
+        self._held.append((release, reply))
+
+    def _release(self, now: float) -> None:
+        while self._held and self._held[0][0] <= now:
+            _, reply = self._held.popleft()
+            with self._state.lock:
+                self._state.replies.append(reply)
+            self._out_a += reply
+
+
+def _read(fd: int) -> bytes:
+    try:
+        return os.read(fd, 4096)
+    except (BlockingIOError, InterruptedError):
+        return b""
+    except OSError:  # EIO: no slave end open (cannot happen while we hold one)
+        return b""
+
+
+def _write(fd: int, buf: bytearray) -> None:
+    while buf:
+        try:
+            n = os.write(fd, buf)
+        except (BlockingIOError, InterruptedError):
+            return
+        except OSError as exc:
+            log.debug("simulator: write failed: %s", exc)
+            del buf[:]
+            return
+        del buf[:n]
+
+
+def _drain(fd: int) -> None:
+    with contextlib.suppress(BlockingIOError, InterruptedError):
+        while os.read(fd, 4096):
+            pass

@@ -1,0 +1,249 @@
+"""Everything that knows pymodbus (3.16.x): the RTU server behind the simulated line.
+
+pymodbus changes its server and datastore API between minor versions, so this is the one
+module to change when it does. What 3.16 offers and how it is used here:
+
+- ``ModbusServerContext`` / ``ModbusDeviceContext`` / ``ModbusSequentialDataBlock`` are
+  deprecated for 4.0 (they log a warning; the sequential block's address is now offset by
+  one). The non-deprecated datastore is ``pymodbus.simulator.SimDevice`` with ``SimData``
+  blocks and an ``action`` coroutine, which pymodbus awaits on every register access with
+  ``(function code, block start, address, count, registers, values to write or None)``. Each
+  simulated unit is one such SimDevice whose action calls into the benchbus ``SimDevice``.
+- An action signals an exception reply by returning an ``ExcCodes`` member; pymodbus then
+  builds the reply itself. ``ExcCodes`` has only 1..8, 0x0A and 0x0B: for any other code the
+  action returns 4 and asks the line to rewrite the code in the reply.
+- Read Device Identification (0x2B/0x0E) in pymodbus answers from one process-wide
+  ``ModbusControlBlock`` identity and ignores ``SimDevice.identity``. A per-unit identity
+  needs a custom request PDU, passed as ``custom_pdu=``. The server's decoder takes the
+  custom class for function 0x2B, but would swap pymodbus's own class back in for any
+  request whose sub-function code is >= 0, so the custom class reports none (-1).
+- ``ModbusSerialServer`` opens the port with pyserial (8N1 here: a pseudo-terminal has no
+  parity bit and pyserial fails on 8E1), must be built inside a running event loop, and
+  ``serve_forever(background=True)`` returns once it listens.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import threading
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+from pymodbus.constants import DeviceInformation, ExcCodes
+from pymodbus.framer import FramerType
+from pymodbus.pdu import ExceptionResponse, ModbusPDU
+from pymodbus.pdu.device import DeviceInformationFactory, ModbusDeviceIdentification
+from pymodbus.pdu.mei_message import ReadDeviceInformationResponse
+from pymodbus.server import ModbusBaseServer, ModbusSerialServer
+from pymodbus.simulator import DataType, SimData
+from pymodbus.simulator import SimDevice as PymodbusSimDevice
+
+__all__ = ["Dispatch", "IdentityOf", "PymodbusServer"]
+
+log = logging.getLogger("benchbus.sim")
+
+#: ``(unit, function, address, count, values or None)`` -> registers read, None (written),
+#: or an int exception code.
+Dispatch = Callable[[int, int, int, int, "list[int] | None"], "list[int] | int | None"]
+#: unit -> its Read Device Identification objects, or None when it has none.
+IdentityOf = Callable[[int], "Mapping[int, str] | None"]
+
+_EXC_CODES = {int(c) for c in ExcCodes}
+
+
+class _Control:
+    """What DeviceInformationFactory reads from a control block: only ``Identity``."""
+
+    def __init__(self, identity: ModbusDeviceIdentification) -> None:
+        self.Identity = identity  # pymodbus's attribute name
+
+
+def _identification_request(identity_of: IdentityOf) -> type[ModbusPDU]:
+    """A 0x2B request class answering each unit's own identity (see the module doc)."""
+
+    class ReadDeviceIdentification(ModbusPDU):
+        function_code = 0x2B
+        sub_function_code = -1  # keep the decoder from swapping in pymodbus's own class
+        rtu_frame_size = 7
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.mei_type = 0
+            self.read_code = 0
+            self.object_id = 0
+
+        @classmethod
+        def decode_sub_function_code(cls, data: bytes) -> int:
+            return -1
+
+        @classmethod
+        def calculateRtuFrameSize(cls, data: bytes) -> int:  # noqa: N802 - pymodbus's name
+            if len(data) < 3:
+                return 0
+            # The line delivers one whole frame at a time, so another MEI type's length is
+            # simply all there is.
+            return 7 if data[2] == 0x0E else len(data)
+
+        def decode(self, data: bytes) -> None:
+            self.mei_type = data[0]
+            if len(data) >= 3:
+                self.read_code, self.object_id = data[1], data[2]
+
+        async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
+            identity = identity_of(device_id) if self.mei_type == 0x0E else None
+            if identity is None:
+                return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_FUNCTION)
+            if not DeviceInformation.BASIC <= self.read_code <= DeviceInformation.SPECIFIC:
+                return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_VALUE)
+            control = _Control(ModbusDeviceIdentification(info=dict(identity)))  # type: ignore[no-untyped-call]
+            information = DeviceInformationFactory.get(control, self.read_code, self.object_id)  # type: ignore[no-untyped-call]
+            if self.read_code == DeviceInformation.SPECIFIC and (
+                0x07 <= self.object_id < 0x80 or not information.get(self.object_id)
+            ):
+                return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_ADDRESS)
+            return ReadDeviceInformationResponse(
+                read_code=self.read_code,
+                information=information,
+                dev_id=device_id,
+                transaction_id=self.transaction_id,
+            )
+
+    return ReadDeviceIdentification
+
+
+async def _cancel_other_tasks() -> None:
+    """Cancel and await whatever pymodbus left running in this loop."""
+    current = asyncio.current_task()
+    tasks = [t for t in asyncio.all_tasks() if t is not current]
+    for task in tasks:
+        task.cancel()
+    await asyncio.gather(*tasks, return_exceptions=True)
+
+
+class PymodbusServer:
+    """A pymodbus RTU server on ``port`` in a daemon thread with its own event loop."""
+
+    def __init__(
+        self,
+        port: str,
+        units: Sequence[int],
+        *,
+        baudrate: int,
+        dispatch: Dispatch,
+        identity_of: IdentityOf,
+        rewrite_exception_code: Callable[[int], None],
+    ) -> None:
+        """Serve ``units`` on ``port``; register accesses go to ``dispatch``."""
+        self._port = port
+        self._units = list(units)
+        self._baudrate = baudrate
+        self._dispatch = dispatch
+        self._identity_of = identity_of
+        self._rewrite = rewrite_exception_code
+        self._loop: asyncio.AbstractEventLoop | None = None
+        self._stop_event: asyncio.Event | None = None
+        self._ready = threading.Event()
+        self._error: BaseException | None = None
+        self._thread = threading.Thread(target=self._run, name="benchbus-sim-server", daemon=True)
+
+    def start(self, timeout: float) -> None:
+        """Start the thread; return once the server listens on the port."""
+        self._thread.start()
+        if not self._ready.wait(timeout):
+            self.stop(timeout)
+            raise RuntimeError(f"the pymodbus server did not start on {self._port}")
+        if self._error is not None:
+            self.stop(timeout)
+            raise RuntimeError(f"the pymodbus server failed on {self._port}") from self._error
+
+    def stop(self, timeout: float) -> None:
+        """Shut the server down, close its port and end the thread (idempotent)."""
+        loop, event = self._loop, self._stop_event
+        if loop is not None and event is not None and not loop.is_closed():
+            with contextlib.suppress(RuntimeError):  # the loop closed meanwhile
+                loop.call_soon_threadsafe(event.set)
+        if self._thread.is_alive():
+            self._thread.join(timeout)
+        if self._thread.is_alive():  # pragma: no cover
+            log.error("simulator server thread did not stop")
+
+    def _run(self) -> None:
+        loop = asyncio.new_event_loop()
+        self._loop = loop
+        try:
+            loop.run_until_complete(self._serve())
+        except BaseException as exc:
+            self._error = exc
+        finally:
+            self._ready.set()
+            try:
+                loop.run_until_complete(_cancel_other_tasks())
+                loop.run_until_complete(loop.shutdown_asyncgens())
+            finally:
+                loop.close()
+
+    async def _serve(self) -> None:
+        self._stop_event = asyncio.Event()
+        devices = [
+            PymodbusSimDevice(
+                id=unit,
+                simdata=[SimData(address=0, count=0x10000, datatype=DataType.REGISTERS)],
+                action=self._action_for(unit),
+            )
+            for unit in self._units
+        ]
+        server = ModbusSerialServer(
+            devices,
+            framer=FramerType.RTU,
+            port=self._port,
+            baudrate=self._baudrate,
+            bytesize=8,
+            parity="N",
+            stopbits=1,
+            ignore_missing_devices=True,
+            broadcast_enable=False,  # the line fans broadcasts out itself
+            custom_pdu=[_identification_request(self._identity_of)],
+        )
+        try:
+            await server.serve_forever(background=True)
+            self._ready.set()
+            await self._stop_event.wait()
+        finally:
+            await server.shutdown()  # type: ignore[no-untyped-call]
+            if ModbusBaseServer.active_server is server:
+                ModbusBaseServer.active_server = None
+
+    def _action_for(self, unit: int) -> Callable[[int, int, int, int, list[int], Any], Any]:
+        dispatch = self._dispatch
+
+        async def action(
+            function: int,
+            start: int,
+            address: int,
+            count: int,
+            registers: list[int],
+            values: list[int] | list[bool] | None,
+        ) -> ExcCodes | None:
+            if values is None and function == 0x06:
+                return None  # the echo of a write: pymodbus reads back what it just stored
+            if values is None and function == 0x03:
+                result = dispatch(unit, function, address, count, None)
+            elif values is not None and function in (0x06, 0x10):
+                result = dispatch(unit, function, address, count, [int(v) for v in values])
+            else:
+                return ExcCodes.ILLEGAL_FUNCTION
+            if isinstance(result, int):
+                return self._exception(result)
+            if result is not None:
+                registers[address - start : address - start + count] = result
+            return None
+
+        return action
+
+    def _exception(self, code: int) -> ExcCodes:
+        if code in _EXC_CODES:
+            return ExcCodes(code)
+        self._rewrite(code)
+        return ExcCodes.DEVICE_FAILURE

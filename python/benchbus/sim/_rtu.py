@@ -1,0 +1,119 @@
+"""Modbus RTU framing helpers for the simulator's line (pure Python, no pymodbus).
+
+The forwarder between the library and the pymodbus server uses these to cut the byte stream
+into frames: it knows the length of the requests and replies of the functions the simulated
+devices speak, and falls back to a silent gap for anything else.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "crc16",
+    "crc_ok",
+    "exception_frame",
+    "frame_gap",
+    "reply_length",
+    "request_length",
+    "with_crc",
+]
+
+
+def _crc_table() -> tuple[int, ...]:
+    table = []
+    for byte in range(256):
+        crc = byte
+        for _ in range(8):
+            crc = (crc >> 1) ^ 0xA001 if crc & 1 else crc >> 1
+        table.append(crc)
+    return tuple(table)
+
+
+_TABLE = _crc_table()
+
+
+def crc16(data: bytes) -> int:
+    """CRC-16/MODBUS of ``data`` (polynomial 0xA001 reflected, initial value 0xFFFF)."""
+    crc = 0xFFFF
+    for byte in data:
+        crc = (crc >> 8) ^ _TABLE[(crc ^ byte) & 0xFF]
+    return crc
+
+
+def with_crc(data: bytes) -> bytes:
+    """``data`` followed by its CRC, low byte first, as sent on the wire."""
+    return data + crc16(data).to_bytes(2, "little")
+
+
+def crc_ok(frame: bytes) -> bool:
+    """Whether ``frame`` (at least unit + function + CRC) ends with its correct CRC."""
+    return len(frame) >= 4 and crc16(frame[:-2]).to_bytes(2, "little") == frame[-2:]
+
+
+def exception_frame(unit: int, function: int, code: int) -> bytes:
+    """The exception reply ``unit, function | 0x80, code, CRC``."""
+    return with_crc(bytes([unit, (function | 0x80) & 0xFF, code]))
+
+
+def frame_gap(baudrate: int) -> float:
+    """Silence (seconds) that ends a frame of unknown length: t3.5, but at least 5 ms.
+
+    t3.5 is counted with 11-bit characters (the longest 8-bit format, 8E1 or 8N2), fixed at
+    1.75 ms above 19200 baud.
+
+    A pseudo-terminal carries bytes instantly, so the only silences are the writer's own;
+    the floor keeps a frame written in pieces by a busy process from being cut in two.
+    """
+    t3_5 = 0.00175 if baudrate > 19200 else 3.5 * 11 / baudrate
+    return max(t3_5, 0.005)
+
+
+def request_length(buf: bytes) -> int | None:
+    """Length of the request at the start of ``buf``.
+
+    Returns 0 when more bytes are needed to tell, None when the function is not one whose
+    length is known (the caller then waits for a silent gap).
+    """
+    if len(buf) < 2:
+        return 0
+    function = buf[1]
+    if function in (0x01, 0x02, 0x03, 0x04, 0x05, 0x06):
+        return 8
+    if function in (0x0F, 0x10):
+        return 0 if len(buf) < 7 else 9 + buf[6]
+    if function == 0x2B:
+        if len(buf) < 3:
+            return 0
+        return 7 if buf[2] == 0x0E else None
+    return None
+
+
+def reply_length(buf: bytes) -> int | None:
+    """Length of the reply at the start of ``buf``: 0 = need more bytes, None = unknown."""
+    if len(buf) < 2:
+        return 0
+    function = buf[1]
+    if function & 0x80:
+        return 5
+    if function in (0x01, 0x02, 0x03, 0x04):
+        return 0 if len(buf) < 3 else 5 + buf[2]
+    if function in (0x05, 0x06, 0x0F, 0x10):
+        return 8
+    if function == 0x2B:
+        return _device_identification_length(buf)
+    return None
+
+
+def _device_identification_length(buf: bytes) -> int | None:
+    # unit 2B 0E read-code conformity more-follows next-object count {id len value}* crc crc
+    if len(buf) < 3:
+        return 0
+    if buf[2] != 0x0E:
+        return None
+    if len(buf) < 8:
+        return 0
+    pos = 8
+    for _ in range(buf[7]):
+        if len(buf) < pos + 2:
+            return 0
+        pos += 2 + buf[pos + 1]
+    return pos + 2

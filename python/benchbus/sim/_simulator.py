@@ -1,0 +1,295 @@
+"""The Simulator: simulated Modbus RTU units on a pseudo-terminal, with fault injection."""
+
+from __future__ import annotations
+
+import logging
+import os
+import threading
+from collections.abc import Mapping
+from types import TracebackType
+from typing import Generic, TypeVar
+
+from benchbus.sim._device import SimDevice, SimException
+from benchbus.sim._line import Forwarder, LineState, PtyPair
+from benchbus.sim._pymodbus import PymodbusServer
+from benchbus.sim._rtu import with_crc
+
+__all__ = ["Simulator"]
+
+log = logging.getLogger("benchbus.sim")
+
+D = TypeVar("D", bound=SimDevice)
+
+_START_TIMEOUT = 5.0
+_STOP_TIMEOUT = 5.0
+
+
+class Simulator(Generic[D]):
+    """Simulated Modbus RTU units served on a pseudo-terminal that the library opens.
+
+    ::
+
+        with Simulator({1: RegisterDevice({0x3006: 1450})}) as sim:
+            bus = benchbus.Bus(sim.port)
+
+    The library opens :attr:`port` (``/dev/pts/N``) as if it were a serial port; a pymodbus
+    RTU server answers for :attr:`devices`, and a forwarder thread between the two sees every
+    byte: it logs the frames (:attr:`requests`, :attr:`replies`) and applies the faults
+    (:attr:`reply_delay`, :meth:`set_silent`, :meth:`corrupt_next`, :meth:`answer_exception`,
+    :meth:`inject_raw`), all of which are thread-safe and may be set before or while running.
+
+    The line serves one request at a time, as a half-duplex RS485 line does. Requests to a
+    unit not in :attr:`devices`, or with a bad CRC, get no reply. A broadcast (unit 0) is
+    given to every unit in turn and answered by none, except units whose
+    :attr:`SimDevice.answers_broadcast` is set. Functions other than 0x03, 0x06, 0x10 and
+    0x2B/0x0E are answered with exception 1 (illegal function). The set of units is fixed at
+    :meth:`start`; a device object may be replaced in :attr:`devices` for a unit that exists.
+    """
+
+    def __init__(
+        self,
+        devices: Mapping[int, D] | D,
+        *,
+        baudrate: int = 19200,
+        broadcast: bool = True,
+    ) -> None:
+        """Simulate ``devices`` (``{unit: device}``; a single device is unit 1).
+
+        ``baudrate`` only sets the frame-gap timing (the pseudo-terminal carries bytes
+        instantly). ``broadcast=False`` makes the units ignore unit 0 entirely.
+        """
+        if isinstance(devices, SimDevice):
+            devices = {1: devices}
+        self.devices: dict[int, D] = dict(devices)
+        for unit, device in self.devices.items():
+            if isinstance(unit, bool) or not isinstance(unit, int) or not 1 <= unit <= 247:
+                raise ValueError(f"a unit address is 1..247, not {unit!r}")
+            if not isinstance(device, SimDevice):
+                raise TypeError(f"unit {unit}: {type(device).__name__} is not a SimDevice")
+        if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
+            raise ValueError(f"baudrate must be a positive int, not {baudrate!r}")
+        self.baudrate: int = baudrate
+        self.broadcast: bool = broadcast
+        #: Exceptions other than SimException raised by device handlers (each answered with
+        #: exception 4); a test can assert this stays empty.
+        self.errors: list[BaseException] = []
+        self._state = LineState()
+        self._lifecycle = threading.Lock()
+        self._pairs: list[PtyPair] = []
+        self._forwarder: Forwarder | None = None
+        self._server: PymodbusServer | None = None
+        self._port: str | None = None
+
+    # ---- lifecycle -------------------------------------------------------------------------
+
+    @property
+    def port(self) -> str:
+        """The pseudo-terminal path the library opens (``/dev/pts/N``); new at each start."""
+        if self._port is None:
+            raise RuntimeError("the simulator is not running: call start() first")
+        return self._port
+
+    @property
+    def running(self) -> bool:
+        """Whether the simulator is started and not stopped."""
+        return self._port is not None
+
+    def start(self) -> Simulator[D]:
+        """Open the line and serve; returns once a request has been answered through it.
+
+        Does nothing if already running. Raises RuntimeError if the server does not come up.
+        """
+        with self._lifecycle:
+            if self._port is not None:
+                return self
+            try:
+                self._start()
+            except BaseException:
+                self._stop()
+                raise
+        return self
+
+    def _start(self) -> None:
+        library, server = PtyPair(), PtyPair()
+        self._pairs = [library, server]
+        units = frozenset(self.devices)
+        self._forwarder = Forwarder(
+            self._state,
+            library,
+            server,
+            units=units,
+            broadcast=self.broadcast,
+            answers_broadcast=lambda unit: bool(self.devices[unit].answers_broadcast),
+            baudrate=self.baudrate,
+        )
+        self._server = PymodbusServer(
+            server.path,
+            sorted(units),
+            baudrate=self.baudrate,
+            dispatch=self._dispatch,
+            identity_of=self._identity_of,
+            rewrite_exception_code=self._forwarder.rewrite_exception_code,
+        )
+        self._server.start(_START_TIMEOUT)
+        self._forwarder.start()
+        # Prove the server answers: Diagnostics 0x08 / 0x00 "return query data" is echoed by
+        # pymodbus itself, without touching any device.
+        probe = with_crc(bytes([min(units, default=1), 0x08, 0x00, 0x00]) + os.urandom(2))
+        for _ in range(3):
+            if self._forwarder.probe(probe, timeout=_START_TIMEOUT / 3) == probe:
+                break
+        else:
+            raise RuntimeError("the simulator's server does not answer")
+        self._port = library.path
+
+    def stop(self) -> None:
+        """Stop serving and release every thread and file descriptor (idempotent)."""
+        with self._lifecycle:
+            self._stop()
+
+    def _stop(self) -> None:
+        self._port = None
+        if self._server is not None:
+            self._server.stop(_STOP_TIMEOUT)
+            self._server = None
+        if self._forwarder is not None:
+            self._forwarder.stop(_STOP_TIMEOUT)
+            self._forwarder = None
+        for pair in self._pairs:
+            pair.close()
+        self._pairs = []
+
+    def __enter__(self) -> Simulator[D]:
+        """Start (see :meth:`start`)."""
+        return self.start()
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        """Stop (see :meth:`stop`)."""
+        self.stop()
+
+    def __repr__(self) -> str:
+        """Units, port and state."""
+        where = f"port={self._port!r}" if self._port else "stopped"
+        return f"<Simulator units={sorted(self.devices)} {where}>"
+
+    # ---- faults ----------------------------------------------------------------------------
+
+    @property
+    def reply_delay(self) -> float:
+        """Seconds each reply is held before it is released toward the library (0 = none)."""
+        with self._state.lock:
+            return self._state.reply_delay
+
+    @reply_delay.setter
+    def reply_delay(self, seconds: float) -> None:
+        seconds = float(seconds)
+        if not seconds >= 0.0:
+            raise ValueError(f"reply_delay must be >= 0, not {seconds}")
+        with self._state.lock:
+            self._state.reply_delay = seconds
+
+    def set_silent(self, unit: int | None, silent: bool = True) -> None:
+        """Swallow every request to ``unit`` (None: to all units): no reply, no action.
+
+        ``set_silent(unit, False)`` undoes it; ``set_silent(None, False)`` undoes all of it.
+        A silent unit does not take part in broadcasts either. Requests are still logged.
+        """
+        with self._state.lock:
+            if unit is None:
+                self._state.silent_all = silent
+                if not silent:
+                    self._state.silent_units.clear()
+            elif silent:
+                self._state.silent_units.add(unit)
+            else:
+                self._state.silent_units.discard(unit)
+
+    def corrupt_next(self, n: int = 1) -> None:
+        """Corrupt the CRC of the next ``n`` replies (adds to any still pending)."""
+        if n < 0:
+            raise ValueError(f"n must be >= 0, not {n}")
+        with self._state.lock:
+            self._state.corrupt += n
+
+    def answer_exception(self, code: int, n: int = 1, unit: int | None = None) -> None:
+        """Answer the next ``n`` requests (to ``unit``; None = any unit) with exception ``code``.
+
+        The reply is ``unit, function | 0x80, code, CRC`` and the device does not see the
+        request (a write is not applied). Broadcasts, silent units and units that do not
+        exist do not use up the count.
+        """
+        SimException(code)  # validates the code
+        if n < 1:
+            raise ValueError(f"n must be >= 1, not {n}")
+        self._state.add_exception_rule(code, n, unit)
+
+    def inject_raw(self, data: bytes) -> None:
+        """Put ``data`` on the line toward the library now; returns once it is written.
+
+        The bytes are not logged as a reply.
+        """
+        if self._forwarder is None:
+            raise RuntimeError("the simulator is not running: call start() first")
+        self._forwarder.inject(bytes(data))
+
+    def clear_faults(self) -> None:
+        """Remove every fault: no delay, nobody silent, no pending corruption or exception."""
+        with self._state.lock:
+            self._state.reply_delay = 0.0
+            self._state.silent_all = False
+            self._state.silent_units.clear()
+            self._state.corrupt = 0
+            self._state.exception_rules.clear()
+
+    # ---- observation -----------------------------------------------------------------------
+
+    @property
+    def requests(self) -> list[bytes]:
+        """Every request frame received from the library, in order (as received, CRC too)."""
+        return self._state.requests
+
+    @property
+    def replies(self) -> list[bytes]:
+        """Every reply frame sent toward the library, in order (as sent, after the faults)."""
+        return self._state.replies
+
+    def clear_log(self) -> None:
+        """Empty :attr:`requests` and :attr:`replies`."""
+        with self._state.lock:
+            self._state.requests.clear()
+            self._state.replies.clear()
+
+    # ---- called by the server thread -------------------------------------------------------
+
+    def _dispatch(
+        self, unit: int, function: int, address: int, count: int, values: list[int] | None
+    ) -> list[int] | int | None:
+        device = self.devices[unit]
+        try:
+            if values is None:
+                result = device.read_holding(address, count)
+                if len(result) != count or not all(
+                    isinstance(v, int) and 0 <= v <= 0xFFFF for v in result
+                ):
+                    raise ValueError(
+                        f"{type(device).__name__}.read_holding({address}, {count}) returned"
+                        f" {result!r}: expected {count} ints 0..0xFFFF"
+                    )
+                return [int(v) for v in result]
+            device.write_holding(address, values)
+            return None
+        except SimException as exc:
+            return exc.code
+        except Exception as exc:
+            log.exception("simulated unit %d failed on function %#04x", unit, function)
+            self.errors.append(exc)
+            return SimException.SERVER_DEVICE_FAILURE
+
+    def _identity_of(self, unit: int) -> Mapping[int, str] | None:
+        device = self.devices.get(unit)
+        return None if device is None else device.identity
