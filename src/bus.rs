@@ -382,6 +382,9 @@ impl Bus {
             }
             last_error = Some(error);
         }
+        if let Some(Error::Timeout { attempts: n, .. }) = &mut last_error {
+            *n = attempts;
+        }
         Err(last_error.unwrap_or_else(|| Error::InvalidArgument("no attempt made".into())))
     }
 
@@ -434,6 +437,7 @@ impl Bus {
                     unit,
                     function,
                     timeout,
+                    attempts: 1,
                     received: buf,
                 });
             }

@@ -31,7 +31,7 @@ pub enum Error {
         port: String,
     },
     /// No (complete) reply in time.
-    #[error("unit {unit}, function {function:#04x}: no complete reply within {timeout:?}{}", partial(.received))]
+    #[error("unit {unit}, function {function:#04x}: no complete reply within {timeout:?}{}{}", tries(*.attempts), partial(.received))]
     Timeout {
         /// Unit asked.
         unit: u8,
@@ -39,6 +39,8 @@ pub enum Error {
         function: u8,
         /// The per-attempt timeout.
         timeout: Duration,
+        /// How many times the request was sent.
+        attempts: u32,
         /// Bytes of an incomplete reply, if any arrived.
         received: Vec<u8>,
     },
@@ -103,6 +105,14 @@ pub fn hex(bytes: &[u8]) -> String {
         s.push_str(&format!("{b:02X}"));
     }
     s
+}
+
+fn tries(attempts: u32) -> String {
+    if attempts > 1 {
+        format!(" in each of {attempts} attempts")
+    } else {
+        String::new()
+    }
 }
 
 fn partial(received: &[u8]) -> String {

@@ -94,11 +94,13 @@ fn silent_unit_times_out_after_every_attempt() {
             Error::Timeout {
                 unit: 1,
                 function: 3,
+                attempts: 3,
                 ..
             }
         ),
         "{e}"
     );
+    assert!(e.to_string().contains("in each of 3 attempts"), "{e}");
     assert_eq!(t.0.lock().unwrap().sent.len(), 3);
     assert_eq!(bus.stats().timeouts, 3);
 }
