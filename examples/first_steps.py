@@ -34,7 +34,7 @@ def main() -> None:
         try:
             bus.read_holding_registers(1, 0x0000, 38)  # over the instrument's 37-register limit
         except bb.ModbusException as e:
-            print(f"  refused at once: {e} (code {e.code}: {e.meaning})")
+            print(f"  refused at once (code {e.code}): {e.meaning}")
 
         sim.set_silent(1)
         try:
