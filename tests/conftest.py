@@ -13,6 +13,18 @@ from collections.abc import Iterator
 import pytest
 
 
+def read_up_to(fd: int, n: int, timeout: float) -> bytes:
+    """Up to ``n`` bytes from ``fd``: whatever has come within ``timeout`` seconds."""
+    data = b""
+    deadline = time.monotonic() + timeout
+    while len(data) < n:
+        left = deadline - time.monotonic()
+        if left <= 0 or not select.select([fd], [], [], left)[0]:
+            break
+        data += os.read(fd, n - len(data))
+    return data
+
+
 class ScriptedSlave:
     """The far end of a pty pair that answers each request with scripted bytes.
 
@@ -30,21 +42,11 @@ class ScriptedSlave:
         self.received: list[bytes] = []
         self._thread: threading.Thread | None = None
 
-    def _read_exact(self, n: int, timeout: float) -> bytes:
-        data = b""
-        deadline = time.monotonic() + timeout
-        while len(data) < n:
-            left = deadline - time.monotonic()
-            if left <= 0 or not select.select([self.master], [], [], left)[0]:
-                break
-            data += os.read(self.master, n - len(data))
-        return data
-
     def expect(self, request_len: int, reply: bytes | None, timeout: float = 2.0) -> None:
         """In the background: read ``request_len`` bytes, then write ``reply`` (None: silent)."""
 
         def run() -> None:
-            self.received.append(self._read_exact(request_len, timeout))
+            self.received.append(read_up_to(self.master, request_len, timeout))
             if reply is not None:
                 os.write(self.master, reply)
 

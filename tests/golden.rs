@@ -18,6 +18,15 @@ fn num(v: &Value, key: &str) -> u64 {
         .unwrap_or_else(|| panic!("{key} missing in {v}"))
 }
 
+fn registers(v: &Value) -> Vec<u16> {
+    v["values"]
+        .as_array()
+        .unwrap_or_else(|| panic!("values missing in {v}"))
+        .iter()
+        .map(|x| x.as_u64().expect("value") as u16)
+        .collect()
+}
+
 fn request(r: &Value) -> Request {
     match r["function"].as_str().expect("function") {
         "read_holding_registers" => Request::ReadHoldingRegisters {
@@ -30,12 +39,7 @@ fn request(r: &Value) -> Request {
         },
         "write_registers" => Request::WriteMultipleRegisters {
             address: num(r, "address") as u16,
-            values: r["values"]
-                .as_array()
-                .expect("values")
-                .iter()
-                .map(|v| v.as_u64().expect("value") as u16)
-                .collect(),
+            values: registers(r),
         },
         "read_device_identification" => Request::ReadDeviceIdentification {
             read_code: num(r, "read_code") as u8,
@@ -98,14 +102,7 @@ fn every_vector_encodes_and_decodes_as_the_manual_says() {
                     panic!("{id}: {decoded:?}");
                 };
                 let expected = match kind {
-                    "registers" => Response::Registers(
-                        result["values"]
-                            .as_array()
-                            .expect("values")
-                            .iter()
-                            .map(|x| x.as_u64().expect("value") as u16)
-                            .collect(),
-                    ),
+                    "registers" => Response::Registers(registers(result)),
                     "write_single" => Response::WriteSingleRegister {
                         address: num(result, "address") as u16,
                         value: num(result, "value") as u16,
