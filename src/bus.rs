@@ -68,6 +68,10 @@ pub struct TxOptions {
     pub retries: Option<u32>,
     /// The device family's meaning of an exception code.
     pub meaning: fn(u8) -> &'static str,
+    /// Whether a write is answered. False for devices set to answer no write (a BLD drive
+    /// with F08.06 = 1): the write is sent once and nothing is awaited. Reads are always
+    /// answered.
+    pub write_reply: bool,
 }
 
 impl Default for TxOptions {
@@ -78,6 +82,7 @@ impl Default for TxOptions {
             timeout: None,
             retries: None,
             meaning: exception_meaning,
+            write_reply: true,
         }
     }
 }
@@ -339,6 +344,12 @@ impl Bus {
                 }
             }
         }
+        if is_write && !opts.write_reply {
+            self.send(st, &frame)?;
+            st.last_write.insert(unit, Instant::now());
+            st.stats.transactions += 1;
+            return Ok(unanswered_write(request));
+        }
         let mut last_error = None;
         for attempt in 0..attempts {
             if attempt > 0 {
@@ -523,6 +534,22 @@ fn frame_error(unit: u8, function: u8, kind: FrameError, frame: Vec<u8>) -> Erro
         function,
         kind,
         frame,
+    }
+}
+
+/// What an unanswered write is taken to have done: exactly what was asked.
+fn unanswered_write(request: &Request) -> Response {
+    match request {
+        Request::WriteSingleRegister { address, value } => Response::WriteSingleRegister {
+            address: *address,
+            value: *value,
+        },
+        Request::WriteMultipleRegisters { address, values } => Response::WriteMultipleRegisters {
+            address: *address,
+            count: values.len() as u16,
+        },
+        // Reads are always answered; only writes come here.
+        _ => Response::Registers(Vec::new()),
     }
 }
 

@@ -9,12 +9,29 @@ benches, with the wire timing done right and every failure raised as a clear exc
         speed = bus.read_holding_registers(1, 0x3006, 1)[0]
         bus.write_register(1, 0x2001, 1500)
 
+    with bb.Drive("/dev/ttyUSB0", unit=1) as drive:   # a BLD2 / BLD3H / ZBLD.C20 drive
+        drive.speed_setpoint = 1500
+        drive.forward()
+
 Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 """
 
 from __future__ import annotations
 
 from benchbus._core import Bus, Stats, __version__, crc16, refresh_logging
+from benchbus._drive import (
+    C20ControlMode,
+    CommandSource,
+    ControlMode,
+    Drive,
+    DriveState,
+    DriveStatus,
+    DriveTelemetry,
+    Fault,
+    Model,
+    SpeedSource,
+    StopMode,
+)
 from benchbus.exceptions import (
     BenchbusError,
     CrcError,
@@ -27,12 +44,23 @@ from benchbus.exceptions import (
 __all__ = [
     "BenchbusError",
     "Bus",
+    "C20ControlMode",
+    "CommandSource",
+    "ControlMode",
     "CrcError",
+    "Drive",
+    "DriveState",
+    "DriveStatus",
+    "DriveTelemetry",
+    "Fault",
     "FrameError",
     "ModbusException",
+    "Model",
     "PortError",
     "ResponseTimeout",
+    "SpeedSource",
     "Stats",
+    "StopMode",
     "__version__",
     "crc16",
     "refresh_logging",

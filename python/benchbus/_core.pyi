@@ -6,7 +6,7 @@ from types import TracebackType
 
 from typing_extensions import Self, final
 
-__all__ = ["Bus", "Stats", "__version__", "crc16", "refresh_logging"]
+__all__ = ["Bus", "DriveCore", "Stats", "__version__", "crc16", "refresh_logging"]
 
 __version__: str
 
@@ -140,3 +140,47 @@ class Bus:
     @property
     def t3_5(self) -> float:
         """The silence between frames (t3.5), in seconds."""
+
+@final
+class DriveCore:
+    """The register-level core of a BLD2 / BLD3H / ZBLD.C20 drive; use ``benchbus.Drive``.
+
+    Every call that touches the wire releases the GIL. Values are in engineering units
+    (scaled registers are floats); ranges are checked before anything is sent.
+    """
+
+    def __new__(cls, bus: Bus, unit: int, family: str, write_ack: bool) -> Self:
+        """The drive at ``unit`` on ``bus``; ``family`` is "BLD" (BLD2, BLD3H) or "C20"."""
+    @property
+    def bus(self) -> Bus:
+        """The Bus the drive talks through."""
+    @property
+    def unit(self) -> int:
+        """The drive's unit address."""
+    @property
+    def family(self) -> str:
+        """ "BLD" or "C20"."""
+    @property
+    def write_ack(self) -> bool:
+        """Whether writes are answered (False for a drive set to F08.06 = 1)."""
+    @property
+    def block_reads(self) -> bool | None:
+        """Whether the drive answers multi-register reads; None until one was tried."""
+    def get(self, name: str) -> int | float:
+        """Reads the register called ``name``: an int, or a float for a scaled register."""
+    def set(self, name: str, value: float) -> None:
+        """Writes ``value`` (engineering units) to the register called ``name``."""
+    def command(self, code: int) -> None:
+        """Sends command ``code`` (1..9) to 0x2000."""
+    def status(self) -> dict[str, int | bool | str | None]:
+        """0x2100..0x2102 decoded."""
+    def model(self) -> str | int:
+        """The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown."""
+    def telemetry(self) -> dict[str, int | float | None]:
+        """One snapshot of 0x3000..: ``{name: value}`` in engineering units, and hall_count."""
+    def read_parameter(self, code: str) -> int:
+        """The raw value of function-code parameter ``code`` ("F00.10")."""
+    def write_parameter(self, code: str, value: int) -> None:
+        """Writes the raw ``value`` to parameter ``code``, enabling 0x200E around it."""
+    def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
+        """``(name, address, scale, unit, access, low, high)`` of each register."""

@@ -3,6 +3,8 @@
 //! Every call that touches the wire runs inside `py.detach`, so other Python threads (and
 //! other buses) go on while one waits for its device.
 
+mod drive;
+
 use crate::bus::{self, BusConfig, TxOptions, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
 use crate::codec::{Echo, FrameError};
@@ -550,6 +552,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }
     m.add_class::<PyBus>()?;
     m.add_class::<PyStats>()?;
+    m.add_class::<drive::PyDriveCore>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -1,0 +1,546 @@
+"""BLD2 / BLD3H / ZBLD.C20 brushless DC drives as Python objects.
+
+The register table, scaling and checks live in the compiled core (``DriveCore``); this
+module adds what belongs to Python: enums, snapshot dataclasses, properties, the context
+manager and waiting for a speed.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import logging
+import os
+import time
+from collections.abc import Callable
+from types import TracebackType
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
+
+from benchbus._core import Bus, DriveCore
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+__all__ = [
+    "C20ControlMode",
+    "CommandSource",
+    "ControlMode",
+    "Drive",
+    "DriveState",
+    "DriveStatus",
+    "DriveTelemetry",
+    "Fault",
+    "Model",
+    "SpeedSource",
+    "StopMode",
+]
+
+log = logging.getLogger("benchbus.drive")
+
+
+class DriveState(enum.IntEnum):
+    """Drive status word 1 (0x2100)."""
+
+    FORWARD = 1
+    REVERSE = 2
+    STOPPED = 3
+    FAULT = 4
+    OFF = 5
+    BRAKING = 6
+
+
+class ControlMode(enum.IntEnum):
+    """Control mode (0x2005) of a BLD2 / BLD3H drive."""
+
+    TEST = 0
+    HALL_OPEN_LOOP = 1
+    HALL_CLOSED_LOOP = 2
+    HALL_VECTOR = 3
+    SENSORLESS_VECTOR = 4
+
+
+class C20ControlMode(enum.IntEnum):
+    """Control mode (0x2005) of a ZBLD.C20 drive."""
+
+    TEST = 0
+    OPEN_LOOP = 1
+    CLOSED_LOOP = 2
+    DIP_SWITCH = 3
+
+
+class CommandSource(enum.IntEnum):
+    """Where run commands come from (0x2006), and the control source of status word 2."""
+
+    KEYPAD = 0
+    TERMINAL = 1
+    COMMUNICATION = 2
+    #: C20 only (SW3); "reserved" on the BLD.
+    DIP_SWITCH = 3
+
+
+class SpeedSource(enum.IntEnum):
+    """Where the speed reference comes from (0x2007). The C20 has 0..6."""
+
+    KEYPAD = 0
+    AI1 = 1
+    AI2 = 2
+    MODBUS = 3
+    MULTI_SPEED = 4
+    DIP_SWITCH = 5
+    SIMPLE_PLC = 6
+    PULSE = 7
+    CAN = 8
+
+
+class StopMode(enum.IntEnum):
+    """What the stop command does (0x2012, BLD only)."""
+
+    DECELERATE = 0
+    COAST = 1
+
+
+class Model(str, enum.Enum):
+    """The drive model, from its identification code (0x2103)."""
+
+    BLD2 = "BLD2"
+    BLD3H = "BLD3H"
+    C20 = "C20"
+
+
+@dataclasses.dataclass(frozen=True)
+class Fault:
+    """A drive fault: its code (0x2102) and name ("unknown fault 0xNN" when unnamed)."""
+
+    code: int
+    name: str
+
+    def __str__(self) -> str:
+        """``0x0A undervoltage``."""
+        return f"0x{self.code:02X} {self.name}"
+
+
+@dataclasses.dataclass(frozen=True)
+class DriveStatus:
+    """Status words 1 and 2 and the fault code (0x2100..0x2102), read at once."""
+
+    #: Status word 1.
+    state: DriveState | int
+    #: The DC bus voltage is established (word 2 bit 0).
+    bus_voltage_ready: bool
+    #: The drive reports overload (word 2 bit 4; its polarity differs on the C20).
+    overloaded: bool
+    #: Who controls the drive (word 2 bits 5..6).
+    control_source: CommandSource | int
+    #: A keypad is connected (word 2 bit 7); None on the C20, which does not say.
+    keypad_connected: bool | None
+    #: The active fault, or None.
+    fault: Fault | None
+
+
+@dataclasses.dataclass(frozen=True)
+class DriveTelemetry:
+    """One snapshot of the measurement registers 0x3000.., in engineering units."""
+
+    #: Set frequency, Hz (0x3000).
+    set_frequency: float
+    #: Output frequency, Hz (0x3001); rpm x pole pairs / 60.
+    output_frequency: float
+    #: Ramp reference frequency, Hz (0x3002).
+    ramp_frequency: float
+    #: Output voltage, V (0x3003).
+    output_voltage: float
+    #: Output current, A (0x3004).
+    output_current: float
+    #: Speed reference, rpm (0x3005).
+    speed_reference: int
+    #: Measured motor speed, rpm (0x3006).
+    speed: int
+    #: Output power, W (0x3007).
+    output_power: int
+    #: DC bus voltage, V (0x3008).
+    bus_voltage: float
+    #: Hall sensor state 0..7 (0x3009).
+    hall_state: int
+    #: Software version, e.g. 1.01 (0x300A).
+    software_version: float
+    #: Code of the most recent fault, 0 for none (0x300B).
+    last_fault: int
+    #: Inverter temperature, degC (0x300C; signed).
+    temperature: float
+    #: Input terminal bits (0x300D).
+    input_terminals: int
+    #: Output terminal bits (0x300E).
+    output_terminals: int
+    #: Analog input 1, V (0x300F).
+    ai1_voltage: float
+    #: Analog input 2, V (0x3010).
+    ai2_voltage: float
+    #: Analog input 3, V (0x3011).
+    ai3_voltage: float
+    #: The 32-bit hall count (0x3013 high, 0x3014 low); None on the C20.
+    hall_count: int | None
+
+
+E = TypeVar("E", bound=enum.IntEnum)
+T = TypeVar("T")
+
+
+def _as(enum_type: type[E], raw: int) -> E | int:
+    try:
+        return enum_type(raw)
+    except ValueError:
+        return raw
+
+
+class _Register(Generic[T]):
+    """A drive property backed by one register of the core's table."""
+
+    def __init__(self, register: str, convert: Callable[[Drive, Any], T], doc: str) -> None:
+        self.register = register
+        self.convert = convert
+        self.__doc__ = doc
+
+    @overload
+    def __get__(self, drive: None, owner: type[Drive]) -> _Register[T]: ...
+    @overload
+    def __get__(self, drive: Drive, owner: type[Drive]) -> T: ...
+    def __get__(self, drive: Drive | None, owner: type[Drive]) -> T | _Register[T]:
+        if drive is None:
+            return self
+        return self.convert(drive, drive.core.get(self.register))
+
+    def __set__(self, drive: Drive, value: float) -> None:
+        drive.core.set(self.register, value)
+
+
+def _int(_drive: Drive, raw: Any) -> int:
+    return int(raw)
+
+
+def _float(_drive: Drive, raw: Any) -> float:
+    return float(raw)
+
+
+def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode | int:
+    return _as(C20ControlMode if drive.family == "C20" else ControlMode, int(raw))
+
+
+def _enum(enum_type: type[E]) -> Callable[[Drive, Any], E | int]:
+    return lambda _drive, raw: _as(enum_type, int(raw))
+
+
+_BAUD_RATES = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
+
+
+class Drive:
+    """A BLD2 / BLD3H or ZBLD.C20 brushless DC drive (manuals 000 and 001).
+
+    ::
+
+        with bb.Drive("/dev/ttyUSB0", unit=1) as drive:   # 19200 8N1, the drives' default
+            drive.speed_setpoint = 1500                    # rpm
+            drive.accel_time = 2.5                         # seconds
+            drive.forward()
+            drive.wait_for_speed(1500, tolerance=20, timeout=10)
+            print(drive.telemetry())
+        # leaving the block stops the motor, also after an exception or Ctrl-C
+
+    Given a path, the drive opens its own Bus at 19200 8N1 (timeout 0.25 s, which covers
+    the longest reply delay F08.03 allows) and closes it on :meth:`close`; given a Bus, it
+    shares it. ``family="C20"`` for a ZBLD.C20 (it has no brake and reads overload with the
+    opposite polarity). ``write_ack=False`` for a drive set to F08.06 = 1, which answers no
+    write: writes are then sent once and not awaited.
+
+    Exception replies raise :class:`benchbus.ModbusException` with the manual's meaning
+    (0x08 "not changeable while running", 0x07 read-only...); values out of range raise
+    ``ValueError`` before anything is sent. If the drive refuses a multi-register read, the
+    reads fall back to one register per request, and the drive remembers it.
+    """
+
+    speed_setpoint = _Register("speed_setpoint", _int, "Speed setpoint, rpm 0..3000 (0x2001).")
+    pole_pairs = _Register("pole_pairs", _int, "Motor pole pairs, 1..20 (0x2002; stopped only).")
+    accel_time = _Register(
+        "accel_time", _float, "Acceleration time, s 0.1..600.0 in steps of 0.1 (0x2003)."
+    )
+    decel_time = _Register(
+        "decel_time", _float, "Deceleration time, s 0.1..600.0 in steps of 0.1 (0x2004)."
+    )
+    control_mode = _Register(
+        "control_mode",
+        _control_mode,
+        "Control mode (0x2005; stopped only): ControlMode, or C20ControlMode on a C20.",
+    )
+    command_source = _Register(
+        "command_source", _enum(CommandSource), "Where run commands come from (0x2006)."
+    )
+    speed_source = _Register(
+        "speed_source", _enum(SpeedSource), "Where the speed reference comes from (0x2007)."
+    )
+    virtual_inputs = _Register(
+        "virtual_inputs", _int, "Virtual input terminal bits, 0..0x1FF (0x200A)."
+    )
+    virtual_outputs = _Register(
+        "virtual_outputs", _int, "Virtual output terminal bits, 0..0x0F (0x200B)."
+    )
+    stop_mode = _Register(
+        "stop_mode", _enum(StopMode), "What stop() does, BLD only (0x2012): StopMode."
+    )
+    speed = _Register("speed", _int, "Measured motor speed, rpm (0x3006; read-only).")
+
+    def __init__(
+        self,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        *,
+        family: str = "BLD",
+        write_ack: bool = True,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> None:
+        """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1.
+
+        ``timeout`` and ``retries`` set the Bus the drive opens (0.25 s and 2 by default);
+        they cannot be given with a Bus.
+        """
+        self._owns_bus = not isinstance(port_or_bus, Bus)
+        if isinstance(port_or_bus, Bus):
+            if timeout is not None or retries is not None:
+                raise ValueError(
+                    "timeout and retries set the Bus a Drive opens; this Drive was given a Bus"
+                )
+            bus = port_or_bus
+        else:
+            bus = Bus(
+                port_or_bus,
+                baudrate=19200,
+                parity="N",
+                stopbits=1,
+                timeout=0.25 if timeout is None else timeout,
+                retries=2 if retries is None else retries,
+            )
+        try:
+            self.core = DriveCore(bus, unit, family, write_ack)
+        except BaseException:
+            if self._owns_bus:
+                bus.close()
+            raise
+
+    # ---- identity ------------------------------------------------------------------------
+
+    @property
+    def bus(self) -> Bus:
+        """The Bus the drive talks through."""
+        return self.core.bus
+
+    @property
+    def unit(self) -> int:
+        """The drive's unit address."""
+        return self.core.unit
+
+    @property
+    def family(self) -> str:
+        """ "BLD" (BLD2, BLD3H) or "C20"."""
+        return self.core.family
+
+    @property
+    def model(self) -> Model | int:
+        """The model from its identification code (0x2103), or the raw code if unknown."""
+        name = self.core.model()
+        return Model(name) if isinstance(name, str) else name
+
+    # ---- actions -------------------------------------------------------------------------
+
+    def forward(self) -> None:
+        """Run forward at the speed setpoint (command 1)."""
+        self.core.command(1)
+
+    def reverse(self) -> None:
+        """Run in reverse at the speed setpoint (command 2)."""
+        self.core.command(2)
+
+    def jog_forward(self) -> None:
+        """Jog forward (command 3)."""
+        self.core.command(3)
+
+    def jog_reverse(self) -> None:
+        """Jog in reverse (command 4)."""
+        self.core.command(4)
+
+    def stop(self) -> None:
+        """Stop: decelerate, or as :attr:`stop_mode` says (command 5)."""
+        self.core.command(5)
+
+    def coast(self) -> None:
+        """Free stop (emergency stop): cut the output and let the motor coast (command 6)."""
+        self.core.command(6)
+
+    def reset_fault(self) -> None:
+        """Reset a fault (command 7)."""
+        self.core.command(7)
+
+    def jog_stop(self) -> None:
+        """End a jog (command 8)."""
+        self.core.command(8)
+
+    def brake(self) -> None:
+        """Brake stop, BLD only (command 9); ValueError on a C20."""
+        self.core.command(9)
+
+    # ---- status and measurements -----------------------------------------------------------
+
+    @property
+    def state(self) -> DriveState | int:
+        """Status word 1 (0x2100)."""
+        return _as(DriveState, int(self.core.get("state")))
+
+    @property
+    def fault(self) -> Fault | None:
+        """The active fault (0x2102), or None."""
+        return self.status().fault
+
+    def status(self) -> DriveStatus:
+        """Status words 1 and 2 and the fault code, read in one request where allowed."""
+        s = self.core.status()
+        code = int(s["fault_code"] or 0)
+        keypad = s["keypad_connected"]
+        return DriveStatus(
+            state=_as(DriveState, int(s["state"] or 0)),
+            bus_voltage_ready=bool(s["bus_voltage_ready"]),
+            overloaded=bool(s["overloaded"]),
+            control_source=_as(CommandSource, int(s["control_source"] or 0)),
+            keypad_connected=None if keypad is None else bool(keypad),
+            fault=Fault(code, str(s["fault_name"])) if code else None,
+        )
+
+    def telemetry(self) -> DriveTelemetry:
+        """All measurement registers in one snapshot (one request where the drive allows)."""
+        return DriveTelemetry(**self.core.telemetry())  # type: ignore[arg-type]
+
+    def wait_for_speed(
+        self, rpm: float, tolerance: float = 10.0, timeout: float = 10.0, interval: float = 0.05
+    ) -> int:
+        """Poll :attr:`speed` until it is within ``tolerance`` rpm of ``rpm``; return it.
+
+        Raises ``TimeoutError`` (not a bus error: the drive answers, the motor is not there)
+        when ``timeout`` seconds pass first, and :class:`benchbus.BenchbusError` if the drive
+        stops answering. The speed register holds a magnitude: ``rpm`` is >= 0 in both
+        directions.
+        """
+        for name, value in (("rpm", rpm), ("tolerance", tolerance)):
+            if not 0 <= value <= 3000:
+                raise ValueError(f"{name} must be 0..3000 rpm, got {value}")
+        if not 0 < timeout <= 3600 or not 0 < interval <= 10:
+            raise ValueError("timeout must be 0 < s <= 3600 and interval 0 < s <= 10")
+        deadline = time.monotonic() + timeout
+        while True:
+            speed = self.speed
+            if abs(speed - rpm) <= tolerance:
+                return speed
+            left = deadline - time.monotonic()
+            if left <= 0:
+                raise TimeoutError(
+                    f"unit {self.unit}: speed {speed} rpm, not within {tolerance} rpm of "
+                    f"{rpm} rpm after {timeout} s"
+                )
+            time.sleep(min(interval, left))
+
+    # ---- configuration ---------------------------------------------------------------------
+
+    @property
+    def station_address(self) -> int:
+        """The station address the drive has stored (0x2008)."""
+        return int(self.core.get("station_address"))
+
+    def set_station_address(self, address: int) -> None:
+        """Store a new station address (0x2008; stopped only; BLD 1..127, C20 1..247).
+
+        The drive answers at the new address from then on: open a new Drive with it.
+        """
+        self.core.set("station_address", address)
+
+    @property
+    def baud_rate(self) -> int:
+        """The line speed the drive has stored (0x2009), in bits per second."""
+        code = int(self.core.get("baud_code"))
+        return _BAUD_RATES[code] if code < len(_BAUD_RATES) else code
+
+    def set_baud_rate(self, bps: int) -> None:
+        """Store a new line speed (0x2009; stopped only): 1200..115200 (C20 up to 57600).
+
+        The drive talks at the new speed from then on: open a new Bus at it.
+        """
+        if bps not in _BAUD_RATES:
+            raise ValueError(f"baud rate must be one of {_BAUD_RATES}, got {bps!r}")
+        self.core.set("baud_code", _BAUD_RATES.index(bps))
+
+    def restore_defaults(self) -> None:
+        """Restore every function-code parameter to its factory value (0x200F; stopped only)."""
+        self.core.set("restore_defaults", 1)
+
+    def clear_hall_count(self) -> None:
+        """Set the 32-bit hall count to 0 (0x2011, BLD only)."""
+        self.core.set("hall_count_clear", 1)
+
+    def read_parameter(self, code: str) -> int:
+        """The raw value of function-code parameter ``code``, e.g. ``"F00.10"``.
+
+        Fgg.nn lives at ``gg << 8 | nn``; a parameter the drive lacks raises
+        :class:`benchbus.ModbusException` (code 2).
+        """
+        return self.core.read_parameter(code)
+
+    def write_parameter(self, code: str, value: int) -> None:
+        """Write the raw ``value`` (0..0xFFFF) to function-code parameter ``code``.
+
+        Sets the write enable 0x200E to 1 first when it is not, and puts it back afterwards,
+        also when the write fails; a refusal raises :class:`benchbus.ModbusException` naming
+        the parameter (0x03 out of range, 0x08 not while running...).
+        """
+        self.core.write_parameter(code, value)
+
+    def get(self, name: str) -> int | float:
+        """Read any register of the drive's table by name (see :meth:`registers`)."""
+        return self.core.get(name)
+
+    def set(self, name: str, value: float) -> None:
+        """Write any writable register of the drive's table by name, in engineering units."""
+        self.core.set(name, value)
+
+    def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
+        """The register table: ``(name, address, scale, unit, access, low, high)``."""
+        return self.core.registers()
+
+    # ---- lifecycle -------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Close the Bus if the drive opened it (a shared Bus stays open)."""
+        if self._owns_bus:
+            self.bus.close()
+
+    def __enter__(self) -> Self:
+        """The drive itself; leaving the block stops the motor."""
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
+
+        If the stop fails while another exception is on its way out, that exception goes on
+        and the failure is logged; otherwise the failure is raised.
+        """
+        try:
+            self.stop()
+        except Exception:
+            if exc is None:
+                raise
+            log.exception("unit %d: could not stop the motor on leaving the block", self.unit)
+        finally:
+            self.close()
+
+    def __repr__(self) -> str:
+        """Unit, family and bus."""
+        return f"<Drive unit={self.unit} family={self.family} on {self.bus!r}>"

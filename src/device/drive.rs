@@ -1,0 +1,730 @@
+//! BLD2 / BLD3H and ZBLD.C20 brushless DC drives (manuals 000 and 001, register list B.3).
+//!
+//! Commands go to 0x2000, settings live at 0x2001..0x2012, status at 0x2100..0x2103 and
+//! measurements at 0x3000..0x3014. Function-code parameters Fgg.nn sit at `gg << 8 | nn` and
+//! take a write only while 0x200E = 1. The two families differ in a few places, kept in the
+//! table: C20 lacks the brake command and 0x2010..0x2012 / 0x3012..0x3014, has other ranges
+//! for some enumerations, and reads status word 2 bit 4 with the opposite polarity.
+
+use super::{Access, Register};
+use crate::bus::{Bus, TxOptions};
+use crate::codec::exception_meaning;
+use crate::error::{Error, Result};
+use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::Arc;
+
+/// Which manual the drive follows.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Family {
+    /// BLD2 and BLD3H (manual 000).
+    Bld,
+    /// ZBLD.C20 (manual 001).
+    C20,
+}
+
+impl Family {
+    /// "BLD" or "C20".
+    pub fn name(self) -> &'static str {
+        match self {
+            Family::Bld => "BLD",
+            Family::C20 => "C20",
+        }
+    }
+
+    /// The family of a name ("BLD", "BLD2", "BLD3H", "C20", "ZBLD.C20"; any case).
+    pub fn from_name(name: &str) -> Option<Family> {
+        match name.to_ascii_uppercase().as_str() {
+            "BLD" | "BLD2" | "BLD3H" => Some(Family::Bld),
+            "C20" | "ZBLD.C20" => Some(Family::C20),
+            _ => None,
+        }
+    }
+}
+
+/// A value written to the command register 0x2000.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u16)]
+pub enum Command {
+    /// 0001H forward run.
+    Forward = 1,
+    /// 0002H reverse run.
+    Reverse = 2,
+    /// 0003H jog forward.
+    JogForward = 3,
+    /// 0004H jog reverse.
+    JogReverse = 4,
+    /// 0005H stop (decelerate, or as 0x2012 says).
+    Stop = 5,
+    /// 0006H free stop (emergency stop): the motor coasts.
+    Coast = 6,
+    /// 0007H fault reset.
+    ResetFault = 7,
+    /// 0008H jog stop.
+    JogStop = 8,
+    /// 0009H brake stop (BLD only).
+    Brake = 9,
+}
+
+impl Command {
+    /// The command of its register value.
+    pub fn from_code(code: u16) -> Option<Command> {
+        use Command::*;
+        [
+            Forward, Reverse, JogForward, JogReverse, Stop, Coast, ResetFault, JogStop, Brake,
+        ]
+        .into_iter()
+        .find(|c| *c as u16 == code)
+    }
+}
+
+/// Address of the command register.
+pub const COMMAND: u16 = 0x2000;
+/// Address of the function-code write enable (0 = parameters not writable, 1 = writable).
+pub const PARAMETER_WRITE_ENABLE: u16 = 0x200E;
+/// First status register (0x2100 state, 0x2101 status word 2, 0x2102 fault code).
+pub const STATUS: u16 = 0x2100;
+/// First measurement register.
+pub const TELEMETRY: u16 = 0x3000;
+
+/// How a register exists on the C20.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum OnC20 {
+    /// As on the BLD.
+    Same,
+    /// With another write range.
+    Range(f64, f64),
+    /// Not there.
+    Absent,
+}
+
+/// One register of the drive's list.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DriveRegister {
+    /// The register as the BLD manual gives it.
+    pub register: Register,
+    /// What the C20 manual says of it.
+    pub c20: OnC20,
+}
+
+const fn reg(
+    name: &'static str,
+    address: u16,
+    scale: f64,
+    unit: &'static str,
+    access: Access,
+    range: (f64, f64),
+    c20: OnC20,
+) -> DriveRegister {
+    DriveRegister {
+        register: Register {
+            name,
+            address,
+            scale,
+            signed: false,
+            unit,
+            access,
+            range,
+        },
+        c20,
+    }
+}
+
+const fn measured(
+    name: &'static str,
+    address: u16,
+    scale: f64,
+    unit: &'static str,
+    c20: OnC20,
+) -> DriveRegister {
+    reg(name, address, scale, unit, Access::Read, (0.0, 0.0), c20)
+}
+
+use Access::{ReadWrite as RW, WriteWhenStopped as RWS};
+use OnC20::{Absent, Range, Same};
+
+/// Every register of the list but the command register, in address order.
+pub const REGISTERS: &[DriveRegister] = &[
+    reg(
+        "speed_setpoint",
+        0x2001,
+        1.0,
+        "rpm",
+        RW,
+        (0.0, 3000.0),
+        Same,
+    ),
+    reg("pole_pairs", 0x2002, 1.0, "", RWS, (1.0, 20.0), Same),
+    reg("accel_time", 0x2003, 0.1, "s", RW, (0.1, 600.0), Same),
+    reg("decel_time", 0x2004, 0.1, "s", RW, (0.1, 600.0), Same),
+    // 5 is "reserved" on the BLD; C20 has 0..3 (3 = DIP switch).
+    reg(
+        "control_mode",
+        0x2005,
+        1.0,
+        "",
+        RWS,
+        (0.0, 4.0),
+        Range(0.0, 3.0),
+    ),
+    // 3 is "reserved" on the BLD, the DIP switch (SW3) on the C20.
+    reg(
+        "command_source",
+        0x2006,
+        1.0,
+        "",
+        RW,
+        (0.0, 2.0),
+        Range(0.0, 3.0),
+    ),
+    // The C20 text says 0~5 but lists 0..6 (6 = simple PLC); its list is taken.
+    reg(
+        "speed_source",
+        0x2007,
+        1.0,
+        "",
+        RW,
+        (0.0, 8.0),
+        Range(0.0, 6.0),
+    ),
+    reg(
+        "station_address",
+        0x2008,
+        1.0,
+        "",
+        RWS,
+        (1.0, 127.0),
+        Range(1.0, 247.0),
+    ),
+    reg(
+        "baud_code",
+        0x2009,
+        1.0,
+        "",
+        RWS,
+        (0.0, 7.0),
+        Range(0.0, 6.0),
+    ),
+    reg("virtual_inputs", 0x200A, 1.0, "", RW, (0.0, 511.0), Same),
+    reg("virtual_outputs", 0x200B, 1.0, "", RW, (0.0, 15.0), Same),
+    reg(
+        "parameter_write_enable",
+        0x200E,
+        1.0,
+        "",
+        RW,
+        (0.0, 1.0),
+        Same,
+    ),
+    reg("restore_defaults", 0x200F, 1.0, "", RWS, (0.0, 1.0), Same),
+    reg(
+        "position_reference",
+        0x2010,
+        1.0,
+        "",
+        RW,
+        (0.0, 65535.0),
+        Absent,
+    ),
+    reg("hall_count_clear", 0x2011, 1.0, "", RW, (0.0, 1.0), Absent),
+    reg("stop_mode", 0x2012, 1.0, "", RW, (0.0, 1.0), Absent),
+    measured("state", 0x2100, 1.0, "", Same),
+    measured("status_word", 0x2101, 1.0, "", Same),
+    measured("fault_code", 0x2102, 1.0, "", Same),
+    measured("model_id", 0x2103, 1.0, "", Same),
+    measured("set_frequency", 0x3000, 0.01, "Hz", Same),
+    measured("output_frequency", 0x3001, 0.01, "Hz", Same),
+    measured("ramp_frequency", 0x3002, 0.01, "Hz", Same),
+    measured("output_voltage", 0x3003, 0.1, "V", Same),
+    measured("output_current", 0x3004, 0.01, "A", Same),
+    measured("speed_reference", 0x3005, 1.0, "rpm", Same),
+    measured("speed", 0x3006, 1.0, "rpm", Same),
+    measured("output_power", 0x3007, 1.0, "W", Same),
+    measured("bus_voltage", 0x3008, 0.1, "V", Same),
+    measured("hall_state", 0x3009, 1.0, "", Same),
+    measured("software_version", 0x300A, 0.01, "", Same),
+    measured("last_fault", 0x300B, 1.0, "", Same),
+    DriveRegister {
+        register: Register {
+            name: "temperature",
+            address: 0x300C,
+            scale: 0.1,
+            signed: true,
+            unit: "degC",
+            access: Access::Read,
+            range: (0.0, 0.0),
+        },
+        c20: Same,
+    },
+    measured("input_terminals", 0x300D, 1.0, "", Same),
+    measured("output_terminals", 0x300E, 1.0, "", Same),
+    measured("ai1_voltage", 0x300F, 0.01, "V", Same),
+    measured("ai2_voltage", 0x3010, 0.01, "V", Same),
+    measured("ai3_voltage", 0x3011, 0.01, "V", Same),
+    measured("reserved_3012", 0x3012, 1.0, "", Absent),
+    measured("hall_count_high", 0x3013, 1.0, "", Absent),
+    measured("hall_count_low", 0x3014, 1.0, "", Absent),
+];
+
+/// The vendor's meaning of an exception code (B.2.4; the same list in the C20 manual).
+pub fn meaning(code: u8) -> &'static str {
+    match code {
+        0x01 => "illegal command, or the drive is in a state that refuses it (a fault?)",
+        0x02 => "illegal data address",
+        0x03 => "illegal data value (out of range)",
+        0x04 => "operation failed (a function-code write without 0x200E write enable?)",
+        0x05 => "wrong password",
+        0x06 => "frame error (length or CRC)",
+        0x07 => "parameter is read-only",
+        0x08 => "not changeable while running",
+        other => exception_meaning(other),
+    }
+}
+
+/// The name of a fault code (0x2102, 0x300B). The manuals name only 0x0A.
+pub fn fault_name(code: u16) -> String {
+    match code {
+        0x0A => "undervoltage".to_string(),
+        other => format!("unknown fault 0x{other:02X}"),
+    }
+}
+
+/// The drive's model from its identification code (0x2103).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Model {
+    /// BLD2 (0x0020 on a BLD-family drive).
+    Bld2,
+    /// BLD3H (0x0030).
+    Bld3h,
+    /// ZBLD.C20 (0x0020 on a C20-family drive).
+    C20,
+}
+
+impl Model {
+    /// The model of an identification code, as `family` reads it.
+    pub fn from_id(family: Family, id: u16) -> Option<Model> {
+        match (family, id) {
+            (Family::Bld, 0x0020) => Some(Model::Bld2),
+            (Family::C20, 0x0020) => Some(Model::C20),
+            (_, 0x0030) => Some(Model::Bld3h),
+            _ => None,
+        }
+    }
+
+    /// "BLD2", "BLD3H" or "C20".
+    pub fn name(self) -> &'static str {
+        match self {
+            Model::Bld2 => "BLD2",
+            Model::Bld3h => "BLD3H",
+            Model::C20 => "C20",
+        }
+    }
+}
+
+/// Status registers 0x2100..0x2102, decoded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Status {
+    /// 0x2100: 1 forward, 2 reverse, 3 stopped, 4 fault, 5 off, 6 electronic braking.
+    pub state: u16,
+    /// 0x2101 bit 0: the DC bus voltage is established.
+    pub bus_voltage_ready: bool,
+    /// 0x2101 bit 4 (1 = overloaded on the BLD, 0 = overloaded on the C20).
+    pub overloaded: bool,
+    /// 0x2101 bits 5..6: 0 keypad, 1 terminals, 2 communication (3 is not in the manuals).
+    pub control_source: u16,
+    /// 0x2101 bit 7 (BLD only): a keypad is connected.
+    pub keypad_connected: Option<bool>,
+    /// 0x2102: the fault code, 0 for none.
+    pub fault_code: u16,
+}
+
+impl Status {
+    /// Decodes the three status words as `family` defines them.
+    pub fn decode(family: Family, state: u16, word: u16, fault_code: u16) -> Status {
+        let bit4 = word & 0x10 != 0;
+        Status {
+            state,
+            bus_voltage_ready: word & 0x01 != 0,
+            overloaded: match family {
+                Family::Bld => bit4,
+                Family::C20 => !bit4,
+            },
+            control_source: (word >> 5) & 0x03,
+            keypad_connected: match family {
+                Family::Bld => Some(word & 0x80 != 0),
+                Family::C20 => None,
+            },
+            fault_code,
+        }
+    }
+}
+
+/// One snapshot of the measurement registers, in engineering units; `hall_count` joins
+/// 0x3013 (high) and 0x3014 (low) and is None on the C20.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Telemetry {
+    /// `(name, value, unit)` of 0x3000..0x3011 in address order.
+    pub values: Vec<(&'static str, f64, &'static str)>,
+    /// The 32-bit hall count (BLD only).
+    pub hall_count: Option<u32>,
+}
+
+/// Parses a function-code parameter name, "F00.10" (group 00..10, index 00..99; the index is
+/// decimal, so F00.50 is 0x0032), into its register address `gg << 8 | nn`.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for anything else.
+pub fn parameter_address(code: &str) -> Result<u16> {
+    let bad = || {
+        Error::InvalidArgument(format!(
+            "a function-code parameter is written like \"F00.10\" (groups F00..F10, index \
+             00..99), got {code:?}"
+        ))
+    };
+    let rest = code
+        .strip_prefix('F')
+        .or_else(|| code.strip_prefix('f'))
+        .ok_or_else(bad)?;
+    let (group, index) = rest.split_once('.').ok_or_else(bad)?;
+    let number = |s: &str| -> Option<u16> {
+        if (1..=2).contains(&s.len()) && s.bytes().all(|b| b.is_ascii_digit()) {
+            s.parse().ok()
+        } else {
+            None
+        }
+    };
+    match (number(group), number(index)) {
+        (Some(g), Some(n)) if g <= 10 => Ok(g << 8 | n),
+        _ => Err(bad()),
+    }
+}
+
+const BLOCK_UNKNOWN: u8 = 0;
+const BLOCK_YES: u8 = 1;
+const BLOCK_NO: u8 = 2;
+
+/// A BLD2 / BLD3H / C20 drive on a bus.
+#[derive(Debug)]
+pub struct Drive {
+    bus: Arc<Bus>,
+    unit: u8,
+    family: Family,
+    opts: TxOptions,
+    block_reads: AtomicU8,
+}
+
+impl Drive {
+    /// The drive at `unit` on `bus`. `write_reply` is false for a drive set to F08.06 = 1,
+    /// which answers no write.
+    pub fn new(bus: Arc<Bus>, unit: u8, family: Family, write_reply: bool) -> Drive {
+        Drive {
+            bus,
+            unit,
+            family,
+            opts: TxOptions {
+                meaning,
+                write_reply,
+                ..TxOptions::default()
+            },
+            block_reads: AtomicU8::new(BLOCK_UNKNOWN),
+        }
+    }
+
+    /// The bus the drive is on.
+    pub fn bus(&self) -> &Arc<Bus> {
+        &self.bus
+    }
+
+    /// The drive's unit address.
+    pub fn unit(&self) -> u8 {
+        self.unit
+    }
+
+    /// Which manual the drive follows.
+    pub fn family(&self) -> Family {
+        self.family
+    }
+
+    /// Whether writes are answered (false when set to F08.06 = 1).
+    pub fn write_reply(&self) -> bool {
+        self.opts.write_reply
+    }
+
+    /// Whether the drive answers multi-register reads: None until one was tried.
+    pub fn block_reads(&self) -> Option<bool> {
+        match self.block_reads.load(Ordering::Relaxed) {
+            BLOCK_YES => Some(true),
+            BLOCK_NO => Some(false),
+            _ => None,
+        }
+    }
+
+    /// The register called `name`, as this drive's family has it.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if there is no such register, or not on this family.
+    pub fn register(&self, name: &str) -> Result<Register> {
+        let entry = REGISTERS
+            .iter()
+            .find(|r| r.register.name == name)
+            .ok_or_else(|| Error::InvalidArgument(format!("the drive has no register {name:?}")))?;
+        let mut register = entry.register;
+        if self.family == Family::C20 {
+            match entry.c20 {
+                OnC20::Same => {}
+                OnC20::Range(lo, hi) => register.range = (lo, hi),
+                OnC20::Absent => {
+                    return Err(Error::InvalidArgument(format!(
+                        "{name} ({:#06x}) exists on BLD drives only, not on the C20",
+                        register.address
+                    )))
+                }
+            }
+        }
+        Ok(register)
+    }
+
+    /// Reads the register called `name`, in engineering units.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn get(&self, name: &str) -> Result<f64> {
+        let register = self.register(name)?;
+        let raw = self.read(register.address, 1)?;
+        Ok(register.decode(raw.first().copied().unwrap_or_default()))
+    }
+
+    /// Writes `value` (engineering units) to the register called `name`, checked against
+    /// its range and resolution before anything is sent.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a bad value or a read-only register.
+    pub fn set(&self, name: &str, value: f64) -> Result<()> {
+        let register = self.register(name)?;
+        let raw = register.encode(value)?;
+        self.write(register.address, raw)
+    }
+
+    /// Sends a command to 0x2000.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for the brake on a C20.
+    pub fn command(&self, command: Command) -> Result<()> {
+        if command == Command::Brake && self.family == Family::C20 {
+            return Err(Error::InvalidArgument(
+                "the brake stop (command 0x0009) exists on BLD drives only, not on the C20".into(),
+            ));
+        }
+        self.write(COMMAND, command as u16)
+    }
+
+    /// Reads 0x2100..0x2102.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn status(&self) -> Result<Status> {
+        let words = self.read(STATUS, 3)?;
+        match words[..] {
+            [state, word, fault] => Ok(Status::decode(self.family, state, word, fault)),
+            _ => Err(short_read(self.unit, 3, words.len())),
+        }
+    }
+
+    /// The model from 0x2103, or the raw code when it is none the manuals name.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn model(&self) -> Result<std::result::Result<Model, u16>> {
+        let id = self.read(0x2103, 1)?.first().copied().unwrap_or_default();
+        Ok(Model::from_id(self.family, id).ok_or(id))
+    }
+
+    /// Reads every measurement register in one snapshot (one request where the drive allows).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn telemetry(&self) -> Result<Telemetry> {
+        let entries: Vec<Register> = REGISTERS
+            .iter()
+            .filter(|r| r.register.address >= TELEMETRY)
+            .filter(|r| self.family == Family::Bld || r.c20 != OnC20::Absent)
+            .map(|r| r.register)
+            .collect();
+        let count = entries.len() as u16;
+        let words = self.read(TELEMETRY, count)?;
+        if words.len() != entries.len() {
+            return Err(short_read(self.unit, entries.len(), words.len()));
+        }
+        let mut values = Vec::with_capacity(entries.len());
+        let mut hall = (None, None);
+        for (register, &raw) in entries.iter().zip(&words) {
+            match register.address {
+                0x3012 => {}
+                0x3013 => hall.0 = Some(u32::from(raw)),
+                0x3014 => hall.1 = Some(u32::from(raw)),
+                _ => values.push((register.name, register.decode(raw), register.unit)),
+            }
+        }
+        let hall_count = match hall {
+            (Some(high), Some(low)) => Some(high << 16 | low),
+            _ => None,
+        };
+        Ok(Telemetry { values, hall_count })
+    }
+
+    /// Reads the raw value of function-code parameter `code` ("F00.10").
+    ///
+    /// # Errors
+    /// Any [`Error`]; a parameter the drive lacks answers exception 2.
+    pub fn read_parameter(&self, code: &str) -> Result<u16> {
+        let address = parameter_address(code)?;
+        Ok(self.read(address, 1)?.first().copied().unwrap_or_default())
+    }
+
+    /// Writes the raw `value` to function-code parameter `code` ("F00.10"). Sets 0x200E to 1
+    /// first when it is not, and puts it back afterwards (also when the write fails).
+    ///
+    /// # Errors
+    /// Any [`Error`]; an exception reply says which parameter the drive refused.
+    pub fn write_parameter(&self, code: &str, value: u16) -> Result<()> {
+        let address = parameter_address(code)?;
+        let enable = self.read(PARAMETER_WRITE_ENABLE, 1)?;
+        let was = enable.first().copied().unwrap_or_default();
+        if was != 1 {
+            self.write(PARAMETER_WRITE_ENABLE, 1)?;
+        }
+        let written = self.write(address, value);
+        let restored = if was != 1 {
+            self.write(PARAMETER_WRITE_ENABLE, was)
+        } else {
+            Ok(())
+        };
+        match written {
+            Err(Error::Exception {
+                unit,
+                function,
+                code: exc,
+                meaning,
+                frame,
+            }) => Err(Error::Exception {
+                unit,
+                function,
+                code: exc,
+                meaning: format!(
+                    "{meaning}; the drive refused {code} = {value} with 0x200E write enable = 1"
+                ),
+                frame,
+            }),
+            Err(e) => Err(e),
+            Ok(()) => restored,
+        }
+    }
+
+    /// Reads `count` registers from `address`: one request, or one per register when the
+    /// drive has refused a block read that it then answered register by register.
+    fn read(&self, address: u16, count: u16) -> Result<Vec<u16>> {
+        let bus = &self.bus;
+        if count > 1 && self.block_reads.load(Ordering::Relaxed) != BLOCK_NO {
+            match bus.read_holding_registers(self.unit, address, count, &self.opts) {
+                Ok(words) => {
+                    self.block_reads.store(BLOCK_YES, Ordering::Relaxed);
+                    return Ok(words);
+                }
+                Err(Error::Exception { .. })
+                    if self.block_reads.load(Ordering::Relaxed) == BLOCK_UNKNOWN => {}
+                Err(e) => return Err(e),
+            }
+            let words = self.read_singly(address, count)?;
+            log::debug!(
+                target: "benchbus::device",
+                "unit {}: block reads refused, reading one register per request", self.unit
+            );
+            self.block_reads.store(BLOCK_NO, Ordering::Relaxed);
+            return Ok(words);
+        }
+        self.read_singly(address, count)
+    }
+
+    fn read_singly(&self, address: u16, count: u16) -> Result<Vec<u16>> {
+        let mut words = Vec::with_capacity(count.into());
+        for offset in 0..count {
+            let word =
+                self.bus
+                    .read_holding_registers(self.unit, address + offset, 1, &self.opts)?;
+            words.extend(word);
+        }
+        Ok(words)
+    }
+
+    fn write(&self, address: u16, value: u16) -> Result<()> {
+        self.bus
+            .write_register(self.unit, address, value, &self.opts)
+    }
+}
+
+fn short_read(unit: u8, wanted: usize, got: usize) -> Error {
+    Error::InvalidArgument(format!(
+        "unit {unit}: expected {wanted} registers, got {got}"
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn parameter_addresses_follow_the_manual() {
+        assert_eq!(parameter_address("F00.10").ok(), Some(0x000A));
+        assert_eq!(parameter_address("F00.50").ok(), Some(0x0032));
+        assert_eq!(parameter_address("F08.06").ok(), Some(0x0806));
+        assert_eq!(parameter_address("f10.99").ok(), Some(0x0A63));
+        for bad in [
+            "F11.00", "F00.100", "00.10", "F00", "F0a.10", "F00.", "", "F.1", "F+1.2",
+        ] {
+            assert!(parameter_address(bad).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn status_word_2_polarity_differs_by_family() {
+        // The manuals' example: 0x0041 = bus voltage up, communication control, bit 4 = 0.
+        let bld = Status::decode(Family::Bld, 5, 0x0041, 0);
+        assert!(bld.bus_voltage_ready && !bld.overloaded);
+        assert_eq!(bld.control_source, 2);
+        assert_eq!(bld.keypad_connected, Some(false));
+        let c20 = Status::decode(Family::C20, 5, 0x0041, 0);
+        assert!(c20.overloaded);
+        assert_eq!(c20.keypad_connected, None);
+        assert!(!Status::decode(Family::C20, 3, 0x0051, 0).overloaded);
+    }
+
+    #[test]
+    fn table_is_sorted_unique_and_fits_sixteen_bits() {
+        for pair in REGISTERS.windows(2) {
+            assert!(pair[0].register.address < pair[1].register.address);
+        }
+        for entry in REGISTERS {
+            let r = entry.register;
+            let (lo, hi) = match entry.c20 {
+                OnC20::Range(lo, hi) => (lo.min(r.range.0), hi.max(r.range.1)),
+                _ => r.range,
+            };
+            assert!(lo <= hi, "{}", r.name);
+            assert!(lo / r.scale >= 0.0 && hi / r.scale <= 65535.0, "{}", r.name);
+            assert_eq!(r.access == Access::Read, r.address >= STATUS, "{}", r.name);
+        }
+    }
+
+    #[test]
+    fn names_of_faults_models_and_commands() {
+        assert_eq!(fault_name(0x0A), "undervoltage");
+        assert_eq!(fault_name(0x1B), "unknown fault 0x1B");
+        assert_eq!(Model::from_id(Family::Bld, 0x20), Some(Model::Bld2));
+        assert_eq!(Model::from_id(Family::C20, 0x20), Some(Model::C20));
+        assert_eq!(Model::from_id(Family::C20, 0x30), Some(Model::Bld3h));
+        assert_eq!(Model::from_id(Family::Bld, 0x40), None);
+        assert_eq!(Command::from_code(9), Some(Command::Brake));
+        assert_eq!(Command::from_code(10), None);
+        assert_eq!(meaning(8), "not changeable while running");
+        assert_eq!(meaning(0x0B), exception_meaning(0x0B));
+    }
+}

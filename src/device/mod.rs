@@ -1,0 +1,165 @@
+//! Typed device APIs over the [`Bus`](crate::bus::Bus). A device is a table of registers
+//! (address, scale, signedness, unit, access, range) plus the few behaviours its manual adds;
+//! it holds no I/O of its own.
+
+pub mod drive;
+
+use crate::error::{Error, Result};
+
+/// Who may write a register, in the manuals' terms.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Access {
+    /// `R`: read-only.
+    Read,
+    /// `W/R`: writable in any state.
+    ReadWrite,
+    /// `W/R*`: writable only while the motor is stopped.
+    WriteWhenStopped,
+}
+
+/// One holding register: where it is and how its raw word maps to an engineering value.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Register {
+    /// The name it has in the Python API (`speed_setpoint`).
+    pub name: &'static str,
+    /// Register address.
+    pub address: u16,
+    /// Engineering value = raw word x scale (0.1 for a value in tenths).
+    pub scale: f64,
+    /// Whether the raw word is a two's complement signed value.
+    pub signed: bool,
+    /// Unit of the engineering value ("rpm", "s", "V", ""...).
+    pub unit: &'static str,
+    /// Who may write it.
+    pub access: Access,
+    /// The engineering values a write may carry (inclusive).
+    pub range: (f64, f64),
+}
+
+impl Register {
+    /// The engineering value of a raw word.
+    pub fn decode(&self, raw: u16) -> f64 {
+        let raw = if self.signed {
+            f64::from(raw as i16)
+        } else {
+            f64::from(raw)
+        };
+        raw * self.scale
+    }
+
+    /// Whether values of this register are whole numbers (a scale of 1).
+    pub fn is_integer(&self) -> bool {
+        self.scale == 1.0
+    }
+
+    /// The raw word for an engineering value.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a read-only register, a value outside
+    /// [`range`](Self::range) or one that is not a whole number of steps of the scale.
+    pub fn encode(&self, value: f64) -> Result<u16> {
+        if self.access == Access::Read {
+            return Err(Error::InvalidArgument(format!(
+                "{} is read-only",
+                self.name
+            )));
+        }
+        let (lo, hi) = self.range;
+        let steps = value / self.scale;
+        let whole = steps.round();
+        let tolerance = 1e-6;
+        if !value.is_finite()
+            || value < lo - tolerance * self.scale
+            || value > hi + tolerance * self.scale
+        {
+            return Err(Error::InvalidArgument(format!(
+                "{} must be {}..={}{}, got {}",
+                self.name,
+                fmt_num(lo),
+                fmt_num(hi),
+                unit_suffix(self.unit),
+                fmt_num(value)
+            )));
+        }
+        if (steps - whole).abs() > tolerance {
+            return Err(Error::InvalidArgument(format!(
+                "{} is set in steps of {}{}: {} is not a whole number of steps",
+                self.name,
+                fmt_num(self.scale),
+                unit_suffix(self.unit),
+                fmt_num(value)
+            )));
+        }
+        // In range, so it fits a register (the ranges are checked against 16 bits in tests).
+        Ok(if self.signed {
+            whole as i16 as u16
+        } else {
+            whole as u16
+        })
+    }
+}
+
+fn unit_suffix(unit: &str) -> String {
+    if unit.is_empty() {
+        String::new()
+    } else {
+        format!(" {unit}")
+    }
+}
+
+/// A number the way a person writes it: 3000, 0.1, 600.
+fn fmt_num(v: f64) -> String {
+    let s = format!("{v:.6}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".to_string()
+    } else {
+        s.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const TENTHS: Register = Register {
+        name: "accel_time",
+        address: 0x2003,
+        scale: 0.1,
+        signed: false,
+        unit: "s",
+        access: Access::ReadWrite,
+        range: (0.1, 600.0),
+    };
+
+    #[test]
+    fn encode_scales_and_checks() {
+        assert_eq!(TENTHS.encode(2.5).ok(), Some(25));
+        assert_eq!(TENTHS.encode(0.3).ok(), Some(3)); // 0.3 / 0.1 is 2.9999999999999996
+        assert_eq!(TENTHS.encode(600.0).ok(), Some(6000));
+        for bad in [0.0, 600.1, 2.55, f64::NAN, f64::INFINITY, -1.0] {
+            assert!(TENTHS.encode(bad).is_err(), "{bad}");
+        }
+        let msg = TENTHS.encode(700.0).err().map(|e| e.to_string());
+        assert_eq!(
+            msg.as_deref(),
+            Some("accel_time must be 0.1..=600 s, got 700")
+        );
+    }
+
+    #[test]
+    fn signed_words_decode_as_twos_complement() {
+        let temp = Register {
+            name: "temperature",
+            address: 0x300C,
+            scale: 0.1,
+            signed: true,
+            unit: "degC",
+            access: Access::Read,
+            range: (-3276.8, 3276.7),
+        };
+        assert!((temp.decode(0xFFCE) - -5.0).abs() < 1e-9);
+        assert!((temp.decode(250) - 25.0).abs() < 1e-9);
+        assert!(temp.encode(1.0).is_err());
+    }
+}

@@ -1,0 +1,68 @@
+//! A scripted transport for tests of the Bus and the device layers without a port.
+#![allow(dead_code)]
+
+use benchbus::bus::{Bus, BusConfig};
+use benchbus::codec::crc16;
+use benchbus::timing::{LineFormat, Parity};
+use benchbus::transport::Transport;
+use std::collections::VecDeque;
+use std::io;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
+
+/// What the scripted device does with the next request.
+pub enum Act {
+    Reply(Vec<u8>),
+    Silent,
+}
+
+#[derive(Default)]
+pub struct Script {
+    pub acts: VecDeque<Act>,
+    pub pending: VecDeque<u8>,
+    pub sent: Vec<Vec<u8>>,
+}
+
+#[derive(Clone, Default)]
+pub struct Scripted(pub Arc<Mutex<Script>>);
+
+impl Transport for Scripted {
+    fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
+        let mut s = self.0.lock().unwrap();
+        s.sent.push(frame.to_vec());
+        if let Some(Act::Reply(bytes)) = s.acts.pop_front() {
+            s.pending.extend(bytes);
+        }
+        Ok(())
+    }
+    fn read(&mut self, buf: &mut [u8], _timeout: Duration) -> io::Result<usize> {
+        let mut s = self.0.lock().unwrap();
+        let n = buf.len().min(s.pending.len());
+        for b in buf.iter_mut().take(n) {
+            *b = s.pending.pop_front().unwrap();
+        }
+        Ok(n)
+    }
+    fn discard_input(&mut self) -> io::Result<Vec<u8>> {
+        Ok(self.0.lock().unwrap().pending.drain(..).collect())
+    }
+    fn is_serial_line(&self) -> bool {
+        false
+    }
+}
+
+pub fn with_crc(body: &[u8]) -> Vec<u8> {
+    let mut f = body.to_vec();
+    f.extend_from_slice(&crc16(body).to_le_bytes());
+    f
+}
+
+pub fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
+    let t = Scripted::default();
+    t.0.lock().unwrap().acts = acts.into();
+    let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1));
+    cfg.retries = retries;
+    cfg.timeout = Duration::from_millis(5);
+    cfg.turnaround = Duration::ZERO;
+    (Bus::with_transport(cfg, Box::new(t.clone())), t)
+}

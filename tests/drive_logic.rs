@@ -1,0 +1,177 @@
+//! The drive layer against a scripted transport: the manuals' frames, the block-read
+//! fallback, the parameter write enable, unanswered writes and family differences.
+
+mod common;
+
+use benchbus::device::drive::{Command, Drive, Family};
+use benchbus::Error;
+use common::{bus, with_crc, Act, Scripted};
+use std::sync::Arc;
+
+fn drive(acts: Vec<Act>, family: Family, write_reply: bool) -> (Drive, Scripted) {
+    let (bus, t) = bus(acts, 0);
+    (Drive::new(Arc::new(bus), 1, family, write_reply), t)
+}
+
+fn hex(s: &str) -> Vec<u8> {
+    s.split_whitespace()
+        .filter_map(|b| u8::from_str_radix(b, 16).ok())
+        .collect()
+}
+
+fn sent(t: &Scripted) -> Vec<Vec<u8>> {
+    t.0.lock().map(|s| s.sent.clone()).unwrap_or_default()
+}
+
+fn echo(frame: &str) -> Act {
+    Act::Reply(hex(frame))
+}
+
+#[test]
+fn commands_and_setpoint_are_the_manuals_frames() {
+    // 000 B.4 / 001 section 3: forward, reverse, stop, fault reset, speed 3000 rpm.
+    let frames = [
+        "01 06 20 00 00 01 43 CA",
+        "01 06 20 00 00 02 03 CB",
+        "01 06 20 00 00 05 42 09",
+        "01 06 20 00 00 07 C3 C8",
+        "01 06 20 01 0B B8 D4 88",
+    ];
+    let (d, t) = drive(frames.iter().map(|f| echo(f)).collect(), Family::Bld, true);
+    for c in [
+        Command::Forward,
+        Command::Reverse,
+        Command::Stop,
+        Command::ResetFault,
+    ] {
+        d.command(c).expect("command");
+    }
+    d.set("speed_setpoint", 3000.0).expect("setpoint");
+    assert_eq!(sent(&t), frames.map(hex).to_vec());
+}
+
+#[test]
+fn a_refused_block_read_falls_back_and_is_remembered() {
+    let mut acts = vec![Act::Reply(with_crc(&[1, 0x83, 0x03]))];
+    for i in 0..18u16 {
+        let word = (0x100 + i).to_be_bytes();
+        acts.push(Act::Reply(with_crc(&[1, 3, 2, word[0], word[1]])));
+    }
+    let (d, t) = drive(acts, Family::C20, true);
+    let snap = d.telemetry().expect("telemetry");
+    assert_eq!(d.block_reads(), Some(false));
+    assert_eq!(snap.values.len(), 18);
+    assert_eq!(snap.values[6], ("speed", 262.0, "rpm"));
+    assert_eq!(snap.hall_count, None);
+    let frames = sent(&t);
+    assert_eq!(frames[0], with_crc(&[1, 3, 0x30, 0x00, 0x00, 18]));
+    assert_eq!(frames[18], with_crc(&[1, 3, 0x30, 0x11, 0x00, 1]));
+    // Remembered: the next status read goes register by register from the start.
+    t.0.lock().map(|mut s| s.sent.clear()).ok();
+    let status_acts = [5u8, 0x41, 0x0A].map(|w| Act::Reply(with_crc(&[1, 3, 2, 0, w])));
+    t.0.lock().map(|mut s| s.acts.extend(status_acts)).ok();
+    let status = d.status().expect("status");
+    assert_eq!((status.state, status.fault_code), (5, 0x0A));
+    assert_eq!(sent(&t).len(), 3);
+}
+
+#[test]
+fn a_block_read_that_worked_does_not_fall_back() {
+    let mut words = vec![1u8, 3, 6];
+    words.extend([0, 1, 0, 0x41, 0, 0]);
+    let acts = vec![
+        Act::Reply(with_crc(&words)),
+        Act::Reply(with_crc(&[1, 0x83, 0x02])),
+    ];
+    let (d, t) = drive(acts, Family::Bld, true);
+    assert_eq!(d.status().expect("status").state, 1);
+    assert_eq!(d.block_reads(), Some(true));
+    assert!(matches!(d.status(), Err(Error::Exception { code: 2, .. })));
+    assert_eq!(sent(&t).len(), 2);
+}
+
+#[test]
+fn a_parameter_write_enables_and_restores_0x200e() {
+    let acts = vec![
+        Act::Reply(with_crc(&[1, 3, 2, 0, 0])),
+        echo("01 06 20 0E 00 01 22 09"),
+        echo("01 06 00 0A 09 C4 AE 0B"),
+        echo("01 06 20 0E 00 00 E3 C9"),
+    ];
+    let (d, t) = drive(acts, Family::Bld, true);
+    d.write_parameter("F00.10", 0x09C4).expect("write");
+    let frames = sent(&t);
+    assert_eq!(frames[0], hex("01 03 20 0E 00 01 EE 09"));
+    // The manual's "write F00.10 = 25.00 Hz" frame, then the enable put back to 0, which is
+    // byte for byte the frame the manual labels "enable" (its erratum).
+    assert_eq!(frames[2], hex("01 06 00 0A 09 C4 AE 0B"));
+    assert_eq!(frames[3], hex("01 06 20 0E 00 00 E3 C9"));
+}
+
+#[test]
+fn a_refused_parameter_write_still_restores_and_names_the_parameter() {
+    let acts = vec![
+        Act::Reply(with_crc(&[1, 3, 2, 0, 0])),
+        echo("01 06 20 0E 00 01 22 09"),
+        Act::Reply(hex("01 86 03 02 61")), // 000 B.4 写失败: F00.00 = 5, data error 0x03
+        echo("01 06 20 0E 00 00 E3 C9"),
+    ];
+    let (d, t) = drive(acts, Family::Bld, true);
+    let e = d.write_parameter("F00.00", 5).expect_err("refused");
+    let text = e.to_string();
+    assert!(matches!(e, Error::Exception { code: 3, .. }), "{text}");
+    assert!(
+        text.contains("F00.00 = 5") && text.contains("out of range"),
+        "{text}"
+    );
+    assert_eq!(sent(&t)[2], hex("01 06 00 00 00 05 49 C9"));
+    assert_eq!(sent(&t).len(), 4);
+}
+
+#[test]
+fn an_enabled_drive_is_left_enabled() {
+    let acts = vec![
+        Act::Reply(with_crc(&[1, 3, 2, 0, 1])),
+        echo("01 06 00 0A 09 C4 AE 0B"),
+    ];
+    let (d, t) = drive(acts, Family::Bld, true);
+    d.write_parameter("F00.10", 0x09C4).expect("write");
+    assert_eq!(sent(&t).len(), 2);
+}
+
+#[test]
+fn writes_without_reply_send_once_and_wait_for_nothing() {
+    let (d, t) = drive(vec![], Family::Bld, false);
+    d.command(Command::Forward).expect("unanswered write");
+    d.set("speed_setpoint", 1500.0).expect("unanswered write");
+    assert_eq!(sent(&t).len(), 2);
+    let stats = d.bus().stats();
+    assert_eq!((stats.transactions, stats.timeouts), (2, 0));
+}
+
+#[test]
+fn family_differences_are_checked_before_sending() {
+    let (c20, t) = drive(
+        vec![Act::Reply(with_crc(&[1, 6, 0x20, 0x08, 0, 200]))],
+        Family::C20,
+        true,
+    );
+    assert!(matches!(
+        c20.command(Command::Brake),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(c20.set("stop_mode", 1.0).is_err());
+    assert!(c20.get("hall_count_high").is_err());
+    c20.set("station_address", 200.0).expect("C20 takes 1..247");
+    assert_eq!(sent(&t).len(), 1);
+
+    let (bld, t) = drive(vec![], Family::Bld, true);
+    let e = bld
+        .set("station_address", 200.0)
+        .expect_err("BLD takes 1..127");
+    assert_eq!(e.to_string(), "station_address must be 1..=127, got 200");
+    assert!(bld.set("speed", 1.0).is_err());
+    assert!(bld.set("pole_pairs", 2.5).is_err());
+    assert!(bld.set("no_such_register", 1.0).is_err());
+    assert!(sent(&t).is_empty());
+}
