@@ -436,6 +436,105 @@ def test_reply_delay(line: tuple[Simulator[RegisterDevice], Client]) -> None:
     assert sim.reply_delay == 0.25
 
 
+class Mute(RegisterDevice):
+    answers_writes = False
+
+
+class Switchable(RegisterDevice):
+    """Answers writes while register 1 is 0, and holds replies register 0 milliseconds."""
+
+    @property
+    def answers_writes(self) -> bool:  # type: ignore[override]
+        return self.registers[1] == 0
+
+    @property
+    def reply_delay(self) -> float:  # type: ignore[override]
+        return self.registers[0] / 1000
+
+
+def test_a_unit_that_does_not_answer_writes_still_acts_on_them() -> None:
+    devices = {1: Mute(max_write=4), 2: RegisterDevice()}
+    with Simulator(devices) as sim:
+        client = Client(sim.port)
+        try:
+            single = frame("01 06 00 05 00 07")
+            client.send(single)
+            client.assert_quiet()
+            assert devices[1].registers[5] == 7
+            client.send(frame("01 10 00 00 00 02 04 00 0A 00 0B"))
+            client.assert_quiet()
+            assert devices[1].registers[0:2] == [10, 11]
+            # An exception reply to a write is kept off the line too.
+            client.send(frame("01 10 00 00 00 05 0A 00 01 00 02 00 03 00 04 00 05"))
+            client.assert_quiet()
+            # Reads are answered, and so are other units' writes.
+            assert client.transact(frame("01 03 00 05 00 01"), 7) == frame("01 03 02 00 07")
+            assert client.transact(frame("02 06 00 01 00 02"), 8) == frame("02 06 00 01 00 02")
+            # A fault forced by the simulator is not the unit's reply: it is delivered.
+            sim.answer_exception(6, unit=1)
+            assert client.transact(single, 5) == frame("01 86 06")
+            assert sim.requests.count(single) == 2 and len(sim.requests) == 6
+            assert len(sim.replies) == 3
+        finally:
+            client.close()
+
+
+def test_answers_writes_is_read_per_request() -> None:
+    device = Switchable()
+    with Simulator(device) as sim:
+        client = Client(sim.port)
+        try:
+            # Asked before the unit handles the request: this write is still answered ...
+            mute = frame("01 06 00 01 00 01")
+            assert client.transact(mute, 8) == mute
+            # ... and from then on writes are not, including the one that undoes it.
+            client.send(frame("01 06 00 02 00 05"))
+            client.assert_quiet()
+            client.send(frame("01 06 00 01 00 00"))
+            client.assert_quiet()
+            assert device.registers[1:3] == [0, 5]
+            speak = frame("01 06 00 02 00 06")
+            assert client.transact(speak, 8) == speak
+            assert sim.errors == []
+        finally:
+            client.close()
+
+
+def test_a_unit_reply_delay_is_read_per_request_and_maxed_with_the_line() -> None:
+    device = Switchable({0: 200})
+    devices = {1: device, 2: RegisterDevice({0: 0x0102})}
+    with Simulator(devices) as sim:
+        client = Client(sim.port)
+        try:
+            read1, read2 = frame("01 03 00 00 00 01"), frame("02 03 00 00 00 01")
+            start = time.monotonic()
+            client.send(read1)
+            assert client.recv(7, 0.15) == b""
+            assert client.recv(7) == frame("01 03 02 00 C8")
+            assert 0.2 <= time.monotonic() - start < 1.0
+            # Other units are not held.
+            start = time.monotonic()
+            assert client.transact(read2, 7) == frame("02 03 02 01 02")
+            assert time.monotonic() - start < 0.15
+            # The line's own delay and the unit's: the larger one applies, not the sum.
+            sim.reply_delay = 0.3
+            start = time.monotonic()
+            client.send(read1)
+            assert client.recv(7) == frame("01 03 02 00 C8")
+            assert 0.3 <= time.monotonic() - start < 0.45
+            sim.reply_delay = 0.0
+            # The write that clears the delay is itself still held; the next reply is not.
+            start = time.monotonic()
+            client.send(frame("01 06 00 00 00 00"))
+            assert client.recv(8) == frame("01 06 00 00 00 00")
+            assert time.monotonic() - start >= 0.2
+            start = time.monotonic()
+            assert client.transact(read1, 7) == frame("01 03 02 00 00")
+            assert time.monotonic() - start < 0.15
+        finally:
+            client.close()
+
+
 def test_inject_raw_is_not_logged_as_a_reply(
     line: tuple[Simulator[RegisterDevice], Client],
 ) -> None:

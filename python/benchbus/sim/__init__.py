@@ -10,13 +10,15 @@
         sim.set_silent(1)  # now unit 1 times out
 
 A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) and raises
-:class:`SimException` from its handlers to answer with an exception reply. Pure Python on
+:class:`SimException` from its handlers to answer with an exception reply.
+:class:`DriveDevice` simulates a BLD2 / BLD3H / ZBLD.C20 brushless drive. Pure Python on
 pymodbus and pyserial (``pip install "benchbus[sim]"``); it does not need the compiled core.
 """
 
 from __future__ import annotations
 
 from benchbus.sim._device import RegisterDevice, SimDevice, SimException
+from benchbus.sim._drive import DriveDevice
 from benchbus.sim._simulator import Simulator
 
-__all__ = ["RegisterDevice", "SimDevice", "SimException", "Simulator"]
+__all__ = ["DriveDevice", "RegisterDevice", "SimDevice", "SimException", "Simulator"]

@@ -57,6 +57,18 @@ class SimDevice:
     #: the PBL manual says its drives answer.
     answers_broadcast: bool = False
 
+    #: Whether this unit's replies to writes (0x06, 0x10) go on the line. When False the unit
+    #: still acts on each write (and the request is logged) but its reply, normal or
+    #: exception, is dropped, as a BLD drive does with F08.06 = 1. Read once per request,
+    #: before the unit handles it, so a subclass may make it a property.
+    answers_writes: bool = True
+
+    #: Seconds this unit holds each of its replies before it goes on the line (a BLD drive's
+    #: F08.03 reply delay). The line uses the larger of this and ``Simulator.reply_delay``.
+    #: Read once per request, before the unit handles it, so a subclass may make it a
+    #: property.
+    reply_delay: float = 0.0
+
     def read_holding(self, address: int, count: int) -> list[int]:
         """Values of the ``count`` holding registers from ``address`` (each 0..0xFFFF).
 

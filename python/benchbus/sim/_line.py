@@ -15,6 +15,7 @@ import collections
 import contextlib
 import dataclasses
 import logging
+import math
 import os
 import select
 import threading
@@ -39,6 +40,8 @@ log = logging.getLogger("benchbus.sim")
 SERVER_REPLY_TIMEOUT = 1.0
 #: Functions routed to the server; any other is answered exception 1 by the forwarder.
 SERVER_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
+#: The write functions, whose replies a unit may keep off the line (``answers_writes``).
+WRITE_FUNCTIONS = frozenset({0x06, 0x10})
 _MAX_OUTPUT = 1 << 20  # drop bytes toward a port nobody reads past this
 
 
@@ -114,6 +117,7 @@ class _Job:
     made_reply: bytes | None = None  # answered by the forwarder itself, not the server
     done: threading.Event | None = None  # internal probe: set when answered
     reply: bytes | None = None
+    delay: float = 0.0  # the unit's own reply delay, read when the job is dispatched
 
 
 class _Framer:
@@ -159,15 +163,23 @@ class Forwarder:
         units: frozenset[int],
         broadcast: bool,
         answers_broadcast: Callable[[int], bool],
+        answers_writes: Callable[[int], bool] | None = None,
+        unit_reply_delay: Callable[[int], float] | None = None,
         baudrate: int,
     ) -> None:
-        """Forward between ``library`` and ``server`` for the simulated ``units``."""
+        """Forward between ``library`` and ``server`` for the simulated ``units``.
+
+        ``answers_writes(unit)`` (default: always True) and ``unit_reply_delay(unit)``
+        (default: 0) are asked once per request, when it is handed to the server.
+        """
         self._state = state
         self._a = library.master
         self._b = server.master
         self._units = units
         self._broadcast = broadcast
         self._answers_broadcast = answers_broadcast
+        self._answers_writes = answers_writes
+        self._unit_reply_delay = unit_reply_delay
         gap = frame_gap(baudrate)
         self._rx_a = _Framer(request_length, gap)
         self._rx_b = _Framer(reply_length, gap)
@@ -364,12 +376,44 @@ class Forwarder:
                 job = self._jobs.popleft()
                 self._code_rewrite = None
             self._inflight = job
+            if job.done is None:
+                self._settle(job)
             if job.made_reply is not None:
                 self._finish(job.made_reply)
                 continue
             self._rx_b.buf = b""
             self._out_b += job.frame
             self._inflight_deadline = now + SERVER_REPLY_TIMEOUT
+
+    def _settle(self, job: _Job) -> None:
+        """Ask the unit, just before it handles ``job``, how its reply goes on the line."""
+        unit, function = job.frame[0], job.frame[1]
+        job.delay = self._unit_delay(unit)
+        # A reply the forwarder made itself for a write is a forced exception: it stays.
+        if job.deliver and job.made_reply is None and function in WRITE_FUNCTIONS:
+            job.deliver = self._unit_answers_writes(unit)
+
+    def _unit_answers_writes(self, unit: int) -> bool:
+        if self._answers_writes is None:
+            return True
+        try:
+            return bool(self._answers_writes(unit))
+        except Exception:
+            log.exception("simulator: unit %d: answers_writes failed; answering", unit)
+            return True
+
+    def _unit_delay(self, unit: int) -> float:
+        if self._unit_reply_delay is None:
+            return 0.0
+        try:
+            delay = float(self._unit_reply_delay(unit))
+        except Exception:
+            log.exception("simulator: unit %d: reply_delay failed; no delay", unit)
+            return 0.0
+        if not (math.isfinite(delay) and delay >= 0.0):
+            log.error("simulator: unit %d: reply_delay %r is not >= 0; no delay", unit, delay)
+            return 0.0
+        return delay
 
     # replies from the server
 
@@ -391,12 +435,12 @@ class Forwarder:
         if job.done is not None:
             job.done.set()
         elif job.deliver and reply is not None:
-            self._hold(reply)
+            self._hold(reply, job.delay)
 
-    def _hold(self, reply: bytes) -> None:
+    def _hold(self, reply: bytes, unit_delay: float) -> None:
         now = time.monotonic()
         with self._state.lock:
-            delay = self._state.reply_delay
+            delay = max(self._state.reply_delay, unit_delay)
             if self._state.corrupt > 0:
                 self._state.corrupt -= 1
                 reply = reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1] ^ 0xFF])

@@ -41,9 +41,12 @@ class Simulator(Generic[D]):
     The line serves one request at a time, as a half-duplex RS485 line does. Requests to a
     unit not in :attr:`devices`, or with a bad CRC, get no reply. A broadcast (unit 0) is
     given to every unit in turn and answered by none, except units whose
-    :attr:`SimDevice.answers_broadcast` is set. Functions other than 0x03, 0x06, 0x10 and
-    0x2B/0x0E are answered with exception 1 (illegal function). The set of units is fixed at
-    :meth:`start`; a device object may be replaced in :attr:`devices` for a unit that exists.
+    :attr:`SimDevice.answers_broadcast` is set. A unit whose :attr:`SimDevice.answers_writes`
+    is False acts on writes without answering them, and a unit's own
+    :attr:`SimDevice.reply_delay` holds its replies (the larger of it and :attr:`reply_delay`
+    applies). Functions other than 0x03, 0x06, 0x10 and 0x2B/0x0E are answered with
+    exception 1 (illegal function). The set of units is fixed at :meth:`start`; a device
+    object may be replaced in :attr:`devices` for a unit that exists.
     """
 
     def __init__(
@@ -120,6 +123,8 @@ class Simulator(Generic[D]):
             units=units,
             broadcast=self.broadcast,
             answers_broadcast=lambda unit: bool(self.devices[unit].answers_broadcast),
+            answers_writes=lambda unit: bool(self.devices[unit].answers_writes),
+            unit_reply_delay=lambda unit: float(self.devices[unit].reply_delay),
             baudrate=self.baudrate,
         )
         self._server = PymodbusServer(
@@ -181,7 +186,11 @@ class Simulator(Generic[D]):
 
     @property
     def reply_delay(self) -> float:
-        """Seconds each reply is held before it is released toward the library (0 = none)."""
+        """Seconds each reply is held before it is released toward the library (0 = none).
+
+        A unit with a longer :attr:`SimDevice.reply_delay` of its own holds its replies for
+        that long instead.
+        """
         with self._state.lock:
             return self._state.reply_delay
 

@@ -1,0 +1,594 @@
+"""A simulated BLD2 / BLD3H / ZBLD.C20 brushless DC drive (pure Python, no pymodbus).
+
+The register map, attributes and exception codes follow the vendors' Modbus RTU manuals
+(BLD2/BLD3H appendix B, ZBLD.C20 protocol). The motor is a simple model evaluated lazily
+on each access from a clock: the speed ramps linearly toward its target, and the telemetry
+registers are computed from the speed.
+"""
+
+from __future__ import annotations
+
+import copy
+import dataclasses
+import math
+import threading
+import time
+from collections.abc import Callable
+
+from benchbus.sim._device import SimDevice, SimException
+
+__all__ = ["DriveDevice"]
+
+# Exception codes with this family's meanings.
+_ILLEGAL_COMMAND = 0x01  # not supported, or the drive is in an error state
+_BAD_ADDRESS = 0x02
+_BAD_VALUE = 0x03
+_WRITE_FAILED = 0x04  # e.g. a function-code parameter written without 0x200E = 1
+_READ_ONLY = 0x07
+_NOT_WHILE_RUNNING = 0x08
+
+# What the motor is doing (the drive's state also depends on power and faults).
+_STOPPED = "stopped"
+_RUN = "run"  # forward / reverse toward the setpoint
+_JOG = "jog"
+_STOPPING = "stopping"  # ramping down to 0, then stopped
+_BRAKING = "braking"  # ramping down at 10x the decel rate, then stopped
+
+_COMMAND = 0x2000
+_SETPOINT = 0x2001
+_POLE_PAIRS = 0x2002
+_ACCEL = 0x2003
+_DECEL = 0x2004
+_COMMAND_SOURCE = 0x2006
+_VIRTUAL_INPUTS = 0x200A
+_VIRTUAL_OUTPUTS = 0x200B
+_WRITE_ENABLE = 0x200E
+_RESTORE_DEFAULTS = 0x200F
+_HALL_CLEAR = 0x2011
+_STOP_MODE = 0x2012
+
+_F08_03_REPLY_DELAY = 0x0803
+_F08_06_WRITE_REPLY = 0x0806
+
+#: Registers at 0x2006..0x2009 are the same settings as these function-code parameters.
+_ALIASES = {0x2006: 0x0001, 0x2007: 0x0002, 0x2008: 0x0800, 0x2009: 0x0801}
+
+#: Hall sensor states in the order a 120-degree sensor set steps through them going forward.
+_HALL_SEQUENCE = (1, 5, 4, 6, 2, 3)
+
+_RPM_FULL_SCALE = 3000.0  # the ramp times are for 0 <-> 3000 rpm
+_BRAKE_FACTOR = 10.0
+_HALL_COUNT_WRAP = 1 << 32
+_TIME_EPSILON = 1e-9  # seconds: a ramp this close to its end has reached it
+
+
+@dataclasses.dataclass(frozen=True)
+class _Setting:
+    """A writable register or parameter: default, range, and W/R* (only while stopped)."""
+
+    default: int
+    low: int
+    high: int
+    stopped_only: bool = False
+
+
+def _parameters(bld: bool) -> dict[int, _Setting]:
+    """The function-code parameters Fgg.nn (address ``gg << 8 | nn``) the drive knows."""
+    return {
+        0x0000: _Setting(0, 0, 2),  # F00.00
+        0x0001: _Setting(2, 0, 2),  # F00.01 run command channel (2 = communication)
+        0x0002: _Setting(3, 0, 8 if bld else 6),  # F00.02 speed reference (3 = Modbus)
+        0x0005: _Setting(0, 0, 1, True),  # F00.05 communication channel (0 = Modbus)
+        0x000A: _Setting(5000, 100, 40000),  # F00.10 maximum frequency, 0.01 Hz
+        0x0800: _Setting(1, 1, 247, True),  # F08.00 station address
+        0x0801: _Setting(4, 0, 7 if bld else 6, True),  # F08.01 baud code (4 = 19200)
+        0x0802: _Setting(0, 0, 3, True),  # F08.02 parity (0 = 8N1)
+        0x0803: _Setting(5, 0, 200, True),  # F08.03 reply delay, ms
+        0x0804: _Setting(0, 0, 600, True),  # F08.04 communication-loss timeout, 0.1 s
+        0x0805: _Setting(0, 0, 0, True),  # F08.05 reserved
+        0x0806: _Setting(0, 0, 1, True),  # F08.06 1 = no reply to writes
+    }
+
+
+def _settings(bld: bool) -> dict[int, _Setting]:
+    """The writable registers 0x2001..0x2012 (0x2000, the command, is handled apart)."""
+    table = {
+        0x2001: _Setting(0, 0, 3000),  # speed setpoint, rpm
+        0x2002: _Setting(2, 1, 20, True),  # pole pairs
+        0x2003: _Setting(50, 1, 6000),  # accel time, 0.1 s
+        0x2004: _Setting(50, 1, 6000),  # decel time, 0.1 s
+        0x2005: _Setting(2, 0, 5 if bld else 3, True),  # control mode
+        0x2006: _Setting(2, 0, 3),  # command source (= F00.01)
+        0x2007: _Setting(3, 0, 8 if bld else 6),  # speed source (= F00.02)
+        0x2008: _Setting(1, 1, 127 if bld else 247, True),  # station address (= F08.00)
+        0x2009: _Setting(4, 0, 7 if bld else 6, True),  # baud code (= F08.01)
+        0x200A: _Setting(0, 0, 0x1FF),  # virtual input terminals
+        0x200B: _Setting(0, 0, 0x0F),  # virtual output terminals
+        0x200E: _Setting(0, 0, 1),  # function-code write enable
+        0x200F: _Setting(0, 0, 1, True),  # restore defaults (action)
+    }
+    if bld:
+        table[0x2010] = _Setting(0, 0, 0xFFFF)  # position reference (reserved)
+        table[0x2011] = _Setting(0, 0, 1)  # hall count clear (action)
+        table[0x2012] = _Setting(0, 0, 1)  # stop mode: 0 decelerate, 1 coast
+    return table
+
+
+@dataclasses.dataclass
+class _Core:
+    """Everything a write can change: copied before a write, put back if it fails."""
+
+    settings: dict[int, int]
+    params: dict[int, int]
+    t: float
+    command: int = 0
+    commands: list[int] = dataclasses.field(default_factory=list)
+    motion: str = _STOPPED
+    direction: int = 1
+    speed: float = 0.0  # signed rpm
+    revs: float = 0.0  # signed revolutions (for the hall value)
+    edges: float = 0.0  # hall edges counted (for the hall count)
+    fault: int = 0
+    last_fault: int = 0
+    powered: bool = True
+
+
+class DriveDevice(SimDevice):
+    """A BLD2, BLD3H or ZBLD.C20 ("C20") brushless DC drive as its manuals describe it.
+
+    ::
+
+        drive = DriveDevice("BLD2")
+        with Simulator(drive) as sim:
+            ...  # the library writes 0x2001 = 1500 and 0x2000 = 1 (forward)
+            drive.state, drive.speed  # 1, ramping toward 1500.0
+
+    **Registers.** 0x2000 command (1 forward, 2 reverse, 3/4 jog forward/reverse, 5 stop,
+    6 coast, 7 fault reset, 8 jog stop, 9 brake stop on BLD only), 0x2001..0x200F settings
+    (0x2006..0x2009 are the same settings as F00.01, F00.02, F08.00 and F08.01; the
+    station address and baud code are only stored), BLD only 0x2010..0x2012, status
+    0x2100..0x2103, telemetry 0x3000..0x3011 and BLD only 0x3012..0x3014, and a small
+    table of function-code parameters Fgg.nn at ``gg << 8 | nn`` (see :attr:`params`).
+
+    **Exceptions.** 2 unknown address (including the BLD-only ones on a C20); 7 write to a
+    read-only register; 4 parameter write without 0x200E = 1; 3 value out of range (or an
+    unknown command); 1 run command (1..4) while in fault or off; 8 W/R* register written
+    while the motor turns (running, jogging, stopping or braking). A 0x10 write is applied
+    register by register in address order and is all or nothing. Block reads are answered
+    unless ``single_register_reads`` is set (then a count above 1 answers 3).
+
+    **Motor.** Evaluated lazily from ``clock`` (plus :meth:`advance`) on every access: the
+    speed ramps toward its target at 3000 rpm per accel time (0x2003) when speeding up and
+    per decel time (0x2004) when slowing down, through 0 when the direction changes. While
+    running, 0x2100 shows the commanded direction (1 or 2; jogging too). Stop (5) ramps to
+    0 and then shows 3, or coasts when 0x2012 = 1; coast (6) stops at once; brake (9)
+    shows 6 while ramping down at 10x the decel rate. The drive replies after F08.03 ms
+    (:attr:`reply_delay`) and not at all to writes when F08.06 = 1
+    (:attr:`answers_writes`). F08.04 (communication-loss timeout) is only stored.
+    """
+
+    #: The models this class simulates.
+    MODELS = ("BLD2", "BLD3H", "C20")
+    #: Values of register 0x2100 (drive state).
+    FORWARD, REVERSE, STOPPED, FAULT, OFF, BRAKING = 1, 2, 3, 4, 5, 6
+    #: The jog speed, rpm.
+    JOG_SPEED = 300
+    #: Register 0x300A: software version x 0.01 (101 = 1.01).
+    SOFTWARE_VERSION = 101
+    #: DC bus voltage while powered, 0.1 V (register 0x3008).
+    BUS_VOLTAGE = 3110
+
+    def __init__(
+        self,
+        model: str = "BLD2",
+        *,
+        single_register_reads: bool = False,
+        clock: Callable[[], float] = time.monotonic,
+    ) -> None:
+        """A stopped, healthy drive with every setting at its default.
+
+        ``model`` is "BLD2", "BLD3H" or "C20". ``single_register_reads=True`` refuses
+        0x03 requests for more than one register (exception 3), as the manuals' one-register
+        read format suggests a real unit may. ``clock`` gives the time in seconds for the
+        motor model (a test may pass a fake one and move it, or call :meth:`advance`).
+        """
+        if model not in self.MODELS:
+            raise ValueError(f"model must be one of {', '.join(self.MODELS)}, not {model!r}")
+        if not callable(clock):
+            raise TypeError("clock must be a callable returning seconds")
+        self.model: str = model
+        self.single_register_reads: bool = bool(single_register_reads)
+        #: Overload flag, shown in status word 2 bit 4 (1 = overloaded on a BLD, 0 on a C20).
+        self.overloaded: bool = False
+        #: Whether a keypad is connected (status word 2 bit 7, BLD only).
+        self.keypad_connected: bool = False
+        #: Inverter temperature at rest, degC (register 0x300C adds a little per ampere).
+        self.temperature: float = 25.0
+        #: The three analog inputs in volts (registers 0x300F..0x3011, 0.00..10.00 V).
+        self.analog_inputs: list[float] = [0.0, 0.0, 0.0]
+        self._bld = model != "C20"
+        self._settings_table = _settings(self._bld)
+        self._params_table = _parameters(self._bld)
+        self._readonly = set(range(0x2100, 0x2104)) | set(range(0x3000, 0x3012))
+        if self._bld:
+            self._readonly |= {0x3012, 0x3013, 0x3014}
+        self._clock = clock
+        self._offset = 0.0
+        self._lock = threading.RLock()
+        self._core = _Core(
+            settings={a: s.default for a, s in self._settings_table.items() if a not in _ALIASES},
+            params={a: p.default for a, p in self._params_table.items()},
+            t=self._now(),
+        )
+
+    # ---- line behaviour ---------------------------------------------------------------------
+
+    @property
+    def answers_writes(self) -> bool:  # type: ignore[override]
+        """Whether writes are answered: F08.06 == 0."""
+        return self._core.params[_F08_06_WRITE_REPLY] == 0
+
+    @property
+    def reply_delay(self) -> float:  # type: ignore[override]
+        """Seconds each reply is held: F08.03 (ms) / 1000."""
+        return self._core.params[_F08_03_REPLY_DELAY] / 1000.0
+
+    # ---- Modbus handlers ----------------------------------------------------------------------
+
+    def read_holding(self, address: int, count: int) -> list[int]:
+        """The registers ``address .. address + count - 1`` (all must exist)."""
+        if self.single_register_reads and count != 1:
+            raise SimException(_BAD_VALUE)
+        with self._lock:
+            self._update()
+            return [self._read(a) for a in range(address, address + count)]
+
+    def write_holding(self, address: int, values: list[int]) -> None:
+        """Write ``values`` from ``address``, register by register, all or nothing."""
+        with self._lock:
+            self._update()
+            saved = copy.deepcopy(self._core)
+            try:
+                for offset, value in enumerate(values):
+                    self._write(address + offset, value)
+            except BaseException:
+                self._core = saved
+                raise
+
+    # ---- test access ----------------------------------------------------------------------
+
+    @property
+    def state(self) -> int:
+        """Register 0x2100: 1 forward, 2 reverse, 3 stopped, 4 fault, 5 off, 6 braking."""
+        with self._lock:
+            self._update()
+            return self._state()
+
+    @property
+    def speed(self) -> float:
+        """The motor's speed now, rpm, negative in reverse (rounded to 1e-6 rpm)."""
+        with self._lock:
+            self._update()
+            return round(self._core.speed, 6) + 0.0  # + 0.0: no -0.0
+
+    @property
+    def fault(self) -> int:
+        """Register 0x2102: the active fault code, 0 = none."""
+        with self._lock:
+            return self._core.fault
+
+    @property
+    def commands(self) -> list[int]:
+        """Every value accepted at 0x2000 (command), in order (a copy)."""
+        with self._lock:
+            return list(self._core.commands)
+
+    @property
+    def params(self) -> dict[int, int]:
+        """The function-code parameters, ``{address: value}`` (a copy; see :meth:`set_param`).
+
+        Addresses ``gg << 8 | nn`` for F00.00, F00.01, F00.02, F00.05, F00.10 and
+        F08.00..F08.06.
+        """
+        with self._lock:
+            return dict(self._core.params)
+
+    def set_param(self, address: int, value: int) -> None:
+        """Set a function-code parameter directly, as the keypad would (any state).
+
+        Raises KeyError for an unknown parameter and ValueError for a value out of range.
+        """
+        with self._lock:
+            setting = self._params_table.get(address)
+            if setting is None:
+                raise KeyError(f"no function-code parameter at {address:#06x}")
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise TypeError(f"a parameter value is an int, not {type(value).__name__}")
+            if not setting.low <= value <= setting.high:
+                raise ValueError(
+                    f"parameter {address:#06x} is {setting.low}..{setting.high}, not {value}"
+                )
+            self._core.params[address] = value
+
+    def peek(self, address: int) -> int:
+        """The value a 0x03 read of ``address`` would answer now (KeyError if none)."""
+        with self._lock:
+            self._update()
+            try:
+                return self._read(address)
+            except SimException:
+                raise KeyError(f"a {self.model} has no register {address:#06x}") from None
+
+    @property
+    def hall_count(self) -> int:
+        """The 32-bit hall count (registers 0x3013/0x3014); settable, e.g. near a wrap."""
+        with self._lock:
+            self._update()
+            return math.floor(self._core.edges + 1e-6) % _HALL_COUNT_WRAP
+
+    @hall_count.setter
+    def hall_count(self, value: int) -> None:
+        if not 0 <= value < _HALL_COUNT_WRAP:
+            raise ValueError(f"the hall count is 0..2**32 - 1, not {value}")
+        with self._lock:
+            self._update()
+            self._core.edges = float(value)
+
+    def inject_fault(self, code: int = 0x0A) -> None:
+        """Trip with fault ``code`` (0x0A: undervoltage): state 4, the motor stops at once.
+
+        0x2102 and 0x300B show the code; command 7 (fault reset) clears 0x2102.
+        """
+        if not 1 <= code <= 0xFFFF:
+            raise ValueError(f"a fault code is 1..0xFFFF, not {code}")
+        with self._lock:
+            self._update()
+            self._halt()
+            self._core.fault = code
+            self._core.last_fault = code
+
+    def power_off(self) -> None:
+        """Put the drive in its OFF state (5): the motor stops at once, no bus voltage."""
+        with self._lock:
+            self._update()
+            self._halt()
+            self._core.powered = False
+
+    def power_on(self) -> None:
+        """Leave the OFF state: stopped (3), or in fault (4) if a fault is still active."""
+        with self._lock:
+            self._update()
+            self._core.powered = True
+
+    def advance(self, seconds: float) -> None:
+        """Move the drive's time forward by ``seconds`` on top of its clock."""
+        if not seconds >= 0:
+            raise ValueError(f"seconds must be >= 0, not {seconds}")
+        with self._lock:
+            self._update()
+            self._offset += seconds
+            self._update()
+
+    def __repr__(self) -> str:
+        """Model, state, speed, setpoint and fault."""
+        with self._lock:
+            self._update()
+            core = self._core
+            return (
+                f"<DriveDevice {self.model} state={self._state()} speed={core.speed:.0f} rpm"
+                f" setpoint={core.settings[_SETPOINT]} rpm fault={core.fault:#04x}>"
+            )
+
+    # ---- register access ----------------------------------------------------------------------
+
+    def _read(self, address: int) -> int:
+        core = self._core
+        if address == _COMMAND:
+            return core.command
+        if address in _ALIASES:
+            return core.params[_ALIASES[address]]
+        if address in (_RESTORE_DEFAULTS, _HALL_CLEAR) and address in self._settings_table:
+            return 0  # actions, not settings
+        if address in core.settings:
+            return core.settings[address]
+        if address in core.params:
+            return core.params[address]
+        if address in self._readonly:
+            return self._status(address)
+        raise SimException(_BAD_ADDRESS)
+
+    def _write(self, address: int, value: int) -> None:
+        core = self._core
+        if address == _COMMAND:
+            self._command(value)
+            return
+        param = self._params_table.get(address)
+        setting = param if param is not None else self._settings_table.get(address)
+        if setting is None:
+            if address in self._readonly:
+                raise SimException(_READ_ONLY)
+            raise SimException(_BAD_ADDRESS)
+        if param is not None and core.settings[_WRITE_ENABLE] != 1:
+            raise SimException(_WRITE_FAILED)
+        if not setting.low <= value <= setting.high:
+            raise SimException(_BAD_VALUE)
+        if setting.stopped_only and self._turning():
+            raise SimException(_NOT_WHILE_RUNNING)
+        if param is not None:
+            core.params[address] = value
+        elif address in _ALIASES:
+            core.params[_ALIASES[address]] = value
+        elif address == _RESTORE_DEFAULTS:
+            if value == 1:
+                core.params = {a: p.default for a, p in self._params_table.items()}
+        elif address == _HALL_CLEAR:
+            if value == 1:
+                core.edges = 0.0
+        else:
+            core.settings[address] = value
+
+    def _command(self, value: int) -> None:
+        core = self._core
+        if not 1 <= value <= (9 if self._bld else 8):
+            raise SimException(_BAD_VALUE)
+        if value <= 4 and (core.fault or not core.powered):
+            raise SimException(_ILLEGAL_COMMAND)
+        if value in (1, 2):
+            core.motion, core.direction = _RUN, 1 if value == 1 else -1
+        elif value in (3, 4):
+            core.motion, core.direction = _JOG, 1 if value == 3 else -1
+        elif value == 5 and self._turning():
+            if self._bld and core.settings[_STOP_MODE] == 1:
+                self._halt()
+            else:
+                core.motion = _STOPPING
+        elif value == 6:
+            self._halt()
+        elif value == 7:
+            core.fault = 0
+        elif value == 8 and core.motion == _JOG:
+            core.motion = _STOPPING
+        elif value == 9 and self._turning():
+            core.motion = _BRAKING
+        core.command = value
+        core.commands.append(value)
+        self._settle()
+
+    def _status(self, address: int) -> int:
+        core = self._core
+        pole_pairs = core.settings[_POLE_PAIRS]
+        rpm = abs(core.speed)
+        turning = self._turning()
+        load = min(rpm, _RPM_FULL_SCALE) / _RPM_FULL_SCALE
+        bus = self.BUS_VOLTAGE if core.powered else 0
+        volts = round(bus * 0.95 * load) if turning else 0  # 0.1 V
+        amps = round(30 + 270 * load) if turning else 0  # 0.01 A
+
+        def centihertz(r: float) -> int:
+            return min(0xFFFF, round(r * pole_pairs * 100 / 60))
+
+        if address == 0x2100:
+            return self._state()
+        if address == 0x2101:
+            word = 0x0001 if core.powered else 0
+            if self.overloaded == self._bld:  # BLD: 1 = overloaded; C20: 0 = overloaded
+                word |= 0x0010
+            word |= (core.params[_ALIASES[_COMMAND_SOURCE]] & 0x3) << 5
+            if self._bld and self.keypad_connected:
+                word |= 0x0080
+            return word
+        if address == 0x2102:
+            return core.fault
+        if address == 0x2103:
+            return 0x0030 if self.model == "BLD3H" else 0x0020
+        if address == 0x3000:
+            return centihertz(core.settings[_SETPOINT])
+        if address in (0x3001, 0x3002):
+            return centihertz(rpm)
+        if address == 0x3003:
+            return volts
+        if address == 0x3004:
+            return amps
+        if address == 0x3005:
+            return core.settings[_SETPOINT]
+        if address == 0x3006:
+            return round(rpm)
+        if address == 0x3007:
+            return min(2200, round(volts / 10 * amps / 100))
+        if address == 0x3008:
+            return bus
+        if address == 0x3009:
+            step = math.floor(core.revs * pole_pairs * 6 + 1e-6)
+            return _HALL_SEQUENCE[step % 6]
+        if address == 0x300A:
+            return self.SOFTWARE_VERSION
+        if address == 0x300B:
+            return core.last_fault
+        if address == 0x300C:
+            return round((self.temperature + 0.5 * amps / 100) * 10) & 0xFFFF
+        if address == 0x300D:
+            return core.settings[_VIRTUAL_INPUTS]
+        if address == 0x300E:
+            return core.settings[_VIRTUAL_OUTPUTS]
+        if 0x300F <= address <= 0x3011:
+            volts_in = float(self.analog_inputs[address - 0x300F])
+            return max(0, min(1000, round(volts_in * 100)))
+        if address == 0x3012:
+            return 0
+        count = math.floor(core.edges + 1e-6) % _HALL_COUNT_WRAP
+        return count >> 16 if address == 0x3013 else count & 0xFFFF
+
+    # ---- the motor ------------------------------------------------------------------------------
+
+    def _now(self) -> float:
+        return float(self._clock()) + self._offset
+
+    def _state(self) -> int:
+        core = self._core
+        if not core.powered:
+            return self.OFF
+        if core.fault:
+            return self.FAULT
+        if core.motion == _STOPPED:
+            return self.STOPPED
+        if core.motion == _BRAKING:
+            return self.BRAKING
+        return self.FORWARD if core.direction > 0 else self.REVERSE
+
+    def _turning(self) -> bool:
+        """Whether the drive is running, jogging, stopping or braking (W/R* locked)."""
+        return self._core.motion != _STOPPED
+
+    def _halt(self) -> None:
+        """Stop the motor at once (coast, fault, power off)."""
+        self._core.motion = _STOPPED
+        self._core.speed = 0.0
+
+    def _settle(self) -> None:
+        """A stop or brake that has reached 0 rpm is over."""
+        if self._core.motion in (_STOPPING, _BRAKING) and self._core.speed == 0.0:
+            self._core.motion = _STOPPED
+
+    def _target(self) -> float:
+        core = self._core
+        if core.motion == _RUN:
+            return float(core.direction * core.settings[_SETPOINT])
+        if core.motion == _JOG:
+            return float(core.direction * self.JOG_SPEED)
+        return 0.0
+
+    def _update(self) -> None:
+        """Move the motor model from its last update to now."""
+        core = self._core
+        now = self._now()
+        dt, core.t = now - core.t, max(now, core.t)
+        while dt > 0:
+            target, speed = self._target(), core.speed
+            if speed == target:
+                self._turn(speed, speed, dt)
+                break
+            same_side = target != 0 and (target > 0) == (speed > 0)
+            if speed != 0 and not (same_side and abs(target) > abs(speed)):
+                goal = target if same_side else 0.0  # slow down, to 0 first if reversing
+                rate = _RPM_FULL_SCALE / (core.settings[_DECEL] / 10)
+                if core.motion == _BRAKING:
+                    rate *= _BRAKE_FACTOR
+            else:
+                goal = target
+                rate = _RPM_FULL_SCALE / (core.settings[_ACCEL] / 10)
+            need = abs(goal - speed) / rate
+            if need <= dt + _TIME_EPSILON:  # reached (within rounding of the time steps)
+                step, new = need, goal
+            else:
+                step, new = dt, speed + math.copysign(rate * dt, goal - speed)
+            self._turn(speed, new, step)
+            core.speed = new
+            dt -= step
+            self._settle()
+
+    def _turn(self, start: float, end: float, seconds: float) -> None:
+        """Count the revolutions and hall edges of a linear ramp from ``start`` to ``end``."""
+        core = self._core
+        revs = (start + end) / 2 * seconds / 60
+        core.revs += revs
+        core.edges += abs(revs) * core.settings[_POLE_PAIRS] * 6
