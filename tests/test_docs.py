@@ -38,8 +38,19 @@ def test_readme_hardware_example_on_a_simulated_line(capsys: pytest.CaptureFixtu
 
 
 def test_readme_simulator_example() -> None:
-    (block,) = [b for b in readme_blocks() if "Simulator(" in b]
+    (block,) = [b for b in readme_blocks() if "RegisterDevice(" in b]
     exec(block, {"bb": bb})
+
+
+def test_readme_drive_example(capsys: pytest.CaptureFixture[str]) -> None:
+    (block,) = [b for b in readme_blocks() if "DriveDevice(" in b]
+    exec(block, {})
+    out = capsys.readouterr().out.splitlines()
+    assert abs(int(out[0]) - 1500) <= 30
+    assert out[1] == "DriveState.FORWARD None"
+    frequency = float(out[2].split()[0])
+    assert abs(frequency - int(out[0]) * 2 / 60) < 0.02  # 2 pole pairs by default
+    assert out[3] == "5000"
 
 
 def test_first_steps_example_runs() -> None:

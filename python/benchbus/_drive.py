@@ -38,7 +38,15 @@ __all__ = [
 log = logging.getLogger("benchbus.drive")
 
 
-class DriveState(enum.IntEnum):
+class _IntEnum(enum.IntEnum):
+    """An IntEnum that prints as ``DriveState.FORWARD`` on every Python version."""
+
+    def __str__(self) -> str:
+        """``ClassName.MEMBER``."""
+        return f"{type(self).__name__}.{self.name}"
+
+
+class DriveState(_IntEnum):
     """Drive status word 1 (0x2100)."""
 
     FORWARD = 1
@@ -49,7 +57,7 @@ class DriveState(enum.IntEnum):
     BRAKING = 6
 
 
-class ControlMode(enum.IntEnum):
+class ControlMode(_IntEnum):
     """Control mode (0x2005) of a BLD2 / BLD3H drive."""
 
     TEST = 0
@@ -59,7 +67,7 @@ class ControlMode(enum.IntEnum):
     SENSORLESS_VECTOR = 4
 
 
-class C20ControlMode(enum.IntEnum):
+class C20ControlMode(_IntEnum):
     """Control mode (0x2005) of a ZBLD.C20 drive."""
 
     TEST = 0
@@ -68,7 +76,7 @@ class C20ControlMode(enum.IntEnum):
     DIP_SWITCH = 3
 
 
-class CommandSource(enum.IntEnum):
+class CommandSource(_IntEnum):
     """Where run commands come from (0x2006), and the control source of status word 2."""
 
     KEYPAD = 0
@@ -78,7 +86,7 @@ class CommandSource(enum.IntEnum):
     DIP_SWITCH = 3
 
 
-class SpeedSource(enum.IntEnum):
+class SpeedSource(_IntEnum):
     """Where the speed reference comes from (0x2007). The C20 has 0..6."""
 
     KEYPAD = 0
@@ -92,7 +100,7 @@ class SpeedSource(enum.IntEnum):
     CAN = 8
 
 
-class StopMode(enum.IntEnum):
+class StopMode(_IntEnum):
     """What the stop command does (0x2012, BLD only)."""
 
     DECELERATE = 0

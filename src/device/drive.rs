@@ -139,92 +139,35 @@ const fn measured(
     reg(name, address, scale, unit, Access::Read, (0.0, 0.0), c20)
 }
 
+/// The same register read as a two's complement signed word.
+const fn signed(mut entry: DriveRegister) -> DriveRegister {
+    entry.register.signed = true;
+    entry
+}
+
 use Access::{ReadWrite as RW, WriteWhenStopped as RWS};
 use OnC20::{Absent, Range, Same};
 
 /// Every register of the list but the command register, in address order.
+#[rustfmt::skip]
 pub const REGISTERS: &[DriveRegister] = &[
-    reg(
-        "speed_setpoint",
-        0x2001,
-        1.0,
-        "rpm",
-        RW,
-        (0.0, 3000.0),
-        Same,
-    ),
+    reg("speed_setpoint", 0x2001, 1.0, "rpm", RW, (0.0, 3000.0), Same),
     reg("pole_pairs", 0x2002, 1.0, "", RWS, (1.0, 20.0), Same),
     reg("accel_time", 0x2003, 0.1, "s", RW, (0.1, 600.0), Same),
     reg("decel_time", 0x2004, 0.1, "s", RW, (0.1, 600.0), Same),
     // 5 is "reserved" on the BLD; C20 has 0..3 (3 = DIP switch).
-    reg(
-        "control_mode",
-        0x2005,
-        1.0,
-        "",
-        RWS,
-        (0.0, 4.0),
-        Range(0.0, 3.0),
-    ),
+    reg("control_mode", 0x2005, 1.0, "", RWS, (0.0, 4.0), Range(0.0, 3.0)),
     // 3 is "reserved" on the BLD, the DIP switch (SW3) on the C20.
-    reg(
-        "command_source",
-        0x2006,
-        1.0,
-        "",
-        RW,
-        (0.0, 2.0),
-        Range(0.0, 3.0),
-    ),
+    reg("command_source", 0x2006, 1.0, "", RW, (0.0, 2.0), Range(0.0, 3.0)),
     // The C20 text says 0~5 but lists 0..6 (6 = simple PLC); its list is taken.
-    reg(
-        "speed_source",
-        0x2007,
-        1.0,
-        "",
-        RW,
-        (0.0, 8.0),
-        Range(0.0, 6.0),
-    ),
-    reg(
-        "station_address",
-        0x2008,
-        1.0,
-        "",
-        RWS,
-        (1.0, 127.0),
-        Range(1.0, 247.0),
-    ),
-    reg(
-        "baud_code",
-        0x2009,
-        1.0,
-        "",
-        RWS,
-        (0.0, 7.0),
-        Range(0.0, 6.0),
-    ),
+    reg("speed_source", 0x2007, 1.0, "", RW, (0.0, 8.0), Range(0.0, 6.0)),
+    reg("station_address", 0x2008, 1.0, "", RWS, (1.0, 127.0), Range(1.0, 247.0)),
+    reg("baud_code", 0x2009, 1.0, "", RWS, (0.0, 7.0), Range(0.0, 6.0)),
     reg("virtual_inputs", 0x200A, 1.0, "", RW, (0.0, 511.0), Same),
     reg("virtual_outputs", 0x200B, 1.0, "", RW, (0.0, 15.0), Same),
-    reg(
-        "parameter_write_enable",
-        0x200E,
-        1.0,
-        "",
-        RW,
-        (0.0, 1.0),
-        Same,
-    ),
+    reg("parameter_write_enable", 0x200E, 1.0, "", RW, (0.0, 1.0), Same),
     reg("restore_defaults", 0x200F, 1.0, "", RWS, (0.0, 1.0), Same),
-    reg(
-        "position_reference",
-        0x2010,
-        1.0,
-        "",
-        RW,
-        (0.0, 65535.0),
-        Absent,
-    ),
+    reg("position_reference", 0x2010, 1.0, "", RW, (0.0, 65535.0), Absent),
     reg("hall_count_clear", 0x2011, 1.0, "", RW, (0.0, 1.0), Absent),
     reg("stop_mode", 0x2012, 1.0, "", RW, (0.0, 1.0), Absent),
     measured("state", 0x2100, 1.0, "", Same),
@@ -243,18 +186,7 @@ pub const REGISTERS: &[DriveRegister] = &[
     measured("hall_state", 0x3009, 1.0, "", Same),
     measured("software_version", 0x300A, 0.01, "", Same),
     measured("last_fault", 0x300B, 1.0, "", Same),
-    DriveRegister {
-        register: Register {
-            name: "temperature",
-            address: 0x300C,
-            scale: 0.1,
-            signed: true,
-            unit: "degC",
-            access: Access::Read,
-            range: (0.0, 0.0),
-        },
-        c20: Same,
-    },
+    signed(measured("temperature", 0x300C, 0.1, "degC", Same)),
     measured("input_terminals", 0x300D, 1.0, "", Same),
     measured("output_terminals", 0x300E, 1.0, "", Same),
     measured("ai1_voltage", 0x300F, 0.01, "V", Same),
