@@ -26,3 +26,4 @@ fmt:
 example:
 	$(PYTHON) -m pip install --quiet ".[sim]"
 	$(PYTHON) examples/first_steps.py
+	$(PYTHON) examples/drive_bench.py

@@ -53,17 +53,32 @@ def test_readme_drive_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert out[3] == "5000"
 
 
-def test_first_steps_example_runs() -> None:
-    """examples/first_steps.py, in its own process as a user runs it."""
+def run_example(name: str) -> str:
+    """examples/``name``, in its own process as a user runs it; its output."""
     done = subprocess.run(
-        [sys.executable, str(ROOT / "examples" / "first_steps.py")],
+        [sys.executable, str(ROOT / "examples" / name)],
         capture_output=True,
         text=True,
         timeout=60,
         check=False,
     )
     assert done.returncode == 0, done.stderr
-    assert "measured value = 1000, setpoint = 250" in done.stdout
-    assert "setpoint = 100, 0x0008..9 = [100, 200]" in done.stdout
-    assert "refused at once" in done.stdout
-    assert "silent unit" in done.stdout
+    return done.stdout
+
+
+def test_drive_bench_example_runs() -> None:
+    out = run_example("drive_bench.py").splitlines()
+    assert out[0].startswith("BLD2 on /dev/pts/") and out[0].endswith("DriveState.STOPPED")
+    assert out[1].startswith("  running at 1") and "80.00 Hz" in out[1]
+    assert out[2] == "  refused while running (code 8): not changeable while running"
+    assert out[3] == "  DriveState.FAULT, fault 0x0A undervoltage"
+    assert out[4] == "  after reset: DriveState.STOPPED, fault None"
+    assert out[5] == "  left the block: the drive got command 5 (stop), DriveState.STOPPED"
+
+
+def test_first_steps_example_runs() -> None:
+    stdout = run_example("first_steps.py")
+    assert "measured value = 1000, setpoint = 250" in stdout
+    assert "setpoint = 100, 0x0008..9 = [100, 200]" in stdout
+    assert "refused at once" in stdout
+    assert "silent unit" in stdout

@@ -114,6 +114,10 @@ class Model(str, enum.Enum):
     BLD3H = "BLD3H"
     C20 = "C20"
 
+    def __str__(self) -> str:
+        """The model name, ``BLD2``."""
+        return self.value
+
 
 @dataclasses.dataclass(frozen=True)
 class Fault:
