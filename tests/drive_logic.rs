@@ -175,3 +175,72 @@ fn family_differences_are_checked_before_sending() {
     assert!(bld.set("no_such_register", 1.0).is_err());
     assert!(sent(&t).is_empty());
 }
+
+fn registers_reply(words: &[u16]) -> Act {
+    let mut body = vec![1u8, 3, (words.len() * 2) as u8];
+    for w in words {
+        body.extend(w.to_be_bytes());
+    }
+    Act::Reply(with_crc(&body))
+}
+
+#[test]
+fn firmware_without_the_hall_registers_gives_no_hall_count() {
+    let mut words = vec![0u16; 18];
+    words[6] = 1450;
+    // 0x3000..0x3014 refused; one by one, 0x3000..0x3011 answer and 0x3012 is refused;
+    // then 0x3000..0x3011 as a block.
+    let mut acts = vec![Act::Reply(with_crc(&[1, 0x83, 0x02]))];
+    acts.extend(words.iter().map(|&w| registers_reply(&[w])));
+    acts.push(Act::Reply(with_crc(&[1, 0x83, 0x02])));
+    acts.push(registers_reply(&words));
+    acts.push(registers_reply(&words));
+    let (d, t) = drive(acts, Family::Bld, true);
+    let snap = d.telemetry().expect("telemetry without hall registers");
+    assert_eq!(snap.hall_count, None);
+    assert_eq!(snap.values[6], ("speed", 1450.0, "rpm"));
+    let frames = sent(&t);
+    assert_eq!(frames[0], with_crc(&[1, 3, 0x30, 0x00, 0x00, 21]));
+    assert_eq!(
+        frames.last(),
+        Some(&with_crc(&[1, 3, 0x30, 0x00, 0x00, 18]))
+    );
+    assert_eq!(d.block_reads(), Some(true));
+    // Remembered: the next snapshot asks for 18 registers at once.
+    let before = frames.len();
+    d.telemetry().expect("second snapshot");
+    let frames = sent(&t);
+    assert_eq!(frames.len(), before + 1);
+    assert_eq!(frames[before], with_crc(&[1, 3, 0x30, 0x00, 0x00, 18]));
+}
+
+#[test]
+fn a_one_register_answer_to_a_block_read_falls_back() {
+    // A drive that answers a count of 3 with one register: a wrong-length reply.
+    let acts = vec![
+        registers_reply(&[3]),
+        registers_reply(&[3]),
+        registers_reply(&[0x41]),
+        registers_reply(&[0]),
+    ];
+    let (d, _) = drive(acts, Family::Bld, true);
+    let status = d.status().expect("status one register at a time");
+    assert_eq!((status.state, status.control_source), (3, 2));
+    assert_eq!(d.block_reads(), Some(false));
+}
+
+#[test]
+fn baud_rates_by_family() {
+    let (bld, t) = drive(
+        vec![Act::Reply(with_crc(&[1, 6, 0x20, 0x09, 0, 7]))],
+        Family::Bld,
+        true,
+    );
+    bld.set_baud_rate(115_200).expect("BLD has 115200");
+    assert_eq!(sent(&t)[0], with_crc(&[1, 6, 0x20, 0x09, 0, 7]));
+    assert!(bld.set_baud_rate(14_400).is_err());
+    let (c20, t) = drive(vec![registers_reply(&[3])], Family::C20, true);
+    assert!(c20.set_baud_rate(115_200).is_err());
+    assert_eq!(c20.baud_rate().ok(), Some(Some(9600)));
+    assert_eq!(sent(&t).len(), 1);
+}

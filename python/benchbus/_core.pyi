@@ -3,6 +3,7 @@
 import os
 from collections.abc import Iterable
 from types import TracebackType
+from typing import Any
 
 from typing_extensions import Self, final
 
@@ -149,8 +150,19 @@ class DriveCore:
     (scaled registers are floats); ranges are checked before anything is sent.
     """
 
-    def __new__(cls, bus: Bus, unit: int, family: str, write_ack: bool) -> Self:
-        """The drive at ``unit`` on ``bus``; ``family`` is "BLD" (BLD2, BLD3H) or "C20"."""
+    def __new__(
+        cls,
+        bus: Bus,
+        unit: int,
+        family: str,
+        write_ack: bool,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> Self:
+        """The drive at ``unit`` on ``bus``; ``family`` is "BLD" (BLD2, BLD3H) or "C20".
+
+        ``timeout`` and ``retries`` replace the Bus's for this drive's requests.
+        """
     @property
     def bus(self) -> Bus:
         """The Bus the drive talks through."""
@@ -164,6 +176,12 @@ class DriveCore:
     def write_ack(self) -> bool:
         """Whether writes are answered (False for a drive set to F08.06 = 1)."""
     @property
+    def timeout(self) -> float:
+        """Reply timeout of the drive's requests, in seconds (its own, or the Bus's)."""
+    @property
+    def retries(self) -> int:
+        """Retries of the drive's requests (its own, or the Bus's)."""
+    @property
     def block_reads(self) -> bool | None:
         """Whether the drive answers multi-register reads; None until one was tried."""
     def get(self, name: str) -> int | float:
@@ -176,8 +194,13 @@ class DriveCore:
         """0x2100..0x2102 decoded."""
     def model(self) -> str | int:
         """The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown."""
-    def telemetry(self) -> dict[str, int | float | None]:
-        """One snapshot of 0x3000..: ``{name: value}`` in engineering units, and hall_count."""
+    def telemetry(self) -> dict[str, Any]:
+        """One snapshot of 0x3000..: ``{name: value}`` in engineering units, ``hall_count``
+        (None on the C20) and ``units`` (``{name: unit}``)."""
+    def baud_rate(self) -> int | None:
+        """The line speed stored in 0x2009, in bits per second (None for an unlisted code)."""
+    def set_baud_rate(self, bps: int) -> None:
+        """Stores a new line speed in 0x2009, in bits per second."""
     def read_parameter(self, code: str) -> int:
         """The raw value of function-code parameter ``code`` ("F00.10")."""
     def write_parameter(self, code: str, value: int) -> None:

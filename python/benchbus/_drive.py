@@ -189,8 +189,12 @@ class DriveTelemetry:
     ai2_voltage: float
     #: Analog input 3, V (0x3011).
     ai3_voltage: float
-    #: The 32-bit hall count (0x3013 high, 0x3014 low); None on the C20.
+    #: The 32-bit hall count (0x3013 high, 0x3014 low); None on the C20, or on a BLD whose
+    #: firmware lacks these registers.
     hall_count: int | None
+    #: The unit of each field above, from the drive's register table (``"Hz"``, ``"A"``...;
+    #: ``""`` for counts and bit fields).
+    units: dict[str, str] = dataclasses.field(default_factory=dict, compare=False, repr=False)
 
 
 E = TypeVar("E", bound=enum.IntEnum)
@@ -241,9 +245,6 @@ def _enum(enum_type: type[E]) -> Callable[[Drive, Any], E | int]:
     return lambda _drive, raw: _as(enum_type, int(raw))
 
 
-_BAUD_RATES = (1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200)
-
-
 class Drive:
     """A BLD2 / BLD3H or ZBLD.C20 brushless DC drive (manuals 000 and 001).
 
@@ -259,8 +260,9 @@ class Drive:
 
     Given a path, the drive opens its own Bus at 19200 8N1 (timeout 0.25 s, which covers
     the longest reply delay F08.03 allows) and closes it on :meth:`close`; given a Bus, it
-    shares it. ``family="C20"`` for a ZBLD.C20 (it has no brake and reads overload with the
-    opposite polarity). ``write_ack=False`` for a drive set to F08.06 = 1, which answers no
+    shares it, with the Bus's timeout unless ``timeout=`` gives the drive its own.
+    ``family="C20"`` for a ZBLD.C20 (it has no brake and reads overload with the opposite
+    polarity). ``write_ack=False`` for a drive set to F08.06 = 1, which answers no
     write: writes are then sent once and not awaited.
 
     Exception replies raise :class:`benchbus.ModbusException` with the manual's meaning
@@ -297,7 +299,6 @@ class Drive:
     stop_mode = _Register(
         "stop_mode", _enum(StopMode), "What stop() does, BLD only (0x2012): StopMode."
     )
-    speed = _Register("speed", _int, "Measured motor speed, rpm (0x3006; read-only).")
 
     def __init__(
         self,
@@ -311,15 +312,13 @@ class Drive:
     ) -> None:
         """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1.
 
-        ``timeout`` and ``retries`` set the Bus the drive opens (0.25 s and 2 by default);
-        they cannot be given with a Bus.
+        ``timeout`` and ``retries`` are the drive's own: on a port it opens, they set the Bus
+        (0.25 s and 2 by default); on a shared Bus, they replace the Bus's for this drive's
+        requests only (None: the Bus's).
         """
         self._owns_bus = not isinstance(port_or_bus, Bus)
+        self._jogging = False
         if isinstance(port_or_bus, Bus):
-            if timeout is not None or retries is not None:
-                raise ValueError(
-                    "timeout and retries set the Bus a Drive opens; this Drive was given a Bus"
-                )
             bus = port_or_bus
         else:
             bus = Bus(
@@ -331,7 +330,10 @@ class Drive:
                 retries=2 if retries is None else retries,
             )
         try:
-            self.core = DriveCore(bus, unit, family, write_ack)
+            if self._owns_bus:
+                self.core = DriveCore(bus, unit, family, write_ack)
+            else:
+                self.core = DriveCore(bus, unit, family, write_ack, timeout, retries)
         except BaseException:
             if self._owns_bus:
                 bus.close()
@@ -358,7 +360,18 @@ class Drive:
     def model(self) -> Model | int:
         """The model from its identification code (0x2103), or the raw code if unknown."""
         name = self.core.model()
-        return Model(name) if isinstance(name, str) else name
+        if not isinstance(name, str):
+            return name
+        model = Model(name)
+        if (model is Model.C20) != (self.family == "C20") and model is not Model.BLD2:
+            log.warning(
+                "unit %d identifies as %s but this Drive was made for family %s: status bit 4"
+                " (overload) is read with that family's polarity",
+                self.unit,
+                model,
+                self.family,
+            )
+        return model
 
     # ---- actions -------------------------------------------------------------------------
 
@@ -373,10 +386,12 @@ class Drive:
     def jog_forward(self) -> None:
         """Jog forward (command 3)."""
         self.core.command(3)
+        self._jogging = True
 
     def jog_reverse(self) -> None:
         """Jog in reverse (command 4)."""
         self.core.command(4)
+        self._jogging = True
 
     def stop(self) -> None:
         """Stop: decelerate, or as :attr:`stop_mode` says (command 5)."""
@@ -393,12 +408,18 @@ class Drive:
     def jog_stop(self) -> None:
         """End a jog (command 8)."""
         self.core.command(8)
+        self._jogging = False
 
     def brake(self) -> None:
         """Brake stop, BLD only (command 9); ValueError on a C20."""
         self.core.command(9)
 
     # ---- status and measurements -----------------------------------------------------------
+
+    @property
+    def speed(self) -> int:
+        """Measured motor speed, rpm (0x3006); a magnitude in both directions."""
+        return int(self.core.get("speed"))
 
     @property
     def state(self) -> DriveState | int:
@@ -426,7 +447,7 @@ class Drive:
 
     def telemetry(self) -> DriveTelemetry:
         """All measurement registers in one snapshot (one request where the drive allows)."""
-        return DriveTelemetry(**self.core.telemetry())  # type: ignore[arg-type]
+        return DriveTelemetry(**self.core.telemetry())
 
     def wait_for_speed(
         self, rpm: float, tolerance: float = 10.0, timeout: float = 10.0, interval: float = 0.05
@@ -472,18 +493,17 @@ class Drive:
 
     @property
     def baud_rate(self) -> int:
-        """The line speed the drive has stored (0x2009), in bits per second."""
-        code = int(self.core.get("baud_code"))
-        return _BAUD_RATES[code] if code < len(_BAUD_RATES) else code
+        """The line speed the drive has stored (0x2009), in bits per second (the raw code if
+        the manuals do not list it)."""
+        bps = self.core.baud_rate()
+        return int(self.core.get("baud_code")) if bps is None else bps
 
     def set_baud_rate(self, bps: int) -> None:
         """Store a new line speed (0x2009; stopped only): 1200..115200 (C20 up to 57600).
 
         The drive talks at the new speed from then on: open a new Bus at it.
         """
-        if bps not in _BAUD_RATES:
-            raise ValueError(f"baud rate must be one of {_BAUD_RATES}, got {bps!r}")
-        self.core.set("baud_code", _BAUD_RATES.index(bps))
+        self.core.set_baud_rate(bps)
 
     def restore_defaults(self) -> None:
         """Restore every function-code parameter to its factory value (0x200F; stopped only)."""
@@ -541,10 +561,13 @@ class Drive:
     ) -> None:
         """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
 
-        If the stop fails while another exception is on its way out, that exception goes on
-        and the failure is logged; otherwise the failure is raised.
+        A jog this object started is ended with the jog stop first, then the stop command is
+        sent. If stopping fails while another exception is on its way out, that exception
+        goes on and the failure is logged; otherwise the failure is raised.
         """
         try:
+            if self._jogging:
+                self.jog_stop()
             self.stop()
         except Exception:
             if exc is None:

@@ -8,10 +8,11 @@
 
 use super::{Access, Register};
 use crate::bus::{Bus, TxOptions};
-use crate::codec::exception_meaning;
+use crate::codec::{exception_meaning, FrameError};
 use crate::error::{Error, Result};
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
+use std::time::Duration;
 
 /// Which manual the drive follows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -76,6 +77,9 @@ impl Command {
         .find(|c| *c as u16 == code)
     }
 }
+
+/// Line speeds by the code of 0x2009 / F08.01 (the C20 stops at 57600).
+pub const BAUD_RATES: [u32; 8] = [1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200];
 
 /// Address of the command register.
 pub const COMMAND: u16 = 0x2000;
@@ -300,8 +304,9 @@ pub struct Telemetry {
     pub hall_count: Option<u32>,
 }
 
-/// Parses a function-code parameter name, "F00.10" (group 00..10, index 00..99; the index is
-/// decimal, so F00.50 is 0x0032), into its register address `gg << 8 | nn`.
+/// Parses a function-code parameter name, "F00.10" (group 00..10, index 00..99, two digits
+/// each as the manuals write them; the index is decimal, so F00.50 is 0x0032), into its
+/// register address `gg << 8 | nn`.
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] for anything else.
@@ -318,7 +323,7 @@ pub fn parameter_address(code: &str) -> Result<u16> {
         .ok_or_else(bad)?;
     let (group, index) = rest.split_once('.').ok_or_else(bad)?;
     let number = |s: &str| -> Option<u16> {
-        if (1..=2).contains(&s.len()) && s.bytes().all(|b| b.is_ascii_digit()) {
+        if s.len() == 2 && s.bytes().all(|b| b.is_ascii_digit()) {
             s.parse().ok()
         } else {
             None
@@ -342,6 +347,10 @@ pub struct Drive {
     family: Family,
     opts: TxOptions,
     block_reads: AtomicU8,
+    /// Whether the firmware has 0x3012..0x3014 ("software version dependent" in 000).
+    hall_registers: AtomicU8,
+    /// Holds the 0x200E enable / write / restore sequence together against other threads.
+    parameter_lock: Mutex<()>,
 }
 
 impl Drive {
@@ -358,7 +367,31 @@ impl Drive {
                 ..TxOptions::default()
             },
             block_reads: AtomicU8::new(BLOCK_UNKNOWN),
+            hall_registers: AtomicU8::new(if family == Family::Bld {
+                BLOCK_UNKNOWN
+            } else {
+                BLOCK_NO
+            }),
+            parameter_lock: Mutex::new(()),
         }
+    }
+
+    /// The same drive with its own reply timeout and retries, instead of the Bus's (for a
+    /// reply delay F08.03 longer than the Bus allows).
+    pub fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> Drive {
+        self.opts.timeout = timeout;
+        self.opts.retries = retries;
+        self
+    }
+
+    /// The reply timeout of this drive's requests: its own, or the Bus's.
+    pub fn timeout(&self) -> Duration {
+        self.opts.timeout.unwrap_or(self.bus.config().timeout)
+    }
+
+    /// The retries of this drive's requests: its own, or the Bus's.
+    pub fn retries(&self) -> u32 {
+        self.opts.retries.unwrap_or(self.bus.config().retries)
     }
 
     /// The bus the drive is on.
@@ -471,24 +504,49 @@ impl Drive {
     }
 
     /// Reads every measurement register in one snapshot (one request where the drive allows).
+    /// On a BLD whose firmware lacks 0x3012..0x3014 (the manual says they depend on the
+    /// software version), the snapshot is taken without them and `hall_count` is None.
     ///
     /// # Errors
     /// Any [`Error`].
     pub fn telemetry(&self) -> Result<Telemetry> {
-        let entries: Vec<Register> = REGISTERS
-            .iter()
-            .filter(|r| r.register.address >= TELEMETRY)
-            .filter(|r| self.family == Family::Bld || r.c20 != OnC20::Absent)
-            .map(|r| r.register)
-            .collect();
-        let count = entries.len() as u16;
-        let words = self.read(TELEMETRY, count)?;
-        if words.len() != entries.len() {
-            return Err(short_read(self.unit, entries.len(), words.len()));
+        let with_hall = self.hall_registers.load(Ordering::Relaxed) != BLOCK_NO;
+        let entries = |hall: bool| -> Vec<Register> {
+            REGISTERS
+                .iter()
+                .filter(|r| r.register.address >= TELEMETRY)
+                .filter(|r| hall || r.c20 != OnC20::Absent)
+                .map(|r| r.register)
+                .collect()
+        };
+        let mut wanted = entries(with_hall);
+        let words = match self.read(TELEMETRY, wanted.len() as u16) {
+            Ok(words) => {
+                if with_hall {
+                    self.hall_registers.store(BLOCK_YES, Ordering::Relaxed);
+                }
+                words
+            }
+            Err(Error::Exception { code: 0x02, .. })
+                if with_hall && self.hall_registers.load(Ordering::Relaxed) == BLOCK_UNKNOWN =>
+            {
+                wanted = entries(false);
+                let words = self.read(TELEMETRY, wanted.len() as u16)?;
+                log::debug!(
+                    target: "benchbus::device",
+                    "unit {}: no registers 0x3012..0x3014 on this firmware", self.unit
+                );
+                self.hall_registers.store(BLOCK_NO, Ordering::Relaxed);
+                words
+            }
+            Err(e) => return Err(e),
+        };
+        if words.len() != wanted.len() {
+            return Err(short_read(self.unit, wanted.len(), words.len()));
         }
-        let mut values = Vec::with_capacity(entries.len());
+        let mut values = Vec::with_capacity(wanted.len());
         let mut hall = (None, None);
-        for (register, &raw) in entries.iter().zip(&words) {
+        for (register, &raw) in wanted.iter().zip(&words) {
             match register.address {
                 0x3012 => {}
                 0x3013 => hall.0 = Some(u32::from(raw)),
@@ -501,6 +559,36 @@ impl Drive {
             _ => None,
         };
         Ok(Telemetry { values, hall_count })
+    }
+
+    /// The line speed stored in 0x2009, in bits per second (None for a code the manuals do
+    /// not list).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn baud_rate(&self) -> Result<Option<u32>> {
+        let code = self.get("baud_code")?;
+        Ok(BAUD_RATES.get(code as usize).copied())
+    }
+
+    /// Stores a new line speed in 0x2009 (the drive talks at it from then on).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a speed the family does not have; any [`Error`].
+    pub fn set_baud_rate(&self, bps: u32) -> Result<()> {
+        let register = self.register("baud_code")?;
+        let top = register.range.1 as usize;
+        match BAUD_RATES[..=top.min(BAUD_RATES.len() - 1)]
+            .iter()
+            .position(|&b| b == bps)
+        {
+            Some(code) => self.write(register.address, code as u16),
+            None => Err(Error::InvalidArgument(format!(
+                "baud rate must be one of {:?} on a {} drive, got {bps}",
+                &BAUD_RATES[..=top.min(BAUD_RATES.len() - 1)],
+                self.family.name()
+            ))),
+        }
     }
 
     /// Reads the raw value of function-code parameter `code` ("F00.10").
@@ -519,6 +607,11 @@ impl Drive {
     /// Any [`Error`]; an exception reply says which parameter the drive refused.
     pub fn write_parameter(&self, code: &str, value: u16) -> Result<()> {
         let address = parameter_address(code)?;
+        // A poisoned lock guards nothing but this sequence: go on.
+        let _sequence = self
+            .parameter_lock
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
         let enable = self.read(PARAMETER_WRITE_ENABLE, 1)?;
         let was = enable.first().copied().unwrap_or_default();
         if was != 1 {
@@ -561,8 +654,11 @@ impl Drive {
                     self.block_reads.store(BLOCK_YES, Ordering::Relaxed);
                     return Ok(words);
                 }
-                Err(Error::Exception { .. })
-                    if self.block_reads.load(Ordering::Relaxed) == BLOCK_UNKNOWN => {}
+                // A refusal: an exception reply, or a reply of the wrong shape (a drive that
+                // answers one register whatever the count). Not a timeout or a bad CRC.
+                Err(e)
+                    if self.block_reads.load(Ordering::Relaxed) == BLOCK_UNKNOWN
+                        && is_refusal(&e) => {}
                 Err(e) => return Err(e),
             }
             let words = self.read_singly(address, count)?;
@@ -590,6 +686,16 @@ impl Drive {
     fn write(&self, address: u16, value: u16) -> Result<()> {
         self.bus
             .write_register(self.unit, address, value, &self.opts)
+    }
+}
+
+/// Whether a failed block read is the drive saying no (an exception reply, or a reply of
+/// the wrong shape), rather than a lost or corrupted reply.
+fn is_refusal(e: &Error) -> bool {
+    match e {
+        Error::Exception { .. } => true,
+        Error::Frame { kind, .. } => !matches!(kind, FrameError::Crc { .. }),
+        _ => false,
     }
 }
 

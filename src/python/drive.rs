@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::drive`]: the register-level core that `benchbus.Drive`
 //! (Python) wraps with enums, dataclasses and the context manager.
 
-use super::{int_in, to_pyerr, unit_arg, PyBus};
+use super::{int_in, opt, seconds, to_pyerr, unit_arg, PyBus};
 use crate::device::drive::{fault_name, Command, Drive, Family, REGISTERS};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -43,12 +43,14 @@ fn number(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
 #[pymethods]
 impl PyDriveCore {
     #[new]
-    #[pyo3(signature = (bus, unit, family, write_ack))]
+    #[pyo3(signature = (bus, unit, family, write_ack, timeout=None, retries=None))]
     fn new(
         bus: Bound<'_, PyBus>,
         unit: &Bound<'_, PyAny>,
         family: &str,
         write_ack: bool,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let unit = unit_arg(unit)?;
         let family = Family::from_name(family).ok_or_else(|| {
@@ -56,9 +58,14 @@ impl PyDriveCore {
                 "family must be \"BLD\" (BLD2, BLD3H) or \"C20\", got {family:?}"
             ))
         })?;
+        let timeout = opt(timeout, None, |t| seconds(t, "timeout", false).map(Some))?;
+        let retries = opt(retries, None, |r| {
+            int_in(r, "retries", 0, 100).map(|n| Some(n as u32))
+        })?;
         let core = Arc::clone(&bus.get().bus);
+        let drive = Drive::new(core, unit, family, write_ack).with_timing(timeout, retries);
         Ok(PyDriveCore {
-            drive: Arc::new(Drive::new(core, unit, family, write_ack)),
+            drive: Arc::new(drive),
             bus: bus.unbind(),
         })
     }
@@ -85,6 +92,18 @@ impl PyDriveCore {
     #[getter]
     fn write_ack(&self) -> bool {
         self.drive.write_reply()
+    }
+
+    /// Reply timeout of the drive's requests, in seconds (its own, or the Bus's).
+    #[getter]
+    fn timeout(&self) -> f64 {
+        self.drive.timeout().as_secs_f64()
+    }
+
+    /// Retries of the drive's requests (its own, or the Bus's).
+    #[getter]
+    fn retries(&self) -> u32 {
+        self.drive.retries()
     }
 
     /// Whether the drive answers multi-register reads; None until one was tried.
@@ -148,6 +167,7 @@ impl PyDriveCore {
     fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let t = self.wire(py, |d| d.telemetry())?;
         let out = PyDict::new(py);
+        let units = PyDict::new(py);
         for (name, value, _) in &t.values {
             let integer = REGISTERS
                 .iter()
@@ -158,8 +178,23 @@ impl PyDriveCore {
                 out.set_item(*name, *value)?;
             }
         }
+        for (name, _, unit) in &t.values {
+            units.set_item(*name, *unit)?;
+        }
         out.set_item("hall_count", t.hall_count)?;
+        out.set_item("units", units)?;
         Ok(out)
+    }
+
+    /// The line speed stored in 0x2009, in bits per second (None for an unlisted code).
+    fn baud_rate(&self, py: Python<'_>) -> PyResult<Option<u32>> {
+        self.wire(py, |d| d.baud_rate())
+    }
+
+    /// Stores a new line speed in 0x2009, in bits per second.
+    fn set_baud_rate(&self, py: Python<'_>, bps: &Bound<'_, PyAny>) -> PyResult<()> {
+        let bps = int_in(bps, "baud rate", 0, i64::from(u32::MAX))? as u32;
+        self.wire(py, move |d| d.set_baud_rate(bps))
     }
 
     /// The raw value of function-code parameter `code` ("F00.10").

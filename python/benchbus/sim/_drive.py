@@ -76,7 +76,7 @@ def _parameters(bld: bool) -> dict[int, _Setting]:
     """The function-code parameters Fgg.nn (address ``gg << 8 | nn``) the drive knows."""
     return {
         0x0000: _Setting(0, 0, 2),  # F00.00
-        0x0001: _Setting(2, 0, 2),  # F00.01 run command channel (2 = communication)
+        0x0001: _Setting(2, 0, 2 if bld else 3),  # F00.01 run command channel (2 = comm)
         0x0002: _Setting(3, 0, 8 if bld else 6),  # F00.02 speed reference (3 = Modbus)
         0x0005: _Setting(0, 0, 1, True),  # F00.05 communication channel (0 = Modbus)
         0x000A: _Setting(5000, 100, 40000),  # F00.10 maximum frequency, 0.01 Hz
@@ -98,7 +98,7 @@ def _settings(bld: bool) -> dict[int, _Setting]:
         0x2003: _Setting(50, 1, 6000),  # accel time, 0.1 s
         0x2004: _Setting(50, 1, 6000),  # decel time, 0.1 s
         0x2005: _Setting(2, 0, 5 if bld else 3, True),  # control mode
-        0x2006: _Setting(2, 0, 3),  # command source (= F00.01)
+        0x2006: _Setting(2, 0, 2 if bld else 3),  # command source (= F00.01; 3 = C20 DIP)
         0x2007: _Setting(3, 0, 8 if bld else 6),  # speed source (= F00.02)
         0x2008: _Setting(1, 1, 127 if bld else 247, True),  # station address (= F08.00)
         0x2009: _Setting(4, 0, 7 if bld else 6, True),  # baud code (= F08.01)
@@ -183,20 +183,23 @@ class DriveDevice(SimDevice):
         model: str = "BLD2",
         *,
         single_register_reads: bool = False,
+        hall_registers: bool = True,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """A stopped, healthy drive with every setting at its default.
 
         ``model`` is "BLD2", "BLD3H" or "C20". ``single_register_reads=True`` refuses
         0x03 requests for more than one register (exception 3), as the manuals' one-register
-        read format suggests a real unit may. ``clock`` gives the time in seconds for the
+        read format suggests a real unit may. ``hall_registers=False`` makes a BLD whose
+        firmware lacks 0x3012..0x3014 (the manual says they depend on the software version):
+        they answer exception 2. ``clock`` gives the time in seconds for the
         motor model (a test may pass a fake one and move it, or call :meth:`advance`).
         """
         if model not in self.MODELS:
             raise ValueError(f"model must be one of {', '.join(self.MODELS)}, not {model!r}")
         if not callable(clock):
             raise TypeError("clock must be a callable returning seconds")
-        self.model: str = model
+        self._model = model
         self.single_register_reads: bool = bool(single_register_reads)
         #: Overload flag, shown in status word 2 bit 4 (1 = overloaded on a BLD, 0 on a C20).
         self.overloaded: bool = False
@@ -210,7 +213,7 @@ class DriveDevice(SimDevice):
         self._settings_table = _settings(self._bld)
         self._params_table = _parameters(self._bld)
         self._readonly = set(range(0x2100, 0x2104)) | set(range(0x3000, 0x3012))
-        if self._bld:
+        if self._bld and hall_registers:
             self._readonly |= {0x3012, 0x3013, 0x3014}
         self._clock = clock
         self._offset = 0.0
@@ -220,6 +223,11 @@ class DriveDevice(SimDevice):
             params={a: p.default for a, p in self._params_table.items()},
             t=self._now(),
         )
+
+    @property
+    def model(self) -> str:
+        """ "BLD2", "BLD3H" or "C20" (fixed: the register tables follow it)."""
+        return self._model
 
     # ---- line behaviour ---------------------------------------------------------------------
 
