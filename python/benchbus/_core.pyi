@@ -7,7 +7,7 @@ from typing import Any
 
 from typing_extensions import Self, final
 
-__all__ = ["Bus", "DriveCore", "Stats", "__version__", "crc16", "refresh_logging"]
+__all__ = ["Bus", "DriveCore", "PblCore", "Stats", "__version__", "crc16", "refresh_logging"]
 
 __version__: str
 
@@ -207,3 +207,55 @@ class DriveCore:
         """Writes the raw ``value`` to parameter ``code``, enabling 0x200E around it."""
     def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
         """``(name, address, scale, unit, access, low, high)`` of each register."""
+
+@final
+class PblCore:
+    """The parameter-level core of a PBL-series drive; use ``benchbus.PblDrive``.
+
+    Parameters are given by number (0..222) or by name from :meth:`table`; values are the
+    raw words, checked against the table before anything is sent. Every call that touches
+    the wire releases the GIL. A 0x06 reply carrying a count of 1 instead of the echo is
+    accepted, as these drives send it.
+    """
+
+    def __new__(
+        cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
+    ) -> Self:
+        """The drive at ``unit`` on ``bus``; ``timeout`` / ``retries`` replace the Bus's."""
+    @property
+    def bus(self) -> Bus:
+        """The Bus the drive talks through."""
+    @property
+    def unit(self) -> int:
+        """The drive's unit address."""
+    def get(self, name: str) -> int:
+        """Reads the parameter called ``name``."""
+    def set(self, name: str, value: float) -> None:
+        """Writes ``value`` to the parameter called ``name``."""
+    def read_parameter(self, key: int | str) -> int:
+        """Reads one parameter, by number or name."""
+    def write_parameter(self, key: int | str, value: int) -> None:
+        """Writes one parameter, by number or name, checked against the table first."""
+    def read_parameters(self, start: int | str, count: int) -> list[int]:
+        """Reads ``count`` parameters from ``start`` (in as few requests as allowed)."""
+    def parameters(self) -> dict[str, int]:
+        """Every documented parameter, ``{name: value}``, in two requests."""
+    def telemetry(self) -> dict[str, int]:
+        """Parameters 0..99 but the reserved ones, ``{name: value}``, in one request."""
+    def start(self) -> None:
+        """Sets the start bit of the control word, keeping the others."""
+    def stop(self) -> None:
+        """Clears the start bit of the control word, keeping the others."""
+    def set_reverse(self, reverse: bool) -> None:
+        """Sets the direction bit of the control word (True = reverse), keeping the others."""
+    def control(self) -> tuple[bool, bool]:
+        """The control word as ``(started, reverse)``."""
+    def status(self) -> tuple[bool, bool]:
+        """The status word as ``(running, reverse)``."""
+    def alarms(self) -> tuple[int, list[str]]:
+        """The 32-bit alarm word and the names of its set bits."""
+    def restore_defaults(self) -> None:
+        """Writes 1511 to parameter 214 (defaults restored at the next power-up)."""
+    @staticmethod
+    def table() -> list[tuple[int, str, str, str, float, float]]:
+        """``(number, name, unit, access, low, high)`` of each parameter; access "R" or "W/R"."""

@@ -12,14 +12,21 @@ import enum
 import logging
 import os
 import time
-from collections.abc import Callable
-from types import TracebackType
-from typing import TYPE_CHECKING, Any, Generic, TypeVar, overload
+from typing import TYPE_CHECKING, Any
 
 from benchbus._core import Bus, DriveCore
+from benchbus._device import (
+    MotorDevice,
+    PrintableIntEnum,
+    RegisterProperty,
+    as_enum,
+    to_enum,
+    to_float,
+    to_int,
+)
 
 if TYPE_CHECKING:
-    from typing_extensions import Self
+    pass
 
 __all__ = [
     "C20ControlMode",
@@ -38,15 +45,7 @@ __all__ = [
 log = logging.getLogger("benchbus.drive")
 
 
-class _IntEnum(enum.IntEnum):
-    """An IntEnum that prints as ``DriveState.FORWARD`` on every Python version."""
-
-    def __str__(self) -> str:
-        """``ClassName.MEMBER``."""
-        return f"{type(self).__name__}.{self.name}"
-
-
-class DriveState(_IntEnum):
+class DriveState(PrintableIntEnum):
     """Drive status word 1 (0x2100)."""
 
     FORWARD = 1
@@ -57,7 +56,7 @@ class DriveState(_IntEnum):
     BRAKING = 6
 
 
-class ControlMode(_IntEnum):
+class ControlMode(PrintableIntEnum):
     """Control mode (0x2005) of a BLD2 / BLD3H drive."""
 
     TEST = 0
@@ -67,7 +66,7 @@ class ControlMode(_IntEnum):
     SENSORLESS_VECTOR = 4
 
 
-class C20ControlMode(_IntEnum):
+class C20ControlMode(PrintableIntEnum):
     """Control mode (0x2005) of a ZBLD.C20 drive."""
 
     TEST = 0
@@ -76,7 +75,7 @@ class C20ControlMode(_IntEnum):
     DIP_SWITCH = 3
 
 
-class CommandSource(_IntEnum):
+class CommandSource(PrintableIntEnum):
     """Where run commands come from (0x2006), and the control source of status word 2."""
 
     KEYPAD = 0
@@ -86,7 +85,7 @@ class CommandSource(_IntEnum):
     DIP_SWITCH = 3
 
 
-class SpeedSource(_IntEnum):
+class SpeedSource(PrintableIntEnum):
     """Where the speed reference comes from (0x2007). The C20 has 0..6."""
 
     KEYPAD = 0
@@ -100,7 +99,7 @@ class SpeedSource(_IntEnum):
     CAN = 8
 
 
-class StopMode(_IntEnum):
+class StopMode(PrintableIntEnum):
     """What the stop command does (0x2012, BLD only)."""
 
     DECELERATE = 0
@@ -197,55 +196,11 @@ class DriveTelemetry:
     units: dict[str, str] = dataclasses.field(default_factory=dict, compare=False, repr=False)
 
 
-E = TypeVar("E", bound=enum.IntEnum)
-T = TypeVar("T")
-
-
-def _as(enum_type: type[E], raw: int) -> E | int:
-    try:
-        return enum_type(raw)
-    except ValueError:
-        return raw
-
-
-class _Register(Generic[T]):
-    """A drive property backed by one register of the core's table."""
-
-    def __init__(self, register: str, convert: Callable[[Drive, Any], T], doc: str) -> None:
-        self.register = register
-        self.convert = convert
-        self.__doc__ = doc
-
-    @overload
-    def __get__(self, drive: None, owner: type[Drive]) -> _Register[T]: ...
-    @overload
-    def __get__(self, drive: Drive, owner: type[Drive]) -> T: ...
-    def __get__(self, drive: Drive | None, owner: type[Drive]) -> T | _Register[T]:
-        if drive is None:
-            return self
-        return self.convert(drive, drive.core.get(self.register))
-
-    def __set__(self, drive: Drive, value: float) -> None:
-        drive.core.set(self.register, value)
-
-
-def _int(_drive: Drive, raw: Any) -> int:
-    return int(raw)
-
-
-def _float(_drive: Drive, raw: Any) -> float:
-    return float(raw)
-
-
 def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode | int:
-    return _as(C20ControlMode if drive.family == "C20" else ControlMode, int(raw))
+    return as_enum(C20ControlMode if drive.family == "C20" else ControlMode, int(raw))
 
 
-def _enum(enum_type: type[E]) -> Callable[[Drive, Any], E | int]:
-    return lambda _drive, raw: _as(enum_type, int(raw))
-
-
-class Drive:
+class Drive(MotorDevice):
     """A BLD2 / BLD3H or ZBLD.C20 brushless DC drive (manuals 000 and 001).
 
     ::
@@ -271,33 +226,38 @@ class Drive:
     reads fall back to one register per request, and the drive remembers it.
     """
 
-    speed_setpoint = _Register("speed_setpoint", _int, "Speed setpoint, rpm 0..3000 (0x2001).")
-    pole_pairs = _Register("pole_pairs", _int, "Motor pole pairs, 1..20 (0x2002; stopped only).")
-    accel_time = _Register(
-        "accel_time", _float, "Acceleration time, s 0.1..600.0 in steps of 0.1 (0x2003)."
+    core: DriveCore
+    speed_setpoint = RegisterProperty(
+        "speed_setpoint", to_int, "Speed setpoint, rpm 0..3000 (0x2001)."
     )
-    decel_time = _Register(
-        "decel_time", _float, "Deceleration time, s 0.1..600.0 in steps of 0.1 (0x2004)."
+    pole_pairs = RegisterProperty(
+        "pole_pairs", to_int, "Motor pole pairs, 1..20 (0x2002; stopped only)."
     )
-    control_mode = _Register(
+    accel_time = RegisterProperty(
+        "accel_time", to_float, "Acceleration time, s 0.1..600.0 in steps of 0.1 (0x2003)."
+    )
+    decel_time = RegisterProperty(
+        "decel_time", to_float, "Deceleration time, s 0.1..600.0 in steps of 0.1 (0x2004)."
+    )
+    control_mode = RegisterProperty(
         "control_mode",
         _control_mode,
         "Control mode (0x2005; stopped only): ControlMode, or C20ControlMode on a C20.",
     )
-    command_source = _Register(
-        "command_source", _enum(CommandSource), "Where run commands come from (0x2006)."
+    command_source = RegisterProperty(
+        "command_source", to_enum(CommandSource), "Where run commands come from (0x2006)."
     )
-    speed_source = _Register(
-        "speed_source", _enum(SpeedSource), "Where the speed reference comes from (0x2007)."
+    speed_source = RegisterProperty(
+        "speed_source", to_enum(SpeedSource), "Where the speed reference comes from (0x2007)."
     )
-    virtual_inputs = _Register(
-        "virtual_inputs", _int, "Virtual input terminal bits, 0..0x1FF (0x200A)."
+    virtual_inputs = RegisterProperty(
+        "virtual_inputs", to_int, "Virtual input terminal bits, 0..0x1FF (0x200A)."
     )
-    virtual_outputs = _Register(
-        "virtual_outputs", _int, "Virtual output terminal bits, 0..0x0F (0x200B)."
+    virtual_outputs = RegisterProperty(
+        "virtual_outputs", to_int, "Virtual output terminal bits, 0..0x0F (0x200B)."
     )
-    stop_mode = _Register(
-        "stop_mode", _enum(StopMode), "What stop() does, BLD only (0x2012): StopMode."
+    stop_mode = RegisterProperty(
+        "stop_mode", to_enum(StopMode), "What stop() does, BLD only (0x2012): StopMode."
     )
 
     def __init__(
@@ -340,16 +300,6 @@ class Drive:
             raise
 
     # ---- identity ------------------------------------------------------------------------
-
-    @property
-    def bus(self) -> Bus:
-        """The Bus the drive talks through."""
-        return self.core.bus
-
-    @property
-    def unit(self) -> int:
-        """The drive's unit address."""
-        return self.core.unit
 
     @property
     def family(self) -> str:
@@ -424,7 +374,7 @@ class Drive:
     @property
     def state(self) -> DriveState | int:
         """Status word 1 (0x2100)."""
-        return _as(DriveState, int(self.core.get("state")))
+        return as_enum(DriveState, int(self.core.get("state")))
 
     @property
     def fault(self) -> Fault | None:
@@ -437,10 +387,10 @@ class Drive:
         code = int(s["fault_code"] or 0)
         keypad = s["keypad_connected"]
         return DriveStatus(
-            state=_as(DriveState, int(s["state"] or 0)),
+            state=as_enum(DriveState, int(s["state"] or 0)),
             bus_voltage_ready=bool(s["bus_voltage_ready"]),
             overloaded=bool(s["overloaded"]),
-            control_source=_as(CommandSource, int(s["control_source"] or 0)),
+            control_source=as_enum(CommandSource, int(s["control_source"] or 0)),
             keypad_connected=None if keypad is None else bool(keypad),
             fault=Fault(code, str(s["fault_name"])) if code else None,
         )
@@ -544,37 +494,11 @@ class Drive:
 
     # ---- lifecycle -------------------------------------------------------------------------
 
-    def close(self) -> None:
-        """Close the Bus if the drive opened it (a shared Bus stays open)."""
-        if self._owns_bus:
-            self.bus.close()
-
-    def __enter__(self) -> Self:
-        """The drive itself; leaving the block stops the motor."""
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
-
-        A jog this object started is ended with the jog stop first, then the stop command is
-        sent. If stopping fails while another exception is on its way out, that exception
-        goes on and the failure is logged; otherwise the failure is raised.
-        """
-        try:
-            if self._jogging:
-                self.jog_stop()
-            self.stop()
-        except Exception:
-            if exc is None:
-                raise
-            log.exception("unit %d: could not stop the motor on leaving the block", self.unit)
-        finally:
-            self.close()
+    def _stop_on_exit(self) -> None:
+        """End a jog this object started (jog stop), then send the stop."""
+        if self._jogging:
+            self.jog_stop()
+        self.stop()
 
     def __repr__(self) -> str:
         """Unit, family and bus."""

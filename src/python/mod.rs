@@ -4,6 +4,7 @@
 //! other buses) go on while one waits for its device.
 
 mod drive;
+mod pbl;
 
 use crate::bus::{self, BusConfig, TxOptions, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
@@ -553,6 +554,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBus>()?;
     m.add_class::<PyStats>()?;
     m.add_class::<drive::PyDriveCore>()?;
+    m.add_class::<pbl::PyPblCore>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

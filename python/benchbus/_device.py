@@ -1,0 +1,200 @@
+"""What the device classes share: printable enums and properties backed by a register table.
+
+Each device class keeps a compiled core (``DriveCore``, ``PblCore``) that knows its register
+table, scaling and limits, and reads or writes a register by name with ``get`` / ``set``.
+A :class:`RegisterProperty` turns one such register into a Python property, converting the
+raw value (an enum, an int, a float) on the way out.
+"""
+
+from __future__ import annotations
+
+import enum
+import logging
+from collections.abc import Callable
+from types import TracebackType
+from typing import TYPE_CHECKING, Any, Generic, NoReturn, Protocol, TypeVar, overload
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
+
+    from benchbus._core import Bus
+
+__all__ = [
+    "MeasuredProperty",
+    "MotorDevice",
+    "PrintableIntEnum",
+    "RegisterProperty",
+    "as_enum",
+    "to_enum",
+    "to_float",
+    "to_int",
+]
+
+
+class PrintableIntEnum(enum.IntEnum):
+    """An IntEnum that prints as ``DriveState.FORWARD`` on every Python version."""
+
+    def __str__(self) -> str:
+        """``ClassName.MEMBER``."""
+        return f"{type(self).__name__}.{self.name}"
+
+
+log = logging.getLogger("benchbus.device")
+
+
+class Core(Protocol):
+    """A compiled device core: reads and writes its registers by name."""
+
+    @property
+    def bus(self) -> Bus:
+        """The Bus the device talks through."""
+        ...
+
+    @property
+    def unit(self) -> int:
+        """The device's unit address."""
+        ...
+
+    def get(self, name: str) -> int | float:
+        """The register called ``name``, in engineering units."""
+        ...
+
+    def set(self, name: str, value: float) -> None:
+        """Write the register called ``name``, checked before anything is sent."""
+        ...
+
+
+class Device(Protocol):
+    """A device object: it has a core."""
+
+    @property
+    def core(self) -> Core:
+        """The compiled core."""
+        ...
+
+
+E = TypeVar("E", bound=enum.IntEnum)
+T = TypeVar("T")
+D = TypeVar("D", bound=Device)
+
+
+def as_enum(enum_type: type[E], raw: int) -> E | int:
+    """``enum_type(raw)``, or ``raw`` itself when the enum has no such member."""
+    try:
+        return enum_type(raw)
+    except ValueError:
+        return raw
+
+
+class _Backed(Generic[D, T]):
+    """A device attribute read from the register ``register`` of the device's core."""
+
+    def __init__(self, register: str, convert: Callable[[D, Any], T], doc: str) -> None:
+        """Read through ``convert(device, raw value)``; ``doc`` is the property's docstring."""
+        self.register = register
+        self.convert = convert
+        self.__doc__ = doc
+
+    @overload
+    def __get__(self, device: None, owner: type[D]) -> Self: ...
+    @overload
+    def __get__(self, device: D, owner: type[D]) -> T: ...
+    def __get__(self, device: D | None, owner: type[D]) -> T | Self:
+        """The converted register value (the descriptor itself on the class)."""
+        if device is None:
+            return self
+        return self.convert(device, device.core.get(self.register))
+
+
+class RegisterProperty(_Backed[D, T]):
+    """A read/write device property backed by one register of the device's core."""
+
+    def __set__(self, device: D, value: float) -> None:
+        """Write ``value`` (an enum member is an int) to the register."""
+        device.core.set(self.register, value)
+
+
+class MeasuredProperty(_Backed[D, T]):
+    """A read-only device property backed by a measurement register."""
+
+    def __set__(self, device: D, value: NoReturn) -> None:
+        """Refuse: a measurement cannot be written."""
+        raise AttributeError(f"{self.register} is a measurement: it cannot be set")
+
+
+def to_int(_device: Any, raw: Any) -> int:
+    """The raw value as an int."""
+    return int(raw)
+
+
+def to_float(_device: Any, raw: Any) -> float:
+    """The raw value as a float."""
+    return float(raw)
+
+
+def to_enum(enum_type: type[E]) -> Callable[[Any, Any], E | int]:
+    """A converter to ``enum_type`` (the int itself for a value the enum lacks)."""
+    return lambda _device, raw: as_enum(enum_type, int(raw))
+
+
+class MotorDevice:
+    """A motor drive on a Bus: its identity, and a context manager that stops the motor.
+
+    Subclasses set ``core`` and ``_owns_bus`` (whether :meth:`close` closes the Bus) and
+    define :meth:`stop`.
+    """
+
+    core: Any
+    _owns_bus: bool
+
+    @property
+    def bus(self) -> Bus:
+        """The Bus the drive talks through."""
+        bus: Bus = self.core.bus
+        return bus
+
+    @property
+    def unit(self) -> int:
+        """The drive's unit address."""
+        return int(self.core.unit)
+
+    def stop(self) -> None:
+        """Stop the motor."""
+        raise NotImplementedError
+
+    def _stop_on_exit(self) -> None:
+        """What leaving a ``with`` block sends (the stop; a subclass may add to it)."""
+        self.stop()
+
+    def close(self) -> None:
+        """Close the Bus if the drive opened it (a shared Bus stays open)."""
+        if self._owns_bus:
+            self.bus.close()
+
+    def __enter__(self) -> Self:
+        """The drive itself; leaving the block stops the motor."""
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
+
+        If stopping fails while another exception is on its way out, that exception goes
+        on and the failure is logged; otherwise the failure is raised.
+        """
+        try:
+            self._stop_on_exit()
+        except Exception:
+            if exc is None:
+                raise
+            log.exception("unit %d: could not stop the motor on leaving the block", self.unit)
+        finally:
+            self.close()
+
+    def __repr__(self) -> str:
+        """Class, unit and bus."""
+        return f"<{type(self).__name__} unit={self.unit} on {self.bus!r}>"

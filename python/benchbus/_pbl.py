@@ -1,0 +1,246 @@
+"""PBL-series BLDC drives (manual 002) as Python objects.
+
+The parameter table (0..222: names, units, read-only or writable, ranges) lives in the
+compiled core (``PblCore``); this module adds enums, properties, the status object and the
+context manager.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import warnings
+
+from benchbus._core import Bus, PblCore
+from benchbus._device import (
+    MeasuredProperty,
+    MotorDevice,
+    PrintableIntEnum,
+    RegisterProperty,
+    to_enum,
+    to_int,
+)
+
+__all__ = [
+    "DecelMode",
+    "Direction",
+    "DirectionSetting",
+    "PblControlMode",
+    "PblDrive",
+    "PblStatus",
+    "StartStopSource",
+]
+
+
+class Direction(PrintableIntEnum):
+    """Direction of rotation: bit 1 of the control word (0) and of the status word (2)."""
+
+    FORWARD = 0
+    REVERSE = 1
+
+
+class PblControlMode(PrintableIntEnum):
+    """Control mode (parameter 100)."""
+
+    SPEED_LOOP = 0
+    DUTY_CYCLE = 1
+    TORQUE = 2
+
+
+class DirectionSetting(PrintableIntEnum):
+    """Direction setting (parameter 203): run as commanded, or the other way."""
+
+    NORMAL = 0
+    INVERTED = 1
+
+
+class StartStopSource(PrintableIntEnum):
+    """Where start and stop come from (parameter 204)."""
+
+    KEYS = 0
+    IO = 1
+    COMMUNICATION = 2
+
+
+class DecelMode(PrintableIntEnum):
+    """How the drive slows down (parameter 114)."""
+
+    NATURAL = 0
+    BRAKING = 1
+
+
+@dataclasses.dataclass(frozen=True)
+class PblStatus:
+    """The status word (parameter 2) as the drive reports it."""
+
+    #: The motor is moving (bit 0).
+    running: bool
+    #: The direction it turns (bit 1).
+    direction: Direction
+
+
+class PblDrive(MotorDevice):
+    """A PBL-series BLDC drive (manual 002): parameters 0..222, 115200 8E1 by default.
+
+    ::
+
+        with bb.PblDrive("/dev/ttyUSB0", unit=0x11) as pbl:
+            pbl.start_stop_source = bb.StartStopSource.COMMUNICATION
+            pbl.speed_setpoint = 1500          # rpm (parameter 201, internal speed)
+            pbl.direction = bb.Direction.REVERSE
+            pbl.start()
+            print(pbl.speed, pbl.status())
+        # leaving the block stops the motor, also after an exception or Ctrl-C
+
+    Given a path, the drive opens its own Bus at 115200 8E1; given a Bus, it shares it
+    (``timeout`` / ``retries`` then apply to this drive's requests only). Any parameter is
+    reachable by number or by name (:meth:`read_parameter`, :meth:`write_parameter`,
+    :meth:`parameters`, :meth:`table`); values are the raw words in the manual's units.
+    These drives answer a single-register write with a count of 1 instead of the echo,
+    which is accepted for this family only. They also act on and answer a broadcast
+    (``bus.broadcast_write_register``): the Bus waits for no reply and drops what comes.
+    """
+
+    core: PblCore
+    control_mode = RegisterProperty("control_mode", to_enum(PblControlMode), "Mode (100).")
+    pole_pairs = RegisterProperty("pole_pairs", to_int, "Motor pole pairs (205).")
+    acceleration = RegisterProperty("acceleration", to_int, "Acceleration, rpm/s (209).")
+    deceleration = RegisterProperty("deceleration", to_int, "Deceleration, rpm/s (210).")
+    speed_setpoint = RegisterProperty(
+        "internal_speed", to_int, "Speed setpoint: the internal speed, rpm (201)."
+    )
+    speed_source = RegisterProperty("speed_source", to_int, "Speed command source (202).")
+    direction_setting = RegisterProperty(
+        "direction_setting", to_enum(DirectionSetting), "Normal or inverted direction (203)."
+    )
+    start_stop_source = RegisterProperty(
+        "start_stop_source", to_enum(StartStopSource), "Where start/stop come from (204)."
+    )
+    max_speed = RegisterProperty("max_speed", to_int, "Maximum speed, rpm (124).")
+    min_speed = RegisterProperty("min_speed", to_int, "Minimum speed, rpm (123).")
+    decel_mode = RegisterProperty("decel_mode", to_enum(DecelMode), "Natural or braking (114).")
+    analog_max_speed = RegisterProperty(
+        "analog_max_speed", to_int, "Speed at the analog input's maximum, rpm (211)."
+    )
+
+    speed = MeasuredProperty("speed", to_int, "Measured speed, rpm (50).")
+    bus_voltage = MeasuredProperty("bus_voltage", to_int, "DC bus voltage, V (51).")
+    analog_speed_input = MeasuredProperty(
+        "analog_speed_input", to_int, "Analog speed input, mV (52)."
+    )
+    current = MeasuredProperty("current", to_int, "Motor current, A (53).")
+    power = MeasuredProperty("power", to_int, "Motor power, W (54).")
+    hall_state = MeasuredProperty("hall_state", to_int, "Hall sensor state (6).")
+
+    def __init__(
+        self,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        *,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> None:
+        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
+        self._owns_bus = not isinstance(port_or_bus, Bus)
+        if isinstance(port_or_bus, Bus):
+            bus = port_or_bus
+        else:
+            bus = Bus(
+                port_or_bus,
+                baudrate=115200,
+                parity="E",
+                stopbits=1,
+                timeout=0.1 if timeout is None else timeout,
+                retries=2 if retries is None else retries,
+            )
+        try:
+            if self._owns_bus:
+                self.core = PblCore(bus, unit)
+            else:
+                self.core = PblCore(bus, unit, timeout, retries)
+        except BaseException:
+            if self._owns_bus:
+                bus.close()
+            raise
+
+    # ---- control and status ------------------------------------------------------------------
+
+    def start(self) -> None:
+        """Start: set bit 0 of the control word, keeping its other bits."""
+        self.core.start()
+
+    def stop(self) -> None:
+        """Stop: clear bit 0 of the control word, keeping its other bits."""
+        self.core.stop()
+
+    @property
+    def direction(self) -> Direction:
+        """The direction asked for: bit 1 of the control word (see :meth:`status` for the
+        direction the motor turns). Setting it keeps the control word's other bits."""
+        return Direction(int(self.core.control()[1]))
+
+    @direction.setter
+    def direction(self, direction: Direction) -> None:
+        if direction not in (Direction.FORWARD, Direction.REVERSE):
+            raise ValueError(f"direction must be Direction.FORWARD or REVERSE, got {direction!r}")
+        self.core.set_reverse(direction == Direction.REVERSE)
+
+    @property
+    def running(self) -> bool:
+        """Whether the motor is moving (status word bit 0)."""
+        return self.core.status()[0]
+
+    def status(self) -> PblStatus:
+        """The status word: running, and the direction the motor turns."""
+        running, reverse = self.core.status()
+        return PblStatus(running, Direction(int(reverse)))
+
+    @property
+    def alarm_word(self) -> int:
+        """The 32-bit alarm word (parameter 5 high, 4 low)."""
+        return self.core.alarms()[0]
+
+    @property
+    def alarms(self) -> frozenset[str]:
+        """The active alarm bits by name ("alarm bit N": the manual names none)."""
+        return frozenset(self.core.alarms()[1])
+
+    def telemetry(self) -> dict[str, int]:
+        """Parameters 0..99 (status and measurements) by name, in one request."""
+        return self.core.telemetry()
+
+    # ---- parameters ----------------------------------------------------------------------------
+
+    def read_parameter(self, key: int | str) -> int:
+        """One parameter, by number (0..222) or name."""
+        return self.core.read_parameter(key)
+
+    def write_parameter(self, key: int | str, value: int) -> None:
+        """Write one parameter, by number or name; read-only ones and values out of the
+        manual's range raise ValueError before anything is sent."""
+        self.core.write_parameter(key, value)
+
+    def read_parameters(self, start: int | str, count: int) -> list[int]:
+        """``count`` parameters from ``start``, in as few requests as the protocol allows."""
+        return self.core.read_parameters(start, count)
+
+    def parameters(self) -> dict[str, int]:
+        """Every documented parameter by name, read in two requests."""
+        return self.core.parameters()
+
+    @staticmethod
+    def table() -> list[tuple[int, str, str, str, float, float]]:
+        """The parameter table: ``(number, name, unit, access, low, high)``."""
+        return PblCore.table()
+
+    def restore_defaults(self) -> None:
+        """Ask for the factory defaults (1511 to parameter 214).
+
+        The drive applies them only after a power cycle; a ``UserWarning`` says so.
+        """
+        self.core.restore_defaults()
+        warnings.warn(
+            f"unit {self.unit}: defaults restored at the next power-up; power-cycle the drive",
+            UserWarning,
+            stacklevel=2,
+        )
