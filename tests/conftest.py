@@ -25,6 +25,16 @@ def read_up_to(fd: int, n: int, timeout: float) -> bytes:
     return data
 
 
+class FakeClock:
+    """A clock a test moves by hand (``clock.now += 1.5``), for simulated motor ramps."""
+
+    def __init__(self) -> None:
+        self.now = 1000.0
+
+    def __call__(self) -> float:
+        return self.now
+
+
 class ScriptedSlave:
     """The far end of a pty pair that answers each request with scripted bytes.
 

@@ -53,6 +53,16 @@ def test_readme_drive_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert out[3] == "5000"
 
 
+def test_readme_pbl_example(capsys: pytest.CaptureFixture[str]) -> None:
+    (block,) = [b for b in readme_blocks() if "PblDevice(" in b]
+    exec(block, {})
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("PblStatus(running=True, direction=<Direction.REVERSE: 1>)")
+    assert out[0].endswith("frozenset()")
+    max_speed, count = out[1].split()
+    assert int(max_speed) == 3000 and int(count) == 223 - 31
+
+
 def run_example(name: str) -> str:
     """examples/``name``, in its own process as a user runs it; its output."""
     done = subprocess.run(

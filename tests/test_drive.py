@@ -14,16 +14,7 @@ import pytest
 
 import benchbus as bb
 from benchbus.sim import DriveDevice, SimException, Simulator
-
-
-class FakeClock:
-    """A clock a test moves by hand, for the simulated speed ramps."""
-
-    def __init__(self) -> None:
-        self.now = 1000.0
-
-    def __call__(self) -> float:
-        return self.now
+from conftest import FakeClock
 
 
 def h(text: str) -> bytes:

@@ -535,6 +535,164 @@ def test_a_unit_reply_delay_is_read_per_request_and_maxed_with_the_line() -> Non
             client.close()
 
 
+class Counted(RegisterDevice):
+    """Answers 0x06 with a register count of 1 instead of the echo (as a PBL drive does).
+
+    Records every ``(request, reply)`` the line shows it; ``fail`` makes the hook raise and
+    ``result`` makes it return that instead.
+    """
+
+    def __init__(self, *, answers_broadcast: bool = False, answers_writes: bool = True) -> None:
+        super().__init__(readonly={0x0002})
+        self.answers_broadcast = answers_broadcast
+        self.answers_writes = answers_writes
+        self.seen: list[tuple[bytes, bytes]] = []
+        self.fail: BaseException | None = None
+        self.result: object = None
+
+    def shape_reply(self, request: bytes, reply: bytes) -> bytes:
+        self.seen.append((request, reply))
+        if self.fail is not None:
+            raise self.fail
+        if self.result is not None:
+            return self.result  # type: ignore[return-value]
+        if reply[1] == 0x06:
+            return frame(reply[:4].hex() + "0001")
+        return reply
+
+
+@pytest.fixture
+def counted() -> Iterator[tuple[Simulator[Counted], Client, Counted]]:
+    device = Counted()
+    with Simulator({1: device, 2: RegisterDevice()}) as sim:
+        client = Client(sim.port)
+        try:
+            yield sim, client, device
+        finally:
+            client.close()
+
+
+def test_shape_reply_gives_the_units_own_reply(
+    counted: tuple[Simulator[Counted], Client, Counted],
+) -> None:
+    sim, client, device = counted
+    write = frame("01 06 00 05 00 07")
+    assert client.transact(write, 8) == frame("01 06 00 05 00 01")
+    assert device.registers[5] == 7  # the write itself is the server's business
+    assert device.seen == [(write, write)]  # the request and the server's standard echo
+    assert sim.replies == [frame("01 06 00 05 00 01")]
+    # Other replies go through the hook too, and come out as they went in.
+    read = frame("01 03 00 05 00 01")
+    assert client.transact(read, 7) == frame("01 03 02 00 07")
+    refused = frame("01 06 00 02 00 01")
+    assert client.transact(refused, 5) == frame("01 86 02")
+    multiple = frame("01 10 00 00 00 02 04 00 0A 00 0B")
+    assert client.transact(multiple, 8) == frame("01 10 00 00 00 02")
+    assert device.seen[1:] == [
+        (read, frame("01 03 02 00 07")),
+        (refused, frame("01 86 02")),
+        (multiple, frame("01 10 00 00 00 02")),
+    ]
+    # The other unit keeps the default: the standard echo.
+    other = frame("02 06 00 05 00 07")
+    assert client.transact(other, 8) == other
+    assert len(device.seen) == 4
+    assert sim.errors == []
+
+
+def test_shape_reply_comes_before_the_faults(
+    counted: tuple[Simulator[Counted], Client, Counted],
+) -> None:
+    sim, client, _ = counted
+    shaped = frame("01 06 00 05 00 01")
+    sim.corrupt_next()
+    reply = client.transact(frame("01 06 00 05 00 07"), 8)
+    assert reply[:-2] == shaped[:-2] and not crc_valid(reply)
+    assert reply[-2:] == bytes(b ^ 0xFF for b in shaped[-2:])
+    assert sim.replies == [reply]
+    sim.reply_delay = 0.2
+    start = time.monotonic()
+    assert client.transact(frame("01 06 00 05 00 08"), 8) == shaped
+    assert time.monotonic() - start >= 0.2
+
+
+def test_shape_reply_only_sees_the_units_replies_on_the_line(
+    counted: tuple[Simulator[Counted], Client, Counted],
+) -> None:
+    sim, client, device = counted
+    # Replies the simulator makes itself.
+    sim.answer_exception(6, unit=1)
+    assert client.transact(frame("01 06 00 05 00 07"), 5) == frame("01 86 06")
+    assert client.transact(frame("01 04 00 00 00 01"), 5) == frame("01 84 01")
+    # A broadcast this unit does not answer.
+    client.send(frame("00 06 00 05 00 09"))
+    client.assert_quiet()
+    assert device.registers[5] == 9
+    # (Nor the simulator's start-up probe, which went to this unit too.)
+    assert device.seen == []
+
+
+def test_shape_reply_is_skipped_for_replies_kept_off_the_line() -> None:
+    device = Counted(answers_writes=False)
+    with Simulator(device) as sim:
+        client = Client(sim.port)
+        try:
+            client.send(frame("01 06 00 05 00 07"))
+            client.assert_quiet()
+            assert device.registers[5] == 7 and device.seen == []
+            read = frame("01 03 00 05 00 01")
+            assert client.transact(read, 7) == frame("01 03 02 00 07")
+            assert device.seen == [(read, frame("01 03 02 00 07"))]
+            assert sim.errors == []
+        finally:
+            client.close()
+
+
+def test_shape_reply_of_a_broadcast_sees_the_units_own_address() -> None:
+    devices = {3: Counted(answers_broadcast=True), 5: Counted(answers_broadcast=True)}
+    with Simulator(devices) as sim:
+        client = Client(sim.port)
+        try:
+            client.send(frame("00 06 00 01 00 07"))
+            assert client.recv(16) == frame("03 06 00 01 00 01") + frame("05 06 00 01 00 01")
+            client.assert_quiet()
+            for unit, device in devices.items():
+                own = frame(f"{unit:02X} 06 00 01 00 07")
+                assert device.seen == [(own, own)]
+                assert device.registers[1] == 7
+            assert sim.requests == [frame("00 06 00 01 00 07")]
+        finally:
+            client.close()
+
+
+@pytest.mark.parametrize(
+    ("fail", "result", "error"),
+    [
+        (RuntimeError("broken hook"), None, RuntimeError),
+        (None, b"\x01\x06\x00", TypeError),
+        (None, "01 06 00 05 00 01", TypeError),
+        (None, 42, TypeError),
+    ],
+)
+def test_a_failing_shape_reply_keeps_the_servers_reply(
+    counted: tuple[Simulator[Counted], Client, Counted],
+    caplog: pytest.LogCaptureFixture,
+    fail: BaseException | None,
+    result: object,
+    error: type[BaseException],
+) -> None:
+    sim, client, device = counted
+    device.fail, device.result = fail, result
+    write = frame("01 06 00 05 00 07")
+    assert client.transact(write, 8) == write
+    assert device.registers[5] == 7
+    assert [type(e) for e in sim.errors] == [error]
+    assert "shape_reply" in caplog.text
+    # The line is still in step, and a working hook is used again.
+    device.fail = device.result = None
+    assert client.transact(write, 8) == frame("01 06 00 05 00 01")
+
+
 def test_inject_raw_is_not_logged_as_a_reply(
     line: tuple[Simulator[RegisterDevice], Client],
 ) -> None:

@@ -10,14 +10,15 @@ from __future__ import annotations
 
 import enum
 import logging
+import os
 from collections.abc import Callable
 from types import TracebackType
 from typing import TYPE_CHECKING, Any, Generic, NoReturn, Protocol, TypeVar, overload
 
+from benchbus._core import Bus
+
 if TYPE_CHECKING:
     from typing_extensions import Self
-
-    from benchbus._core import Bus
 
 __all__ = [
     "MeasuredProperty",
@@ -146,6 +147,41 @@ class MotorDevice:
 
     core: Any
     _owns_bus: bool
+
+    def _attach(
+        self,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        make_core: Callable[[Bus, float | None, int | None], Any],
+        *,
+        baudrate: int,
+        parity: str,
+        timeout: float | None,
+        retries: int | None,
+        default_timeout: float,
+    ) -> None:
+        """Set ``core`` on a shared Bus, or on one opened at the family's line defaults.
+
+        ``timeout`` / ``retries`` set the Bus the drive opens, or on a shared Bus are given
+        to ``make_core(bus, timeout, retries)`` for this drive's requests only. A Bus opened
+        here is closed again if the core cannot be made.
+        """
+        self._owns_bus = not isinstance(port_or_bus, Bus)
+        if isinstance(port_or_bus, Bus):
+            self.core = make_core(port_or_bus, timeout, retries)
+            return
+        bus = Bus(
+            port_or_bus,
+            baudrate=baudrate,
+            parity=parity,
+            stopbits=1,
+            timeout=default_timeout if timeout is None else timeout,
+            retries=2 if retries is None else retries,
+        )
+        try:
+            self.core = make_core(bus, None, None)
+        except BaseException:
+            bus.close()
+            raise
 
     @property
     def bus(self) -> Bus:

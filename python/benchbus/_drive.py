@@ -276,28 +276,16 @@ class Drive(MotorDevice):
         (0.25 s and 2 by default); on a shared Bus, they replace the Bus's for this drive's
         requests only (None: the Bus's).
         """
-        self._owns_bus = not isinstance(port_or_bus, Bus)
         self._jogging = False
-        if isinstance(port_or_bus, Bus):
-            bus = port_or_bus
-        else:
-            bus = Bus(
-                port_or_bus,
-                baudrate=19200,
-                parity="N",
-                stopbits=1,
-                timeout=0.25 if timeout is None else timeout,
-                retries=2 if retries is None else retries,
-            )
-        try:
-            if self._owns_bus:
-                self.core = DriveCore(bus, unit, family, write_ack)
-            else:
-                self.core = DriveCore(bus, unit, family, write_ack, timeout, retries)
-        except BaseException:
-            if self._owns_bus:
-                bus.close()
-            raise
+        self._attach(
+            port_or_bus,
+            lambda bus, t, r: DriveCore(bus, unit, family, write_ack, t, r),
+            baudrate=19200,
+            parity="N",
+            timeout=timeout,
+            retries=retries,
+            default_timeout=0.25,
+        )
 
     # ---- identity ------------------------------------------------------------------------
 

@@ -141,27 +141,15 @@ class PblDrive(MotorDevice):
         retries: int | None = None,
     ) -> None:
         """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
-        self._owns_bus = not isinstance(port_or_bus, Bus)
-        if isinstance(port_or_bus, Bus):
-            bus = port_or_bus
-        else:
-            bus = Bus(
-                port_or_bus,
-                baudrate=115200,
-                parity="E",
-                stopbits=1,
-                timeout=0.1 if timeout is None else timeout,
-                retries=2 if retries is None else retries,
-            )
-        try:
-            if self._owns_bus:
-                self.core = PblCore(bus, unit)
-            else:
-                self.core = PblCore(bus, unit, timeout, retries)
-        except BaseException:
-            if self._owns_bus:
-                bus.close()
-            raise
+        self._attach(
+            port_or_bus,
+            lambda bus, t, r: PblCore(bus, unit, t, r),
+            baudrate=115200,
+            parity="E",
+            timeout=timeout,
+            retries=retries,
+            default_timeout=0.1,
+        )
 
     # ---- control and status ------------------------------------------------------------------
 

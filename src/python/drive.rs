@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::drive`]: the register-level core that `benchbus.Drive`
 //! (Python) wraps with enums, dataclasses and the context manager.
 
-use super::{int_in, opt, seconds, to_pyerr, unit_arg, PyBus};
+use super::{int_in, own_timing, to_pyerr, unit_arg, PyBus};
 use crate::device::drive::{fault_name, Command, Drive, Family, REGISTERS};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -58,10 +58,7 @@ impl PyDriveCore {
                 "family must be \"BLD\" (BLD2, BLD3H) or \"C20\", got {family:?}"
             ))
         })?;
-        let timeout = opt(timeout, None, |t| seconds(t, "timeout", false).map(Some))?;
-        let retries = opt(retries, None, |r| {
-            int_in(r, "retries", 0, 100).map(|n| Some(n as u32))
-        })?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
         let core = Arc::clone(&bus.get().bus);
         let drive = Drive::new(core, unit, family, write_ack).with_timing(timeout, retries);
         Ok(PyDriveCore {

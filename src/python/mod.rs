@@ -121,6 +121,18 @@ fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Dur
     Ok(Duration::from_secs_f64(value))
 }
 
+/// A device's own `timeout` and `retries` (None: the Bus's).
+fn own_timing(
+    timeout: Option<&Bound<'_, PyAny>>,
+    retries: Option<&Bound<'_, PyAny>>,
+) -> PyResult<(Option<Duration>, Option<u32>)> {
+    let timeout = opt(timeout, None, |t| seconds(t, "timeout", false).map(Some))?;
+    let retries = opt(retries, None, |r| {
+        int_in(r, "retries", 0, 100).map(|n| Some(n as u32))
+    })?;
+    Ok((timeout, retries))
+}
+
 fn register_values(obj: &Bound<'_, PyAny>) -> PyResult<Vec<u16>> {
     if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
         return Err(PyTypeError::new_err(

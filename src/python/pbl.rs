@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::pbl`]: the parameter-level core that `benchbus.PblDrive`
 //! (Python) wraps with enums and properties.
 
-use super::{int_in, opt, seconds, to_pyerr, unit_arg, PyBus};
+use super::{int_in, own_timing, to_pyerr, unit_arg, PyBus};
 use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS};
 use crate::device::Access;
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -55,10 +55,7 @@ impl PyPblCore {
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let unit = unit_arg(unit)?;
-        let timeout = opt(timeout, None, |t| seconds(t, "timeout", false).map(Some))?;
-        let retries = opt(retries, None, |r| {
-            int_in(r, "retries", 0, 100).map(|n| Some(n as u32))
-        })?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
         let core = Arc::clone(&bus.get().bus);
         Ok(PyPblCore {
             pbl: Arc::new(Pbl::new(core, unit).with_timing(timeout, retries)),

@@ -84,6 +84,26 @@ class SimDevice:
         """
         raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
 
+    def shape_reply(self, request: bytes, reply: bytes) -> bytes:
+        """The reply that goes on the line for ``request``, given the one the server made.
+
+        For units whose replies differ from the standard ones (a PBL drive answers a 0x06
+        write with a register count instead of the echo). Both frames are whole, unit
+        address to CRC; an override that changes the reply returns it with its CRC
+        recomputed (``benchbus.sim._rtu.with_crc``). The default returns ``reply`` as is.
+
+        Called from the line's thread, not the server's, once for each reply the server
+        made that goes on the line (normal or exception), before the line's faults
+        (``Simulator.corrupt_next``, the reply delays) apply. Not called for replies the
+        simulator makes itself (``Simulator.answer_exception``, illegal function) nor for
+        replies that stay off the line (:attr:`answers_writes` False, a broadcast the unit
+        does not answer). ``request`` is the request as received, CRC included; for a
+        broadcast the unit answers, it carries the unit's own address instead of 0. If
+        this raises, or returns anything but a frame of at least 4 bytes, the server's
+        reply goes on the line unchanged and the error is kept in ``Simulator.errors``.
+        """
+        return reply
+
 
 class RegisterDevice(SimDevice):
     """A plain table of 65536 holding registers, all 0 unless given.

@@ -165,12 +165,16 @@ class Forwarder:
         answers_broadcast: Callable[[int], bool],
         answers_writes: Callable[[int], bool] | None = None,
         unit_reply_delay: Callable[[int], float] | None = None,
+        shape_reply: Callable[[int, bytes, bytes], bytes] | None = None,
         baudrate: int,
     ) -> None:
         """Forward between ``library`` and ``server`` for the simulated ``units``.
 
         ``answers_writes(unit)`` (default: always True) and ``unit_reply_delay(unit)``
         (default: 0) are asked once per request, when it is handed to the server.
+        ``shape_reply(unit, request, reply)`` (default: the reply as is) gives the frame that
+        goes on the line for each reply the server made that is delivered, before the
+        faults apply.
         """
         self._state = state
         self._a = library.master
@@ -180,6 +184,7 @@ class Forwarder:
         self._answers_broadcast = answers_broadcast
         self._answers_writes = answers_writes
         self._unit_reply_delay = unit_reply_delay
+        self._shape_reply = shape_reply
         gap = frame_gap(baudrate)
         self._rx_a = _Framer(request_length, gap)
         self._rx_b = _Framer(reply_length, gap)
@@ -425,7 +430,25 @@ class Forwarder:
             code, self._code_rewrite = self._code_rewrite, None
         if code is not None and len(frame) == 5 and frame[1] & 0x80:
             frame = with_crc(frame[:2] + bytes([code]))
+        job = self._inflight
+        if job.done is None and job.deliver:
+            frame = self._shaped(job.frame, frame)
         self._finish(frame)
+
+    def _shaped(self, request: bytes, reply: bytes) -> bytes:
+        """The unit's own form of the server's ``reply`` to ``request``."""
+        if self._shape_reply is None:
+            return reply
+        unit = request[0]
+        try:
+            shaped = self._shape_reply(unit, request, reply)
+        except Exception:
+            log.exception("simulator: unit %d: shape_reply failed; reply unchanged", unit)
+            return reply
+        if not isinstance(shaped, (bytes, bytearray)) or len(shaped) < 4:
+            log.error("simulator: unit %d: shape_reply gave %r; reply unchanged", unit, shaped)
+            return reply
+        return bytes(shaped)
 
     def _finish(self, reply: bytes | None) -> None:
         job, self._inflight = self._inflight, None

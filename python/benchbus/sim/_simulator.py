@@ -44,9 +44,11 @@ class Simulator(Generic[D]):
     :attr:`SimDevice.answers_broadcast` is set. A unit whose :attr:`SimDevice.answers_writes`
     is False acts on writes without answering them, and a unit's own
     :attr:`SimDevice.reply_delay` holds its replies (the larger of it and :attr:`reply_delay`
-    applies). Functions other than 0x03, 0x06, 0x10 and 0x2B/0x0E are answered with
-    exception 1 (illegal function). The set of units is fixed at :meth:`start`; a device
-    object may be replaced in :attr:`devices` for a unit that exists.
+    applies). A unit may give its replies a form of its own (:meth:`SimDevice.shape_reply`,
+    applied before the faults). Functions other than 0x03, 0x06, 0x10 and 0x2B/0x0E are
+    answered with exception 1 (illegal function). The set of units is fixed at
+    :meth:`start`; a device object may be replaced in :attr:`devices` for a unit that
+    exists.
     """
 
     def __init__(
@@ -74,7 +76,8 @@ class Simulator(Generic[D]):
         self.baudrate: int = baudrate
         self.broadcast: bool = broadcast
         #: Exceptions other than SimException raised by device handlers (each answered with
-        #: exception 4); a test can assert this stays empty.
+        #: exception 4), and failures of :meth:`SimDevice.shape_reply` (the reply then goes
+        #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
         self._state = LineState()
         self._lifecycle = threading.Lock()
@@ -125,6 +128,7 @@ class Simulator(Generic[D]):
             answers_broadcast=lambda unit: bool(self.devices[unit].answers_broadcast),
             answers_writes=lambda unit: bool(self.devices[unit].answers_writes),
             unit_reply_delay=lambda unit: float(self.devices[unit].reply_delay),
+            shape_reply=self._shape_reply,
             baudrate=self.baudrate,
         )
         self._server = PymodbusServer(
@@ -298,6 +302,22 @@ class Simulator(Generic[D]):
             log.exception("simulated unit %d failed on function %#04x", unit, function)
             self.errors.append(exc)
             return SimException.SERVER_DEVICE_FAILURE
+
+    def _shape_reply(self, unit: int, request: bytes, reply: bytes) -> bytes:
+        """The unit's :meth:`SimDevice.shape_reply`; on failure the reply as it is."""
+        device = self.devices[unit]
+        try:
+            shaped = device.shape_reply(request, reply)
+            if not isinstance(shaped, (bytes, bytearray)) or len(shaped) < 4:
+                raise TypeError(
+                    f"{type(device).__name__}.shape_reply returned {shaped!r}: expected a"
+                    " frame of at least 4 bytes"
+                )
+        except Exception as exc:
+            log.exception("simulated unit %d: shape_reply failed; reply sent unchanged", unit)
+            self.errors.append(exc)
+            return reply
+        return bytes(shaped)
 
     def _identity_of(self, unit: int) -> Mapping[int, str] | None:
         device = self.devices.get(unit)
