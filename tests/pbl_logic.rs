@@ -76,13 +76,19 @@ fn start_stop_and_direction_keep_the_other_bits() {
 }
 
 #[test]
-fn the_parameter_list_is_read_in_two_requests() {
-    let first: Vec<u16> = (0..125).collect();
-    let second: Vec<u16> = (125..223).collect();
-    let (p, t) = pbl(vec![words(1, &first), words(1, &second)], 1);
+fn the_parameter_list_is_read_in_blocks_of_61() {
+    let blocks: Vec<Act> = [0u16, 61, 122, 183]
+        .iter()
+        .map(|&start| {
+            let values: Vec<u16> = (start..(start + 61).min(223)).collect();
+            words(1, &values)
+        })
+        .collect();
+    let (p, t) = pbl(blocks, 1);
     let all = p.parameters().expect("parameters");
-    assert_eq!(sent(&t).len(), 2);
-    assert_eq!(sent(&t)[1], with_crc(&[1, 3, 0, 125, 0, 98]));
+    assert_eq!(sent(&t).len(), 4);
+    assert_eq!(sent(&t)[1], with_crc(&[1, 3, 0, 61, 0, 61]));
+    assert_eq!(sent(&t)[3], with_crc(&[1, 3, 0, 183, 0, 40]));
     assert!(all.iter().all(|(name, _)| !name.starts_with("reserved_")));
     assert!(all.contains(&("acceleration", 209)) && all.contains(&("speed", 50)));
     assert_eq!(all.len(), PARAMETERS.len() - 28 - 3);

@@ -132,6 +132,8 @@ def test_start_ramps_and_stop() -> None:
         assert pbl.running
         t = pbl.telemetry()
         assert t["speed"] == 1500 and "reserved_22" not in t
+        assert (pbl.current, pbl.power, pbl.bus_voltage) == (t["current"], t["power"], 48)
+        assert pbl.hall_state in range(1, 7)
         assert t["current"] > 0 and t["bus_voltage"] > 0
         pbl.direction = bb.Direction.REVERSE
         assert device.peek(0) == 0x0013 and pbl.direction is bb.Direction.REVERSE
@@ -155,11 +157,12 @@ def test_alarms(line: Line) -> None:
     assert pbl.alarms == frozenset()
 
 
-def test_parameters_in_two_requests(line: Line) -> None:
+def test_parameters_in_blocks_the_manual_allows(line: Line) -> None:
     pbl, sim, _ = line
     sim.clear_log()
     values = pbl.parameters()
-    assert len(sim.requests) == 2
+    assert len(sim.requests) == 4  # 61 registers a reply at most (1..123 data bytes)
+    assert all(r[4:6] <= b"\x00\x3d" for r in sim.requests)
     assert values["acceleration"] == 1000 and values["deceleration"] == 1000
     assert not any(name.startswith("reserved_") for name in values)
     table = bb.PblDrive.table()
@@ -240,3 +243,19 @@ def test_shared_bus_timeout() -> None:
             warnings.simplefilter("error")
             pbl.close()  # a shared Bus stays open
         assert not bus.closed
+
+
+def test_the_simulator_and_the_table_agree_on_ranges(line: Line) -> None:
+    """Each writable setting's range in PblDrive.table() is what the simulated drive takes."""
+    pbl, _, device = line
+    for number, _, _, access, low, high in bb.PblDrive.table():
+        if access != "W/R" or number < 100 or number == 214:
+            continue
+        device.set_param(number, int(high))  # the top of the table's range is accepted
+        if high < 0xFFFF:
+            with pytest.raises(ValueError):
+                device.set_param(number, int(high) + 1)
+        if low > 0:
+            with pytest.raises(ValueError):
+                device.set_param(number, int(low) - 1)
+    assert pbl.read_parameter("low_duty_threshold") == 0xFFFF

@@ -239,9 +239,9 @@ class PblCore:
     def read_parameters(self, start: int | str, count: int) -> list[int]:
         """Reads ``count`` parameters from ``start`` (in as few requests as allowed)."""
     def parameters(self) -> dict[str, int]:
-        """Every documented parameter, ``{name: value}``, in two requests."""
+        """Every documented parameter, ``{name: value}``, in four requests (61 a reply)."""
     def telemetry(self) -> dict[str, int]:
-        """Parameters 0..99 but the reserved ones, ``{name: value}``, in one request."""
+        """Parameters 0..99 but the reserved ones, ``{name: value}``, in two requests."""
     def start(self) -> None:
         """Sets the start bit of the control word, keeping the others."""
     def stop(self) -> None:

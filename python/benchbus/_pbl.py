@@ -169,6 +169,8 @@ class PblDrive(MotorDevice):
 
     @direction.setter
     def direction(self, direction: Direction) -> None:
+        if isinstance(direction, bool) or not isinstance(direction, int):
+            raise TypeError(f"direction must be a Direction, got {type(direction).__name__}")
         if direction not in (Direction.FORWARD, Direction.REVERSE):
             raise ValueError(f"direction must be Direction.FORWARD or REVERSE, got {direction!r}")
         self.core.set_reverse(direction == Direction.REVERSE)
@@ -194,7 +196,7 @@ class PblDrive(MotorDevice):
         return frozenset(self.core.alarms()[1])
 
     def telemetry(self) -> dict[str, int]:
-        """Parameters 0..99 (status and measurements) by name, in one request."""
+        """Parameters 0..99 (status and measurements) by name, in two requests."""
         return self.core.telemetry()
 
     # ---- parameters ----------------------------------------------------------------------------
@@ -213,7 +215,7 @@ class PblDrive(MotorDevice):
         return self.core.read_parameters(start, count)
 
     def parameters(self) -> dict[str, int]:
-        """Every documented parameter by name, read in two requests."""
+        """Every documented parameter by name, in four requests (61 registers a reply)."""
         return self.core.parameters()
 
     @staticmethod

@@ -700,9 +700,12 @@ fn is_refusal(e: &Error) -> bool {
 }
 
 fn short_read(unit: u8, wanted: usize, got: usize) -> Error {
-    Error::InvalidArgument(format!(
-        "unit {unit}: expected {wanted} registers, got {got}"
-    ))
+    Error::Frame {
+        unit,
+        function: 0x03,
+        kind: FrameError::Length(format!("expected {wanted} registers, got {got}")),
+        frame: Vec::new(),
+    }
 }
 
 #[cfg(test)]

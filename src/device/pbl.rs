@@ -10,8 +10,7 @@
 
 use super::{Access, Register};
 use crate::bus::{Bus, TxOptions};
-use crate::codec::pdu::MAX_READ_COUNT;
-use crate::codec::Echo;
+use crate::codec::{Echo, FrameError};
 use crate::error::{Error, Result};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::Duration;
@@ -28,6 +27,10 @@ pub const RESTORE_DEFAULTS: u16 = 214;
 pub const RESTORE_MAGIC: u16 = 1511;
 /// Parameters 0..=99 are status and measurements.
 pub const MEASUREMENTS: std::ops::RangeInclusive<u16> = 0..=99;
+
+/// Most parameters one read may ask for: the manual's frame holds 1..123 data bytes, so a
+/// reply carries at most 61 registers.
+pub const MAX_BLOCK: u16 = 61;
 
 const START: u16 = 0x0001;
 const REVERSE: u16 = 0x0002;
@@ -253,13 +256,13 @@ pub const PARAMETERS: [Register; 223] = [
     rw(189, "stop_on_zero_duty", "", 0.0, 1.0),
     rw(190, "current_sampling", "", 0.0, 1.0),
     rw(191, "zero_current_at_low_duty", "", 0.0, 1.0),
-    rw(192, "low_duty_threshold", "", 0.0, 1.0),
+    rw(192, "low_duty_threshold", "", 0.0, 65535.0),
     rw(193, "max_computed_acceleration", "", 0.0, 65535.0),
     rw(194, "bus_voltage_filter", "", 0.0, 65535.0),
     rw(195, "pwm_active_level", "", 0.0, 1.0),
     rw(196, "current_sampling_196", "", 0.0, 1.0),
     rw(197, "zero_current_at_low_duty_197", "", 0.0, 1.0),
-    rw(198, "low_duty_threshold_198", "", 0.0, 1.0),
+    rw(198, "low_duty_threshold_198", "", 0.0, 65535.0),
     rw(199, "max_computed_acceleration_199", "", 0.0, 65535.0),
     rw(200, "display_select", "", 0.0, 65535.0),
     rw(201, "internal_speed", "rpm", 0.0, 65535.0),
@@ -415,7 +418,7 @@ impl Pbl {
         let end = start + count;
         let mut at = start;
         while at < end {
-            let n = (end - at).min(MAX_READ_COUNT);
+            let n = (end - at).min(MAX_BLOCK);
             words.extend(self.read(at, n)?);
             at += n;
         }
@@ -423,7 +426,7 @@ impl Pbl {
     }
 
     /// Every parameter the manual documents (not the reserved ones), `(name, value)` in
-    /// number order, read in two requests.
+    /// number order, read in blocks of [`MAX_BLOCK`] (four requests).
     ///
     /// # Errors
     /// Any [`Error`].
@@ -438,7 +441,7 @@ impl Pbl {
     }
 
     /// Parameters 0..=99 (status and measurements but the reserved ones), `(name, value,
-    /// unit)`, in one request.
+    /// unit)`, in blocks of [`MAX_BLOCK`] (two requests).
     ///
     /// # Errors
     /// Any [`Error`].
@@ -461,12 +464,24 @@ impl Pbl {
         self.update_control(|w| w | START)
     }
 
-    /// Clears bit 0 of the control word (stop), keeping the other bits.
+    /// Clears bit 0 of the control word (stop), keeping the other bits. The stop is always
+    /// written: when the control word cannot be read, 0 (stop, forward) is written instead.
     ///
     /// # Errors
-    /// Any [`Error`].
+    /// Any [`Error`] of the write.
     pub fn stop(&self) -> Result<()> {
-        self.update_control(|w| w & !START)
+        let _held = self.lock_control();
+        let word = match self.read_parameter(CONTROL) {
+            Ok(word) => word & !START,
+            Err(e) => {
+                log::warn!(
+                    target: "benchbus::device",
+                    "unit {}: control word unread ({e}): writing 0 to stop", self.unit
+                );
+                0
+            }
+        };
+        self.write(CONTROL, word)
     }
 
     /// Sets bit 1 of the control word: the direction asked for (true = reverse).
@@ -543,9 +558,12 @@ impl Pbl {
 }
 
 fn short(unit: u8) -> Error {
-    Error::InvalidArgument(format!(
-        "unit {unit}: the reply held fewer registers than asked"
-    ))
+    Error::Frame {
+        unit,
+        function: 0x03,
+        kind: FrameError::Length("the reply held fewer registers than asked".into()),
+        frame: Vec::new(),
+    }
 }
 
 #[cfg(test)]

@@ -132,7 +132,7 @@ impl PyPblCore {
         self.wire(py, move |p| p.read_parameters(start, count))
     }
 
-    /// Every documented parameter, `{name: value}`, in two requests.
+    /// Every documented parameter, `{name: value}`, in four requests (61 a reply).
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let all = self.wire(py, |p| p.parameters())?;
         let out = PyDict::new(py);
@@ -142,7 +142,7 @@ impl PyPblCore {
         Ok(out)
     }
 
-    /// Parameters 0..=99 but the reserved ones, `{name: value}`, in one request.
+    /// Parameters 0..=99 but the reserved ones, `{name: value}`, in two requests.
     fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let all = self.wire(py, |p| p.telemetry())?;
         let out = PyDict::new(py);

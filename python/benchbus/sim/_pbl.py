@@ -107,7 +107,8 @@ def _ranges() -> dict[int, tuple[int, int]]:
     """``{address: (low, high)}`` of the settings 100..222 (default 0..65535)."""
     table = dict.fromkeys(range(_FIRST_SETTING, _PARAMETERS), (0, 0xFFFF))
     flags = [101, 112, *range(114, 122), 139, *range(146, 151), 152, 158, 180]
-    flags += [*range(189, 193), *range(195, 199), _DIRECTION]
+    # 192 and 198 are duty thresholds (191 compares against P2.92), not flags.
+    flags += [189, 190, 191, 195, 196, 197, _DIRECTION]
     table.update(dict.fromkeys(flags, (0, 1)))
     table.update({100: (0, 2), 113: (0, 3), 151: (0, 2), 161: (0, 999), 162: (0, 999)})
     table.update({_START_SOURCE: (0, 2), 215: (1, 255), 217: (0, 2)})
