@@ -24,8 +24,12 @@ use std::collections::HashMap;
 use std::sync::{Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
-/// Unit addresses a request may go to (serial line spec 2.2: 1..=247; 0 is broadcast).
-pub const UNITS: std::ops::RangeInclusive<u8> = 1..=247;
+/// Unit addresses a request may go to: 1..=255 (0 is broadcast). The serial line spec (2.2)
+/// reserves 248..=255, but some devices use them (J2 controllers take stations 1..=255).
+pub const UNITS: std::ops::RangeInclusive<u8> = 1..=255;
+
+/// The unit addresses the serial line spec assigns to devices (2.2): what a scan tries.
+pub const STANDARD_UNITS: std::ops::RangeInclusive<u8> = 1..=247;
 
 /// How a Bus is opened.
 #[derive(Debug, Clone)]
@@ -317,7 +321,7 @@ impl Bus {
     pub fn transact(&self, unit: u8, request: &Request, opts: &TxOptions) -> Result<Response> {
         if !UNITS.contains(&unit) {
             return Err(Error::InvalidArgument(format!(
-                "unit must be 1..=247, got {unit} (unit 0 is broadcast: use broadcast_write_register)"
+                "unit must be 1..=255, got {unit} (unit 0 is broadcast: use broadcast_write_register)"
             )));
         }
         request.validate()?;
@@ -332,18 +336,14 @@ impl Bus {
             .unwrap_or(self.config.retries)
             .saturating_add(1);
 
-        let mut st = self.lock();
-        let st = &mut *st;
+        let paced = is_write && !opts.write_interval.is_zero();
+        let mut guard = if paced {
+            self.lock_paced(unit, opts.write_interval)
+        } else {
+            self.lock()
+        };
+        let st = &mut *guard;
         self.transport(st)?;
-        if is_write && !opts.write_interval.is_zero() {
-            if let Some(&last) = st.last_write.get(&unit) {
-                let ready = last + opts.write_interval;
-                let now = Instant::now();
-                if ready > now {
-                    std::thread::sleep(ready - now);
-                }
-            }
-        }
         if is_write && !opts.write_reply {
             self.send(st, &frame)?;
             st.last_write.insert(unit, Instant::now());
@@ -354,6 +354,10 @@ impl Bus {
         for attempt in 0..attempts {
             if attempt > 0 {
                 st.stats.retries += 1;
+                if paced {
+                    // A repeated write is a write command too: it keeps the interval.
+                    pace(st, unit, opts.write_interval);
+                }
             }
             let outcome = self.attempt(st, unit, request, &frame, timeout);
             if is_write {
@@ -506,11 +510,39 @@ impl Bus {
         }
     }
 
+    /// The bus, once `interval` has passed since the last write to `unit`. The wait happens
+    /// without the lock, so requests to other units go on meanwhile.
+    fn lock_paced(&self, unit: u8, interval: Duration) -> MutexGuard<'_, State> {
+        loop {
+            let st = self.lock();
+            let ready = st.last_write.get(&unit).map(|&last| last + interval);
+            let now = Instant::now();
+            match ready {
+                Some(ready) if ready > now => {
+                    drop(st);
+                    std::thread::sleep(ready - now);
+                }
+                _ => return st,
+            }
+        }
+    }
+
     fn lock(&self) -> MutexGuard<'_, State> {
         // A panic while holding the lock leaves consistent state (counters, a port): go on.
         self.state
             .lock()
             .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
+/// Sleeps (holding the bus) until `interval` has passed since the last write to `unit`.
+fn pace(st: &State, unit: u8, interval: Duration) {
+    if let Some(&last) = st.last_write.get(&unit) {
+        let ready = last + interval;
+        let now = Instant::now();
+        if ready > now {
+            std::thread::sleep(ready - now);
+        }
     }
 }
 

@@ -56,6 +56,15 @@ pub enum Error {
         /// The bytes received.
         frame: Vec<u8>,
     },
+    /// The device is in a state that forbids the request (a J2 controller in automatic
+    /// mode refuses MV); nothing was written.
+    #[error("unit {unit}: {message}")]
+    State {
+        /// Unit asked.
+        unit: u8,
+        /// What forbids it, and how to get past it.
+        message: String,
+    },
     /// The device answered with an exception response.
     #[error("unit {unit}, function {function:#04x}: exception {code:#04x}: {meaning}")]
     Exception {

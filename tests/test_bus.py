@@ -218,7 +218,7 @@ def test_bad_arguments_are_refused_before_anything_is_sent(sim: Simulator) -> No
     with bb.Bus(sim.port) as bus:
         bad_calls = [
             (ValueError, lambda: bus.read_holding_registers(0, 0, 1)),
-            (ValueError, lambda: bus.read_holding_registers(248, 0, 1)),
+            (ValueError, lambda: bus.read_holding_registers(256, 0, 1)),
             (ValueError, lambda: bus.read_holding_registers(1, 0, 0)),
             (ValueError, lambda: bus.read_holding_registers(1, 0, 126)),
             (ValueError, lambda: bus.read_holding_registers(1, 0x10000, 1)),

@@ -32,6 +32,7 @@ from benchbus._drive import (
     SpeedSource,
     StopMode,
 )
+from benchbus._j2 import InputType, J2Controller, J2Mode, Limits, Pid
 from benchbus._pbl import (
     DecelMode,
     Direction,
@@ -48,6 +49,7 @@ from benchbus.exceptions import (
     ModbusException,
     PortError,
     ResponseTimeout,
+    StateError,
 )
 
 __all__ = [
@@ -66,15 +68,21 @@ __all__ = [
     "DriveTelemetry",
     "Fault",
     "FrameError",
+    "InputType",
+    "J2Controller",
+    "J2Mode",
+    "Limits",
     "ModbusException",
     "Model",
     "PblControlMode",
     "PblDrive",
     "PblStatus",
+    "Pid",
     "PortError",
     "ResponseTimeout",
     "SpeedSource",
     "StartStopSource",
+    "StateError",
     "Stats",
     "StopMode",
     "__version__",

@@ -1,13 +1,13 @@
 """Type stubs for the compiled core (``benchbus._core``)."""
 
 import os
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from types import TracebackType
 from typing import Any
 
 from typing_extensions import Self, final
 
-__all__ = ["Bus", "DriveCore", "PblCore", "Stats", "__version__", "crc16", "refresh_logging"]
+__all__ = ["Bus", "DriveCore", "J2Core", "PblCore", "Stats", "__version__", "crc16", "refresh_logging"]
 
 __version__: str
 
@@ -96,7 +96,8 @@ class Bus:
     def scan(
         self, units: Iterable[int] | None = None, timeout: float = 0.05, address: int = 0
     ) -> list[int]:
-        """The units (default 1..247) that answer a read of ``address`` within ``timeout``."""
+        """The units (default the standard 1..247) that answer a read of ``address`` within
+        ``timeout``."""
     @property
     def stats(self) -> Stats:
         """Counters of what happened on this bus."""
@@ -259,3 +260,45 @@ class PblCore:
     @staticmethod
     def table() -> list[tuple[int, str, str, str, float, float]]:
         """``(number, name, unit, access, low, high)`` of each parameter; access "R" or "W/R"."""
+
+@final
+class J2Core:
+    """The parameter-level core of a J2 controller (``benchbus.J2Controller`` wraps it).
+
+    Parameters are named as in the manual ("SV", "AL1", "RAPNF"; any case). Signed-table
+    values are floats in engineering units (tenths on the wire), unsigned-table values ints.
+    Writes follow the manual's rules: paced 150 ms apart, ranges checked first (an
+    "LSP~USP" range against the limits read from the controller), MV only in manual mode,
+    RAPNF written 0 before RAP or RTM. Every call that touches the wire releases the GIL.
+    """
+
+    def __new__(
+        cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
+    ) -> Self:
+        """The controller at ``unit`` (1..255) on ``bus``; ``timeout`` / ``retries`` replace
+        the Bus's."""
+    @property
+    def bus(self) -> Bus:
+        """The Bus the controller talks through."""
+    @property
+    def unit(self) -> int:
+        """The controller's unit address."""
+    def get(self, name: str) -> int | float:
+        """Reads the parameter called ``name``."""
+    def set(self, name: str, value: float) -> None:
+        """Writes ``value`` to the parameter called ``name``, with the manual's rules."""
+    def read_many(self, names: Sequence[str]) -> list[int | float]:
+        """Reads the parameters called ``names``, in as few requests as allowed."""
+    def write_many(self, pairs: Sequence[tuple[str, float]]) -> None:
+        """Writes ``(name, value)`` pairs in order, all checked before the first is sent."""
+    def parameters(self) -> dict[str, int | float]:
+        """Every parameter, ``{name: value}``, in blocks of at most 16 registers."""
+    def set_output(self, percent: float, switch_to_manual: bool) -> None:
+        """Writes MV; in automatic mode refused, or AM written 0 first if
+        ``switch_to_manual``."""
+    def set_limits(self, low: float, high: float) -> None:
+        """Writes LSP and USP in the order that keeps LSP <= USP."""
+    @staticmethod
+    def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
+        """``(name, address, signed, writable, low, high, within_limits)`` of each
+        parameter."""

@@ -21,6 +21,7 @@ if TYPE_CHECKING:
     from typing_extensions import Self
 
 __all__ = [
+    "BusDevice",
     "MeasuredProperty",
     "MotorDevice",
     "PrintableIntEnum",
@@ -138,11 +139,11 @@ def to_enum(enum_type: type[E]) -> Callable[[Any, Any], E | int]:
     return lambda _device, raw: as_enum(enum_type, int(raw))
 
 
-class MotorDevice:
-    """A motor drive on a Bus: its identity, and a context manager that stops the motor.
+class BusDevice:
+    """A device on a Bus: its identity, and a context manager that closes what it opened.
 
-    Subclasses set ``core`` and ``_owns_bus`` (whether :meth:`close` closes the Bus) and
-    define :meth:`stop`.
+    Subclasses set ``core`` and ``_owns_bus`` (whether :meth:`close` closes the Bus), the
+    latter through :meth:`_attach`.
     """
 
     core: Any
@@ -161,8 +162,8 @@ class MotorDevice:
     ) -> None:
         """Set ``core`` on a shared Bus, or on one opened at the family's line defaults.
 
-        ``timeout`` / ``retries`` set the Bus the drive opens, or on a shared Bus are given
-        to ``make_core(bus, timeout, retries)`` for this drive's requests only. A Bus opened
+        ``timeout`` / ``retries`` set the Bus the device opens, or on a shared Bus are given
+        to ``make_core(bus, timeout, retries)`` for this device's requests only. A Bus opened
         here is closed again if the core cannot be made.
         """
         self._owns_bus = not isinstance(port_or_bus, Bus)
@@ -185,14 +186,43 @@ class MotorDevice:
 
     @property
     def bus(self) -> Bus:
-        """The Bus the drive talks through."""
+        """The Bus the device talks through."""
         bus: Bus = self.core.bus
         return bus
 
     @property
     def unit(self) -> int:
-        """The drive's unit address."""
+        """The device's unit address."""
         return int(self.core.unit)
+
+    def close(self) -> None:
+        """Close the Bus if the device opened it (a shared Bus stays open)."""
+        if self._owns_bus:
+            self.bus.close()
+
+    def __enter__(self) -> Self:
+        """The device itself; leaving the block closes the Bus it opened."""
+        return self
+
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        """:meth:`close`."""
+        self.close()
+
+    def __repr__(self) -> str:
+        """Class, unit and bus."""
+        return f"<{type(self).__name__} unit={self.unit} on {self.bus!r}>"
+
+
+class MotorDevice(BusDevice):
+    """A motor drive on a Bus: a context manager that stops the motor, then closes.
+
+    Subclasses define :meth:`stop`.
+    """
 
     def stop(self) -> None:
         """Stop the motor."""
@@ -201,11 +231,6 @@ class MotorDevice:
     def _stop_on_exit(self) -> None:
         """What leaving a ``with`` block sends (the stop; a subclass may add to it)."""
         self.stop()
-
-    def close(self) -> None:
-        """Close the Bus if the drive opened it (a shared Bus stays open)."""
-        if self._owns_bus:
-            self.bus.close()
 
     def __enter__(self) -> Self:
         """The drive itself; leaving the block stops the motor."""
@@ -230,7 +255,3 @@ class MotorDevice:
             log.exception("unit %d: could not stop the motor on leaving the block", self.unit)
         finally:
             self.close()
-
-    def __repr__(self) -> str:
-        """Class, unit and bus."""
-        return f"<{type(self).__name__} unit={self.unit} on {self.bus!r}>"

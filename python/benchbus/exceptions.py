@@ -7,7 +7,8 @@
     ├── ResponseTimeout(BenchbusError, TimeoutError)   no (complete) reply in time
     ├── FrameError(BenchbusError)                  reply malformed: wrong unit, function,
     │   └── CrcError(FrameError)                   length or echo; bad CRC
-    └── ModbusException(BenchbusError)             the device answered with an exception
+    ├── ModbusException(BenchbusError)             the device answered with an exception
+    └── StateError(BenchbusError)                  the device's state forbids the request
 
 Bad arguments raise ``ValueError`` / ``TypeError`` before anything is sent.
 
@@ -24,6 +25,7 @@ __all__ = [
     "ModbusException",
     "PortError",
     "ResponseTimeout",
+    "StateError",
 ]
 
 
@@ -95,3 +97,11 @@ class ModbusException(BenchbusError):
         super().__init__(message, unit=unit, function=function, frame=frame)
         self.code = code
         self.meaning = meaning
+
+
+class StateError(BenchbusError):
+    """The device is in a state that forbids the request, so nothing was written.
+
+    For example MV written to a J2 controller in automatic mode (its manual allows MV only
+    in manual mode). The message says how to get past it.
+    """

@@ -3,6 +3,7 @@
 //! it holds no I/O of its own.
 
 pub mod drive;
+pub mod j2;
 pub mod pbl;
 
 use crate::error::{Error, Result};
@@ -45,7 +46,13 @@ impl Register {
         } else {
             f64::from(raw)
         };
-        raw * self.scale
+        // Divide by 10 rather than multiply by 0.1: 3 tenths read 0.3, not 0.30000000000000004.
+        let per_unit = (1.0 / self.scale).round();
+        if self.scale < 1.0 && (per_unit * self.scale - 1.0).abs() < 1e-12 {
+            raw / per_unit
+        } else {
+            raw * self.scale
+        }
     }
 
     /// Whether values of this register are whole numbers (a scale of 1).

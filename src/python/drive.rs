@@ -1,11 +1,11 @@
 //! Bindings of [`crate::device::drive`]: the register-level core that `benchbus.Drive`
 //! (Python) wraps with enums, dataclasses and the context manager.
 
-use super::{int_in, own_timing, to_pyerr, unit_arg, PyBus};
+use super::{int_in, number, own_timing, standard_unit_arg, to_pyerr, PyBus};
 use crate::device::drive::{fault_name, Command, Drive, Family, REGISTERS};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList};
+use pyo3::types::{PyDict, PyFloat, PyInt, PyList};
 use std::sync::Arc;
 
 /// The register-level core of a BLD2 / BLD3H / ZBLD.C20 drive (see `benchbus.Drive`).
@@ -27,19 +27,6 @@ impl PyDriveCore {
 }
 
 /// A number argument (int or float, not bool or str) as f64.
-fn number(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
-    if obj.is_instance_of::<PyBool>()
-        || !(obj.is_instance_of::<PyInt>() || obj.is_instance_of::<PyFloat>())
-    {
-        return Err(PyTypeError::new_err(format!(
-            "{name} must be a number, got {}",
-            obj.get_type().name()?
-        )));
-    }
-    obj.extract::<f64>()
-        .map_err(|_| PyValueError::new_err(format!("{name} is out of range: {obj}")))
-}
-
 #[pymethods]
 impl PyDriveCore {
     #[new]
@@ -52,7 +39,7 @@ impl PyDriveCore {
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let unit = unit_arg(unit)?;
+        let unit = standard_unit_arg(unit)?;
         let family = Family::from_name(family).ok_or_else(|| {
             PyValueError::new_err(format!(
                 "family must be \"BLD\" (BLD2, BLD3H) or \"C20\", got {family:?}"

@@ -4,9 +4,10 @@
 //! other buses) go on while one waits for its device.
 
 mod drive;
+mod j2;
 mod pbl;
 
-use crate::bus::{self, BusConfig, TxOptions, UNITS};
+use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
 use crate::codec::{Echo, FrameError};
 use crate::error::{hex, Error};
@@ -14,7 +15,7 @@ use crate::timing::{LineFormat, Parity};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyBytes, PyDict, PyInt, PyModule, PyString};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyModule, PyString};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -37,6 +38,7 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
             ..
         } => ("CrcError", Some(*unit), Some(*function)),
         Error::Frame { unit, function, .. } => ("FrameError", Some(*unit), Some(*function)),
+        Error::State { unit, .. } => ("StateError", Some(*unit), None),
         Error::Exception { unit, function, .. } => {
             ("ModbusException", Some(*unit), Some(*function))
         }
@@ -79,6 +81,20 @@ fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64>
     }
 }
 
+/// A number (int or float, not bool) as f64: TypeError for anything else.
+fn number(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
+    if obj.is_instance_of::<PyBool>()
+        || !(obj.is_instance_of::<PyInt>() || obj.is_instance_of::<PyFloat>())
+    {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be a number, got {}",
+            obj.get_type().name()?
+        )));
+    }
+    obj.extract::<f64>()
+        .map_err(|_| PyValueError::new_err(format!("{name} is out of range: {obj}")))
+}
+
 /// An optional argument: its default when absent (or None), else converted by `f`.
 fn opt<'py, T>(
     obj: Option<&Bound<'py, PyAny>>,
@@ -99,8 +115,14 @@ fn u16_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<u16> {
     int_in(obj, name, 0, 0xFFFF).map(|v| v as u16)
 }
 
+/// A unit address a request may go to: 1..=255.
 fn unit_arg(obj: &Bound<'_, PyAny>) -> PyResult<u8> {
     u8_in(obj, "unit", *UNITS.start(), *UNITS.end())
+}
+
+/// A unit address a device of the standard range (1..=247) may have.
+fn standard_unit_arg(obj: &Bound<'_, PyAny>) -> PyResult<u8> {
+    u8_in(obj, "unit", *STANDARD_UNITS.start(), *STANDARD_UNITS.end())
 }
 
 fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Duration> {
@@ -420,7 +442,7 @@ impl PyBus {
         address: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<u16>> {
         let units: Vec<u8> = match units {
-            None => UNITS.collect(),
+            None => STANDARD_UNITS.collect(),
             Some(obj) => obj
                 .try_iter()
                 .map_err(|_| PyTypeError::new_err("units must be an iterable of ints"))?
@@ -566,6 +588,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBus>()?;
     m.add_class::<PyStats>()?;
     m.add_class::<drive::PyDriveCore>()?;
+    m.add_class::<j2::PyJ2Core>()?;
     m.add_class::<pbl::PyPblCore>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;

@@ -1,12 +1,12 @@
 //! Bindings of [`crate::device::pbl`]: the parameter-level core that `benchbus.PblDrive`
 //! (Python) wraps with enums and properties.
 
-use super::{int_in, own_timing, to_pyerr, unit_arg, PyBus};
+use super::{int_in, number, own_timing, to_pyerr, unit_arg, PyBus};
 use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS};
 use crate::device::Access;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString};
+use pyo3::types::{PyBool, PyDict, PyInt, PyList, PyString};
 use std::sync::Arc;
 
 /// The parameter-level core of a PBL-series drive (see `benchbus.PblDrive`).
@@ -84,17 +84,7 @@ impl PyPblCore {
 
     /// Writes `value` to the parameter called `name`.
     fn set(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        if value.is_instance_of::<PyBool>()
-            || !(value.is_instance_of::<PyInt>() || value.is_instance_of::<PyFloat>())
-        {
-            return Err(PyTypeError::new_err(format!(
-                "{name} must be a number, got {}",
-                value.get_type().name()?
-            )));
-        }
-        let value: f64 = value
-            .extract()
-            .map_err(|_| PyValueError::new_err(format!("{name} is out of range: {value}")))?;
+        let value = number(value, name)?;
         let name = name.to_string();
         self.wire(py, move |p| p.set(&name, value))
     }

@@ -1,0 +1,247 @@
+"""J2-series PID process/temperature controllers (manual 003) as Python objects.
+
+The parameter table (names, addresses, signed tenths or unsigned integers, ranges) and the
+manual's rules (150 ms between writes, 16 registers a request, MV only in manual mode,
+RAPNF written 0 before a ramp parameter) live in the compiled core (``J2Core``); this module
+adds enums, properties and the context manager.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Iterable
+from typing import NamedTuple
+
+from benchbus._core import Bus, J2Core
+from benchbus._device import (
+    BusDevice,
+    MeasuredProperty,
+    PrintableIntEnum,
+    RegisterProperty,
+    to_enum,
+    to_float,
+    to_int,
+)
+
+__all__ = ["InputType", "J2Controller", "J2Mode", "Limits", "Pid"]
+
+
+class J2Mode(PrintableIntEnum):
+    """Control mode (AM): the controller's PID sets the output, or the output is held."""
+
+    MANUAL = 0
+    AUTO = 1
+
+
+class InputType(PrintableIntEnum):
+    """Input type (INP), in the manual's order: thermocouples B S R T E J K, Pt100, Cu50,
+    and a linear input."""
+
+    B = 0
+    S = 1
+    R = 2
+    T = 3
+    E = 4
+    J = 5
+    K = 6
+    PT = 7
+    CU = 8
+    LN = 9
+
+
+class Pid(NamedTuple):
+    """A PID parameter set: proportional band P, integral time I, derivative time D."""
+
+    #: Proportional band (0.1..3276.7).
+    p: float
+    #: Integral time (0..3276.7).
+    i: float
+    #: Derivative time (0..3276.7).
+    d: float
+
+
+class Limits(NamedTuple):
+    """The setpoint limits LSP and USP."""
+
+    #: Lowest setpoint (LSP).
+    low: float
+    #: Highest setpoint (USP).
+    high: float
+
+
+def _pid_values(names: tuple[str, str, str], value: Iterable[float]) -> list[tuple[str, float]]:
+    values = list(value)
+    if len(values) != 3:
+        raise ValueError(f"a PID set is three numbers (P, I, D), got {len(values)}")
+    return list(zip(names, values))
+
+
+class J2Controller(BusDevice):
+    """A J2-series PID temperature/process controller (manual 003), 9600 or 19200 8N1.
+
+    ::
+
+        with bb.J2Controller("/dev/ttyUSB0", unit=1) as j2:
+            j2.sv = 120.0                  # setpoint, in the input's units
+            print(j2.pv, j2.mv, j2.mode)   # 25.3 42.0 J2Mode.AUTO
+            j2.alarm1 = -50.0              # negative values round-trip exactly
+            j2.set_output(20.0, switch_to_manual=True)
+
+    Given a path, the controller opens its own Bus at ``baudrate`` (9600 or 19200) 8N1;
+    given a Bus, it shares it (``timeout`` / ``retries`` then apply to this controller's
+    requests only). Units are 1..255, as the manual allows.
+
+    Every parameter of both tables is reachable by name (:meth:`read`, :meth:`write`,
+    :meth:`parameters`, :meth:`table`): the signed table as floats (tenths on the wire,
+    two's complement), the unsigned one as ints. The manual's rules are applied for you:
+    writes go at least 150 ms apart (the Bus waits, per controller, without holding up
+    other units); at most 16 registers go in one request; ranges are checked before
+    anything is sent (an "LSP~USP" range against the limits the controller holds, read just
+    before); MV is refused in automatic mode with :class:`~benchbus.StateError` unless you
+    ask :meth:`set_output` to switch to manual; RAPNF is written 0 before RAP or RTM.
+    The manual's upper limits of 3600 and 9999 are cut to 3276.7, the most a signed
+    register in tenths holds. Leaving a ``with`` block closes a Bus the controller opened;
+    the controller goes on controlling.
+    """
+
+    core: J2Core
+
+    pv = MeasuredProperty("PV", to_float, "Process value (PV), read-only.")
+    sv = RegisterProperty("SV", to_float, "Setpoint (SV), within LSP..USP.")
+    alarm1 = RegisterProperty("AL1", to_float, "Alarm 1 value (AL1), -1999..3276.7.")
+    alarm2 = RegisterProperty("AL2", to_float, "Alarm 2 value (AL2), -1999..3276.7.")
+    pv_offset = RegisterProperty("PVOS", to_float, "Process value offset (PVOS), -50..50.")
+    mode = RegisterProperty("AM", to_enum(J2Mode), "Automatic or manual control (AM).")
+    input_type = RegisterProperty("INP", to_enum(InputType), "Input type (INP).")
+    decimal_point = RegisterProperty("DP", to_int, "Decimal places shown (DP), 0..3.")
+
+    def __init__(
+        self,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        baudrate: int = 9600,
+        *,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> None:
+        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
+        if isinstance(baudrate, bool) or not isinstance(baudrate, int):
+            raise TypeError(f"baudrate must be an int, got {type(baudrate).__name__}")
+        if baudrate not in (9600, 19200):
+            raise ValueError(f"a J2 controller runs at 9600 or 19200 baud, got {baudrate}")
+        self._attach(
+            port_or_bus,
+            lambda bus, t, r: J2Core(bus, unit, t, r),
+            baudrate=baudrate,
+            parity="N",
+            timeout=timeout,
+            retries=retries,
+            default_timeout=0.3,
+        )
+
+    # ---- parameters by name --------------------------------------------------------------------
+
+    def read(self, name: str) -> float:
+        """One parameter by its manual name ("SV", "AL1", "INP"; any case)."""
+        return self.core.get(name)
+
+    def write(self, name: str, value: float) -> None:
+        """Write one parameter by name, with the manual's rules (see the class)."""
+        self.core.set(name, value)
+
+    def read_many(self, names: Iterable[str]) -> list[float]:
+        """Several parameters by name, in as few requests as the 16-register limit allows."""
+        return self.core.read_many(list(names))
+
+    def write_many(self, values: dict[str, float]) -> None:
+        """Write several parameters in order; all are checked before the first is sent."""
+        self.core.write_many(list(values.items()))
+
+    def parameters(self) -> dict[str, float]:
+        """Every parameter of both tables by name, in six requests of at most 16 registers."""
+        return self.core.parameters()
+
+    @staticmethod
+    def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
+        """The parameter table: ``(name, address, signed, writable, low, high,
+        within_limits)``; ``within_limits`` means the manual's range is LSP..USP."""
+        return J2Core.table()
+
+    # ---- output and mode -----------------------------------------------------------------------
+
+    @property
+    def mv(self) -> float:
+        """The output (MV), percent. Setting it needs manual mode: in automatic mode it raises
+        :class:`~benchbus.StateError` (see :meth:`set_output`)."""
+        return float(self.core.get("MV"))
+
+    @mv.setter
+    def mv(self, percent: float) -> None:
+        self.core.set("MV", percent)
+
+    def set_output(self, percent: float, switch_to_manual: bool = False) -> None:
+        """Set the output MV to ``percent`` (0..100).
+
+        The manual allows MV only in manual mode: in automatic mode this raises
+        :class:`~benchbus.StateError`, unless ``switch_to_manual`` (then AM is written 0
+        first, and the controller stays in manual mode).
+        """
+        self.core.set_output(percent, bool(switch_to_manual))
+
+    @property
+    def autotune(self) -> bool:
+        """Whether autotuning runs (AT); set True to start it, False to stop it."""
+        return bool(self.core.get("AT"))
+
+    @autotune.setter
+    def autotune(self, on: bool) -> None:
+        if not isinstance(on, (bool, int)) or on not in (0, 1):
+            raise TypeError(f"autotune is True or False, got {on!r}")
+        self.core.set("AT", int(on))
+
+    @property
+    def ramp_running(self) -> bool:
+        """Whether a setpoint ramp runs (RAPNF reads 1)."""
+        return bool(self.core.get("RAPNF"))
+
+    def start_ramp(self) -> None:
+        """Start the setpoint ramp (RAPNF = 1)."""
+        self.core.set("RAPNF", 1)
+
+    def stop_ramp(self) -> None:
+        """End the setpoint ramp (RAPNF = 0)."""
+        self.core.set("RAPNF", 0)
+
+    # ---- grouped parameters --------------------------------------------------------------------
+
+    @property
+    def pid(self) -> Pid:
+        """The first PID set (P, I, D), read in one request; set it with a 3-tuple."""
+        return Pid(*map(float, self.core.read_many(["P", "I", "D"])))
+
+    @pid.setter
+    def pid(self, value: Iterable[float]) -> None:
+        self.core.write_many(_pid_values(("P", "I", "D"), value))
+
+    @property
+    def pid2(self) -> Pid:
+        """The second PID set (P1, I1, D1), read in one request; set it with a 3-tuple."""
+        return Pid(*map(float, self.core.read_many(["P1", "I1", "D1"])))
+
+    @pid2.setter
+    def pid2(self, value: Iterable[float]) -> None:
+        self.core.write_many(_pid_values(("P1", "I1", "D1"), value))
+
+    @property
+    def limits(self) -> Limits:
+        """The setpoint limits (LSP, USP), read in one request. Set them with a
+        ``(low, high)`` pair: they are written in the order that keeps LSP <= USP."""
+        low, high = self.core.read_many(["LSP", "USP"])
+        return Limits(float(low), float(high))
+
+    @limits.setter
+    def limits(self, value: Iterable[float]) -> None:
+        pair = list(value)
+        if len(pair) != 2:
+            raise ValueError(f"limits are two numbers (low, high), got {len(pair)}")
+        self.core.set_limits(pair[0], pair[1])

@@ -1,0 +1,539 @@
+//! J2-series PID process/temperature controllers (manual 003): two parameter tables at even
+//! addresses, 9600 or 19200 8N1, stations 1..=255.
+//!
+//! The signed table (MV at 0 .. DIE at 62) holds signed 16-bit words in tenths, the unsigned
+//! table (AM at 128 .. FST at 156) plain integers. The manual's rules are applied here, not
+//! left to the caller: write commands at least [`WRITE_INTERVAL`] apart (paced by the Bus per
+//! unit), at most [`MAX_BLOCK`] registers a request, MV written only in manual mode (AM = 0),
+//! and RAPNF written 0 before a ramp parameter.
+//!
+//! The manual's ranges are in engineering units; a signed register in tenths only reaches
+//! -3276.8..=3276.7, so its upper limits of 3600 and 9999 stop there. Ranges given as
+//! "LSP~USP" are checked against the limits the controller holds, read just before the write.
+
+use super::{Access, Register};
+use crate::bus::{Bus, TxOptions};
+use crate::codec::FrameError;
+use crate::error::{Error, Result};
+use std::sync::{Arc, Mutex, MutexGuard};
+use std::time::Duration;
+
+/// Least time between two write commands to one controller (manual: "不小於 150 毫秒").
+pub const WRITE_INTERVAL: Duration = Duration::from_millis(150);
+/// Most registers one read or write may carry.
+pub const MAX_BLOCK: u16 = 16;
+/// The line speeds the controllers offer.
+pub const BAUD_RATES: [u32; 2] = [9600, 19_200];
+
+/// Lowest value a signed register in tenths holds.
+const WORD_MIN: f64 = -3276.8;
+/// Highest value a signed register in tenths holds.
+const WORD_MAX: f64 = 3276.7;
+
+/// One parameter of either table.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Param {
+    /// The manual's name ("SV").
+    pub name: &'static str,
+    /// Register address.
+    pub address: u16,
+    /// Signed table (tenths, two's complement) or unsigned table (whole numbers).
+    pub signed: bool,
+    /// Whether it can be written.
+    pub writable: bool,
+    /// The manual's range in engineering units; ignored when `within_limits`.
+    pub range: (f64, f64),
+    /// The manual gives its range as "LSP~USP": the limits the controller holds.
+    pub within_limits: bool,
+}
+
+const LIMITS_RANGE: (f64, f64) = (-1999.0, 9999.0);
+
+const fn s(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
+    Param {
+        name,
+        address,
+        signed: true,
+        writable: true,
+        range: (lo, hi),
+        within_limits: false,
+    }
+}
+
+/// A signed parameter whose range is LSP..=USP.
+const fn lim(name: &'static str, address: u16) -> Param {
+    Param {
+        name,
+        address,
+        signed: true,
+        writable: true,
+        range: LIMITS_RANGE,
+        within_limits: true,
+    }
+}
+
+const fn u(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
+    Param {
+        name,
+        address,
+        signed: false,
+        writable: true,
+        range: (lo, hi),
+        within_limits: false,
+    }
+}
+
+/// Both tables, in address order; the manual's "NC" (empty) addresses are left out.
+#[rustfmt::skip]
+pub const PARAMETERS: [Param; 43] = [
+    s("MV", 0x00, 0.0, 100.0),
+    Param { name: "PV", address: 0x02, signed: true, writable: false, range: (WORD_MIN, WORD_MAX), within_limits: false },
+    lim("SV", 0x06),
+    s("AL1", 0x08, -1999.0, 9999.0),
+    s("AL2", 0x0A, -1999.0, 9999.0),
+    s("P", 0x0E, 0.1, 3600.0),
+    s("I", 0x10, 0.0, 3600.0),
+    s("D", 0x12, 0.0, 3600.0),
+    s("LSP", 0x14, -1999.0, 9999.0),
+    s("USP", 0x16, -1999.0, 9999.0),
+    lim("HY1", 0x18),
+    lim("HY2", 0x1A),
+    lim("HYS", 0x1E),
+    s("OUL", 0x20, 0.0, 100.0),
+    s("OUH", 0x22, 0.0, 100.0),
+    s("GAP", 0x24, -50.0, 50.0),
+    lim("RAP", 0x26),
+    s("RTM", 0x28, 0.0, 3600.0),
+    s("P1", 0x2A, 0.1, 3600.0),
+    s("I1", 0x2C, 0.0, 3600.0),
+    s("D1", 0x2E, 0.0, 3600.0),
+    lim("TRL", 0x30),
+    lim("TRH", 0x32),
+    s("PVOS", 0x34, -50.0, 50.0),
+    lim("SRT", 0x36),
+    s("LMO", 0x38, 0.0, 100.0),
+    lim("TOP", 0x3A),
+    s("U0", 0x3C, 0.0, 100.0),
+    s("DIE", 0x3E, 0.5, 5.0),
+    u("AM", 0x80, 0.0, 1.0),
+    u("RAPNF", 0x82, 0.0, 1.0),
+    u("AT", 0x84, 0.0, 1.0),
+    u("CYT", 0x86, 0.0, 250.0),
+    u("AD1", 0x88, 0.0, 9.0),
+    u("AD2", 0x8A, 0.0, 9.0),
+    u("CYT1", 0x8E, 0.0, 250.0),
+    u("MAN", 0x90, 0.0, 1.0),
+    u("SFT", 0x92, 0.0, 99.0),
+    u("DP", 0x94, 0.0, 3.0),
+    u("TH", 0x96, 0.0, 2.0),
+    u("INP", 0x98, 0.0, 9.0),
+    u("OUD", 0x9A, 0.0, 1.0),
+    u("FST", 0x9C, 20.0, 120.0),
+];
+
+/// The address spans of the two tables: `(first, last)`.
+pub const TABLES: [(u16, u16); 2] = [(0x00, 0x3E), (0x80, 0x9C)];
+
+/// AM: 0 manual, 1 automatic.
+pub const AM: &str = "AM";
+/// RAPNF: reads 1 while a ramp runs; written 1 starts it, 0 ends it.
+pub const RAPNF: &str = "RAPNF";
+/// The parameters the manual calls ramp parameters (RAPNF is written 0 before them).
+pub const RAMP_PARAMETERS: [&str; 2] = ["RAP", "RTM"];
+/// The input types of INP, in code order (manual: b s r t e j k pt cu ln).
+pub const INPUT_TYPES: [&str; 10] = ["b", "s", "r", "t", "e", "j", "k", "pt", "cu", "ln"];
+
+impl Param {
+    /// The Register this parameter is on the wire: tenths and signed, or whole and unsigned,
+    /// with its range cut to what the register can hold.
+    pub fn register(&self) -> Register {
+        let (scale, (lo, hi)) = if self.signed {
+            (
+                0.1,
+                (self.range.0.max(WORD_MIN), self.range.1.min(WORD_MAX)),
+            )
+        } else {
+            (1.0, self.range)
+        };
+        Register {
+            name: self.name,
+            address: self.address,
+            scale,
+            signed: self.signed,
+            unit: "",
+            access: if self.writable {
+                Access::ReadWrite
+            } else {
+                Access::Read
+            },
+            range: (lo, hi),
+        }
+    }
+
+    /// The engineering value of a raw word (tenths decoded by division, so 0.3 reads 0.3).
+    pub fn decode(&self, raw: u16) -> f64 {
+        self.register().decode(raw)
+    }
+
+    /// The raw word for `value`, checked against the manual's range (for an "LSP~USP"
+    /// parameter, the widest limits) and what the register can hold.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a read-only parameter or a value it cannot take.
+    pub fn encode(&self, value: f64) -> Result<u16> {
+        let register = self.register();
+        register.encode(value).map_err(|e| {
+            let cut = register.range != self.range;
+            match e {
+                Error::InvalidArgument(m) if cut && value.is_finite() => {
+                    Error::InvalidArgument(format!(
+                        "{m} (the manual gives {}..{}, but a signed 16-bit register in tenths \
+                         holds -3276.8..3276.7)",
+                        self.range.0, self.range.1
+                    ))
+                }
+                other => other,
+            }
+        })
+    }
+}
+
+/// The parameter called `name` (any case: "sv" is SV).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if there is none.
+pub fn by_name(name: &str) -> Result<&'static Param> {
+    PARAMETERS
+        .iter()
+        .find(|p| p.name.eq_ignore_ascii_case(name))
+        .ok_or_else(|| {
+            Error::InvalidArgument(format!(
+                "a J2 controller has no parameter {name:?}; it has {}",
+                PARAMETERS
+                    .iter()
+                    .map(|p| p.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ))
+        })
+}
+
+/// A J2 controller on a bus.
+#[derive(Debug)]
+pub struct J2 {
+    bus: Arc<Bus>,
+    unit: u8,
+    opts: TxOptions,
+    /// Holds a check-then-write (AM before MV, RAPNF before a ramp parameter, the limits
+    /// before a value within them) together against other threads using this controller.
+    writing: Mutex<()>,
+}
+
+impl J2 {
+    /// The controller at `unit` on `bus`.
+    pub fn new(bus: Arc<Bus>, unit: u8) -> J2 {
+        J2 {
+            bus,
+            unit,
+            opts: TxOptions {
+                write_interval: WRITE_INTERVAL,
+                ..TxOptions::default()
+            },
+            writing: Mutex::new(()),
+        }
+    }
+
+    /// The same controller with its own reply timeout and retries instead of the Bus's.
+    pub fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> J2 {
+        self.opts.timeout = timeout;
+        self.opts.retries = retries;
+        self
+    }
+
+    /// The bus the controller is on.
+    pub fn bus(&self) -> &Arc<Bus> {
+        &self.bus
+    }
+
+    /// The controller's unit address.
+    pub fn unit(&self) -> u8 {
+        self.unit
+    }
+
+    /// Reads the parameter called `name`, in engineering units.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read(&self, name: &str) -> Result<f64> {
+        let p = by_name(name)?;
+        let words = self.read_words(p.address, 1)?;
+        Ok(p.decode(words[0]))
+    }
+
+    /// Reads the parameters called `names` in as few requests as the 16-register limit
+    /// allows (a span from the lowest to the highest address, cut in blocks of 16).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_many(&self, names: &[&str]) -> Result<Vec<f64>> {
+        let params = names
+            .iter()
+            .map(|n| by_name(n))
+            .collect::<Result<Vec<_>>>()?;
+        let (Some(first), Some(last)) = (
+            params.iter().map(|p| p.address).min(),
+            params.iter().map(|p| p.address).max(),
+        ) else {
+            return Ok(Vec::new());
+        };
+        let words = self.read_span(first, last)?;
+        Ok(params
+            .iter()
+            .map(|p| p.decode(words[usize::from(p.address - first)]))
+            .collect())
+    }
+
+    /// Every parameter of both tables, `(name, value)` in address order, read in blocks of
+    /// at most 16 registers (four for the signed table, two for the unsigned one).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn parameters(&self) -> Result<Vec<(&'static str, f64)>> {
+        let mut out = Vec::with_capacity(PARAMETERS.len());
+        for (first, last) in TABLES {
+            let words = self.read_span(first, last)?;
+            out.extend(
+                PARAMETERS
+                    .iter()
+                    .filter(|p| (first..=last).contains(&p.address))
+                    .map(|p| (p.name, p.decode(words[usize::from(p.address - first)]))),
+            );
+        }
+        Ok(out)
+    }
+
+    /// Writes `value` to the parameter called `name`, applying the manual's rules: the range
+    /// is checked first (an "LSP~USP" range against the limits read from the controller);
+    /// MV needs manual mode; RAPNF is written 0 before a ramp parameter; LSP may not go
+    /// above USP nor USP below LSP. Writes are paced 150 ms apart by the Bus.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a bad name or value (nothing sent);
+    /// [`Error::State`] for MV in automatic mode (nothing written); any other [`Error`].
+    pub fn write(&self, name: &str, value: f64) -> Result<()> {
+        let p = by_name(name)?;
+        let raw = p.encode(value)?;
+        let _held = self.lock_writing();
+        if p.name == "MV" && self.automatic()? {
+            return Err(self.mv_in_auto());
+        }
+        self.check_against_limits(p, value)?;
+        if RAMP_PARAMETERS.contains(&p.name) {
+            self.write_word(by_name(RAPNF)?.address, 0)?;
+        }
+        self.write_word(p.address, raw)
+    }
+
+    /// Writes several parameters in order, each as [`write`](Self::write) does; every value
+    /// is checked against its fixed range before the first is sent.
+    ///
+    /// # Errors
+    /// As [`write`](Self::write); a failure stops the sequence (the earlier writes stay).
+    pub fn write_many(&self, values: &[(&str, f64)]) -> Result<()> {
+        for (name, value) in values {
+            by_name(name)?.encode(*value)?;
+        }
+        for (name, value) in values {
+            self.write(name, *value)?;
+        }
+        Ok(())
+    }
+
+    /// Sets the output MV to `percent`. In automatic mode this is refused with
+    /// [`Error::State`], unless `switch_to_manual`: then AM is written 0 first.
+    ///
+    /// # Errors
+    /// As [`write`](Self::write).
+    pub fn set_output(&self, percent: f64, switch_to_manual: bool) -> Result<()> {
+        let mv = by_name("MV")?;
+        let raw = mv.encode(percent)?;
+        let _held = self.lock_writing();
+        if self.automatic()? {
+            if !switch_to_manual {
+                return Err(self.mv_in_auto());
+            }
+            self.write_word(by_name(AM)?.address, 0)?;
+        }
+        self.write_word(mv.address, raw)
+    }
+
+    /// Sets LSP and USP together, in the order that never leaves LSP above USP.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if `low > high` or either is out of range; any [`Error`].
+    pub fn set_limits(&self, low: f64, high: f64) -> Result<()> {
+        let (lsp, usp) = (by_name("LSP")?, by_name("USP")?);
+        let (raw_low, raw_high) = (lsp.encode(low)?, usp.encode(high)?);
+        if low > high {
+            return Err(Error::InvalidArgument(format!(
+                "limits must be low <= high, got ({low}, {high})"
+            )));
+        }
+        let _held = self.lock_writing();
+        let (_, current_high) = self.limits()?;
+        if low > current_high {
+            self.write_word(usp.address, raw_high)?;
+            self.write_word(lsp.address, raw_low)
+        } else {
+            self.write_word(lsp.address, raw_low)?;
+            self.write_word(usp.address, raw_high)
+        }
+    }
+
+    /// LSP and USP, in one request.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn limits(&self) -> Result<(f64, f64)> {
+        match self.read_many(&["LSP", "USP"])?[..] {
+            [low, high] => Ok((low, high)),
+            _ => Err(short(self.unit)),
+        }
+    }
+
+    /// Whether the controller is in automatic mode (AM = 1).
+    fn automatic(&self) -> Result<bool> {
+        Ok(self.read(AM)? != 0.0)
+    }
+
+    fn mv_in_auto(&self) -> Error {
+        Error::State {
+            unit: self.unit,
+            message: "MV can be written only in manual mode (AM = 0), and the controller is \
+                      in automatic mode; switch with mode = manual, or set_output(percent, \
+                      switch_to_manual=True)"
+                .into(),
+        }
+    }
+
+    /// For an "LSP~USP" parameter, LSP or USP: refuses a value the limits do not allow.
+    fn check_against_limits(&self, p: &Param, value: f64) -> Result<()> {
+        let bounded = p.within_limits || p.name == "LSP" || p.name == "USP";
+        if !bounded {
+            return Ok(());
+        }
+        let (low, high) = self.limits()?;
+        let refused = match p.name {
+            "LSP" if value > high => Some(format!("LSP must stay <= USP = {high}")),
+            "USP" if value < low => Some(format!("USP must stay >= LSP = {low}")),
+            "LSP" | "USP" => None,
+            _ if value < low || value > high => Some(format!(
+                "{} must be within LSP..USP = {low}..={high}",
+                p.name
+            )),
+            _ => None,
+        };
+        match refused {
+            Some(m) => Err(Error::InvalidArgument(format!(
+                "{m}, got {value} (set both with set_limits)"
+            ))),
+            None => Ok(()),
+        }
+    }
+
+    /// Registers `first..=last`, in blocks of at most [`MAX_BLOCK`].
+    fn read_span(&self, first: u16, last: u16) -> Result<Vec<u16>> {
+        let mut words = Vec::with_capacity(usize::from(last - first) + 1);
+        let mut at = first;
+        while at <= last {
+            let n = (last - at + 1).min(MAX_BLOCK);
+            words.extend(self.read_words(at, n)?);
+            at += n;
+        }
+        Ok(words)
+    }
+
+    /// Exactly `count` registers from `address` (a reply of another length is a frame
+    /// error).
+    fn read_words(&self, address: u16, count: u16) -> Result<Vec<u16>> {
+        let words = self
+            .bus
+            .read_holding_registers(self.unit, address, count, &self.opts)?;
+        if words.len() == usize::from(count) {
+            Ok(words)
+        } else {
+            Err(short(self.unit))
+        }
+    }
+
+    fn write_word(&self, address: u16, raw: u16) -> Result<()> {
+        self.bus.write_register(self.unit, address, raw, &self.opts)
+    }
+
+    fn lock_writing(&self) -> MutexGuard<'_, ()> {
+        self.writing
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+}
+
+fn short(unit: u8) -> Error {
+    Error::Frame {
+        unit,
+        function: 0x03,
+        kind: FrameError::Length("reply shorter than the registers asked for".into()),
+        frame: Vec::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_is_in_address_order_at_even_addresses_within_the_tables() {
+        for pair in PARAMETERS.windows(2) {
+            assert!(pair[0].address < pair[1].address, "{:?}", pair[1]);
+        }
+        for p in &PARAMETERS {
+            assert_eq!(p.address % 2, 0, "{}", p.name);
+            assert!(TABLES.iter().any(|(a, b)| (*a..=*b).contains(&p.address)));
+            assert_eq!(p.signed, p.address < 0x80, "{}", p.name);
+        }
+    }
+
+    #[test]
+    fn negative_tenths_are_twos_complement() {
+        let Some(al1) = by_name("AL1").ok().filter(|p| p.signed) else {
+            panic!("AL1 is in the signed table");
+        };
+        assert_eq!(al1.encode(-50.0).ok(), Some(0xFE0C));
+        assert_eq!(al1.decode(0xFE0C), -50.0);
+        assert_eq!(al1.encode(100.0).ok(), Some(1000));
+        assert_eq!(al1.decode(3), 0.3);
+    }
+
+    #[test]
+    fn ranges_are_cut_to_what_the_register_holds() {
+        let check = |name: &str, v: f64| by_name(name).and_then(|p| p.encode(v)).is_ok();
+        assert!(check("AL1", 3276.7) && !check("AL1", 3276.8) && !check("AL1", 9999.0));
+        assert!(check("AL1", -1999.0) && !check("AL1", -1999.1));
+        assert!(check("P", 0.1) && !check("P", 0.0) && !check("P", 3600.0));
+        assert!(check("DIE", 0.5) && !check("DIE", 0.4) && !check("DIE", 5.1));
+        assert!(check("FST", 20.0) && !check("FST", 19.0) && !check("FST", 20.5));
+        assert!(!check("PV", 1.0) && !check("MV", 100.1) && !check("MV", f64::NAN));
+        let msg = by_name("AL1").and_then(|p| p.encode(5000.0)).err();
+        assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999..9999")));
+    }
+
+    #[test]
+    fn names_are_found_in_any_case() {
+        assert_eq!(by_name("sv").ok().map(|p| p.address), Some(6));
+        assert_eq!(by_name("Rapnf").ok().map(|p| p.address), Some(0x82));
+        let err = by_name("XX")
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(err.contains("no parameter \"XX\"") && err.contains("FST"));
+    }
+}

@@ -1,0 +1,245 @@
+//! The J2 layer against a scripted transport: the manual's frames, chunking, the manual's
+//! rules (MV in manual mode only, RAPNF before ramp parameters, limits) and write pacing.
+
+mod common;
+
+use benchbus::bus::TxOptions;
+use benchbus::device::j2::{J2, WRITE_INTERVAL};
+use benchbus::Error;
+use common::{bus, with_crc, Act, Scripted};
+use std::sync::{mpsc, Arc};
+use std::time::{Duration, Instant};
+
+fn j2(acts: Vec<Act>, retries: u32) -> (J2, Scripted) {
+    let (bus, t) = bus(acts, retries);
+    (J2::new(Arc::new(bus), 1), t)
+}
+
+fn hex(s: &str) -> Vec<u8> {
+    s.split_whitespace()
+        .filter_map(|b| u8::from_str_radix(b, 16).ok())
+        .collect()
+}
+
+fn sent(t: &Scripted) -> Vec<Vec<u8>> {
+    t.0.lock().map(|s| s.sent.clone()).unwrap_or_default()
+}
+
+fn words(unit: u8, values: &[u16]) -> Act {
+    let mut body = vec![unit, 3, (values.len() * 2) as u8];
+    for v in values {
+        body.extend(v.to_be_bytes());
+    }
+    Act::Reply(with_crc(&body))
+}
+
+/// The echo a 0x06 write gets.
+fn echo(address: u16, value: u16) -> Act {
+    let mut body = vec![1, 6];
+    body.extend(address.to_be_bytes());
+    body.extend(value.to_be_bytes());
+    Act::Reply(with_crc(&body))
+}
+
+/// (function, address, count or value) of each frame sent.
+fn summary(t: &Scripted) -> Vec<(u8, u16, u16)> {
+    sent(t)
+        .iter()
+        .map(|f| {
+            (
+                f[1],
+                u16::from_be_bytes([f[2], f[3]]),
+                u16::from_be_bytes([f[4], f[5]]),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn the_manuals_three_frames() {
+    let acts = vec![
+        Act::Reply(hex("01 03 02 03 E8 B8 FA")),
+        words(1, &[0, 0, 4000]), // LSP 0, USP 400.0: SV = 100.0 is within them
+        Act::Reply(hex("01 06 00 06 03 E8 69 75")),
+        Act::Reply(hex("01 10 00 06 00 01 E1 C8")),
+    ];
+    let (c, t) = j2(acts, 0);
+    assert_eq!(c.read("SV").ok(), Some(100.0));
+    c.write("SV", 100.0).expect("06");
+    let opts = TxOptions::default();
+    c.bus().write_registers(1, 6, &[1000], &opts).expect("10");
+    let frames = sent(&t);
+    assert_eq!(frames[0], hex("01 03 00 06 00 01 64 0B"));
+    assert_eq!(frames[1], with_crc(&hex("01 03 00 14 00 03"))); // the limits, LSP..USP
+    assert_eq!(frames[2], hex("01 06 00 06 03 E8 69 75"));
+    assert_eq!(frames[3], hex("01 10 00 06 00 01 02 03 E8 A6 88"));
+}
+
+#[test]
+fn parameters_come_in_blocks_of_sixteen() {
+    let acts = vec![
+        words(1, &[0; 16]),
+        words(1, &[0; 16]),
+        words(1, &[0; 16]),
+        words(1, &[0; 15]),
+        words(1, &[0; 16]),
+        words(1, &[0; 13]),
+    ];
+    let (c, t) = j2(acts, 0);
+    let all = c.parameters().expect("six reads");
+    assert_eq!(all.len(), 43);
+    let reads: Vec<(u16, u16)> = summary(&t).iter().map(|&(_, a, n)| (a, n)).collect();
+    assert_eq!(
+        reads,
+        vec![(0, 16), (16, 16), (32, 16), (48, 15), (128, 16), (144, 13)]
+    );
+}
+
+#[test]
+fn values_decode_signed_tenths_and_unsigned_ints() {
+    let mut pid = [0u16; 5];
+    pid[0] = 305; // P = 30.5
+    pid[2] = 0xFFFF; // I: two's complement -0.1 (not a valid I, but decoded as sent)
+    pid[4] = 3; // D = 0.3 exactly
+    let (c, _) = j2(vec![words(1, &pid), words(1, &[6])], 0);
+    assert_eq!(
+        c.read_many(&["P", "I", "D"]).ok(),
+        Some(vec![30.5, -0.1, 0.3])
+    );
+    assert_eq!(c.read("INP").ok(), Some(6.0));
+}
+
+#[test]
+fn mv_in_automatic_mode_is_refused_without_writing() {
+    let (c, t) = j2(vec![words(1, &[1])], 0);
+    let err = c.write("MV", 40.0).err();
+    assert!(
+        matches!(&err, Some(Error::State { unit: 1, .. })),
+        "{err:?}"
+    );
+    assert!(err.is_some_and(|e| e.to_string().contains("switch_to_manual")));
+    assert_eq!(summary(&t), vec![(3, 0x80, 1)]); // AM read, nothing written
+}
+
+#[test]
+fn set_output_switches_to_manual_when_asked() {
+    let acts = vec![words(1, &[1]), echo(0x80, 0), echo(0, 425)];
+    let (c, t) = j2(acts, 0);
+    c.set_output(42.5, true).expect("switched, then written");
+    assert_eq!(summary(&t), vec![(3, 0x80, 1), (6, 0x80, 0), (6, 0, 425)]);
+    // In manual mode MV is written at once.
+    let (c, t) = j2(vec![words(1, &[0]), echo(0, 0)], 0);
+    c.set_output(0.0, false).expect("manual already");
+    assert_eq!(summary(&t), vec![(3, 0x80, 1), (6, 0, 0)]);
+}
+
+#[test]
+fn ramp_parameters_are_written_after_rapnf_0() {
+    let acts = vec![echo(0x82, 0), echo(0x28, 600)];
+    let (c, t) = j2(acts, 0);
+    c.write("RTM", 60.0).expect("RAPNF, then RTM");
+    assert_eq!(summary(&t), vec![(6, 0x82, 0), (6, 0x28, 600)]);
+}
+
+#[test]
+fn values_within_lsp_usp_are_checked_against_the_controllers_limits() {
+    let (c, t) = j2(vec![words(1, &[0, 0, 2000])], 0);
+    let err = c.write("SV", 250.0).err().map(|e| e.to_string());
+    assert_eq!(
+        err.as_deref(),
+        Some("SV must be within LSP..USP = 0..=200, got 250 (set both with set_limits)")
+    );
+    assert_eq!(summary(&t), vec![(3, 0x14, 3)]); // the limits read, nothing written
+                                                 // Out of the widest range: refused before anything is sent.
+    let (c, t) = j2(vec![], 0);
+    assert!(matches!(
+        c.write("SV", 5000.0),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(c.write("PV", 1.0), Err(Error::InvalidArgument(_))));
+    assert!(matches!(
+        c.write("FST", 19.0),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(
+        c.write("nope", 1.0),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(
+        c.write("SV", f64::NAN),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(sent(&t).is_empty());
+}
+
+#[test]
+fn limits_are_written_in_the_order_that_keeps_lsp_below_usp() {
+    // Raising both above the current USP: USP first.
+    let acts = vec![words(1, &[0, 0, 1000]), echo(0x16, 6000), echo(0x14, 2000)];
+    let (c, t) = j2(acts, 0);
+    c.set_limits(200.0, 600.0).expect("USP then LSP");
+    assert_eq!(summary(&t)[1..], [(6, 0x16, 6000), (6, 0x14, 2000)]);
+    // Lowering: LSP first.
+    let acts = vec![words(1, &[0, 0, 1000]), echo(0x14, 0xFF38), echo(0x16, 500)];
+    let (c, t) = j2(acts, 0);
+    c.set_limits(-20.0, 50.0).expect("LSP then USP");
+    assert_eq!(summary(&t)[1..], [(6, 0x14, 0xFF38), (6, 0x16, 500)]);
+    let (c, t) = j2(vec![], 0);
+    assert!(matches!(
+        c.set_limits(10.0, 5.0),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(sent(&t).is_empty());
+}
+
+#[test]
+fn negative_values_go_as_twos_complement() {
+    let (c, t) = j2(vec![echo(8, 0xFE0C), echo(0x34, 0xFFCE)], 0);
+    c.write("AL1", -50.0).expect("AL1");
+    c.write("PVOS", -5.0).expect("PVOS");
+    assert_eq!(summary(&t), vec![(6, 8, 0xFE0C), (6, 0x34, 0xFFCE)]);
+}
+
+#[test]
+fn writes_to_one_controller_are_paced() {
+    let acts = vec![echo(8, 1), echo(8, 2), echo(8, 3)];
+    let (c, _) = j2(acts, 0);
+    let start = Instant::now();
+    for v in 1..=3 {
+        c.write("AL1", f64::from(v) / 10.0).expect("write");
+    }
+    assert!(start.elapsed() >= WRITE_INTERVAL * 2);
+}
+
+#[test]
+fn a_retried_write_keeps_the_interval() {
+    // The first attempt gets no reply (5 ms timeout); the retry still waits 150 ms.
+    let acts = vec![Act::Silent, echo(8, 1)];
+    let (c, _) = j2(acts, 1);
+    let start = Instant::now();
+    c.write("AL1", 0.1).expect("second attempt");
+    assert!(start.elapsed() >= WRITE_INTERVAL);
+    assert_eq!(c.bus().stats().retries, 1);
+}
+
+#[test]
+fn pacing_does_not_hold_up_other_units() {
+    let acts = vec![echo(8, 1), words(2, &[7]), echo(8, 2)];
+    let (bus, t) = bus(acts, 0);
+    let bus = Arc::new(bus);
+    let c = J2::new(Arc::clone(&bus), 1);
+    let (tx, rx) = mpsc::channel();
+    let writer = std::thread::spawn(move || {
+        let first = c.write("AL1", 0.1);
+        let _ = tx.send(());
+        (first, c.write("AL1", 0.2))
+    });
+    rx.recv_timeout(Duration::from_secs(2))
+        .expect("first write done");
+    let other = bus.read_holding_registers(2, 0, 1, &TxOptions::default());
+    let (first, second) = writer.join().expect("writer thread");
+    assert!(first.is_ok() && second.is_ok() && other.is_ok());
+    // The read to unit 2 went out while unit 1's second write waited its turn.
+    let units: Vec<u8> = sent(&t).iter().map(|f| f[0]).collect();
+    assert_eq!(units, vec![1, 2, 1]);
+}
