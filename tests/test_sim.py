@@ -736,9 +736,9 @@ def test_a_single_device_is_unit_1() -> None:
     assert sim.devices == {1: device}
 
 
-@pytest.mark.parametrize("unit", [0, 248, -1, True, "1", 1.0])
+@pytest.mark.parametrize("unit", [0, 256, -1, True, "1", 1.0])
 def test_bad_unit_addresses(unit: object) -> None:
-    with pytest.raises(ValueError, match=r"1\.\.247"):
+    with pytest.raises(ValueError, match=r"1\.\.255"):
         Simulator({unit: RegisterDevice()})  # type: ignore[dict-item]
 
 

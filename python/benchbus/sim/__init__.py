@@ -11,8 +11,9 @@
 
 A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) and raises
 :class:`SimException` from its handlers to answer with an exception reply.
-:class:`DriveDevice` simulates a BLD2 / BLD3H / ZBLD.C20 brushless drive and
-:class:`PblDevice` a PBL-series brushless drive. Pure Python on
+:class:`DriveDevice` simulates a BLD2 / BLD3H / ZBLD.C20 brushless drive,
+:class:`PblDevice` a PBL-series brushless drive and :class:`J2Device` a J2-series PID
+temperature controller with a thermal process under its control. Pure Python on
 pymodbus and pyserial (``pip install "benchbus[sim]"``); it does not need the compiled core.
 """
 
@@ -20,11 +21,13 @@ from __future__ import annotations
 
 from benchbus.sim._device import RegisterDevice, SimDevice, SimException
 from benchbus.sim._drive import DriveDevice
+from benchbus.sim._j2 import J2Device
 from benchbus.sim._pbl import PblDevice
 from benchbus.sim._simulator import Simulator
 
 __all__ = [
     "DriveDevice",
+    "J2Device",
     "PblDevice",
     "RegisterDevice",
     "SimDevice",

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from collections.abc import Iterable, Mapping
+import threading
+from collections.abc import Callable, Iterable, Mapping
 
-__all__ = ["RegisterDevice", "SimDevice", "SimException"]
+__all__ = ["ClockedModel", "RegisterDevice", "SimDevice", "SimException"]
 
 _REGISTER_SPACE = 0x10000
 
@@ -103,6 +104,43 @@ class SimDevice:
         reply goes on the line unchanged and the error is kept in ``Simulator.errors``.
         """
         return reply
+
+
+class ClockedModel:
+    """A device model that runs on a clock and is evaluated lazily, on each access.
+
+    A subclass calls :meth:`_start_clock` in its ``__init__`` and defines :meth:`_update`,
+    which brings the model up to :meth:`_now` (under ``self._lock``).
+    """
+
+    #: How many times faster than its clock the model runs.
+    speedup: float = 1.0
+
+    def _start_clock(self, clock: Callable[[], float]) -> None:
+        """Run the model on ``clock`` (seconds) from now; also makes ``self._lock``."""
+        if not callable(clock):
+            raise TypeError("clock must be a callable returning seconds")
+        self._clock = clock
+        self._clock_start = float(clock())
+        self._offset = 0.0
+        self._lock = threading.RLock()
+
+    def _now(self) -> float:
+        """Model seconds since the start: the clock's, times :attr:`speedup`, plus advances."""
+        return (float(self._clock()) - self._clock_start) * self.speedup + self._offset
+
+    def _update(self) -> None:
+        """Bring the model up to :meth:`_now` (called with ``self._lock`` held)."""
+        raise NotImplementedError
+
+    def advance(self, seconds: float) -> None:
+        """Move the model's time forward by ``seconds`` (model seconds) on top of its clock."""
+        if not seconds >= 0:
+            raise ValueError(f"seconds must be >= 0, not {seconds}")
+        with self._lock:
+            self._update()
+            self._offset += seconds
+            self._update()
 
 
 class RegisterDevice(SimDevice):

@@ -11,11 +11,10 @@ from __future__ import annotations
 import copy
 import dataclasses
 import math
-import threading
 import time
 from collections.abc import Callable
 
-from benchbus.sim._device import SimDevice, SimException
+from benchbus.sim._device import ClockedModel, SimDevice, SimException
 
 __all__ = ["DriveDevice"]
 
@@ -133,7 +132,7 @@ class _Core:
     powered: bool = True
 
 
-class DriveDevice(SimDevice):
+class DriveDevice(ClockedModel, SimDevice):
     """A BLD2, BLD3H or ZBLD.C20 ("C20") brushless DC drive as its manuals describe it.
 
     ::
@@ -197,8 +196,6 @@ class DriveDevice(SimDevice):
         """
         if model not in self.MODELS:
             raise ValueError(f"model must be one of {', '.join(self.MODELS)}, not {model!r}")
-        if not callable(clock):
-            raise TypeError("clock must be a callable returning seconds")
         self._model = model
         self.single_register_reads: bool = bool(single_register_reads)
         #: Overload flag, shown in status word 2 bit 4 (1 = overloaded on a BLD, 0 on a C20).
@@ -215,9 +212,7 @@ class DriveDevice(SimDevice):
         self._readonly = set(range(0x2100, 0x2104)) | set(range(0x3000, 0x3012))
         if self._bld and hall_registers:
             self._readonly |= {0x3012, 0x3013, 0x3014}
-        self._clock = clock
-        self._offset = 0.0
-        self._lock = threading.RLock()
+        self._start_clock(clock)
         self._core = _Core(
             settings={a: s.default for a, s in self._settings_table.items() if a not in _ALIASES},
             params={a: p.default for a, p in self._params_table.items()},
@@ -367,15 +362,6 @@ class DriveDevice(SimDevice):
         with self._lock:
             self._update()
             self._core.powered = True
-
-    def advance(self, seconds: float) -> None:
-        """Move the drive's time forward by ``seconds`` on top of its clock."""
-        if not seconds >= 0:
-            raise ValueError(f"seconds must be >= 0, not {seconds}")
-        with self._lock:
-            self._update()
-            self._offset += seconds
-            self._update()
 
     def __repr__(self) -> str:
         """Model, state, speed, setpoint and fault."""
@@ -527,9 +513,6 @@ class DriveDevice(SimDevice):
         return count >> 16 if address == 0x3013 else count & 0xFFFF
 
     # ---- the motor ------------------------------------------------------------------------------
-
-    def _now(self) -> float:
-        return float(self._clock()) + self._offset
 
     def _state(self) -> int:
         core = self._core

@@ -86,6 +86,8 @@ class LineState:
         self.corrupt = 0
         self.exception_rules: list[_ExceptionRule] = []
         self.requests: list[bytes] = []
+        #: ``time.monotonic()`` when each frame in ``requests`` was complete (its last byte read).
+        self.request_times: list[float] = []
         self.replies: list[bytes] = []
 
     def add_exception_rule(self, code: int, n: int, unit: int | None) -> None:
@@ -294,7 +296,9 @@ class Forwarder:
             if data:
                 self._rx_b.feed(data, now)
         for frame in self._rx_a.frames(now):
-            self._on_request(frame)
+            # The last chunk read holds the frame's last byte (a frame cut by length is cut
+            # in the step that completes it; one cut by a gap has had nothing since).
+            self._on_request(frame, self._rx_a.last)
         for frame in self._rx_b.frames(now):
             self._on_server_reply(frame)
         if self._inflight is not None and now >= self._inflight_deadline:
@@ -330,10 +334,11 @@ class Forwarder:
 
     # requests from the library
 
-    def _on_request(self, frame: bytes) -> None:
+    def _on_request(self, frame: bytes, complete: float) -> None:
         state = self._state
         with state.lock:
             state.requests.append(frame)
+            state.request_times.append(complete)
         if not crc_ok(frame):
             log.debug("simulator: request with a bad CRC ignored: %s", frame.hex(" "))
             return

@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import dataclasses
 import math
-import threading
 import time
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from benchbus.sim._device import SimDevice, SimException
+from benchbus.sim._device import ClockedModel, SimDevice, SimException
 from benchbus.sim._rtu import with_crc
 
 __all__ = ["PblDevice"]
@@ -140,7 +139,7 @@ class _Core:
     alarms: int = 0
 
 
-class PblDevice(SimDevice):
+class PblDevice(ClockedModel, SimDevice):
     """A PBL-series brushless DC drive as its Modbus manual describes it.
 
     ::
@@ -218,8 +217,6 @@ class PblDevice(SimDevice):
         as standard Modbus units do. ``clock`` gives the time in seconds for the motor
         model (a test may pass a fake one and move it, or call :meth:`advance`).
         """
-        if not callable(clock):
-            raise TypeError("clock must be a callable returning seconds")
         #: Whether a 0x06 write is answered with the standard echo (True) or, as the
         #: manual shows, with the address and a register count of 1 (False).
         self.echo_writes: bool = bool(echo_writes)
@@ -228,9 +225,7 @@ class PblDevice(SimDevice):
         self.bus_voltage: int = 48
         #: The analog speed input, mV (registers 52 and 72).
         self.analog_input_mv: int = 0
-        self._clock = clock
-        self._offset = 0.0
-        self._lock = threading.RLock()
+        self._start_clock(clock)
         self._core = _Core(settings=dict(self.DEFAULTS), t=self._now())
 
     # ---- Modbus handlers ----------------------------------------------------------------------
@@ -362,15 +357,6 @@ class PblDevice(SimDevice):
             if core.settings[_RESTORE] == _RESTORE_CODE:
                 core.settings = dict(self.DEFAULTS)
 
-    def advance(self, seconds: float) -> None:
-        """Move the drive's time forward by ``seconds`` on top of its clock."""
-        if not seconds >= 0:
-            raise ValueError(f"seconds must be >= 0, not {seconds}")
-        with self._lock:
-            self._update()
-            self._offset += seconds
-            self._update()
-
     def __repr__(self) -> str:
         """Speed, target, control word and alarms."""
         with self._lock:
@@ -441,9 +427,6 @@ class PblDevice(SimDevice):
         return math.floor(self._core.revs * self._core.settings[_POLE_PAIRS] * 6 + 1e-6)
 
     # ---- the motor ------------------------------------------------------------------------------
-
-    def _now(self) -> float:
-        return float(self._clock()) + self._offset
 
     def _driving(self) -> bool:
         """Whether the control word runs the motor: bit 0, communication source, no alarm."""

@@ -60,6 +60,9 @@ class Simulator(Generic[D]):
     ) -> None:
         """Simulate ``devices`` (``{unit: device}``; a single device is unit 1).
 
+        Units are 1..255: Modbus reserves 248..255, but some instruments (the J2
+        controllers) take station numbers up to 255. Unit 0 is the broadcast.
+
         ``baudrate`` only sets the frame-gap timing (the pseudo-terminal carries bytes
         instantly). ``broadcast=False`` makes the units ignore unit 0 entirely.
         """
@@ -67,8 +70,8 @@ class Simulator(Generic[D]):
             devices = {1: devices}
         self.devices: dict[int, D] = dict(devices)
         for unit, device in self.devices.items():
-            if isinstance(unit, bool) or not isinstance(unit, int) or not 1 <= unit <= 247:
-                raise ValueError(f"a unit address is 1..247, not {unit!r}")
+            if isinstance(unit, bool) or not isinstance(unit, int) or not 1 <= unit <= 255:
+                raise ValueError(f"a unit address is 1..255, not {unit!r}")
             if not isinstance(device, SimDevice):
                 raise TypeError(f"unit {unit}: {type(device).__name__} is not a SimDevice")
         if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
@@ -267,14 +270,25 @@ class Simulator(Generic[D]):
         return self._state.requests
 
     @property
+    def request_times(self) -> list[float]:
+        """When each frame in :attr:`requests` was complete at the line, ``time.monotonic()``.
+
+        Same order and length as :attr:`requests`: the time the forwarder read the frame's
+        last byte from the library's end of the line (for a frame cut by a silent gap, not
+        the end of the gap). For checking the spacing of a master's requests.
+        """
+        return self._state.request_times
+
+    @property
     def replies(self) -> list[bytes]:
         """Every reply frame sent toward the library, in order (as sent, after the faults)."""
         return self._state.replies
 
     def clear_log(self) -> None:
-        """Empty :attr:`requests` and :attr:`replies`."""
+        """Empty :attr:`requests`, :attr:`request_times` and :attr:`replies`."""
         with self._state.lock:
             self._state.requests.clear()
+            self._state.request_times.clear()
             self._state.replies.clear()
 
     # ---- called by the server thread -------------------------------------------------------
