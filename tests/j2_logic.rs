@@ -61,18 +61,18 @@ fn the_manuals_three_frames() {
         Act::Reply(hex("01 03 02 03 E8 B8 FA")),
         words(1, &[0, 0, 4000]), // LSP 0, USP 400.0: SV = 100.0 is within them
         Act::Reply(hex("01 06 00 06 03 E8 69 75")),
+        words(1, &[0, 0, 4000]),
         Act::Reply(hex("01 10 00 06 00 01 E1 C8")),
     ];
     let (c, t) = j2(acts, 0);
     assert_eq!(c.read("SV").ok(), Some(100.0));
     c.write("SV", 100.0).expect("06");
-    let opts = TxOptions::default();
-    c.bus().write_registers(1, 6, &[1000], &opts).expect("10");
+    c.write_as("SV", 100.0, true).expect("10");
     let frames = sent(&t);
     assert_eq!(frames[0], hex("01 03 00 06 00 01 64 0B"));
     assert_eq!(frames[1], with_crc(&hex("01 03 00 14 00 03"))); // the limits, LSP..USP
     assert_eq!(frames[2], hex("01 06 00 06 03 E8 69 75"));
-    assert_eq!(frames[3], hex("01 10 00 06 00 01 02 03 E8 A6 88"));
+    assert_eq!(frames[4], hex("01 10 00 06 00 01 02 03 E8 A6 88"));
 }
 
 #[test]

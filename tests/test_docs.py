@@ -63,6 +63,14 @@ def test_readme_pbl_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert int(max_speed) == 3000 and int(count) == 223 - 31
 
 
+def test_readme_j2_example(capsys: pytest.CaptureFixture[str]) -> None:
+    (block,) = [b for b in readme_blocks() if "J2Device(" in b]
+    exec(block, {})
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "J2Mode.AUTO InputType.K -50.0 Pid(p=20.0, i=90.0, d=20.0)"
+    assert out[1] == "J2Mode.MANUAL 35.0 43"
+
+
 def run_example(name: str) -> str:
     """examples/``name``, in its own process as a user runs it; its output."""
     done = subprocess.run(

@@ -13,6 +13,10 @@ benches, with the wire timing done right and every failure raised as a clear exc
         drive.speed_setpoint = 1500
         drive.forward()
 
+    with bb.J2Controller("/dev/ttyUSB1", unit=1) as j2:   # a J2 PID controller
+        j2.sv = 120.0
+        print(j2.pv)
+
 Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 """
 

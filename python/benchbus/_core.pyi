@@ -7,7 +7,16 @@ from typing import Any
 
 from typing_extensions import Self, final
 
-__all__ = ["Bus", "DriveCore", "J2Core", "PblCore", "Stats", "__version__", "crc16", "refresh_logging"]
+__all__ = [
+    "Bus",
+    "DriveCore",
+    "J2Core",
+    "PblCore",
+    "Stats",
+    "__version__",
+    "crc16",
+    "refresh_logging",
+]
 
 __version__: str
 
@@ -287,6 +296,9 @@ class J2Core:
         """Reads the parameter called ``name``."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` to the parameter called ``name``, with the manual's rules."""
+    def write(self, name: str, value: float, multiple: bool = False) -> None:
+        """Writes ``value`` to ``name`` with 0x06, or 0x10 if ``multiple``, with the manual's
+        rules."""
     def read_many(self, names: Sequence[str]) -> list[int | float]:
         """Reads the parameters called ``names``, in as few requests as allowed."""
     def write_many(self, pairs: Sequence[tuple[str, float]]) -> None:

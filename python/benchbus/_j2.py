@@ -145,9 +145,15 @@ class J2Controller(BusDevice):
         """One parameter by its manual name ("SV", "AL1", "INP"; any case)."""
         return self.core.get(name)
 
-    def write(self, name: str, value: float) -> None:
-        """Write one parameter by name, with the manual's rules (see the class)."""
-        self.core.set(name, value)
+    def write(self, name: str, value: float, *, function: int = 0x06) -> None:
+        """Write one parameter by name, with the manual's rules (see the class).
+
+        ``function`` is 0x06 (write single register) or 0x10 (write multiple registers,
+        here one); the manual shows both for SV.
+        """
+        if isinstance(function, bool) or function not in (0x06, 0x10):
+            raise ValueError(f"function must be 0x06 or 0x10, got {function!r}")
+        self.core.write(name, value, function == 0x10)
 
     def read_many(self, names: Iterable[str]) -> list[float]:
         """Several parameters by name, in as few requests as the 16-register limit allows."""

@@ -321,6 +321,15 @@ impl J2 {
     /// [`Error::InvalidArgument`] for a bad name or value (nothing sent);
     /// [`Error::State`] for MV in automatic mode (nothing written); any other [`Error`].
     pub fn write(&self, name: &str, value: f64) -> Result<()> {
+        self.write_as(name, value, false)
+    }
+
+    /// As [`write`](Self::write), with function 0x10 (one register) instead of 0x06 when
+    /// `multiple`: the manual shows both for SV.
+    ///
+    /// # Errors
+    /// As [`write`](Self::write).
+    pub fn write_as(&self, name: &str, value: f64, multiple: bool) -> Result<()> {
         let p = by_name(name)?;
         let raw = p.encode(value)?;
         let _held = self.lock_writing();
@@ -331,7 +340,12 @@ impl J2 {
         if RAMP_PARAMETERS.contains(&p.name) {
             self.write_word(by_name(RAPNF)?.address, 0)?;
         }
-        self.write_word(p.address, raw)
+        if multiple {
+            self.bus
+                .write_registers(self.unit, p.address, &[raw], &self.opts)
+        } else {
+            self.write_word(p.address, raw)
+        }
     }
 
     /// Writes several parameters in order, each as [`write`](Self::write) does; every value

@@ -84,6 +84,21 @@ impl PyJ2Core {
         Ok(value(py, p, v))
     }
 
+    /// Writes `value` to the parameter called `name` with function 0x06, or 0x10 if
+    /// `multiple`, with the manual's rules.
+    #[pyo3(signature = (name, value, multiple=false))]
+    fn write(
+        &self,
+        py: Python<'_>,
+        name: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
+        multiple: bool,
+    ) -> PyResult<()> {
+        let p = param(py, name)?;
+        let v = number(value, p.name)?;
+        self.wire(py, move |j| j.write_as(p.name, v, multiple))
+    }
+
     /// Writes `value` to the parameter called `name`, with the manual's rules.
     fn set(
         &self,
