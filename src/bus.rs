@@ -21,7 +21,7 @@ use crate::error::{hex, Error, Result};
 use crate::timing::{LineFormat, SilenceGuard};
 use crate::transport::{SerialTransport, Transport};
 use std::collections::HashMap;
-use std::sync::{Mutex, MutexGuard};
+use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 /// Unit addresses a request may go to: 1..=255 (0 is broadcast). The serial line spec (2.2)
@@ -115,7 +115,11 @@ pub struct Stats {
 struct State {
     transport: Option<Box<dyn Transport>>,
     silence: SilenceGuard,
-    last_write: HashMap<u8, Instant>,
+    /// When each unit's last write ended, and the longest write interval its device asked
+    /// for.
+    last_write: HashMap<u8, (Instant, Duration)>,
+    /// When the last broadcast's turnaround ended: a write to every unit.
+    last_broadcast: Option<Instant>,
     stats: Stats,
 }
 
@@ -123,6 +127,8 @@ struct State {
 pub struct Bus {
     config: BusConfig,
     state: Mutex<State>,
+    /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]).
+    sequences: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
 }
 
 impl std::fmt::Debug for Bus {
@@ -156,8 +162,10 @@ impl Bus {
                 transport: Some(transport),
                 silence: SilenceGuard::new(),
                 last_write: HashMap::new(),
+                last_broadcast: None,
                 stats: Stats::default(),
             }),
+            sequences: Mutex::new(HashMap::new()),
         }
     }
 
@@ -273,14 +281,16 @@ impl Bus {
     }
 
     /// Writes one register on every unit (unit 0). Waits for no reply, then keeps the line
-    /// quiet for the turnaround delay; any answer a device sends anyway is dropped.
+    /// quiet for the turnaround delay; any answer a device sends anyway is dropped. A
+    /// broadcast is a write to every unit: it waits out each unit's write interval, and the
+    /// next paced write to any unit waits its interval after it.
     ///
     /// # Errors
     /// [`Error::Port`] or [`Error::Closed`].
     pub fn broadcast_write_register(&self, address: u16, value: u16) -> Result<()> {
         let request = Request::WriteSingleRegister { address, value };
         let frame = encode_request(BROADCAST, &request);
-        let mut st = self.lock();
+        let mut st = self.lock_when(State::broadcast_ready);
         let st = &mut *st;
         self.send(st, &frame)?;
         st.stats.broadcasts += 1;
@@ -291,7 +301,9 @@ impl Bus {
         if !answers.is_empty() {
             log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", hex(&answers));
         }
-        st.silence.busy_until(Instant::now());
+        let now = Instant::now();
+        st.silence.busy_until(now);
+        st.last_broadcast = Some(now);
         Ok(())
     }
 
@@ -346,7 +358,7 @@ impl Bus {
         self.transport(st)?;
         if is_write && !opts.write_reply {
             self.send(st, &frame)?;
-            st.last_write.insert(unit, Instant::now());
+            st.wrote(unit, opts.write_interval);
             st.stats.transactions += 1;
             return Ok(unanswered_write(request));
         }
@@ -361,7 +373,7 @@ impl Bus {
             }
             let outcome = self.attempt(st, unit, request, &frame, timeout);
             if is_write {
-                st.last_write.insert(unit, Instant::now());
+                st.wrote(unit, opts.write_interval);
             }
             let error = match outcome {
                 Ok((Reply::Normal(response), reply)) => {
@@ -513,18 +525,39 @@ impl Bus {
     /// The bus, once `interval` has passed since the last write to `unit`. The wait happens
     /// without the lock, so requests to other units go on meanwhile.
     fn lock_paced(&self, unit: u8, interval: Duration) -> MutexGuard<'_, State> {
+        self.lock_when(|st| st.write_ready(unit, interval))
+    }
+
+    /// The bus, once `ready(state)` (the instant it may go on) has passed; the waiting
+    /// happens without the lock.
+    fn lock_when(&self, ready: impl Fn(&State) -> Option<Instant>) -> MutexGuard<'_, State> {
         loop {
             let st = self.lock();
-            let ready = st.last_write.get(&unit).map(|&last| last + interval);
             let now = Instant::now();
-            match ready {
-                Some(ready) if ready > now => {
+            match ready(&st) {
+                Some(at) if at > now => {
                     drop(st);
-                    std::thread::sleep(ready - now);
+                    std::thread::sleep(at - now);
                 }
                 _ => return st,
             }
         }
+    }
+
+    /// Runs `f` while holding this bus's lock for `unit`: a device layer's sequence of
+    /// requests that must not interleave with another sequence for the same unit (read AM,
+    /// then write MV), whichever device object runs it. Other units and single requests
+    /// are not held up.
+    pub fn exclusive<R>(&self, unit: u8, f: impl FnOnce() -> R) -> R {
+        let lock = {
+            let mut all = self
+                .sequences
+                .lock()
+                .unwrap_or_else(|poisoned| poisoned.into_inner());
+            Arc::clone(all.entry(unit).or_default())
+        };
+        let _held = lock.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        f()
     }
 
     fn lock(&self) -> MutexGuard<'_, State> {
@@ -535,10 +568,43 @@ impl Bus {
     }
 }
 
+impl State {
+    /// Records that a write to `unit` (whose device wants `interval` between writes) ended.
+    fn wrote(&mut self, unit: u8, interval: Duration) {
+        let now = Instant::now();
+        self.last_write
+            .entry(unit)
+            .and_modify(|(at, widest)| {
+                *at = now;
+                *widest = (*widest).max(interval);
+            })
+            .or_insert((now, interval));
+    }
+
+    /// When a write to `unit` may go, `interval` after its last write or the last broadcast.
+    fn write_ready(&self, unit: u8, interval: Duration) -> Option<Instant> {
+        let last = self.last_write.get(&unit).map(|&(at, _)| at);
+        last.max(self.last_broadcast).map(|at| at + interval)
+    }
+
+    /// When a broadcast may go: every unit's own write interval has passed since its last
+    /// write, and the widest of them since the last broadcast.
+    fn broadcast_ready(&self) -> Option<Instant> {
+        let widest = self.last_write.values().map(|&(_, i)| i).max();
+        let after_broadcast = self
+            .last_broadcast
+            .map(|at| at + widest.unwrap_or_default());
+        self.last_write
+            .values()
+            .map(|&(at, interval)| at + interval)
+            .chain(after_broadcast)
+            .max()
+    }
+}
+
 /// Sleeps (holding the bus) until `interval` has passed since the last write to `unit`.
 fn pace(st: &State, unit: u8, interval: Duration) {
-    if let Some(&last) = st.last_write.get(&unit) {
-        let ready = last + interval;
+    if let Some(ready) = st.write_ready(unit, interval) {
         let now = Instant::now();
         if ready > now {
             std::thread::sleep(ready - now);

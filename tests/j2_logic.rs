@@ -4,7 +4,7 @@
 mod common;
 
 use benchbus::bus::TxOptions;
-use benchbus::device::j2::{J2, WRITE_INTERVAL};
+use benchbus::device::j2::{blocks, J2, WRITE_INTERVAL};
 use benchbus::Error;
 use common::{bus, with_crc, Act, Scripted};
 use std::sync::{mpsc, Arc};
@@ -78,11 +78,11 @@ fn the_manuals_three_frames() {
 #[test]
 fn parameters_come_in_blocks_of_sixteen() {
     let acts = vec![
-        words(1, &[0; 16]),
-        words(1, &[0; 16]),
-        words(1, &[0; 16]),
         words(1, &[0; 15]),
-        words(1, &[0; 16]),
+        words(1, &[0; 15]),
+        words(1, &[0; 15]),
+        words(1, &[0; 15]),
+        words(1, &[0; 15]),
         words(1, &[0; 13]),
     ];
     let (c, t) = j2(acts, 0);
@@ -91,8 +91,20 @@ fn parameters_come_in_blocks_of_sixteen() {
     let reads: Vec<(u16, u16)> = summary(&t).iter().map(|&(_, a, n)| (a, n)).collect();
     assert_eq!(
         reads,
-        vec![(0, 16), (16, 16), (32, 16), (48, 15), (128, 16), (144, 13)]
+        vec![(0, 15), (16, 15), (32, 15), (48, 15), (128, 15), (144, 13)]
     );
+}
+
+#[test]
+fn blocks_cover_the_wanted_addresses_in_the_fewest_reads() {
+    assert_eq!(blocks([0x80, 0].into_iter()), vec![(0, 1), (0x80, 1)]);
+    assert_eq!(blocks([14, 18, 16, 14].into_iter()), vec![(14, 5)]);
+    assert_eq!(blocks([0, 15, 16].into_iter()), vec![(0, 16), (16, 1)]);
+    assert_eq!(blocks(std::iter::empty()), vec![]);
+    // MV and AM: two reads of one register, not the 0..0x80 span.
+    let (c, t) = j2(vec![words(1, &[250]), words(1, &[0])], 0);
+    assert_eq!(c.read_many(&["MV", "AM"]).ok(), Some(vec![25.0, 0.0]));
+    assert_eq!(summary(&t), vec![(3, 0, 1), (3, 0x80, 1)]);
 }
 
 #[test]
@@ -224,22 +236,83 @@ fn a_retried_write_keeps_the_interval() {
 
 #[test]
 fn pacing_does_not_hold_up_other_units() {
+    // A long interval, so the read surely comes while the second write waits.
     let acts = vec![echo(8, 1), words(2, &[7]), echo(8, 2)];
     let (bus, t) = bus(acts, 0);
     let bus = Arc::new(bus);
-    let c = J2::new(Arc::clone(&bus), 1);
+    let paced = TxOptions {
+        write_interval: Duration::from_secs(2),
+        ..TxOptions::default()
+    };
     let (tx, rx) = mpsc::channel();
-    let writer = std::thread::spawn(move || {
-        let first = c.write("AL1", 0.1);
-        let _ = tx.send(());
-        (first, c.write("AL1", 0.2))
-    });
-    rx.recv_timeout(Duration::from_secs(2))
+    let writer = {
+        let bus = Arc::clone(&bus);
+        std::thread::spawn(move || {
+            let first = bus.write_register(1, 8, 1, &paced);
+            let _ = tx.send(());
+            (first, bus.write_register(1, 8, 2, &paced))
+        })
+    };
+    rx.recv_timeout(Duration::from_secs(5))
         .expect("first write done");
+    std::thread::sleep(Duration::from_millis(50)); // the writer is now waiting its turn
+    let start = Instant::now();
     let other = bus.read_holding_registers(2, 0, 1, &TxOptions::default());
+    let read_took = start.elapsed();
     let (first, second) = writer.join().expect("writer thread");
     assert!(first.is_ok() && second.is_ok() && other.is_ok());
-    // The read to unit 2 went out while unit 1's second write waited its turn.
     let units: Vec<u8> = sent(&t).iter().map(|f| f[0]).collect();
     assert_eq!(units, vec![1, 2, 1]);
+    assert!(read_took < Duration::from_secs(1), "{read_took:?}");
+}
+
+#[test]
+fn a_broadcast_counts_as_a_write_to_every_unit() {
+    let (c, t) = j2(vec![echo(8, 1), Act::Silent, echo(8, 2)], 0);
+    c.write("AL1", 0.1).expect("write");
+    let start = Instant::now();
+    c.bus().broadcast_write_register(10, 7).expect("broadcast");
+    // The broadcast waited out unit 1's interval, and the next write waits after it.
+    assert!(start.elapsed() >= WRITE_INTERVAL);
+    let after = Instant::now();
+    c.write("AL1", 0.2).expect("write");
+    assert!(after.elapsed() >= WRITE_INTERVAL);
+    assert_eq!(
+        sent(&t).iter().map(|f| f[0]).collect::<Vec<_>>(),
+        vec![1, 0, 1]
+    );
+}
+
+#[test]
+fn sequences_for_one_unit_exclude_each_other_whatever_the_object() {
+    let (bus, _) = bus(vec![], 0);
+    let bus = Arc::new(bus);
+    let (entered, go_on) = (mpsc::channel(), mpsc::channel::<()>());
+    let holder = {
+        let bus = Arc::clone(&bus);
+        let (entered, go_on) = (entered.0, go_on.1);
+        std::thread::spawn(move || {
+            bus.exclusive(1, || {
+                let _ = entered.send(());
+                let _ = go_on.recv_timeout(Duration::from_secs(5));
+            })
+        })
+    };
+    entered
+        .1
+        .recv_timeout(Duration::from_secs(5))
+        .expect("held");
+    // Another unit is not held up.
+    assert_eq!(bus.exclusive(2, || 2), 2);
+    // The same unit waits until the holder lets go.
+    let waiter = {
+        let bus = Arc::clone(&bus);
+        std::thread::spawn(move || bus.exclusive(1, Instant::now))
+    };
+    std::thread::sleep(Duration::from_millis(100));
+    let released = Instant::now();
+    let _ = go_on.0.send(());
+    let got_in = waiter.join().expect("waiter");
+    holder.join().expect("holder");
+    assert!(got_in >= released);
 }

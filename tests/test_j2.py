@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import threading
 import time
 from collections.abc import Iterator
 
@@ -106,21 +107,38 @@ def test_writes_are_150_ms_apart_on_the_wire() -> None:
         assert device.value("AL1") == 0.1
 
 
-def test_pacing_is_per_controller_and_reads_are_not_held_up() -> None:
+def test_pacing_is_per_controller_and_other_units_are_not_held_up() -> None:
     clock = FakeClock()
     one, two = J2Device(clock=clock), J2Device(clock=clock)
     with Simulator({1: one, 2: two}, baudrate=9600) as sim, bb.Bus(sim.port, baudrate=9600) as bus:
         a, b = bb.J2Controller(bus, 1), bb.J2Controller(bus, 2)
-        a.alarm1 = 1.0
-        b.alarm1 = 2.0  # another controller: no wait for unit 1's interval
-        a.alarm2 = 3.0
-        times = {
-            unit: [t for t, f in zip(sim.request_times, sim.requests) if f[0] == unit and f[1] == 6]
-            for unit in (1, 2)
-        }
-        assert times[1][1] - times[1][0] >= WRITE_INTERVAL
-        assert times[2][0] - times[1][0] < WRITE_INTERVAL
+        burst = threading.Thread(target=lambda: a.write_many({"AL1": 1.0, "AL2": 2.0}))
+        burst.start()
+        deadline = time.monotonic() + 5
+        while not sim.requests and time.monotonic() < deadline:
+            time.sleep(0.001)
+        # Unit 1's second write now waits 150 ms; unit 2 is served meanwhile.
+        b.alarm1 = 3.0
+        pv = b.pv
+        burst.join(5)
+        units = [(f[0], f[1]) for f in sim.requests]
+        assert units == [(1, 6), (2, 6), (2, 3), (1, 6)]
+        times = [t for t, f in zip(sim.request_times, sim.requests) if f[0] == 1]
+        assert times[1] - times[0] >= WRITE_INTERVAL
         assert one.write_violations == two.write_violations == []
+        assert pv == two.value("PV") and two.value("AL1") == 3.0 and one.value("AL2") == 2.0
+
+
+def test_a_broadcast_counts_as_a_write_to_every_unit(line: Line) -> None:
+    j2, sim, device = line
+    j2.alarm1 = 1.0
+    j2.bus.broadcast_write_register(0x0A, 20)  # AL2 = 2.0 on every controller
+    j2.alarm1 = 3.0
+    times = [t for t, f in zip(sim.request_times, sim.requests) if f[1] == 6]
+    assert [f[0] for f in sim.requests if f[1] == 6] == [1, 0, 1]
+    assert min(b - a for a, b in zip(times, times[1:])) >= WRITE_INTERVAL
+    assert device.write_violations == []
+    assert (device.value("AL1"), device.value("AL2")) == (3.0, 2.0)
 
 
 def test_parameters_are_read_in_blocks_of_at_most_16(line: Line) -> None:
@@ -130,11 +148,11 @@ def test_parameters_are_read_in_blocks_of_at_most_16(line: Line) -> None:
     sim.clear_log()
     values = j2.parameters()
     assert summary(sim.requests) == [
-        (3, 0, 16),
-        (3, 16, 16),
-        (3, 32, 16),
+        (3, 0, 15),
+        (3, 16, 15),
+        (3, 32, 15),
         (3, 48, 15),
-        (3, 128, 16),
+        (3, 128, 15),
         (3, 144, 13),
     ]
     names = [row[0] for row in bb.J2Controller.table()]
@@ -232,6 +250,8 @@ def test_every_property_round_trips(line: Line) -> None:
     assert j2.read("cyt") == device.value("CYT")  # names in any case
     j2.write_many({"OUL": 5.0, "OUH": 95.0})
     assert j2.read_many(["OUH", "OUL"]) == [95.0, 5.0]
+    j2.write_many([("OUL", 0.0)])
+    assert j2.read_many(["OUL", "AM"]) == [0.0, 0]
 
 
 def test_pv_is_measured_and_follows_the_process() -> None:
@@ -285,6 +305,9 @@ def test_bad_input_is_refused_before_anything_is_sent(line: Line) -> None:
         (ValueError, lambda: setattr(j2, "limits", (10.0, 5.0))),
         (ValueError, lambda: setattr(j2, "limits", (1.0, 2.0, 3.0))),
         (TypeError, lambda: setattr(j2, "autotune", "yes")),
+        (ValueError, lambda: setattr(j2, "autotune", 2)),
+        (TypeError, lambda: j2.read_many("SV")),
+        (TypeError, lambda: j2.write("SV", 1.0, function=6.0)),  # type: ignore[arg-type]
         (TypeError, lambda: setattr(j2, "mode", None)),
         (ValueError, lambda: setattr(j2, "input_type", 10)),
     ]
@@ -309,7 +332,7 @@ def test_device_errors_raise_the_right_class(line: Line) -> None:
     sim.corrupt_next(3)  # every attempt (the Bus retries twice)
     with pytest.raises(bb.CrcError):
         _ = j2.pv
-    # A write over 16 registers is refused by the unit itself.
+    # A read of more than 16 registers is refused by the unit itself.
     with pytest.raises(bb.ModbusException) as too_many:
         j2.bus.read_holding_registers(1, 0, 17)
     assert too_many.value.code == 3
@@ -322,4 +345,19 @@ def test_the_library_and_the_simulator_share_one_table() -> None:
     for name, address, signed, writable, low, high, within_limits in table:
         assert J2Device.PARAMETERS[name] == (address, low, high, 10 if signed else 1), name
         assert writable == (name not in J2Device.READ_ONLY), name
-        assert within_limits == (name in J2Device.BETWEEN_LSP_USP), name
+        # The library holds only SV to LSP..USP; the simulator, as the manual reads, all of
+        # these (the controller judges the others: see README).
+        assert within_limits == (name == "SV"), name
+        assert name in J2Device.BETWEEN_LSP_USP or not within_limits, name
+
+
+def test_hysteresis_is_left_to_the_controller(line: Line) -> None:
+    """HY1 is "LSP~USP" in the manual; the library checks only the widest range."""
+    j2, sim, _ = line
+    j2.limits = (100.0, 400.0)
+    with pytest.raises(bb.ModbusException) as caught:
+        j2.write("HY1", 1.0)  # the simulated controller reads the manual literally
+    assert caught.value.code == 3
+    assert writes(sim)[-1] == (6, 0x18, 10)
+    with pytest.raises(ValueError):
+        j2.write("HY1", -2000.0)  # out of the widest range: nothing sent

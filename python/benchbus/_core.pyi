@@ -276,8 +276,8 @@ class J2Core:
 
     Parameters are named as in the manual ("SV", "AL1", "RAPNF"; any case). Signed-table
     values are floats in engineering units (tenths on the wire), unsigned-table values ints.
-    Writes follow the manual's rules: paced 150 ms apart, ranges checked first (an
-    "LSP~USP" range against the limits read from the controller), MV only in manual mode,
+    Writes follow the manual's rules: paced 150 ms apart, ranges checked first (SV also
+    against the limits read from the controller), MV only in manual mode,
     RAPNF written 0 before RAP or RTM. Every call that touches the wire releases the GIL.
     """
 
@@ -302,7 +302,8 @@ class J2Core:
     def read_many(self, names: Sequence[str]) -> list[int | float]:
         """Reads the parameters called ``names``, in as few requests as allowed."""
     def write_many(self, pairs: Sequence[tuple[str, float]]) -> None:
-        """Writes ``(name, value)`` pairs in order, all checked before the first is sent."""
+        """Writes ``(name, value)`` pairs in order; fixed ranges are checked before the first
+        is sent, the checks that need the controller write by write."""
     def parameters(self) -> dict[str, int | float]:
         """Every parameter, ``{name: value}``, in blocks of at most 16 registers."""
     def set_output(self, percent: float, switch_to_manual: bool) -> None:

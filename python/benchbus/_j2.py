@@ -9,8 +9,8 @@ adds enums, properties and the context manager.
 from __future__ import annotations
 
 import os
-from collections.abc import Iterable
-from typing import NamedTuple
+from collections.abc import Iterable, Mapping
+from typing import NamedTuple, Union
 
 from benchbus._core import Bus, J2Core
 from benchbus._device import (
@@ -24,6 +24,9 @@ from benchbus._device import (
 )
 
 __all__ = ["InputType", "J2Controller", "J2Mode", "Limits", "Pid"]
+
+#: A parameter value: a float for the signed table, an int for the unsigned one.
+Value = Union[float, int]
 
 
 class J2Mode(PrintableIntEnum):
@@ -96,12 +99,17 @@ class J2Controller(BusDevice):
     two's complement), the unsigned one as ints. The manual's rules are applied for you:
     writes go at least 150 ms apart (the Bus waits, per controller, without holding up
     other units); at most 16 registers go in one request; ranges are checked before
-    anything is sent (an "LSP~USP" range against the limits the controller holds, read just
+    anything is sent (SV also against the limits LSP..USP the controller holds, read just
     before); MV is refused in automatic mode with :class:`~benchbus.StateError` unless you
     ask :meth:`set_output` to switch to manual; RAPNF is written 0 before RAP or RTM.
     The manual's upper limits of 3600 and 9999 are cut to 3276.7, the most a signed
-    register in tenths holds. Leaving a ``with`` block closes a Bus the controller opened;
-    the controller goes on controlling.
+    register in tenths holds. The manual also gives "LSP~USP" for HY1, HY2, HYS, RAP, TRL,
+    TRH, SRT and TOP, which cannot be meant literally for a hysteresis or a ramp rate: the
+    library checks those against -1999..3276.7 and leaves the rest to the controller (a
+    refusal is a :class:`~benchbus.ModbusException`). Pacing applies to every
+    J2Controller's writes to the unit and to broadcasts; a raw ``bus.write_register`` is
+    not paced. Leaving a ``with`` block closes a Bus the controller opened; the controller
+    goes on controlling.
     """
 
     core: J2Core
@@ -141,8 +149,9 @@ class J2Controller(BusDevice):
 
     # ---- parameters by name --------------------------------------------------------------------
 
-    def read(self, name: str) -> float:
-        """One parameter by its manual name ("SV", "AL1", "INP"; any case)."""
+    def read(self, name: str) -> Value:
+        """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
+        signed table, an int for the unsigned one."""
         return self.core.get(name)
 
     def write(self, name: str, value: float, *, function: int = 0x06) -> None:
@@ -151,19 +160,30 @@ class J2Controller(BusDevice):
         ``function`` is 0x06 (write single register) or 0x10 (write multiple registers,
         here one); the manual shows both for SV.
         """
-        if isinstance(function, bool) or function not in (0x06, 0x10):
+        if isinstance(function, bool) or not isinstance(function, int):
+            raise TypeError(f"function must be an int, got {type(function).__name__}")
+        if function not in (0x06, 0x10):
             raise ValueError(f"function must be 0x06 or 0x10, got {function!r}")
         self.core.write(name, value, function == 0x10)
 
-    def read_many(self, names: Iterable[str]) -> list[float]:
+    def read_many(self, names: Iterable[str]) -> list[Value]:
         """Several parameters by name, in as few requests as the 16-register limit allows."""
+        if isinstance(names, str):
+            raise TypeError('names is a list of names (["SV", "PV"]), not one str')
         return self.core.read_many(list(names))
 
-    def write_many(self, values: dict[str, float]) -> None:
-        """Write several parameters in order; all are checked before the first is sent."""
-        self.core.write_many(list(values.items()))
+    def write_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Write several parameters in order, each as :meth:`write` does.
 
-    def parameters(self) -> dict[str, float]:
+        ``values`` is ``{name: value}`` or ``(name, value)`` pairs. Every value is checked
+        against its fixed range before the first is sent; the checks that need the
+        controller (SV within its limits, MV in manual mode) are made write by write, so a
+        refusal there leaves the earlier writes done.
+        """
+        pairs = list(values.items() if isinstance(values, Mapping) else values)
+        self.core.write_many(pairs)
+
+    def parameters(self) -> dict[str, Value]:
         """Every parameter of both tables by name, in six requests of at most 16 registers."""
         return self.core.parameters()
 
@@ -201,8 +221,10 @@ class J2Controller(BusDevice):
 
     @autotune.setter
     def autotune(self, on: bool) -> None:
-        if not isinstance(on, (bool, int)) or on not in (0, 1):
-            raise TypeError(f"autotune is True or False, got {on!r}")
+        if not isinstance(on, int):
+            raise TypeError(f"autotune is True or False, got {type(on).__name__}")
+        if on not in (0, 1):
+            raise ValueError(f"autotune is True or False, got {on!r}")
         self.core.set("AT", int(on))
 
     @property

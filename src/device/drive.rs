@@ -11,7 +11,7 @@ use crate::bus::{Bus, TxOptions};
 use crate::codec::{exception_meaning, FrameError};
 use crate::error::{Error, Result};
 use std::sync::atomic::{AtomicU8, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Which manual the drive follows.
@@ -349,8 +349,6 @@ pub struct Drive {
     block_reads: AtomicU8,
     /// Whether the firmware has 0x3012..0x3014 ("software version dependent" in 000).
     hall_registers: AtomicU8,
-    /// Holds the 0x200E enable / write / restore sequence together against other threads.
-    parameter_lock: Mutex<()>,
 }
 
 impl Drive {
@@ -372,7 +370,6 @@ impl Drive {
             } else {
                 BLOCK_NO
             }),
-            parameter_lock: Mutex::new(()),
         }
     }
 
@@ -607,11 +604,12 @@ impl Drive {
     /// Any [`Error`]; an exception reply says which parameter the drive refused.
     pub fn write_parameter(&self, code: &str, value: u16) -> Result<()> {
         let address = parameter_address(code)?;
-        // A poisoned lock guards nothing but this sequence: go on.
-        let _sequence = self
-            .parameter_lock
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        // One sequence per unit, whichever Drive object runs it.
+        self.bus
+            .exclusive(self.unit, || self.write_enabled(code, address, value))
+    }
+
+    fn write_enabled(&self, code: &str, address: u16, value: u16) -> Result<()> {
         let enable = self.read(PARAMETER_WRITE_ENABLE, 1)?;
         let was = enable.first().copied().unwrap_or_default();
         if was != 1 {

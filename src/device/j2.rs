@@ -8,14 +8,17 @@
 //! and RAPNF written 0 before a ramp parameter.
 //!
 //! The manual's ranges are in engineering units; a signed register in tenths only reaches
-//! -3276.8..=3276.7, so its upper limits of 3600 and 9999 stop there. Ranges given as
-//! "LSP~USP" are checked against the limits the controller holds, read just before the write.
+//! -3276.8..=3276.7, so its upper limits of 3600 and 9999 stop there. SV is checked against
+//! the limits LSP..USP the controller holds, read just before the write. The manual gives
+//! "LSP~USP" for HY1, HY2, HYS, RAP, TRL, TRH, SRT and TOP too, but for a hysteresis or a
+//! ramp rate that cannot be meant literally: those are checked against the widest range,
+//! -1999..=3276.7, and the controller itself refuses what it does not take.
 
 use super::{Access, Register};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::FrameError;
 use crate::error::{Error, Result};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Least time between two write commands to one controller (manual: "不小於 150 毫秒").
@@ -43,7 +46,7 @@ pub struct Param {
     pub writable: bool,
     /// The manual's range in engineering units; ignored when `within_limits`.
     pub range: (f64, f64),
-    /// The manual gives its range as "LSP~USP": the limits the controller holds.
+    /// Held to the limits LSP..USP the controller holds (SV).
     pub within_limits: bool,
 }
 
@@ -60,15 +63,16 @@ const fn s(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
     }
 }
 
-/// A signed parameter whose range is LSP..=USP.
-const fn lim(name: &'static str, address: u16) -> Param {
+/// A signed parameter the manual gives "LSP~USP" for; `held` to the limits the controller
+/// holds, or else to their widest range.
+const fn lim(name: &'static str, address: u16, held: bool) -> Param {
     Param {
         name,
         address,
         signed: true,
         writable: true,
         range: LIMITS_RANGE,
-        within_limits: true,
+        within_limits: held,
     }
 }
 
@@ -88,7 +92,7 @@ const fn u(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
 pub const PARAMETERS: [Param; 43] = [
     s("MV", 0x00, 0.0, 100.0),
     Param { name: "PV", address: 0x02, signed: true, writable: false, range: (WORD_MIN, WORD_MAX), within_limits: false },
-    lim("SV", 0x06),
+    lim("SV", 0x06, true),
     s("AL1", 0x08, -1999.0, 9999.0),
     s("AL2", 0x0A, -1999.0, 9999.0),
     s("P", 0x0E, 0.1, 3600.0),
@@ -96,23 +100,23 @@ pub const PARAMETERS: [Param; 43] = [
     s("D", 0x12, 0.0, 3600.0),
     s("LSP", 0x14, -1999.0, 9999.0),
     s("USP", 0x16, -1999.0, 9999.0),
-    lim("HY1", 0x18),
-    lim("HY2", 0x1A),
-    lim("HYS", 0x1E),
+    lim("HY1", 0x18, false),
+    lim("HY2", 0x1A, false),
+    lim("HYS", 0x1E, false),
     s("OUL", 0x20, 0.0, 100.0),
     s("OUH", 0x22, 0.0, 100.0),
     s("GAP", 0x24, -50.0, 50.0),
-    lim("RAP", 0x26),
+    lim("RAP", 0x26, false),
     s("RTM", 0x28, 0.0, 3600.0),
     s("P1", 0x2A, 0.1, 3600.0),
     s("I1", 0x2C, 0.0, 3600.0),
     s("D1", 0x2E, 0.0, 3600.0),
-    lim("TRL", 0x30),
-    lim("TRH", 0x32),
+    lim("TRL", 0x30, false),
+    lim("TRH", 0x32, false),
     s("PVOS", 0x34, -50.0, 50.0),
-    lim("SRT", 0x36),
+    lim("SRT", 0x36, false),
     s("LMO", 0x38, 0.0, 100.0),
-    lim("TOP", 0x3A),
+    lim("TOP", 0x3A, false),
     s("U0", 0x3C, 0.0, 100.0),
     s("DIE", 0x3E, 0.5, 5.0),
     u("AM", 0x80, 0.0, 1.0),
@@ -140,8 +144,6 @@ pub const AM: &str = "AM";
 pub const RAPNF: &str = "RAPNF";
 /// The parameters the manual calls ramp parameters (RAPNF is written 0 before them).
 pub const RAMP_PARAMETERS: [&str; 2] = ["RAP", "RTM"];
-/// The input types of INP, in code order (manual: b s r t e j k pt cu ln).
-pub const INPUT_TYPES: [&str; 10] = ["b", "s", "r", "t", "e", "j", "k", "pt", "cu", "ln"];
 
 impl Param {
     /// The Register this parameter is on the wire: tenths and signed, or whole and unsigned,
@@ -183,15 +185,15 @@ impl Param {
     pub fn encode(&self, value: f64) -> Result<u16> {
         let register = self.register();
         register.encode(value).map_err(|e| {
-            let cut = register.range != self.range;
+            let (lo, hi) = register.range;
+            let cut_off =
+                (self.range.0..=self.range.1).contains(&value) && !(lo..=hi).contains(&value);
             match e {
-                Error::InvalidArgument(m) if cut && value.is_finite() => {
-                    Error::InvalidArgument(format!(
-                        "{m} (the manual gives {}..{}, but a signed 16-bit register in tenths \
+                Error::InvalidArgument(m) if cut_off => Error::InvalidArgument(format!(
+                    "{m} (the manual gives {}..{}, but a signed 16-bit register in tenths \
                          holds -3276.8..3276.7)",
-                        self.range.0, self.range.1
-                    ))
-                }
+                    self.range.0, self.range.1
+                )),
                 other => other,
             }
         })
@@ -224,9 +226,6 @@ pub struct J2 {
     bus: Arc<Bus>,
     unit: u8,
     opts: TxOptions,
-    /// Holds a check-then-write (AM before MV, RAPNF before a ramp parameter, the limits
-    /// before a value within them) together against other threads using this controller.
-    writing: Mutex<()>,
 }
 
 impl J2 {
@@ -239,7 +238,6 @@ impl J2 {
                 write_interval: WRITE_INTERVAL,
                 ..TxOptions::default()
             },
-            writing: Mutex::new(()),
         }
     }
 
@@ -270,8 +268,8 @@ impl J2 {
         Ok(p.decode(words[0]))
     }
 
-    /// Reads the parameters called `names` in as few requests as the 16-register limit
-    /// allows (a span from the lowest to the highest address, cut in blocks of 16).
+    /// Reads the parameters called `names`, in as few requests as the 16-register limit
+    /// allows (see [`blocks`]).
     ///
     /// # Errors
     /// Any [`Error`].
@@ -280,36 +278,25 @@ impl J2 {
             .iter()
             .map(|n| by_name(n))
             .collect::<Result<Vec<_>>>()?;
-        let (Some(first), Some(last)) = (
-            params.iter().map(|p| p.address).min(),
-            params.iter().map(|p| p.address).max(),
-        ) else {
-            return Ok(Vec::new());
-        };
-        let words = self.read_span(first, last)?;
-        Ok(params
+        let words = self.read_addresses(params.iter().map(|p| p.address))?;
+        params
             .iter()
-            .map(|p| p.decode(words[usize::from(p.address - first)]))
-            .collect())
+            .map(|p| match words.get(&p.address) {
+                Some(&w) => Ok(p.decode(w)),
+                None => Err(short(self.unit)),
+            })
+            .collect()
     }
 
-    /// Every parameter of both tables, `(name, value)` in address order, read in blocks of
-    /// at most 16 registers (four for the signed table, two for the unsigned one).
+    /// Every parameter of both tables, `(name, value)` in address order, in six requests
+    /// of at most 16 registers.
     ///
     /// # Errors
     /// Any [`Error`].
     pub fn parameters(&self) -> Result<Vec<(&'static str, f64)>> {
-        let mut out = Vec::with_capacity(PARAMETERS.len());
-        for (first, last) in TABLES {
-            let words = self.read_span(first, last)?;
-            out.extend(
-                PARAMETERS
-                    .iter()
-                    .filter(|p| (first..=last).contains(&p.address))
-                    .map(|p| (p.name, p.decode(words[usize::from(p.address - first)]))),
-            );
-        }
-        Ok(out)
+        let names: Vec<&str> = PARAMETERS.iter().map(|p| p.name).collect();
+        let values = self.read_many(&names)?;
+        Ok(names.into_iter().zip(values).collect())
     }
 
     /// Writes `value` to the parameter called `name`, applying the manual's rules: the range
@@ -332,24 +319,27 @@ impl J2 {
     pub fn write_as(&self, name: &str, value: f64, multiple: bool) -> Result<()> {
         let p = by_name(name)?;
         let raw = p.encode(value)?;
-        let _held = self.lock_writing();
-        if p.name == "MV" && self.automatic()? {
-            return Err(self.mv_in_auto());
-        }
-        self.check_against_limits(p, value)?;
-        if RAMP_PARAMETERS.contains(&p.name) {
-            self.write_word(by_name(RAPNF)?.address, 0)?;
-        }
-        if multiple {
-            self.bus
-                .write_registers(self.unit, p.address, &[raw], &self.opts)
-        } else {
-            self.write_word(p.address, raw)
-        }
+        let rapnf = by_name(RAPNF)?.address;
+        self.sequence(|| {
+            if p.name == "MV" && self.automatic()? {
+                return Err(self.mv_in_auto());
+            }
+            self.check_against_limits(p, value)?;
+            if RAMP_PARAMETERS.contains(&p.name) {
+                self.write_word(rapnf, 0)?;
+            }
+            if multiple {
+                self.bus
+                    .write_registers(self.unit, p.address, &[raw], &self.opts)
+            } else {
+                self.write_word(p.address, raw)
+            }
+        })
     }
 
-    /// Writes several parameters in order, each as [`write`](Self::write) does; every value
-    /// is checked against its fixed range before the first is sent.
+    /// Writes several parameters in order, each as [`write`](Self::write) does. Every value
+    /// is checked against its fixed range before the first is sent; the checks that need
+    /// the controller (SV within the limits, MV in manual mode) are made write by write.
     ///
     /// # Errors
     /// As [`write`](Self::write); a failure stops the sequence (the earlier writes stay).
@@ -371,14 +361,16 @@ impl J2 {
     pub fn set_output(&self, percent: f64, switch_to_manual: bool) -> Result<()> {
         let mv = by_name("MV")?;
         let raw = mv.encode(percent)?;
-        let _held = self.lock_writing();
-        if self.automatic()? {
-            if !switch_to_manual {
-                return Err(self.mv_in_auto());
+        let am = by_name(AM)?.address;
+        self.sequence(|| {
+            if self.automatic()? {
+                if !switch_to_manual {
+                    return Err(self.mv_in_auto());
+                }
+                self.write_word(am, 0)?;
             }
-            self.write_word(by_name(AM)?.address, 0)?;
-        }
-        self.write_word(mv.address, raw)
+            self.write_word(mv.address, raw)
+        })
     }
 
     /// Sets LSP and USP together, in the order that never leaves LSP above USP.
@@ -393,15 +385,16 @@ impl J2 {
                 "limits must be low <= high, got ({low}, {high})"
             )));
         }
-        let _held = self.lock_writing();
-        let (_, current_high) = self.limits()?;
-        if low > current_high {
-            self.write_word(usp.address, raw_high)?;
-            self.write_word(lsp.address, raw_low)
-        } else {
-            self.write_word(lsp.address, raw_low)?;
-            self.write_word(usp.address, raw_high)
-        }
+        self.sequence(|| {
+            let (_, current_high) = self.limits()?;
+            if low > current_high {
+                self.write_word(usp.address, raw_high)?;
+                self.write_word(lsp.address, raw_low)
+            } else {
+                self.write_word(lsp.address, raw_low)?;
+                self.write_word(usp.address, raw_high)
+            }
+        })
     }
 
     /// LSP and USP, in one request.
@@ -455,14 +448,15 @@ impl J2 {
         }
     }
 
-    /// Registers `first..=last`, in blocks of at most [`MAX_BLOCK`].
-    fn read_span(&self, first: u16, last: u16) -> Result<Vec<u16>> {
-        let mut words = Vec::with_capacity(usize::from(last - first) + 1);
-        let mut at = first;
-        while at <= last {
-            let n = (last - at + 1).min(MAX_BLOCK);
-            words.extend(self.read_words(at, n)?);
-            at += n;
+    /// The words at `addresses`, `{address: word}`, read in the [`blocks`] that cover them.
+    fn read_addresses(
+        &self,
+        addresses: impl Iterator<Item = u16>,
+    ) -> Result<std::collections::BTreeMap<u16, u16>> {
+        let mut words = std::collections::BTreeMap::new();
+        for (first, count) in blocks(addresses) {
+            let read = self.read_words(first, count)?;
+            words.extend((first..).zip(read));
         }
         Ok(words)
     }
@@ -484,11 +478,26 @@ impl J2 {
         self.bus.write_register(self.unit, address, raw, &self.opts)
     }
 
-    fn lock_writing(&self) -> MutexGuard<'_, ()> {
-        self.writing
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    /// Runs a check-then-write (AM before MV, RAPNF before a ramp parameter, the limits
+    /// before SV) as one sequence for this unit, whichever J2 object runs it.
+    fn sequence<R>(&self, f: impl FnOnce() -> Result<R>) -> Result<R> {
+        self.bus.exclusive(self.unit, f)
     }
+}
+
+/// The fewest reads of at most [`MAX_BLOCK`] registers that cover `addresses`, as
+/// `(first, count)`: each block starts at the lowest address not yet covered and ends at the
+/// last wanted address within reach, so no register past it is read.
+pub fn blocks(addresses: impl Iterator<Item = u16>) -> Vec<(u16, u16)> {
+    let wanted: std::collections::BTreeSet<u16> = addresses.collect();
+    let mut out: Vec<(u16, u16)> = Vec::new();
+    for a in wanted {
+        match out.last_mut() {
+            Some((first, count)) if a - *first < MAX_BLOCK => *count = a - *first + 1,
+            _ => out.push((a, 1)),
+        }
+    }
+    out
 }
 
 fn short(unit: u8) -> Error {

@@ -12,7 +12,7 @@ use super::{Access, Register};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::{Echo, FrameError};
 use crate::error::{Error, Result};
-use std::sync::{Arc, Mutex, MutexGuard};
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Number of the control word (bit 0: 0 stop / 1 start; bit 1: 0 forward / 1 reverse).
@@ -331,8 +331,6 @@ pub struct Pbl {
     bus: Arc<Bus>,
     unit: u8,
     opts: TxOptions,
-    /// Holds a read-modify-write of the control word together against other threads.
-    control: Mutex<()>,
 }
 
 impl Pbl {
@@ -345,7 +343,6 @@ impl Pbl {
                 echo: Echo::CountForSingleWrite,
                 ..TxOptions::default()
             },
-            control: Mutex::new(()),
         }
     }
 
@@ -470,18 +467,19 @@ impl Pbl {
     /// # Errors
     /// Any [`Error`] of the write.
     pub fn stop(&self) -> Result<()> {
-        let _held = self.lock_control();
-        let word = match self.read_parameter(CONTROL) {
-            Ok(word) => word & !START,
-            Err(e) => {
-                log::warn!(
-                    target: "benchbus::device",
-                    "unit {}: control word unread ({e}): writing 0 to stop", self.unit
-                );
-                0
-            }
-        };
-        self.write(CONTROL, word)
+        self.bus.exclusive(self.unit, || {
+            let word = match self.read_parameter(CONTROL) {
+                Ok(word) => word & !START,
+                Err(e) => {
+                    log::warn!(
+                        target: "benchbus::device",
+                        "unit {}: control word unread ({e}): writing 0 to stop", self.unit
+                    );
+                    0
+                }
+            };
+            self.write(CONTROL, word)
+        })
     }
 
     /// Sets bit 1 of the control word: the direction asked for (true = reverse).
@@ -529,21 +527,17 @@ impl Pbl {
         self.write(RESTORE_DEFAULTS, RESTORE_MAGIC)
     }
 
+    /// Read-modify-write of the control word, as one sequence per unit (whichever Pbl
+    /// object runs it).
     fn update_control(&self, change: impl Fn(u16) -> u16) -> Result<()> {
-        let _held = self.lock_control();
-        let word = self.read_parameter(CONTROL)?;
-        let new = change(word);
-        if new == word {
-            return Ok(());
-        }
-        self.write(CONTROL, new)
-    }
-
-    fn lock_control(&self) -> MutexGuard<'_, ()> {
-        // A poisoned lock guards nothing but the read-modify-write: go on.
-        self.control
-            .lock()
-            .unwrap_or_else(|poisoned| poisoned.into_inner())
+        self.bus.exclusive(self.unit, || {
+            let word = self.read_parameter(CONTROL)?;
+            let new = change(word);
+            if new == word {
+                return Ok(());
+            }
+            self.write(CONTROL, new)
+        })
     }
 
     fn read(&self, number: u16, count: u16) -> Result<Vec<u16>> {

@@ -130,7 +130,8 @@ impl PyJ2Core {
             .collect())
     }
 
-    /// Writes `(name, value)` pairs in order, all checked before the first is sent.
+    /// Writes `(name, value)` pairs in order; fixed ranges are checked before the first is
+    /// sent, the checks that need the controller write by write.
     fn write_many(
         &self,
         py: Python<'_>,
@@ -146,7 +147,7 @@ impl PyJ2Core {
         self.wire(py, move |j| j.write_many(&values))
     }
 
-    /// Every parameter, `{name: value}`, in blocks of at most 16 registers.
+    /// Every parameter, `{name: value}`, in six requests of at most 16 registers.
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let all = self.wire(py, |j| j.parameters())?;
         let out = PyDict::new(py);
