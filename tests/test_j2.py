@@ -361,3 +361,12 @@ def test_hysteresis_is_left_to_the_controller(line: Line) -> None:
     assert writes(sim)[-1] == (6, 0x18, 10)
     with pytest.raises(ValueError):
         j2.write("HY1", -2000.0)  # out of the widest range: nothing sent
+
+
+def test_port_errors() -> None:
+    with pytest.raises(bb.PortError):
+        bb.J2Controller("/dev/benchbus-no-such-port")
+    with open_j2() as (j2, _, _):
+        j2.close()
+        with pytest.raises(bb.PortError, match="closed"):
+            _ = j2.sv
