@@ -36,6 +36,7 @@ from benchbus._drive import (
     SpeedSource,
     StopMode,
 )
+from benchbus._instrument import Identification, Instrument
 from benchbus._j2 import InputType, J2Controller, J2Mode, Limits, Pid
 from benchbus._pbl import (
     DecelMode,
@@ -72,7 +73,9 @@ __all__ = [
     "DriveTelemetry",
     "Fault",
     "FrameError",
+    "Identification",
     "InputType",
+    "Instrument",
     "J2Controller",
     "J2Mode",
     "Limits",

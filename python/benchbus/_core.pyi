@@ -10,6 +10,7 @@ from typing_extensions import Self, final
 __all__ = [
     "Bus",
     "DriveCore",
+    "InstrumentCore",
     "J2Core",
     "PblCore",
     "Stats",
@@ -315,3 +316,72 @@ class J2Core:
     def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
         """``(name, address, signed, writable, low, high, within_limits)`` of each
         parameter."""
+
+@final
+class InstrumentCore:
+    """The core of a generic instrument (``benchbus.Instrument`` wraps it).
+
+    Reads and writes of any length are split into requests of at most ``max_read`` /
+    ``max_write`` registers; writes are paced ``min_write_interval`` seconds apart. Every
+    call that touches the wire releases the GIL.
+    """
+
+    def __new__(
+        cls,
+        bus: Bus,
+        unit: int,
+        max_read: int,
+        max_write: int,
+        min_write_interval: float,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> Self:
+        """The instrument at ``unit`` on ``bus`` with its request limits."""
+    @property
+    def bus(self) -> Bus:
+        """The Bus the instrument talks through."""
+    @property
+    def unit(self) -> int:
+        """The instrument's unit address."""
+    @property
+    def max_read(self) -> int:
+        """Most registers one read asks for."""
+    @property
+    def max_write(self) -> int:
+        """Most registers one write carries."""
+    @property
+    def min_write_interval(self) -> float:
+        """Least time between two writes, seconds."""
+    def read_registers(self, address: int, count: int) -> list[int]:
+        """``count`` registers from ``address``, in requests of at most ``max_read``."""
+    def write_registers(self, address: int, values: Iterable[int]) -> None:
+        """Writes ``values`` from ``address``, in requests of at most ``max_write``."""
+    def read_register(
+        self, address: int, decimals: int | None = None, signed: bool = False
+    ) -> int | float:
+        """One register as a value: an int without decimals, a float with."""
+    def write_register(
+        self,
+        address: int,
+        value: float,
+        decimals: int | None = None,
+        signed: bool = False,
+        function: int | None = None,
+    ) -> None:
+        """Writes one register's value (with 0x06, or 0x10 if ``function`` is 16)."""
+    def read_long(self, address: int, signed: bool = False, word_order: str | None = None) -> int:
+        """A 32-bit integer over two registers."""
+    def write_long(
+        self, address: int, value: int, signed: bool = False, word_order: str | None = None
+    ) -> None:
+        """Writes a 32-bit integer over two registers."""
+    def read_float(self, address: int, word_order: str | None = None) -> float:
+        """An IEEE 754 single over two registers."""
+    def write_float(self, address: int, value: float, word_order: str | None = None) -> None:
+        """Writes an IEEE 754 single over two registers (finite values only)."""
+    def read_string(self, address: int, count: int) -> str:
+        """``count`` registers as Latin-1 text, trailing NULs dropped."""
+    def write_string(self, address: int, text: str, count: int) -> None:
+        """Writes ``text`` into ``count`` registers, padded with NULs."""
+    def identify(self, read_code: int | None = None) -> tuple[int, dict[int, str]]:
+        """Read Device Identification: ``(conformity level, {object id: text})``."""

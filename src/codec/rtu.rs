@@ -55,7 +55,16 @@ pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
     }
     let function = request.function();
     let total = if buf[1] == function | 0x80 {
-        EXCEPTION_LEN
+        if !matches!(request, Request::ReadDeviceIdentification { .. }) {
+            EXCEPTION_LEN
+        } else {
+            match buf.get(2) {
+                None => return Needed::More(EXCEPTION_LEN - buf.len()),
+                // ATV31 style: unit, 0xAB, MEI type 0x0E, error code, CRC.
+                Some(&MEI_READ_DEVICE_ID) => EXCEPTION_LEN + 1,
+                Some(_) => EXCEPTION_LEN,
+            }
+        }
     } else if buf[1] != function {
         return Needed::Unknown;
     } else {
@@ -190,6 +199,17 @@ pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, 
     }
     let function = request.function();
     if body[1] == function | 0x80 {
+        let mei_form = matches!(request, Request::ReadDeviceIdentification { .. })
+            && body.len() == 4
+            && body[2] == MEI_READ_DEVICE_ID;
+        if mei_form {
+            // ATV31 style: the MEI type before the code (00 none, 01 bad request code, MEI
+            // type or read code, 02 bad object id).
+            return Ok(Reply::Exception {
+                function,
+                code: body[3],
+            });
+        }
         if body.len() != 3 {
             return Err(FrameError::Length(format!(
                 "exception reply of {} bytes",
@@ -365,6 +385,44 @@ mod tests {
         assert_eq!(reply_needed(&req, &[1, 0x03]), Needed::More(3));
         assert_eq!(reply_needed(&req, &[1, 0x03, 2]), Needed::More(4));
         assert_eq!(reply_needed(&req, &[1, 0x04]), Needed::Unknown);
+    }
+
+    #[test]
+    fn device_id_exceptions_come_in_both_forms() {
+        let req = Request::ReadDeviceIdentification {
+            read_code: 1,
+            object_id: 0,
+        };
+        assert_eq!(reply_needed(&req, &[2, 0xAB]), Needed::More(3));
+        let standard = {
+            let mut f = hex("02 AB 01");
+            f.extend(crc16(&f).to_le_bytes());
+            f
+        };
+        assert_eq!(reply_needed(&req, &standard), Needed::Complete(5));
+        // ATV31 (manual 004): unit, 2B + 80, MEI type 0E, error code 00..02, CRC.
+        let atv31 = {
+            let mut f = hex("02 AB 0E 02");
+            f.extend(crc16(&f).to_le_bytes());
+            f
+        };
+        assert_eq!(reply_needed(&req, &atv31[..5]), Needed::More(1));
+        assert_eq!(reply_needed(&req, &atv31), Needed::Complete(6));
+        for (frame, code) in [(standard, 1), (atv31, 2)] {
+            assert_eq!(
+                decode_reply(2, &req, &frame),
+                Ok(Reply::Exception {
+                    function: 0x2B,
+                    code
+                })
+            );
+        }
+        // Only for 0x2B: a read's exception is 5 bytes whatever its code.
+        let read = Request::ReadHoldingRegisters {
+            address: 0,
+            count: 1,
+        };
+        assert_eq!(reply_needed(&read, &hex("02 83 0E")), Needed::More(2));
     }
 
     #[test]

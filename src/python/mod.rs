@@ -4,6 +4,7 @@
 //! other buses) go on while one waits for its device.
 
 mod drive;
+mod instrument;
 mod j2;
 mod pbl;
 
@@ -156,6 +157,11 @@ fn own_timing(
 }
 
 fn register_values(obj: &Bound<'_, PyAny>) -> PyResult<Vec<u16>> {
+    register_list(obj, usize::from(MAX_WRITE_COUNT))
+}
+
+/// A sequence of 1..=`max` register values (ints 0..=0xFFFF).
+fn register_list(obj: &Bound<'_, PyAny>, max: usize) -> PyResult<Vec<u16>> {
     if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
         return Err(PyTypeError::new_err(
             "values must be a sequence of ints, not str or bytes",
@@ -166,9 +172,9 @@ fn register_values(obj: &Bound<'_, PyAny>) -> PyResult<Vec<u16>> {
         .map_err(|_| PyTypeError::new_err("values must be a sequence of ints"))?
         .map(|item| u16_arg(&item?, "each value"))
         .collect::<PyResult<Vec<u16>>>()?;
-    if values.is_empty() || values.len() > usize::from(MAX_WRITE_COUNT) {
+    if values.is_empty() || values.len() > max {
         return Err(PyValueError::new_err(format!(
-            "values must hold 1..={MAX_WRITE_COUNT} registers, got {}",
+            "values must hold 1..={max} registers, got {}",
             values.len()
         )));
     }
@@ -588,6 +594,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyBus>()?;
     m.add_class::<PyStats>()?;
     m.add_class::<drive::PyDriveCore>()?;
+    m.add_class::<instrument::PyInstrumentCore>()?;
     m.add_class::<j2::PyJ2Core>()?;
     m.add_class::<pbl::PyPblCore>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;

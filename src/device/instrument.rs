@@ -1,0 +1,476 @@
+//! Generic Modbus RTU instruments (the Taisong v2.1 panel meters of manual 004 and anything
+//! else with holding registers): per-device request limits applied for the caller, values
+//! with decimals and sign, 32-bit integers and IEEE floats over two registers in either word
+//! order, strings, and Read Device Identification.
+
+use crate::bus::{Bus, TxOptions};
+use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
+use crate::codec::{DeviceIdentification, FrameError};
+use crate::error::{Error, Result};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// The baud rates a Taisong instrument offers (manual 004; 9600 from the factory).
+pub const BAUD_RATES: [u32; 4] = [2400, 4800, 9600, 19_200];
+/// Taisong: most registers one read may ask for.
+pub const TAISONG_MAX_READ: u16 = 37;
+/// Taisong: most registers one write may carry.
+pub const TAISONG_MAX_WRITE: u16 = 20;
+/// Registers a 32-bit value or float takes.
+const PAIR: u16 = 2;
+
+/// Which register of a 32-bit value comes first.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum WordOrder {
+    /// High word at the lower address (the Modbus convention, "ABCD").
+    HighFirst,
+    /// Low word at the lower address ("CDAB").
+    LowFirst,
+}
+
+impl WordOrder {
+    /// The two registers of `v`, in this order.
+    pub fn split(self, v: u32) -> [u16; 2] {
+        let (high, low) = ((v >> 16) as u16, v as u16);
+        match self {
+            WordOrder::HighFirst => [high, low],
+            WordOrder::LowFirst => [low, high],
+        }
+    }
+
+    /// The 32-bit value of two registers in this order.
+    pub fn join(self, words: [u16; 2]) -> u32 {
+        let [a, b] = words;
+        let (high, low) = match self {
+            WordOrder::HighFirst => (a, b),
+            WordOrder::LowFirst => (b, a),
+        };
+        u32::from(high) << 16 | u32::from(low)
+    }
+}
+
+/// A register's raw word for `value` with `decimals` (value x 10^decimals, rounded to a
+/// whole number that must be the value to within rounding error), signed or not.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a value that is not finite, has more decimals than given,
+/// or does not fit 16 bits.
+pub fn to_raw(value: f64, decimals: u8, signed: bool) -> Result<u16> {
+    let (lo, hi) = if signed {
+        (f64::from(i16::MIN), f64::from(i16::MAX))
+    } else {
+        (0.0, f64::from(u16::MAX))
+    };
+    let raw = scaled(value, decimals, lo, hi)?;
+    Ok(if signed {
+        raw as i16 as u16
+    } else {
+        raw as u16
+    })
+}
+
+/// The value of a raw word with `decimals`, signed (two's complement) or not.
+pub fn from_raw(raw: u16, decimals: u8, signed: bool) -> f64 {
+    let v = if signed {
+        f64::from(raw as i16)
+    } else {
+        f64::from(raw)
+    };
+    unscaled(v, decimals)
+}
+
+/// `value` x 10^`decimals` as a whole number within `lo..=hi`.
+fn scaled(value: f64, decimals: u8, lo: f64, hi: f64) -> Result<f64> {
+    check_decimals(decimals)?;
+    let factor = 10f64.powi(i32::from(decimals));
+    let steps = value * factor;
+    let whole = steps.round();
+    if !value.is_finite() || whole < lo || whole > hi {
+        return Err(Error::InvalidArgument(format!(
+            "{value} with {decimals} decimals does not fit the register ({} to {})",
+            lo / factor,
+            hi / factor
+        )));
+    }
+    if (steps - whole).abs() > 1e-6 * steps.abs().max(1.0) {
+        return Err(Error::InvalidArgument(format!(
+            "{value} has more than {decimals} decimals"
+        )));
+    }
+    Ok(whole)
+}
+
+fn unscaled(v: f64, decimals: u8) -> f64 {
+    if decimals == 0 {
+        v
+    } else {
+        // Divide, not multiply by 0.1: 3 with one decimal reads 0.3.
+        v / 10f64.powi(i32::from(decimals))
+    }
+}
+
+fn check_decimals(decimals: u8) -> Result<()> {
+    if decimals > 9 {
+        return Err(Error::InvalidArgument(format!(
+            "decimals must be 0..=9, got {decimals}"
+        )));
+    }
+    Ok(())
+}
+
+/// A generic instrument on a bus, with its own request limits and write pacing.
+#[derive(Debug)]
+pub struct Instrument {
+    bus: Arc<Bus>,
+    unit: u8,
+    opts: TxOptions,
+    max_read: u16,
+    max_write: u16,
+}
+
+impl Instrument {
+    /// The instrument at `unit` on `bus`, reading at most `max_read` and writing at most
+    /// `max_write` registers a request, with writes at least `min_write_interval` apart.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if `max_read` is not 1..=125 or `max_write` not 1..=123.
+    pub fn new(
+        bus: Arc<Bus>,
+        unit: u8,
+        max_read: u16,
+        max_write: u16,
+        min_write_interval: Duration,
+    ) -> Result<Instrument> {
+        if !(1..=MAX_READ_COUNT).contains(&max_read) {
+            return Err(Error::InvalidArgument(format!(
+                "max_read must be 1..={MAX_READ_COUNT}, got {max_read}"
+            )));
+        }
+        if !(1..=MAX_WRITE_COUNT).contains(&max_write) {
+            return Err(Error::InvalidArgument(format!(
+                "max_write must be 1..={MAX_WRITE_COUNT}, got {max_write}"
+            )));
+        }
+        Ok(Instrument {
+            bus,
+            unit,
+            opts: TxOptions {
+                write_interval: min_write_interval,
+                ..TxOptions::default()
+            },
+            max_read,
+            max_write,
+        })
+    }
+
+    /// The same instrument with its own reply timeout and retries instead of the Bus's.
+    pub fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> Instrument {
+        self.opts.timeout = timeout;
+        self.opts.retries = retries;
+        self
+    }
+
+    /// The bus the instrument is on.
+    pub fn bus(&self) -> &Arc<Bus> {
+        &self.bus
+    }
+
+    /// The instrument's unit address.
+    pub fn unit(&self) -> u8 {
+        self.unit
+    }
+
+    /// Most registers one read asks for.
+    pub fn max_read(&self) -> u16 {
+        self.max_read
+    }
+
+    /// Most registers one write carries.
+    pub fn max_write(&self) -> u16 {
+        self.max_write
+    }
+
+    /// Least time between two writes.
+    pub fn min_write_interval(&self) -> Duration {
+        self.opts.write_interval
+    }
+
+    /// `count` registers from `address`, in requests of at most `max_read`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for an empty span or one past 0xFFFF (nothing sent); any
+    /// [`Error`] of a request (the registers read before it are lost).
+    pub fn read_registers(&self, address: u16, count: usize) -> Result<Vec<u16>> {
+        check_span(address, count)?;
+        let mut words = Vec::with_capacity(count);
+        for (at, n) in chunks(address, count, self.max_read) {
+            let got = self
+                .bus
+                .read_holding_registers(self.unit, at, n, &self.opts)?;
+            if got.len() != usize::from(n) {
+                return Err(Error::Frame {
+                    unit: self.unit,
+                    function: 0x03,
+                    kind: FrameError::Length(format!("{} registers for {n}", got.len())),
+                    frame: Vec::new(),
+                });
+            }
+            words.extend(got);
+        }
+        Ok(words)
+    }
+
+    /// Writes `values` from `address` with 0x10, in requests of at most `max_write`.
+    ///
+    /// # Errors
+    /// As [`read_registers`](Self::read_registers); a failed request leaves the earlier
+    /// ones written.
+    pub fn write_registers(&self, address: u16, values: &[u16]) -> Result<()> {
+        check_span(address, values.len())?;
+        let mut start = address;
+        for part in values.chunks(usize::from(self.max_write)) {
+            self.bus
+                .write_registers(self.unit, start, part, &self.opts)?;
+            start = start.wrapping_add(part.len() as u16);
+        }
+        Ok(())
+    }
+
+    /// One register: its raw word.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_word(&self, address: u16) -> Result<u16> {
+        match self.read_registers(address, 1)?[..] {
+            [w] => Ok(w),
+            _ => Err(self.short(1)),
+        }
+    }
+
+    /// Writes one register with 0x06, or with 0x10 if `multiple`.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_word(&self, address: u16, value: u16, multiple: bool) -> Result<()> {
+        if multiple {
+            self.bus
+                .write_registers(self.unit, address, &[value], &self.opts)
+        } else {
+            self.bus
+                .write_register(self.unit, address, value, &self.opts)
+        }
+    }
+
+    /// A register as a value with `decimals`, signed or not.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for decimals over 9; any [`Error`].
+    pub fn read_value(&self, address: u16, decimals: u8, signed: bool) -> Result<f64> {
+        check_decimals(decimals)?;
+        Ok(from_raw(self.read_word(address)?, decimals, signed))
+    }
+
+    /// Writes a value with `decimals`, signed or not, checked before anything is sent.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a value that does not fit; any [`Error`].
+    pub fn write_value(
+        &self,
+        address: u16,
+        value: f64,
+        decimals: u8,
+        signed: bool,
+        multiple: bool,
+    ) -> Result<()> {
+        let raw = to_raw(value, decimals, signed)?;
+        self.write_word(address, raw, multiple)
+    }
+
+    /// A 32-bit integer over two registers.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_u32(&self, address: u16, order: WordOrder) -> Result<u32> {
+        match self.read_registers(address, usize::from(PAIR))?[..] {
+            [a, b] => Ok(order.join([a, b])),
+            _ => Err(self.short(PAIR)),
+        }
+    }
+
+    /// Writes a 32-bit integer over two registers (one 0x10 request).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_u32(&self, address: u16, value: u32, order: WordOrder) -> Result<()> {
+        self.write_registers(address, &order.split(value))
+    }
+
+    /// An IEEE 754 single over two registers.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_f32(&self, address: u16, order: WordOrder) -> Result<f32> {
+        Ok(f32::from_bits(self.read_u32(address, order)?))
+    }
+
+    /// Writes an IEEE 754 single over two registers.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_f32(&self, address: u16, value: f32, order: WordOrder) -> Result<()> {
+        self.write_u32(address, value.to_bits(), order)
+    }
+
+    /// `count` registers as text, two characters a register (high byte first), without
+    /// the NULs that pad it.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_string(&self, address: u16, count: usize) -> Result<String> {
+        let words = self.read_registers(address, count)?;
+        let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_be_bytes()).collect();
+        let end = bytes.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
+        // Latin-1: every byte is a character.
+        Ok(bytes[..end].iter().map(|&b| char::from(b)).collect())
+    }
+
+    /// Writes `text` (Latin-1) into `count` registers, two characters a register, padded
+    /// with NULs.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for text longer than `2 * count` bytes or a character
+    /// outside Latin-1 (nothing sent); any [`Error`].
+    pub fn write_string(&self, address: u16, text: &str, count: usize) -> Result<()> {
+        let mut bytes = text
+            .chars()
+            .map(|c| {
+                u8::try_from(u32::from(c)).map_err(|_| {
+                    Error::InvalidArgument(format!("{c:?} is not a Latin-1 character"))
+                })
+            })
+            .collect::<Result<Vec<u8>>>()?;
+        if bytes.len() > 2 * count {
+            return Err(Error::InvalidArgument(format!(
+                "{} characters do not fit {count} registers ({} at most)",
+                bytes.len(),
+                2 * count
+            )));
+        }
+        bytes.resize(2 * count, 0);
+        let words: Vec<u16> = bytes
+            .chunks_exact(2)
+            .map(|p| u16::from_be_bytes([p[0], p[1]]))
+            .collect();
+        self.write_registers(address, &words)
+    }
+
+    /// Read Device Identification (0x2B / MEI 0x0E) from object 0 with `read_code` (1
+    /// basic, 2 regular, 3 extended), following "more follows".
+    ///
+    /// # Errors
+    /// [`Error::Exception`] code 1 (with a meaning that says so) for a device without the
+    /// function; any [`Error`].
+    pub fn identify(&self, read_code: u8) -> Result<DeviceIdentification> {
+        if !(1..=3).contains(&read_code) {
+            return Err(Error::InvalidArgument(format!(
+                "read_code must be 1 (basic), 2 (regular) or 3 (extended), got {read_code}"
+            )));
+        }
+        self.bus
+            .read_device_identification(self.unit, read_code, 0, &self.opts)
+            .map_err(|e| match e {
+                Error::Exception {
+                    unit,
+                    function,
+                    code: 1,
+                    meaning,
+                    frame,
+                } => Error::Exception {
+                    unit,
+                    function,
+                    code: 1,
+                    meaning: format!(
+                        "{meaning}: the device does not support Read Device Identification \
+                         (0x2B / MEI 0x0E) or this read code"
+                    ),
+                    frame,
+                },
+                other => other,
+            })
+    }
+
+    fn short(&self, want: u16) -> Error {
+        Error::Frame {
+            unit: self.unit,
+            function: 0x03,
+            kind: FrameError::Length(format!("fewer than {want} registers")),
+            frame: Vec::new(),
+        }
+    }
+}
+
+/// A span of `count` registers from `address`: 1 or more, within 0..=0xFFFF.
+fn check_span(address: u16, count: usize) -> Result<()> {
+    if count == 0 || usize::from(address) + count > 0x1_0000 {
+        return Err(Error::InvalidArgument(format!(
+            "{count} registers from {address:#06x} are not a span within 0x0000..=0xFFFF \
+             (at least 1)"
+        )));
+    }
+    Ok(())
+}
+
+/// `(address, count)` of each request that covers `count` registers from `address` in
+/// requests of at most `max`.
+pub fn chunks(address: u16, count: usize, max: u16) -> Vec<(u16, u16)> {
+    let max = usize::from(max.max(1));
+    (0..count)
+        .step_by(max)
+        .map(|offset| {
+            let n = (count - offset).min(max);
+            (address.wrapping_add(offset as u16), n as u16)
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn chunks_split_at_the_limit() {
+        assert_eq!(chunks(0, 100, 37), vec![(0, 37), (37, 37), (74, 26)]);
+        assert_eq!(chunks(8, 20, 20), vec![(8, 20)]);
+        assert_eq!(chunks(0xFFFE, 2, 1), vec![(0xFFFE, 1), (0xFFFF, 1)]);
+        assert!(chunks(0, 0, 5).is_empty());
+    }
+
+    #[test]
+    fn values_with_decimals_and_sign() {
+        assert_eq!(to_raw(100.0, 0, false).ok(), Some(100));
+        assert_eq!(to_raw(-5.0, 1, true).ok(), Some(0xFFCE));
+        assert_eq!(to_raw(12.34, 2, false).ok(), Some(1234));
+        assert_eq!(from_raw(0xFFCE, 1, true), -5.0);
+        assert_eq!(from_raw(3, 1, false), 0.3);
+        assert_eq!(from_raw(0xFFFF, 0, false), 65535.0);
+        for (v, d, s) in [
+            (65536.0, 0, false),
+            (-1.0, 0, false),
+            (3276.8, 1, true),
+            (1.25, 1, false),
+            (f64::NAN, 0, false),
+            (1.0, 10, false),
+        ] {
+            assert!(to_raw(v, d, s).is_err(), "{v} {d} {s}");
+        }
+    }
+
+    #[test]
+    fn word_orders() {
+        assert_eq!(WordOrder::HighFirst.split(0x1234_5678), [0x1234, 0x5678]);
+        assert_eq!(WordOrder::LowFirst.split(0x1234_5678), [0x5678, 0x1234]);
+        for order in [WordOrder::HighFirst, WordOrder::LowFirst] {
+            assert_eq!(order.join(order.split(0xDEAD_BEEF)), 0xDEAD_BEEF);
+        }
+    }
+}
