@@ -71,6 +71,17 @@ def test_readme_j2_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert out[1] == "J2Mode.MANUAL 35.0 43"
 
 
+def test_readme_instrument_example(capsys: pytest.CaptureFixture[str]) -> None:
+    (block,) = [b for b in readme_blocks() if "TaisongDevice(" in b]
+    exec(block, {})
+    out = capsys.readouterr().out.splitlines()
+    assert out[0] == "100 100"
+    assert out[1] == "-12.5 123456789 21.5 bench 3"
+    assert out[2].startswith(
+        "Identification(vendor='TELEMECANIQUE', product_code='ATV31HU09M3S232'"
+    )
+
+
 def run_example(name: str) -> str:
     """examples/``name``, in its own process as a user runs it; its output."""
     done = subprocess.run(

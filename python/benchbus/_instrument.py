@@ -129,9 +129,7 @@ class Instrument(BusDevice):
 
     # ---- registers -----------------------------------------------------------------------------
 
-    def read_register(
-        self, address: int, decimals: int = 0, signed: bool = False
-    ) -> int | float:
+    def read_register(self, address: int, decimals: int = 0, signed: bool = False) -> int | float:
         """One register as a value: ``raw / 10**decimals`` (an int when ``decimals`` is 0),
         two's complement if ``signed``."""
         return self.core.read_register(address, decimals, signed)

@@ -12,8 +12,11 @@
 A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) and raises
 :class:`SimException` from its handlers to answer with an exception reply.
 :class:`DriveDevice` simulates a BLD2 / BLD3H / ZBLD.C20 brushless drive,
-:class:`PblDevice` a PBL-series brushless drive and :class:`J2Device` a J2-series PID
-temperature controller with a thermal process under its control. Pure Python on
+:class:`PblDevice` a PBL-series brushless drive, :class:`J2Device` a J2-series PID
+temperature controller with a thermal process under its control, :class:`TaisongDevice` a
+Taisong panel instrument (a measured value moving toward its setpoint) and
+:class:`Atv31Device` the ATV31 drive of the Taisong manual's Modbus section, with Read Device
+Identification (paged on request, and the manual's 6-byte error form). Pure Python on
 pymodbus and pyserial (``pip install "benchbus[sim]"``); it does not need the compiled core.
 """
 
@@ -21,11 +24,13 @@ from __future__ import annotations
 
 from benchbus.sim._device import RegisterDevice, SimDevice, SimException
 from benchbus.sim._drive import DriveDevice
+from benchbus.sim._instrument import Atv31Device, TaisongDevice
 from benchbus.sim._j2 import J2Device
 from benchbus.sim._pbl import PblDevice
 from benchbus.sim._simulator import Simulator
 
 __all__ = [
+    "Atv31Device",
     "DriveDevice",
     "J2Device",
     "PblDevice",
@@ -33,4 +38,5 @@ __all__ = [
     "SimDevice",
     "SimException",
     "Simulator",
+    "TaisongDevice",
 ]

@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Iterable, Mapping
 
-__all__ = ["ClockedModel", "RegisterDevice", "SimDevice", "SimException"]
+__all__ = ["ClockedModel", "RegisterDevice", "SimDevice", "SimException", "pace_write"]
 
 _REGISTER_SPACE = 0x10000
 
@@ -213,6 +214,26 @@ class RegisterDevice(SimDevice):
         shown = ", ".join(f"{a:#06x}: {v}" for a, v in list(nonzero.items())[:8])
         more = ", ..." if len(nonzero) > 8 else ""
         return f"{type(self).__name__}({{{shown}{more}}})"
+
+
+def pace_write(times: list[float], violations: list[float], interval: float) -> None:
+    """Record a write request's arrival; exception 6 if it came too soon after the last one.
+
+    For devices that want their writes spaced (a J2 controller's 150 ms). Appends
+    ``time.monotonic()`` to ``times`` whatever the outcome, so a refused write counts as
+    much as an accepted one and a master that retries at once is refused again. When the
+    gap since the previous entry is shorter than ``interval`` seconds (real time, never a
+    sped-up model clock), appends the gap to ``violations`` and raises
+    :class:`SimException` 6 (server device busy): the violations are exactly the gaps
+    between consecutive times that are shorter than the interval. ``interval`` 0 refuses
+    nothing. Call it first in ``write_holding``, before any other check.
+    """
+    now = time.monotonic()
+    previous = times[-1] if times else None
+    times.append(now)
+    if previous is not None and now - previous < interval:
+        violations.append(now - previous)
+        raise SimException(SimException.SERVER_DEVICE_BUSY)
 
 
 def _check_address(address: int) -> None:

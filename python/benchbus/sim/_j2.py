@@ -15,14 +15,13 @@ import time
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from benchbus.sim._device import ClockedModel, SimDevice, SimException
+from benchbus.sim._device import ClockedModel, SimDevice, SimException, pace_write
 
 __all__ = ["J2Device"]
 
 _BAD_ADDRESS = SimException.ILLEGAL_DATA_ADDRESS
 _BAD_VALUE = SimException.ILLEGAL_DATA_VALUE
 _REFUSED = SimException.SERVER_DEVICE_FAILURE
-_BUSY = SimException.SERVER_DEVICE_BUSY
 
 _REGISTER_SPACE = 0x10000
 _MAX_REGISTERS = 16
@@ -389,12 +388,7 @@ class J2Device(ClockedModel, SimDevice):
 
     def _pace(self) -> None:
         """Record this write request's arrival; exception 6 if it is too soon."""
-        now = time.monotonic()
-        previous = self.write_times[-1] if self.write_times else None
-        self.write_times.append(now)
-        if previous is not None and now - previous < self.write_interval:
-            self.write_violations.append(now - previous)
-            raise SimException(_BUSY)
+        pace_write(self.write_times, self.write_violations, self.write_interval)
 
     # ---- test access ----------------------------------------------------------------------
 

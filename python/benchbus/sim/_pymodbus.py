@@ -17,6 +17,10 @@ module to change when it does. What 3.16 offers and how it is used here:
   needs a custom request PDU, passed as ``custom_pdu=``. The server's decoder takes the
   custom class for function 0x2B, but would swap pymodbus's own class back in for any
   request whose sub-function code is >= 0, so the custom class reports none (-1).
+- pymodbus's ``DeviceInformationFactory`` answers a stream (read codes 1..3) that starts
+  at an object id the stream does not hold with no objects at all for the basic stream
+  (and for the regular one started at a private id); the spec says to restart at object 0,
+  so the request class does that before asking the factory.
 - ``ModbusSerialServer`` opens the port with pyserial (8N1 here: a pseudo-terminal has no
   parity bit and pyserial fails on 8E1), must be built inside a running event loop, and
   ``serve_forever(background=True)`` returns once it listens.
@@ -51,6 +55,13 @@ Dispatch = Callable[[int, int, int, int, "list[int] | None"], "list[int] | int |
 IdentityOf = Callable[[int], "Mapping[int, str] | None"]
 
 _EXC_CODES = {int(c) for c in ExcCodes}
+
+#: The object ids each stream access (read codes 1 basic, 2 regular, 3 extended) may send.
+_STREAM_OBJECTS: dict[int, frozenset[int]] = {
+    DeviceInformation.BASIC: frozenset(range(0x00, 0x03)),
+    DeviceInformation.REGULAR: frozenset(range(0x00, 0x07)),
+    DeviceInformation.EXTENDED: frozenset([*range(0x00, 0x07), *range(0x80, 0x100)]),
+}
 
 
 class _Control:
@@ -97,8 +108,12 @@ def _identification_request(identity_of: IdentityOf) -> type[ModbusPDU]:
                 return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_FUNCTION)
             if not DeviceInformation.BASIC <= self.read_code <= DeviceInformation.SPECIFIC:
                 return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_VALUE)
+            object_id = self.object_id
+            stream = _STREAM_OBJECTS.get(self.read_code)
+            if stream is not None and not (object_id in stream and identity.get(object_id)):
+                object_id = 0  # an object the stream does not hold: restart at the beginning
             control = _Control(ModbusDeviceIdentification(info=dict(identity)))  # type: ignore[no-untyped-call]
-            information = DeviceInformationFactory.get(control, self.read_code, self.object_id)  # type: ignore[no-untyped-call]
+            information = DeviceInformationFactory.get(control, self.read_code, object_id)  # type: ignore[no-untyped-call]
             if self.read_code == DeviceInformation.SPECIFIC and (
                 0x07 <= self.object_id < 0x80 or not information.get(self.object_id)
             ):
