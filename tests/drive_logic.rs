@@ -5,22 +5,12 @@ mod common;
 
 use benchbus::device::drive::{Command, Drive, Family};
 use benchbus::Error;
-use common::{bus, with_crc, Act, Scripted};
+use common::{bus, hex, sent, with_crc, Act, Scripted};
 use std::sync::Arc;
 
 fn drive(acts: Vec<Act>, family: Family, write_reply: bool) -> (Drive, Scripted) {
     let (bus, t) = bus(acts, 0);
     (Drive::new(Arc::new(bus), 1, family, write_reply), t)
-}
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .filter_map(|b| u8::from_str_radix(b, 16).ok())
-        .collect()
-}
-
-fn sent(t: &Scripted) -> Vec<Vec<u8>> {
-    t.0.lock().map(|s| s.sent.clone()).unwrap_or_default()
 }
 
 fn echo(frame: &str) -> Act {

@@ -5,7 +5,7 @@ mod common;
 
 use benchbus::device::instrument::{Instrument, WordOrder};
 use benchbus::Error;
-use common::{bus, with_crc, Act, Scripted};
+use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
@@ -17,24 +17,6 @@ fn inst(acts: Vec<Act>, unit: u8, max_read: u16, max_write: u16) -> (Instrument,
 
 fn taisong(acts: Vec<Act>, unit: u8) -> (Instrument, Scripted) {
     inst(acts, unit, 37, 20)
-}
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .filter_map(|b| u8::from_str_radix(b, 16).ok())
-        .collect()
-}
-
-fn sent(t: &Scripted) -> Vec<Vec<u8>> {
-    t.0.lock().map(|s| s.sent.clone()).unwrap_or_default()
-}
-
-fn words(unit: u8, values: &[u16]) -> Act {
-    let mut body = vec![unit, 3, (values.len() * 2) as u8];
-    for v in values {
-        body.extend(v.to_be_bytes());
-    }
-    Act::Reply(with_crc(&body))
 }
 
 fn written(unit: u8, address: u16, count: u16) -> Act {

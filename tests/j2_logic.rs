@@ -6,31 +6,13 @@ mod common;
 use benchbus::bus::TxOptions;
 use benchbus::device::j2::{blocks, J2, WRITE_INTERVAL};
 use benchbus::Error;
-use common::{bus, with_crc, Act, Scripted};
+use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 
 fn j2(acts: Vec<Act>, retries: u32) -> (J2, Scripted) {
     let (bus, t) = bus(acts, retries);
     (J2::new(Arc::new(bus), 1), t)
-}
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .filter_map(|b| u8::from_str_radix(b, 16).ok())
-        .collect()
-}
-
-fn sent(t: &Scripted) -> Vec<Vec<u8>> {
-    t.0.lock().map(|s| s.sent.clone()).unwrap_or_default()
-}
-
-fn words(unit: u8, values: &[u16]) -> Act {
-    let mut body = vec![unit, 3, (values.len() * 2) as u8];
-    for v in values {
-        body.extend(v.to_be_bytes());
-    }
-    Act::Reply(with_crc(&body))
 }
 
 /// The echo a 0x06 write gets.

@@ -5,30 +5,12 @@ mod common;
 
 use benchbus::device::pbl::{Pbl, PARAMETERS};
 use benchbus::Error;
-use common::{bus, with_crc, Act, Scripted};
+use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::Arc;
 
 fn pbl(acts: Vec<Act>, unit: u8) -> (Pbl, Scripted) {
     let (bus, t) = bus(acts, 0);
     (Pbl::new(Arc::new(bus), unit), t)
-}
-
-fn hex(s: &str) -> Vec<u8> {
-    s.split_whitespace()
-        .filter_map(|b| u8::from_str_radix(b, 16).ok())
-        .collect()
-}
-
-fn sent(t: &Scripted) -> Vec<Vec<u8>> {
-    t.0.lock().map(|s| s.sent.clone()).unwrap_or_default()
-}
-
-fn words(unit: u8, values: &[u16]) -> Act {
-    let mut body = vec![unit, 3, (values.len() * 2) as u8];
-    for v in values {
-        body.extend(v.to_be_bytes());
-    }
-    Act::Reply(with_crc(&body))
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::drive`]: the register-level core that `benchbus.Drive`
 //! (Python) wraps with enums, dataclasses and the context manager.
 
-use super::{int_in, number, own_timing, standard_unit_arg, to_pyerr, PyBus};
+use super::{int_in, number, on_wire, own_timing, standard_unit_arg, to_pyerr, PyBus};
 use crate::device::drive::{fault_name, Command, Drive, Family, REGISTERS};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -21,8 +21,7 @@ impl PyDriveCore {
         py: Python<'_>,
         f: impl FnOnce(&Drive) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        let drive = Arc::clone(&self.drive);
-        py.detach(move || f(&drive)).map_err(|e| to_pyerr(py, e))
+        on_wire(py, &self.drive, f)
     }
 }
 

@@ -2,7 +2,8 @@
 //! wraps.
 
 use super::{
-    int_in, number, opt, own_timing, register_list, seconds, to_pyerr, u16_arg, unit_arg, PyBus,
+    int_in, number, on_wire, opt, own_timing, register_list, seconds, to_pyerr, u16_arg, unit_arg,
+    PyBus,
 };
 use crate::device::instrument::{Instrument, WordOrder};
 use pyo3::exceptions::{PyTypeError, PyValueError};
@@ -25,8 +26,7 @@ impl PyInstrumentCore {
         py: Python<'_>,
         f: impl FnOnce(&Instrument) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        let inst = Arc::clone(&self.inst);
-        py.detach(move || f(&inst)).map_err(|e| to_pyerr(py, e))
+        on_wire(py, &self.inst, f)
     }
 }
 

@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::j2`]: the parameter-level core that `benchbus.J2Controller`
 //! (Python) wraps with enums and properties.
 
-use super::{number, own_timing, to_pyerr, unit_arg, PyBus};
+use super::{number, on_wire, own_timing, to_pyerr, unit_arg, PyBus};
 use crate::device::j2::{by_name, Param, J2, PARAMETERS};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
@@ -21,8 +21,7 @@ impl PyJ2Core {
         py: Python<'_>,
         f: impl FnOnce(&J2) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        let j2 = Arc::clone(&self.j2);
-        py.detach(move || f(&j2)).map_err(|e| to_pyerr(py, e))
+        on_wire(py, &self.j2, f)
     }
 }
 

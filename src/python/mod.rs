@@ -65,6 +65,16 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
     build().unwrap_or_else(|e| e)
 }
 
+/// Runs `f` on a device core with the GIL released; its error as the Python exception.
+fn on_wire<D: Send + Sync, T: Send>(
+    py: Python<'_>,
+    device: &Arc<D>,
+    f: impl FnOnce(&D) -> crate::Result<T> + Send,
+) -> PyResult<T> {
+    let device = Arc::clone(device);
+    py.detach(move || f(&device)).map_err(|e| to_pyerr(py, e))
+}
+
 /// An int argument in `lo..=hi`: TypeError for a non-int, ValueError (never OverflowError)
 /// for an int out of range.
 fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64> {

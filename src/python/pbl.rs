@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::pbl`]: the parameter-level core that `benchbus.PblDrive`
 //! (Python) wraps with enums and properties.
 
-use super::{int_in, number, own_timing, to_pyerr, unit_arg, PyBus};
+use super::{int_in, number, on_wire, own_timing, to_pyerr, unit_arg, PyBus};
 use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS};
 use crate::device::Access;
 use pyo3::exceptions::PyTypeError;
@@ -22,8 +22,7 @@ impl PyPblCore {
         py: Python<'_>,
         f: impl FnOnce(&Pbl) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        let pbl = Arc::clone(&self.pbl);
-        py.detach(move || f(&pbl)).map_err(|e| to_pyerr(py, e))
+        on_wire(py, &self.pbl, f)
     }
 }
 

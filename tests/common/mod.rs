@@ -66,3 +66,24 @@ pub fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
     cfg.turnaround = Duration::ZERO;
     (Bus::with_transport(cfg, Box::new(t.clone())), t)
 }
+
+/// Bytes from the manuals' hex notation ("01 03 00 06").
+pub fn hex(s: &str) -> Vec<u8> {
+    s.split_whitespace()
+        .filter_map(|b| u8::from_str_radix(b, 16).ok())
+        .collect()
+}
+
+/// Every frame the scripted transport was sent.
+pub fn sent(t: &Scripted) -> Vec<Vec<u8>> {
+    t.0.lock().map(|s| s.sent.clone()).unwrap_or_default()
+}
+
+/// A 0x03 reply from `unit` carrying `values`.
+pub fn words(unit: u8, values: &[u16]) -> Act {
+    let mut body = vec![unit, 3, (values.len() * 2) as u8];
+    for v in values {
+        body.extend(v.to_be_bytes());
+    }
+    Act::Reply(with_crc(&body))
+}
