@@ -425,7 +425,6 @@ impl Bus {
         timeout: Duration,
     ) -> Result<(Reply, Vec<u8>)> {
         let sent_end = self.send(st, frame)?;
-        let deadline = sent_end + timeout;
         let function = request.function();
         let mut buf = Vec::with_capacity(64);
         let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
@@ -434,10 +433,22 @@ impl Bus {
             transport, silence, ..
         } = st;
         let transport = transport.as_mut().ok_or_else(|| self.closed())?;
+        // The timeout is the device's allowance to answer; the reply's own time on the wire
+        // (known as its length becomes known) comes on top, so a long reply at a low baud
+        // rate is not cut off.
+        let serial = transport.is_serial_line();
         loop {
             let (want, wait) = match reply_needed(request, &buf) {
                 Needed::Complete(_) => break,
-                Needed::More(n) => (n, deadline.saturating_duration_since(Instant::now())),
+                Needed::More(n) => {
+                    let on_wire = if serial {
+                        line.frame_time(buf.len() + n)
+                    } else {
+                        Duration::ZERO
+                    };
+                    let deadline = sent_end + timeout + on_wire;
+                    (n, deadline.saturating_duration_since(Instant::now()))
+                }
                 // Not a reply to this request: take what follows until the line is quiet, so
                 // the whole bad frame is reported and nothing of it is left for the next call.
                 Needed::Unknown => (chunk.len(), line.t3_5().max(Duration::from_millis(2))),

@@ -3,7 +3,9 @@
 
 mod common;
 
+use benchbus::bus::{Bus, BusConfig};
 use benchbus::device::instrument::{Instrument, WordOrder};
+use benchbus::timing::{LineFormat, Parity};
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::Arc;
@@ -239,4 +241,24 @@ fn writes_keep_the_instruments_interval() {
     i.write_registers(0, &[1]).expect("first");
     i.write_registers(0, &[2]).expect("second");
     assert!(start.elapsed() >= Duration::from_millis(80));
+}
+
+#[test]
+fn a_long_reply_at_a_low_baud_rate_gets_its_wire_time() {
+    // 37 registers at 2400 baud: 79 bytes, 330 ms on the wire, against a 100 ms timeout
+    // (the device's allowance to answer); the reply's own time comes on top.
+    let t = Scripted::default();
+    {
+        let mut s = t.0.lock().unwrap();
+        s.acts.push_back(words(1, &[7; 37]));
+        s.byte_time = Some(Duration::from_micros(4167));
+    }
+    let mut cfg = BusConfig::new("mock", LineFormat::new(2400, Parity::None, 1));
+    cfg.timeout = Duration::from_millis(100);
+    cfg.retries = 0;
+    let bus = Bus::with_transport(cfg, Box::new(t.clone()));
+    let i = Instrument::new(Arc::new(bus), 1, 37, 20, Duration::ZERO).expect("valid");
+    let start = Instant::now();
+    assert_eq!(i.read_registers(0, 37).ok(), Some(vec![7; 37]));
+    assert!(start.elapsed() >= Duration::from_millis(300));
 }

@@ -278,6 +278,12 @@ def test_bad_input_is_refused_before_anything_is_sent(line: Line) -> None:
         (ValueError, lambda: inst.write_register(0, 32768, signed=True)),
         (ValueError, lambda: inst.write_register(0, 1.25, decimals=1)),
         (ValueError, lambda: inst.write_register(0, math.nan)),
+        (ValueError, lambda: inst.write_register(0, 30000.02)),  # not rounded silently
+        (ValueError, lambda: inst.write_register(0, 6553.496, decimals=1)),
+        (TypeError, lambda: inst.write_registers(0, b"\x01\x02")),
+        (TypeError, lambda: inst.write_register(0, 1, decimals=True)),  # type: ignore[arg-type]
+        (TypeError, lambda: bb.Instrument(bus, 1, min_write_interval=True)),
+        (ValueError, lambda: bb.Instrument(bus, 1, min_write_interval=2**2000)),
         (ValueError, lambda: inst.write_register(0, 1, decimals=10)),
         (ValueError, lambda: inst.write_register(0, 1, function=3)),
         (ValueError, lambda: inst.write_long(0, 2**32)),

@@ -73,12 +73,14 @@ class Instrument(BusDevice):
             meter.write_float(0x0100, 21.5, word_order="little")
             print(meter.identify())                        # 0x2B / 0x0E, if supported
 
-    Given a path, the instrument opens its own Bus at ``baudrate`` (2400, 4800, 9600 or
-    19200) 8N1; given a Bus, it shares it (``timeout`` / ``retries`` then apply to this
-    instrument's requests only). Reads and writes of any length are split into requests of
-    at most ``max_read`` / ``max_write`` registers; writes go at least
-    ``min_write_interval`` seconds apart. A split write that fails part-way leaves the
-    requests before it written.
+    Given a path, the instrument opens its own Bus at ``baudrate`` 8N1 (2400, 4800, 9600 or
+    19200, the Taisong's; for other speeds open a Bus yourself); given a Bus, it shares it
+    (``timeout`` / ``retries`` then apply to this instrument's requests only; ``baudrate``
+    is not used). Reads and writes of any length are split into requests of at most
+    ``max_read`` / ``max_write`` registers; writes go at least ``min_write_interval``
+    seconds apart. A split write that fails part-way leaves the requests before it written.
+    The timeout is the device's allowance to start answering: a long reply's own time on
+    the wire comes on top.
     """
 
     core: InstrumentCore
@@ -155,6 +157,8 @@ class Instrument(BusDevice):
     def write_registers(self, address: int, values: Iterable[int]) -> None:
         """Write raw ``values`` from ``address`` with 0x10, in requests of at most
         ``max_write``."""
+        if isinstance(values, (str, bytes, bytearray)):
+            raise TypeError("values must be a sequence of ints, not str or bytes")
         self.core.write_registers(address, list(values))
 
     # ---- 32-bit values and text ----------------------------------------------------------------
@@ -166,7 +170,8 @@ class Instrument(BusDevice):
     def write_long(
         self, address: int, value: int, signed: bool = False, word_order: WordOrder = "big"
     ) -> None:
-        """Write a 32-bit integer over two registers, in one request."""
+        """Write a 32-bit integer over two registers, in one request (two if ``max_write`` is
+        1)."""
         self.core.write_long(address, value, signed, word_order)
 
     def read_float(self, address: int, word_order: WordOrder = "big") -> float:

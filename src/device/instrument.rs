@@ -10,12 +10,6 @@ use crate::error::{Error, Result};
 use std::sync::Arc;
 use std::time::Duration;
 
-/// The baud rates a Taisong instrument offers (manual 004; 9600 from the factory).
-pub const BAUD_RATES: [u32; 4] = [2400, 4800, 9600, 19_200];
-/// Taisong: most registers one read may ask for.
-pub const TAISONG_MAX_READ: u16 = 37;
-/// Taisong: most registers one write may carry.
-pub const TAISONG_MAX_WRITE: u16 = 20;
 /// Registers a 32-bit value or float takes.
 const PAIR: u16 = 2;
 
@@ -92,7 +86,8 @@ fn scaled(value: f64, decimals: u8, lo: f64, hi: f64) -> Result<f64> {
             hi / factor
         )));
     }
-    if (steps - whole).abs() > 1e-6 * steps.abs().max(1.0) {
+    // A few units in the last place: 0.1 + 0.2 with one decimal is 3 steps, 30000.02 is not.
+    if (steps - whole).abs() > 4.0 * f64::EPSILON * steps.abs().max(1.0) {
         return Err(Error::InvalidArgument(format!(
             "{value} has more than {decimals} decimals"
         )));
@@ -297,7 +292,8 @@ impl Instrument {
         }
     }
 
-    /// Writes a 32-bit integer over two registers (one 0x10 request).
+    /// Writes a 32-bit integer over two registers (one 0x10 request, two if `max_write` is
+    /// 1).
     ///
     /// # Errors
     /// Any [`Error`].
@@ -341,6 +337,7 @@ impl Instrument {
     /// [`Error::InvalidArgument`] for text longer than `2 * count` bytes or a character
     /// outside Latin-1 (nothing sent); any [`Error`].
     pub fn write_string(&self, address: u16, text: &str, count: usize) -> Result<()> {
+        check_span(address, count)?;
         let mut bytes = text
             .chars()
             .map(|c| {
@@ -450,6 +447,9 @@ mod tests {
         assert_eq!(to_raw(100.0, 0, false).ok(), Some(100));
         assert_eq!(to_raw(-5.0, 1, true).ok(), Some(0xFFCE));
         assert_eq!(to_raw(12.34, 2, false).ok(), Some(1234));
+        assert_eq!(to_raw(0.1 + 0.2, 1, false).ok(), Some(3));
+        assert_eq!(to_raw(1.1, 2, false).ok(), Some(110));
+        assert_eq!(to_raw(-0.0, 0, true).ok(), Some(0));
         assert_eq!(from_raw(0xFFCE, 1, true), -5.0);
         assert_eq!(from_raw(3, 1, false), 0.3);
         assert_eq!(from_raw(0xFFFF, 0, false), 65535.0);
@@ -460,6 +460,9 @@ mod tests {
             (1.25, 1, false),
             (f64::NAN, 0, false),
             (1.0, 10, false),
+            (30000.02, 0, false),
+            (65534.95, 0, false),
+            (6553.496, 1, false),
         ] {
             assert!(to_raw(v, d, s).is_err(), "{v} {d} {s}");
         }

@@ -25,8 +25,6 @@ use std::time::Duration;
 pub const WRITE_INTERVAL: Duration = Duration::from_millis(150);
 /// Most registers one read or write may carry.
 pub const MAX_BLOCK: u16 = 16;
-/// The line speeds the controllers offer.
-pub const BAUD_RATES: [u32; 2] = [9600, 19_200];
 
 /// Lowest value a signed register in tenths holds.
 const WORD_MIN: f64 = -3276.8;

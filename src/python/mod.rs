@@ -78,7 +78,7 @@ fn on_wire<D: Send + Sync, T: Send>(
 /// An int argument in `lo..=hi`: TypeError for a non-int, ValueError (never OverflowError)
 /// for an int out of range.
 fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64> {
-    if !obj.is_instance_of::<PyInt>() {
+    if obj.is_instance_of::<PyBool>() || !obj.is_instance_of::<PyInt>() {
         return Err(PyTypeError::new_err(format!(
             "{name} must be an int, got {}",
             obj.get_type().name()?
@@ -137,9 +137,16 @@ fn standard_unit_arg(obj: &Bound<'_, PyAny>) -> PyResult<u8> {
 }
 
 fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Duration> {
-    let value: f64 = obj
-        .extract()
-        .map_err(|_| PyTypeError::new_err(format!("{name} must be a number of seconds")))?;
+    if obj.is_instance_of::<PyBool>()
+        || !(obj.is_instance_of::<PyInt>() || obj.is_instance_of::<PyFloat>())
+    {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be a number of seconds, got {}",
+            obj.get_type().name()?
+        )));
+    }
+    // An int too big for a float is simply out of range.
+    let value: f64 = obj.extract().unwrap_or(f64::INFINITY);
     let ok = value.is_finite() && (value > 0.0 || (allow_zero && value == 0.0)) && value <= 3600.0;
     if !ok || obj.is_instance_of::<PyString>() {
         let range = if allow_zero {

@@ -21,6 +21,12 @@ pub struct Script {
     pub acts: VecDeque<Act>,
     pub pending: VecDeque<u8>,
     pub sent: Vec<Vec<u8>>,
+    /// A serial line whose reply bytes arrive one per `byte_time` after the request.
+    pub byte_time: Option<Duration>,
+    /// When the current reply began to arrive.
+    pub since: Option<std::time::Instant>,
+    /// Reply bytes already handed out since `since`.
+    pub taken: usize,
 }
 
 #[derive(Clone, Default)]
@@ -33,11 +39,30 @@ impl Transport for Scripted {
         if let Some(Act::Reply(bytes)) = s.acts.pop_front() {
             s.pending.extend(bytes);
         }
+        s.since = Some(std::time::Instant::now());
+        s.taken = 0;
         Ok(())
     }
-    fn read(&mut self, buf: &mut [u8], _timeout: Duration) -> io::Result<usize> {
+    fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let mut s = self.0.lock().unwrap();
-        let n = buf.len().min(s.pending.len());
+        let mut ready = s.pending.len();
+        if let (Some(byte_time), Some(since)) = (s.byte_time, s.since) {
+            // Wait, within the timeout, for the next byte's wire time.
+            let due = since + byte_time * (s.taken as u32 + 1);
+            let now = std::time::Instant::now();
+            if due > now {
+                if due - now > timeout {
+                    drop(s);
+                    std::thread::sleep(timeout);
+                    return Ok(0);
+                }
+                std::thread::sleep(due - now);
+            }
+            let arrived = (since.elapsed().as_nanos() / byte_time.as_nanos().max(1)) as usize;
+            ready = ready.min(arrived.saturating_sub(s.taken));
+        }
+        let n = buf.len().min(ready);
+        s.taken += n;
         for b in buf.iter_mut().take(n) {
             *b = s.pending.pop_front().unwrap();
         }
@@ -47,7 +72,7 @@ impl Transport for Scripted {
         Ok(self.0.lock().unwrap().pending.drain(..).collect())
     }
     fn is_serial_line(&self) -> bool {
-        false
+        self.0.lock().unwrap().byte_time.is_some()
     }
 }
 
