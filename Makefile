@@ -1,10 +1,15 @@
-# One command each: `make test` installs and runs every test, `make lint` every check.
+# One command each: `make demo` installs benchbus and runs its demo on simulated devices,
+# `make test` installs and runs every test, `make lint` every check.
 PYTHON ?= python3
 
-.PHONY: install test lint fmt example
+.PHONY: install demo test lint fmt example
 
 install:
 	$(PYTHON) -m pip install --quiet --editable ".[dev]"
+
+demo:
+	$(PYTHON) -m pip install --quiet ".[demo]"
+	$(PYTHON) -m benchbus demo
 
 test: install
 	cargo test --quiet

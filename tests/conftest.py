@@ -12,6 +12,9 @@ from collections.abc import Iterator
 
 import pytest
 
+# pytester runs pytest inside tests/test_plugin.py, with the benchbus plugin loaded.
+pytest_plugins = ("pytester",)
+
 
 def read_up_to(fd: int, n: int, timeout: float) -> bytes:
     """Up to ``n`` bytes from ``fd``: whatever has come within ``timeout`` seconds."""

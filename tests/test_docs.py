@@ -82,6 +82,26 @@ def test_readme_instrument_example(capsys: pytest.CaptureFixture[str]) -> None:
     )
 
 
+def test_readme_pytest_example(pytester: pytest.Pytester) -> None:
+    (block,) = [b for b in readme_blocks() if "def test_spin_up" in b]
+    pytester.makepyfile(test_readme_bench=block)
+    pytester.runpytest_subprocess("-q").assert_outcomes(passed=2)
+
+
+def test_readme_recording_example() -> None:
+    (block,) = [b for b in readme_blocks() if "drive.record(" in b]
+    from benchbus.sim import DriveDevice
+
+    with Simulator(DriveDevice()) as sim, bb.Drive(sim.port) as drive:
+        drive.speed_setpoint = 600
+        drive.forward()
+        scope: dict[str, object] = {"drive": drive}
+        exec(block.replace("10.0, 0.1", "1.0, 0.1"), scope)
+        rec = scope["rec"]
+        assert isinstance(rec, bb.Recording) and len(rec) == 10
+        assert max(rec["speed"]) > 0
+
+
 def run_example(name: str) -> str:
     """examples/``name``, in its own process as a user runs it; its output."""
     done = subprocess.run(

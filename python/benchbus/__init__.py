@@ -47,6 +47,8 @@ from benchbus._pbl import (
     PblStatus,
     StartStopSource,
 )
+from benchbus._record import Recording
+from benchbus._wirelog import enable_wire_log
 from benchbus.exceptions import (
     BenchbusError,
     CrcError,
@@ -86,6 +88,7 @@ __all__ = [
     "PblStatus",
     "Pid",
     "PortError",
+    "Recording",
     "ResponseTimeout",
     "SpeedSource",
     "StartStopSource",
@@ -94,5 +97,6 @@ __all__ = [
     "StopMode",
     "__version__",
     "crc16",
+    "enable_wire_log",
     "refresh_logging",
 ]

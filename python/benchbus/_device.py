@@ -11,11 +11,13 @@ from __future__ import annotations
 import enum
 import logging
 import os
-from collections.abc import Callable
+import time
+from collections.abc import Callable, Iterable
 from types import TracebackType
 from typing import TYPE_CHECKING, Any, Generic, NoReturn, Protocol, TypeVar, overload
 
 from benchbus._core import Bus
+from benchbus._record import Recording, record
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -194,6 +196,55 @@ class BusDevice:
     def unit(self) -> int:
         """The device's unit address."""
         return int(self.core.unit)
+
+    def sample(self) -> dict[str, float]:
+        """One snapshot of the device's main measurements, ``{name: value}`` as numbers, in
+        as few requests as the device allows: what :meth:`record`, ``benchbus monitor`` and
+        the demo sample. Devices without fixed measurements raise ``TypeError``."""
+        raise TypeError(f"{type(self).__name__} has no fixed measurements to sample")
+
+    def record(
+        self,
+        duration: float,
+        interval: float,
+        *,
+        columns: Iterable[str] | None = None,
+        clock: Callable[[], float] = time.monotonic,
+        sleep: Callable[[float], None] = time.sleep,
+    ) -> Recording:
+        """Take :meth:`sample` every ``interval`` seconds for ``duration`` seconds.
+
+        ::
+
+            rec = drive.record(5.0, 0.05)     # 100 samples, 50 ms apart
+            rec.to_pandas().describe()        # or rec.to_csv(path), rec.plot(["speed"])
+
+        Samples are taken on absolute deadlines ``n * interval`` after the start, the
+        last one before ``duration``: time spent on the wire never adds up to drift. A
+        sample that overruns its period skips the deadlines already past (the recording
+        counts them in ``missed``) rather than taking late ones in a burst. Each sample
+        keeps the time it was actually taken, read from ``clock`` just before its
+        request; ``clock`` and ``sleep`` are injectable for tests.
+
+        ``columns`` keeps only those measurements, in that order (a name the device does
+        not give raises ValueError at the first sample); by default every one. A
+        ``duration`` or ``interval`` that is not a positive, finite number raises
+        TypeError or ValueError before anything is sent; an ``interval`` longer than
+        ``duration`` gives one sample.
+
+        A bus error ends the recording and is raised; the samples taken before it are in
+        the exception's ``recording`` attribute. Ctrl-C ends it and returns the samples
+        taken so far, with the recording's ``interrupted`` set.
+        """
+        return record(
+            self.sample,
+            duration,
+            interval,
+            device=f"{type(self).__name__} unit {self.unit}",
+            columns=columns,
+            clock=clock,
+            sleep=sleep,
+        )
 
     def close(self) -> None:
         """Close the Bus if the device opened it (a shared Bus stays open)."""

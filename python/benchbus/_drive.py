@@ -24,6 +24,7 @@ from benchbus._device import (
     to_float,
     to_int,
 )
+from benchbus._display import dataclass_table
 
 if TYPE_CHECKING:
     pass
@@ -147,6 +148,10 @@ class DriveStatus:
     #: The active fault, or None.
     fault: Fault | None
 
+    def _repr_html_(self) -> str:
+        """A field / value table, for notebooks."""
+        return dataclass_table(self)
+
 
 @dataclasses.dataclass(frozen=True)
 class DriveTelemetry:
@@ -194,6 +199,10 @@ class DriveTelemetry:
     #: The unit of each field above, from the drive's register table (``"Hz"``, ``"A"``...;
     #: ``""`` for counts and bit fields).
     units: dict[str, str] = dataclasses.field(default_factory=dict, compare=False, repr=False)
+
+    def _repr_html_(self) -> str:
+        """A field / value / unit table, for notebooks."""
+        return dataclass_table(self, self.units)
 
 
 def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode | int:
@@ -386,6 +395,11 @@ class Drive(MotorDevice):
     def telemetry(self) -> DriveTelemetry:
         """All measurement registers in one snapshot (one request where the drive allows)."""
         return DriveTelemetry(**self.core.telemetry())
+
+    def sample(self) -> dict[str, float]:
+        """The numeric fields of :meth:`telemetry` (one request where the drive allows)."""
+        fields = dataclasses.asdict(self.telemetry())
+        return {k: float(v) for k, v in fields.items() if isinstance(v, (int, float))}
 
     def wait_for_speed(
         self, rpm: float, tolerance: float = 10.0, timeout: float = 10.0, interval: float = 0.05

@@ -14,6 +14,7 @@ from typing import Literal
 
 from benchbus._core import Bus, InstrumentCore
 from benchbus._device import BusDevice
+from benchbus._display import field_table
 
 __all__ = ["Identification", "Instrument"]
 
@@ -58,6 +59,23 @@ class Identification:
             if object_name == name:
                 return self.objects.get(object_id)
         raise KeyError(name)
+
+    def _repr_html_(self) -> str:
+        """A table of vendor, product code and revision (None if not sent), every other
+        object the device sent (by its name, or its id for a private one) and the
+        conformity level, for notebooks."""
+        rows: list[tuple[str, object, str]] = [
+            ("vendor", self.vendor, ""),
+            ("product_code", self.product_code, ""),
+            ("revision", self.revision, ""),
+        ]
+        rows.extend(
+            (_OBJECT_NAMES.get(object_id, f"object 0x{object_id:02X}"), text, "")
+            for object_id, text in sorted(self.objects.items())
+            if object_id > 2
+        )
+        rows.append(("conformity", f"0x{self.conformity:02X}", ""))
+        return field_table("Identification", rows)
 
 
 class Instrument(BusDevice):

@@ -193,6 +193,11 @@ class J2Controller(BusDevice):
         within_limits)``; ``within_limits`` means the manual's range is LSP..USP."""
         return J2Core.table()
 
+    def sample(self) -> dict[str, float]:
+        """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""
+        pv, sv, mv = self.core.read_many(["PV", "SV", "MV"])
+        return {"pv": float(pv), "sv": float(sv), "mv": float(mv)}
+
     # ---- output and mode -----------------------------------------------------------------------
 
     @property

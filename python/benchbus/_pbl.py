@@ -20,6 +20,7 @@ from benchbus._device import (
     to_enum,
     to_int,
 )
+from benchbus._display import dataclass_table
 
 __all__ = [
     "DecelMode",
@@ -77,6 +78,10 @@ class PblStatus:
     running: bool
     #: The direction it turns (bit 1).
     direction: Direction
+
+    def _repr_html_(self) -> str:
+        """A field / value table, for notebooks."""
+        return dataclass_table(self)
 
 
 class PblDrive(MotorDevice):
@@ -198,6 +203,12 @@ class PblDrive(MotorDevice):
     def telemetry(self) -> dict[str, int]:
         """Parameters 0..99 (status and measurements) by name, in two requests."""
         return self.core.telemetry()
+
+    def sample(self) -> dict[str, float]:
+        """Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
+        parameters 50..54, in one request."""
+        names = ("speed", "bus_voltage", "analog_speed_input", "current", "power")
+        return {n: float(v) for n, v in zip(names, self.core.read_parameters(50, 5))}
 
     # ---- parameters ----------------------------------------------------------------------------
 

@@ -1,0 +1,522 @@
+"""The benchbus pytest plugin: devices as fixtures, simulated or real, for test benches.
+
+pytest loads it wherever benchbus is installed (entry point ``pytest11``); it adds fixtures,
+options and a marker, and changes nothing else. It imports neither pymodbus nor the
+simulators until a test asks for a simulated device, so the real-device fixtures work
+without ``benchbus[sim]``.
+
+::
+
+    import pytest
+    import benchbus as bb
+
+    def test_spins_up(bench_drive):        # the real drive with --benchbus-port, else simulated
+        bench_drive.accel_time = 0.5
+        bench_drive.speed_setpoint = 1200
+        bench_drive.forward()
+        assert abs(bench_drive.wait_for_speed(1200, tolerance=20, timeout=5) - 1200) <= 20
+
+    def test_undervoltage_trips(sim_drive):   # always simulated: the simulator is at hand
+        sim_drive.model.inject_fault(0x0A)
+        with pytest.raises(bb.ModbusException):
+            sim_drive.device.forward()
+
+    @pytest.mark.hardware                     # skipped unless --benchbus-port is given
+    def test_the_real_motor_draws_current(bench_drive): ...
+
+**Simulated devices.** ``sim_drive``, ``sim_pbl``, ``sim_j2`` and ``sim_instrument`` start a
+:class:`benchbus.sim.Simulator` with one device at unit 1 on a pseudo-terminal, open the
+benchbus device on it with the family's own line defaults, and yield a :class:`SimBench`:
+``.device`` (:class:`benchbus.Drive`, :class:`~benchbus.PblDrive`,
+:class:`~benchbus.J2Controller`, :class:`~benchbus.Instrument`), ``.sim`` (the Simulator:
+frame logs, ``set_silent``, ``corrupt_next``, ``answer_exception``, ``reply_delay``...) and
+``.model`` (the simulated device: its state, and its own faults such as
+``DriveDevice.inject_fault``); ``device, sim, model = sim_drive`` unpacks it. Afterwards the
+device is closed (no stop is sent: the simulator goes with it, so a test may leave it in
+any state, silent or faulted) and the simulator stopped, also when the test fails.
+
+The simulated devices come from the fixtures ``sim_drive_model`` (a BLD2
+:class:`~benchbus.sim.DriveDevice`; a C20 model is opened with ``family="C20"``),
+``sim_pbl_model`` (a :class:`~benchbus.sim.PblDevice` at unit 1, the drive address it has at
+power-up; the manual's example frames use 0x11), ``sim_j2_model`` (a
+:class:`~benchbus.sim.J2Device` whose process runs :data:`J2_SPEEDUP` times faster than real
+time, so heating to a setpoint takes about a second) and ``sim_instrument_model`` (a
+:class:`~benchbus.sim.TaisongDevice` running :data:`INSTRUMENT_SPEEDUP` times faster).
+Override one in a ``conftest.py`` or a test module to simulate something else::
+
+    @pytest.fixture
+    def sim_drive_model():
+        return DriveDevice("C20", single_register_reads=True)
+
+**Real or simulated.** ``bench_drive``, ``bench_pbl``, ``bench_j2`` and ``bench_instrument``
+yield the device alone: on the port given with ``--benchbus-port`` if there is one,
+otherwise on a simulator as above (from the same ``sim_*_model`` fixtures), so one test runs
+on both. Afterwards a drive is stopped (as leaving its ``with`` block does; a stop that
+fails is a teardown error, since the motor may still turn) and the device closed; a J2
+controller goes on controlling. A test that needs the simulator uses ``sim_*`` instead.
+
+On the real port the ``bench_*`` devices of one test share one :class:`benchbus.Bus`, as
+the devices of one RS485 line do. Options:
+
+- ``--benchbus-port PATH``: the line (``/dev/ttyUSB0``, or anything :class:`benchbus.Bus`
+  opens). Without it every ``bench_*`` device is simulated.
+- ``--benchbus-unit [KIND=]N``: the unit address, for every kind or for one (``drive``,
+  ``pbl``, ``j2``, ``instrument``); repeatable, e.g. ``--benchbus-unit j2=2``; default 1.
+- ``--benchbus-baudrate N`` and ``--benchbus-parity N|E|O``: the line format. By default
+  each family's own (drive 19200 8N1, PBL 115200 8E1, J2 and instrument 9600 8N1); a test
+  whose devices' defaults differ needs them given, or its setup fails saying so.
+
+Each device gets its family's timeout (drive 0.25 s, J2 0.3 s, PBL and instrument 0.1 s)
+and the Bus 2 retries. The unit and line options only apply to the real port; the
+``sim_*`` fixtures stay simulated with it too. The fixture ``benchbus_port`` gives the port,
+or None: a test that uses no ``bench_*`` device may open its own Bus on it (a port opens
+once at a time).
+
+**Marker.** Tests marked ``hardware`` are skipped ("needs a real device: run with
+--benchbus-port PATH") unless ``--benchbus-port`` is given; they are for what only means
+something on a real device (a real oven's heating time, a real motor's current).
+
+**Header.** pytest's header says which: ``benchbus: simulated devices ...`` or
+``benchbus: devices on /dev/ttyUSB0 ...``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import dataclasses
+from collections.abc import Callable, Iterator
+from typing import TYPE_CHECKING, Any, Generic, TypeVar
+
+import pytest
+
+from benchbus._core import Bus
+from benchbus._device import BusDevice, MotorDevice
+from benchbus._drive import Drive
+from benchbus._instrument import Instrument
+from benchbus._j2 import J2Controller
+from benchbus._pbl import PblDrive
+
+if TYPE_CHECKING:
+    from benchbus.sim import (
+        DriveDevice,
+        J2Device,
+        PblDevice,
+        SimDevice,
+        Simulator,
+        TaisongDevice,
+    )
+
+__all__ = ["INSTRUMENT_SPEEDUP", "J2_SPEEDUP", "KINDS", "SIM_UNIT", "SimBench"]
+
+#: The device kinds, as ``--benchbus-unit`` names them.
+KINDS = ("drive", "pbl", "j2", "instrument")
+#: The unit address of every simulated device.
+SIM_UNIT = 1
+#: How many times faster than real time the simulated J2 controller's process runs.
+J2_SPEEDUP = 100.0
+#: How many times faster than real time the simulated instrument's measured value moves.
+INSTRUMENT_SPEEDUP = 10.0
+
+_DEFAULT_UNIT = 1  # on the real port
+_SKIP_REASON = "needs a real device: run with --benchbus-port PATH"
+_PARITIES = ("N", "E", "O")
+
+DevT = TypeVar("DevT", bound=BusDevice)
+ModelT = TypeVar("ModelT", bound="SimDevice")
+
+
+@dataclasses.dataclass(frozen=True)
+class SimBench(Generic[DevT, ModelT]):
+    """A simulated device under test: what the ``sim_*`` fixtures yield.
+
+    Annotate as ``SimBench[bb.Drive, DriveDevice]``; ``device, sim, model = bench`` unpacks.
+    """
+
+    #: The benchbus device, connected to the simulator (unit :data:`SIM_UNIT`).
+    device: DevT
+    #: The Simulator serving it: frame logs and line faults.
+    sim: Simulator[ModelT]
+    #: The simulated device: its state, and its own faults.
+    model: ModelT
+
+    def __iter__(self) -> Iterator[Any]:
+        """``device``, ``sim``, ``model``."""
+        return iter((self.device, self.sim, self.model))
+
+
+# ---- options ---------------------------------------------------------------------------------
+
+
+@dataclasses.dataclass(frozen=True)
+class _Family:
+    """A device family's line defaults."""
+
+    baudrate: int
+    parity: str
+    timeout: float
+
+
+_FAMILIES = {
+    "drive": _Family(19200, "N", 0.25),
+    "pbl": _Family(115200, "E", 0.1),
+    "j2": _Family(9600, "N", 0.3),
+    "instrument": _Family(9600, "N", 0.1),
+}
+
+
+def _unit_option(text: str) -> tuple[str, int]:
+    """``N`` or ``KIND=N`` -> (kind or "", unit)."""
+    kind, _, number = text.rpartition("=")
+    if kind and kind not in KINDS:
+        raise argparse.ArgumentTypeError(f"{kind!r} is not one of {', '.join(KINDS)}")
+    try:
+        unit = int(number, 0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{number!r} is not a unit address") from None
+    if not 1 <= unit <= 255:
+        raise argparse.ArgumentTypeError(f"a unit address is 1..255, not {unit}")
+    return kind, unit
+
+
+def _baudrate_option(text: str) -> int:
+    """A positive int."""
+    try:
+        baudrate = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a baud rate") from None
+    if baudrate <= 0:
+        raise argparse.ArgumentTypeError(f"a baud rate is > 0, not {baudrate}")
+    return baudrate
+
+
+@dataclasses.dataclass(frozen=True)
+class _Settings:
+    """The benchbus options of a pytest run."""
+
+    port: str | None
+    units: dict[str, int]  # kind -> unit; "" for every kind
+    baudrate: int | None
+    parity: str | None
+
+    def unit(self, kind: str) -> int:
+        """The unit address of ``kind`` on the real port."""
+        return self.units.get(kind, self.units.get("", _DEFAULT_UNIT))
+
+    def line_format(self, kind: str) -> tuple[int, str]:
+        """(baudrate, parity) to open the real port at for ``kind``."""
+        family = _FAMILIES[kind]
+        return (self.baudrate or family.baudrate, self.parity or family.parity)
+
+
+_SETTINGS = pytest.StashKey[_Settings]()
+
+
+def pytest_addoption(parser: pytest.Parser) -> None:
+    """The ``--benchbus-*`` options."""
+    group = parser.getgroup("benchbus", "benchbus devices (bench_* fixtures, hardware marker)")
+    group.addoption(
+        "--benchbus-port",
+        metavar="PATH",
+        default=None,
+        help="serial port of the real devices for the bench_* fixtures and the tests marked"
+        " hardware (default: simulated devices, hardware tests skipped)",
+    )
+    group.addoption(
+        "--benchbus-unit",
+        metavar="[KIND=]N",
+        action="append",
+        type=_unit_option,
+        default=[],
+        help=f"unit address on that port, for every kind or one of {', '.join(KINDS)};"
+        " repeatable (default 1)",
+    )
+    group.addoption(
+        "--benchbus-baudrate",
+        metavar="N",
+        type=_baudrate_option,
+        default=None,
+        help="baud rate of that port (default: each device family's)",
+    )
+    group.addoption(
+        "--benchbus-parity",
+        choices=_PARITIES,
+        default=None,
+        help="parity of that port (default: each device family's, 8E1 for PBL, else 8N1)",
+    )
+
+
+def pytest_configure(config: pytest.Config) -> None:
+    """Register the ``hardware`` marker and keep the options."""
+    config.addinivalue_line("markers", f"hardware: the test {_SKIP_REASON} (else skipped)")
+    config.stash[_SETTINGS] = _Settings(
+        port=config.getoption("benchbus_port"),
+        units=dict(config.getoption("benchbus_unit")),
+        baudrate=config.getoption("benchbus_baudrate"),
+        parity=config.getoption("benchbus_parity"),
+    )
+
+
+def pytest_report_header(config: pytest.Config) -> list[str]:
+    """``benchbus: devices on PORT ...`` or ``benchbus: simulated devices ...``."""
+    settings = config.stash[_SETTINGS]
+    if settings.port is None:
+        return ["benchbus: simulated devices (tests marked hardware skipped: no --benchbus-port)"]
+    units = ", ".join(f"{kind} {settings.unit(kind)}" for kind in KINDS)
+    if settings.baudrate is None and settings.parity is None:
+        line = "each family's line format"
+    else:
+        line = f"{settings.baudrate or 'family'} baud, parity {settings.parity or 'of the family'}"
+    return [f"benchbus: devices on {settings.port} (units: {units}; {line})"]
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Skip the tests marked ``hardware`` when there is no real port."""
+    if config.stash[_SETTINGS].port is not None:
+        return
+    skip = pytest.mark.skip(reason=_SKIP_REASON)
+    for item in items:
+        if item.get_closest_marker("hardware") is not None:
+            item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def benchbus_port(pytestconfig: pytest.Config) -> str | None:
+    """The port given with ``--benchbus-port``, or None (simulated devices)."""
+    return pytestconfig.stash[_SETTINGS].port
+
+
+# ---- simulated devices -------------------------------------------------------------------------
+
+
+def _require_sim() -> None:
+    """Fail the test with a clear message if the simulators cannot be imported."""
+    try:
+        import benchbus.sim  # noqa: F401
+    except ImportError as exc:
+        pytest.fail(
+            f"the simulated devices need benchbus[sim] (pymodbus, pyserial): {exc}",
+            pytrace=False,
+        )
+
+
+@pytest.fixture
+def sim_drive_model() -> DriveDevice:
+    """The simulated drive for ``sim_drive`` / ``bench_drive``: a BLD2. Override to change."""
+    _require_sim()
+    from benchbus.sim import DriveDevice
+
+    return DriveDevice("BLD2")
+
+
+@pytest.fixture
+def sim_pbl_model() -> PblDevice:
+    """The simulated PBL drive for ``sim_pbl`` / ``bench_pbl``. Override to change."""
+    _require_sim()
+    from benchbus.sim import PblDevice
+
+    return PblDevice()
+
+
+@pytest.fixture
+def sim_j2_model() -> J2Device:
+    """The simulated J2 controller for ``sim_j2`` / ``bench_j2``, :data:`J2_SPEEDUP` times
+    faster than real time. Override to change."""
+    _require_sim()
+    from benchbus.sim import J2Device
+
+    return J2Device(speedup=J2_SPEEDUP)
+
+
+@pytest.fixture
+def sim_instrument_model() -> TaisongDevice:
+    """The simulated instrument for ``sim_instrument`` / ``bench_instrument``: a Taisong
+    panel meter, :data:`INSTRUMENT_SPEEDUP` times faster than real time. Override to change."""
+    _require_sim()
+    from benchbus.sim import TaisongDevice
+
+    return TaisongDevice(speedup=INSTRUMENT_SPEEDUP)
+
+
+@contextlib.contextmanager
+def _simulated(
+    kind: str, model: ModelT, open_device: Callable[[str], DevT]
+) -> Iterator[SimBench[DevT, ModelT]]:
+    """``model`` at :data:`SIM_UNIT` on a running Simulator, ``open_device(port)`` on it;
+    afterwards the device closed and the simulator stopped."""
+    _require_sim()
+    from benchbus.sim import Simulator
+
+    with Simulator({SIM_UNIT: model}, baudrate=_FAMILIES[kind].baudrate) as sim:
+        device = open_device(sim.port)
+        try:
+            yield SimBench(device, sim, model)
+        finally:
+            device.close()
+
+
+def _open_drive(model: DriveDevice) -> Callable[[str], Drive]:
+    family = "C20" if model.model == "C20" else "BLD"
+    return lambda port: Drive(port, SIM_UNIT, family=family)
+
+
+@pytest.fixture
+def sim_drive(sim_drive_model: DriveDevice) -> Iterator[SimBench[Drive, DriveDevice]]:
+    """The drive of ``sim_drive_model`` (a BLD2) on a simulator, as a :class:`SimBench`:
+    ``.device`` (:class:`benchbus.Drive`), ``.sim``, ``.model``. Closed and stopped after."""
+    with _simulated("drive", sim_drive_model, _open_drive(sim_drive_model)) as bench:
+        yield bench
+
+
+@pytest.fixture
+def sim_pbl(sim_pbl_model: PblDevice) -> Iterator[SimBench[PblDrive, PblDevice]]:
+    """The drive of ``sim_pbl_model`` on a simulator, as a :class:`SimBench`: ``.device``
+    (:class:`benchbus.PblDrive`), ``.sim``, ``.model``. Closed and stopped after."""
+    with _simulated("pbl", sim_pbl_model, lambda port: PblDrive(port, SIM_UNIT)) as bench:
+        yield bench
+
+
+@pytest.fixture
+def sim_j2(sim_j2_model: J2Device) -> Iterator[SimBench[J2Controller, J2Device]]:
+    """The controller of ``sim_j2_model`` on a simulator, as a :class:`SimBench`: ``.device``
+    (:class:`benchbus.J2Controller`), ``.sim``, ``.model``. Closed and stopped after."""
+    with _simulated("j2", sim_j2_model, lambda port: J2Controller(port, SIM_UNIT)) as bench:
+        yield bench
+
+
+@pytest.fixture
+def sim_instrument(
+    sim_instrument_model: TaisongDevice,
+) -> Iterator[SimBench[Instrument, TaisongDevice]]:
+    """The meter of ``sim_instrument_model`` on a simulator, as a :class:`SimBench`:
+    ``.device`` (:class:`benchbus.Instrument`), ``.sim``, ``.model``. Closed and stopped
+    after."""
+    with _simulated(
+        "instrument", sim_instrument_model, lambda port: Instrument(port, SIM_UNIT)
+    ) as bench:
+        yield bench
+
+
+# ---- real or simulated -------------------------------------------------------------------------
+
+
+class _Line:
+    """The real port of one test: one Bus, opened by the first ``bench_*`` device."""
+
+    def __init__(self, settings: _Settings, port: str) -> None:
+        self._settings = settings
+        self._port = port
+        self._bus: Bus | None = None
+        self._first = ""
+
+    def open(self, kind: str) -> tuple[Bus, int, float]:
+        """The Bus, the unit and the timeout for a device of ``kind``."""
+        baudrate, parity = self._settings.line_format(kind)
+        if self._bus is None:
+            self._bus = Bus(self._port, baudrate=baudrate, parity=parity, stopbits=1, retries=2)
+            self._first = kind
+        elif (self._bus.baudrate, self._bus.parity) != (baudrate, parity):
+            first = self._settings.line_format(self._first)
+            pytest.fail(
+                f"bench_{self._first} and bench_{kind} share {self._port}, but their line"
+                f" formats differ ({first[0]} 8{first[1]}1 and {baudrate} 8{parity}1): give"
+                " the line's with --benchbus-baudrate and --benchbus-parity",
+                pytrace=False,
+            )
+        return self._bus, self._settings.unit(kind), _FAMILIES[kind].timeout
+
+    def close(self) -> None:
+        """Close the Bus if it was opened."""
+        if self._bus is not None:
+            self._bus.close()
+
+
+@pytest.fixture
+def _benchbus_line(pytestconfig: pytest.Config) -> Iterator[_Line]:
+    """The real port, shared by the ``bench_*`` devices of a test (only with a port)."""
+    settings = pytestconfig.stash[_SETTINGS]
+    assert settings.port is not None
+    line = _Line(settings, settings.port)
+    try:
+        yield line
+    finally:
+        line.close()
+
+
+def _real_line(request: pytest.FixtureRequest) -> _Line | None:
+    """The test's real port, or None to simulate."""
+    if request.config.stash[_SETTINGS].port is None:
+        return None
+    line: _Line = request.getfixturevalue("_benchbus_line")
+    return line
+
+
+@contextlib.contextmanager
+def _in_use(device: DevT) -> Iterator[DevT]:
+    """``device``; afterwards a motor stopped (unless its Bus was closed), then closed."""
+    try:
+        yield device
+    finally:
+        if isinstance(device, MotorDevice) and not device.bus.closed:
+            device.__exit__(None, None, None)  # stops, then closes, as leaving `with` does
+        else:
+            device.close()
+
+
+@pytest.fixture
+def bench_drive(request: pytest.FixtureRequest) -> Iterator[Drive]:
+    """The drive under test: on ``--benchbus-port``, or a simulated BLD2. Stopped after."""
+    line = _real_line(request)
+    if line is None:
+        model: DriveDevice = request.getfixturevalue("sim_drive_model")
+        with _simulated("drive", model, _open_drive(model)) as bench, _in_use(bench.device):
+            yield bench.device
+    else:
+        bus, unit, timeout = line.open("drive")
+        with _in_use(Drive(bus, unit, timeout=timeout)) as drive:
+            yield drive
+
+
+@pytest.fixture
+def bench_pbl(request: pytest.FixtureRequest) -> Iterator[PblDrive]:
+    """The PBL drive under test: on ``--benchbus-port``, or simulated. Stopped after."""
+    line = _real_line(request)
+    if line is None:
+        model: PblDevice = request.getfixturevalue("sim_pbl_model")
+        opened = _simulated("pbl", model, lambda port: PblDrive(port, SIM_UNIT))
+        with opened as bench, _in_use(bench.device):
+            yield bench.device
+    else:
+        bus, unit, timeout = line.open("pbl")
+        with _in_use(PblDrive(bus, unit, timeout=timeout)) as pbl:
+            yield pbl
+
+
+@pytest.fixture
+def bench_j2(request: pytest.FixtureRequest) -> Iterator[J2Controller]:
+    """The J2 controller under test: on ``--benchbus-port``, or simulated (sped up)."""
+    line = _real_line(request)
+    if line is None:
+        model: J2Device = request.getfixturevalue("sim_j2_model")
+        opened = _simulated("j2", model, lambda port: J2Controller(port, SIM_UNIT))
+        with opened as bench, _in_use(bench.device):
+            yield bench.device
+    else:
+        bus, unit, timeout = line.open("j2")
+        with _in_use(J2Controller(bus, unit, timeout=timeout)) as j2:
+            yield j2
+
+
+@pytest.fixture
+def bench_instrument(request: pytest.FixtureRequest) -> Iterator[Instrument]:
+    """The instrument under test: on ``--benchbus-port``, or a simulated Taisong meter."""
+    line = _real_line(request)
+    if line is None:
+        model: TaisongDevice = request.getfixturevalue("sim_instrument_model")
+        opened = _simulated("instrument", model, lambda port: Instrument(port, SIM_UNIT))
+        with opened as bench, _in_use(bench.device):
+            yield bench.device
+    else:
+        bus, unit, timeout = line.open("instrument")
+        with _in_use(Instrument(bus, unit, timeout=timeout)) as instrument:
+            yield instrument

@@ -1,0 +1,70 @@
+"""`benchbus demo` end to end, headless, as the README runs it; and the wire log."""
+
+from __future__ import annotations
+
+import io
+import logging
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import benchbus as bb
+from benchbus.sim import RegisterDevice, Simulator
+
+PNG_SIGNATURE = b"\x89PNG\r\n\x1a\n"
+
+
+def test_demo_runs_headless_and_writes_a_real_plot(tmp_path: Path) -> None:
+    out = tmp_path / "demo.png"
+    env = {k: v for k, v in os.environ.items() if k not in ("DISPLAY", "MPLBACKEND")}
+    done = subprocess.run(
+        [sys.executable, "-m", "benchbus", "demo", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        cwd=tmp_path,
+        env=env,
+    )
+    assert done.returncode == 0, done.stderr
+    lines = done.stdout.splitlines()
+    assert lines[0] == "benchbus demo on simulated devices"
+    assert lines[-1] == f"plot written to {out.resolve()}"
+    rows = [line.split() for line in lines[2:-1]]
+    steps = {row[1] for row in rows}
+    assert {"spin", "hold", "reverse", "stop"} <= steps
+    drive = [float(row[-5]) for row in rows]
+    pbl = [float(row[-4]) for row in rows]
+    pv = [float(row[-3]) for row in rows]
+    assert max(drive) > 1400 and min(drive) < -1400 and abs(drive[-1]) < 1  # up, reversed, off
+    assert max(pbl) > 1100 and min(pbl) < -1100 and abs(pbl[-1]) < 1
+    assert pv[-1] > pv[0] + 20  # heated toward 80
+    data = out.read_bytes()
+    assert data.startswith(PNG_SIGNATURE)
+    import matplotlib.image
+
+    image = matplotlib.image.imread(out)
+    assert image.shape[0] >= 400 and image.shape[1] >= 600
+    assert image.std() > 0.05  # not a blank canvas
+
+
+def test_enable_wire_log_shows_every_frame_once() -> None:
+    buf = io.StringIO()
+    logger = bb.enable_wire_log(buf)
+    bb.enable_wire_log(buf)  # no second handler
+    try:
+        with Simulator({1: RegisterDevice({6: 1000})}) as sim, bb.Bus(sim.port) as bus:
+            bus.read_holding_registers(1, 6, 1)
+        lines = buf.getvalue().splitlines()
+        assert [line.split(" benchbus.wire ")[1] for line in lines] == [
+            "-> 01 03 00 06 00 01 64 0B",
+            "<- 01 03 02 03 E8 B8 FA",
+        ]
+        assert logger.name == "benchbus.wire" and logger.level == logging.DEBUG
+    finally:
+        logger.setLevel(logging.NOTSET)
+        for handler in list(logger.handlers):
+            if getattr(handler, "_benchbus_wire", False):
+                logger.removeHandler(handler)
+        bb.refresh_logging()
