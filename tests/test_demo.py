@@ -68,3 +68,20 @@ def test_enable_wire_log_shows_every_frame_once() -> None:
             if getattr(handler, "_benchbus_wire", False):
                 logger.removeHandler(handler)
         bb.refresh_logging()
+
+
+def test_the_hardware_session_puts_the_drive_settings_back() -> None:
+    from benchbus._demo import _hardware
+    from benchbus.sim import DriveDevice
+
+    with Simulator({1: DriveDevice()}) as sim:
+        with bb.Drive(sim.port) as drive:
+            drive.accel_time = 2.5
+            drive.speed_setpoint = 900
+        with _hardware(sim.port, 1) as devices:
+            devices.drive.accel_time = 1.0
+            devices.drive.speed_setpoint = 1500
+            devices.drive.forward()
+        with bb.Drive(sim.port) as drive:
+            assert (drive.accel_time, drive.speed_setpoint) == (2.5, 900)
+            assert drive.state == bb.DriveState.STOPPED or drive.speed < 1500

@@ -370,3 +370,15 @@ def test_port_errors() -> None:
         j2.close()
         with pytest.raises(bb.PortError, match="closed"):
             _ = j2.sv
+
+
+def test_status_in_two_requests_and_as_a_table(line: Line) -> None:
+    j2, sim, device = line
+    device.set_value("AL1", -5.0)
+    sim.clear_log()
+    status = j2.status()
+    assert len(sim.requests) == 2
+    assert (status.pv, status.sv, status.alarm1) == (device.value("PV"), 100.0, -5.0)
+    assert status.mode is bb.J2Mode.AUTO and not status.autotune and not status.ramp_running
+    html = status._repr_html_()
+    assert "<td>alarm1</td><td>-5.0</td>" in html and "J2Mode.AUTO" in html

@@ -259,3 +259,11 @@ def test_the_simulator_and_the_table_agree_on_ranges(line: Line) -> None:
             with pytest.raises(ValueError):
                 device.set_param(number, int(low) - 1)
     assert pbl.read_parameter("low_duty_threshold") == 0xFFFF
+
+
+def test_telemetry_is_a_dict_shown_as_a_table(line: Line) -> None:
+    pbl, _, _ = line
+    telemetry = pbl.telemetry()
+    assert isinstance(telemetry, dict) and isinstance(telemetry, bb.PblTelemetry)
+    html = telemetry._repr_html_()
+    assert "<td>bus_voltage</td><td>48</td><td>V</td>" in html

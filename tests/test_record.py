@@ -191,7 +191,8 @@ def test_record_keeps_the_columns_asked_for_in_that_order() -> None:
         assert len(rec) == 4 and all(len(v) == 4 for v in rec.columns.values())
         with pytest.raises(ValueError, match=r"no 'rpm'.*speed") as caught:
             drive.record(1.0, 0.25, columns=["rpm"], clock=fake.clock, sleep=fake.sleep)
-        assert len(caught.value.recording) == 0  # type: ignore[attr-defined]
+        # Refused before the first sample: the device's names are known in advance.
+        assert not hasattr(caught.value, "recording")
 
 
 def test_a_missing_value_in_a_later_sample_is_nan() -> None:
@@ -609,3 +610,26 @@ def test_display_helpers_format_and_escape() -> None:
         "<thead><tr><th>a&amp;b</th></tr></thead><tbody><tr><td>&lt;x&gt;</td></tr></tbody>"
         "</table>"
     )
+
+
+def test_tick_count_does_not_depend_on_where_the_clock_starts() -> None:
+    from benchbus._clock import ticks
+
+    for start in (0.0, 1000.0, 123456.7):
+        for interval, duration in ((0.3, 0.9), (0.7, 2.1), (0.1, 1.0)):
+            now = [start]
+
+            def advance(d: float, now: list[float] = now) -> None:
+                now[0] += d
+
+            got = list(ticks(interval, duration, clock=lambda now=now: now[0], sleep=advance))
+            assert len(got) == round(duration / interval), (start, interval, duration)
+
+
+def test_unknown_columns_are_refused_before_anything_is_sent() -> None:
+    from benchbus.sim import J2Device, Simulator
+
+    with Simulator({1: J2Device()}) as sim, bb.J2Controller(sim.port) as j2:
+        with pytest.raises(ValueError, match="'zz'"):
+            j2.record(1.0, 0.1, columns=["pv", "zz"])
+        assert sim.requests == []

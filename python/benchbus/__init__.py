@@ -37,7 +37,7 @@ from benchbus._drive import (
     StopMode,
 )
 from benchbus._instrument import Identification, Instrument
-from benchbus._j2 import InputType, J2Controller, J2Mode, Limits, Pid
+from benchbus._j2 import InputType, J2Controller, J2Mode, J2Status, Limits, Pid
 from benchbus._pbl import (
     DecelMode,
     Direction,
@@ -45,6 +45,7 @@ from benchbus._pbl import (
     PblControlMode,
     PblDrive,
     PblStatus,
+    PblTelemetry,
     StartStopSource,
 )
 from benchbus._record import Recording
@@ -80,12 +81,14 @@ __all__ = [
     "Instrument",
     "J2Controller",
     "J2Mode",
+    "J2Status",
     "Limits",
     "ModbusException",
     "Model",
     "PblControlMode",
     "PblDrive",
     "PblStatus",
+    "PblTelemetry",
     "Pid",
     "PortError",
     "Recording",

@@ -24,7 +24,9 @@ def ticks(
     ``start + duration``; without, they go on until the caller stops iterating.
     ``clock`` and ``sleep`` are injectable for tests.
     """
-    if not (isinstance(interval, (int, float)) and math.isfinite(interval) and interval > 0):
+    if isinstance(interval, bool) or not (
+        isinstance(interval, (int, float)) and math.isfinite(interval) and interval > 0
+    ):
         raise ValueError(f"interval must be a positive number of seconds, got {interval!r}")
     if duration is not None and not (
         isinstance(duration, (int, float)) and math.isfinite(duration) and duration >= 0
@@ -34,7 +36,7 @@ def ticks(
     n = 0
     while True:
         deadline = start + n * interval
-        if duration is not None and deadline >= start + duration:
+        if duration is not None and _past(n, interval, duration):
             return
         now = clock()
         if now < deadline:
@@ -46,7 +48,13 @@ def ticks(
             missed = behind
             n += behind
             deadline = start + n * interval
-            if duration is not None and deadline >= start + duration:
+            if duration is not None and _past(n, interval, duration):
                 return
         yield n, deadline, missed
         n += 1
+
+
+def _past(n: int, interval: float, duration: float) -> bool:
+    """Whether tick ``n`` falls at or after ``duration``: in tick counts, not clock values,
+    so the count does not depend on where the clock starts (0.9 s at 0.3 s is 3 ticks)."""
+    return n * interval >= duration - 1e-9 * max(1.0, duration)

@@ -90,8 +90,15 @@ def _simulated() -> Iterator[_Devices]:
 
 @contextlib.contextmanager
 def _hardware(port: str, unit: int) -> Iterator[_Devices]:
+    """The drive at ``port``; the settings the session changes are put back afterwards."""
     with bb.Drive(port, unit=unit) as drive:
-        yield _Devices(drive)
+        kept = {name: drive.get(name) for name in ("accel_time", "decel_time", "speed_setpoint")}
+        try:
+            yield _Devices(drive)
+        finally:
+            drive.stop()
+            for name, value in kept.items():
+                drive.set(name, value)
 
 
 def _prepare(d: _Devices) -> None:
@@ -197,6 +204,8 @@ def run(
     _check_matplotlib()
     stream = sys.stdout if stream is None else stream
     target = Path(out if out is not None else "benchbus-demo.png").resolve()
+    if not target.parent.is_dir():
+        raise FileNotFoundError(f"no directory {target.parent} to write the plot in")
     trace = _Trace()
     devices = _simulated() if port is None else _hardware(port, unit)
     with devices as d:

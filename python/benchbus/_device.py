@@ -197,6 +197,10 @@ class BusDevice:
         """The device's unit address."""
         return int(self.core.unit)
 
+    #: The names :meth:`sample` gives (None: not known in advance), so that a bad
+    #: ``record(columns=...)`` is refused before anything is sent.
+    SAMPLE_FIELDS: tuple[str, ...] | None = None
+
     def sample(self) -> dict[str, float]:
         """One snapshot of the device's main measurements, ``{name: value}`` as numbers, in
         as few requests as the device allows: what :meth:`record`, ``benchbus monitor`` and
@@ -242,6 +246,7 @@ class BusDevice:
             interval,
             device=f"{type(self).__name__} unit {self.unit}",
             columns=columns,
+            known=self.SAMPLE_FIELDS,
             clock=clock,
             sleep=sleep,
         )

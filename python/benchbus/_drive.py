@@ -236,6 +236,7 @@ class Drive(MotorDevice):
     """
 
     core: DriveCore
+    SAMPLE_FIELDS = tuple(f.name for f in dataclasses.fields(DriveTelemetry) if f.name != "units")
     speed_setpoint = RegisterProperty(
         "speed_setpoint", to_int, "Speed setpoint, rpm 0..3000 (0x2001)."
     )

@@ -8,6 +8,7 @@ adds enums, properties and the context manager.
 
 from __future__ import annotations
 
+import dataclasses
 import os
 from collections.abc import Iterable, Mapping
 from typing import NamedTuple, Union
@@ -18,12 +19,14 @@ from benchbus._device import (
     MeasuredProperty,
     PrintableIntEnum,
     RegisterProperty,
+    as_enum,
     to_enum,
     to_float,
     to_int,
 )
+from benchbus._display import dataclass_table
 
-__all__ = ["InputType", "J2Controller", "J2Mode", "Limits", "Pid"]
+__all__ = ["InputType", "J2Controller", "J2Mode", "J2Status", "Limits", "Pid"]
 
 #: A parameter value: a float for the signed table, an int for the unsigned one.
 Value = Union[float, int]
@@ -79,6 +82,32 @@ def _pid_values(names: tuple[str, str, str], value: Iterable[float]) -> list[tup
     return list(zip(names, values))
 
 
+@dataclasses.dataclass(frozen=True)
+class J2Status:
+    """What a J2 controller is doing, in one snapshot (two requests)."""
+
+    #: Process value (PV).
+    pv: float
+    #: Setpoint (SV).
+    sv: float
+    #: Output, percent (MV).
+    mv: float
+    #: Automatic or manual control (AM).
+    mode: J2Mode | int
+    #: Whether autotuning runs (AT).
+    autotune: bool
+    #: Whether a setpoint ramp runs (RAPNF).
+    ramp_running: bool
+    #: Alarm 1 value (AL1).
+    alarm1: float
+    #: Alarm 2 value (AL2).
+    alarm2: float
+
+    def _repr_html_(self) -> str:
+        """A field / value / unit table, for notebooks."""
+        return dataclass_table(self, {"mv": "%"})
+
+
 class J2Controller(BusDevice):
     """A J2-series PID temperature/process controller (manual 003), 9600 or 19200 8N1.
 
@@ -113,6 +142,7 @@ class J2Controller(BusDevice):
     """
 
     core: J2Core
+    SAMPLE_FIELDS = ("pv", "sv", "mv")
 
     pv = MeasuredProperty("PV", to_float, "Process value (PV), read-only.")
     sv = RegisterProperty("SV", to_float, "Setpoint (SV), within LSP..USP.")
@@ -192,6 +222,22 @@ class J2Controller(BusDevice):
         """The parameter table: ``(name, address, signed, writable, low, high,
         within_limits)``; ``within_limits`` means the manual's range is LSP..USP."""
         return J2Core.table()
+
+    def status(self) -> J2Status:
+        """PV, SV, MV, mode, autotune, ramp and alarm values, in two requests."""
+        pv, sv, mv, al1, al2, am, rapnf, at = self.core.read_many(
+            ["PV", "SV", "MV", "AL1", "AL2", "AM", "RAPNF", "AT"]
+        )
+        return J2Status(
+            pv=float(pv),
+            sv=float(sv),
+            mv=float(mv),
+            mode=as_enum(J2Mode, int(am)),
+            autotune=bool(at),
+            ramp_running=bool(rapnf),
+            alarm1=float(al1),
+            alarm2=float(al2),
+        )
 
     def sample(self) -> dict[str, float]:
         """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""

@@ -20,7 +20,7 @@ from benchbus._device import (
     to_enum,
     to_int,
 )
-from benchbus._display import dataclass_table
+from benchbus._display import dataclass_table, field_table
 
 __all__ = [
     "DecelMode",
@@ -29,6 +29,7 @@ __all__ = [
     "PblControlMode",
     "PblDrive",
     "PblStatus",
+    "PblTelemetry",
     "StartStopSource",
 ]
 
@@ -84,6 +85,15 @@ class PblStatus:
         return dataclass_table(self)
 
 
+class PblTelemetry(dict[str, int]):
+    """Parameters 0..99 by name (a plain dict of ints), shown as a table in notebooks."""
+
+    def _repr_html_(self) -> str:
+        """A parameter / value / unit table, for notebooks."""
+        units = {row[1]: row[2] for row in PblCore.table()}
+        return field_table("PblTelemetry", ((k, v, units.get(k, "")) for k, v in self.items()))
+
+
 class PblDrive(MotorDevice):
     """A PBL-series BLDC drive (manual 002): parameters 0..222, 115200 8E1 by default.
 
@@ -107,6 +117,7 @@ class PblDrive(MotorDevice):
     """
 
     core: PblCore
+    SAMPLE_FIELDS = ("speed", "bus_voltage", "analog_speed_input", "current", "power")
     control_mode = RegisterProperty("control_mode", to_enum(PblControlMode), "Mode (100).")
     pole_pairs = RegisterProperty("pole_pairs", to_int, "Motor pole pairs (205).")
     acceleration = RegisterProperty("acceleration", to_int, "Acceleration, rpm/s (209).")
@@ -200,15 +211,16 @@ class PblDrive(MotorDevice):
         """The active alarm bits by name ("alarm bit N": the manual names none)."""
         return frozenset(self.core.alarms()[1])
 
-    def telemetry(self) -> dict[str, int]:
-        """Parameters 0..99 (status and measurements) by name, in two requests."""
-        return self.core.telemetry()
+    def telemetry(self) -> PblTelemetry:
+        """Parameters 0..99 (status and measurements) by name, in two requests: a dict,
+        shown as a table in notebooks."""
+        return PblTelemetry(self.core.telemetry())
 
     def sample(self) -> dict[str, float]:
         """Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
         parameters 50..54, in one request."""
-        names = ("speed", "bus_voltage", "analog_speed_input", "current", "power")
-        return {n: float(v) for n, v in zip(names, self.core.read_parameters(50, 5))}
+        values = self.core.read_parameters(50, len(self.SAMPLE_FIELDS))
+        return {n: float(v) for n, v in zip(self.SAMPLE_FIELDS, values)}
 
     # ---- parameters ----------------------------------------------------------------------------
 

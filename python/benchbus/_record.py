@@ -343,6 +343,7 @@ def record(
     *,
     device: str = "",
     columns: Iterable[str] | None = None,
+    known: Iterable[str] | None = None,
     clock: Callable[[], float] = time.monotonic,
     sleep: Callable[[float], None] = time.sleep,
 ) -> Recording:
@@ -359,6 +360,9 @@ def record(
     duration = check_seconds("duration", duration)
     interval = check_seconds("interval", interval)
     wanted = None if columns is None else check_columns(columns)
+    if wanted is not None and known is not None:
+        # Refused before anything is sent when the device's names are ``known`` in advance.
+        _first_columns(dict.fromkeys(known, 0.0), wanted)
     rec = Recording([], [], {}, interval=interval, duration=duration, device=device)
     names: list[str] | None = None
     try:

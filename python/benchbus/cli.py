@@ -11,7 +11,7 @@
     benchbus j2      --port PATH status|set-sv VALUE|auto|manual|set-output PERCENT
     benchbus monitor --port PATH drive|pbl|j2 [--interval S] [--count N | --duration S] [--csv FILE]
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
-    benchbus demo    [--port PATH] [--out FILE.png]
+    benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
 
 The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--unit``,
 ``--timeout``, ``--retries``) go anywhere after the command; their defaults are those of the
@@ -30,7 +30,6 @@ import csv
 import dataclasses
 import datetime
 import enum
-import importlib
 import logging
 import os
 import re
@@ -600,6 +599,9 @@ def build_parser() -> argparse.ArgumentParser:
     )
     demo.add_argument("--port", metavar="PATH", help="a real port to run the demo on")
     demo.add_argument("--out", metavar="FILE.png", help="where to save the plot")
+    demo.add_argument(
+        "--unit", type=parse_int, default=1, help="the BLD drive's unit with --port (default 1)"
+    )
     demo.set_defaults(handler=_cmd_demo)
     return parser
 
@@ -1210,13 +1212,9 @@ def _cmd_sim(args: argparse.Namespace) -> int:
 
 
 def _cmd_demo(args: argparse.Namespace) -> int:
-    try:
-        demo = importlib.import_module("benchbus._demo")
-    except ModuleNotFoundError as exc:
-        if exc.name == "benchbus._demo":
-            raise CliError("this installation of benchbus has no demo") from None
-        raise
-    demo.run(args.port, args.out)  # prints its table and where the plot went
+    from benchbus._demo import run
+
+    run(args.port, args.out, unit=args.unit)  # prints its table and where the plot went
     return 0
 
 

@@ -72,7 +72,14 @@ fn on_wire<D: Send + Sync, T: Send>(
     f: impl FnOnce(&D) -> crate::Result<T> + Send,
 ) -> PyResult<T> {
     let device = Arc::clone(device);
-    py.detach(move || f(&device)).map_err(|e| to_pyerr(py, e))
+    let result = py.detach(move || f(&device));
+    // A Ctrl-C that lands while the wire log calls into Python (pyo3-log, from the detached
+    // thread) can leave the KeyboardInterrupt set: raise it, rather than return a value
+    // with an exception pending (which Python reports as a SystemError).
+    if let Some(pending) = PyErr::take(py) {
+        return Err(pending);
+    }
+    result.map_err(|e| to_pyerr(py, e))
 }
 
 /// An int argument in `lo..=hi`: TypeError for a non-int, ValueError (never OverflowError)
@@ -283,8 +290,7 @@ impl PyBus {
         py: Python<'_>,
         f: impl FnOnce(&bus::Bus) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        let bus = Arc::clone(&self.bus);
-        py.detach(move || f(&bus)).map_err(|e| to_pyerr(py, e))
+        on_wire(py, &self.bus, f)
     }
 }
 
