@@ -79,9 +79,16 @@ def _simulated() -> Iterator[_Devices]:
     from benchbus.sim import DriveDevice, J2Device, PblDevice, Simulator
 
     with contextlib.ExitStack() as stack:
-        drive_sim = stack.enter_context(Simulator({1: DriveDevice("BLD2")}, baudrate=19200))
-        pbl_sim = stack.enter_context(Simulator({PBL_UNIT: PblDevice()}, baudrate=115200))
-        j2_sim = stack.enter_context(Simulator({1: J2Device(speedup=J2_SPEEDUP)}, baudrate=9600))
+        line = {cls: cls.LINE_DEFAULTS.baudrate for cls in (bb.Drive, bb.PblDrive, bb.J2Controller)}
+        drive_sim = stack.enter_context(
+            Simulator({1: DriveDevice("BLD2")}, baudrate=line[bb.Drive])
+        )
+        pbl_sim = stack.enter_context(
+            Simulator({PBL_UNIT: PblDevice()}, baudrate=line[bb.PblDrive])
+        )
+        j2_sim = stack.enter_context(
+            Simulator({1: J2Device(speedup=J2_SPEEDUP)}, baudrate=line[bb.J2Controller])
+        )
         drive = stack.enter_context(bb.Drive(drive_sim.port, unit=1))
         pbl = stack.enter_context(bb.PblDrive(pbl_sim.port, unit=PBL_UNIT))
         j2 = stack.enter_context(bb.J2Controller(j2_sim.port, unit=1))

@@ -14,7 +14,7 @@ import os
 import time
 from collections.abc import Callable, Iterable
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, Generic, NoReturn, Protocol, TypeVar, overload
+from typing import TYPE_CHECKING, Any, Generic, NamedTuple, NoReturn, Protocol, TypeVar, overload
 
 from benchbus._core import Bus
 from benchbus._record import Recording, record
@@ -24,6 +24,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "BusDevice",
+    "LineDefaults",
     "MeasuredProperty",
     "MotorDevice",
     "PrintableIntEnum",
@@ -141,6 +142,18 @@ def to_enum(enum_type: type[E]) -> Callable[[Any, Any], E | int]:
     return lambda _device, raw: as_enum(enum_type, int(raw))
 
 
+class LineDefaults(NamedTuple):
+    """A device family's line format and reply timeout, used when a device opens its own
+    Bus (and by the command line, the pytest plugin and the demo)."""
+
+    #: Bits per second.
+    baudrate: int
+    #: "N", "E" or "O".
+    parity: str
+    #: Seconds a device of the family may take to start answering.
+    timeout: float
+
+
 class BusDevice:
     """A device on a Bus: its identity, and a context manager that closes what it opened.
 
@@ -150,6 +163,8 @@ class BusDevice:
 
     core: Any
     _owns_bus: bool
+    #: The family's line defaults (a subclass sets its own).
+    LINE_DEFAULTS = LineDefaults(19200, "N", 0.1)
 
     def _attach(
         self,

@@ -16,6 +16,7 @@ from typing import TYPE_CHECKING, Any
 
 from benchbus._core import Bus, DriveCore
 from benchbus._device import (
+    LineDefaults,
     MotorDevice,
     PrintableIntEnum,
     RegisterProperty,
@@ -236,6 +237,8 @@ class Drive(MotorDevice):
     """
 
     core: DriveCore
+    #: Line format and reply timeout when the device opens its own Bus.
+    LINE_DEFAULTS = LineDefaults(19200, "N", 0.25)
     SAMPLE_FIELDS = tuple(f.name for f in dataclasses.fields(DriveTelemetry) if f.name != "units")
     speed_setpoint = RegisterProperty(
         "speed_setpoint", to_int, "Speed setpoint, rpm 0..3000 (0x2001)."
@@ -290,11 +293,11 @@ class Drive(MotorDevice):
         self._attach(
             port_or_bus,
             lambda bus, t, r: DriveCore(bus, unit, family, write_ack, t, r),
-            baudrate=19200,
-            parity="N",
+            baudrate=self.LINE_DEFAULTS.baudrate,
+            parity=self.LINE_DEFAULTS.parity,
             timeout=timeout,
             retries=retries,
-            default_timeout=0.25,
+            default_timeout=self.LINE_DEFAULTS.timeout,
         )
 
     # ---- identity ------------------------------------------------------------------------

@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from typing import Literal
 
 from benchbus._core import Bus, InstrumentCore
-from benchbus._device import BusDevice
+from benchbus._device import BusDevice, LineDefaults
 from benchbus._display import field_table
 
 __all__ = ["Identification", "Instrument"]
@@ -102,6 +102,8 @@ class Instrument(BusDevice):
     """
 
     core: InstrumentCore
+    #: Line format and reply timeout when the device opens its own Bus.
+    LINE_DEFAULTS = LineDefaults(9600, "N", 0.1)
 
     def __init__(
         self,
@@ -126,10 +128,10 @@ class Instrument(BusDevice):
                 bus, unit, max_read, max_write, min_write_interval, t, r
             ),
             baudrate=baudrate,
-            parity="N",
+            parity=self.LINE_DEFAULTS.parity,
             timeout=timeout,
             retries=retries,
-            default_timeout=0.1,
+            default_timeout=self.LINE_DEFAULTS.timeout,
         )
 
     @property

@@ -16,6 +16,7 @@ from typing import NamedTuple, Union
 from benchbus._core import Bus, J2Core
 from benchbus._device import (
     BusDevice,
+    LineDefaults,
     MeasuredProperty,
     PrintableIntEnum,
     RegisterProperty,
@@ -142,6 +143,8 @@ class J2Controller(BusDevice):
     """
 
     core: J2Core
+    #: Line format and reply timeout when the device opens its own Bus.
+    LINE_DEFAULTS = LineDefaults(9600, "N", 0.3)
     SAMPLE_FIELDS = ("pv", "sv", "mv")
 
     pv = MeasuredProperty("PV", to_float, "Process value (PV), read-only.")
@@ -171,10 +174,10 @@ class J2Controller(BusDevice):
             port_or_bus,
             lambda bus, t, r: J2Core(bus, unit, t, r),
             baudrate=baudrate,
-            parity="N",
+            parity=self.LINE_DEFAULTS.parity,
             timeout=timeout,
             retries=retries,
-            default_timeout=0.3,
+            default_timeout=self.LINE_DEFAULTS.timeout,
         )
 
     # ---- parameters by name --------------------------------------------------------------------

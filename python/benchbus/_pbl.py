@@ -13,6 +13,7 @@ import warnings
 
 from benchbus._core import Bus, PblCore
 from benchbus._device import (
+    LineDefaults,
     MeasuredProperty,
     MotorDevice,
     PrintableIntEnum,
@@ -117,6 +118,8 @@ class PblDrive(MotorDevice):
     """
 
     core: PblCore
+    #: Line format and reply timeout when the device opens its own Bus.
+    LINE_DEFAULTS = LineDefaults(115200, "E", 0.1)
     SAMPLE_FIELDS = ("speed", "bus_voltage", "analog_speed_input", "current", "power")
     control_mode = RegisterProperty("control_mode", to_enum(PblControlMode), "Mode (100).")
     pole_pairs = RegisterProperty("pole_pairs", to_int, "Motor pole pairs (205).")
@@ -160,11 +163,11 @@ class PblDrive(MotorDevice):
         self._attach(
             port_or_bus,
             lambda bus, t, r: PblCore(bus, unit, t, r),
-            baudrate=115200,
-            parity="E",
+            baudrate=self.LINE_DEFAULTS.baudrate,
+            parity=self.LINE_DEFAULTS.parity,
             timeout=timeout,
             retries=retries,
-            default_timeout=0.1,
+            default_timeout=self.LINE_DEFAULTS.timeout,
         )
 
     # ---- control and status ------------------------------------------------------------------

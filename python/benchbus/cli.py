@@ -272,9 +272,9 @@ LINES = {
     "scan": Line(19200, "N", 0.05, 0),
     "read": Line(19200, "N", 0.1, 2),
     "write": Line(19200, "N", 0.1, 2),
-    "drive": Line(19200, "N", 0.25, 2),
-    "pbl": Line(115200, "E", 0.1, 2),
-    "j2": Line(9600, "N", 0.3, 2),
+    "drive": Line(*bb.Drive.LINE_DEFAULTS, 2),
+    "pbl": Line(*bb.PblDrive.LINE_DEFAULTS, 2),
+    "j2": Line(*bb.J2Controller.LINE_DEFAULTS, 2),
 }
 
 #: The line formats ``scan --auto`` tries, in order, and who uses them.
@@ -1137,10 +1137,10 @@ def _fields(spec: str | None, kind: str, sample: dict[str, float]) -> list[str]:
 
 #: Each simulated device, with the baud rate its family usually runs at.
 SIM_DEVICES: dict[str, int] = {
-    "drive": 19200,
-    "pbl": 115200,
-    "j2": 9600,
-    "instrument": 9600,
+    "drive": bb.Drive.LINE_DEFAULTS.baudrate,
+    "pbl": bb.PblDrive.LINE_DEFAULTS.baudrate,
+    "j2": bb.J2Controller.LINE_DEFAULTS.baudrate,
+    "instrument": bb.Instrument.LINE_DEFAULTS.baudrate,
     "atv31": 19200,
 }
 

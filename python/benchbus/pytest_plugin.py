@@ -158,10 +158,10 @@ class _Family:
 
 
 _FAMILIES = {
-    "drive": _Family(19200, "N", 0.25),
-    "pbl": _Family(115200, "E", 0.1),
-    "j2": _Family(9600, "N", 0.3),
-    "instrument": _Family(9600, "N", 0.1),
+    "drive": _Family(*Drive.LINE_DEFAULTS),
+    "pbl": _Family(*PblDrive.LINE_DEFAULTS),
+    "j2": _Family(*J2Controller.LINE_DEFAULTS),
+    "instrument": _Family(*Instrument.LINE_DEFAULTS),
 }
 
 
