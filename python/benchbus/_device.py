@@ -30,6 +30,7 @@ __all__ = [
     "PrintableIntEnum",
     "RegisterProperty",
     "as_enum",
+    "check_baudrate",
     "to_enum",
     "to_float",
     "to_int",
@@ -152,6 +153,16 @@ class LineDefaults(NamedTuple):
     parity: str
     #: Seconds a device of the family may take to start answering.
     timeout: float
+
+
+def check_baudrate(baudrate: object, allowed: tuple[int, ...]) -> None:
+    """Refuse a ``baudrate`` that is not an int (TypeError) or not one of ``allowed``."""
+    if isinstance(baudrate, bool) or not isinstance(baudrate, int):
+        raise TypeError(f"baudrate must be an int, got {type(baudrate).__name__}")
+    if baudrate not in allowed:
+        *most, last = (str(b) for b in allowed)
+        listed = f"{', '.join(most)} or {last}" if most else last
+        raise ValueError(f"baudrate must be {listed}, got {baudrate}")
 
 
 class BusDevice:
@@ -302,10 +313,6 @@ class MotorDevice(BusDevice):
     def _stop_on_exit(self) -> None:
         """What leaving a ``with`` block sends (the stop; a subclass may add to it)."""
         self.stop()
-
-    def __enter__(self) -> Self:
-        """The drive itself; leaving the block stops the motor."""
-        return self
 
     def __exit__(
         self,

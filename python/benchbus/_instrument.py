@@ -13,7 +13,7 @@ from collections.abc import Iterable
 from typing import Literal
 
 from benchbus._core import Bus, InstrumentCore
-from benchbus._device import BusDevice, LineDefaults
+from benchbus._device import BusDevice, LineDefaults, check_baudrate
 from benchbus._display import field_table
 
 __all__ = ["Identification", "Instrument"]
@@ -118,10 +118,7 @@ class Instrument(BusDevice):
         retries: int | None = None,
     ) -> None:
         """The instrument at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
-        if isinstance(baudrate, bool) or not isinstance(baudrate, int):
-            raise TypeError(f"baudrate must be an int, got {type(baudrate).__name__}")
-        if baudrate not in (2400, 4800, 9600, 19200):
-            raise ValueError(f"baudrate must be 2400, 4800, 9600 or 19200, got {baudrate}")
+        check_baudrate(baudrate, (2400, 4800, 9600, 19200))
         self._attach(
             port_or_bus,
             lambda bus, t, r: InstrumentCore(

@@ -21,6 +21,7 @@ from benchbus._device import (
     PrintableIntEnum,
     RegisterProperty,
     as_enum,
+    check_baudrate,
     to_enum,
     to_float,
     to_int,
@@ -166,10 +167,7 @@ class J2Controller(BusDevice):
         retries: int | None = None,
     ) -> None:
         """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
-        if isinstance(baudrate, bool) or not isinstance(baudrate, int):
-            raise TypeError(f"baudrate must be an int, got {type(baudrate).__name__}")
-        if baudrate not in (9600, 19200):
-            raise ValueError(f"a J2 controller runs at 9600 or 19200 baud, got {baudrate}")
+        check_baudrate(baudrate, (9600, 19200))
         self._attach(
             port_or_bus,
             lambda bus, t, r: J2Core(bus, unit, t, r),

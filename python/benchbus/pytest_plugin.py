@@ -463,60 +463,62 @@ def _in_use(device: DevT) -> Iterator[DevT]:
             device.close()
 
 
+def _bench(
+    request: pytest.FixtureRequest,
+    kind: str,
+    open_sim: Callable[[Any], Callable[[str], DevT]],
+    open_real: Callable[[Bus, int, float | None], DevT],
+) -> Iterator[DevT]:
+    """The ``kind`` device under test: ``open_real(bus, unit, timeout)`` on
+    ``--benchbus-port``, else ``open_sim(model)(port)`` on the simulated ``sim_<kind>_model``;
+    in use until the test ends (see :func:`_in_use`)."""
+    line = _real_line(request)
+    if line is None:
+        model = request.getfixturevalue(f"sim_{kind}_model")
+        with _simulated(kind, model, open_sim(model)) as bench, _in_use(bench.device):
+            yield bench.device
+    else:
+        bus, unit, timeout = line.open(kind)
+        with _in_use(open_real(bus, unit, timeout)) as device:
+            yield device
+
+
 @pytest.fixture
 def bench_drive(request: pytest.FixtureRequest) -> Iterator[Drive]:
     """The drive under test: on ``--benchbus-port``, or a simulated BLD2. Stopped after."""
-    line = _real_line(request)
-    if line is None:
-        model: DriveDevice = request.getfixturevalue("sim_drive_model")
-        with _simulated("drive", model, _open_drive(model)) as bench, _in_use(bench.device):
-            yield bench.device
-    else:
-        bus, unit, timeout = line.open("drive")
-        with _in_use(Drive(bus, unit, timeout=timeout)) as drive:
-            yield drive
+    yield from _bench(
+        request, "drive", _open_drive, lambda bus, unit, t: Drive(bus, unit, timeout=t)
+    )
 
 
 @pytest.fixture
 def bench_pbl(request: pytest.FixtureRequest) -> Iterator[PblDrive]:
     """The PBL drive under test: on ``--benchbus-port``, or simulated. Stopped after."""
-    line = _real_line(request)
-    if line is None:
-        model: PblDevice = request.getfixturevalue("sim_pbl_model")
-        opened = _simulated("pbl", model, lambda port: PblDrive(port, SIM_UNIT))
-        with opened as bench, _in_use(bench.device):
-            yield bench.device
-    else:
-        bus, unit, timeout = line.open("pbl")
-        with _in_use(PblDrive(bus, unit, timeout=timeout)) as pbl:
-            yield pbl
+    yield from _bench(
+        request,
+        "pbl",
+        lambda _: lambda port: PblDrive(port, SIM_UNIT),
+        lambda bus, unit, t: PblDrive(bus, unit, timeout=t),
+    )
 
 
 @pytest.fixture
 def bench_j2(request: pytest.FixtureRequest) -> Iterator[J2Controller]:
     """The J2 controller under test: on ``--benchbus-port``, or simulated (sped up)."""
-    line = _real_line(request)
-    if line is None:
-        model: J2Device = request.getfixturevalue("sim_j2_model")
-        opened = _simulated("j2", model, lambda port: J2Controller(port, SIM_UNIT))
-        with opened as bench, _in_use(bench.device):
-            yield bench.device
-    else:
-        bus, unit, timeout = line.open("j2")
-        with _in_use(J2Controller(bus, unit, timeout=timeout)) as j2:
-            yield j2
+    yield from _bench(
+        request,
+        "j2",
+        lambda _: lambda port: J2Controller(port, SIM_UNIT),
+        lambda bus, unit, t: J2Controller(bus, unit, timeout=t),
+    )
 
 
 @pytest.fixture
 def bench_instrument(request: pytest.FixtureRequest) -> Iterator[Instrument]:
     """The instrument under test: on ``--benchbus-port``, or a simulated Taisong meter."""
-    line = _real_line(request)
-    if line is None:
-        model: TaisongDevice = request.getfixturevalue("sim_instrument_model")
-        opened = _simulated("instrument", model, lambda port: Instrument(port, SIM_UNIT))
-        with opened as bench, _in_use(bench.device):
-            yield bench.device
-    else:
-        bus, unit, timeout = line.open("instrument")
-        with _in_use(Instrument(bus, unit, timeout=timeout)) as instrument:
-            yield instrument
+    yield from _bench(
+        request,
+        "instrument",
+        lambda _: lambda port: Instrument(port, SIM_UNIT),
+        lambda bus, unit, t: Instrument(bus, unit, timeout=t),
+    )
