@@ -18,7 +18,7 @@ use crate::codec::{
     DeviceIdentification, Echo, FrameError, Needed, Reply, Request, Response, BROADCAST,
 };
 use crate::error::{hex, Error, Result};
-use crate::timing::{LineFormat, SilenceGuard};
+use crate::timing::{sleep_until, LineFormat, SilenceGuard};
 use crate::transport::{SerialTransport, Transport};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
@@ -292,10 +292,11 @@ impl Bus {
         let frame = encode_request(BROADCAST, &request);
         let mut st = self.lock_when(State::broadcast_ready);
         let st = &mut *st;
-        self.send(st, &frame)?;
+        let sent_end = self.send(st, &frame)?;
         st.stats.broadcasts += 1;
         st.stats.transactions += 1;
-        std::thread::sleep(self.config.turnaround);
+        // The turnaround is quiet line: it counts from the end of the frame on the wire.
+        sleep_until(sent_end + self.config.turnaround);
         let transport = self.transport(st)?;
         let answers = transport.discard_input().map_err(|e| self.io_error(e))?;
         if !answers.is_empty() {
@@ -519,7 +520,8 @@ impl Bus {
         st.transport.as_mut().ok_or_else(|| self.closed())
     }
 
-    fn closed(&self) -> Error {
+    /// The error every call on a closed bus fails with.
+    pub(crate) fn closed(&self) -> Error {
         Error::Closed {
             port: self.config.port.clone(),
         }
@@ -548,7 +550,7 @@ impl Bus {
             match ready(&st) {
                 Some(at) if at > now => {
                     drop(st);
-                    std::thread::sleep(at - now);
+                    sleep_until(at);
                 }
                 _ => return st,
             }
@@ -616,10 +618,7 @@ impl State {
 /// Sleeps (holding the bus) until `interval` has passed since the last write to `unit`.
 fn pace(st: &State, unit: u8, interval: Duration) {
     if let Some(ready) = st.write_ready(unit, interval) {
-        let now = Instant::now();
-        if ready > now {
-            std::thread::sleep(ready - now);
-        }
+        sleep_until(ready);
     }
 }
 

@@ -1,5 +1,7 @@
 //! Line format to wire timing: character time, t1.5 and t3.5 (Modbus over Serial Line V1.02,
-//! 2.5.1.1: above 19200 baud fixed values of 750 us and 1.750 ms are used).
+//! 2.5.1.1: above 19200 baud fixed values of 750 us and 1.750 ms are used); precise sleeps to
+//! a monotonic deadline ([`sleep_until`]); the absolute deadlines of a polling loop
+//! ([`Schedule`]).
 
 use std::time::{Duration, Instant};
 
@@ -148,12 +150,208 @@ impl SilenceGuard {
 
     /// Sleeps until the line has been quiet for `silence`; returns at once if it has.
     pub fn wait(&self, silence: Duration) {
-        let ready = self.ready_at(silence);
-        let now = Instant::now();
-        if ready > now {
-            std::thread::sleep(ready - now);
+        sleep_until(self.ready_at(silence));
+    }
+}
+
+/// Sleeps until `deadline` on the monotonic clock; returns at once if it has passed. Never
+/// returns before it, and never spins.
+///
+/// Linux lets a sleeping thread wake up to its timer slack late (50 us by default, see
+/// `/proc/self/timerslack_ns`), so a plain sleep of t3.5 (1.75 ms) overshoots by some
+/// 50-60 us. For the duration of the sleep the calling thread's slack is lowered to 1 ns, and
+/// put back afterwards (also if the sleep unwinds). Elsewhere this is a plain sleep.
+pub fn sleep_until(deadline: Instant) {
+    let now = Instant::now();
+    if deadline <= now {
+        return;
+    }
+    #[cfg(target_os = "linux")]
+    let _fine = slack::Fine::lower();
+    let mut now = now;
+    // `thread::sleep` resumes after a signal on its own; the loop only makes "never early"
+    // hold whatever the platform's sleep does.
+    while now < deadline {
+        std::thread::sleep(deadline - now);
+        now = Instant::now();
+    }
+}
+
+/// The calling thread's timer slack (Linux): how late the kernel may wake a sleeper so that
+/// it can batch wake-ups.
+#[cfg(target_os = "linux")]
+mod slack {
+    /// The slack a precise sleep runs with, in nanoseconds (0 would mean "the default").
+    const FINE_NS: libc::c_ulong = 1;
+
+    /// The calling thread's timer slack in nanoseconds, None if it cannot be read.
+    pub(super) fn get() -> Option<libc::c_ulong> {
+        // SAFETY: PR_GET_TIMERSLACK takes no pointers and only reads the calling thread's
+        // slack, which it returns (the further arguments are ignored).
+        let ns = unsafe { libc::prctl(libc::PR_GET_TIMERSLACK, 0, 0, 0, 0) };
+        libc::c_ulong::try_from(ns).ok().filter(|&ns| ns > 0)
+    }
+
+    /// Sets the calling thread's timer slack; whether the kernel took it.
+    pub(super) fn set(ns: libc::c_ulong) -> bool {
+        // SAFETY: PR_SET_TIMERSLACK takes no pointers and only changes the calling thread's
+        // slack (ignored for real-time threads, which have none).
+        unsafe { libc::prctl(libc::PR_SET_TIMERSLACK, ns, 0, 0, 0) == 0 }
+    }
+
+    /// Holds the calling thread's slack at [`FINE_NS`] until dropped, then puts back what it
+    /// was. Not `Send`: it must be dropped on the thread that made it.
+    pub(super) struct Fine {
+        previous: libc::c_ulong,
+        _same_thread: std::marker::PhantomData<*const ()>,
+    }
+
+    impl Fine {
+        /// Lowers the slack; None (nothing to put back) if it is already fine or cannot be
+        /// read or changed.
+        pub(super) fn lower() -> Option<Fine> {
+            let previous = get()?;
+            if previous <= FINE_NS || !set(FINE_NS) {
+                return None;
+            }
+            Some(Fine {
+                previous,
+                _same_thread: std::marker::PhantomData,
+            })
         }
     }
+
+    impl Drop for Fine {
+        fn drop(&mut self) {
+            set(self.previous);
+        }
+    }
+}
+
+/// The absolute deadlines of a polling loop: deadline `n` is `start + n * interval`, so time
+/// spent between samples never accumulates as drift. A sample taken late (by the caller or a
+/// slow reply) skips the deadlines already past rather than firing them in a burst, and
+/// counts them in [`Schedule::missed`]. With a duration the deadlines end before the first
+/// one at or after `start + duration`, counted in ticks as Python's `benchbus._clock.ticks`
+/// counts them: tick `n` is the end if `n * interval >= duration - epsilon`, with `epsilon`
+/// 1 ns per second of duration (at least 1 ns), so 0.9 s at 0.3 s is 3 ticks, not 4.
+///
+/// Pure bookkeeping: it is given `now` and never reads a clock or sleeps.
+#[derive(Debug, Clone)]
+pub struct Schedule {
+    start: Instant,
+    interval: Duration,
+    /// The first tick at or after the duration; None: no end.
+    end: Option<u64>,
+    /// The next tick not yet given out or skipped.
+    next: u64,
+    missed: u64,
+}
+
+impl Schedule {
+    /// Deadlines every `interval` from `start` (the first one is `start` itself), for
+    /// `duration` or (None) for ever. An interval under 1 ns is taken as 1 ns.
+    pub fn new(start: Instant, interval: Duration, duration: Option<Duration>) -> Schedule {
+        let interval = interval.max(Duration::from_nanos(1));
+        Schedule {
+            start,
+            interval,
+            end: duration.and_then(|d| end_tick(interval, d)),
+            next: 0,
+            missed: 0,
+        }
+    }
+
+    /// The next deadline as `(n, start + n * interval)`, given that it is now `now`; None
+    /// once the duration is over.
+    ///
+    /// If `now` is past deadline `n` and also past deadline `n + 1`, the deadlines up to the
+    /// latest one not after `now` are skipped and counted as missed: that one is returned (a
+    /// little late), never a burst of old ones. A deadline still ahead is returned as is:
+    /// the caller sleeps until it.
+    pub fn next(&mut self, now: Instant) -> Option<(u64, Instant)> {
+        let mut n = self.next;
+        if self.end.is_some_and(|end| n >= end) {
+            return None;
+        }
+        let mut deadline = self.deadline(n)?;
+        if now > deadline {
+            let late = (now - deadline).as_nanos() / self.interval.as_nanos();
+            let behind = u64::try_from(late).unwrap_or(u64::MAX);
+            let to = n.saturating_add(behind);
+            if let Some(end) = self.end.filter(|&end| to >= end) {
+                self.missed = self.missed.saturating_add(end - n);
+                self.next = end;
+                return None;
+            }
+            deadline = self.deadline(to)?;
+            self.missed = self.missed.saturating_add(behind);
+            n = to;
+        }
+        self.next = n.saturating_add(1);
+        Some((n, deadline))
+    }
+
+    /// How many deadlines were skipped because they had passed.
+    pub fn missed(&self) -> u64 {
+        self.missed
+    }
+
+    /// The first deadline.
+    pub fn start(&self) -> Instant {
+        self.start
+    }
+
+    /// The time between deadlines.
+    pub fn interval(&self) -> Duration {
+        self.interval
+    }
+
+    /// `start + n * interval`; None past what an Instant can hold (as good as never).
+    fn deadline(&self, n: u64) -> Option<Instant> {
+        let nanos = self.interval.as_nanos().checked_mul(u128::from(n))?;
+        let secs = u64::try_from(nanos / 1_000_000_000).ok()?;
+        let offset = Duration::new(secs, (nanos % 1_000_000_000) as u32);
+        self.start.checked_add(offset)
+    }
+}
+
+/// The first tick `n` with `n * interval >= duration - epsilon` (see [`Schedule`]); None if
+/// there are too many ticks to count exactly (more than 2^53: no end in practice).
+fn end_tick(interval: Duration, duration: Duration) -> Option<u64> {
+    let (i, d) = (interval.as_secs_f64(), duration.as_secs_f64());
+    let past = |n: u64| n as f64 * i >= d - 1e-9 * d.max(1.0);
+    let guess = (d / i).ceil();
+    if !(0.0..9.0e15).contains(&guess) {
+        return None;
+    }
+    // The float guess is within a tick or two of the answer: walk to it.
+    let mut n = guess as u64;
+    while n > 0 && past(n - 1) {
+        n -= 1;
+    }
+    while !past(n) {
+        n += 1;
+    }
+    Some(n)
+}
+
+/// The monotonic clock now, read twice at the same moment: as an [`Instant`] and as
+/// `CLOCK_MONOTONIC` seconds, the clock Python's `time.monotonic()` reads on Linux (Rust's
+/// `Instant` reads it too). None if the clock cannot be read.
+#[cfg(target_os = "linux")]
+pub fn monotonic_now() -> Option<(Instant, f64)> {
+    let mut ts = std::mem::MaybeUninit::<libc::timespec>::uninit();
+    let instant = Instant::now();
+    // SAFETY: the pointer is to a writable timespec that outlives the call; it is read only
+    // after clock_gettime succeeded, which then has written all of it.
+    let ts = unsafe {
+        if libc::clock_gettime(libc::CLOCK_MONOTONIC, ts.as_mut_ptr()) != 0 {
+            return None;
+        }
+        ts.assume_init()
+    };
+    Some((instant, ts.tv_sec as f64 + ts.tv_nsec as f64 * 1e-9))
 }
 
 #[cfg(test)]
@@ -206,6 +404,154 @@ mod tests {
         g.busy_until(Instant::now()); // an earlier instant never shortens the wait
         g.wait(Duration::from_millis(2));
         assert!(Instant::now() >= end + Duration::from_millis(2));
+    }
+
+    #[test]
+    fn sleep_until_is_never_early() {
+        for us in [0, 50, 300, 1750, 3000] {
+            let deadline = Instant::now() + Duration::from_micros(us);
+            sleep_until(deadline);
+            assert!(Instant::now() >= deadline, "woke early for {us} us");
+        }
+        let past = Instant::now();
+        sleep_until(past); // already due: returns at once
+        assert!(Instant::now() >= past);
+    }
+
+    #[cfg(target_os = "linux")]
+    fn thread_slack() -> libc::c_int {
+        // SAFETY: PR_GET_TIMERSLACK takes no pointers and only reads this thread's slack.
+        unsafe { libc::prctl(libc::PR_GET_TIMERSLACK, 0, 0, 0, 0) }
+    }
+
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn sleep_until_puts_the_thread_slack_back() {
+        let before = thread_slack();
+        assert!(before > 0);
+        sleep_until(Instant::now() + Duration::from_millis(1));
+        assert_eq!(thread_slack(), before);
+        // A slack of the thread's own (not the default) is put back too.
+        assert!(slack::set(123_457));
+        sleep_until(Instant::now() + Duration::from_millis(1));
+        assert_eq!(thread_slack(), 123_457);
+        // While a sleep runs the slack is fine; dropping the guard restores it.
+        {
+            let _fine = slack::Fine::lower();
+            assert_eq!(thread_slack(), 1);
+        }
+        assert_eq!(thread_slack(), 123_457);
+        assert!(slack::set(before as libc::c_ulong));
+        assert_eq!(thread_slack(), before);
+    }
+
+    fn ms(n: u64) -> Duration {
+        Duration::from_millis(n)
+    }
+
+    #[test]
+    fn schedule_on_time_gives_every_deadline() {
+        let start = Instant::now();
+        let mut s = Schedule::new(start, ms(50), None);
+        assert_eq!(s.next(start), Some((0, start)));
+        // The caller asks a little after each sample: the next deadline is still ahead.
+        for n in 1..=1000u64 {
+            let now = start + ms(50) * (n as u32 - 1) + ms(3);
+            assert_eq!(s.next(now), Some((n, start + ms(50) * n as u32)));
+        }
+        assert_eq!(s.missed(), 0);
+        assert_eq!((s.start(), s.interval()), (start, ms(50)));
+    }
+
+    #[test]
+    fn schedule_skips_past_deadlines_without_a_burst() {
+        let start = Instant::now();
+        let mut s = Schedule::new(start, ms(100), None);
+        assert_eq!(s.next(start), Some((0, start)));
+        // The body took 2.5 intervals: deadlines 1 and 2 have passed; 1 is skipped, 2 is
+        // taken late, and the next one is 3 on the original grid.
+        assert_eq!(s.next(start + ms(250)), Some((2, start + ms(200))));
+        assert_eq!(s.missed(), 1);
+        assert_eq!(s.next(start + ms(260)), Some((3, start + ms(300))));
+        // Exactly at a deadline is on time.
+        assert_eq!(s.next(start + ms(400)), Some((4, start + ms(400))));
+        // Late by less than one interval: taken late, nothing missed.
+        assert_eq!(s.next(start + ms(590)), Some((5, start + ms(500))));
+        assert_eq!(s.missed(), 1);
+        // A long stall: 1 h at 100 ms skips 35 994 deadlines at once.
+        let hour = Duration::from_secs(3600);
+        assert_eq!(s.next(start + hour + ms(1)), Some((36_000, start + hour)));
+        assert_eq!(s.missed(), 1 + 35_994);
+    }
+
+    #[test]
+    fn schedule_counts_ticks_of_a_duration() {
+        let count = |interval: f64, duration: f64| {
+            let start = Instant::now();
+            let mut s = Schedule::new(
+                start,
+                Duration::from_secs_f64(interval),
+                Some(Duration::from_secs_f64(duration)),
+            );
+            let mut ticks = Vec::new();
+            while let Some((n, at)) = s.next(start) {
+                assert_eq!(at, start + s.interval() * n as u32);
+                ticks.push(n);
+            }
+            assert_eq!(s.next(start + Duration::from_secs(10)), None); // stays over
+            assert_eq!(s.missed(), 0);
+            assert_eq!(ticks, (0..ticks.len() as u64).collect::<Vec<_>>());
+            ticks.len()
+        };
+        assert_eq!(count(0.05, 0.3), 6);
+        assert_eq!(count(0.3, 0.9), 3); // 0.9 / 0.3 is 3.0000000000000004 in floats
+        assert_eq!(count(0.1, 1.0), 10);
+        assert_eq!(count(0.1, 0.7), 7);
+        assert_eq!(count(1.0 / 3.0, 1.0), 3);
+        assert_eq!(count(0.05, 0.31), 7);
+        assert_eq!(count(0.05, 0.0), 0);
+        assert_eq!(count(0.05, 0.001), 1);
+        assert_eq!(count(3600.0, 0.5), 1);
+    }
+
+    #[test]
+    fn schedule_overrun_past_the_end_counts_what_was_missed() {
+        let start = Instant::now();
+        let mut s = Schedule::new(start, ms(50), Some(ms(300)));
+        assert_eq!(s.next(start), Some((0, start)));
+        assert_eq!(s.next(start + ms(120)), Some((2, start + ms(100))));
+        assert_eq!(s.missed(), 1);
+        // Deadlines 3, 4 and 5 pass while the caller is away; 6 is the end.
+        assert_eq!(s.next(start + Duration::from_secs(5)), None);
+        assert_eq!(s.missed(), 4);
+        assert_eq!(s.next(start + Duration::from_secs(6)), None);
+        assert_eq!(s.missed(), 4);
+    }
+
+    #[test]
+    fn schedule_edge_intervals() {
+        let start = Instant::now();
+        // A zero interval is taken as 1 ns rather than dividing by zero.
+        let mut s = Schedule::new(start, Duration::ZERO, None);
+        assert_eq!(s.next(start), Some((0, start)));
+        assert_eq!(
+            s.next(start + Duration::from_nanos(10)),
+            Some((10, start + Duration::from_nanos(10)))
+        );
+        assert_eq!(s.missed(), 9);
+        // A duration of more ticks than a float counts exactly has no end in practice.
+        let s = Schedule::new(
+            start,
+            Duration::from_nanos(1),
+            Some(Duration::from_secs(1 << 40)),
+        );
+        assert_eq!(s.end, None);
+        // A deadline past what an Instant holds ends the schedule instead of overflowing.
+        let mut s = Schedule::new(start, Duration::from_secs(u64::MAX / 4), None);
+        assert_eq!(s.next(start), Some((0, start)));
+        let _ = s.next(start); // deadline 1 may or may not fit in an Instant
+        assert_eq!(s.next(start), None);
+        assert_eq!(s.next(start), None);
     }
 
     #[test]

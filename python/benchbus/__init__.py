@@ -22,7 +22,7 @@ Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 
 from __future__ import annotations
 
-from benchbus._core import Bus, Stats, __version__, crc16, refresh_logging
+from benchbus._core import Bus, Poll, Stats, __version__, crc16, refresh_logging
 from benchbus._drive import (
     C20ControlMode,
     CommandSource,
@@ -90,6 +90,7 @@ __all__ = [
     "PblStatus",
     "PblTelemetry",
     "Pid",
+    "Poll",
     "PortError",
     "Recording",
     "ResponseTimeout",

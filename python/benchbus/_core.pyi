@@ -13,6 +13,7 @@ __all__ = [
     "InstrumentCore",
     "J2Core",
     "PblCore",
+    "Poll",
     "Stats",
     "__version__",
     "crc16",
@@ -108,6 +109,37 @@ class Bus:
     ) -> list[int]:
         """The units (default the standard 1..247) that answer a read of ``address`` within
         ``timeout``."""
+    def poll(
+        self,
+        unit: int,
+        address: int,
+        count: int = 1,
+        *,
+        interval: float,
+        duration: float | None = None,
+    ) -> Poll:
+        """Read ``count`` (1..125) holding registers from ``address`` every ``interval``
+        seconds (0 < interval <= 3600), for ``duration`` seconds or, with None, for ever::
+
+            for t, (speed,) in bus.poll(1, 0x3006, interval=0.05, duration=10):
+                print(f"{t:6.2f} s  {speed} rpm")
+            # t is 0.0, 0.05, 0.1, ... on the poll's own clock
+
+        The iterator yields ``(t, values)``: ``t`` is the sample's deadline in seconds from
+        the start (``n * interval``), ``values`` what :meth:`read_holding_registers` returns.
+        Deadlines are absolute (``start + n * interval`` on the monotonic clock), so time
+        spent in the loop body does not accumulate as drift; a deadline already past when
+        the next sample is asked for is skipped (counted in :attr:`Poll.missed`), not fired
+        late in a burst. The poll starts at the first ``next()``, whose sample is due at
+        once; with ``duration`` it stops before the first deadline at or after
+        ``start + duration`` (``duration=0.3, interval=0.05`` gives 6 samples).
+
+        Arguments are checked here, before anything is sent (ValueError / TypeError), and a
+        closed bus raises PortError here. Each ``next()`` releases the GIL while it waits
+        and reads; Ctrl-C interrupts a long wait within 100 ms. A failed read raises the
+        usual exception (ResponseTimeout, ModbusException, ...) from ``next()``; the poll can
+        be resumed with the following deadline.
+        """
     @property
     def stats(self) -> Stats:
         """Counters of what happened on this bus."""
@@ -152,6 +184,34 @@ class Bus:
     @property
     def t3_5(self) -> float:
         """The silence between frames (t3.5), in seconds."""
+
+@final
+class Poll:
+    """Reads of holding registers on absolute deadlines; made by :meth:`Bus.poll`.
+
+    An iterator of ``(t, values)``: deadline ``n`` is ``start + n * interval`` on the
+    monotonic clock, ``t`` is ``n * interval`` in seconds. The latency of a sample, as the
+    caller sees it, is ``time.monotonic() - (poll.started + t)``.
+    """
+
+    def __iter__(self) -> Self:
+        """Return the poll itself."""
+    def __next__(self) -> tuple[float, list[int]]:
+        """Sleep until the next deadline not yet past, read, and return ``(t, values)``.
+
+        Raises StopIteration once the duration is over, and the usual benchbus exceptions
+        if the read fails.
+        """
+    @property
+    def missed(self) -> int:
+        """Deadlines skipped because they had passed when the next sample was asked for."""
+    @property
+    def started(self) -> float | None:
+        """``time.monotonic()`` at the poll's start (the first ``next()``); None before it.
+
+        Python's ``time.monotonic()`` and the poll's deadlines read the same clock
+        (CLOCK_MONOTONIC on Linux), so ``started + t`` is sample ``t``'s deadline on it.
+        """
 
 @final
 class DriveCore:

@@ -7,6 +7,7 @@ mod drive;
 mod instrument;
 mod j2;
 mod pbl;
+mod poll;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
@@ -133,6 +134,16 @@ fn u16_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<u16> {
     int_in(obj, name, 0, 0xFFFF).map(|v| v as u16)
 }
 
+/// ValueError if `count` registers from `address` run past address 0xFFFF.
+fn within_map(address: u16, count: usize) -> PyResult<()> {
+    if usize::from(address) + count > 0x1_0000 {
+        return Err(PyValueError::new_err(format!(
+            "registers {address:#06x}+{count} run past address 0xFFFF"
+        )));
+    }
+    Ok(())
+}
+
 /// A unit address a request may go to: 1..=255.
 fn unit_arg(obj: &Bound<'_, PyAny>) -> PyResult<u8> {
     u8_in(obj, "unit", *UNITS.start(), *UNITS.end())
@@ -143,7 +154,9 @@ fn standard_unit_arg(obj: &Bound<'_, PyAny>) -> PyResult<u8> {
     u8_in(obj, "unit", *STANDARD_UNITS.start(), *STANDARD_UNITS.end())
 }
 
-fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Duration> {
+/// A number of seconds (int or float, not bool) as given: TypeError for anything else. An
+/// int too big for a float is infinite, so out of any range.
+fn seconds_value(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
     if obj.is_instance_of::<PyBool>()
         || !(obj.is_instance_of::<PyInt>() || obj.is_instance_of::<PyFloat>())
     {
@@ -152,8 +165,11 @@ fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Dur
             obj.get_type().name()?
         )));
     }
-    // An int too big for a float is simply out of range.
-    let value: f64 = obj.extract().unwrap_or(f64::INFINITY);
+    Ok(obj.extract().unwrap_or(f64::INFINITY))
+}
+
+fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Duration> {
+    let value = seconds_value(obj, name)?;
     let ok = value.is_finite() && (value > 0.0 || (allow_zero && value == 0.0)) && value <= 3600.0;
     if !ok || obj.is_instance_of::<PyString>() {
         let range = if allow_zero {
@@ -363,11 +379,7 @@ impl PyBus {
         let unit = unit_arg(unit)?;
         let address = u16_arg(address, "address")?;
         let count = int_in(count, "count", 1, MAX_READ_COUNT.into())? as u16;
-        if usize::from(address) + usize::from(count) > 0x1_0000 {
-            return Err(PyValueError::new_err(format!(
-                "registers {address:#06x}+{count} run past address 0xFFFF"
-            )));
-        }
+        within_map(address, count.into())?;
         self.wire(py, |b| {
             b.read_holding_registers(unit, address, count, &TxOptions::default())
         })
@@ -408,12 +420,7 @@ impl PyBus {
         let unit = unit_arg(unit)?;
         let address = u16_arg(address, "address")?;
         let values = register_values(values)?;
-        if usize::from(address) + values.len() > 0x1_0000 {
-            return Err(PyValueError::new_err(format!(
-                "registers {address:#06x}+{} run past address 0xFFFF",
-                values.len()
-            )));
-        }
+        within_map(address, values.len())?;
         self.wire(py, |b| {
             b.write_registers(unit, address, &values, &TxOptions::default())
         })
@@ -491,6 +498,24 @@ impl PyBus {
             py.check_signals()?;
         }
         Ok(found)
+    }
+
+    /// Reads `count` holding registers every `interval` seconds on absolute deadlines,
+    /// for `duration` seconds or (None) for ever: an iterator of `(t, values)`.
+    #[pyo3(
+        signature = (unit, address, count=None, *, interval, duration=None),
+        text_signature = "($self, unit, address, count=1, *, interval, duration=None)"
+    )]
+    fn poll(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        count: Option<&Bound<'_, PyAny>>,
+        interval: &Bound<'_, PyAny>,
+        duration: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<poll::PyPoll> {
+        poll::PyPoll::new(py, &self.bus, unit, address, count, interval, duration)
     }
 
     /// Counters of what happened on this bus.
@@ -620,6 +645,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<instrument::PyInstrumentCore>()?;
     m.add_class::<j2::PyJ2Core>()?;
     m.add_class::<pbl::PyPblCore>()?;
+    m.add_class::<poll::PyPoll>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
