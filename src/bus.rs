@@ -311,11 +311,26 @@ impl Bus {
     /// Whether `unit` answers a read of one register at `address` within `timeout` (an
     /// exception reply counts as an answer). One attempt, no retries.
     ///
+    /// Unlike a read's timeout, `timeout` here is the whole window a unit gets, counted from
+    /// the start of the request: on a serial line the request's own wire time (and the
+    /// first reply character's) is taken out of it, so a scan of n absent units takes n x
+    /// `timeout`. The device is always left at least t3.5 after the request to start its
+    /// answer.
+    ///
     /// # Errors
     /// [`Error::Port`] or [`Error::Closed`]; timeouts and corrupt frames mean "absent".
     pub fn probe(&self, unit: u8, address: u16, timeout: Duration) -> Result<bool> {
+        let line = &self.config.line;
+        let request = Request::ReadHoldingRegisters { address, count: 1 };
+        let serial = self.lock().transport.as_ref().map(|t| t.is_serial_line());
+        let allowance = if serial == Some(true) {
+            let on_wire = line.frame_time(encode_request(unit, &request).len()) + line.char_time();
+            timeout.saturating_sub(on_wire).max(line.t3_5())
+        } else {
+            timeout
+        };
         let opts = TxOptions {
-            timeout: Some(timeout),
+            timeout: Some(allowance),
             retries: Some(0),
             ..TxOptions::default()
         };
@@ -434,18 +449,21 @@ impl Bus {
             transport, silence, ..
         } = st;
         let transport = transport.as_mut().ok_or_else(|| self.closed())?;
-        // The timeout is the device's allowance to answer; the reply's own time on the wire
-        // (known as its length becomes known) comes on top, so a long reply at a low baud
-        // rate is not cut off.
+        // The timeout is the device's allowance to start answering: its first character must
+        // have arrived by the end of the request + timeout + one character time. The rest of
+        // the reply's time on the wire (known as its length becomes known) comes on top, so a
+        // long reply at a low baud rate is not cut off.
         let serial = transport.is_serial_line();
+        // When the last byte of the reply so far arrived: the line is quiet since then.
+        let mut last_byte = None;
         loop {
             let (want, wait) = match reply_needed(request, &buf) {
                 Needed::Complete(_) => break,
                 Needed::More(n) => {
-                    let on_wire = if serial {
-                        line.frame_time(buf.len() + n)
-                    } else {
-                        Duration::ZERO
+                    let on_wire = match (serial, buf.is_empty()) {
+                        (false, _) => Duration::ZERO,
+                        (true, true) => line.char_time(),
+                        (true, false) => line.frame_time(buf.len() + n),
                     };
                     let deadline = sent_end + timeout + on_wire;
                     (n, deadline.saturating_duration_since(Instant::now()))
@@ -468,7 +486,11 @@ impl Bus {
                 if matches!(reply_needed(request, &buf), Needed::Unknown) || want == 0 {
                     break;
                 }
-                silence.busy_until(Instant::now());
+                // Nothing came since `last_byte` (or since the request ended): the line has
+                // been quiet that long already, and the next request need not wait t3.5 more.
+                if let Some(at) = last_byte {
+                    silence.busy_until(at);
+                }
                 if !buf.is_empty() {
                     log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", hex(&buf));
                 }
@@ -481,8 +503,12 @@ impl Bus {
                 });
             }
             buf.extend_from_slice(&chunk[..n]);
+            last_byte = Some(Instant::now());
         }
-        silence.busy_until(Instant::now());
+        match (reply_needed(request, &buf), last_byte) {
+            (Needed::Complete(_), Some(at)) => silence.reply_ended(at),
+            (_, at) => silence.busy_until(at.unwrap_or_else(Instant::now)),
+        }
         log::debug!(target: "benchbus::wire", "<- {}", hex(&buf));
         match decode_reply(unit, request, &buf) {
             Ok(reply) => Ok((reply, buf)),

@@ -143,6 +143,15 @@ impl SilenceGuard {
         self.quiet_since = self.quiet_since.max(until);
     }
 
+    /// Records that a complete reply, the last traffic a transaction puts on the line, ended
+    /// at `at`. Unlike [`SilenceGuard::busy_until`] this may move the quiet time earlier: the
+    /// request's end is reckoned from its length and the baud rate, and on a line without wire
+    /// time (a pseudo-terminal) a reply can arrive before that reckoned end. On a real line
+    /// the reply always ends after the request, so both agree.
+    pub fn reply_ended(&mut self, at: Instant) {
+        self.quiet_since = at;
+    }
+
     /// The earliest instant a frame may start after `silence` of quiet line.
     pub fn ready_at(&self, silence: Duration) -> Instant {
         self.quiet_since + silence
@@ -168,7 +177,13 @@ pub fn sleep_until(deadline: Instant) {
     }
     #[cfg(target_os = "linux")]
     let _fine = slack::Fine::lower();
-    let mut now = now;
+    // A long sleep lets the CPU into a deep idle state (on a virtual machine, lets the host
+    // deschedule it), and waking from that takes tens of microseconds. So a long wait ends in
+    // a short second sleep: the CPU, just woken, idles only lightly and wakes on time.
+    if deadline - now > LAST_STAGE * 2 {
+        std::thread::sleep(deadline - LAST_STAGE - now);
+    }
+    let mut now = Instant::now();
     // `thread::sleep` resumes after a signal on its own; the loop only makes "never early"
     // hold whatever the platform's sleep does.
     while now < deadline {
@@ -176,6 +191,9 @@ pub fn sleep_until(deadline: Instant) {
         now = Instant::now();
     }
 }
+
+/// How long the last stage of a long [`sleep_until`] is.
+const LAST_STAGE: Duration = Duration::from_micros(60);
 
 /// The calling thread's timer slack (Linux): how late the kernel may wake a sleeper so that
 /// it can batch wake-ups.

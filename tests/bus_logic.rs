@@ -200,3 +200,74 @@ fn device_identification_follows_more_follows() {
         with_crc(&[2, 0x2B, 0x0E, 1, 2])
     );
 }
+
+// Wire timing at 1200 baud 8N1, where a character takes 8.33 ms: an 8-byte request 66.7 ms,
+// t3.5 29.2 ms, so each rule below moves the send times by tens of milliseconds.
+
+#[test]
+fn silence_counts_from_the_reply_even_when_it_beats_the_reckoned_request_end() {
+    // A pseudo-terminal delivers the reply at once, before the request's 66.7 ms on the wire
+    // would have passed: the next request waits t3.5 after the reply, not after that.
+    let reply = || common::words(1, &[7]);
+    let (bus, t) = common::serial_bus(vec![reply(), reply()], 1200, Duration::ZERO);
+    let line = bus.config().line;
+    for _ in 0..2 {
+        bus.read_holding_registers(1, 0, 1, &TxOptions::default())
+            .unwrap();
+    }
+    let at = common::sent_at(&t);
+    let gap = at[1] - at[0];
+    assert!(gap >= line.t3_5(), "{gap:?}");
+    assert!(gap < line.t3_5() + line.frame_time(8) / 2, "{gap:?}");
+}
+
+#[test]
+fn a_timeout_with_nothing_received_leaves_the_line_quiet_since_the_request() {
+    // Nothing came back: the line has been quiet since the request ended, far longer than
+    // t3.5, so the retry goes out as soon as the timeout has passed.
+    let (bus, t) = common::serial_bus(
+        vec![Act::Silent, common::words(1, &[7])],
+        1200,
+        Duration::ZERO,
+    );
+    let line = bus.config().line;
+    let opts = TxOptions {
+        retries: Some(1),
+        ..TxOptions::default()
+    };
+    bus.read_holding_registers(1, 0, 1, &opts).unwrap();
+    let at = common::sent_at(&t);
+    let gap = at[1] - at[0];
+    // request on the wire + timeout + the first reply character's time
+    let expected = line.frame_time(8) + Duration::from_millis(20) + line.char_time();
+    assert!(gap >= expected, "{gap:?}");
+    assert!(
+        gap < expected + line.t3_5() / 2,
+        "{gap:?} (a t3.5 wait would add 29 ms)"
+    );
+}
+
+#[test]
+fn a_probe_window_counts_from_the_start_of_the_request() {
+    // scan(timeout=0.1): each absent unit costs 100 ms in all, its request's 66.7 ms on the
+    // wire included, so a scan of n absent units takes n x timeout.
+    let (bus, t) = common::serial_bus(vec![Act::Silent, Act::Silent], 1200, Duration::ZERO);
+    let started = std::time::Instant::now();
+    assert!(!bus.probe(5, 0, Duration::from_millis(100)).unwrap());
+    assert!(!bus.probe(6, 0, Duration::from_millis(100)).unwrap());
+    let elapsed = started.elapsed();
+    assert_eq!(common::sent(&t).len(), 2);
+    assert!(elapsed >= Duration::from_millis(200), "{elapsed:?}");
+    assert!(elapsed < Duration::from_millis(240), "{elapsed:?}");
+}
+
+#[test]
+fn a_probe_leaves_the_device_at_least_t35_to_answer() {
+    // A window shorter than the request itself still gives the device t3.5 after it.
+    let (bus, _) = common::serial_bus(vec![Act::Silent], 1200, Duration::ZERO);
+    let line = bus.config().line;
+    let started = std::time::Instant::now();
+    assert!(!bus.probe(5, 0, Duration::from_millis(10)).unwrap());
+    let elapsed = started.elapsed();
+    assert!(elapsed >= line.frame_time(8) + line.t3_5(), "{elapsed:?}");
+}

@@ -108,7 +108,12 @@ class Bus:
         self, units: Iterable[int] | None = None, timeout: float = 0.05, address: int = 0
     ) -> list[int]:
         """The units (default the standard 1..247) that answer a read of ``address`` within
-        ``timeout``."""
+        ``timeout``.
+
+        ``timeout`` is each unit's whole window, counted from the start of its request (the
+        request's own time on the wire included), so n absent units take about n x
+        ``timeout``; a device always gets at least t3.5 after the request to answer.
+        """
     def poll(
         self,
         unit: int,

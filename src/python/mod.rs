@@ -465,7 +465,8 @@ impl PyBus {
     }
 
     /// The units among `units` that answer a read of register `address` within `timeout`
-    /// seconds (an exception reply counts as an answer). Ctrl-C stops the scan.
+    /// seconds (an exception reply counts as an answer), each unit's window counted from the
+    /// start of its request. Ctrl-C stops the scan.
     #[pyo3(
         signature = (units=None, timeout=None, address=None),
         text_signature = "($self, units=None, timeout=0.05, address=0)"

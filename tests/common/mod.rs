@@ -27,6 +27,8 @@ pub struct Script {
     pub since: Option<std::time::Instant>,
     /// Reply bytes already handed out since `since`.
     pub taken: usize,
+    /// When each frame was written.
+    pub sent_at: Vec<std::time::Instant>,
 }
 
 #[derive(Clone, Default)]
@@ -36,6 +38,7 @@ impl Transport for Scripted {
     fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
         let mut s = self.0.lock().unwrap();
         s.sent.push(frame.to_vec());
+        s.sent_at.push(std::time::Instant::now());
         if let Some(Act::Reply(bytes)) = s.acts.pop_front() {
             s.pending.extend(bytes);
         }
@@ -45,6 +48,12 @@ impl Transport for Scripted {
     }
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let mut s = self.0.lock().unwrap();
+        if s.pending.is_empty() {
+            // A silent device: nothing comes for the whole timeout.
+            drop(s);
+            std::thread::sleep(timeout);
+            return Ok(0);
+        }
         let mut ready = s.pending.len();
         if let (Some(byte_time), Some(since)) = (s.byte_time, s.since) {
             // Wait, within the timeout, for the next byte's wire time.
@@ -90,6 +99,26 @@ pub fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
     cfg.timeout = Duration::from_millis(5);
     cfg.turnaround = Duration::ZERO;
     (Bus::with_transport(cfg, Box::new(t.clone())), t)
+}
+
+/// A Bus on a scripted serial line at `baudrate` 8N1 whose reply bytes arrive one per
+/// `byte_time` (zero: all at once, as on a pseudo-terminal).
+pub fn serial_bus(acts: Vec<Act>, baudrate: u32, byte_time: Duration) -> (Bus, Scripted) {
+    let t = Scripted::default();
+    {
+        let mut s = t.0.lock().unwrap();
+        s.acts = acts.into();
+        s.byte_time = Some(byte_time);
+    }
+    let mut cfg = BusConfig::new("mock", LineFormat::new(baudrate, Parity::None, 1));
+    cfg.retries = 0;
+    cfg.timeout = Duration::from_millis(20);
+    (Bus::with_transport(cfg, Box::new(t.clone())), t)
+}
+
+/// When each frame was written to the scripted transport.
+pub fn sent_at(t: &Scripted) -> Vec<std::time::Instant> {
+    t.0.lock().map(|s| s.sent_at.clone()).unwrap_or_default()
 }
 
 /// Bytes from the manuals' hex notation ("01 03 00 06").
