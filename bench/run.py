@@ -1,0 +1,767 @@
+"""benchbus beside minimalmodbus and pymodbus, on a line that takes as long as a real one.
+
+    python bench/run.py            # the full run (about 3 minutes)
+    python bench/run.py --quick    # every scenario, briefly (what CI runs)
+
+Each library goes through the same scenarios against the same fake slave (bench/lineemu.py),
+each scenario repeated; the table gives the median (min..max) and the JSON every figure.
+Every value read is checked against what the fake slave holds: a wrong value stops the run.
+
+Pseudo-terminals have no parity bit, and pyserial (under minimalmodbus and pymodbus) refuses
+8E1 on one: the peers open the pty at 8N1 while benchbus is asked for 8E1. The line emulator
+times every character with the format of the scenario (11 bits for 8E1) for all of them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import ctypes
+import json
+import logging
+import os
+import platform
+import statistics
+import subprocess
+import sys
+import threading
+import time
+import tty
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+
+from lineemu import EXCEPTION_ADDRESS, crc16, value  # noqa: E402
+
+LIBRARIES = ("benchbus", "minimalmodbus", "pymodbus")
+# The emulator polls without sleeping (one core), as a UART sends without waking up; see
+# --sleeping-emulator.
+SPIN = True
+
+
+# --------------------------------------------------------------------------- the line
+
+
+@dataclass(frozen=True)
+class LineSpec:
+    """A line format as the emulator times it."""
+
+    baud: int
+    parity: str  # "N" or "E"
+
+    @property
+    def bits(self) -> int:
+        """Bits on the wire per character."""
+        return 10 if self.parity == "N" else 11
+
+    @property
+    def char_time(self) -> float:
+        """Seconds per character."""
+        return self.bits / self.baud
+
+    @property
+    def t35(self) -> float:
+        """The mandated silence between frames."""
+        return 3.5 * self.char_time if self.baud <= 19200 else 0.00175
+
+    def limit(self, request: int = 8, reply: int = 7) -> float:
+        """Transactions per second the wire allows with one t3.5 gap each."""
+        return 1.0 / ((request + reply) * self.char_time + self.t35)
+
+    def __str__(self) -> str:
+        return f"{self.baud} 8{self.parity}1"
+
+
+class Emulator:
+    """The line emulator and fake slave in a child process."""
+
+    def __init__(
+        self, line: LineSpec, *, lines: int = 1, units: tuple[int, ...] = (1,), plain: bool = False
+    ) -> None:
+        argv = [sys.executable, str(HERE / "lineemu.py"), "--baud", str(line.baud)]
+        argv += ["--bits", str(line.bits), "--lines", str(lines)]
+        argv += ["--units", ",".join(map(str, units))] + (["--plain"] if plain else [])
+        argv += ["--spin"] if SPIN else []
+        self.proc = subprocess.Popen(argv, stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+        assert self.proc.stdout is not None
+        self.ports: list[str] = json.loads(self.proc.stdout.readline())["ports"]
+
+    def stats(self) -> list[dict[str, Any]]:
+        """What the emulator measured per line since the last call."""
+        assert self.proc.stdin is not None and self.proc.stdout is not None
+        self.proc.stdin.write("stats\n")
+        self.proc.stdin.flush()
+        result: list[dict[str, Any]] = json.loads(self.proc.stdout.readline())
+        return result
+
+    def __enter__(self) -> Emulator:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        with contextlib.suppress(OSError):
+            assert self.proc.stdin is not None
+            self.proc.stdin.write("quit\n")
+            self.proc.stdin.close()
+        try:
+            self.proc.wait(timeout=5)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait()
+
+
+# --------------------------------------------------------------------------- the libraries
+
+
+class Client:
+    """One library on one port: the few calls the scenarios need."""
+
+    name = ""
+
+    def read(self, unit: int, address: int, count: int = 1) -> list[int]:
+        """Read holding registers; raise on any failure."""
+        raise NotImplementedError
+
+    def scan(self, units: range, timeout: float) -> list[int]:
+        """The units that answer a read of register 0 within ``timeout``."""
+        found = []
+        for unit in units:
+            try:
+                self.read(unit, 0)
+            except Exception:  # each library has its own "no answer"
+                continue
+            found.append(unit)
+        return found
+
+    def poll(
+        self, unit: int, address: int, interval: float, duration: float
+    ) -> tuple[list[float], int]:
+        """Read at ``interval`` for ``duration`` on absolute deadlines, the way a user of this
+        library would write it; return each sample's latency (from its deadline to the value in
+        hand) and the number of deadlines missed."""
+        latencies, missed, n = [], 0, 0
+        start = time.monotonic()
+        while n * interval < duration - 1e-9:
+            deadline = start + n * interval
+            now = time.monotonic()
+            if now < deadline:
+                time.sleep(deadline - now)
+            elif now - deadline >= interval:
+                behind = int((now - deadline) // interval)
+                missed += behind
+                n += behind
+                continue
+            check(self.read(unit, address), unit, address)
+            latencies.append(time.monotonic() - deadline)
+            n += 1
+        return latencies, missed
+
+    def close(self) -> None:
+        """Release the port."""
+
+
+class Benchbus(Client):
+    """benchbus: a Bus, no retries (as the peers are set up)."""
+
+    name = "benchbus"
+
+    def __init__(self, port: str, line: LineSpec, timeout: float) -> None:
+        import benchbus as bb
+
+        self.bb = bb
+        self.bus = bb.Bus(port, line.baud, line.parity, timeout=timeout, retries=0)
+
+    def read(self, unit: int, address: int, count: int = 1) -> list[int]:
+        return self.bus.read_holding_registers(unit, address, count)
+
+    def scan(self, units: range, timeout: float) -> list[int]:
+        return self.bus.scan(units, timeout=timeout)
+
+    def poll(
+        self, unit: int, address: int, interval: float, duration: float
+    ) -> tuple[list[float], int]:
+        latencies = []
+        poll = self.bus.poll(unit, address, 1, interval=interval, duration=duration)
+        for t, values in poll:
+            check(values, unit, address)
+            latencies.append(time.monotonic() - (poll.started + t))
+        return latencies, poll.missed
+
+    def telemetry(self) -> None:
+        """A Drive's whole telemetry snapshot (0x3000..0x3014, 21 registers)."""
+        drive = self.bb.Drive(self.bus, unit=1)
+        drive.telemetry()
+
+    def close(self) -> None:
+        self.bus.close()
+
+
+class Minimalmodbus(Client):
+    """minimalmodbus: one Instrument whose address is switched per call."""
+
+    name = "minimalmodbus"
+
+    def __init__(self, port: str, line: LineSpec, timeout: float) -> None:
+        import minimalmodbus
+
+        minimalmodbus.CLOSE_PORT_AFTER_EACH_CALL = False
+        self.instrument = minimalmodbus.Instrument(port, 1)
+        self.instrument.serial.baudrate = line.baud
+        self.instrument.serial.parity = "N"  # a pty refuses E under pyserial
+        self.instrument.serial.timeout = timeout
+
+    def read(self, unit: int, address: int, count: int = 1) -> list[int]:
+        self.instrument.address = unit
+        return list(self.instrument.read_registers(address, count))
+
+    def close(self) -> None:
+        self.instrument.serial.close()
+
+
+class Pymodbus(Client):
+    """pymodbus: the synchronous serial client, no retries."""
+
+    name = "pymodbus"
+
+    def __init__(self, port: str, line: LineSpec, timeout: float) -> None:
+        from pymodbus.client import ModbusSerialClient
+
+        self.client = ModbusSerialClient(
+            port, baudrate=line.baud, parity="N", timeout=timeout, retries=0
+        )
+        if not self.client.connect():
+            raise OSError(f"pymodbus cannot open {port}")
+
+    def read(self, unit: int, address: int, count: int = 1) -> list[int]:
+        reply = self.client.read_holding_registers(address, count=count, device_id=unit)
+        if reply.isError():
+            raise RuntimeError(f"pymodbus: {reply}")
+        return list(reply.registers)
+
+    def close(self) -> None:
+        self.client.close()
+
+
+class Floor(Client):
+    """The least any master can do on this machine: write the frame, block in read() for the
+    reply, keep t3.5 from its last byte with a fine-slack two-stage sleep. No checks, no
+    retries, no library. Its time per call is what the pseudo-terminals and the CPU's
+    wake-ups cost every master; a library's own cost is what it takes beyond that."""
+
+    name = "floor"
+
+    def __init__(self, port: str, line: LineSpec, timeout: float) -> None:
+        self.fd = os.open(port, os.O_RDWR | os.O_NOCTTY)
+        tty.setraw(self.fd)
+        self.t35 = line.t35
+        self.quiet = 0.0
+        self.libc = ctypes.CDLL(None)
+
+    def read(self, unit: int, address: int, count: int = 1) -> list[int]:
+        pdu = bytes((unit, 3)) + address.to_bytes(2, "big") + count.to_bytes(2, "big")
+        ready = self.quiet + self.t35
+        if ready > time.monotonic():
+            slack = self.libc.prctl(30, 0, 0, 0, 0)  # PR_GET_TIMERSLACK
+            self.libc.prctl(29, 1, 0, 0, 0)  # PR_SET_TIMERSLACK: 1 ns
+            for stage in (60e-6, 0.0):
+                if (wait := ready - stage - time.monotonic()) > 0:
+                    time.sleep(wait)
+            self.libc.prctl(29, slack, 0, 0, 0)
+        os.write(self.fd, pdu + crc16(pdu))
+        need, buf = 5 + 2 * count, b""
+        while len(buf) < need:
+            buf += os.read(self.fd, need - len(buf))
+        self.quiet = time.monotonic()
+        return [int.from_bytes(buf[3 + 2 * i : 5 + 2 * i], "big") for i in range(count)]
+
+    def close(self) -> None:
+        os.close(self.fd)
+
+
+CLIENTS: dict[str, type[Client]] = {
+    "floor": Floor,
+    "benchbus": Benchbus,
+    "minimalmodbus": Minimalmodbus,
+    "pymodbus": Pymodbus,
+}
+
+
+def check(values: list[int], unit: int, address: int) -> None:
+    """Stop the run if a library returned a value the slave does not hold."""
+    expected = [value(unit, address + i) for i in range(len(values))]
+    if values != expected:
+        raise SystemExit(f"wrong value read: {values} at {address:#06x}, expected {expected}")
+
+
+@contextlib.contextmanager
+def connected(
+    name: str, line: LineSpec, timeout: float = 0.1, **emulator: Any
+) -> Iterator[tuple[Client, Emulator]]:
+    """A fresh emulator and the library ``name`` on its first port."""
+    with Emulator(line, **emulator) as emu:
+        client = CLIENTS[name](emu.ports[0], line, timeout)
+        try:
+            yield client, emu
+        finally:
+            client.close()
+
+
+# --------------------------------------------------------------------------- figures
+
+
+@dataclass
+class Figure:
+    """One measured quantity of one library in one scenario, over the repeats."""
+
+    scenario: str
+    library: str
+    metric: str
+    unit: str
+    samples: list[float] = field(default_factory=list)
+
+    def summary(self) -> dict[str, Any]:
+        """min / median / max and the raw repeats."""
+        s = self.samples
+        return {
+            "scenario": self.scenario,
+            "library": self.library,
+            "metric": self.metric,
+            "unit": self.unit,
+            "min": min(s) if s else None,
+            "median": statistics.median(s) if s else None,
+            "max": max(s) if s else None,
+            "repeats": s,
+        }
+
+
+class Results:
+    """Every figure of the run, by (scenario, metric, library)."""
+
+    def __init__(self) -> None:
+        self.figures: dict[tuple[str, str, str], Figure] = {}
+        self.order: list[tuple[str, str, str]] = []  # (scenario, metric, unit)
+
+    def add(self, scenario: str, library: str, metric: str, unit: str, x: float) -> None:
+        """Record one repeat's value."""
+        key = (scenario, metric, library)
+        if key not in self.figures:
+            self.figures[key] = Figure(scenario, library, metric, unit)
+            if (scenario, metric, unit) not in self.order:
+                self.order.append((scenario, metric, unit))
+        self.figures[key].samples.append(x)
+
+    def median(self, scenario: str, metric: str, library: str) -> float:
+        """The median of a figure (NaN if it was not measured)."""
+        fig = self.figures.get((scenario, metric, library))
+        return statistics.median(fig.samples) if fig and fig.samples else float("nan")
+
+
+def median(xs: list[float]) -> float:
+    """The median, NaN for nothing."""
+    return statistics.median(xs) if xs else float("nan")
+
+
+def percentile(xs: list[float], q: float) -> float:
+    """The q-th percentile (nearest rank)."""
+    if not xs:
+        return float("nan")
+    s = sorted(xs)
+    return s[min(len(s) - 1, max(0, round(q / 100 * len(s) + 0.5) - 1))]
+
+
+# --------------------------------------------------------------------------- scenarios
+
+
+@dataclass(frozen=True)
+class Plan:
+    """How long and how often each scenario runs."""
+
+    repeats: int
+    seconds: float  # per throughput repeat
+    exception_calls: int
+    scan_units: range
+    scan_timeout: float
+    poll_seconds: float
+    poll_repeats: int
+    telemetry_rounds: int
+
+
+FULL = Plan(5, 2.0, 10, range(1, 248), 0.05, 5.0, 3, 10)
+QUICK = Plan(2, 0.3, 2, range(1, 11), 0.02, 1.0, 1, 2)
+
+N81_19200 = LineSpec(19200, "N")
+E81_115200 = LineSpec(115200, "E")
+
+
+def back_to_back(client: Client, seconds: float) -> tuple[int, float, float]:
+    """Read register 5 of unit 1 as fast as the library can for ``seconds``:
+    (calls, wall seconds, CPU seconds of this process)."""
+    n = 0
+    cpu0, t0 = time.process_time(), time.perf_counter()
+    while True:
+        check(client.read(1, 5), 1, 5)
+        n += 1
+        elapsed = time.perf_counter() - t0
+        if elapsed >= seconds:
+            return n, elapsed, time.process_time() - cpu0
+
+
+def scenario_a(res: Results, plan: Plan, name: str) -> None:
+    """(a) back-to-back single-register reads on an emulated line."""
+    for line in (N81_19200, E81_115200):
+        key = f"a: reads {line}"
+        with connected(name, line) as (client, emu):
+            back_to_back(client, 0.1)  # warm up
+            emu.stats()
+            for _ in range(plan.repeats):
+                n, wall, _ = back_to_back(client, plan.seconds)
+                st = emu.stats()[0]
+                rate = n / wall
+                res.add(key, name, "tx/s", "1/s", rate)
+                res.add(key, name, "ratio to wire limit", "", rate / line.limit())
+                res.add(key, name, "gap beyond t3.5", "us", (median(st["gaps"]) - line.t35) * 1e6)
+                res.add(key, name, "slave turnaround", "us", median(st["turnarounds"]) * 1e6)
+                res.add(key, name, "emulator lateness", "us", median(st["late"]) * 1e6)
+
+
+def scenario_b(res: Results, plan: Plan, name: str) -> None:
+    """(b) the same on a plain pty: what each call costs in software."""
+    line = E81_115200
+    key = "b: plain pty"
+    with (
+        connected(name, line, plain=True) as (client, _),
+        connected("floor", line, plain=True) as (floor, _),
+    ):
+        back_to_back(client, 0.1)
+        back_to_back(floor, 0.1)
+        for _ in range(plan.repeats):
+            # The floor is measured right beside each repeat: the machine's noise moves both.
+            n0, wall0, _ = back_to_back(floor, plan.seconds / 2)
+            n, wall, cpu = back_to_back(client, plan.seconds)
+            per_call, least = wall / n, wall0 / n0
+            res.add(key, name, "time per call", "us", per_call * 1e6)
+            res.add(key, name, "beyond t3.5", "us", (per_call - line.t35) * 1e6)
+            res.add(key, name, "the floor's time per call", "us", least * 1e6)
+            res.add(key, name, "own cost (beyond the floor)", "us", (per_call - least) * 1e6)
+            res.add(key, name, "CPU per call", "us", cpu / n * 1e6)
+
+
+def timed(f: Callable[[], object]) -> float:
+    """Seconds one call takes (exceptions are part of the call)."""
+    t0 = time.perf_counter()
+    with contextlib.suppress(Exception):
+        f()
+    return time.perf_counter() - t0
+
+
+def scenario_c(res: Results, plan: Plan, name: str) -> None:
+    """(c) an exception reply against a normal one, at two timeouts."""
+    line = N81_19200
+    for timeout in (0.05, 0.5):
+        key = f"c: exception reply, timeout {timeout * 1000:.0f} ms"
+        with connected(name, line, timeout=timeout) as (client, _):
+            try:
+                client.read(1, EXCEPTION_ADDRESS)
+            except Exception:
+                pass
+            else:
+                raise SystemExit(f"{name} returned a value for an exception reply")
+            for _ in range(plan.repeats):
+                normal = median([timed(lambda: client.read(1, 5)) for _ in range(5)])
+                calls = plan.exception_calls if timeout < 0.1 else max(2, plan.exception_calls // 2)
+                exc = median(
+                    [timed(lambda: client.read(1, EXCEPTION_ADDRESS)) for _ in range(calls)]
+                )
+                res.add(key, name, "normal reply", "ms", normal * 1e3)
+                res.add(key, name, "exception reply", "ms", exc * 1e3)
+                res.add(key, name, "exception / normal", "", exc / normal)
+
+
+def scenario_d(res: Results, plan: Plan, name: str) -> None:
+    """(d) a scan with one unit present: overhead over (absent units) x timeout."""
+    line = N81_19200
+    units = plan.scan_units
+    present = units[len(units) // 2]
+    key = f"d: scan {units.start}..{units.stop - 1}, timeout {plan.scan_timeout * 1000:.0f} ms"
+    with connected(name, line, timeout=plan.scan_timeout, units=(present,)) as (client, _):
+        for _ in range(max(1, plan.repeats // 2)):
+            t0 = time.perf_counter()
+            found = client.scan(units, plan.scan_timeout)
+            elapsed = time.perf_counter() - t0
+            if found != [present]:
+                raise SystemExit(f"{name} scan found {found}, expected [{present}]")
+            floor = (len(units) - 1) * plan.scan_timeout
+            res.add(key, name, "scan time", "s", elapsed)
+            res.add(key, name, "overhead over absent x timeout", "%", (elapsed / floor - 1) * 100)
+
+
+def scenario_e(res: Results, plan: Plan, name: str) -> None:
+    """(e) 100 Hz polling: how steady the period is on the wire, how late each value."""
+    line = E81_115200
+    interval = 0.01
+    key = f"e: poll 100 Hz for {plan.poll_seconds:g} s, {line}"
+    with connected(name, line) as (client, emu):
+        for _ in range(plan.poll_repeats):
+            # A read, then a quiet interval: the poll starts on a settled line, as it would
+            # some time after a port was opened (right after, the first request waits t3.5).
+            check(client.read(1, 5), 1, 5)
+            time.sleep(interval)
+            emu.stats()
+            latencies, missed = client.poll(1, 5, interval, plan.poll_seconds)
+            starts = emu.stats()[0]["requests"]
+            periods = [b - a for a, b in zip(starts, starts[1:])]
+            res.add(key, name, "period std dev", "ms", statistics.pstdev(periods) * 1e3)
+            spread = percentile(periods, 99) - percentile(periods, 1)
+            res.add(key, name, "period p1..p99 spread", "ms", spread * 1e3)
+            res.add(key, name, "latency p99", "ms", percentile(latencies, 99) * 1e3)
+            res.add(key, name, "latency median", "ms", median(latencies) * 1e3)
+            res.add(key, name, "overruns", "", float(missed))
+
+
+def scenario_f(res: Results, plan: Plan, name: str) -> None:
+    """(f) a drive's telemetry (21 registers) in one request against 21 single reads."""
+    line = N81_19200
+    key = f"f: 21 registers, {line}"
+    with connected(name, line) as (client, _):
+
+        def snapshot() -> None:
+            if isinstance(client, Benchbus):
+                client.telemetry()
+            else:
+                check(client.read(1, 0x3000, 21), 1, 0x3000)
+
+        def one_by_one() -> None:
+            for a in range(0x3000, 0x3015):
+                check(client.read(1, a), 1, a)
+
+        for _ in range(plan.repeats):
+            block = median([timed_strict(snapshot) for _ in range(plan.telemetry_rounds)])
+            single = median(
+                [timed_strict(one_by_one) for _ in range(max(1, plan.telemetry_rounds // 5))]
+            )
+            res.add(key, name, "snapshot", "ms", block * 1e3)
+            res.add(key, name, "one by one", "ms", single * 1e3)
+            res.add(key, name, "speed-up", "x", single / block)
+
+
+def timed_strict(f: Callable[[], object]) -> float:
+    """Seconds one call takes; its exceptions stop the run."""
+    t0 = time.perf_counter()
+    f()
+    return time.perf_counter() - t0
+
+
+def scenario_g(res: Results, plan: Plan, name: str) -> None:
+    """(g) four lines in four threads against one line in one thread."""
+    line = N81_19200
+    key = f"g: 4 lines in 4 threads, {line}"
+    seconds = max(1.0, plan.seconds)
+    with Emulator(line, lines=4) as emu:
+        clients = [CLIENTS[name](port, line, 0.1) for port in emu.ports]
+        try:
+            for _ in range(max(1, plan.repeats // 2)):
+                one, wall, _ = back_to_back(clients[0], seconds)
+                single = one / wall
+                counts = [0] * 4
+
+                def run(i: int, counts: list[int] = counts) -> None:
+                    counts[i] = back_to_back(clients[i], seconds)[0]
+
+                threads = [threading.Thread(target=run, args=(i,)) for i in range(4)]
+                t0 = time.perf_counter()
+                for t in threads:
+                    t.start()
+                for t in threads:
+                    t.join()
+                total = sum(counts) / (time.perf_counter() - t0)
+                res.add(key, name, "1 line", "tx/s", single)
+                res.add(key, name, "4 lines", "tx/s", total)
+                res.add(key, name, "4 lines / 1 line", "x", total / single)
+        finally:
+            for c in clients:
+                c.close()
+
+
+SCENARIOS = {
+    "a": scenario_a,
+    "b": scenario_b,
+    "c": scenario_c,
+    "d": scenario_d,
+    "e": scenario_e,
+    "f": scenario_f,
+    "g": scenario_g,
+}
+
+
+# --------------------------------------------------------------------------- report
+
+
+def machine() -> dict[str, Any]:
+    """What the figures were measured on."""
+    cpu = platform.processor() or "?"
+    with contextlib.suppress(OSError), open("/proc/cpuinfo") as f:
+        for row in f:
+            if row.startswith("model name"):
+                cpu = row.split(":", 1)[1].strip()
+                break
+    versions = {"python": platform.python_version()}
+    for lib in LIBRARIES:
+        with contextlib.suppress(Exception):
+            from importlib.metadata import version
+
+            versions[lib] = version(lib)
+    return {
+        "platform": platform.platform(),
+        "cpu": cpu,
+        "cores": os.cpu_count(),
+        "load average": os.getloadavg() if hasattr(os, "getloadavg") else None,
+        "versions": versions,
+    }
+
+
+def fmt(x: float) -> str:
+    """A figure in few characters."""
+    if x != x:  # NaN
+        return "-"
+    a = abs(x)
+    if a >= 100:
+        return f"{x:.0f}"
+    if a >= 10:
+        return f"{x:.1f}"
+    if a >= 1:
+        return f"{x:.2f}"
+    return f"{x:.3f}"
+
+
+def targets(res: Results) -> list[dict[str, Any]]:
+    """benchbus's targets, each judged on the medians of this run."""
+    peers = ("minimalmodbus", "pymodbus")
+    out: list[dict[str, Any]] = []
+
+    def judge(name: str, value: float, goal: str, ok: bool) -> None:
+        out.append({"target": name, "benchbus": value, "goal": goal, "met": bool(ok)})
+
+    def m(scenario: str, metric: str, lib: str = "benchbus") -> float:
+        found = [k for k in res.figures if k[0].startswith(scenario) and k[1] == metric]
+        return res.median(found[0][0], metric, lib) if found else float("nan")
+
+    for line, floor in ((N81_19200, 0.97), (E81_115200, 0.93)):
+        scenario, ratio = f"a: reads {line}", "ratio to wire limit"
+        best_peer = max(m(scenario, ratio, p) for p in peers)
+        judge(
+            f"(a) {line}: ratio to the wire limit",
+            m(scenario, ratio),
+            f">= {floor} and > peers ({fmt(best_peer)})",
+            m(scenario, ratio) >= floor and m(scenario, ratio) > best_peer,
+        )
+        gap = m(scenario, "gap beyond t3.5")
+        judge(f"(a) {line}: gap beyond t3.5 [us]", gap, "<= 100", gap <= 100)
+    own = m("b:", "own cost (beyond the floor)")
+    fastest = min(m("b:", "own cost (beyond the floor)", p) for p in peers)
+    judge(
+        "(b) own cost per call beyond the floor [us]",
+        own,
+        f"<= 1/5 of the fastest peer's ({fmt(fastest)})",
+        own <= fastest / 5,
+    )
+    cpu = m("b:", "CPU per call")
+    least = min(m("b:", "CPU per call", p) for p in peers)
+    judge("(b) CPU per call [us]", cpu, f"lowest (peers from {fmt(least)})", cpu < least)
+    for timeout in ("50 ms", "500 ms"):
+        ratio = m(f"c: exception reply, timeout {timeout}", "exception / normal")
+        judge(f"(c) exception / normal reply, timeout {timeout}", ratio, "<= 1.05", ratio <= 1.05)
+    overhead = m("d:", "overhead over absent x timeout")
+    judge("(d) scan overhead over absent x timeout [%]", overhead, "<= 1", overhead <= 1)
+    std = m("e:", "period std dev")
+    peer_std = min(m("e:", "period std dev", p) for p in peers)
+    judge("(e) period std dev [ms]", std, f"< every peer's ({fmt(peer_std)})", std < peer_std)
+    judge("(e) overruns", m("e:", "overruns"), "0", m("e:", "overruns") == 0)
+    p99 = m("e:", "latency p99")
+    peer_p99 = min(m("e:", "latency p99", p) for p in peers)
+    judge("(e) latency p99 [ms]", p99, f"lowest (peers from {fmt(peer_p99)})", p99 < peer_p99)
+    speedup = m("g:", "4 lines / 1 line")
+    judge("(g) 4 lines / 1 line", speedup, ">= 3.5", speedup >= 3.5)
+    return out
+
+
+def table(res: Results) -> str:
+    """One row per scenario and metric; per library the median and (min..max)."""
+    head = ["scenario", "metric", *LIBRARIES]
+    rows = []
+    for scenario, metric, unit in res.order:
+        cells = []
+        for lib in LIBRARIES:
+            fig = res.figures.get((scenario, metric, lib))
+            if not fig or not fig.samples:
+                cells.append("-")
+                continue
+            s = fig.samples
+            cell = fmt(statistics.median(s))
+            if len(s) > 1:
+                cell += f" ({fmt(min(s))}..{fmt(max(s))})"
+            cells.append(cell)
+        rows.append([scenario, f"{metric} [{unit}]" if unit else metric, *cells])
+    widths = [max(len(r[i]) for r in [head, *rows]) for i in range(len(head))]
+    lines = [" | ".join(c.ljust(w) for c, w in zip(r, widths)) for r in [head, *rows]]
+    lines.insert(1, "-+-".join("-" * w for w in widths))
+    return "\n".join(lines)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the scenarios, print the table and the JSON."""
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # it logs every timeout
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="every scenario, briefly")
+    parser.add_argument("--only", default="abcdefg", help="scenarios to run, e.g. 'ae'")
+    parser.add_argument("--libraries", default=",".join(LIBRARIES))
+    parser.add_argument("--json", type=Path, help="write the JSON here (default: stdout)")
+    parser.add_argument(
+        "--sleeping-emulator",
+        action="store_true",
+        help="let the emulator sleep between bytes: its own wake-up latency then adds to every "
+        "gap and turnaround it measures",
+    )
+    args = parser.parse_args(argv)
+    global SPIN
+    SPIN = not args.sleeping_emulator
+    plan = QUICK if args.quick else FULL
+
+    libraries = [lib for lib in args.libraries.split(",") if lib]
+    res = Results()
+    started = time.time()
+    for letter in args.only:
+        for name in libraries:
+            SCENARIOS[letter](res, plan, name)
+            print(f"  {letter} {name} done", file=sys.stderr, flush=True)
+    report = {
+        "command": " ".join(["python bench/run.py", *(argv if argv is not None else sys.argv[1:])]),
+        "mode": "quick" if args.quick else "full",
+        "emulator": "spinning" if SPIN else "sleeping",
+        "machine": machine(),
+        "seconds": round(time.time() - started, 1),
+        "wire limits (tx/s, one-register reads)": {
+            str(N81_19200): N81_19200.limit(),
+            str(E81_115200): E81_115200.limit(),
+        },
+        "figures": [fig.summary() for fig in res.figures.values()],
+    }
+    print(table(res))
+    if set(args.only) >= set("abcdeg") and set(libraries) >= set(LIBRARIES):
+        report["targets"] = targets(res)
+        print()
+        for t in report["targets"]:
+            mark = "met " if t["met"] else "MISS"
+            print(f"{mark} {t['target']}: {fmt(t['benchbus'])} (goal {t['goal']})")
+    text = json.dumps(report, indent=1)
+    if args.json:
+        args.json.write_text(text + "\n")
+    else:
+        print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
