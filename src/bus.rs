@@ -24,6 +24,9 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+/// How many times stale input arriving during the t3.5 wait restarts it before a request.
+const STALE_ROUNDS: u32 = 4;
+
 /// Unit addresses a request may go to: 1..=255 (0 is broadcast). The serial line spec (2.2)
 /// reserves 248..=255, but some devices use them (J2 controllers take stations 1..=255).
 pub const UNITS: std::ops::RangeInclusive<u8> = 1..=255;
@@ -72,6 +75,10 @@ pub struct TxOptions {
     pub retries: Option<u32>,
     /// The device family's meaning of an exception code.
     pub meaning: fn(u8) -> &'static str,
+    /// Whether the timeout is the whole window from the start of the request (a scan's
+    /// probe: n silent units take n x timeout), rather than the device's allowance after
+    /// the request's end.
+    pub window_from_start: bool,
     /// Whether a write is answered. False for devices set to answer no write (a BLD drive
     /// with F08.06 = 1): the write is sent once and nothing is awaited. Reads are always
     /// answered.
@@ -86,6 +93,7 @@ impl Default for TxOptions {
             timeout: None,
             retries: None,
             meaning: exception_meaning,
+            window_from_start: false,
             write_reply: true,
         }
     }
@@ -312,25 +320,16 @@ impl Bus {
     /// exception reply counts as an answer). One attempt, no retries.
     ///
     /// Unlike a read's timeout, `timeout` here is the whole window a unit gets, counted from
-    /// the start of the request: on a serial line the request's own wire time (and the
-    /// first reply character's) is taken out of it, so a scan of n absent units takes n x
-    /// `timeout`. The device is always left at least t3.5 after the request to start its
-    /// answer.
+    /// the start of the request (its own time on the wire included), so a scan of n absent
+    /// units takes n x `timeout`. The device is always left at least t3.5 after the request
+    /// to start its answer.
     ///
     /// # Errors
     /// [`Error::Port`] or [`Error::Closed`]; timeouts and corrupt frames mean "absent".
     pub fn probe(&self, unit: u8, address: u16, timeout: Duration) -> Result<bool> {
-        let line = &self.config.line;
-        let request = Request::ReadHoldingRegisters { address, count: 1 };
-        let serial = self.lock().transport.as_ref().map(|t| t.is_serial_line());
-        let allowance = if serial == Some(true) {
-            let on_wire = line.frame_time(encode_request(unit, &request).len()) + line.char_time();
-            timeout.saturating_sub(on_wire).max(line.t3_5())
-        } else {
-            timeout
-        };
         let opts = TxOptions {
-            timeout: Some(allowance),
+            timeout: Some(timeout),
+            window_from_start: true,
             retries: Some(0),
             ..TxOptions::default()
         };
@@ -387,7 +386,7 @@ impl Bus {
                     pace(st, unit, opts.write_interval);
                 }
             }
-            let outcome = self.attempt(st, unit, request, &frame, timeout);
+            let outcome = self.attempt(st, unit, request, &frame, timeout, opts.window_from_start);
             if is_write {
                 st.wrote(unit, opts.write_interval);
             }
@@ -439,6 +438,7 @@ impl Bus {
         request: &Request,
         frame: &[u8],
         timeout: Duration,
+        window_from_start: bool,
     ) -> Result<(Reply, Vec<u8>)> {
         let sent_end = self.send(st, frame)?;
         let function = request.function();
@@ -450,10 +450,24 @@ impl Bus {
         } = st;
         let transport = transport.as_mut().ok_or_else(|| self.closed())?;
         // The timeout is the device's allowance to start answering: its first character must
-        // have arrived by the end of the request + timeout + one character time. The rest of
-        // the reply's time on the wire (known as its length becomes known) comes on top, so a
-        // long reply at a low baud rate is not cut off.
+        // have arrived by `answer_by` + one character time. The rest of the reply's time on
+        // the wire (known as its length becomes known) comes on top, so a long reply at a low
+        // baud rate is not cut off. A compliant device cannot start before t3.5 of quiet after
+        // the request, so on a serial line it always gets at least that.
         let serial = transport.is_serial_line();
+        let answer_by = if !serial {
+            sent_end + timeout
+        } else if window_from_start {
+            let sent_start = sent_end
+                .checked_sub(line.frame_time(frame.len()))
+                .unwrap_or(sent_end);
+            (sent_start + timeout)
+                .checked_sub(line.char_time())
+                .unwrap_or(sent_start)
+                .max(sent_end + line.t3_5())
+        } else {
+            sent_end + timeout.max(line.t3_5())
+        };
         // When the last byte of the reply so far arrived: the line is quiet since then.
         let mut last_byte = None;
         loop {
@@ -465,7 +479,7 @@ impl Bus {
                         (true, true) => line.char_time(),
                         (true, false) => line.frame_time(buf.len() + n),
                     };
-                    let deadline = sent_end + timeout + on_wire;
+                    let deadline = answer_by + on_wire;
                     (n, deadline.saturating_duration_since(Instant::now()))
                 }
                 // Not a reply to this request: take what follows until the line is quiet, so
@@ -505,14 +519,20 @@ impl Bus {
             buf.extend_from_slice(&chunk[..n]);
             last_byte = Some(Instant::now());
         }
-        match (reply_needed(request, &buf), last_byte) {
-            (Needed::Complete(_), Some(at)) => silence.reply_ended(at),
-            (_, at) => silence.busy_until(at.unwrap_or_else(Instant::now)),
-        }
         log::debug!(target: "benchbus::wire", "<- {}", hex(&buf));
+        let at = last_byte.unwrap_or_else(Instant::now);
         match decode_reply(unit, request, &buf) {
-            Ok(reply) => Ok((reply, buf)),
-            Err(kind) => Err(frame_error(unit, function, kind, buf)),
+            Ok(reply) => {
+                // The addressed unit answered this request in full: it has stopped talking.
+                silence.reply_ended(at);
+                Ok((reply, buf))
+            }
+            Err(kind) => {
+                // Whatever this was (noise, another unit's late reply, a garbled length), it
+                // may not be over, and it never moves the quiet time earlier.
+                silence.busy_until(at);
+                Err(frame_error(unit, function, kind, buf))
+            }
         }
     }
 
@@ -522,12 +542,21 @@ impl Bus {
         let line = self.config.line;
         let transport = st.transport.as_mut().ok_or_else(|| self.closed())?;
         let serial = transport.is_serial_line();
-        let stale = transport.discard_input().map_err(|e| self.io_error(e))?;
-        if !stale.is_empty() {
-            st.stats.stale_bytes += stale.len() as u64;
-            log::debug!(target: "benchbus::wire", "stale input dropped: {}", hex(&stale));
-        }
-        if serial {
+        // Stale bytes are traffic: the line is quiet only t3.5 after the last of them, and
+        // bytes that arrive during that wait restart it (a few times at most: a device that
+        // never stops talking does not hold the bus for ever).
+        for round in 0..=STALE_ROUNDS {
+            let stale = transport.discard_input().map_err(|e| self.io_error(e))?;
+            if !stale.is_empty() {
+                st.stats.stale_bytes += stale.len() as u64;
+                st.silence.busy_until(Instant::now());
+                log::debug!(target: "benchbus::wire", "stale input dropped: {}", hex(&stale));
+            } else if round > 0 {
+                break;
+            }
+            if !serial {
+                break;
+            }
             st.silence.wait(line.t3_5());
         }
         log::debug!(target: "benchbus::wire", "-> {}", hex(frame));

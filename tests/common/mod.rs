@@ -14,6 +14,9 @@ use std::time::Duration;
 pub enum Act {
     Reply(Vec<u8>),
     Silent,
+    /// Silent within the timeout, but these bytes arrive after it (a late reply): the next
+    /// request finds them waiting.
+    Late(Vec<u8>),
 }
 
 #[derive(Default)]
@@ -29,6 +32,8 @@ pub struct Script {
     pub taken: usize,
     /// When each frame was written.
     pub sent_at: Vec<std::time::Instant>,
+    /// Bytes that arrive once the current read has given up.
+    pub late: Vec<u8>,
 }
 
 #[derive(Clone, Default)]
@@ -39,8 +44,10 @@ impl Transport for Scripted {
         let mut s = self.0.lock().unwrap();
         s.sent.push(frame.to_vec());
         s.sent_at.push(std::time::Instant::now());
-        if let Some(Act::Reply(bytes)) = s.acts.pop_front() {
-            s.pending.extend(bytes);
+        match s.acts.pop_front() {
+            Some(Act::Reply(bytes)) => s.pending.extend(bytes),
+            Some(Act::Late(bytes)) => s.late = bytes,
+            _ => {}
         }
         s.since = Some(std::time::Instant::now());
         s.taken = 0;
@@ -49,9 +56,11 @@ impl Transport for Scripted {
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let mut s = self.0.lock().unwrap();
         if s.pending.is_empty() {
-            // A silent device: nothing comes for the whole timeout.
+            // A silent device: nothing comes for the whole timeout (late bytes come after).
+            let late = std::mem::take(&mut s.late);
             drop(s);
             std::thread::sleep(timeout);
+            self.0.lock().unwrap().pending.extend(late);
             return Ok(0);
         }
         let mut ready = s.pending.len();
