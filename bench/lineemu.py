@@ -17,13 +17,15 @@ count) and answers at once: a read of register ``a`` returns ``value(unit, a)``;
 It prints one JSON line ``{"ports": [...]}`` and then answers commands on stdin, one per line:
 ``stats`` prints (and clears) what it measured since the last ``stats``: per line the time the
 first byte of each request arrived, the gap on the wire between the end of each reply and the
-next request, the slave's own turnaround, and how late the last byte of each frame left the
-forwarder (its own error); ``quit`` (or end of input) stops it.
+next request, how many requests came less than t3.5 after a reply, the slave's own
+turnaround, and how late the last byte of each frame left the forwarder (its own error);
+``quit`` (or end of input) stops it.
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import ctypes
 import json
 import os
@@ -33,6 +35,7 @@ import termios
 import time
 import tty
 from collections import deque
+from collections.abc import Iterator
 
 EXCEPTION_ADDRESS = 0x8000
 
@@ -61,7 +64,7 @@ def request_length(buf: bytes | bytearray) -> int | None:
         return 8
     if function == 0x10:
         return 9 + buf[6] if len(buf) >= 7 else None
-    return len(buf)  # unknown: take what there is, answer nothing
+    return None  # unknown: dropped when the next request starts
 
 
 def answer(request: bytes, units: set[int]) -> bytes | None:
@@ -86,13 +89,21 @@ def answer(request: bytes, units: set[int]) -> bytes | None:
     return pdu + crc16(pdu)
 
 
-def fine_timer_slack() -> None:
-    """Wake from sleeps within a microsecond (Linux's default slack is 50 us)."""
+@contextlib.contextmanager
+def fine_slack() -> Iterator[None]:
+    """Within the block, the calling thread wakes from sleeps within a microsecond (Linux's
+    default timer slack is 50 us); the slack is put back after."""
     try:
-        libc = ctypes.CDLL(None, use_errno=True)
-        libc.prctl(29, 1, 0, 0, 0)  # PR_SET_TIMERSLACK
+        prctl = ctypes.CDLL(None).prctl
     except (OSError, AttributeError):
-        pass
+        yield
+        return
+    previous = prctl(30, 0, 0, 0, 0)  # PR_GET_TIMERSLACK
+    prctl(29, 1, 0, 0, 0)  # PR_SET_TIMERSLACK
+    try:
+        yield
+    finally:
+        prctl(29, previous, 0, 0, 0)
 
 
 def raw_pty() -> tuple[int, int, str]:
@@ -146,6 +157,7 @@ class Slave:
         self.units = units
         self.buf = bytearray()
         self.turnarounds: list[float] = []
+        self.wrote_at = 0.0  # when the last reply was written
 
     def feed(self, data: bytes, now: float) -> bool:
         """Take bytes read at ``now``; answer every complete request. True if it answered."""
@@ -155,6 +167,7 @@ class Slave:
             request, self.buf = bytes(self.buf[:n]), self.buf[n:]
             reply = answer(request, self.units)
             if reply is not None:
+                self.wrote_at = time.monotonic()
                 os.write(self.fd, reply)
                 self.turnarounds.append(time.monotonic() - now)
                 answered = True
@@ -185,6 +198,7 @@ class Line:
         self.requests: list[float] = []
         self.gaps: list[float] = []
         self.late: list[float] = []
+        self.early = 0  # requests less than t3.5 after a reply's last byte
         self.last_request_byte = -1.0
         self.reply_end: float | None = None
 
@@ -198,9 +212,13 @@ class Line:
         """Bytes the master under test wrote."""
         if self.reply_end is not None or now - self.last_request_byte > self.t35:
             # The first byte of a request: how long the line was quiet after the last reply.
+            # Whatever the slave holds of an earlier frame is abandoned (resynchronised).
+            self.slave.buf.clear()
             self.requests.append(now)
             if self.reply_end is not None:
                 self.gaps.append(now - self.reply_end)
+                # 20 us of grace: the master may read the last byte before its stamp is taken.
+                self.early += now - self.reply_end < self.t35 - 20e-6
                 self.reply_end = None
         self.last_request_byte = now
         if self.plain:
@@ -222,7 +240,9 @@ class Line:
             self.from_master(data, now)
         elif fd == self.b_master:
             assert self.down is not None
-            self.down.push(data, now)
+            # The reply starts on the wire when the slave wrote it, as from a UART; the hop
+            # through pair B (tens of microseconds) is the emulator's, not the line's.
+            self.down.push(data, min(now, max(self.slave.wrote_at, now - self.char_time)))
         elif fd == self.slave_fd:
             self.slave.feed(data, now)
 
@@ -248,8 +268,10 @@ class Line:
             "gaps": self.gaps,
             "turnarounds": self.slave.turnarounds,
             "late": self.late,
+            "early": self.early,
         }
         self.requests, self.gaps, self.slave.turnarounds, self.late = [], [], [], []
+        self.early = 0
         return stats
 
 
@@ -296,11 +318,11 @@ def main() -> None:
     parser.add_argument("--plain", action="store_true", help="no wire time: answer at once")
     parser.add_argument("--spin", action="store_true", help="poll without sleeping (one core)")
     args = parser.parse_args()
-    fine_timer_slack()
     units = {int(u) for u in args.units.split(",")}
     lines = [Line(args.baud, args.bits, units, args.plain) for _ in range(args.lines)]
     print(json.dumps({"ports": [line.port for line in lines]}), flush=True)
-    serve(lines, args.spin)
+    with fine_slack():
+        serve(lines, args.spin)
 
 
 if __name__ == "__main__":

@@ -8,6 +8,7 @@ import os
 import subprocess
 import sys
 import time
+import tty
 from pathlib import Path
 
 import pytest
@@ -47,6 +48,7 @@ def test_request_length_is_known_from_the_header() -> None:
     assert lineemu.request_length(b"\x01\x03") == 8
     assert lineemu.request_length(b"\x01\x10\x00\x00\x00\x02") is None
     assert lineemu.request_length(b"\x01\x10\x00\x00\x00\x02\x04") == 13
+    assert lineemu.request_length(b"\x01\x2b\x0e") is None  # not served
 
 
 def test_emulated_line_takes_the_wire_time_of_both_frames() -> None:
@@ -65,6 +67,39 @@ def test_emulated_line_takes_the_wire_time_of_both_frames() -> None:
         assert 0 < stats["turnarounds"][0] < 0.05
 
 
+def test_emulator_flags_a_request_sent_less_than_t35_after_a_reply() -> None:
+    line = bench_run.LineSpec(9600, "N")
+    request = bytes.fromhex("01 03 00 05 00 01")
+    request += crc(request)
+    with bench_run.Emulator(line) as emu:
+        fd = os.open(emu.ports[0], os.O_RDWR | os.O_NOCTTY)
+        try:
+            tty.setraw(fd)
+            for _ in range(2):  # the second goes out as soon as the first reply is in
+                os.write(fd, request)
+                got = b""
+                while len(got) < 7:
+                    got += os.read(fd, 7 - len(got))
+            assert got[3:5] == lineemu.value(1, 5).to_bytes(2, "big")
+        finally:
+            os.close(fd)
+        time.sleep(0.05)
+        assert emu.stats()[0]["early"] == 1
+
+
+def test_benchbus_keeps_t35_seen_from_the_emulated_line() -> None:
+    # An observer outside the library: every request starts at least t3.5 after the reply.
+    line = bench_run.LineSpec(19200, "N")
+    with bench_run.Emulator(line) as emu, bb.Bus(emu.ports[0], 19200, timeout=0.2) as bus:
+        for address in range(30):
+            assert bus.read_holding_registers(1, address, 1) == [lineemu.value(1, address)]
+        stats = emu.stats()[0]
+    assert len(stats["gaps"]) == 29
+    assert stats["early"] == 0
+    assert min(stats["gaps"]) >= line.t35 - 20e-6
+
+
+@pytest.mark.timeout(300)
 def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -> None:
     out = tmp_path / "bench.json"
     env = {**os.environ, "PYTHONPATH": os.pathsep.join(sys.path)}
@@ -72,7 +107,7 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
         [sys.executable, str(BENCH / "run.py"), "--quick", "--json", str(out)],
         capture_output=True,
         text=True,
-        timeout=240,
+        timeout=280,
         env=env,
     )
     assert proc.returncode == 0, proc.stderr[-3000:]
@@ -95,6 +130,8 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
             assert 0.3 < f["max"] <= 1.02, f
     # Every target of the issue is judged (met or not: figures are the machine's).
     judged = {t["target"].split(")")[0] + ")" for t in report["targets"]}
+    early = [f for f in figures if f["metric"] == "requests < t3.5 after a reply"]
+    assert {f["library"] for f in early} == {"benchbus", "minimalmodbus", "pymodbus"}
     assert judged == {f"({x})" for x in "abcdeg"}
     assert all(isinstance(t["met"], bool) for t in report["targets"])
     assert "benchbus" in proc.stdout and "ratio to wire limit" in proc.stdout
