@@ -16,22 +16,31 @@ A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) an
 temperature controller with a thermal process under its control, :class:`TaisongDevice` a
 Taisong panel instrument (a measured value moving toward its setpoint) and
 :class:`Atv31Device` the ATV31 drive of the Taisong manual's Modbus section, with Read Device
-Identification (paged on request, and the manual's 6-byte error form). Pure Python on
-pymodbus and pyserial (``pip install "benchbus[sim]"``); it does not need the compiled core.
+Identification (paged on request, and the manual's 6-byte error form).
+
+A noisy line is one argument away: ``Simulator(devices, faults=Faults(rate=0.05, seed=1))``
+spoils 5 % of the replies with bit flips, dropped bytes, truncation, garbage, late,
+duplicated and wrong-unit replies (:class:`Faults`), and ``sim.fault_counts`` says which.
+
+Pure Python on pymodbus and pyserial (``pip install "benchbus[sim]"``); it does not need the
+compiled core.
 """
 
 from __future__ import annotations
 
 from benchbus.sim._device import RegisterDevice, SimDevice, SimException
 from benchbus.sim._drive import DriveDevice
+from benchbus.sim._faults import FAULT_KINDS, Faults
 from benchbus.sim._instrument import Atv31Device, TaisongDevice
 from benchbus.sim._j2 import J2Device
 from benchbus.sim._pbl import PblDevice
 from benchbus.sim._simulator import Simulator
 
 __all__ = [
+    "FAULT_KINDS",
     "Atv31Device",
     "DriveDevice",
+    "Faults",
     "J2Device",
     "PblDevice",
     "RegisterDevice",

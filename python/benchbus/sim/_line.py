@@ -6,7 +6,8 @@
 
 The forwarder cuts both byte streams into frames, logs them, applies the faults and routes
 each request: to the server (one at a time, as on a real half-duplex line), to several units
-(a broadcast), or to nobody. Pure Python, no pymodbus.
+(a broadcast), or to nobody. The random faults of a noisy line (``benchbus.sim._faults``)
+are applied to the replies here. Pure Python, no pymodbus.
 """
 
 from __future__ import annotations
@@ -23,6 +24,7 @@ import time
 import tty
 from collections.abc import Callable
 
+from benchbus.sim._faults import FaultInjector, Faults, Injection
 from benchbus.sim._rtu import (
     crc_ok,
     exception_frame,
@@ -89,6 +91,19 @@ class LineState:
         #: ``time.monotonic()`` when each frame in ``requests`` was complete (its last byte read).
         self.request_times: list[float] = []
         self.replies: list[bytes] = []
+        #: The random faults now applied to replies (None: none), and how many of each kind
+        #: were injected since they were last set.
+        self.injector: FaultInjector | None = None
+        self.fault_counts: dict[str, int] = {}
+
+    def set_faults(self, faults: Faults | None) -> None:
+        """Apply ``faults`` from the next reply on (None: stop); a new run restarts the counts."""
+        with self.lock:
+            if faults is None:
+                self.injector = None
+            else:
+                self.fault_counts = {}
+                self.injector = FaultInjector(faults, self.fault_counts)
 
     def add_exception_rule(self, code: int, n: int, unit: int | None) -> None:
         """The next ``n`` requests (to ``unit``; None = any) get exception ``code``."""
@@ -467,14 +482,23 @@ class Forwarder:
 
     def _hold(self, reply: bytes, unit_delay: float) -> None:
         now = time.monotonic()
-        with self._state.lock:
-            delay = max(self._state.reply_delay, unit_delay)
-            if self._state.corrupt > 0:
-                self._state.corrupt -= 1
-                reply = reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1] ^ 0xFF])
-        release = max(now + delay, self._last_release)
+        state = self._state
+        with state.lock:
+            delay = max(state.reply_delay, unit_delay)
+            if state.corrupt > 0:
+                state.corrupt -= 1
+                out = Injection([reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1] ^ 0xFF])])
+            elif state.injector is not None:
+                out = state.injector.apply(reply)
+            else:
+                out = Injection([reply])
+        if out.kind is not None:
+            log.debug("simulator: fault %s on %s", out.kind, reply.hex(" "))
+        # Replies keep their order: one held longer holds back those after it.
+        release = max(now + delay + out.delay, self._last_release)
         self._last_release = release
-        self._held.append((release, reply))
+        for frame in out.frames:
+            self._held.append((release, frame))
 
     def _release(self, now: float) -> None:
         while self._held and self._held[0][0] <= now:

@@ -10,6 +10,7 @@ from types import TracebackType
 from typing import Generic, TypeVar
 
 from benchbus.sim._device import SimDevice, SimException
+from benchbus.sim._faults import FAULT_KINDS, Faults
 from benchbus.sim._line import Forwarder, LineState, PtyPair
 from benchbus.sim._pymodbus import PymodbusServer
 from benchbus.sim._rtu import with_crc
@@ -36,7 +37,9 @@ class Simulator(Generic[D]):
     RTU server answers for :attr:`devices`, and a forwarder thread between the two sees every
     byte: it logs the frames (:attr:`requests`, :attr:`replies`) and applies the faults
     (:attr:`reply_delay`, :meth:`set_silent`, :meth:`corrupt_next`, :meth:`answer_exception`,
-    :meth:`inject_raw`), all of which are thread-safe and may be set before or while running.
+    :meth:`inject_raw`, and the random faults of a noisy line, :attr:`faults`), all of which
+    are thread-safe and may be set before or while running. What the units hold, the truth
+    a test checks the library's results against, is in :attr:`devices` (:meth:`peek`).
 
     The line serves one request at a time, as a half-duplex RS485 line does. Requests to a
     unit not in :attr:`devices`, or with a bad CRC, get no reply. A broadcast (unit 0) is
@@ -57,6 +60,7 @@ class Simulator(Generic[D]):
         *,
         baudrate: int = 19200,
         broadcast: bool = True,
+        faults: Faults | None = None,
     ) -> None:
         """Simulate ``devices`` (``{unit: device}``; a single device is unit 1).
 
@@ -64,7 +68,8 @@ class Simulator(Generic[D]):
         controllers) take station numbers up to 255. Unit 0 is the broadcast.
 
         ``baudrate`` only sets the frame-gap timing (the pseudo-terminal carries bytes
-        instantly). ``broadcast=False`` makes the units ignore unit 0 entirely.
+        instantly). ``broadcast=False`` makes the units ignore unit 0 entirely. ``faults``
+        makes the line noisy from the first reply on (see :attr:`faults`).
         """
         if isinstance(devices, SimDevice):
             devices = {1: devices}
@@ -83,6 +88,8 @@ class Simulator(Generic[D]):
         #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
         self._state = LineState()
+        self._faults: Faults | None = None
+        self.faults = faults
         self._lifecycle = threading.Lock()
         self._pairs: list[PtyPair] = []
         self._forwarder: Forwarder | None = None
@@ -253,8 +260,40 @@ class Simulator(Generic[D]):
             raise RuntimeError("the simulator is not running: call start() first")
         self._forwarder.inject(bytes(data))
 
+    @property
+    def faults(self) -> Faults | None:
+        """The random faults spoiling replies on the line (a :class:`Faults`), or None.
+
+        Setting a :class:`Faults` (also while running, from any thread) starts its random
+        sequence afresh from the next reply on, and restarts :attr:`fault_counts`; setting
+        None makes the line clean again and keeps the counts.
+        """
+        return self._faults
+
+    @faults.setter
+    def faults(self, faults: Faults | None) -> None:
+        if faults is not None and not isinstance(faults, Faults):
+            raise TypeError(f"faults must be a Faults or None, not {type(faults).__name__}")
+        self._state.set_faults(faults)
+        self._faults = faults
+
+    @property
+    def fault_counts(self) -> dict[str, int]:
+        """How many faults of each kind were injected since :attr:`faults` was last set.
+
+        A new dict with every kind of :data:`FAULT_KINDS` (0 when none); faults from
+        :meth:`corrupt_next` and the other deterministic methods are not counted.
+        """
+        with self._state.lock:
+            counts = dict(self._state.fault_counts)
+        return {kind: counts.get(kind, 0) for kind in FAULT_KINDS}
+
     def clear_faults(self) -> None:
-        """Remove every fault: no delay, nobody silent, no pending corruption or exception."""
+        """Remove every fault: no delay, nobody silent, no pending corruption or exception.
+
+        Also stops the random faults (:attr:`faults` becomes None; the counts stay).
+        """
+        self.faults = None
         with self._state.lock:
             self._state.reply_delay = 0.0
             self._state.silent_all = False
@@ -283,6 +322,18 @@ class Simulator(Generic[D]):
     def replies(self) -> list[bytes]:
         """Every reply frame sent toward the library, in order (as sent, after the faults)."""
         return self._state.replies
+
+    def peek(self, unit: int, address: int, count: int = 1) -> list[int]:
+        """What unit ``unit`` holds in ``count`` holding registers from ``address``: the truth.
+
+        Asks the device directly (:meth:`SimDevice.read_holding`), past the line and its
+        faults, and logs nothing; a :class:`SimException` the device raises propagates. For
+        checking what the library returned, between its calls (the server thread may be
+        handling a request meanwhile otherwise).
+        """
+        if unit not in self.devices:
+            raise ValueError(f"no simulated unit {unit!r}")
+        return list(self.devices[unit].read_holding(address, count))
 
     def clear_log(self) -> None:
         """Empty :attr:`requests`, :attr:`request_times` and :attr:`replies`."""
