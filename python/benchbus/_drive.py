@@ -415,11 +415,21 @@ class Drive(MotorDevice):
         stops answering. The speed register holds a magnitude: ``rpm`` is >= 0 in both
         directions.
         """
+        for name, value in (
+            ("rpm", rpm),
+            ("tolerance", tolerance),
+            ("timeout", timeout),
+            ("interval", interval),
+        ):
+            if isinstance(value, bool) or not isinstance(value, (int, float)):
+                raise TypeError(f"{name} must be a number, got {type(value).__name__}")
         for name, value in (("rpm", rpm), ("tolerance", tolerance)):
             if not 0 <= value <= 3000:
                 raise ValueError(f"{name} must be 0..3000 rpm, got {value}")
-        if not 0 < timeout <= 3600 or not 0 < interval <= 10:
-            raise ValueError("timeout must be 0 < s <= 3600 and interval 0 < s <= 10")
+        if not 0 < timeout <= 3600:
+            raise ValueError(f"timeout must be 0 < s <= 3600, got {timeout}")
+        if not 0 < interval <= 10:
+            raise ValueError(f"interval must be 0 < s <= 10, got {interval}")
         deadline = time.monotonic() + timeout
         while True:
             speed = self.speed

@@ -176,6 +176,8 @@ class Instrument(BusDevice):
         ``max_write``."""
         if isinstance(values, (str, bytes, bytearray)):
             raise TypeError("values must be a sequence of ints, not str or bytes")
+        if not isinstance(values, Iterable):
+            raise TypeError(f"values must be a sequence of ints, got {type(values).__name__}")
         self.core.write_registers(address, list(values))
 
     # ---- 32-bit values and text ----------------------------------------------------------------
@@ -218,6 +220,10 @@ class Instrument(BusDevice):
         A device without the function raises :class:`~benchbus.ModbusException` with code 1
         (its ``meaning`` says so).
         """
+        if not isinstance(level, str):
+            raise TypeError(
+                f"level must be 'basic', 'regular' or 'extended', got {type(level).__name__}"
+            )
         if level not in _LEVELS:
             raise ValueError(f"level must be 'basic', 'regular' or 'extended', got {level!r}")
         conformity, objects = self.core.identify(_LEVELS[level])

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import os
 from collections.abc import Iterable, Mapping
-from typing import NamedTuple, Union
+from typing import Any, NamedTuple, Union
 
 from benchbus._core import Bus, J2Core
 from benchbus._device import (
@@ -77,8 +77,15 @@ class Limits(NamedTuple):
     high: float
 
 
+def _listed(name: str, value: Any, what: str) -> list[Any]:
+    """``value`` as a list; TypeError naming ``name`` if it is a str or not iterable."""
+    if isinstance(value, (str, bytes)) or not isinstance(value, Iterable):
+        raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
+    return list(value)
+
+
 def _pid_values(names: tuple[str, str, str], value: Iterable[float]) -> list[tuple[str, float]]:
-    values = list(value)
+    values = _listed("a PID set", value, "three numbers (P, I, D)")
     if len(values) != 3:
         raise ValueError(f"a PID set is three numbers (P, I, D), got {len(values)}")
     return list(zip(names, values))
@@ -201,7 +208,7 @@ class J2Controller(BusDevice):
         """Several parameters by name, in as few requests as the 16-register limit allows."""
         if isinstance(names, str):
             raise TypeError('names is a list of names (["SV", "PV"]), not one str')
-        return self.core.read_many(list(names))
+        return self.core.read_many(_listed("names", names, 'a list of names (["SV", "PV"])'))
 
     def write_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
         """Write several parameters in order, each as :meth:`write` does.
@@ -211,7 +218,12 @@ class J2Controller(BusDevice):
         controller (SV within its limits, MV in manual mode) are made write by write, so a
         refusal there leaves the earlier writes done.
         """
-        pairs = list(values.items() if isinstance(values, Mapping) else values)
+        what = "{name: value} or (name, value) pairs"
+        items = _listed("values", values.items() if isinstance(values, Mapping) else values, what)
+        pairs = [tuple(_listed("values", item, what)) for item in items]
+        for pair in pairs:
+            if len(pair) != 2:
+                raise ValueError(f"values must be {what}, got an item of {len(pair)}: {pair!r}")
         self.core.write_many(pairs)
 
     def parameters(self) -> dict[str, Value]:
@@ -264,7 +276,11 @@ class J2Controller(BusDevice):
         :class:`~benchbus.StateError`, unless ``switch_to_manual`` (then AM is written 0
         first, and the controller stays in manual mode).
         """
-        self.core.set_output(percent, bool(switch_to_manual))
+        if not isinstance(switch_to_manual, bool):
+            raise TypeError(
+                f"switch_to_manual must be True or False, got {type(switch_to_manual).__name__}"
+            )
+        self.core.set_output(percent, switch_to_manual)
 
     @property
     def autotune(self) -> bool:
@@ -321,7 +337,7 @@ class J2Controller(BusDevice):
 
     @limits.setter
     def limits(self, value: Iterable[float]) -> None:
-        pair = list(value)
+        pair = _listed("limits", value, "two numbers (low, high)")
         if len(pair) != 2:
             raise ValueError(f"limits are two numbers (low, high), got {len(pair)}")
         self.core.set_limits(pair[0], pair[1])

@@ -360,6 +360,9 @@ def record(
     duration = check_seconds("duration", duration)
     interval = check_seconds("interval", interval)
     wanted = None if columns is None else check_columns(columns)
+    for name, function in (("clock", clock), ("sleep", sleep)):
+        if not callable(function):
+            raise TypeError(f"{name} must be callable, got {type(function).__name__}")
     if wanted is not None and known is not None:
         # Refused before anything is sent when the device's names are ``known`` in advance.
         _first_columns(dict.fromkeys(known, 0.0), wanted)

@@ -57,6 +57,11 @@ fn count_arg(obj: &Bound<'_, PyAny>, address: u16) -> PyResult<usize> {
     int_in(obj, "count", 1, most).map(|n| n as usize)
 }
 
+/// The first register of a 32-bit value: 0..=0xFFFE, so that the second one exists too.
+fn pair_address(obj: &Bound<'_, PyAny>) -> PyResult<u16> {
+    int_in(obj, "address", 0, 0xFFFE).map(|a| a as u16)
+}
+
 /// The function a single-register write uses: 0x06, or 0x10 (true).
 fn function_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<bool> {
     opt(obj, false, |f| match int_in(f, "function", 0, 255)? {
@@ -184,8 +189,12 @@ impl PyInstrumentCore {
         let value = number(value, "value")?;
         let decimals = decimals_arg(decimals)?;
         let multiple = function_arg(function)?;
-        let raw = crate::device::instrument::to_raw(value, decimals, signed)
-            .map_err(|e| to_pyerr(py, e))?;
+        // The core's message says what does not fit; the argument it is about is `value`.
+        let raw =
+            crate::device::instrument::to_raw(value, decimals, signed).map_err(|e| match e {
+                crate::Error::InvalidArgument(m) => PyValueError::new_err(format!("value {m}")),
+                e => to_pyerr(py, e),
+            })?;
         self.wire(py, move |i| i.write_word(address, raw, multiple))
     }
 
@@ -198,7 +207,7 @@ impl PyInstrumentCore {
         signed: bool,
         word_order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<i64> {
-        let address = u16_arg(address, "address")?;
+        let address = pair_address(address)?;
         let order = opt(word_order, WordOrder::HighFirst, self::word_order)?;
         let v = self.wire(py, move |i| i.read_u32(address, order))?;
         Ok(if signed {
@@ -218,7 +227,7 @@ impl PyInstrumentCore {
         signed: bool,
         word_order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let address = u16_arg(address, "address")?;
+        let address = pair_address(address)?;
         let value = if signed {
             int_in(value, "value", i64::from(i32::MIN), i64::from(i32::MAX))? as i32 as u32
         } else {
@@ -236,7 +245,7 @@ impl PyInstrumentCore {
         address: &Bound<'_, PyAny>,
         word_order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<f64> {
-        let address = u16_arg(address, "address")?;
+        let address = pair_address(address)?;
         let order = opt(word_order, WordOrder::HighFirst, self::word_order)?;
         self.wire(py, move |i| i.read_f32(address, order))
             .map(f64::from)
@@ -251,7 +260,7 @@ impl PyInstrumentCore {
         value: &Bound<'_, PyAny>,
         word_order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let address = u16_arg(address, "address")?;
+        let address = pair_address(address)?;
         let value = number(value, "value")?;
         let single = value as f32;
         if !value.is_finite() || !single.is_finite() {
