@@ -12,6 +12,11 @@
 //! Stale bytes in the input buffer are dropped (and counted) before each request; the reply
 //! is read by its expected length ([`reply_needed`]), never by waiting for a timeout; only a
 //! timeout or a corrupt frame is retried, never an exception reply.
+//!
+//! A port that is lost (unplugged, hung up: [`crate::transport::is_lost`]) fails the call at
+//! once and is dropped, which releases it (a USB adapter plugged in again can then get its
+//! old name back). [`Bus::reopen`] opens the same path again; with [`BusConfig::reconnect`]
+//! the Bus does that itself, once per call, before the call's request goes out.
 
 use crate::codec::{
     check_echo, decode_reply, encode_request, exception_meaning, reply_needed,
@@ -19,7 +24,7 @@ use crate::codec::{
 };
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard};
-use crate::transport::{SerialTransport, Transport};
+use crate::transport::{describe_open_error, is_lost, SerialTransport, Transport};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -47,6 +52,9 @@ pub struct BusConfig {
     pub retries: u32,
     /// Quiet time after a broadcast, for every device to act on it.
     pub turnaround: Duration,
+    /// Whether a call that finds the port lost reopens it first (once per call; see
+    /// [`Bus::reopen`]). Off: every call fails until [`Bus::reopen`] is called.
+    pub reconnect: bool,
 }
 
 impl BusConfig {
@@ -58,6 +66,7 @@ impl BusConfig {
             timeout: Duration::from_millis(100),
             retries: 2,
             turnaround: Duration::from_millis(100),
+            reconnect: false,
         }
     }
 }
@@ -118,10 +127,30 @@ pub struct Stats {
     pub stale_bytes: u64,
     /// Broadcast requests sent.
     pub broadcasts: u64,
+    /// Times the port was opened again ([`Bus::reopen`], or a reconnect).
+    pub reopens: u64,
+}
+
+/// Opens a Bus's transport from its config: at [`Bus::with_opener`], and again at each
+/// [`Bus::reopen`] or reconnect. Its error is the one the caller sees (an [`Error::Port`]).
+pub type Opener = Box<dyn FnMut(&BusConfig) -> Result<Box<dyn Transport>> + Send>;
+
+/// The port, as the Bus holds it.
+enum Link {
+    Open(Box<dyn Transport>),
+    /// Lost (for this reason); the transport was dropped, so the port is released.
+    Lost(String),
+    /// Closed by [`Bus::close`].
+    Closed,
 }
 
 struct State {
-    transport: Option<Box<dyn Transport>>,
+    link: Link,
+    /// How the port is opened again; None for a Bus given its transport.
+    opener: Option<Opener>,
+    /// Frames handed to the transport (counted before each write): whether a call has put
+    /// anything on the wire yet.
+    frames_out: u64,
     silence: SilenceGuard,
     /// When each unit's last write ended, and the longest write interval its device asked
     /// for.
@@ -152,22 +181,32 @@ impl Bus {
     /// [`Error::Port`] if the port cannot be opened; [`Error::InvalidArgument`] for a bad
     /// line format.
     pub fn open(config: BusConfig) -> Result<Bus> {
-        check_config(&config)?;
-        let transport =
-            SerialTransport::open(&config.port, &config.line).map_err(|e| Error::Port {
-                port: config.port.clone(),
-                message: format!("cannot open: {e}"),
-                source: None,
-            })?;
-        Ok(Bus::with_transport(config, Box::new(transport)))
+        Bus::with_opener(config, Box::new(open_serial))
     }
 
-    /// A Bus over any transport (used by tests and other transports).
+    /// A Bus over the transport `opener` makes from the config, now and at each reopen.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a bad line format, else the opener's error.
+    pub fn with_opener(config: BusConfig, mut opener: Opener) -> Result<Bus> {
+        check_config(&config)?;
+        let transport = opener(&config)?;
+        Ok(Bus::build(config, transport, Some(opener)))
+    }
+
+    /// A Bus over any transport (used by tests and other transports). It cannot be reopened:
+    /// [`Bus::reopen`] fails with [`Error::Port`] (use [`Bus::with_opener`] for that).
     pub fn with_transport(config: BusConfig, transport: Box<dyn Transport>) -> Bus {
+        Bus::build(config, transport, None)
+    }
+
+    fn build(config: BusConfig, transport: Box<dyn Transport>, opener: Option<Opener>) -> Bus {
         Bus {
             config,
             state: Mutex::new(State {
-                transport: Some(transport),
+                link: Link::Open(transport),
+                opener,
+                frames_out: 0,
                 silence: SilenceGuard::new(),
                 last_write: HashMap::new(),
                 last_broadcast: None,
@@ -187,14 +226,131 @@ impl Bus {
         self.lock().stats
     }
 
-    /// Whether [`Bus::close`] was called.
+    /// Whether [`Bus::close`] was called (and no [`Bus::reopen`] since).
     pub fn is_closed(&self) -> bool {
-        self.lock().transport.is_none()
+        matches!(self.lock().link, Link::Closed)
     }
 
-    /// Closes the port; later calls fail with [`Error::Closed`]. Closing twice is harmless.
+    /// Whether the port was lost (or a reopen failed) and has not been opened again since.
+    pub fn is_lost(&self) -> bool {
+        matches!(self.lock().link, Link::Lost(_))
+    }
+
+    /// Closes the port; later calls fail with [`Error::Closed`] (a reconnecting Bus does not
+    /// reopen it; [`Bus::reopen`] does). Closing twice is harmless.
     pub fn close(&self) {
-        self.lock().transport = None;
+        self.lock().link = Link::Closed;
+    }
+
+    /// Closes the port and opens the same path again with the same line format: after the
+    /// port was lost and has come back (the adapter plugged in again), or to start afresh.
+    /// The statistics, pacing and device objects on this Bus carry on; a transaction in
+    /// progress on another thread finishes first.
+    ///
+    /// Works in any state, a closed Bus included (that opens it again). If the path cannot
+    /// be opened, the Bus is left without a port: lost (closed, if it was closed), so calls
+    /// fail at once until a reopen succeeds.
+    ///
+    /// # Errors
+    /// [`Error::Port`] if the path cannot be opened (absent, in use) or the Bus was given its
+    /// transport rather than a way to open it.
+    pub fn reopen(&self) -> Result<()> {
+        let mut st = self.lock();
+        if st.opener.is_none() {
+            return Err(self.cannot_reopen());
+        }
+        // The old handle goes first: it holds the port's exclusive lock.
+        let old = std::mem::replace(&mut st.link, Link::Closed);
+        let was_closed = matches!(old, Link::Closed);
+        drop(old);
+        self.open_link(&mut st).inspect_err(|e| {
+            if !was_closed {
+                st.link = Link::Lost(port_message(e));
+            }
+        })
+    }
+
+    /// Opens the port into `st` (counted in the stats), whose link holds no port; on failure
+    /// the link is left as it was.
+    fn open_link(&self, st: &mut State) -> Result<()> {
+        let opened = match st.opener.as_mut() {
+            Some(opener) => opener(&self.config),
+            None => Err(self.cannot_reopen()),
+        };
+        let transport = opened?;
+        st.link = Link::Open(transport);
+        st.stats.reopens += 1;
+        log::debug!(target: "benchbus::wire", "port {} reopened", self.config.port);
+        Ok(())
+    }
+
+    /// Runs `body` (one call's work on the wire) on the open port.
+    ///
+    /// A lost port fails the call at once, or with [`BusConfig::reconnect`] is reopened
+    /// first. A port lost during `body` is dropped; if nothing of this call had been written
+    /// yet, a reconnecting Bus reopens it and runs `body` again. Either way at most one
+    /// reopen per call.
+    fn on_port<T>(
+        &self,
+        st: &mut State,
+        mut body: impl FnMut(&mut State) -> Result<T>,
+    ) -> Result<T> {
+        let mut reopened = false;
+        match &st.link {
+            Link::Open(_) => {}
+            Link::Closed => return Err(self.closed()),
+            Link::Lost(reason) if self.config.reconnect => {
+                let reason = reason.clone();
+                self.reconnect(st, &reason)?;
+                reopened = true;
+            }
+            Link::Lost(reason) => {
+                return Err(Error::Port {
+                    port: self.config.port.clone(),
+                    message: format!(
+                        "lost earlier ({reason}); call reopen() once it is back, or open the \
+                         Bus with reconnect=True"
+                    ),
+                    source: None,
+                })
+            }
+        }
+        loop {
+            let before = st.frames_out;
+            let result = body(st);
+            let reason = match &result {
+                Err(Error::Port {
+                    source: Some(io), ..
+                }) if is_lost(io) => io.to_string(),
+                _ => return result,
+            };
+            // Dropping the transport closes the port (and releases its lock).
+            st.link = Link::Lost(reason.clone());
+            log::debug!(target: "benchbus::wire", "port {} lost: {reason}", self.config.port);
+            let untouched = st.frames_out == before;
+            if !self.config.reconnect || reopened || !untouched {
+                return result;
+            }
+            self.reconnect(st, &reason)?;
+            reopened = true;
+        }
+    }
+
+    fn cannot_reopen(&self) -> Error {
+        Error::Port {
+            port: self.config.port.clone(),
+            message: "cannot reopen: this Bus was given its transport, not a way to open it".into(),
+            source: None,
+        }
+    }
+
+    /// A reconnecting Bus's one attempt to reopen the port it lost for `reason`.
+    fn reconnect(&self, st: &mut State, reason: &str) -> Result<()> {
+        self.open_link(st).map_err(|e| Error::Port {
+            port: self.config.port.clone(),
+            message: format!("lost ({reason}); tried to reopen it: {}", port_message(&e)),
+            source: None,
+        })
     }
 
     /// Reads `count` holding registers (0x03).
@@ -299,21 +455,22 @@ impl Bus {
         let request = Request::WriteSingleRegister { address, value };
         let frame = encode_request(BROADCAST, &request);
         let mut st = self.lock_when(State::broadcast_ready);
-        let st = &mut *st;
-        let sent_end = self.send(st, &frame)?;
-        st.stats.broadcasts += 1;
-        st.stats.transactions += 1;
-        // The turnaround is quiet line: it counts from the end of the frame on the wire.
-        sleep_until(sent_end + self.config.turnaround);
-        let transport = self.transport(st)?;
-        let answers = transport.discard_input().map_err(|e| self.io_error(e))?;
-        if !answers.is_empty() {
-            log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", hex(&answers));
-        }
-        let now = Instant::now();
-        st.silence.busy_until(now);
-        st.last_broadcast = Some(now);
-        Ok(())
+        self.on_port(&mut st, |st| {
+            let sent_end = self.send(st, &frame)?;
+            st.stats.broadcasts += 1;
+            st.stats.transactions += 1;
+            // The turnaround is quiet line: it counts from the end of the frame on the wire.
+            sleep_until(sent_end + self.config.turnaround);
+            let transport = self.port(&mut st.link)?;
+            let answers = transport.discard_input().map_err(|e| self.io_error(e))?;
+            if !answers.is_empty() {
+                log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", hex(&answers));
+            }
+            let now = Instant::now();
+            st.silence.busy_until(now);
+            st.last_broadcast = Some(now);
+            Ok(())
+        })
     }
 
     /// Whether `unit` answers a read of one register at `address` within `timeout` (an
@@ -353,26 +510,35 @@ impl Bus {
         }
         request.validate()?;
         let frame = encode_request(unit, request);
-        let is_write = !matches!(
-            request,
-            Request::ReadHoldingRegisters { .. } | Request::ReadDeviceIdentification { .. }
-        );
-        let timeout = opts.timeout.unwrap_or(self.config.timeout);
-        let attempts = opts
-            .retries
-            .unwrap_or(self.config.retries)
-            .saturating_add(1);
-
-        let paced = is_write && !opts.write_interval.is_zero();
+        let paced = is_write(request) && !opts.write_interval.is_zero();
         let mut guard = if paced {
             self.lock_paced(unit, opts.write_interval)
         } else {
             self.lock()
         };
-        let st = &mut *guard;
-        self.transport(st)?;
+        self.on_port(&mut guard, |st| {
+            self.exchange(st, unit, request, &frame, opts)
+        })
+    }
+
+    /// A request's attempts on the open port, and its checked response.
+    fn exchange(
+        &self,
+        st: &mut State,
+        unit: u8,
+        request: &Request,
+        frame: &[u8],
+        opts: &TxOptions,
+    ) -> Result<Response> {
+        let is_write = is_write(request);
+        let paced = is_write && !opts.write_interval.is_zero();
+        let timeout = opts.timeout.unwrap_or(self.config.timeout);
+        let attempts = opts
+            .retries
+            .unwrap_or(self.config.retries)
+            .saturating_add(1);
         if is_write && !opts.write_reply {
-            self.send(st, &frame)?;
+            self.send(st, frame)?;
             st.wrote(unit, opts.write_interval);
             st.stats.transactions += 1;
             return Ok(unanswered_write(request));
@@ -386,7 +552,7 @@ impl Bus {
                     pace(st, unit, opts.write_interval);
                 }
             }
-            let outcome = self.attempt(st, unit, request, &frame, timeout, opts.window_from_start);
+            let outcome = self.attempt(st, unit, request, frame, timeout, opts.window_from_start);
             if is_write {
                 st.wrote(unit, opts.write_interval);
             }
@@ -445,10 +611,8 @@ impl Bus {
         let mut buf = Vec::with_capacity(64);
         let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
         let line = self.config.line;
-        let State {
-            transport, silence, ..
-        } = st;
-        let transport = transport.as_mut().ok_or_else(|| self.closed())?;
+        let State { link, silence, .. } = st;
+        let transport = self.port(link)?;
         // The timeout is the device's allowance to start answering: its first character must
         // have arrived by `answer_by` + one character time. The rest of the reply's time on
         // the wire (known as its length becomes known) comes on top, so a long reply at a low
@@ -540,7 +704,7 @@ impl Bus {
     /// character will have left the wire.
     fn send(&self, st: &mut State, frame: &[u8]) -> Result<Instant> {
         let line = self.config.line;
-        let transport = st.transport.as_mut().ok_or_else(|| self.closed())?;
+        let transport = self.port(&mut st.link)?;
         let serial = transport.is_serial_line();
         // Stale bytes are traffic: the line is quiet only t3.5 after the last of them, and
         // bytes that arrive during that wait restart it (a few times at most: a device that
@@ -560,6 +724,7 @@ impl Bus {
             st.silence.wait(line.t3_5());
         }
         log::debug!(target: "benchbus::wire", "-> {}", hex(frame));
+        st.frames_out += 1;
         let start = Instant::now();
         transport.write_all(frame).map_err(|e| self.io_error(e))?;
         let end = if serial {
@@ -571,8 +736,17 @@ impl Bus {
         Ok(end)
     }
 
-    fn transport<'a>(&self, st: &'a mut State) -> Result<&'a mut Box<dyn Transport>> {
-        st.transport.as_mut().ok_or_else(|| self.closed())
+    /// The open port's transport (an error if there is none: closed, or lost).
+    fn port<'a>(&self, link: &'a mut Link) -> Result<&'a mut Box<dyn Transport>> {
+        match link {
+            Link::Open(transport) => Ok(transport),
+            Link::Closed => Err(self.closed()),
+            Link::Lost(reason) => Err(Error::Port {
+                port: self.config.port.clone(),
+                message: format!("lost ({reason})"),
+                source: None,
+            }),
+        }
     }
 
     /// The error every call on a closed bus fails with.
@@ -583,9 +757,16 @@ impl Bus {
     }
 
     fn io_error(&self, e: std::io::Error) -> Error {
+        let message = if !is_lost(&e) {
+            format!("I/O failed: {e}")
+        } else if self.config.reconnect {
+            format!("lost: {e} (the next call tries to reopen it)")
+        } else {
+            format!("lost: {e} (call reopen() once it is back)")
+        };
         Error::Port {
             port: self.config.port.clone(),
-            message: format!("I/O failed: {e}"),
+            message,
             source: Some(e),
         }
     }
@@ -675,6 +856,34 @@ fn pace(st: &State, unit: u8, interval: Duration) {
     if let Some(ready) = st.write_ready(unit, interval) {
         sleep_until(ready);
     }
+}
+
+/// Opens the serial port of `config`.
+fn open_serial(config: &BusConfig) -> Result<Box<dyn Transport>> {
+    match SerialTransport::open(&config.port, &config.line) {
+        Ok(transport) => Ok(Box::new(transport)),
+        Err(e) => Err(Error::Port {
+            port: config.port.clone(),
+            message: format!("cannot open: {}", describe_open_error(&e)),
+            source: None,
+        }),
+    }
+}
+
+/// What a port error says, without the port's name (the Error's display adds it).
+fn port_message(e: &Error) -> String {
+    match e {
+        Error::Port { message, .. } => message.clone(),
+        other => other.to_string(),
+    }
+}
+
+/// Whether `request` writes (reads are always answered; writes are paced).
+fn is_write(request: &Request) -> bool {
+    !matches!(
+        request,
+        Request::ReadHoldingRegisters { .. } | Request::ReadDeviceIdentification { .. }
+    )
 }
 
 fn check_config(config: &BusConfig) -> Result<()> {

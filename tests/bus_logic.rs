@@ -341,3 +341,195 @@ fn a_probe_leaves_the_device_at_least_t35_to_answer() {
         at[1] - at[0]
     );
 }
+
+// ---- a lost port: at once, reopen, reconnect ---------------------------------------------
+
+fn port_message(e: &Error) -> String {
+    match e {
+        Error::Port { message, .. } => message.clone(),
+        other => panic!("not a port error: {other}"),
+    }
+}
+
+fn read(bus: &benchbus::Bus) -> benchbus::Result<Vec<u16>> {
+    bus.read_holding_registers(1, 0, 1, &TxOptions::default())
+}
+
+#[test]
+fn a_lost_port_fails_at_once_and_stays_lost_without_reconnect() {
+    let (bus, t) = common::reopenable_bus(vec![Act::Silent, Act::Silent, Act::Silent], 2, false);
+    t.0.lock().unwrap().lost = true;
+    let start = std::time::Instant::now();
+    let e = read(&bus).unwrap_err();
+    assert!(port_message(&e).starts_with("lost: hung up"), "{e}");
+    assert!(e.to_string().contains("call reopen()"), "{e}");
+    assert!(bus.is_lost() && !bus.is_closed());
+    // The port is back, but a Bus without reconnect waits for reopen().
+    t.0.lock().unwrap().lost = false;
+    let e = read(&bus).unwrap_err();
+    assert!(port_message(&e).starts_with("lost earlier (hung up"), "{e}");
+    assert!(
+        bus.broadcast_write_register(0, 1).is_err() && bus.probe(1, 0, Duration::ZERO).is_err()
+    );
+    // No timeout waited out (5 ms x 3 attempts per call), nothing sent, no reopen tried.
+    assert!(
+        start.elapsed() < Duration::from_millis(5),
+        "{:?}",
+        start.elapsed()
+    );
+    let s = t.0.lock().unwrap();
+    assert!(s.sent.is_empty());
+    assert_eq!((s.open_attempts, s.opens), (1, 1));
+    assert_eq!(bus.stats().timeouts, 0);
+}
+
+#[test]
+fn reopen_brings_a_lost_port_back_and_the_stats_survive() {
+    let (bus, t) = common::reopenable_bus(
+        vec![common::words(1, &[7]), common::words(1, &[8])],
+        0,
+        false,
+    );
+    assert_eq!(read(&bus).unwrap(), vec![7]);
+    {
+        let mut s = t.0.lock().unwrap();
+        s.lost = true;
+        s.absent = true;
+    }
+    assert!(read(&bus).is_err());
+    // The path is not there yet: reopen fails, the bus stays without a port.
+    let e = bus.reopen().unwrap_err();
+    assert_eq!(port_message(&e), "cannot open: No such file or directory");
+    assert!(bus.is_lost());
+    assert!(port_message(&read(&bus).unwrap_err()).contains("No such file"));
+    t.0.lock().unwrap().absent = false;
+    bus.reopen().unwrap();
+    assert!(!bus.is_lost());
+    assert_eq!(read(&bus).unwrap(), vec![8]);
+    let stats = bus.stats();
+    assert_eq!((stats.transactions, stats.reopens), (2, 1));
+}
+
+#[test]
+fn reopen_replaces_an_open_port_and_opens_a_closed_bus() {
+    let (bus, t) = common::reopenable_bus(
+        vec![common::words(1, &[1]), common::words(1, &[2])],
+        0,
+        false,
+    );
+    bus.reopen().unwrap();
+    assert_eq!(read(&bus).unwrap(), vec![1]);
+    bus.close();
+    assert!(matches!(read(&bus), Err(Error::Closed { .. })));
+    bus.reopen().unwrap();
+    assert!(!bus.is_closed());
+    assert_eq!(read(&bus).unwrap(), vec![2]);
+    // A failed reopen of a closed bus leaves it closed.
+    bus.close();
+    t.0.lock().unwrap().absent = true;
+    assert!(bus.reopen().is_err());
+    assert!(bus.is_closed());
+    assert_eq!(bus.stats().reopens, 2);
+}
+
+#[test]
+fn a_bus_given_its_transport_cannot_reopen_and_keeps_its_port() {
+    let (bus, _) = bus(vec![common::words(1, &[3])], 0);
+    let e = bus.reopen().unwrap_err();
+    assert!(port_message(&e).contains("cannot reopen"), "{e}");
+    assert_eq!(read(&bus).unwrap(), vec![3]);
+}
+
+#[test]
+fn reconnect_reopens_a_port_found_lost_before_anything_is_sent() {
+    let (bus, t) = common::reopenable_bus(vec![common::words(1, &[5])], 0, true);
+    // Unplugged and plugged in again between two calls: the next call finds the old handle
+    // hung up before it writes, reopens, and goes on.
+    t.0.lock().unwrap().lost = true;
+    assert_eq!(read(&bus).unwrap(), vec![5]);
+    let s = t.0.lock().unwrap();
+    assert_eq!((s.open_attempts, s.opens, s.sent.len()), (2, 2, 1));
+    assert_eq!(bus.stats().reopens, 1);
+}
+
+#[test]
+fn reconnect_fails_the_call_that_lost_its_request_and_reopens_on_the_next() {
+    let echo = with_crc(&[1, 6, 0, 6, 3, 0xE8]);
+    let (bus, t) = common::reopenable_bus(vec![Act::Silent, Act::Reply(echo)], 2, true);
+    t.0.lock().unwrap().lose_after_write = true;
+    let opts = TxOptions::default();
+    // The write went out, then the port went: whether it arrived is unknown, so the call
+    // fails rather than repeat it on another handle.
+    let e = bus.write_register(1, 6, 1000, &opts).unwrap_err();
+    assert!(
+        port_message(&e).contains("the next call tries to reopen it"),
+        "{e}"
+    );
+    assert!(bus.is_lost());
+    bus.write_register(1, 6, 1000, &opts).unwrap();
+    let s = t.0.lock().unwrap();
+    assert_eq!((s.opens, s.sent.len()), (2, 2));
+}
+
+#[test]
+fn reconnect_tries_once_per_call_while_the_path_is_gone() {
+    let (bus, t) = common::reopenable_bus(vec![common::words(1, &[9])], 3, true);
+    {
+        let mut s = t.0.lock().unwrap();
+        s.lost = true;
+        s.absent = true;
+    }
+    let start = std::time::Instant::now();
+    for _ in 0..3 {
+        let e = read(&bus).unwrap_err();
+        assert!(
+            port_message(&e).contains("tried to reopen it: cannot open: No such file"),
+            "{e}"
+        );
+    }
+    assert!(
+        start.elapsed() < Duration::from_millis(5),
+        "{:?}",
+        start.elapsed()
+    );
+    assert_eq!(t.0.lock().unwrap().open_attempts, 1 + 3);
+    t.0.lock().unwrap().absent = false;
+    assert_eq!(read(&bus).unwrap(), vec![9]);
+    assert_eq!(bus.stats().reopens, 1);
+}
+
+#[test]
+fn reconnect_gives_up_when_the_reopened_port_is_lost_too() {
+    let (bus, t) = common::reopenable_bus(vec![], 0, true);
+    {
+        let mut s = t.0.lock().unwrap();
+        s.lost = true;
+        s.stay_lost = true;
+    }
+    // The path opens, but the new handle is hung up too: one reopen per call, then the error.
+    for call in 1..=2 {
+        let e = read(&bus).unwrap_err();
+        assert!(port_message(&e).starts_with("lost: hung up"), "{e}");
+        assert_eq!(t.0.lock().unwrap().open_attempts, 1 + call);
+    }
+    assert!(t.0.lock().unwrap().sent.is_empty());
+}
+
+#[test]
+fn reconnect_does_not_reopen_a_closed_bus() {
+    let (bus, t) = common::reopenable_bus(vec![], 0, true);
+    bus.close();
+    assert!(matches!(read(&bus), Err(Error::Closed { .. })));
+    assert_eq!(t.0.lock().unwrap().open_attempts, 1);
+}
+
+#[test]
+fn an_interrupted_call_is_not_a_lost_port() {
+    let (bus, t) = common::reopenable_bus(vec![common::words(1, &[4])], 0, true);
+    t.0.lock().unwrap().fail_once = Some(std::io::ErrorKind::Interrupted);
+    let e = read(&bus).unwrap_err();
+    assert!(port_message(&e).starts_with("I/O failed"), "{e}");
+    assert!(!bus.is_lost());
+    assert_eq!(read(&bus).unwrap(), vec![4]);
+    assert_eq!(t.0.lock().unwrap().open_attempts, 1);
+}

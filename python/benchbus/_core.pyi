@@ -56,6 +56,9 @@ class Stats:
     @property
     def broadcasts(self) -> int:
         """Broadcast requests sent."""
+    @property
+    def reopens(self) -> int:
+        """Times the port was opened again (:meth:`Bus.reopen`, or a reconnect)."""
     def as_dict(self) -> dict[str, int]:
         """The counters as a dict."""
 
@@ -67,6 +70,20 @@ class Bus:
     while a call waits for the wire. Before each request the line is kept silent for t3.5;
     replies are read by their expected length; a timeout or a corrupt reply is retried up to
     ``retries`` times, an exception reply never is.
+
+    The port is opened exclusively (``TIOCEXCL`` and an exclusive ``flock``): a port another
+    Bus holds, in this process or another, raises PortError ("in use by another Bus or
+    program"), as does one held by any program that locks it too (pyserial with
+    ``exclusive=True``). While a Bus holds a port, other programs cannot open it unless they
+    run as root.
+
+    A port that vanishes (a USB adapter unplugged, a pseudo-terminal whose other end closed)
+    raises PortError at once, from the call that finds it gone, never after a timeout. The
+    Bus then drops the port (releasing it, so a replugged adapter can get its old name back)
+    and later calls raise PortError at once, until :meth:`reopen` succeeds; with
+    ``reconnect=True`` each call tries that itself first. Device objects on the Bus carry on
+    after a reopen without being rebuilt. Open a port by a name that comes back when the
+    adapter does (``/dev/serial/by-id/...``) for that to work.
     """
 
     def __new__(
@@ -79,12 +96,20 @@ class Bus:
         retries: int = 2,
         *,
         turnaround: float = 0.1,
+        reconnect: bool = False,
     ) -> Self:
         """Open ``port`` (e.g. ``/dev/ttyUSB0``) at the given line format.
 
         ``timeout`` is per attempt, in seconds; ``turnaround`` is the quiet time after a
-        broadcast. Raises PortError if the port cannot be opened, ValueError / TypeError for
-        bad arguments.
+        broadcast. Raises PortError if the port cannot be opened (absent, or in use by
+        another Bus or program), ValueError / TypeError for bad arguments.
+
+        ``reconnect=True``: a call that finds the port lost first reopens the path (as
+        :meth:`reopen` does) and goes on, once per call, with no waiting and no loop. If the
+        path is still absent the call raises PortError saying it tried. The call during
+        which the port vanishes raises PortError (whether its request reached the device is
+        unknown), unless nothing of it had been sent yet: then it reopens and goes on. A
+        closed Bus is never reopened by this.
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""
@@ -152,7 +177,21 @@ class Bus:
         """Close the port; further calls raise PortError. Closing twice is harmless."""
     @property
     def closed(self) -> bool:
-        """True once the bus is closed."""
+        """True once the bus is closed (and not reopened since)."""
+    def reopen(self) -> None:
+        """Close the port and open the same path again with the same line format.
+
+        For a port that was lost and has come back (an adapter plugged in again), or to
+        start afresh. :attr:`stats` carry on (``stats.reopens`` counts the reopens), and so
+        do device objects holding this Bus. It also opens a closed Bus again. The GIL is
+        released meanwhile; a call in progress on another thread finishes first.
+
+        Raises PortError if the path cannot be opened (absent, or in use); the Bus is then
+        left without a port (calls raise PortError at once) until a reopen succeeds.
+        """
+    @property
+    def reconnect(self) -> bool:
+        """Whether a call that finds the port lost reopens it first (see ``reconnect=``)."""
     def __enter__(self) -> Self:
         """Return the bus itself."""
     def __exit__(

@@ -233,6 +233,7 @@ struct PyStats {
     exceptions: u64,
     stale_bytes: u64,
     broadcasts: u64,
+    reopens: u64,
 }
 
 impl From<bus::Stats> for PyStats {
@@ -246,6 +247,7 @@ impl From<bus::Stats> for PyStats {
             exceptions: s.exceptions,
             stale_bytes: s.stale_bytes,
             broadcasts: s.broadcasts,
+            reopens: s.reopens,
         }
     }
 }
@@ -279,7 +281,7 @@ impl PyStats {
 }
 
 impl PyStats {
-    fn fields(&self) -> [(&'static str, u64); 8] {
+    fn fields(&self) -> [(&'static str, u64); 9] {
         [
             ("transactions", self.transactions),
             ("retries", self.retries),
@@ -289,6 +291,7 @@ impl PyStats {
             ("exceptions", self.exceptions),
             ("stale_bytes", self.stale_bytes),
             ("broadcasts", self.broadcasts),
+            ("reopens", self.reopens),
         ]
     }
 }
@@ -314,8 +317,8 @@ impl PyBus {
 impl PyBus {
     #[new]
     #[pyo3(
-        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None),
-        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1)"
+        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None),
+        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -327,6 +330,7 @@ impl PyBus {
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
         turnaround: Option<&Bound<'_, PyAny>>,
+        reconnect: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let port: std::path::PathBuf = port
             .extract()
@@ -357,6 +361,11 @@ impl PyBus {
         config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, 100))? as u32;
         config.turnaround = opt(turnaround, config.turnaround, |t| {
             seconds(t, "turnaround", true)
+        })?;
+        config.reconnect = opt(reconnect, false, |r| {
+            r.cast::<PyBool>()
+                .map(|b| b.is_true())
+                .map_err(|_| PyTypeError::new_err("reconnect must be True or False"))
         })?;
         // Logging levels are read when a bus opens (pyo3-log caches them).
         if let Some(handle) = LOG_RESET.get() {
@@ -531,10 +540,23 @@ impl PyBus {
         py.detach(move || bus.close());
     }
 
-    /// True once the bus is closed.
+    /// True once the bus is closed (and not reopened since).
     #[getter]
     fn closed(&self) -> bool {
         self.bus.is_closed()
+    }
+
+    /// Closes the port and opens the same path again with the same settings (also after
+    /// close()); the stats and device objects on this bus carry on. PortError if the path
+    /// cannot be opened (the bus is then left without a port until a reopen succeeds).
+    fn reopen(&self, py: Python<'_>) -> PyResult<()> {
+        self.wire(py, |b| b.reopen())
+    }
+
+    /// Whether a call that finds the port lost reopens it first (once per call).
+    #[getter]
+    fn reconnect(&self) -> bool {
+        self.bus.config().reconnect
     }
 
     fn __enter__(slf: Py<Self>) -> Py<Self> {
@@ -604,14 +626,21 @@ impl PyBus {
     fn __repr__(&self) -> String {
         let c = self.bus.config();
         format!(
-            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{})",
+            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{})",
             c.port.replace('\\', "\\\\").replace('\'', "\\'"),
             c.line.baudrate,
             c.line.parity.letter(),
             c.line.stop_bits,
             c.timeout.as_secs_f64(),
             c.retries,
-            if self.bus.is_closed() { ", closed" } else { "" }
+            if c.reconnect { ", reconnect=True" } else { "" },
+            if self.bus.is_closed() {
+                ", closed"
+            } else if self.bus.is_lost() {
+                ", lost"
+            } else {
+                ""
+            }
         )
     }
 }

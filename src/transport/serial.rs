@@ -1,16 +1,30 @@
 //! The serial transport on the serialport crate: a USB RS485 adapter or a pseudo-terminal.
 
-use super::Transport;
+use super::{port_lost, Transport};
 use crate::timing::{LineFormat, Parity};
 use serialport::{SerialPort, TTYPort};
 use std::io::{self, Read, Write};
+use std::os::unix::io::AsRawFd;
 use std::sync::Once;
 use std::time::Duration;
 
 /// A serial port opened for Modbus RTU (raw mode, exclusive).
+///
+/// Exclusive: the serialport crate sets `TIOCEXCL` (a later open by another non-root program
+/// fails with `EBUSY`) and takes an exclusive `flock` (a later open by anything that locks,
+/// such as another Bus in this or another process, fails); see [`describe_open_error`].
+///
+/// A port that hangs up (a USB adapter unplugged, a pseudo-terminal whose master closed)
+/// fails every call at once with [`port_lost`]: the kernel marks the file hung up, so a read
+/// returns nothing or `EIO`, an ioctl `EIO`, and `poll` reports `POLLHUP`.
 pub struct SerialTransport {
     port: TTYPort,
+    line: LineFormat,
 }
+
+/// What a write may take beyond the frame's own time on the wire: the driver's and the
+/// adapter's buffers, never a hang.
+const WRITE_SLACK: Duration = Duration::from_millis(100);
 
 fn to_serialport_parity(p: Parity) -> serialport::Parity {
     match p {
@@ -48,14 +62,27 @@ impl SerialTransport {
             Err(e) if wanted != serialport::Parity::None && is_invalid_input(&e) => {
                 let port = TTYPort::open(&builder.parity(serialport::Parity::None))?;
                 note_parity_dropped(path, line);
-                return Ok(SerialTransport { port });
+                return Ok(SerialTransport { port, line: *line });
             }
             Err(e) => return Err(e),
         };
         if wanted != serialport::Parity::None && port.parity().ok() != Some(wanted) {
             note_parity_dropped(path, line);
         }
-        Ok(SerialTransport { port })
+        Ok(SerialTransport { port, line: *line })
+    }
+}
+
+/// What an open error means, for the message of a PortError: "in use" for a port another
+/// Bus or program holds (the crate reports both `EBUSY` and a refused `flock` as
+/// `NoDevice`), the system's own words otherwise.
+pub fn describe_open_error(e: &serialport::Error) -> String {
+    match e.kind() {
+        serialport::ErrorKind::NoDevice => format!(
+            "in use by another Bus or program (benchbus opens a port exclusively): {}",
+            e.description
+        ),
+        _ => e.description.clone(),
     }
 }
 
@@ -78,28 +105,67 @@ fn note_parity_dropped(path: &str, line: &LineFormat) {
     });
 }
 
+impl SerialTransport {
+    /// Whether the port has hung up: `poll` on it reports `POLLHUP`, `POLLERR` or `POLLNVAL`.
+    fn hung_up(&self) -> bool {
+        let mut fd = libc::pollfd {
+            fd: self.port.as_raw_fd(),
+            events: libc::POLLIN,
+            revents: 0,
+        };
+        // SAFETY: one valid pollfd, owned by this stack frame, for a zero-timeout poll.
+        let n = unsafe { libc::poll(&mut fd, 1, 0) };
+        n > 0 && fd.revents & (libc::POLLHUP | libc::POLLERR | libc::POLLNVAL) != 0
+    }
+
+    /// `e` as [`port_lost`] if the port has hung up; as it is otherwise (an interrupted
+    /// system call is never a lost port).
+    fn checked(&self, e: io::Error) -> io::Error {
+        if e.kind() != io::ErrorKind::Interrupted && self.hung_up() {
+            port_lost(format!("hung up (unplugged, or its other end closed): {e}"))
+        } else {
+            e
+        }
+    }
+}
+
 impl Transport for SerialTransport {
     fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
-        self.port.write_all(frame)
+        // The port's timeout is the last read's (zero after a stale-input drain): a write gets
+        // its own, so a momentarily full output buffer is waited for, boundedly.
+        let timeout = WRITE_SLACK + self.line.frame_time(frame.len()) * 2;
+        self.port
+            .set_timeout(timeout)
+            .map_err(|e| self.checked(e.into()))?;
+        self.port.write_all(frame).map_err(|e| self.checked(e))
     }
 
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        self.port.set_timeout(timeout)?;
+        self.port
+            .set_timeout(timeout)
+            .map_err(|e| self.checked(e.into()))?;
         match self.port.read(buf) {
             Err(e) if e.kind() == io::ErrorKind::TimedOut => Ok(0),
-            // A read that returns nothing after poll said "readable" means the other end hung up.
-            Ok(0) => Err(io::Error::new(
-                io::ErrorKind::BrokenPipe,
-                "port closed by the other end",
+            // In raw mode (VMIN 1) a read returns nothing only at end of file: a hang-up.
+            Ok(0) => Err(port_lost(
+                "hung up (unplugged, or its other end closed): read found end of file",
             )),
-            other => other,
+            Err(e) => Err(self.checked(e)),
+            Ok(n) => Ok(n),
         }
     }
 
     fn discard_input(&mut self) -> io::Result<Vec<u8>> {
         let mut stale = Vec::new();
         let mut chunk = [0u8; 256];
-        while self.port.bytes_to_read()? > 0 {
+        loop {
+            let waiting = self
+                .port
+                .bytes_to_read()
+                .map_err(|e| self.checked(e.into()))?;
+            if waiting == 0 {
+                break;
+            }
             let n = self.read(&mut chunk, Duration::ZERO)?;
             if n == 0 {
                 break;
@@ -107,5 +173,79 @@ impl Transport for SerialTransport {
             stale.extend_from_slice(&chunk[..n]);
         }
         Ok(stale)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::transport::is_lost;
+    use std::time::Instant;
+
+    /// A pseudo-terminal pair: (master fd, slave path). The slave stays open in the test
+    /// only through the transport.
+    fn pty() -> (libc::c_int, String) {
+        let (mut master, mut slave) = (-1, -1);
+        let mut name = [0 as libc::c_char; 128];
+        // SAFETY: valid out-pointers; a name buffer far longer than any /dev/pts/N.
+        let rc = unsafe {
+            libc::openpty(
+                &mut master,
+                &mut slave,
+                name.as_mut_ptr(),
+                std::ptr::null(),
+                std::ptr::null(),
+            )
+        };
+        assert_eq!(rc, 0, "openpty: {}", io::Error::last_os_error());
+        // SAFETY: openpty wrote a NUL-terminated path into `name`.
+        let path = unsafe { std::ffi::CStr::from_ptr(name.as_ptr()) }
+            .to_string_lossy()
+            .into_owned();
+        // SAFETY: our own fd, closed once.
+        unsafe { libc::close(slave) };
+        (master, path)
+    }
+
+    fn line() -> LineFormat {
+        LineFormat::new(19_200, Parity::None, 1)
+    }
+
+    #[test]
+    fn a_hung_up_port_fails_every_call_at_once_as_lost() {
+        let (master, path) = pty();
+        let mut t = SerialTransport::open(&path, &line()).unwrap();
+        t.write_all(&[1, 2, 3]).unwrap();
+        // SAFETY: our own fd, closed once: the far end goes away, as an unplugged adapter.
+        unsafe { libc::close(master) };
+        let start = Instant::now();
+        let e = t.read(&mut [0u8; 8], Duration::from_secs(5)).unwrap_err();
+        assert!(is_lost(&e), "{e:?}");
+        assert!(e.to_string().contains("hung up"), "{e}");
+        assert!(is_lost(&t.discard_input().unwrap_err()));
+        assert!(is_lost(&t.write_all(&[1]).unwrap_err()));
+        assert!(
+            start.elapsed() < Duration::from_millis(500),
+            "{:?}",
+            start.elapsed()
+        );
+    }
+
+    #[test]
+    fn a_port_held_by_another_opener_is_refused_as_in_use() {
+        let (master, path) = pty();
+        let held = SerialTransport::open(&path, &line()).unwrap();
+        let e = SerialTransport::open(&path, &line())
+            .err()
+            .map(|e| describe_open_error(&e));
+        assert!(
+            e.as_deref()
+                .is_some_and(|m| m.starts_with("in use by another Bus or program")),
+            "{e:?}"
+        );
+        drop(held);
+        assert!(SerialTransport::open(&path, &line()).is_ok());
+        // SAFETY: our own fd, closed once.
+        unsafe { libc::close(master) };
     }
 }

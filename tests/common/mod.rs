@@ -4,7 +4,8 @@
 use benchbus::bus::{Bus, BusConfig};
 use benchbus::codec::crc16;
 use benchbus::timing::{LineFormat, Parity};
-use benchbus::transport::Transport;
+use benchbus::transport::{port_lost, Transport};
+use benchbus::Error;
 use std::collections::VecDeque;
 use std::io;
 use std::sync::{Arc, Mutex};
@@ -34,6 +35,31 @@ pub struct Script {
     pub sent_at: Vec<std::time::Instant>,
     /// Bytes that arrive once the current read has given up.
     pub late: Vec<u8>,
+    /// The port is gone: every call fails at once with a lost-port error.
+    pub lost: bool,
+    /// The port goes (as `lost`) right after the next frame is written.
+    pub lose_after_write: bool,
+    /// The next call fails with this (not lost) error kind, once.
+    pub fail_once: Option<io::ErrorKind>,
+    /// Whether the path is there to be opened (see [`reopenable_bus`]).
+    pub absent: bool,
+    /// The path opens, but to a port as lost as the old one.
+    pub stay_lost: bool,
+    /// Times the opener was called, and how many of them opened the port.
+    pub open_attempts: u32,
+    pub opens: u32,
+}
+
+impl Script {
+    /// The error of a call on the port now, if it fails.
+    fn failure(&mut self) -> Option<io::Error> {
+        if self.lost {
+            return Some(port_lost("hung up (scripted)"));
+        }
+        self.fail_once
+            .take()
+            .map(|kind| io::Error::new(kind, "scripted failure"))
+    }
 }
 
 #[derive(Clone, Default)]
@@ -42,6 +68,13 @@ pub struct Scripted(pub Arc<Mutex<Script>>);
 impl Transport for Scripted {
     fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
         let mut s = self.0.lock().unwrap();
+        if let Some(e) = s.failure() {
+            return Err(e);
+        }
+        if s.lose_after_write {
+            s.lose_after_write = false;
+            s.lost = true;
+        }
         s.sent.push(frame.to_vec());
         s.sent_at.push(std::time::Instant::now());
         match s.acts.pop_front() {
@@ -55,6 +88,9 @@ impl Transport for Scripted {
     }
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let mut s = self.0.lock().unwrap();
+        if let Some(e) = s.failure() {
+            return Err(e);
+        }
         if s.pending.is_empty() {
             // A silent device: nothing comes for the whole timeout (late bytes come after).
             let late = std::mem::take(&mut s.late);
@@ -87,7 +123,11 @@ impl Transport for Scripted {
         Ok(n)
     }
     fn discard_input(&mut self) -> io::Result<Vec<u8>> {
-        Ok(self.0.lock().unwrap().pending.drain(..).collect())
+        let mut s = self.0.lock().unwrap();
+        if let Some(e) = s.failure() {
+            return Err(e);
+        }
+        Ok(s.pending.drain(..).collect())
     }
     fn is_serial_line(&self) -> bool {
         self.0.lock().unwrap().byte_time.is_some()
@@ -108,6 +148,37 @@ pub fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
     cfg.timeout = Duration::from_millis(5);
     cfg.turnaround = Duration::ZERO;
     (Bus::with_transport(cfg, Box::new(t.clone())), t)
+}
+
+/// A Bus on a scripted transport that can be reopened: its opener fails while the script's
+/// `absent` is set, and otherwise brings the port back (clears `lost`).
+pub fn reopenable_bus(acts: Vec<Act>, retries: u32, reconnect: bool) -> (Bus, Scripted) {
+    let t = Scripted::default();
+    t.0.lock().unwrap().acts = acts.into();
+    let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1));
+    cfg.retries = retries;
+    cfg.timeout = Duration::from_millis(5);
+    cfg.turnaround = Duration::ZERO;
+    cfg.reconnect = reconnect;
+    let port = t.clone();
+    let opener = Box::new(
+        move |cfg: &BusConfig| -> benchbus::Result<Box<dyn Transport>> {
+            let mut s = port.0.lock().unwrap();
+            s.open_attempts += 1;
+            if s.absent {
+                return Err(Error::Port {
+                    port: cfg.port.clone(),
+                    message: "cannot open: No such file or directory".into(),
+                    source: None,
+                });
+            }
+            s.opens += 1;
+            s.lost = s.stay_lost;
+            Ok(Box::new(port.clone()))
+        },
+    );
+    let bus = Bus::with_opener(cfg, opener).unwrap();
+    (bus, t)
 }
 
 /// A Bus on a scripted serial line at `baudrate` 8N1 whose reply bytes arrive one per
