@@ -157,6 +157,8 @@ struct State {
     last_write: HashMap<u8, (Instant, Duration)>,
     /// When the last broadcast's turnaround ended: a write to every unit.
     last_broadcast: Option<Instant>,
+    /// Until when a reply to a call that timed out may still arrive (see [`Bus::send`]).
+    late_until: Option<Instant>,
     stats: Stats,
 }
 
@@ -210,6 +212,7 @@ impl Bus {
                 silence: SilenceGuard::new(),
                 last_write: HashMap::new(),
                 last_broadcast: None,
+                late_until: None,
                 stats: Stats::default(),
             }),
             sequences: Mutex::new(HashMap::new()),
@@ -544,56 +547,74 @@ impl Bus {
             return Ok(unanswered_write(request));
         }
         let mut last_error = None;
-        for attempt in 0..attempts {
-            if attempt > 0 {
-                st.stats.retries += 1;
-                if paced {
-                    // A repeated write is a write command too: it keeps the interval.
-                    pace(st, unit, opts.write_interval);
-                }
-            }
-            let outcome = self.attempt(st, unit, request, frame, timeout, opts.window_from_start);
-            if is_write {
-                st.wrote(unit, opts.write_interval);
-            }
-            let error = match outcome {
-                Ok((Reply::Normal(response), reply)) => {
-                    match check_echo(request, &response, opts.echo) {
-                        Ok(()) => {
-                            st.stats.transactions += 1;
-                            return Ok(response);
-                        }
-                        Err(kind) => frame_error(unit, request.function(), kind, reply),
+        let mut timed_out = false;
+        let result = 'attempts: {
+            for attempt in 0..attempts {
+                if attempt > 0 {
+                    st.stats.retries += 1;
+                    if paced {
+                        // A repeated write is a write command too: it keeps the interval.
+                        pace(st, unit, opts.write_interval);
                     }
                 }
-                Ok((Reply::Exception { function, code }, reply)) => {
-                    st.stats.transactions += 1;
-                    st.stats.exceptions += 1;
-                    return Err(Error::Exception {
-                        unit,
-                        function,
-                        code,
-                        meaning: (opts.meaning)(code).to_string(),
-                        frame: reply,
-                    });
+                let outcome =
+                    self.attempt(st, unit, request, frame, timeout, opts.window_from_start);
+                if is_write {
+                    st.wrote(unit, opts.write_interval);
                 }
-                Err(e) => e,
-            };
-            match &error {
-                Error::Timeout { .. } => st.stats.timeouts += 1,
-                Error::Frame {
-                    kind: FrameError::Crc { .. },
-                    ..
-                } => st.stats.crc_errors += 1,
-                Error::Frame { .. } => st.stats.frame_errors += 1,
-                _ => return Err(error),
+                let error = match outcome {
+                    Ok((Reply::Normal(response), reply)) => {
+                        match check_echo(request, &response, opts.echo) {
+                            Ok(()) => {
+                                st.stats.transactions += 1;
+                                break 'attempts Ok(response);
+                            }
+                            Err(kind) => frame_error(unit, request.function(), kind, reply),
+                        }
+                    }
+                    Ok((Reply::Exception { function, code }, reply)) => {
+                        st.stats.transactions += 1;
+                        st.stats.exceptions += 1;
+                        break 'attempts Err(Error::Exception {
+                            unit,
+                            function,
+                            code,
+                            meaning: (opts.meaning)(code).to_string(),
+                            frame: reply,
+                        });
+                    }
+                    Err(e) => e,
+                };
+                match &error {
+                    Error::Timeout { .. } => {
+                        st.stats.timeouts += 1;
+                        timed_out = true;
+                    }
+                    Error::Frame {
+                        kind: FrameError::Crc { .. },
+                        ..
+                    } => st.stats.crc_errors += 1,
+                    Error::Frame { .. } => st.stats.frame_errors += 1,
+                    _ => break 'attempts Err(error),
+                }
+                last_error = Some(error);
             }
-            last_error = Some(error);
+            if let Some(Error::Timeout { attempts: n, .. }) = &mut last_error {
+                *n = attempts;
+            }
+            Err(last_error.unwrap_or_else(|| Error::InvalidArgument("no attempt made".into())))
+        };
+        // An attempt timed out, so a reply to it may still come (even when a retry was then
+        // answered: by the first attempt's late reply, perhaps). RTU replies carry no
+        // transaction id, so one arriving during the next call would pass as that call's
+        // answer: the next call listens for it first (see `send`). Within a call a late reply
+        // answers the same request, so retries do not wait. A probe's unit is not asked
+        // again, and a late answer from it would name the wrong unit. Two timeouts: a unit
+        // slower than the timeout may have queued the retry's reply behind the late one.
+        if timed_out && !opts.window_from_start {
+            st.late_until = Some(Instant::now() + timeout * 2);
         }
-        if let Some(Error::Timeout { attempts: n, .. }) = &mut last_error {
-            *n = attempts;
-        }
-        Err(last_error.unwrap_or_else(|| Error::InvalidArgument("no attempt made".into())))
+        result
     }
 
     /// One attempt: drop stale input, wait for silence, send, read the reply by its length.
@@ -706,6 +727,30 @@ impl Bus {
         let line = self.config.line;
         let transport = self.port(&mut st.link)?;
         let serial = transport.is_serial_line();
+        // After a call in which an attempt timed out, listen for a late reply for up to two
+        // more timeouts before sending anything: dropped here, it cannot be taken for the next
+        // answer.
+        if let Some(until) = st.late_until.take() {
+            let mut scratch = [0u8; crate::codec::rtu::MAX_ADU];
+            let wait = until.saturating_duration_since(Instant::now());
+            if !wait.is_zero() {
+                // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
+                let quiet = line.t3_5().max(Duration::from_millis(2));
+                let mut n = transport
+                    .read(&mut scratch, wait)
+                    .map_err(|e| self.io_error(e))?;
+                let mut dropped = 0;
+                while n > 0 && dropped < 2 * crate::codec::rtu::MAX_ADU {
+                    dropped += n;
+                    st.silence.busy_until(Instant::now());
+                    log::debug!(target: "benchbus::wire", "late reply dropped: {}", hex(&scratch[..n]));
+                    n = transport
+                        .read(&mut scratch, quiet)
+                        .map_err(|e| self.io_error(e))?;
+                }
+                st.stats.stale_bytes += dropped as u64;
+            }
+        }
         // Stale bytes are traffic: the line is quiet only t3.5 after the last of them, and
         // bytes that arrive during that wait restart it (a few times at most: a device that
         // never stops talking does not hold the bus for ever).

@@ -533,3 +533,27 @@ fn an_interrupted_call_is_not_a_lost_port() {
     assert_eq!(read(&bus).unwrap(), vec![4]);
     assert_eq!(t.0.lock().unwrap().open_attempts, 1);
 }
+
+#[test]
+fn a_late_reply_to_a_timed_out_call_never_answers_the_next_call() {
+    // RTU replies carry no transaction id: the first call's reply (value 7) comes after it
+    // gave up; the second call, same shape, must get its own value (9), not that one.
+    let (bus, _) = common::serial_bus(
+        vec![
+            Act::Late(common::with_crc(&[1, 3, 2, 0, 7])),
+            common::words(1, &[9]),
+        ],
+        19_200,
+        Duration::ZERO,
+    );
+    assert!(matches!(
+        bus.read_holding_registers(1, 0, 1, &TxOptions::default()),
+        Err(Error::Timeout { .. })
+    ));
+    assert_eq!(
+        bus.read_holding_registers(1, 1, 1, &TxOptions::default())
+            .unwrap(),
+        vec![9]
+    );
+    assert_eq!(bus.stats().stale_bytes, 7);
+}

@@ -141,17 +141,25 @@ impl Transport for SerialTransport {
     }
 
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        self.port
-            .set_timeout(timeout)
-            .map_err(|e| self.checked(e.into()))?;
-        match self.port.read(buf) {
-            Err(e) if e.kind() == io::ErrorKind::TimedOut => Ok(0),
-            // In raw mode (VMIN 1) a read returns nothing only at end of file: a hang-up.
-            Ok(0) => Err(port_lost(
-                "hung up (unplugged, or its other end closed): read found end of file",
-            )),
-            Err(e) => Err(self.checked(e)),
-            Ok(n) => Ok(n),
+        let deadline = std::time::Instant::now() + timeout;
+        loop {
+            let left = deadline.saturating_duration_since(std::time::Instant::now());
+            self.port
+                .set_timeout(left)
+                .map_err(|e| self.checked(e.into()))?;
+            return match self.port.read(buf) {
+                Err(e) if e.kind() == io::ErrorKind::TimedOut => Ok(0),
+                // A signal (Ctrl-C, a timer) interrupted the wait: the reply is still on its
+                // way, so wait on until the same deadline. Abandoning it here would leave it
+                // to answer the next request; Python raises the signal when the call returns.
+                Err(e) if e.kind() == io::ErrorKind::Interrupted && !left.is_zero() => continue,
+                // In raw mode (VMIN 1) a read returns nothing only at end of file: a hang-up.
+                Ok(0) => Err(port_lost(
+                    "hung up (unplugged, or its other end closed): read found end of file",
+                )),
+                Err(e) => Err(self.checked(e)),
+                Ok(n) => Ok(n),
+            };
         }
     }
 
