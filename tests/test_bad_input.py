@@ -334,6 +334,18 @@ EXPLICIT: list[Case] = [
     *calls("Drive", "record", TypeError, "column", A(1, 0.1, columns=[5])),
     *calls("Drive", "record", TypeError, "clock", A(1, 0.1, clock="x")),
     *calls("Drive", "record", TypeError, "sleep", A(1, 0.1, sleep=0.1)),
+    *sets(
+        "Drive",
+        "comm_loss_timeout",
+        ValueError,
+        "comm_loss_timeout",
+        *(-1, 0.05, 60.1, NAN, INF, -INF, HUGE, -HUGE, 2**1100),
+    ),
+    *sets("Drive", "comm_loss_timeout", TypeError, "comm_loss_timeout", "1", None, True, [1]),
+    *sets("C20", "comm_loss_timeout", ValueError, "F08.04", 1.0),  # BLD only
+    *calls("Drive", "keepalive", ValueError, "interval", *(A(i) for i in (0, -1, NAN, INF, HUGE))),
+    *calls("Drive", "keepalive", ValueError, "interval", A(0.001), A(61)),
+    *calls("Drive", "keepalive", TypeError, "interval", A("1"), A(None), A(True)),
     # -- PblDrive
     *calls("PblDrive", "__init__", ValueError, "unit", *(A(BUS, u) for u in (-1, 0, 256, HUGE))),
     *calls("PblDrive", "__init__", TypeError, "unit", A(BUS, "1"), A(BUS, 17.0)),

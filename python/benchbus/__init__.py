@@ -38,6 +38,7 @@ from benchbus._drive import (
 )
 from benchbus._instrument import Identification, Instrument
 from benchbus._j2 import InputType, J2Controller, J2Mode, J2Status, Limits, Pid
+from benchbus._keepalive import KeepAlive
 from benchbus._pbl import (
     DecelMode,
     Direction,
@@ -82,6 +83,7 @@ __all__ = [
     "J2Controller",
     "J2Mode",
     "J2Status",
+    "KeepAlive",
     "Limits",
     "ModbusException",
     "Model",

@@ -11,6 +11,7 @@ import dataclasses
 import enum
 import logging
 import os
+import threading
 import time
 from typing import TYPE_CHECKING, Any
 
@@ -26,6 +27,7 @@ from benchbus._device import (
     to_int,
 )
 from benchbus._display import dataclass_table
+from benchbus._keepalive import KeepAlive, check_interval
 
 if TYPE_CHECKING:
     pass
@@ -290,6 +292,8 @@ class Drive(MotorDevice):
         requests only (None: the Bus's).
         """
         self._jogging = False
+        self._keepalive: KeepAlive | None = None
+        self._keepalive_lock = threading.Lock()
         self._attach(
             port_or_bus,
             lambda bus, t, r: DriveCore(bus, unit, family, write_ack, t, r),
@@ -496,6 +500,74 @@ class Drive(MotorDevice):
         """
         self.core.write_parameter(code, value)
 
+    @property
+    def comm_loss_timeout(self) -> float:
+        """The drive's communication-loss timeout F08.04, seconds; 0.0 = off (the default).
+
+        With it set, a drive that hears no request for that long trips (state FAULT) and
+        stops its motor: pair it with :meth:`keepalive` so that only a dead host (or a dead
+        line) lets it run out. Set 0 or 0.1..60.0 s, in steps of 0.1 s (rounded to the
+        nearest); anything else raises TypeError / ValueError before anything is sent. F08.04
+        is W/R*: writing it while the motor turns is refused by the drive (exception 0x08).
+        BLD family only: the ZBLD.C20 manual lists no F08.04, so a C20 raises ValueError.
+        """
+        self._check_comm_loss_family()
+        return self.read_parameter("F08.04") / 10.0
+
+    @comm_loss_timeout.setter
+    def comm_loss_timeout(self, seconds: float) -> None:
+        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)):
+            raise TypeError(
+                f"comm_loss_timeout must be a number of seconds, got {type(seconds).__name__}"
+            )
+        # Written so that NaN, the infinities and ints too big for a float all fail it.
+        if not (seconds == 0 or 0.1 <= seconds <= 60.0):
+            raise ValueError(
+                f"comm_loss_timeout (F08.04) must be 0 (off) or 0.1..60.0 s, got {seconds!r}"
+            )
+        self._check_comm_loss_family()
+        self.write_parameter("F08.04", round(seconds * 10))
+
+    def _check_comm_loss_family(self) -> None:
+        if self.family == "C20":
+            raise ValueError(
+                "comm_loss_timeout: the ZBLD.C20 manual lists no F08.04 (communication-loss"
+                " timeout); it is a BLD2 / BLD3H parameter"
+            )
+
+    def keepalive(self, interval: float = 0.5) -> KeepAlive:
+        """Read the drive state every ``interval`` seconds (0.01..60) from a daemon thread.
+
+        ::
+
+            drive.comm_loss_timeout = 1.0      # F08.04: trip after 1 s without a request
+            drive.keepalive(0.25)              # ... which never happens while we live
+            drive.forward()
+
+        The reads go on absolute deadlines, so the drive's F08.04 timer never runs out while
+        the host lives; if the process dies, the reads stop and the drive trips and stops
+        the motor. Choose ``interval`` well under :attr:`comm_loss_timeout` (a third or less
+        leaves room for a retried read). A failed read is logged at WARNING on
+        ``benchbus.device`` and counted in the returned :class:`benchbus.KeepAlive`'s
+        ``errors``; the thread goes on. The reads share the Bus with the caller's requests
+        (the Bus serialises them).
+
+        One keepalive per drive: while one runs, a second call raises RuntimeError (stop the
+        first to change the interval). :meth:`close` (and leaving the drive's ``with``
+        block) stops it.
+        """
+        period = check_interval(interval)
+        with self._keepalive_lock:
+            if self._keepalive is not None and self._keepalive.running:
+                raise RuntimeError(
+                    f"unit {self.unit}: a keepalive is already running (every"
+                    f" {self._keepalive.interval} s); stop() it first"
+                )
+            self._keepalive = KeepAlive(
+                lambda: self.core.get("state"), period, f"benchbus keepalive unit {self.unit}"
+            )
+            return self._keepalive
+
     def get(self, name: str) -> int | float:
         """Read any register of the drive's table by name (see :meth:`registers`)."""
         return self.core.get(name)
@@ -509,6 +581,15 @@ class Drive(MotorDevice):
         return self.core.registers()
 
     # ---- lifecycle -------------------------------------------------------------------------
+
+    def close(self) -> None:
+        """Stop the :meth:`keepalive` thread, if any, then close the Bus if the drive
+        opened it (a shared Bus stays open)."""
+        with self._keepalive_lock:
+            keepalive, self._keepalive = self._keepalive, None
+        if keepalive is not None:
+            keepalive.stop()
+        super().close()
 
     def _stop_on_exit(self) -> None:
         """End a jog this object started (jog stop), then send the stop."""

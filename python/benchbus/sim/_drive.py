@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 from benchbus.sim._device import ClockedModel, SimDevice, SimException
 
-__all__ = ["DriveDevice"]
+__all__ = ["COMM_LOSS_FAULT", "DriveDevice"]
 
 # Exception codes with this family's meanings.
 _ILLEGAL_COMMAND = 0x01  # not supported, or the drive is in an error state
@@ -47,6 +47,7 @@ _HALL_CLEAR = 0x2011
 _STOP_MODE = 0x2012
 
 _F08_03_REPLY_DELAY = 0x0803
+_F08_04_COMM_TIMEOUT = 0x0804
 _F08_06_WRITE_REPLY = 0x0806
 
 #: Registers at 0x2006..0x2009 are the same settings as these function-code parameters.
@@ -54,6 +55,10 @@ _ALIASES = {0x2006: 0x0001, 0x2007: 0x0002, 0x2008: 0x0800, 0x2009: 0x0801}
 
 #: Hall sensor states in the order a 120-degree sensor set steps through them going forward.
 _HALL_SEQUENCE = (1, 5, 4, 6, 2, 3)
+
+#: The fault code of a communication-loss trip (F08.04 ran out). The manual names no code
+#: for it (it documents only 0x0A, undervoltage): this value is the simulator's choice.
+COMM_LOSS_FAULT = 0x0E
 
 _RPM_FULL_SCALE = 3000.0  # the ramp times are for 0 <-> 3000 rpm
 _BRAKE_FACTOR = 10.0
@@ -163,7 +168,10 @@ class DriveDevice(ClockedModel, SimDevice):
     0 and then shows 3, or coasts when 0x2012 = 1; coast (6) stops at once; brake (9)
     shows 6 while ramping down at 10x the decel rate. The drive replies after F08.03 ms
     (:attr:`reply_delay`) and not at all to writes when F08.06 = 1
-    (:attr:`answers_writes`). F08.04 (communication-loss timeout) is only stored.
+    (:attr:`answers_writes`). With F08.04 (communication-loss timeout, 0.1 s) above 0, a
+    drive whose motor turns and which has had no request for that long (model time: its
+    reads and writes, as the simulator hands them over) trips with :data:`COMM_LOSS_FAULT`
+    and stops at once.
     """
 
     #: The models this class simulates.
@@ -218,6 +226,8 @@ class DriveDevice(ClockedModel, SimDevice):
             params={a: p.default for a, p in self._params_table.items()},
             t=self._now(),
         )
+        #: Model time of the last request that reached this unit (for F08.04).
+        self._heard = self._core.t
 
     @property
     def model(self) -> str:
@@ -244,12 +254,14 @@ class DriveDevice(ClockedModel, SimDevice):
             raise SimException(_BAD_VALUE)
         with self._lock:
             self._update()
+            self._heard = self._core.t
             return [self._read(a) for a in range(address, address + count)]
 
     def write_holding(self, address: int, values: list[int]) -> None:
         """Write ``values`` from ``address``, register by register, all or nothing."""
         with self._lock:
             self._update()
+            self._heard = self._core.t
             saved = copy.deepcopy(self._core)
             try:
                 for offset, value in enumerate(values):
@@ -549,9 +561,21 @@ class DriveDevice(ClockedModel, SimDevice):
         return 0.0
 
     def _update(self) -> None:
-        """Move the motor model from its last update to now."""
+        """Move the motor model from its last update to now; trip if F08.04 ran out."""
         core = self._core
         now = self._now()
+        timeout = core.params[_F08_04_COMM_TIMEOUT] / 10
+        trip_at = self._heard + timeout
+        if timeout > 0 and self._turning() and not core.fault and trip_at <= now:
+            self._move(trip_at)
+            if self._turning():  # a stop may have ended before the timer ran out
+                self._halt()
+                core.fault = core.last_fault = COMM_LOSS_FAULT
+        self._move(now)
+
+    def _move(self, now: float) -> None:
+        """Move the motor model from its last update to ``now``."""
+        core = self._core
         dt, core.t = now - core.t, max(now, core.t)
         while dt > 0:
             target, speed = self._target(), core.speed
