@@ -221,16 +221,10 @@ fn silence_counts_from_the_reply_even_when_it_beats_the_reckoned_request_end() {
     assert!(gap < line.t3_5() + line.frame_time(8) / 2, "{gap:?}");
 }
 
-#[test]
-fn a_timeout_with_nothing_received_leaves_the_line_quiet_since_the_request() {
-    // Nothing came back: the line has been quiet since the request ended, far longer than
-    // t3.5, so the retry goes out as soon as the timeout has passed.
-    let (bus, t) = common::serial_bus(
-        vec![Act::Silent, common::words(1, &[7])],
-        1200,
-        Duration::ZERO,
-    );
-    let line = bus.config().line;
+/// A read at 1200 baud (40 ms timeout, one retry) whose first attempt meets `first` and
+/// whose retry is answered: the time between the two requests, the line, and the Bus.
+fn retry_gap(first: Act) -> (Duration, benchbus::LineFormat, benchbus::Bus) {
+    let (bus, t) = common::serial_bus(vec![first, common::words(1, &[7])], 1200, Duration::ZERO);
     let opts = TxOptions {
         retries: Some(1),
         timeout: Some(Duration::from_millis(40)),
@@ -238,7 +232,14 @@ fn a_timeout_with_nothing_received_leaves_the_line_quiet_since_the_request() {
     };
     bus.read_holding_registers(1, 0, 1, &opts).unwrap();
     let at = common::sent_at(&t);
-    let gap = at[1] - at[0];
+    (at[1] - at[0], bus.config().line, bus)
+}
+
+#[test]
+fn a_timeout_with_nothing_received_leaves_the_line_quiet_since_the_request() {
+    // Nothing came back: the line has been quiet since the request ended, far longer than
+    // t3.5, so the retry goes out as soon as the timeout has passed.
+    let (gap, line, _) = retry_gap(Act::Silent);
     // request on the wire + timeout + the first reply character's time
     let expected = line.frame_time(8) + Duration::from_millis(40) + line.char_time();
     assert!(gap >= expected, "{gap:?}");
@@ -252,20 +253,7 @@ fn a_timeout_with_nothing_received_leaves_the_line_quiet_since_the_request() {
 fn late_bytes_found_before_a_request_are_traffic_and_restart_the_silence() {
     // The reply came after the timeout: it is dropped as stale, and the retry waits t3.5
     // after finding it rather than going out into the rest of it.
-    let (bus, t) = common::serial_bus(
-        vec![Act::Late(vec![1, 3, 2]), common::words(1, &[7])],
-        1200,
-        Duration::ZERO,
-    );
-    let line = bus.config().line;
-    let opts = TxOptions {
-        retries: Some(1),
-        timeout: Some(Duration::from_millis(40)),
-        ..TxOptions::default()
-    };
-    bus.read_holding_registers(1, 0, 1, &opts).unwrap();
-    let at = common::sent_at(&t);
-    let gap = at[1] - at[0];
+    let (gap, line, bus) = retry_gap(Act::Late(vec![1, 3, 2]));
     let timed_out = line.frame_time(8) + Duration::from_millis(40) + line.char_time();
     assert!(gap >= timed_out + line.t3_5(), "{gap:?}");
     assert_eq!(bus.stats().stale_bytes, 3);

@@ -140,25 +140,26 @@ pub fn with_crc(body: &[u8]) -> Vec<u8> {
     f
 }
 
-pub fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
+/// A script of `acts`, and the config of a quick 19200 8N1 mock line (5 ms timeout).
+fn mock(acts: Vec<Act>, retries: u32) -> (Scripted, BusConfig) {
     let t = Scripted::default();
     t.0.lock().unwrap().acts = acts.into();
     let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1));
     cfg.retries = retries;
     cfg.timeout = Duration::from_millis(5);
     cfg.turnaround = Duration::ZERO;
+    (t, cfg)
+}
+
+pub fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
+    let (t, cfg) = mock(acts, retries);
     (Bus::with_transport(cfg, Box::new(t.clone())), t)
 }
 
 /// A Bus on a scripted transport that can be reopened: its opener fails while the script's
 /// `absent` is set, and otherwise brings the port back (clears `lost`).
 pub fn reopenable_bus(acts: Vec<Act>, retries: u32, reconnect: bool) -> (Bus, Scripted) {
-    let t = Scripted::default();
-    t.0.lock().unwrap().acts = acts.into();
-    let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1));
-    cfg.retries = retries;
-    cfg.timeout = Duration::from_millis(5);
-    cfg.turnaround = Duration::ZERO;
+    let (t, mut cfg) = mock(acts, retries);
     cfg.reconnect = reconnect;
     let port = t.clone();
     let opener = Box::new(
