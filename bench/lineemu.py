@@ -40,6 +40,11 @@ from collections.abc import Iterator
 EXCEPTION_ADDRESS = 0x8000
 
 
+def silence(baud: int, char_time: float) -> float:
+    """t3.5: 3.5 character times, or 1.75 ms above 19200 baud (serial line spec 2.5.1.1)."""
+    return 3.5 * char_time if baud <= 19200 else 0.00175
+
+
 def value(unit: int, address: int) -> int:
     """What the fake slave holds in register ``address`` of ``unit``."""
     return (address * 3 + unit) & 0xFFFF
@@ -179,7 +184,7 @@ class Line:
 
     def __init__(self, baud: int, bits: int, units: set[int], plain: bool) -> None:
         self.char_time = bits / baud
-        self.t35 = 3.5 * self.char_time if baud <= 19200 else 0.00175
+        self.t35 = silence(baud, self.char_time)
         self.a_master, self.a_slave, self.port = raw_pty()
         self.plain = plain
         if plain:

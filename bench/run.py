@@ -36,7 +36,7 @@ from typing import Any
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from lineemu import EXCEPTION_ADDRESS, crc16, fine_slack, value  # noqa: E402
+from lineemu import EXCEPTION_ADDRESS, crc16, fine_slack, silence, value  # noqa: E402
 
 LIBRARIES = ("benchbus", "minimalmodbus", "pymodbus")
 # The emulator polls without sleeping (one core), as a UART sends without waking up; see
@@ -67,7 +67,7 @@ class LineSpec:
     @property
     def t35(self) -> float:
         """The mandated silence between frames."""
-        return 3.5 * self.char_time if self.baud <= 19200 else 0.00175
+        return silence(self.baud, self.char_time)
 
     def limit(self, request: int = 8, reply: int = 7) -> float:
         """Transactions per second the wire allows with one t3.5 gap each."""
@@ -394,7 +394,7 @@ class Results:
     def median(self, scenario: str, metric: str, library: str) -> float:
         """The median of a figure (NaN if it was not measured)."""
         fig = self.figures.get((scenario, metric, library))
-        return statistics.median(fig.samples) if fig and fig.samples else float("nan")
+        return median(fig.samples if fig else [])
 
 
 def median(xs: list[float]) -> float:

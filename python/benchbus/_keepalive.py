@@ -15,6 +15,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING
 
 from benchbus._clock import ticks
+from benchbus._record import check_seconds
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -31,11 +32,10 @@ _JOIN_TIMEOUT = 10.0
 
 def check_interval(interval: object) -> float:
     """``interval`` as a float, or TypeError / ValueError if it is not 0.01..60 seconds."""
-    if isinstance(interval, bool) or not isinstance(interval, (int, float)):
-        raise TypeError(f"interval must be a number of seconds, got {type(interval).__name__}")
-    if not MIN_INTERVAL <= interval <= MAX_INTERVAL:
+    seconds = check_seconds("interval", interval)
+    if not MIN_INTERVAL <= seconds <= MAX_INTERVAL:
         raise ValueError(f"interval must be {MIN_INTERVAL}..{MAX_INTERVAL} s, got {interval!r}")
-    return float(interval)
+    return seconds
 
 
 class KeepAlive:
