@@ -32,6 +32,11 @@ use std::time::{Duration, Instant};
 /// How many times stale input arriving during the t3.5 wait restarts it before a request.
 const STALE_ROUNDS: u32 = 4;
 
+/// How many bytes of the request a failed reply must repeat to be taken for its echo (a
+/// whole request if shorter): unit, function, address, and a byte of count or value. Five
+/// is the shortest reply, so a read's echo read as a reply of byte count 0 still shows.
+const ECHO_EVIDENCE: usize = 5;
+
 /// Unit addresses a request may go to: 1..=255 (0 is broadcast). The serial line spec (2.2)
 /// reserves 248..=255, but some devices use them (J2 controllers take stations 1..=255).
 pub const UNITS: std::ops::RangeInclusive<u8> = 1..=255;
@@ -55,6 +60,10 @@ pub struct BusConfig {
     /// Whether a call that finds the port lost reopens it first (once per call; see
     /// [`Bus::reopen`]). Off: every call fails until [`Bus::reopen`] is called.
     pub reconnect: bool,
+    /// Whether the adapter echoes what it sends (an RS485 adapter whose receiver stays on
+    /// while it transmits): each request's echo is read back and checked before the reply
+    /// is awaited (see [`Bus::send`]).
+    pub echo: bool,
 }
 
 impl BusConfig {
@@ -67,6 +76,7 @@ impl BusConfig {
             retries: 2,
             turnaround: Duration::from_millis(100),
             reconnect: false,
+            echo: false,
         }
     }
 }
@@ -459,7 +469,7 @@ impl Bus {
         let frame = encode_request(BROADCAST, &request);
         let mut st = self.lock_when(State::broadcast_ready);
         self.on_port(&mut st, |st| {
-            let sent_end = self.send(st, &frame)?;
+            let sent_end = self.send(st, &frame, &request)?;
             st.stats.broadcasts += 1;
             st.stats.transactions += 1;
             // The turnaround is quiet line: it counts from the end of the frame on the wire.
@@ -541,7 +551,7 @@ impl Bus {
             .unwrap_or(self.config.retries)
             .saturating_add(1);
         if is_write && !opts.write_reply {
-            self.send(st, frame)?;
+            self.send(st, frame, request)?;
             st.wrote(unit, opts.write_interval);
             st.stats.transactions += 1;
             return Ok(unanswered_write(request));
@@ -627,7 +637,7 @@ impl Bus {
         timeout: Duration,
         window_from_start: bool,
     ) -> Result<(Reply, Vec<u8>)> {
-        let sent_end = self.send(st, frame)?;
+        let sent_end = self.send(st, frame, request)?;
         let function = request.function();
         let mut buf = Vec::with_capacity(64);
         let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
@@ -693,6 +703,9 @@ impl Bus {
                 if !buf.is_empty() {
                     log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", hex(&buf));
                 }
+                if self.is_unexpected_echo(frame, &buf) {
+                    return Err(frame_error(unit, function, FrameError::UnexpectedEcho, buf));
+                }
                 return Err(Error::Timeout {
                     unit,
                     function,
@@ -716,14 +729,20 @@ impl Bus {
                 // Whatever this was (noise, another unit's late reply, a garbled length), it
                 // may not be over, and it never moves the quiet time earlier.
                 silence.busy_until(at);
+                let kind = if self.is_unexpected_echo(frame, &buf) {
+                    FrameError::UnexpectedEcho
+                } else {
+                    kind
+                };
                 Err(frame_error(unit, function, kind, buf))
             }
         }
     }
 
-    /// Drops stale input, waits out the silence, writes `frame`; returns when its last
-    /// character will have left the wire.
-    fn send(&self, st: &mut State, frame: &[u8]) -> Result<Instant> {
+    /// Drops stale input, waits out the silence, writes `frame` (of `request`), reads back
+    /// its echo on a Bus opened with `echo`; returns when its last character will have left
+    /// the wire.
+    fn send(&self, st: &mut State, frame: &[u8], request: &Request) -> Result<Instant> {
         let line = self.config.line;
         let transport = self.port(&mut st.link)?;
         let serial = transport.is_serial_line();
@@ -772,13 +791,116 @@ impl Bus {
         st.frames_out += 1;
         let start = Instant::now();
         transport.write_all(frame).map_err(|e| self.io_error(e))?;
-        let end = if serial {
+        let mut end = if serial {
             start + line.frame_time(frame.len())
         } else {
             start
         };
+        if self.config.echo {
+            let echoed = self.read_echo(transport, frame, request, end);
+            // The echo's last byte is the request's real end on the wire (or the line was
+            // busy until then with whatever came instead).
+            let heard = Instant::now();
+            st.silence.busy_until(heard.max(end));
+            end = end.max(heard);
+            echoed?;
+        }
         st.silence.busy_until(end);
         Ok(end)
+    }
+
+    /// Reads back the adapter's local echo of `frame` (of `request`), which left the port
+    /// and is on the wire until `end`: it must be the frame, byte for byte, and be complete
+    /// within the Bus timeout after `end` (an adapter's own latency, such as a USB latency
+    /// timer, comes on top of the wire time).
+    ///
+    /// # Errors
+    /// [`Error::Frame`] ([`FrameError::LocalEcho`], retried as a corrupt reply is) if the
+    /// echo differs or breaks off: another talker on the line, or noise. [`Error::Port`] if
+    /// no echo came at all, or the device's reply came in its place: the adapter does not
+    /// echo, and `echo` is wrong for it.
+    fn read_echo(
+        &self,
+        transport: &mut Box<dyn Transport>,
+        frame: &[u8],
+        request: &Request,
+        end: Instant,
+    ) -> Result<()> {
+        let deadline = end + self.config.timeout;
+        let mut got = Vec::with_capacity(frame.len());
+        let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
+        // The echo's length; once it differs, the length of the reply it may be instead.
+        let mut wanted = frame.len();
+        loop {
+            if !frame.starts_with(&got) {
+                wanted = match reply_needed(request, &got) {
+                    Needed::Complete(n) => n,
+                    Needed::More(n) => got.len() + n,
+                    Needed::Unknown => got.len(),
+                };
+            }
+            let wait = deadline.saturating_duration_since(Instant::now());
+            let want = wanted.saturating_sub(got.len()).min(chunk.len());
+            if want == 0 || wait.is_zero() {
+                break;
+            }
+            let n = transport
+                .read(&mut chunk[..want], wait)
+                .map_err(|e| self.io_error(e))?;
+            if n == 0 {
+                break;
+            }
+            got.extend_from_slice(&chunk[..n]);
+        }
+        if got == frame {
+            return Ok(());
+        }
+        log::debug!(target: "benchbus::wire", "<- not the local echo: {}", hex(&got));
+        let reply = &got[..wanted.min(got.len())];
+        let reply_instead = frame
+            .first()
+            .is_some_and(|&unit| decode_reply(unit, request, reply).is_ok());
+        if got.is_empty() || reply_instead {
+            let what = if got.is_empty() {
+                format!(
+                    "no local echo of the request within {:?}",
+                    self.config.timeout
+                )
+            } else {
+                "the device's reply came where the local echo of the request should be".into()
+            };
+            return Err(Error::Port {
+                port: self.config.port.clone(),
+                message: format!(
+                    "{what}: this adapter does not echo what it sends; open the Bus without \
+                     echo=True"
+                ),
+                source: None,
+            });
+        }
+        let at = got
+            .iter()
+            .zip(frame)
+            .position(|(a, b)| a != b)
+            .unwrap_or(got.len().min(frame.len()));
+        Err(frame_error(
+            frame.first().copied().unwrap_or_default(),
+            request.function(),
+            FrameError::LocalEcho {
+                at,
+                len: frame.len(),
+            },
+            got,
+        ))
+    }
+
+    /// Whether `received`, which failed as a reply to `frame`, is the request's own echo
+    /// (in full, or as far as a reply's length took it): an adapter that echoes on a Bus
+    /// not opened with `echo`. Never for a Bus that reads the echo itself.
+    fn is_unexpected_echo(&self, frame: &[u8], received: &[u8]) -> bool {
+        !self.config.echo
+            && received.len() >= frame.len().min(ECHO_EVIDENCE)
+            && (received.starts_with(frame) || frame.starts_with(received))
     }
 
     /// The open port's transport (an error if there is none: closed, or lost).

@@ -79,6 +79,9 @@ pub enum Error {
         /// The exception reply frame.
         frame: Vec<u8>,
     },
+    /// A bug in benchbus: a panic, caught before it reached the caller (see [`guarded`]).
+    #[error("internal error in benchbus (a bug; please report it): {0}")]
+    Internal(String),
 }
 
 impl Error {
@@ -102,6 +105,25 @@ impl From<RequestError> for Error {
     fn from(e: RequestError) -> Error {
         Error::InvalidArgument(e.to_string())
     }
+}
+
+/// Runs `f`, turning a panic inside it into [`Error::Internal`] so that it ends the call
+/// with an error rather than unwinding into the caller (the Python bindings run every call
+/// through this). A Bus whose lock a panic poisoned goes on: its state is kept consistent
+/// between statements.
+///
+/// # Errors
+/// `f`'s own error, or [`Error::Internal`] with the panic's message.
+pub fn guarded<T>(f: impl FnOnce() -> Result<T>) -> Result<T> {
+    std::panic::catch_unwind(std::panic::AssertUnwindSafe(f)).unwrap_or_else(|payload| {
+        let message = payload
+            .downcast_ref::<&str>()
+            .map(|s| (*s).to_string())
+            .or_else(|| payload.downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "a panic without a message".into());
+        log::error!(target: "benchbus", "internal error (panic) caught: {message}");
+        Err(Error::Internal(message))
+    })
 }
 
 /// Bytes as space-separated uppercase hex, the way the manuals print frames.

@@ -3,7 +3,7 @@
 mod common;
 
 use benchbus::bus::TxOptions;
-use benchbus::codec::Echo;
+use benchbus::codec::{Echo, FrameError};
 use benchbus::Error;
 use common::{bus, with_crc, Act};
 use std::time::Duration;
@@ -544,4 +544,116 @@ fn a_late_reply_to_a_timed_out_call_never_answers_the_next_call() {
         vec![9]
     );
     assert_eq!(bus.stats().stale_bytes, 7);
+}
+
+#[test]
+fn local_echo_is_read_back_before_the_reply() {
+    let (bus, t) = common::echo_bus(vec![common::words(1, &[0x1388])], 0);
+    let v = bus
+        .read_holding_registers(1, 0x3006, 1, &TxOptions::default())
+        .unwrap();
+    assert_eq!(v, vec![0x1388]);
+    t.0.lock()
+        .unwrap()
+        .acts
+        .push_back(Act::Reply(with_crc(&[1, 6, 0x20, 0, 0, 5])));
+    bus.write_register(1, 0x2000, 5, &TxOptions::default())
+        .unwrap_or_else(|e| panic!("{e}"));
+    let s = bus.stats();
+    assert_eq!((s.transactions, s.frame_errors, s.stale_bytes), (2, 0, 0));
+    assert!(t.0.lock().unwrap().pending.is_empty());
+}
+
+#[test]
+fn a_garbled_echo_is_a_collision_and_is_retried() {
+    let (bus, t) = common::echo_bus(vec![common::words(1, &[1]), common::words(1, &[2])], 1);
+    t.0.lock().unwrap().garble_echo = 1;
+    let v = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap();
+    // The first attempt's reply is stale by the retry and dropped; the retry's is taken.
+    assert_eq!(v, vec![2]);
+    let s = bus.stats();
+    assert_eq!((s.frame_errors, s.retries, s.transactions), (1, 1, 1));
+
+    let (bus, t2) = common::echo_bus(vec![common::words(1, &[1])], 0);
+    t2.0.lock().unwrap().garble_echo = 1;
+    let e = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    match &e {
+        Error::Frame {
+            kind: FrameError::LocalEcho { at: 2, len: 8 },
+            frame,
+            ..
+        } => assert_eq!(frame[..3], [1, 3, 0x10], "the garbled echo is reported"),
+        other => panic!("{other:?}"),
+    }
+    assert!(e.to_string().contains("collision"), "{e}");
+}
+
+#[test]
+fn an_adapter_that_does_not_echo_is_a_port_error_at_once() {
+    let (bus, t) = common::echo_bus(vec![common::words(1, &[1])], 2);
+    t.0.lock().unwrap().echo = false;
+    let e = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    assert!(matches!(e, Error::Port { source: None, .. }), "{e:?}");
+    assert!(e.to_string().contains("reply came where"), "{e}");
+    assert!(e.to_string().contains("without echo=True"), "{e}");
+    assert_eq!(common::sent(&t).len(), 1, "not retried");
+    // A silent device: nothing at all comes back.
+    let (bus, t) = common::echo_bus(vec![Act::Silent], 2);
+    t.0.lock().unwrap().echo = false;
+    let e = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    assert!(e.to_string().contains("no local echo"), "{e}");
+    assert!(!bus.is_lost());
+}
+
+#[test]
+fn an_echo_on_a_bus_not_told_of_it_says_so() {
+    // A read: the echo (8 bytes, function 3) is taken for a reply of the wrong length.
+    let (bus, t) = bus(vec![common::words(1, &[1])], 0);
+    t.0.lock().unwrap().echo = true;
+    let e = bus
+        .read_holding_registers(1, 0x0102, 1, &TxOptions::default())
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Frame {
+                kind: FrameError::UnexpectedEcho,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("echo=True"), "{e}");
+    // A write of several registers: its echo's first 8 bytes fail the CRC.
+    let (bus2, t) = common::bus(vec![Act::Reply(with_crc(&[1, 0x10, 0, 0, 0, 2]))], 0);
+    t.0.lock().unwrap().echo = true;
+    let e = bus2
+        .write_registers(1, 0, &[1, 2], &TxOptions::default())
+        .unwrap_err();
+    assert!(e.to_string().contains("echo=True"), "{e}");
+}
+
+#[test]
+fn a_panic_under_the_bus_is_an_internal_error_and_the_bus_goes_on() {
+    let (bus, t) = bus(vec![common::words(1, &[1]), common::words(1, &[2])], 0);
+    t.0.lock().unwrap().panic_once = true;
+    let e = benchbus::error::guarded(|| bus.read_holding_registers(1, 0, 1, &TxOptions::default()))
+        .unwrap_err();
+    assert!(
+        matches!(&e, Error::Internal(m) if m == "scripted panic in read"),
+        "{e:?}"
+    );
+    assert!(e.to_string().contains("internal error"), "{e}");
+    // The panic poisoned the Bus's lock while it held it: the next call goes on regardless.
+    let v = benchbus::error::guarded(|| bus.read_holding_registers(1, 0, 1, &TxOptions::default()));
+    assert_eq!(v.unwrap(), vec![2]);
+    assert_eq!(bus.stats().transactions, 1);
 }

@@ -140,6 +140,7 @@ EXPLICIT: list[Case] = [
         "Bus", "__init__", ValueError, "turnaround", A(PORT, turnaround=-1), A(PORT, turnaround=NAN)
     ),
     *calls("Bus", "__init__", TypeError, "reconnect", A(PORT, reconnect="yes")),
+    *calls("Bus", "__init__", TypeError, "echo", A(PORT, echo=1), A(PORT, echo="yes")),
     *calls("Bus", "__init__", TypeError, "baud", A(PORT, baud=9600)),  # unknown keyword
     *calls(
         "Bus",

@@ -27,6 +27,7 @@ from typing import Any, Union
 import pytest
 
 import benchbus as bb
+from benchbus import _core
 from benchbus.sim import DriveDevice, PblDevice, RegisterDevice, Simulator
 from conftest import FakeClock
 
@@ -347,3 +348,12 @@ def test_ctrl_c_during_a_read_leaves_the_stop_its_reply(caplog: pytest.LogCaptur
         assert motor.device.commands == [1, 5]
         assert len(stops) == 1
         assert "could not stop the motor" not in caplog.text
+
+
+def test_a_panic_in_the_core_comes_out_as_benchbus_error() -> None:
+    # The hook panics inside the guard every wire call runs in; without it PyO3 would raise
+    # its PanicException, which is a BaseException that ``except Exception`` misses.
+    with pytest.raises(bb.BenchbusError, match="internal error in benchbus") as info:
+        _core._panic_on_wire()
+    assert type(info.value) is bb.BenchbusError
+    assert "a deliberate panic" in str(info.value)

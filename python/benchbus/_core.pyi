@@ -16,6 +16,7 @@ __all__ = [
     "Poll",
     "Stats",
     "__version__",
+    "_panic_on_wire",
     "crc16",
     "refresh_logging",
 ]
@@ -27,6 +28,9 @@ def crc16(data: bytes) -> int:
 
 def refresh_logging() -> None:
     """Re-read the Python logging levels (cached for speed; a Bus reads them when it opens)."""
+
+def _panic_on_wire() -> None:
+    """Panic on the path every wire call takes; raises BenchbusError (a test hook)."""
 
 @final
 class Stats:
@@ -97,6 +101,7 @@ class Bus:
         *,
         turnaround: float = 0.1,
         reconnect: bool = False,
+        echo: bool = False,
     ) -> Self:
         """Open ``port`` (e.g. ``/dev/ttyUSB0``) at the given line format.
 
@@ -110,6 +115,14 @@ class Bus:
         which the port vanishes raises PortError (whether its request reached the device is
         unknown), unless nothing of it had been sent yet: then it reopens and goes on. A
         closed Bus is never reopened by this.
+
+        ``echo=True`` is for an adapter that echoes what it sends (its receiver stays on
+        while it transmits): each request's echo is read back (within ``timeout`` after the
+        request's end) and checked before the reply is awaited. An echo that differs or
+        breaks off (a collision on the line) raises FrameError and is retried like a
+        corrupt reply; no echo at all, or the device's reply in its place, raises PortError
+        (the adapter does not echo). Without it, a reply that begins with the request itself
+        raises FrameError saying to open the Bus with ``echo=True``.
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""
@@ -192,6 +205,9 @@ class Bus:
     @property
     def reconnect(self) -> bool:
         """Whether a call that finds the port lost reopens it first (see ``reconnect=``)."""
+    @property
+    def echo(self) -> bool:
+        """Whether the adapter's local echo of each request is read back (see ``echo=``)."""
     def __enter__(self) -> Self:
         """Return the bus itself."""
     def __exit__(

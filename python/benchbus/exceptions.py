@@ -6,11 +6,13 @@
     ├── PortError(BenchbusError, OSError)          port cannot be opened, vanished, I/O failed
     ├── ResponseTimeout(BenchbusError, TimeoutError)   no (complete) reply in time
     ├── FrameError(BenchbusError)                  reply malformed: wrong unit, function,
-    │   └── CrcError(FrameError)                   length or echo; bad CRC
+    │   └── CrcError(FrameError)                   length or echo, a garbled local echo;
+    │                                              bad CRC
     ├── ModbusException(BenchbusError)             the device answered with an exception
     └── StateError(BenchbusError)                  the device's state forbids the request
 
-Bad arguments raise ``ValueError`` / ``TypeError`` before anything is sent.
+Bad arguments raise ``ValueError`` / ``TypeError`` before anything is sent. A bug inside
+benchbus (a panic in its core) raises ``BenchbusError`` itself, saying so, and the Bus goes on.
 
 Every exception carries ``unit`` and ``function`` (``None`` where they do not apply) and
 ``frame``, the raw bytes involved as uppercase hex (``"01 83 02 C0 F1"``) or ``None``.
@@ -30,7 +32,10 @@ __all__ = [
 
 
 class BenchbusError(Exception):
-    """Base class of every error benchbus raises about the bus or a device."""
+    """Base class of every error benchbus raises about the bus or a device.
+
+    Raised itself only for an internal error (a bug in benchbus's core, caught there).
+    """
 
     unit: int | None
     """The unit addressed, if any."""

@@ -172,6 +172,26 @@ pub enum FrameError {
         /// What the reply carried.
         received: String,
     },
+    /// The adapter's local echo of the request (a Bus opened with `echo`) is wrong from
+    /// byte `at` on, or broke off there: another talker on the line (a collision), or
+    /// noise.
+    #[error(
+        "local echo of the request is wrong from byte {at} of {len} (a collision on the \
+         line, or noise)"
+    )]
+    LocalEcho {
+        /// Index of the first byte missing or different.
+        at: usize,
+        /// Length of the request.
+        len: usize,
+    },
+    /// What came back begins with the request itself: the adapter echoes what it sends, and
+    /// the Bus was not told so.
+    #[error(
+        "the reply begins with the request itself: an adapter that echoes what it sends? \
+         then open the Bus with echo=True"
+    )]
+    UnexpectedEcho,
 }
 
 /// Decodes a complete reply `frame` to `request` sent to `unit`.

@@ -692,7 +692,10 @@ impl Drive {
 fn is_refusal(e: &Error) -> bool {
     match e {
         Error::Exception { .. } => true,
-        Error::Frame { kind, .. } => !matches!(kind, FrameError::Crc { .. }),
+        Error::Frame { kind, .. } => !matches!(
+            kind,
+            FrameError::Crc { .. } | FrameError::LocalEcho { .. } | FrameError::UnexpectedEcho
+        ),
         _ => false,
     }
 }

@@ -44,6 +44,7 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
         Error::Exception { unit, function, .. } => {
             ("ModbusException", Some(*unit), Some(*function))
         }
+        Error::Internal(_) => ("BenchbusError", None, None),
     };
     let build = || -> PyResult<PyErr> {
         let module = EXCEPTIONS.get_or_try_init(py, || {
@@ -73,7 +74,7 @@ fn on_wire<D: Send + Sync, T: Send>(
     f: impl FnOnce(&D) -> crate::Result<T> + Send,
 ) -> PyResult<T> {
     let device = Arc::clone(device);
-    let result = py.detach(move || f(&device));
+    let result = py.detach(move || crate::error::guarded(|| f(&device)));
     // A Ctrl-C that lands while the wire log calls into Python (pyo3-log, from the detached
     // thread) can leave the KeyboardInterrupt set: raise it, rather than return a value
     // with an exception pending (which Python reports as a SystemError).
@@ -81,6 +82,13 @@ fn on_wire<D: Send + Sync, T: Send>(
         return Err(pending);
     }
     result.map_err(|e| to_pyerr(py, e))
+}
+
+/// A bool argument (True or False, nothing truthy in their place).
+fn bool_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<bool> {
+    obj.cast::<PyBool>()
+        .map(|b| b.is_true())
+        .map_err(|_| PyTypeError::new_err(format!("{name} must be True or False")))
 }
 
 /// An int argument in `lo..=hi`: TypeError for a non-int, ValueError (never OverflowError)
@@ -317,8 +325,8 @@ impl PyBus {
 impl PyBus {
     #[new]
     #[pyo3(
-        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None),
-        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False)"
+        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None, echo=None),
+        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False, echo=False)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -331,6 +339,7 @@ impl PyBus {
         retries: Option<&Bound<'_, PyAny>>,
         turnaround: Option<&Bound<'_, PyAny>>,
         reconnect: Option<&Bound<'_, PyAny>>,
+        echo: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let port: std::path::PathBuf = port
             .extract()
@@ -362,17 +371,14 @@ impl PyBus {
         config.turnaround = opt(turnaround, config.turnaround, |t| {
             seconds(t, "turnaround", true)
         })?;
-        config.reconnect = opt(reconnect, false, |r| {
-            r.cast::<PyBool>()
-                .map(|b| b.is_true())
-                .map_err(|_| PyTypeError::new_err("reconnect must be True or False"))
-        })?;
+        config.reconnect = opt(reconnect, false, |r| bool_arg(r, "reconnect"))?;
+        config.echo = opt(echo, false, |e| bool_arg(e, "echo"))?;
         // Logging levels are read when a bus opens (pyo3-log caches them).
         if let Some(handle) = LOG_RESET.get() {
             handle.reset();
         }
         let bus = py
-            .detach(move || bus::Bus::open(config))
+            .detach(move || crate::error::guarded(|| bus::Bus::open(config)))
             .map_err(|e| to_pyerr(py, e))?;
         Ok(PyBus { bus: Arc::new(bus) })
     }
@@ -559,6 +565,12 @@ impl PyBus {
         self.bus.config().reconnect
     }
 
+    /// Whether the adapter's local echo of each request is read back and checked.
+    #[getter]
+    fn echo(&self) -> bool {
+        self.bus.config().echo
+    }
+
     fn __enter__(slf: Py<Self>) -> Py<Self> {
         slf
     }
@@ -626,7 +638,7 @@ impl PyBus {
     fn __repr__(&self) -> String {
         let c = self.bus.config();
         format!(
-            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{})",
+            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{})",
             c.port.replace('\\', "\\\\").replace('\'', "\\'"),
             c.line.baudrate,
             c.line.parity.letter(),
@@ -634,6 +646,7 @@ impl PyBus {
             c.timeout.as_secs_f64(),
             c.retries,
             if c.reconnect { ", reconnect=True" } else { "" },
+            if c.echo { ", echo=True" } else { "" },
             if self.bus.is_closed() {
                 ", closed"
             } else if self.bus.is_lost() {
@@ -660,6 +673,15 @@ fn refresh_logging() {
     }
 }
 
+/// Panics on the path every wire call takes, to show that the panic comes out as a
+/// BenchbusError (for the test suite; not part of the API).
+#[pyfunction]
+fn _panic_on_wire(py: Python<'_>) -> PyResult<()> {
+    on_wire(py, &Arc::new(()), |_: &()| -> crate::Result<()> {
+        panic!("a deliberate panic on the wire path")
+    })
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     let py = m.py();
@@ -678,6 +700,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<poll::PyPoll>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
+    m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

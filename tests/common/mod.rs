@@ -48,6 +48,12 @@ pub struct Script {
     /// Times the opener was called, and how many of them opened the port.
     pub open_attempts: u32,
     pub opens: u32,
+    /// The adapter echoes every frame written, ahead of any reply.
+    pub echo: bool,
+    /// How many of the next echoes come back with a byte changed (a collision).
+    pub garble_echo: usize,
+    /// The next read panics (a bug below the Bus, while it holds its lock).
+    pub panic_once: bool,
 }
 
 impl Script {
@@ -77,6 +83,14 @@ impl Transport for Scripted {
         }
         s.sent.push(frame.to_vec());
         s.sent_at.push(std::time::Instant::now());
+        if s.echo {
+            let mut echo = frame.to_vec();
+            if s.garble_echo > 0 {
+                s.garble_echo -= 1;
+                echo[2] ^= 0x10;
+            }
+            s.pending.extend(echo);
+        }
         match s.acts.pop_front() {
             Some(Act::Reply(bytes)) => s.pending.extend(bytes),
             Some(Act::Late(bytes)) => s.late = bytes,
@@ -90,6 +104,11 @@ impl Transport for Scripted {
         let mut s = self.0.lock().unwrap();
         if let Some(e) = s.failure() {
             return Err(e);
+        }
+        if s.panic_once {
+            s.panic_once = false;
+            drop(s);
+            panic!("scripted panic in read");
         }
         if s.pending.is_empty() {
             // A silent device: nothing comes for the whole timeout (late bytes come after).
@@ -153,6 +172,14 @@ fn mock(acts: Vec<Act>, retries: u32) -> (Scripted, BusConfig) {
 
 pub fn bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
     let (t, cfg) = mock(acts, retries);
+    (Bus::with_transport(cfg, Box::new(t.clone())), t)
+}
+
+/// A Bus opened with `echo` on a scripted adapter that echoes what it sends.
+pub fn echo_bus(acts: Vec<Act>, retries: u32) -> (Bus, Scripted) {
+    let (t, mut cfg) = mock(acts, retries);
+    cfg.echo = true;
+    t.0.lock().unwrap().echo = true;
     (Bus::with_transport(cfg, Box::new(t.clone())), t)
 }
 

@@ -86,6 +86,10 @@ class LineState:
         self.silent_all = False
         self.silent_units: set[int] = set()
         self.corrupt = 0
+        #: Whether the library's adapter hears its own requests (they come back to it).
+        self.echo = False
+        #: How many of the next requests a collision garbles (echo and units alike).
+        self.collisions = 0
         self.exception_rules: list[_ExceptionRule] = []
         self.requests: list[bytes] = []
         #: ``time.monotonic()`` when each frame in ``requests`` was complete (its last byte read).
@@ -351,6 +355,16 @@ class Forwarder:
 
     def _on_request(self, frame: bytes, complete: float) -> None:
         state = self._state
+        with state.lock:
+            echo = state.echo
+            collided = state.collisions > 0
+            if collided:
+                state.collisions -= 1
+        if collided:
+            # Another talker at once: the line carries neither frame intact.
+            frame = frame[:2] + bytes([frame[2] ^ 0x5A]) + frame[3:] if len(frame) > 2 else b"\0"
+        if echo:
+            self._out_a += frame
         with state.lock:
             state.requests.append(frame)
             state.request_times.append(complete)

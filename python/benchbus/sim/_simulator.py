@@ -37,8 +37,9 @@ class Simulator(Generic[D]):
     RTU server answers for :attr:`devices`, and a forwarder thread between the two sees every
     byte: it logs the frames (:attr:`requests`, :attr:`replies`) and applies the faults
     (:attr:`reply_delay`, :meth:`set_silent`, :meth:`corrupt_next`, :meth:`answer_exception`,
-    :meth:`inject_raw`, and the random faults of a noisy line, :attr:`faults`), all of which
-    are thread-safe and may be set before or while running. What the units hold, the truth
+    :meth:`inject_raw`, :meth:`collide_next`, and the random faults of a noisy line,
+    :attr:`faults`), all of which are thread-safe and may be set before or while running.
+    The library's adapter may echo what it sends (:attr:`echo`). What the units hold, the truth
     a test checks the library's results against, is in :attr:`devices` (:meth:`peek`).
 
     The line serves one request at a time, as a half-duplex RS485 line does. Requests to a
@@ -61,6 +62,7 @@ class Simulator(Generic[D]):
         baudrate: int = 19200,
         broadcast: bool = True,
         faults: Faults | None = None,
+        echo: bool = False,
     ) -> None:
         """Simulate ``devices`` (``{unit: device}``; a single device is unit 1).
 
@@ -69,7 +71,8 @@ class Simulator(Generic[D]):
 
         ``baudrate`` only sets the frame-gap timing (the pseudo-terminal carries bytes
         instantly). ``broadcast=False`` makes the units ignore unit 0 entirely. ``faults``
-        makes the line noisy from the first reply on (see :attr:`faults`).
+        makes the line noisy from the first reply on (see :attr:`faults`). ``echo=True``
+        makes the library's adapter echo what it sends (see :attr:`echo`).
         """
         if isinstance(devices, SimDevice):
             devices = {1: devices}
@@ -88,6 +91,7 @@ class Simulator(Generic[D]):
         #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
         self._state = LineState()
+        self.echo = echo
         self._faults: Faults | None = None
         self.faults = faults
         self._lifecycle = threading.Lock()
@@ -239,6 +243,33 @@ class Simulator(Generic[D]):
         with self._state.lock:
             self._state.corrupt += n
 
+    @property
+    def echo(self) -> bool:
+        """Whether the library's adapter echoes what it sends, as an RS485 adapter whose
+        receiver stays on while it transmits does: every request comes back to the library,
+        ahead of its reply (open the Bus with ``echo=True``). May be set while running.
+        """
+        return self._state.echo
+
+    @echo.setter
+    def echo(self, echo: bool) -> None:
+        if not isinstance(echo, bool):
+            raise TypeError(f"echo must be True or False, not {echo!r}")
+        with self._state.lock:
+            self._state.echo = echo
+
+    def collide_next(self, n: int = 1) -> None:
+        """Garble the next ``n`` requests as a collision with another talker would.
+
+        The units get the garbled frame (a bad CRC: ignored, no reply) and, with
+        :attr:`echo`, the library's echo carries the same garbled frame. Adds to any still
+        pending; :meth:`clear_faults` cancels them.
+        """
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise ValueError(f"n must be an int >= 0, not {n!r}")
+        with self._state.lock:
+            self._state.collisions += n
+
     def answer_exception(self, code: int, n: int = 1, unit: int | None = None) -> None:
         """Answer the next ``n`` requests (to ``unit``; None = any unit) with exception ``code``.
 
@@ -298,6 +329,7 @@ class Simulator(Generic[D]):
             self._state.reply_delay = 0.0
             self._state.silent_all = False
             self._state.silent_units.clear()
+            self._state.collisions = 0
             self._state.corrupt = 0
             self._state.exception_rules.clear()
 
