@@ -169,6 +169,8 @@ struct State {
     last_broadcast: Option<Instant>,
     /// Until when a reply to a call that timed out may still arrive (see [`Bus::send`]).
     late_until: Option<Instant>,
+    /// Whether a local echo has come back right on this Bus (see [`Bus::read_echo`]).
+    echo_seen: bool,
     stats: Stats,
 }
 
@@ -223,6 +225,7 @@ impl Bus {
                 last_write: HashMap::new(),
                 last_broadcast: None,
                 late_until: None,
+                echo_seen: false,
                 stats: Stats::default(),
             }),
             sequences: Mutex::new(HashMap::new()),
@@ -463,13 +466,20 @@ impl Bus {
     /// next paced write to any unit waits its interval after it.
     ///
     /// # Errors
-    /// [`Error::Port`] or [`Error::Closed`].
+    /// [`Error::Port`] or [`Error::Closed`]; on a Bus opened with `echo`, [`Error::Frame`]
+    /// if the local echo was garbled (not repeated: whether the units got the write is not
+    /// known; the turnaround is kept all the same).
     pub fn broadcast_write_register(&self, address: u16, value: u16) -> Result<()> {
         let request = Request::WriteSingleRegister { address, value };
         let frame = encode_request(BROADCAST, &request);
         let mut st = self.lock_when(State::broadcast_ready);
         self.on_port(&mut st, |st| {
-            let sent_end = self.send(st, &frame, &request)?;
+            let sent = self.send(st, &frame, &request, self.config.timeout);
+            let sent_end = match &sent {
+                Ok(end) => *end,
+                Err(Error::Frame { .. }) => Instant::now(),
+                Err(_) => return sent.map(|_| ()),
+            };
             st.stats.broadcasts += 1;
             st.stats.transactions += 1;
             // The turnaround is quiet line: it counts from the end of the frame on the wire.
@@ -482,6 +492,10 @@ impl Bus {
             let now = Instant::now();
             st.silence.busy_until(now);
             st.last_broadcast = Some(now);
+            if let Err(e) = sent {
+                st.stats.frame_errors += 1;
+                return Err(e);
+            }
             Ok(())
         })
     }
@@ -551,10 +565,32 @@ impl Bus {
             .unwrap_or(self.config.retries)
             .saturating_add(1);
         if is_write && !opts.write_reply {
-            self.send(st, frame, request)?;
-            st.wrote(unit, opts.write_interval);
-            st.stats.transactions += 1;
-            return Ok(unanswered_write(request));
+            // Nothing comes back but the local echo on a Bus opened with `echo`: a garbled
+            // one is sent again, as a corrupt reply would be.
+            for attempt in 0..attempts {
+                if attempt > 0 {
+                    st.stats.retries += 1;
+                    pace(st, unit, opts.write_interval);
+                }
+                let sent = self.send(st, frame, request, timeout);
+                st.wrote(unit, opts.write_interval);
+                match sent {
+                    Ok(_) => {
+                        st.stats.transactions += 1;
+                        return Ok(unanswered_write(request));
+                    }
+                    Err(e @ Error::Frame { .. }) if attempt + 1 < attempts => {
+                        log::debug!(target: "benchbus::wire", "unanswered write, sent again: {e}");
+                        st.stats.frame_errors += 1;
+                    }
+                    Err(e) => {
+                        if matches!(e, Error::Frame { .. }) {
+                            st.stats.frame_errors += 1;
+                        }
+                        return Err(e);
+                    }
+                }
+            }
         }
         let mut last_error = None;
         let mut timed_out = false;
@@ -637,7 +673,7 @@ impl Bus {
         timeout: Duration,
         window_from_start: bool,
     ) -> Result<(Reply, Vec<u8>)> {
-        let sent_end = self.send(st, frame, request)?;
+        let sent_end = self.send(st, frame, request, timeout)?;
         let function = request.function();
         let mut buf = Vec::with_capacity(64);
         let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
@@ -679,18 +715,12 @@ impl Bus {
                 }
                 // Not a reply to this request: take what follows until the line is quiet, so
                 // the whole bad frame is reported and nothing of it is left for the next call.
-                Needed::Unknown => (chunk.len(), line.t3_5().max(Duration::from_millis(2))),
+                Needed::Unknown => (chunk.len(), self.frame_over()),
             };
             let want = want
                 .min(chunk.len())
                 .min(crate::codec::rtu::MAX_ADU.saturating_sub(buf.len()));
-            let n = if want == 0 || wait.is_zero() {
-                0
-            } else {
-                transport
-                    .read(&mut chunk[..want], wait)
-                    .map_err(|e| self.io_error(e))?
-            };
+            let n = self.read_within(transport, &mut chunk[..want], wait)?;
             if n == 0 {
                 if matches!(reply_needed(request, &buf), Needed::Unknown) || want == 0 {
                     break;
@@ -703,7 +733,8 @@ impl Bus {
                 if !buf.is_empty() {
                     log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", hex(&buf));
                 }
-                if self.is_unexpected_echo(frame, &buf) {
+                // The whole request and more: no reply, however cut short, looks like that.
+                if !self.config.echo && buf.len() > frame.len() && buf.starts_with(frame) {
                     return Err(frame_error(unit, function, FrameError::UnexpectedEcho, buf));
                 }
                 return Err(Error::Timeout {
@@ -742,7 +773,13 @@ impl Bus {
     /// Drops stale input, waits out the silence, writes `frame` (of `request`), reads back
     /// its echo on a Bus opened with `echo`; returns when its last character will have left
     /// the wire.
-    fn send(&self, st: &mut State, frame: &[u8], request: &Request) -> Result<Instant> {
+    fn send(
+        &self,
+        st: &mut State,
+        frame: &[u8],
+        request: &Request,
+        timeout: Duration,
+    ) -> Result<Instant> {
         let line = self.config.line;
         let transport = self.port(&mut st.link)?;
         let serial = transport.is_serial_line();
@@ -754,7 +791,7 @@ impl Bus {
             let wait = until.saturating_duration_since(Instant::now());
             if !wait.is_zero() {
                 // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
-                let quiet = line.t3_5().max(Duration::from_millis(2));
+                let quiet = self.frame_over();
                 let mut n = transport
                     .read(&mut scratch, wait)
                     .map_err(|e| self.io_error(e))?;
@@ -791,81 +828,73 @@ impl Bus {
         st.frames_out += 1;
         let start = Instant::now();
         transport.write_all(frame).map_err(|e| self.io_error(e))?;
-        let mut end = if serial {
+        let end = if serial {
             start + line.frame_time(frame.len())
         } else {
             start
         };
         if self.config.echo {
-            let echoed = self.read_echo(transport, frame, request, end);
-            // The echo's last byte is the request's real end on the wire (or the line was
-            // busy until then with whatever came instead).
-            let heard = Instant::now();
-            st.silence.busy_until(heard.max(end));
-            end = end.max(heard);
+            let echoed = self.read_echo(transport, frame, request, end + timeout, st.echo_seen);
+            // The line was busy until the echo's last byte (or whatever came in its place).
+            // The reply's allowance still counts from the reckoned end: the echo's wait is
+            // charged to the attempt, which keeps the call within its bound.
+            st.silence.busy_until(Instant::now().max(end));
+            st.echo_seen |= echoed.is_ok();
             echoed?;
         }
         st.silence.busy_until(end);
         Ok(end)
     }
 
-    /// Reads back the adapter's local echo of `frame` (of `request`), which left the port
-    /// and is on the wire until `end`: it must be the frame, byte for byte, and be complete
-    /// within the Bus timeout after `end` (an adapter's own latency, such as a USB latency
-    /// timer, comes on top of the wire time).
+    /// Reads back the adapter's local echo of `frame` (of `request`) by `deadline` (the
+    /// attempt's timeout after the frame's reckoned end: an adapter's latency, such as a
+    /// USB latency timer, comes on top of the wire time). It must be the frame, byte for
+    /// byte. Once it differs, what follows is taken until the line is quiet, so that none
+    /// of it is left for the reply.
     ///
     /// # Errors
     /// [`Error::Frame`] ([`FrameError::LocalEcho`], retried as a corrupt reply is) if the
-    /// echo differs or breaks off: another talker on the line, or noise. [`Error::Port`] if
-    /// no echo came at all, or the device's reply came in its place: the adapter does not
-    /// echo, and `echo` is wrong for it.
+    /// echo differs or breaks off: another talker on the line, noise, or a late reply that
+    /// was still in the adapter. Until a first echo has been seen on this Bus
+    /// (`echo_seen`): [`Error::Port`] if nothing came, or the device's reply came in the
+    /// echo's place (the adapter does not echo, and `echo` is wrong for it).
     fn read_echo(
         &self,
         transport: &mut Box<dyn Transport>,
         frame: &[u8],
         request: &Request,
-        end: Instant,
+        deadline: Instant,
+        echo_seen: bool,
     ) -> Result<()> {
-        let deadline = end + self.config.timeout;
+        let quiet = self.frame_over();
         let mut got = Vec::with_capacity(frame.len());
         let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
-        // The echo's length; once it differs, the length of the reply it may be instead.
-        let mut wanted = frame.len();
         loop {
-            if !frame.starts_with(&got) {
-                wanted = match reply_needed(request, &got) {
-                    Needed::Complete(n) => n,
-                    Needed::More(n) => got.len() + n,
-                    Needed::Unknown => got.len(),
-                };
+            let echoing = frame.starts_with(&got);
+            if echoing && got.len() == frame.len() {
+                return Ok(());
             }
-            let wait = deadline.saturating_duration_since(Instant::now());
-            let want = wanted.saturating_sub(got.len()).min(chunk.len());
-            if want == 0 || wait.is_zero() {
-                break;
-            }
-            let n = transport
-                .read(&mut chunk[..want], wait)
-                .map_err(|e| self.io_error(e))?;
+            let (want, wait) = if echoing {
+                let left = deadline.saturating_duration_since(Instant::now());
+                (frame.len() - got.len(), left)
+            } else {
+                (chunk.len().saturating_sub(got.len()), quiet)
+            };
+            let n = self.read_within(transport, &mut chunk[..want], wait)?;
             if n == 0 {
                 break;
             }
             got.extend_from_slice(&chunk[..n]);
         }
-        if got == frame {
-            return Ok(());
-        }
         log::debug!(target: "benchbus::wire", "<- not the local echo: {}", hex(&got));
-        let reply = &got[..wanted.min(got.len())];
-        let reply_instead = frame
-            .first()
-            .is_some_and(|&unit| decode_reply(unit, request, reply).is_ok());
-        if got.is_empty() || reply_instead {
+        let unit = frame.first().copied().unwrap_or_default();
+        let reply_instead = match reply_needed(request, &got) {
+            Needed::Complete(n) => decode_reply(unit, request, &got[..n]).is_ok(),
+            _ => false,
+        };
+        if !echo_seen && (got.is_empty() || reply_instead) {
             let what = if got.is_empty() {
-                format!(
-                    "no local echo of the request within {:?}",
-                    self.config.timeout
-                )
+                "no local echo of the request came".to_string()
             } else {
                 "the device's reply came where the local echo of the request should be".into()
             };
@@ -884,7 +913,7 @@ impl Bus {
             .position(|(a, b)| a != b)
             .unwrap_or(got.len().min(frame.len()));
         Err(frame_error(
-            frame.first().copied().unwrap_or_default(),
+            unit,
             request.function(),
             FrameError::LocalEcho {
                 at,
@@ -894,9 +923,30 @@ impl Bus {
         ))
     }
 
-    /// Whether `received`, which failed as a reply to `frame`, is the request's own echo
-    /// (in full, or as far as a reply's length took it): an adapter that echoes on a Bus
-    /// not opened with `echo`. Never for a Bus that reads the echo itself.
+    /// Reads into `buf` what arrives within `wait`: 0 if nothing did, or if there was no
+    /// room or no time to wait.
+    fn read_within(
+        &self,
+        transport: &mut Box<dyn Transport>,
+        buf: &mut [u8],
+        wait: Duration,
+    ) -> Result<usize> {
+        if buf.is_empty() || wait.is_zero() {
+            return Ok(0);
+        }
+        transport.read(buf, wait).map_err(|e| self.io_error(e))
+    }
+
+    /// How long the line must stay quiet for a frame that started to be over: t3.5, and
+    /// at least 2 ms for the scheduler's sake.
+    fn frame_over(&self) -> Duration {
+        self.config.line.t3_5().max(Duration::from_millis(2))
+    }
+
+    /// Whether `received`, a complete reply to `frame` by its length that failed to decode,
+    /// is the request's own echo (in full, or as far as a reply's length took it): an
+    /// adapter that echoes on a Bus not opened with `echo`. Never for a Bus that reads the
+    /// echo itself.
     fn is_unexpected_echo(&self, frame: &[u8], received: &[u8]) -> bool {
         !self.config.echo
             && received.len() >= frame.len().min(ECHO_EVIDENCE)

@@ -657,3 +657,99 @@ fn a_panic_under_the_bus_is_an_internal_error_and_the_bus_goes_on() {
     assert_eq!(v.unwrap(), vec![2]);
     assert_eq!(bus.stats().transactions, 1);
 }
+
+#[test]
+fn a_collision_is_retried_without_waiting_out_the_timeout() {
+    let (bus, t) = common::echo_bus(vec![common::words(1, &[1]), common::words(1, &[2])], 1);
+    t.0.lock().unwrap().garble_echo = 1;
+    let opts = TxOptions {
+        timeout: Some(Duration::from_millis(300)),
+        ..TxOptions::default()
+    };
+    assert_eq!(bus.read_holding_registers(1, 0, 1, &opts).unwrap(), vec![2]);
+    let at = common::sent_at(&t);
+    // The garbled echo and what follows it are taken until the line is quiet (t3.5 here),
+    // then the retry goes: far sooner than the 300 ms a reply is allowed.
+    assert!(
+        at[1] - at[0] < Duration::from_millis(150),
+        "{:?}",
+        at[1] - at[0]
+    );
+    // Nothing of the first attempt was left for the retry to find.
+    assert_eq!(bus.stats().stale_bytes, 0);
+}
+
+#[test]
+fn once_an_echo_was_seen_a_reply_in_its_place_is_retried() {
+    // A late reply still in the adapter comes ahead of the echo: not "does not echo".
+    let (bus, t) = common::echo_bus(vec![common::words(1, &[1]), common::words(1, &[2])], 1);
+    assert_eq!(
+        bus.read_holding_registers(1, 0, 1, &TxOptions::default())
+            .unwrap(),
+        vec![1]
+    );
+    t.0.lock().unwrap().echo = false;
+    let e = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Frame {
+                kind: FrameError::LocalEcho { .. },
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    assert_eq!(bus.stats().retries, 1);
+}
+
+#[test]
+fn a_truncated_write_reply_is_a_timeout_not_an_echo() {
+    // A 0x06 reply repeats the request: cut short, it is still just a late or lost reply.
+    let (bus, _) = bus(
+        vec![Act::Reply(with_crc(&[1, 6, 0, 1, 0, 5])[..6].to_vec())],
+        0,
+    );
+    let e = bus
+        .write_register(1, 1, 5, &TxOptions::default())
+        .unwrap_err();
+    assert!(matches!(e, Error::Timeout { .. }), "{e:?}");
+}
+
+#[test]
+fn a_broadcast_with_a_garbled_echo_keeps_its_turnaround() {
+    let (bus, t) = common::echo_bus(vec![], 0);
+    t.0.lock().unwrap().garble_echo = 1;
+    let e = bus.broadcast_write_register(1, 5).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Frame {
+                kind: FrameError::LocalEcho { .. },
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let s = bus.stats();
+    assert_eq!((s.broadcasts, s.frame_errors), (1, 1));
+    assert_eq!(common::sent(&t).len(), 1, "a broadcast is not repeated");
+    bus.broadcast_write_register(1, 5).unwrap();
+    assert_eq!(bus.stats().broadcasts, 2);
+}
+
+#[test]
+fn an_unanswered_write_with_a_garbled_echo_is_sent_again() {
+    let (bus, t) = common::echo_bus(vec![], 2);
+    t.0.lock().unwrap().garble_echo = 1;
+    let opts = TxOptions {
+        write_reply: false,
+        ..TxOptions::default()
+    };
+    bus.write_register(1, 1, 5, &opts).unwrap();
+    let s = bus.stats();
+    assert_eq!((s.transactions, s.frame_errors, s.retries), (1, 1, 1));
+    assert_eq!(common::sent(&t).len(), 2);
+}

@@ -136,3 +136,26 @@ def test_echo_must_be_a_bool(sim: Simulator[RegisterDevice | DriveDevice]) -> No
     with pytest.raises(ValueError, match="n must be"):
         sim.collide_next(-1)
     assert sim.requests == []
+
+
+def test_a_collision_on_a_broadcast_is_reported_not_repeated(
+    sim: Simulator[RegisterDevice | DriveDevice],
+) -> None:
+    with bb.Bus(sim.port, timeout=TIMEOUT, turnaround=0.02, echo=True) as bus:
+        sim.collide_next(1)
+        with pytest.raises(bb.FrameError, match="local echo"):
+            bus.broadcast_write_register(10, 0x0042)
+        assert len(sim.requests) == 1
+        assert sim.peek(1, 10) == [REGISTERS[10]]
+        assert (bus.stats.broadcasts, bus.stats.frame_errors) == (1, 1)
+
+
+def test_an_echo_lost_after_one_was_seen_is_a_retried_frame_error(
+    sim: Simulator[RegisterDevice | DriveDevice],
+) -> None:
+    with echo_bus(sim, retries=1) as bus:
+        assert bus.read_holding_registers(1, 10, 2) == sim.peek(1, 10, 2)
+        sim.echo = False
+        with pytest.raises(bb.FrameError, match="local echo"):
+            bus.read_holding_registers(1, 10, 2)
+        assert len(sim.requests) == 3, "the attempt was repeated"

@@ -120,8 +120,10 @@ class Bus:
         while it transmits): each request's echo is read back (within ``timeout`` after the
         request's end) and checked before the reply is awaited. An echo that differs or
         breaks off (a collision on the line) raises FrameError and is retried like a
-        corrupt reply; no echo at all, or the device's reply in its place, raises PortError
-        (the adapter does not echo). Without it, a reply that begins with the request itself
+        corrupt reply (a broadcast is not repeated). Until a first echo has come back, no
+        echo at all, or the device's reply in its place, raises PortError: the adapter does
+        not echo (a single-register write then times out instead, its reply being the
+        request's own bytes). Without ``echo``, a reply that begins with the request itself
         raises FrameError saying to open the Bus with ``echo=True``.
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
