@@ -129,6 +129,25 @@ def test_exception_reply_is_raised_at_once(sim: Simulator) -> None:
     assert len(sim.requests) == 1
 
 
+@pytest.mark.parametrize(
+    ("code", "meaning"),
+    [(0x0A, "gateway path unavailable"), (0x0B, "gateway target device failed to respond")],
+)
+def test_gateway_exceptions_are_gateway_errors(sim: Simulator, code: int, meaning: str) -> None:
+    with bb.Bus(sim.port, timeout=1.0, retries=2) as bus:
+        sim.answer_exception(code)
+        with pytest.raises(bb.GatewayError) as e:
+            bus.read_holding_registers(1, 0x0032, 1)
+        assert isinstance(e.value, bb.ModbusException)
+        assert (e.value.unit, e.value.code, e.value.meaning) == (1, code, meaning)
+        assert bus.stats.retries == 0
+        # Any other code stays a plain ModbusException.
+        sim.answer_exception(2)
+        with pytest.raises(bb.ModbusException) as other:
+            bus.read_holding_registers(1, 0x0032, 1)
+        assert type(other.value) is bb.ModbusException
+
+
 class BusyAt0x100(RegisterDevice):
     """A device whose register 0x0100 answers "server device failure" (code 4)."""
 

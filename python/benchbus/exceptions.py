@@ -9,6 +9,8 @@
     │   └── CrcError(FrameError)                   length or echo, a garbled local echo;
     │                                              bad CRC
     ├── ModbusException(BenchbusError)             the device answered with an exception
+    │   └── GatewayError(ModbusException)          a gateway answered 0x0A (no path to the
+    │                                              unit) or 0x0B (the unit did not answer it)
     └── StateError(BenchbusError)                  the device's state forbids the request
 
 Bad arguments raise ``ValueError`` / ``TypeError`` before anything is sent. A bug inside
@@ -24,6 +26,7 @@ __all__ = [
     "BenchbusError",
     "CrcError",
     "FrameError",
+    "GatewayError",
     "ModbusException",
     "PortError",
     "ResponseTimeout",
@@ -102,6 +105,16 @@ class ModbusException(BenchbusError):
         super().__init__(message, unit=unit, function=function, frame=frame)
         self.code = code
         self.meaning = meaning
+
+
+class GatewayError(ModbusException):
+    """A Modbus gateway (a TCP to RS485 converter, ``benchbus gateway``) answered for the unit.
+
+    ``code`` 0x0A: the gateway has no path to the unit (not configured, or its serial port
+    is gone). ``code`` 0x0B: the gateway asked the unit and got no valid reply in time (the
+    unit is off, or on another address); the gateway's own timeout and retries applied, not
+    the Bus's.
+    """
 
 
 class StateError(BenchbusError):
