@@ -24,7 +24,10 @@ use crate::codec::{
 };
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard};
-use crate::transport::{describe_open_error, is_lost, SerialTransport, Transport};
+use crate::transport::{
+    describe_connect_error, describe_open_error, is_lost, parse_endpoint, Endpoint, Framing,
+    SerialTransport, TcpTransport, Transport,
+};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -47,7 +50,8 @@ pub const STANDARD_UNITS: std::ops::RangeInclusive<u8> = 1..=247;
 /// How a Bus is opened.
 #[derive(Debug, Clone)]
 pub struct BusConfig {
-    /// Port path, e.g. `/dev/ttyUSB0` or `/dev/pts/3`.
+    /// Serial port path (`/dev/ttyUSB0`, `/dev/pts/3`), `tcp://HOST[:PORT]` or
+    /// `rtu+tcp://HOST:PORT` (see [`Bus::open`]).
     pub port: String,
     /// Line format (baud, parity, stop bits).
     pub line: LineFormat,
@@ -62,7 +66,7 @@ pub struct BusConfig {
     pub reconnect: bool,
     /// Whether the adapter echoes what it sends (an RS485 adapter whose receiver stays on
     /// while it transmits): each request's echo is read back and checked before the reply
-    /// is awaited (see [`Bus::send`]).
+    /// is awaited (`Bus::send`). For serial lines and `rtu+tcp://`; refused on `tcp://`.
     pub echo: bool,
 }
 
@@ -189,13 +193,15 @@ impl std::fmt::Debug for Bus {
 }
 
 impl Bus {
-    /// Opens the serial port of `config`.
+    /// Opens the port of `config`: a serial port path, `tcp://HOST[:PORT]` (Modbus TCP to a
+    /// gateway, port 502 by default) or `rtu+tcp://HOST:PORT` (RTU frames over TCP to a
+    /// serial device server); see [`crate::transport::parse_endpoint`].
     ///
     /// # Errors
-    /// [`Error::Port`] if the port cannot be opened; [`Error::InvalidArgument`] for a bad
-    /// line format.
+    /// [`Error::Port`] if the port cannot be opened or the connection made;
+    /// [`Error::InvalidArgument`] for a bad line format or a malformed `scheme://` port.
     pub fn open(config: BusConfig) -> Result<Bus> {
-        Bus::with_opener(config, Box::new(open_serial))
+        Bus::with_opener(config, Box::new(open_port))
     }
 
     /// A Bus over the transport `opener` makes from the config, now and at each reopen.
@@ -657,7 +663,9 @@ impl Bus {
         // answers the same request, so retries do not wait. A probe's unit is not asked
         // again, and a late answer from it would name the wrong unit. Two timeouts: a unit
         // slower than the timeout may have queued the retry's reply behind the late one.
-        if timed_out && !opts.window_from_start {
+        // A transport that pairs replies with requests (Modbus TCP) drops late ones itself.
+        let paired = matches!(&st.link, Link::Open(t) if t.matches_replies());
+        if timed_out && !opts.window_from_start && !paired {
             st.late_until = Some(Instant::now() + timeout * 2);
         }
         result
@@ -1075,13 +1083,37 @@ fn pace(st: &State, unit: u8, interval: Duration) {
     }
 }
 
-/// Opens the serial port of `config`.
-fn open_serial(config: &BusConfig) -> Result<Box<dyn Transport>> {
-    match SerialTransport::open(&config.port, &config.line) {
+/// Opens the transport `config.port` names ([`parse_endpoint`]): a serial port, or a TCP
+/// connection (Modbus TCP, or RTU frames over TCP). Reopening connects again.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a malformed `scheme://` port, before anything is opened;
+/// [`Error::Port`] if the port cannot be opened or the connection made.
+fn open_port(config: &BusConfig) -> Result<Box<dyn Transport>> {
+    let endpoint = parse_endpoint(&config.port).map_err(Error::InvalidArgument)?;
+    let (host, port, framing) = match &endpoint {
+        Endpoint::Serial(path) => {
+            return match SerialTransport::open(path, &config.line) {
+                Ok(transport) => Ok(Box::new(transport)),
+                Err(e) => Err(Error::Port {
+                    port: config.port.clone(),
+                    message: format!("cannot open: {}", describe_open_error(&e)),
+                    source: None,
+                }),
+            }
+        }
+        Endpoint::ModbusTcp { host, port } => (host, *port, Framing::Mbap),
+        Endpoint::RtuOverTcp { host, port } => (host, *port, Framing::Rtu),
+    };
+    match TcpTransport::connect(host, port, framing) {
         Ok(transport) => Ok(Box::new(transport)),
         Err(e) => Err(Error::Port {
             port: config.port.clone(),
-            message: format!("cannot open: {}", describe_open_error(&e)),
+            message: format!(
+                "cannot connect to {}: {}",
+                endpoint.address(),
+                describe_connect_error(&e)
+            ),
             source: None,
         }),
     }
@@ -1104,6 +1136,13 @@ fn is_write(request: &Request) -> bool {
 }
 
 fn check_config(config: &BusConfig) -> Result<()> {
+    if config.echo && matches!(parse_endpoint(&config.port), Ok(Endpoint::ModbusTcp { .. })) {
+        return Err(Error::InvalidArgument(
+            "echo=True is for a serial line (or rtu+tcp://): over tcp:// the gateway keeps \
+             the line, and no echo reaches the Bus"
+                .into(),
+        ));
+    }
     let line = &config.line;
     if line.baudrate == 0 {
         return Err(Error::InvalidArgument("baudrate must be positive".into()));

@@ -287,8 +287,10 @@ def test_port_errors() -> None:
     with pytest.raises(bb.PortError) as e:
         bb.Bus("/dev/does-not-exist")
     assert isinstance(e.value, OSError)
-    with pytest.raises(ValueError, match="not supported"):
-        bb.Bus("tcp://127.0.0.1:502")
+    with pytest.raises(ValueError, match="foo"):
+        bb.Bus("foo://127.0.0.1:502")
+    with pytest.raises(ValueError, match="port"):
+        bb.Bus("rtu+tcp://127.0.0.1")  # a device server has no standard port
 
 
 def test_closed_bus_and_exclusive_open(sim: Simulator) -> None:

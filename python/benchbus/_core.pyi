@@ -68,18 +68,30 @@ class Stats:
 
 @final
 class Bus:
-    """A Modbus RTU master on one serial line.
+    """A Modbus RTU master on one serial line, or through a TCP gateway to one.
+
+    The port string picks the transport:
+
+    - a serial port path (``/dev/ttyUSB0``): Modbus RTU on the line;
+    - ``tcp://HOST[:PORT]`` (port 502 by default): Modbus TCP to a gateway (mbusd, an
+      industrial RS485 converter), which does the serial timing itself;
+    - ``rtu+tcp://HOST:PORT``: RTU frames, CRC included, over a TCP socket to a serial device
+      server (ser2net); give the baudrate and format of its serial side.
+
+    HOST is a DNS name, an IPv4 address or a bracketed IPv6 address (``[::1]``). The same
+    calls, devices, retries and errors work on all three; a connection the peer closes is a
+    lost port, brought back by :meth:`reopen` or ``reconnect=True`` (which connect again).
 
     One transaction at a time: threads sharing a Bus wait their turn, and the GIL is released
-    while a call waits for the wire. Before each request the line is kept silent for t3.5;
-    replies are read by their expected length; a timeout or a corrupt reply is retried up to
-    ``retries`` times, an exception reply never is.
+    while a call waits for the wire. Before each request the line is kept silent for t3.5
+    (serial and ``rtu+tcp`` only); replies are read by their expected length; a timeout or a
+    corrupt reply is retried up to ``retries`` times, an exception reply never is.
 
-    The port is opened exclusively (``TIOCEXCL`` and an exclusive ``flock``): a port another
-    Bus holds, in this process or another, raises PortError ("in use by another Bus or
-    program"), as does one held by any program that locks it too (pyserial with
+    A serial port is opened exclusively (``TIOCEXCL`` and an exclusive ``flock``): a port
+    another Bus holds, in this process or another, raises PortError ("in use by another Bus
+    or program"), as does one held by any program that locks it too (pyserial with
     ``exclusive=True``). While a Bus holds a port, other programs cannot open it unless they
-    run as root.
+    run as root. (Network ports are not held: a gateway may serve several masters.)
 
     A port that vanishes (a USB adapter unplugged, a pseudo-terminal whose other end closed)
     raises PortError at once, from the call that finds it gone, never after a timeout. The
@@ -103,11 +115,15 @@ class Bus:
         reconnect: bool = False,
         echo: bool = False,
     ) -> Self:
-        """Open ``port`` (e.g. ``/dev/ttyUSB0``) at the given line format.
+        """Open ``port`` (``/dev/ttyUSB0``, ``tcp://HOST[:PORT]`` or ``rtu+tcp://HOST:PORT``)
+        at the given line format (the serial line's; unused by ``tcp://``).
 
-        ``timeout`` is per attempt, in seconds; ``turnaround`` is the quiet time after a
+        ``timeout`` is per attempt, in seconds: the reply allowance on every transport (over
+        TCP it covers the network's delay too). ``turnaround`` is the quiet time after a
         broadcast. Raises PortError if the port cannot be opened (absent, or in use by
-        another Bus or program), ValueError / TypeError for bad arguments.
+        another Bus or program) or the connection made (refused, or no answer within 3 s),
+        ValueError for a malformed ``scheme://`` port or other bad arguments, TypeError for
+        arguments of the wrong type.
 
         ``reconnect=True``: a call that finds the port lost first reopens the path (as
         :meth:`reopen` does) and goes on, once per call, with no waiting and no loop. If the
@@ -124,7 +140,9 @@ class Bus:
         echo at all, or the device's reply in its place, raises PortError: the adapter does
         not echo (a single-register write then times out instead, its reply being the
         request's own bytes). Without ``echo``, a reply that begins with the request itself
-        raises FrameError saying to open the Bus with ``echo=True``.
+        raises FrameError saying to open the Bus with ``echo=True``. Refused (ValueError)
+        on ``tcp://``, where the gateway keeps the line. After a timeout over ``tcp://`` the
+        next call goes at once: transaction ids keep a late reply from passing for it.
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""

@@ -356,12 +356,9 @@ impl PyBus {
             .extract()
             .map_err(|_| PyTypeError::new_err("port must be a str or os.PathLike"))?;
         let port = port.to_string_lossy().into_owned();
-        if let Some((scheme, _)) = port.split_once("://") {
-            return Err(PyValueError::new_err(format!(
-                "port {port:?}: transport {scheme:?} is not supported by this version; \
-                 give a serial port path such as /dev/ttyUSB0"
-            )));
-        }
+        // "scheme://..." names a network transport: a malformed one is refused here, before
+        // anything is opened (the message gives the forms expected).
+        crate::transport::parse_endpoint(&port).map_err(PyValueError::new_err)?;
         if port.is_empty() {
             return Err(PyValueError::new_err("port must not be empty"));
         }

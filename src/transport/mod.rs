@@ -1,11 +1,21 @@
 //! Byte pipes under the [`Bus`](crate::bus::Bus). A transport moves bytes and knows nothing
-//! of Modbus; the bus does the framing, timing and checking.
+//! of Modbus; the bus does the framing, timing and checking. (The Modbus TCP transport is the
+//! one exception: it translates the Bus's RTU frames to and from MBAP frames, see
+//! [`TcpTransport`].)
+//!
+//! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]).
 
 mod serial;
+mod tcp;
 
 pub use serial::{describe_open_error, SerialTransport};
+pub use tcp::{
+    describe_connect_error, Framing, TcpTransport, CONNECT_TIMEOUT, FIRST_TRANSACTION_ID,
+    WRITE_TIMEOUT,
+};
 
 use std::io;
+use std::net::{Ipv4Addr, Ipv6Addr};
 use std::time::Duration;
 
 /// A byte pipe to the devices.
@@ -40,6 +50,13 @@ pub trait Transport: Send {
     fn is_serial_line(&self) -> bool {
         true
     }
+
+    /// Whether the transport pairs each reply with its request and drops any other (Modbus
+    /// TCP's transaction ids): a late reply can then never pass for the next call's answer,
+    /// and the Bus need not listen for one after a timeout.
+    fn matches_replies(&self) -> bool {
+        false
+    }
 }
 
 /// The error of a transport whose port is gone for good (see [`Transport`]).
@@ -57,4 +74,266 @@ pub fn is_lost(error: &io::Error) -> bool {
             | io::ErrorKind::NotConnected
             | io::ErrorKind::UnexpectedEof
     )
+}
+
+/// The port Modbus TCP uses when a `tcp://` address names none.
+pub const MODBUS_TCP_PORT: u16 = 502;
+
+/// What a Bus's port string names.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Endpoint {
+    /// A serial port path (`/dev/ttyUSB0`): anything without `://`.
+    Serial(String),
+    /// `tcp://HOST[:PORT]`: Modbus TCP (MBAP frames) to a gateway; port 502 by default.
+    ModbusTcp {
+        /// DNS name, IPv4 address, or IPv6 address (without its brackets).
+        host: String,
+        /// TCP port.
+        port: u16,
+    },
+    /// `rtu+tcp://HOST:PORT`: raw RTU frames over TCP to a serial device server (ser2net).
+    RtuOverTcp {
+        /// DNS name, IPv4 address, or IPv6 address (without its brackets).
+        host: String,
+        /// TCP port.
+        port: u16,
+    },
+}
+
+impl Endpoint {
+    /// `HOST:PORT` of a network endpoint (an IPv6 address in brackets), as `connect` takes
+    /// it and messages show it; the path of a serial one.
+    pub fn address(&self) -> String {
+        match self {
+            Endpoint::Serial(path) => path.clone(),
+            Endpoint::ModbusTcp { host, port } | Endpoint::RtuOverTcp { host, port } => {
+                if host.contains(':') {
+                    format!("[{host}]:{port}")
+                } else {
+                    format!("{host}:{port}")
+                }
+            }
+        }
+    }
+}
+
+/// The port forms a Bus accepts, for messages.
+const EXPECTED: &str = "expected a serial port path (/dev/ttyUSB0), tcp://HOST[:PORT] \
+                        (Modbus TCP, port 502 by default) or rtu+tcp://HOST:PORT (RTU frames \
+                        over TCP); HOST is a DNS name, an IPv4 address or a bracketed IPv6 \
+                        address such as [::1]";
+
+/// Parses a Bus's port string: a serial path, `tcp://HOST[:PORT]` or `rtu+tcp://HOST:PORT`.
+///
+/// Pure (no name lookup, nothing opened). The scheme is matched without regard to case.
+/// HOST is a DNS name (letters, digits, `-`, `_`, dot-separated labels), an IPv4 address,
+/// or an IPv6 address in brackets (`[::1]`, no zone id); PORT is 1..=65535. Nothing may
+/// follow the port: no path, query or user info.
+///
+/// # Errors
+/// A message naming the port string, what is wrong with it and the forms expected: an
+/// unknown scheme, an empty or malformed host, a missing (for `rtu+tcp`) or bad port,
+/// anything after the port.
+pub fn parse_endpoint(port: &str) -> Result<Endpoint, String> {
+    let Some((scheme, rest)) = port.split_once("://") else {
+        return Ok(Endpoint::Serial(port.to_string()));
+    };
+    let bad = |what: &str| format!("port {port:?}: {what}; {EXPECTED}");
+    let scheme = scheme.to_ascii_lowercase();
+    let default_port = match scheme.as_str() {
+        "tcp" => Some(MODBUS_TCP_PORT),
+        "rtu+tcp" => None,
+        _ => return Err(bad(&format!("unknown transport {scheme:?}"))),
+    };
+    if let Some(c) = rest.chars().find(|c| matches!(c, '/' | '?' | '#' | '@')) {
+        return Err(bad(&format!(
+            "nothing but HOST[:PORT] may follow \"{scheme}://\" (found {c:?})"
+        )));
+    }
+    let (host, port_part) = split_host_port(rest).map_err(|m| bad(&m))?;
+    let tcp_port = match (port_part, default_port) {
+        (Some(p), _) => parse_tcp_port(p).map_err(|m| bad(&m))?,
+        (None, Some(p)) => p,
+        (None, None) => return Err(bad(&format!("{scheme}:// needs a port (HOST:PORT)"))),
+    };
+    let host = host.to_string();
+    Ok(if scheme == "tcp" {
+        Endpoint::ModbusTcp {
+            host,
+            port: tcp_port,
+        }
+    } else {
+        Endpoint::RtuOverTcp {
+            host,
+            port: tcp_port,
+        }
+    })
+}
+
+/// `HOST[:PORT]` split and the host checked: (host without brackets, port text if any).
+fn split_host_port(rest: &str) -> Result<(&str, Option<&str>), String> {
+    if rest.is_empty() {
+        return Err("no host".into());
+    }
+    if let Some(bracketed) = rest.strip_prefix('[') {
+        let Some((host, after)) = bracketed.split_once(']') else {
+            return Err("an IPv6 address opened with '[' has no closing ']'".into());
+        };
+        if host.parse::<Ipv6Addr>().is_err() {
+            return Err(format!("{host:?} in brackets is not an IPv6 address"));
+        }
+        return match after {
+            "" => Ok((host, None)),
+            _ => match after.strip_prefix(':') {
+                Some(p) => Ok((host, Some(p))),
+                None => Err(format!("unexpected {after:?} after the IPv6 address")),
+            },
+        };
+    }
+    let (host, port) = match rest.split_once(':') {
+        Some((_, p)) if p.contains(':') => {
+            return Err("an IPv6 address must be in brackets, as tcp://[::1]:502".into())
+        }
+        Some((h, p)) => (h, Some(p)),
+        None => (rest, None),
+    };
+    check_host(host)?;
+    Ok((host, port))
+}
+
+/// Whether `host` is an IPv4 address or a DNS name.
+fn check_host(host: &str) -> Result<(), String> {
+    if host.is_empty() {
+        return Err("no host".into());
+    }
+    let labels: Vec<&str> = host.split('.').collect();
+    if labels
+        .iter()
+        .all(|l| !l.is_empty() && l.bytes().all(|b| b.is_ascii_digit()))
+    {
+        // All digits: only an IPv4 address can look like that.
+        return match host.parse::<Ipv4Addr>() {
+            Ok(_) => Ok(()),
+            Err(_) => Err(format!("{host:?} is not an IPv4 address")),
+        };
+    }
+    // A fully qualified name may end in a dot ("gw.lab.").
+    let name = host.strip_suffix('.').unwrap_or(host);
+    let name_ok = name.len() <= 253
+        && name.split('.').all(|l| {
+            (1..=63).contains(&l.len())
+                && !l.starts_with('-')
+                && !l.ends_with('-')
+                && l.bytes()
+                    .all(|b| b.is_ascii_alphanumeric() || b == b'-' || b == b'_')
+        });
+    if name_ok {
+        Ok(())
+    } else {
+        Err(format!("{host:?} is not a host name or an IPv4 address"))
+    }
+}
+
+fn parse_tcp_port(p: &str) -> Result<u16, String> {
+    if p.is_empty() {
+        return Err("no port after ':'".into());
+    }
+    match p.parse::<u16>() {
+        Ok(n) if n > 0 && p.bytes().all(|b| b.is_ascii_digit()) => Ok(n),
+        _ => Err(format!("bad TCP port {p:?} (1..=65535)")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn tcp(host: &str, port: u16) -> Endpoint {
+        Endpoint::ModbusTcp {
+            host: host.into(),
+            port,
+        }
+    }
+
+    fn rtu(host: &str, port: u16) -> Endpoint {
+        Endpoint::RtuOverTcp {
+            host: host.into(),
+            port,
+        }
+    }
+
+    #[test]
+    fn serial_paths_pass_through() {
+        for p in ["/dev/ttyUSB0", "/dev/pts/3", "COM3", "relative:path", ""] {
+            assert_eq!(parse_endpoint(p), Ok(Endpoint::Serial(p.into())));
+        }
+    }
+
+    #[test]
+    fn network_forms_parse() {
+        assert_eq!(parse_endpoint("tcp://gw.lab"), Ok(tcp("gw.lab", 502)));
+        assert_eq!(parse_endpoint("tcp://gw.lab:5020"), Ok(tcp("gw.lab", 5020)));
+        assert_eq!(parse_endpoint("TCP://10.0.0.7"), Ok(tcp("10.0.0.7", 502)));
+        assert_eq!(parse_endpoint("tcp://[::1]"), Ok(tcp("::1", 502)));
+        assert_eq!(
+            parse_endpoint("tcp://[fe80::2]:1502"),
+            Ok(tcp("fe80::2", 1502))
+        );
+        assert_eq!(
+            parse_endpoint("rtu+tcp://moxa-1:4001"),
+            Ok(rtu("moxa-1", 4001))
+        );
+        assert_eq!(
+            parse_endpoint("rtu+tcp://[::1]:65535"),
+            Ok(rtu("::1", 65535))
+        );
+        assert_eq!(parse_endpoint("tcp://localhost:1"), Ok(tcp("localhost", 1)));
+        assert_eq!(parse_endpoint("tcp://gw.lab.:7"), Ok(tcp("gw.lab.", 7)));
+        assert_eq!(parse_endpoint("tcp://my_gw"), Ok(tcp("my_gw", 502)));
+    }
+
+    #[test]
+    fn address_brackets_ipv6() {
+        assert_eq!(tcp("::1", 502).address(), "[::1]:502");
+        assert_eq!(rtu("gw", 4001).address(), "gw:4001");
+    }
+
+    #[test]
+    fn bad_urls_are_refused_with_the_expected_forms() {
+        let cases = [
+            ("foo://x", "unknown transport \"foo\""),
+            ("udp://host:502", "unknown transport"),
+            ("://host", "unknown transport \"\""),
+            ("tcp://", "no host"),
+            ("tcp://:502", "no host"),
+            ("rtu+tcp://host", "needs a port"),
+            ("rtu+tcp://[::1]", "needs a port"),
+            ("tcp://host:", "no port"),
+            ("tcp://host:0", "bad TCP port"),
+            ("tcp://host:65536", "bad TCP port"),
+            ("tcp://host:+502", "bad TCP port"),
+            ("tcp://host:50x", "bad TCP port"),
+            ("tcp://host:502/path", "nothing but HOST[:PORT]"),
+            ("tcp://host/", "nothing but HOST[:PORT]"),
+            ("tcp://user@host:502", "nothing but HOST[:PORT]"),
+            ("tcp://host:502?x=1", "nothing but HOST[:PORT]"),
+            ("tcp://::1:502", "must be in brackets"),
+            ("tcp://[::1", "no closing"),
+            ("tcp://[::1]502", "after the IPv6 address"),
+            ("tcp://[nothost]:502", "not an IPv6 address"),
+            ("tcp://[fe80::1%eth0]:502", "not an IPv6 address"),
+            ("tcp://192.168.1.300", "not an IPv4 address"),
+            ("tcp://1.2.3", "not an IPv4 address"),
+            ("tcp://bad host", "not a host name"),
+            ("tcp://-gw", "not a host name"),
+            ("tcp://a..b", "not a host name"),
+            ("tcp://.", "not a host name"),
+        ];
+        for (url, why) in cases {
+            let message = parse_endpoint(url).expect_err(url);
+            assert!(message.contains(why), "{url}: {message}");
+            assert!(message.contains(&format!("{url:?}")), "{url}: {message}");
+            assert!(message.contains("rtu+tcp://HOST:PORT"), "{url}: {message}");
+        }
+    }
 }
