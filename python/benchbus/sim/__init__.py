@@ -1,4 +1,4 @@
-"""Simulated Modbus RTU devices on pseudo-terminals, for tests without hardware.
+"""Simulated Modbus devices on pseudo-terminals or loopback TCP, for tests without hardware.
 
 ::
 
@@ -17,6 +17,13 @@ temperature controller with a thermal process under its control, :class:`Taisong
 Taisong panel instrument (a measured value moving toward its setpoint) and
 :class:`Atv31Device` the ATV31 drive of the Taisong manual's Modbus section, with Read Device
 Identification (paged on request, and the manual's 6-byte error form).
+
+The same units can sit behind a Modbus TCP gateway instead:
+``Simulator(devices, network="tcp")`` (MBAP) or ``network="rtu+tcp"`` (RTU frames over TCP)
+makes :attr:`Simulator.port` a URL (``tcp://127.0.0.1:N``) served by a pymodbus TCP server
+behind a proxy that logs the frames and injects the faults, among them
+:meth:`Simulator.reset_next` (a reply cut by a connection reset),
+:meth:`Simulator.refuse_connections` and :meth:`Simulator.drop_connections`.
 
 A noisy line is one argument away: ``Simulator(devices, faults=Faults(rate=0.05, seed=1))``
 spoils 5 % of the replies with bit flips, dropped bytes, truncation, garbage, late,

@@ -1,4 +1,4 @@
-"""Everything that knows pymodbus (3.16.x): the RTU server behind the simulated line.
+"""Everything that knows pymodbus (3.16.x): the servers behind the simulated line and gateway.
 
 pymodbus changes its server and datastore API between minor versions, so this is the one
 module to change when it does. What 3.16 offers and how it is used here:
@@ -11,7 +11,7 @@ module to change when it does. What 3.16 offers and how it is used here:
   simulated unit is one such SimDevice whose action calls into the benchbus ``SimDevice``.
 - An action signals an exception reply by returning an ``ExcCodes`` member; pymodbus then
   builds the reply itself. ``ExcCodes`` has only 1..8, 0x0A and 0x0B: for any other code the
-  action returns 4 and asks the line to rewrite the code in the reply.
+  action returns 4 and the server puts the code into the reply (see ``trace_pdu`` below).
 - Read Device Identification (0x2B/0x0E) in pymodbus answers from one process-wide
   ``ModbusControlBlock`` identity and ignores ``SimDevice.identity``. A per-unit identity
   needs a custom request PDU, passed as ``custom_pdu=``. The server's decoder takes the
@@ -21,9 +21,21 @@ module to change when it does. What 3.16 offers and how it is used here:
   at an object id the stream does not hold with no objects at all for the basic stream
   (and for the regular one started at a private id); the spec says to restart at object 0,
   so the request class does that before asking the factory.
+- An exception reply pymodbus builds from an ``ExcCodes`` member can carry any code once
+  built: ``ExceptionResponse.encode`` packs whatever ``exception_code`` holds. The server's
+  ``trace_pdu`` hook sees every PDU it sends, so for a code ``ExcCodes`` lacks the action
+  returns 4 and the hook puts the real code into the reply. The action and the send of its
+  reply run in one event-loop step (nothing between them suspends), so the code cannot go
+  to another connection's reply.
 - ``ModbusSerialServer`` opens the port with pyserial (8N1 here: a pseudo-terminal has no
   parity bit and pyserial fails on 8E1), must be built inside a running event loop, and
   ``serve_forever(background=True)`` returns once it listens.
+- ``ModbusTcpServer`` takes ``framer=FramerType.SOCKET`` (MBAP) or ``FramerType.RTU`` (RTU
+  frames over TCP, CRC included) and ``address=(host, port)``; port 0 binds an ephemeral
+  port, read back from the listening ``asyncio.Server`` in ``server.transport``. Each client
+  connection gets its own request handler; a request for a unit it does not serve is ignored
+  with ``ignore_missing_devices=True`` (with False it answers exception 0x0B). It handles one
+  frame per received chunk, so the simulator's gateway sends one request at a time.
 """
 
 from __future__ import annotations
@@ -40,11 +52,11 @@ from pymodbus.framer import FramerType
 from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.pdu.device import DeviceInformationFactory, ModbusDeviceIdentification
 from pymodbus.pdu.mei_message import ReadDeviceInformationResponse
-from pymodbus.server import ModbusBaseServer, ModbusSerialServer
+from pymodbus.server import ModbusBaseServer, ModbusSerialServer, ModbusTcpServer
 from pymodbus.simulator import DataType, SimData
 from pymodbus.simulator import SimDevice as PymodbusSimDevice
 
-__all__ = ["Dispatch", "IdentityOf", "PymodbusServer"]
+__all__ = ["Dispatch", "IdentityOf", "PymodbusServer", "SerialServer", "TcpServer"]
 
 log = logging.getLogger("benchbus.sim")
 
@@ -138,25 +150,27 @@ async def _cancel_other_tasks() -> None:
 
 
 class PymodbusServer:
-    """A pymodbus RTU server on ``port`` in a daemon thread with its own event loop."""
+    """A pymodbus server for ``units`` in a daemon thread with its own event loop.
+
+    The base of :class:`SerialServer` and :class:`TcpServer`, which say where it listens:
+    every register access goes to ``dispatch``, Read Device Identification to
+    ``identity_of``, and exception codes pymodbus lacks are put into the replies here.
+    """
 
     def __init__(
         self,
-        port: str,
         units: Sequence[int],
         *,
-        baudrate: int,
         dispatch: Dispatch,
         identity_of: IdentityOf,
-        rewrite_exception_code: Callable[[int], None],
+        where: str,
     ) -> None:
-        """Serve ``units`` on ``port``; register accesses go to ``dispatch``."""
-        self._port = port
+        """Serve ``units``; ``where`` names the place in error messages."""
         self._units = list(units)
-        self._baudrate = baudrate
         self._dispatch = dispatch
         self._identity_of = identity_of
-        self._rewrite = rewrite_exception_code
+        self._where = where
+        self._pending_code: int | None = None  # only touched in the server's event loop
         self._loop: asyncio.AbstractEventLoop | None = None
         self._stop_event: asyncio.Event | None = None
         self._ready = threading.Event()
@@ -164,14 +178,14 @@ class PymodbusServer:
         self._thread = threading.Thread(target=self._run, name="benchbus-sim-server", daemon=True)
 
     def start(self, timeout: float) -> None:
-        """Start the thread; return once the server listens on the port."""
+        """Start the thread; return once the server listens."""
         self._thread.start()
         if not self._ready.wait(timeout):
             self.stop(timeout)
-            raise RuntimeError(f"the pymodbus server did not start on {self._port}")
+            raise RuntimeError(f"the pymodbus server did not start on {self._where}")
         if self._error is not None:
             self.stop(timeout)
-            raise RuntimeError(f"the pymodbus server failed on {self._port}") from self._error
+            raise RuntimeError(f"the pymodbus server failed on {self._where}") from self._error
 
     def stop(self, timeout: float) -> None:
         """Shut the server down, close its port and end the thread (idempotent)."""
@@ -183,6 +197,13 @@ class PymodbusServer:
             self._thread.join(timeout)
         if self._thread.is_alive():  # pragma: no cover
             log.error("simulator server thread did not stop")
+
+    def _create(self, devices: list[PymodbusSimDevice], **common: Any) -> ModbusBaseServer:
+        """The pymodbus server for ``devices`` (built in the running loop)."""
+        raise NotImplementedError
+
+    def _listening(self, server: ModbusBaseServer) -> None:
+        """Called in the loop once ``server`` listens."""
 
     def _run(self) -> None:
         loop = asyncio.new_event_loop()
@@ -209,26 +230,30 @@ class PymodbusServer:
             )
             for unit in self._units
         ]
-        server = ModbusSerialServer(
+        server = self._create(
             devices,
-            framer=FramerType.RTU,
-            port=self._port,
-            baudrate=self._baudrate,
-            bytesize=8,
-            parity="N",
-            stopbits=1,
             ignore_missing_devices=True,
-            broadcast_enable=False,  # the line fans broadcasts out itself
+            broadcast_enable=False,  # the line or gateway fans broadcasts out itself
+            trace_pdu=self._trace_pdu,
             custom_pdu=[_identification_request(self._identity_of)],
         )
         try:
             await server.serve_forever(background=True)
+            self._listening(server)
             self._ready.set()
             await self._stop_event.wait()
         finally:
             await server.shutdown()  # type: ignore[no-untyped-call]
             if ModbusBaseServer.active_server is server:
                 ModbusBaseServer.active_server = None
+
+    def _trace_pdu(self, sending: bool, pdu: ModbusPDU) -> ModbusPDU:
+        """Give the exception reply now being sent the code its action asked for."""
+        if sending:
+            code, self._pending_code = self._pending_code, None
+            if code is not None and isinstance(pdu, ExceptionResponse):
+                pdu.exception_code = code
+        return pdu
 
     def _action_for(self, unit: int) -> Callable[[int, int, int, int, list[int], Any], Any]:
         dispatch = self._dispatch
@@ -241,6 +266,7 @@ class PymodbusServer:
             registers: list[int],
             values: list[int] | list[bool] | None,
         ) -> ExcCodes | None:
+            self._pending_code = None
             if values is None and function == 0x06:
                 return None  # the echo of a write: pymodbus reads back what it just stored
             if values is None and function == 0x03:
@@ -260,5 +286,69 @@ class PymodbusServer:
     def _exception(self, code: int) -> ExcCodes:
         if code in _EXC_CODES:
             return ExcCodes(code)
-        self._rewrite(code)
+        self._pending_code = code
         return ExcCodes.DEVICE_FAILURE
+
+
+class SerialServer(PymodbusServer):
+    """A pymodbus RTU server on the serial port (pseudo-terminal) ``port``."""
+
+    def __init__(
+        self,
+        port: str,
+        units: Sequence[int],
+        *,
+        baudrate: int,
+        dispatch: Dispatch,
+        identity_of: IdentityOf,
+    ) -> None:
+        """Serve ``units`` on ``port``; register accesses go to ``dispatch``."""
+        super().__init__(units, dispatch=dispatch, identity_of=identity_of, where=port)
+        self._port = port
+        self._baudrate = baudrate
+
+    def _create(self, devices: list[PymodbusSimDevice], **common: Any) -> ModbusBaseServer:
+        return ModbusSerialServer(
+            devices,
+            framer=FramerType.RTU,
+            port=self._port,
+            baudrate=self._baudrate,
+            bytesize=8,
+            parity="N",
+            stopbits=1,
+            **common,
+        )
+
+
+class TcpServer(PymodbusServer):
+    """A pymodbus TCP server on 127.0.0.1 (an ephemeral port): MBAP or RTU frames."""
+
+    def __init__(
+        self,
+        units: Sequence[int],
+        *,
+        rtu: bool,
+        dispatch: Dispatch,
+        identity_of: IdentityOf,
+        host: str = "127.0.0.1",
+    ) -> None:
+        """Serve ``units`` with RTU framing (``rtu``) or MBAP framing (Modbus TCP)."""
+        super().__init__(units, dispatch=dispatch, identity_of=identity_of, where=host)
+        self._host = host
+        self._framer = FramerType.RTU if rtu else FramerType.SOCKET
+        self._address: tuple[str, int] | None = None
+
+    @property
+    def address(self) -> tuple[str, int]:
+        """The ``(host, port)`` the server listens on (once started)."""
+        if self._address is None:
+            raise RuntimeError("the pymodbus TCP server is not listening")
+        return self._address
+
+    def _create(self, devices: list[PymodbusSimDevice], **common: Any) -> ModbusBaseServer:
+        return ModbusTcpServer(devices, framer=self._framer, address=(self._host, 0), **common)
+
+    def _listening(self, server: ModbusBaseServer) -> None:
+        listener: Any = server.transport  # an asyncio.Server once it listens
+        host, port = listener.sockets[0].getsockname()[:2]
+        self._address = (str(host), int(port))

@@ -1,4 +1,4 @@
-"""The Simulator: simulated Modbus RTU units on a pseudo-terminal, with fault injection."""
+"""The Simulator: simulated Modbus units on a pseudo-terminal or loopback TCP, with faults."""
 
 from __future__ import annotations
 
@@ -12,7 +12,8 @@ from typing import Generic, TypeVar
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
 from benchbus.sim._line import Forwarder, LineState, PtyPair
-from benchbus.sim._pymodbus import PymodbusServer
+from benchbus.sim._network import NETWORKS, Gateway, NetworkState, probe
+from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
 from benchbus.sim._rtu import with_crc
 
 __all__ = ["Simulator"]
@@ -26,7 +27,7 @@ _STOP_TIMEOUT = 5.0
 
 
 class Simulator(Generic[D]):
-    """Simulated Modbus RTU units served on a pseudo-terminal that the library opens.
+    """Simulated Modbus units served on a pseudo-terminal (or loopback TCP) the library opens.
 
     ::
 
@@ -53,6 +54,28 @@ class Simulator(Generic[D]):
     answered with exception 1 (illegal function). The set of units is fixed at
     :meth:`start`; a device object may be replaced in :attr:`devices` for a unit that
     exists.
+
+    **Network.** ``Simulator(devices, network="tcp")`` serves the units as a Modbus TCP
+    gateway does (MBAP frames), and ``network="rtu+tcp"`` as a transparent serial-to-Ethernet
+    converter (RTU frames, CRC included, over TCP); :attr:`port` is then
+    ``tcp://127.0.0.1:N`` or ``rtu+tcp://127.0.0.1:N``. A pymodbus TCP server answers for
+    the units behind a proxy thread listening on that port, which accepts several client
+    connections at once (each with its own connection to the server; the requests of one
+    connection are served one at a time, in order), logs every frame as it crossed the
+    socket (:attr:`requests`, :attr:`replies`; the MBAP header included) and applies the
+    faults. The line's rules above hold, except on ``tcp``: a request to a unit not in
+    :attr:`devices`, or one the server leaves unanswered for 1 s, is answered with
+    exception 0x0B (gateway target failed to respond), while a request to a silent unit
+    (:meth:`set_silent`), a write to a unit that does not answer writes and a broadcast get
+    NO reply at all, as behind a gateway whose own timeout is longer than the client's.
+    Replies the simulator makes (:meth:`answer_exception`, illegal function, 0x0B) and a
+    broadcast answered by a unit carry the request's transaction id; the latter the unit's
+    own unit id. :meth:`SimDevice.shape_reply` sees and gives RTU frames on both networks.
+    An MBAP header whose protocol id is not 0, or whose length is not 2..254, closes the
+    connection. Network only: :meth:`reset_next`, :meth:`refuse_connections`,
+    :meth:`drop_connections`, :attr:`connections`, :attr:`accepted`. Refused on ``tcp``
+    (ValueError): :meth:`corrupt_next`, :meth:`collide_next`, :attr:`faults`. Refused on
+    any network (ValueError): ``echo=True``.
     """
 
     def __init__(
@@ -63,6 +86,7 @@ class Simulator(Generic[D]):
         broadcast: bool = True,
         faults: Faults | None = None,
         echo: bool = False,
+        network: str | None = None,
     ) -> None:
         """Simulate ``devices`` (``{unit: device}``; a single device is unit 1).
 
@@ -72,7 +96,10 @@ class Simulator(Generic[D]):
         ``baudrate`` only sets the frame-gap timing (the pseudo-terminal carries bytes
         instantly). ``broadcast=False`` makes the units ignore unit 0 entirely. ``faults``
         makes the line noisy from the first reply on (see :attr:`faults`). ``echo=True``
-        makes the library's adapter echo what it sends (see :attr:`echo`).
+        makes the library's adapter echo what it sends (see :attr:`echo`). ``network``
+        (``"tcp"`` or ``"rtu+tcp"``) serves the units over loopback TCP instead of a
+        pseudo-terminal (see the class doc); ``baudrate`` then only sets the silent gap that
+        ends an RTU frame of unknown length.
         """
         if isinstance(devices, SimDevice):
             devices = {1: devices}
@@ -84,27 +111,41 @@ class Simulator(Generic[D]):
                 raise TypeError(f"unit {unit}: {type(device).__name__} is not a SimDevice")
         if isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0:
             raise ValueError(f"baudrate must be a positive int, not {baudrate!r}")
+        if network is not None and network not in NETWORKS:
+            raise ValueError(f"network must be None or one of {NETWORKS}, not {network!r}")
+        self._network: str | None = network
         self.baudrate: int = baudrate
         self.broadcast: bool = broadcast
         #: Exceptions other than SimException raised by device handlers (each answered with
         #: exception 4), and failures of :meth:`SimDevice.shape_reply` (the reply then goes
         #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
-        self._state = LineState()
+        self._state: LineState = LineState() if network is None else NetworkState()
+        self._refusing = False
         self.echo = echo
         self._faults: Faults | None = None
         self.faults = faults
         self._lifecycle = threading.Lock()
         self._pairs: list[PtyPair] = []
         self._forwarder: Forwarder | None = None
+        self._gateway: Gateway | None = None
         self._server: PymodbusServer | None = None
         self._port: str | None = None
 
     # ---- lifecycle -------------------------------------------------------------------------
 
     @property
+    def network(self) -> str | None:
+        """``"tcp"``, ``"rtu+tcp"``, or None for a pseudo-terminal line."""
+        return self._network
+
+    @property
     def port(self) -> str:
-        """The pseudo-terminal path the library opens (``/dev/pts/N``); new at each start."""
+        """What the library opens; new at each start.
+
+        The pseudo-terminal path (``/dev/pts/N``), or on a network the URL
+        ``tcp://127.0.0.1:N`` / ``rtu+tcp://127.0.0.1:N``.
+        """
         if self._port is None:
             raise RuntimeError("the simulator is not running: call start() first")
         return self._port
@@ -130,6 +171,9 @@ class Simulator(Generic[D]):
         return self
 
     def _start(self) -> None:
+        if self._network is not None:
+            self._start_network(self._network)
+            return
         library, server = PtyPair(), PtyPair()
         self._pairs = [library, server]
         units = frozenset(self.devices)
@@ -145,13 +189,12 @@ class Simulator(Generic[D]):
             shape_reply=self._shape_reply,
             baudrate=self.baudrate,
         )
-        self._server = PymodbusServer(
+        self._server = SerialServer(
             server.path,
             sorted(units),
             baudrate=self.baudrate,
             dispatch=self._dispatch,
             identity_of=self._identity_of,
-            rewrite_exception_code=self._forwarder.rewrite_exception_code,
         )
         self._server.start(_START_TIMEOUT)
         self._forwarder.start()
@@ -165,13 +208,57 @@ class Simulator(Generic[D]):
             raise RuntimeError("the simulator's server does not answer")
         self._port = library.path
 
+    def _start_network(self, network: str) -> None:
+        units = frozenset(self.devices)
+        rtu = network == "rtu+tcp"
+        server = TcpServer(
+            sorted(units), rtu=rtu, dispatch=self._dispatch, identity_of=self._identity_of
+        )
+        self._server = server
+        server.start(_START_TIMEOUT)
+        # Prove the server answers (see _start), straight to it, past the gateway.
+        pdu = bytes([0x08, 0x00, 0x00]) + os.urandom(2)
+        unit = min(units, default=1)
+        if rtu:
+            probe_frame = with_crc(bytes([unit]) + pdu)
+        else:
+            probe_frame = os.urandom(2) + bytes([0, 0, 0, len(pdu) + 1, unit]) + pdu
+        for _ in range(3):
+            if probe(server.address, probe_frame, timeout=_START_TIMEOUT / 3) == probe_frame:
+                break
+        else:
+            raise RuntimeError("the simulator's server does not answer")
+        assert isinstance(self._state, NetworkState)
+        self._gateway = Gateway(
+            self._state,
+            server.address,
+            network=network,
+            units=units,
+            broadcast=self.broadcast,
+            answers_broadcast=lambda unit: bool(self.devices[unit].answers_broadcast),
+            answers_writes=lambda unit: bool(self.devices[unit].answers_writes),
+            unit_reply_delay=lambda unit: float(self.devices[unit].reply_delay),
+            shape_reply=self._shape_reply,
+            baudrate=self.baudrate,
+            refuse=self._refusing,
+        )
+        self._gateway.start()
+        host, port = self._gateway.address
+        self._port = f"{network}://{host}:{port}"
+
     def stop(self) -> None:
-        """Stop serving and release every thread and file descriptor (idempotent)."""
+        """Stop serving and release every thread and file descriptor (idempotent).
+
+        On a network this closes every client connection and the port.
+        """
         with self._lifecycle:
             self._stop()
 
     def _stop(self) -> None:
         self._port = None
+        if self._gateway is not None:
+            self._gateway.stop(_STOP_TIMEOUT)
+            self._gateway = None
         if self._server is not None:
             self._server.stop(_STOP_TIMEOUT)
             self._server = None
@@ -237,7 +324,12 @@ class Simulator(Generic[D]):
                 self._state.silent_units.discard(unit)
 
     def corrupt_next(self, n: int = 1) -> None:
-        """Corrupt the CRC of the next ``n`` replies (adds to any still pending)."""
+        """Corrupt the CRC of the next ``n`` replies (adds to any still pending).
+
+        ValueError on a ``tcp`` network: an MBAP frame has no CRC (TCP's own checks keep
+        bytes intact); :meth:`reset_next` spoils a reply there.
+        """
+        self._refuse_on("tcp", "corrupt_next: a Modbus TCP (MBAP) reply has no CRC to corrupt")
         if n < 0:
             raise ValueError(f"n must be >= 0, not {n}")
         with self._state.lock:
@@ -255,6 +347,8 @@ class Simulator(Generic[D]):
     def echo(self, echo: bool) -> None:
         if not isinstance(echo, bool):
             raise TypeError(f"echo must be True or False, not {echo!r}")
+        if echo and self._network is not None:
+            raise ValueError("echo: a TCP connection does not echo what the library sends")
         with self._state.lock:
             self._state.echo = echo
 
@@ -263,8 +357,11 @@ class Simulator(Generic[D]):
 
         The units get the garbled frame (a bad CRC: ignored, no reply) and, with
         :attr:`echo`, the library's echo carries the same garbled frame. Adds to any still
-        pending; :meth:`clear_faults` cancels them.
+        pending; :meth:`clear_faults` cancels them. On ``rtu+tcp`` the request reaches the
+        units garbled (a collision on the serial line behind the converter); ValueError on
+        ``tcp``.
         """
+        self._refuse_on("tcp", "collide_next: a Modbus TCP request cannot collide")
         if isinstance(n, bool) or not isinstance(n, int) or n < 0:
             raise ValueError(f"n must be an int >= 0, not {n!r}")
         with self._state.lock:
@@ -285,8 +382,12 @@ class Simulator(Generic[D]):
     def inject_raw(self, data: bytes) -> None:
         """Put ``data`` on the line toward the library now; returns once it is written.
 
-        The bytes are not logged as a reply.
+        The bytes are not logged as a reply. On a network they go to every client
+        connection open now (none: they are lost).
         """
+        if self._gateway is not None:
+            self._gateway.inject(bytes(data))
+            return
         if self._forwarder is None:
             raise RuntimeError("the simulator is not running: call start() first")
         self._forwarder.inject(bytes(data))
@@ -297,7 +398,8 @@ class Simulator(Generic[D]):
 
         Setting a :class:`Faults` (also while running, from any thread) starts its random
         sequence afresh from the next reply on, and restarts :attr:`fault_counts`; setting
-        None makes the line clean again and keeps the counts.
+        None makes the line clean again and keeps the counts. On ``rtu+tcp`` they spoil the
+        RTU replies the converter passes on; a ``tcp`` network refuses them (ValueError).
         """
         return self._faults
 
@@ -305,6 +407,8 @@ class Simulator(Generic[D]):
     def faults(self, faults: Faults | None) -> None:
         if faults is not None and not isinstance(faults, Faults):
             raise TypeError(f"faults must be a Faults or None, not {type(faults).__name__}")
+        if faults is not None:
+            self._refuse_on("tcp", "faults: the random faults of a noisy line spoil RTU frames")
         self._state.set_faults(faults)
         self._faults = faults
 
@@ -322,7 +426,8 @@ class Simulator(Generic[D]):
     def clear_faults(self) -> None:
         """Remove every fault: no delay, nobody silent, no pending corruption or exception.
 
-        Also stops the random faults (:attr:`faults` becomes None; the counts stay).
+        Also stops the random faults (:attr:`faults` becomes None; the counts stay), and on a
+        network cancels pending :meth:`reset_next` and accepts connections again.
         """
         self.faults = None
         with self._state.lock:
@@ -332,12 +437,86 @@ class Simulator(Generic[D]):
             self._state.collisions = 0
             self._state.corrupt = 0
             self._state.exception_rules.clear()
+            if isinstance(self._state, NetworkState):
+                self._state.resets = 0
+        if self._network is not None and self._refusing:
+            self.refuse_connections(False)
+
+    # ---- network only ----------------------------------------------------------------------
+
+    def _refuse_on(self, network: str, message: str) -> None:
+        if self._network == network:
+            raise ValueError(f"{message} (network={network!r})")
+
+    def _network_state(self, what: str) -> NetworkState:
+        if not isinstance(self._state, NetworkState):
+            raise ValueError(f"{what}: only a network simulator (network='tcp' or 'rtu+tcp')")
+        return self._state
+
+    def reset_next(self, n: int = 1) -> None:
+        """Cut the next ``n`` replies halfway and reset their connection (network only).
+
+        As a gateway dying mid-reply: the first half of the reply (``len // 2`` bytes,
+        logged in :attr:`replies`) goes to the client, then the connection is closed with
+        SO_LINGER 0 (a TCP reset), and the requests still queued on it are lost. Adds to any
+        still pending; :meth:`clear_faults` cancels them. Replies that are not sent (silent
+        units) do not use up the count.
+        """
+        state = self._network_state("reset_next")
+        if isinstance(n, bool) or not isinstance(n, int) or n < 0:
+            raise ValueError(f"n must be an int >= 0, not {n!r}")
+        with state.lock:
+            state.resets += n
+
+    def refuse_connections(self, refuse: bool = True) -> None:
+        """Refuse new connections (True) or accept them again (False); network only.
+
+        Refusing closes the listening socket, so a connect gets ECONNREFUSED
+        (``ConnectionRefusedError``); connections already open stay (see
+        :meth:`drop_connections`). Accepting again listens on the same port. Returns once
+        done; may be called before :meth:`start` (then nothing listens from the start, and
+        :attr:`port` still names the port) and holds across restarts.
+        """
+        self._network_state("refuse_connections")
+        with self._lifecycle:
+            self._refusing = bool(refuse)
+            if self._gateway is not None:
+                self._gateway.refuse(self._refusing)
+
+    def drop_connections(self, reset: bool = False) -> None:
+        """Close every client connection open now (network only); returns once done.
+
+        The client sees an end of stream (with ``reset``: a TCP reset, ECONNRESET). Its
+        pending requests and held replies are lost; the port keeps accepting connections.
+        """
+        self._network_state("drop_connections")
+        with self._lifecycle:
+            if self._gateway is not None:
+                self._gateway.drop(reset=reset)
+
+    @property
+    def connections(self) -> int:
+        """How many client connections are open now (network only; 0 when stopped)."""
+        self._network_state("connections")
+        gateway = self._gateway
+        return 0 if gateway is None else gateway.connections
+
+    @property
+    def accepted(self) -> int:
+        """How many client connections were accepted since :meth:`start` (network only)."""
+        self._network_state("accepted")
+        gateway = self._gateway
+        return 0 if gateway is None else gateway.accepted
 
     # ---- observation -----------------------------------------------------------------------
 
     @property
     def requests(self) -> list[bytes]:
-        """Every request frame received from the library, in order (as received, CRC too)."""
+        """Every request frame received from the library, in order (as received, CRC too).
+
+        On a network: from every connection, the frames as they crossed the socket (the
+        MBAP header included for ``tcp``).
+        """
         return self._state.requests
 
     @property
