@@ -36,6 +36,7 @@ from benchbus._drive import (
     SpeedSource,
     StopMode,
 )
+from benchbus._gateway import Gateway, GatewayStats
 from benchbus._instrument import Identification, Instrument
 from benchbus._j2 import InputType, J2Controller, J2Mode, J2Status, Limits, Pid
 from benchbus._keepalive import KeepAlive
@@ -78,7 +79,9 @@ __all__ = [
     "DriveTelemetry",
     "Fault",
     "FrameError",
+    "Gateway",
     "GatewayError",
+    "GatewayStats",
     "Identification",
     "InputType",
     "Instrument",

@@ -43,6 +43,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 import benchbus as bb
 from benchbus._clock import ticks
+from benchbus._gateway import parse_listen
 
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
@@ -174,6 +175,24 @@ def _number(text: str) -> float:
 _PARITIES = {"n": "N", "none": "N", "e": "E", "even": "E", "o": "O", "odd": "O"}
 
 
+def _listen(text: str) -> str:
+    try:
+        parse_listen(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _unit_interval(text: str) -> tuple[int, float]:
+    unit, sep, seconds = text.partition("=")
+    if not sep:
+        raise argparse.ArgumentTypeError(f"expected UNIT=SECONDS, e.g. 5=0.15, not {text!r}")
+    number = _number(seconds)
+    if not 0.0 <= number <= 60.0:
+        raise argparse.ArgumentTypeError(f"seconds must be 0..60, not {seconds!r}")
+    return _integer(1, 255, "UNIT")(unit), number
+
+
 def _parity(text: str) -> str:
     """An argparse type: N, E or O (or none, even, odd; any case)."""
     try:
@@ -275,6 +294,7 @@ LINES = {
     "drive": Line(*bb.Drive.LINE_DEFAULTS, 2),
     "pbl": Line(*bb.PblDrive.LINE_DEFAULTS, 2),
     "j2": Line(*bb.J2Controller.LINE_DEFAULTS, 2),
+    "gateway": Line(19200, "N", 0.1, 2),
 }
 
 #: The line formats ``scan --auto`` tries, in order, and who uses them.
@@ -590,6 +610,37 @@ def build_parser() -> argparse.ArgumentParser:
     )
     sim.set_defaults(handler=_cmd_sim)
 
+    # gateway
+    gateway = command(
+        "gateway",
+        "share one serial port between processes: a Modbus TCP server in front of it",
+        [general, _line_options(unit=False)],
+        epilog="The first line of stdout is the URL clients open as their port "
+        "(bb.Bus('tcp://127.0.0.1:5020')). Requests from every client go over the one line, "
+        "one at a time, with this command's timeout and retries; a unit that does not answer "
+        "comes back to the client as exception 0x0B, a lost port as 0x0A (the port is "
+        "reopened at the next request). Forwards functions 0x03, 0x06, 0x10 and 0x2B. For "
+        "one machine; for a line shared across a network, use a dedicated gateway (mbusd).",
+    )
+    gateway.add_argument(
+        "--listen",
+        metavar="HOST:PORT",
+        type=_listen,
+        default="127.0.0.1:5020",
+        help="address to serve on (default 127.0.0.1:5020; port 0: any free port)",
+    )
+    gateway.add_argument(
+        "--write-interval",
+        metavar="UNIT=S",
+        type=_unit_interval,
+        action="append",
+        default=[],
+        help="least seconds between two writes to UNIT on the line, from any client "
+        "(repeatable; a J2 controller needs 0.15)",
+    )
+    gateway.add_argument("--seconds", type=_seconds, metavar="S", help="stop after S seconds")
+    gateway.set_defaults(handler=_cmd_gateway)
+
     # demo
     demo = command(
         "demo",
@@ -632,7 +683,7 @@ def _line(args: argparse.Namespace, family: str) -> Line:
     )
 
 
-def _open_bus(args: argparse.Namespace, family: str) -> bb.Bus:
+def _open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) -> bb.Bus:
     line = _line(args, family)
     return bb.Bus(
         _port(args),
@@ -641,6 +692,7 @@ def _open_bus(args: argparse.Namespace, family: str) -> bb.Bus:
         stopbits=_opt(args, "stopbits", 1),
         timeout=line.timeout,
         retries=line.retries,
+        reconnect=reconnect,
     )
 
 
@@ -1171,6 +1223,25 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     units: list[int] = args.unit
     baudrate: int = args.baudrate or SIM_DEVICES[kind]
     simulator = Simulator({u: _sim_device(kind, args) for u in units}, baudrate=baudrate)
+    simulator.start()
+    try:
+        print(simulator.port, flush=True)
+        what = f"{args.model} drive" if kind == "drive" else kind
+        at = ", ".join(str(u) for u in units)
+        print(
+            f"simulating {what} (unit {at}, {baudrate} baud frame timing) on "
+            f"{simulator.port}; Ctrl-C or SIGTERM stops it",
+            file=sys.stderr,
+            flush=True,
+        )
+        _wait_until_stopped(args.seconds)
+    finally:
+        simulator.stop()
+    return 0
+
+
+def _wait_until_stopped(seconds: float | None) -> None:
+    """Block until Ctrl-C, SIGTERM or ``seconds`` (None: no limit), whichever comes first."""
     stop = []
 
     def on_sigterm(signum: int, frame: FrameType | None) -> None:
@@ -1181,30 +1252,41 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     except ValueError:  # not the main thread: no handler, Ctrl-C and --seconds still work
         previous = None
     try:
-        simulator.start()
-        try:
-            print(simulator.port, flush=True)
-            what = f"{args.model} drive" if kind == "drive" else kind
-            at = ", ".join(str(u) for u in units)
-            print(
-                f"simulating {what} (unit {at}, {baudrate} baud frame timing) on "
-                f"{simulator.port}; Ctrl-C or SIGTERM stops it",
-                file=sys.stderr,
-                flush=True,
-            )
-            end = None if args.seconds is None else time.monotonic() + args.seconds
-            while not stop:
-                left = 0.1 if end is None else min(0.1, end - time.monotonic())
-                if left <= 0:
-                    break
-                time.sleep(left)
-        except KeyboardInterrupt:
-            pass
-        finally:
-            simulator.stop()
+        end = None if seconds is None else time.monotonic() + seconds
+        while not stop:
+            left = 0.1 if end is None else min(0.1, end - time.monotonic())
+            if left <= 0:
+                break
+            time.sleep(left)
+    except KeyboardInterrupt:
+        pass
     finally:
         if previous is not None:
             signal.signal(signal.SIGTERM, previous)
+
+
+# ---- gateway -----------------------------------------------------------------------------------
+
+
+def _cmd_gateway(args: argparse.Namespace) -> int:
+    line = _line(args, "gateway")
+    with _open_bus(args, "gateway", reconnect=True) as bus:
+        gateway = bb.Gateway(bus, args.listen, write_intervals=dict(args.write_interval))
+        try:
+            gateway.start()
+        except OSError as exc:
+            raise CliError(f"cannot listen on {args.listen}: {exc.strerror or exc}") from None
+        try:
+            print(gateway.url, flush=True)
+            print(
+                f"gateway for {bus.port} ({line.describe(_opt(args, 'stopbits', 1))}) on "
+                f"{gateway.url}; Ctrl-C or SIGTERM stops it",
+                file=sys.stderr,
+                flush=True,
+            )
+            _wait_until_stopped(args.seconds)
+        finally:
+            gateway.stop()
     return 0
 
 
@@ -1254,7 +1336,7 @@ def main(argv: list[str] | None = None) -> int:
         if not interrupted(exc):
             print(f"{PROG}: unexpected {type(exc).__name__}: {_one_line(exc)}", file=sys.stderr)
             return 1
-        if args.command in ("monitor", "sim"):
+        if args.command in ("monitor", "sim", "gateway"):
             return 0
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130

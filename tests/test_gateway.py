@@ -1,0 +1,292 @@
+"""The gateway (issue 10, item 3): a Modbus TCP server that owns one serial port and
+serialises its clients onto it. Checked with raw MBAP frames from sockets, against a
+simulator on the serial side (which sees every frame the gateway puts on the line).
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+import subprocess
+import sys
+import threading
+from collections.abc import Iterator
+
+import pytest
+
+import benchbus as bb
+from benchbus.sim import J2Device, RegisterDevice, Simulator
+
+TIMEOUT = 0.05
+IDENTITY = {0: "Bench Co", 1: "RB-1", 2: "1.0"}
+
+
+@pytest.fixture
+def sim() -> Iterator[Simulator[RegisterDevice | J2Device]]:
+    devices: dict[int, RegisterDevice | J2Device] = {
+        1: RegisterDevice({0x3006: 1450, 0x3007: 7}, identity=IDENTITY),
+        2: RegisterDevice({0: 0}),
+        5: J2Device(),
+    }
+    with Simulator(devices) as s:
+        yield s
+
+
+@pytest.fixture
+def gateway(sim: Simulator[RegisterDevice | J2Device]) -> Iterator[bb.Gateway]:
+    with (
+        bb.Bus(sim.port, timeout=TIMEOUT, retries=1) as bus,
+        bb.Gateway(bus, "127.0.0.1:0") as gw,
+    ):
+        yield gw
+
+
+def connect(gw: bb.Gateway) -> socket.socket:
+    client = socket.create_connection(gw.address, timeout=2.0)
+    client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+    return client
+
+
+def ask(client: socket.socket, unit: int, pdu: bytes, tid: int = 1) -> bytes:
+    """Send one MBAP request; the reply's PDU (its header checked)."""
+    client.sendall(struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu)
+    header = recv(client, 7)
+    got_tid, pid, length, got_unit = struct.unpack(">HHHB", header)
+    assert (got_tid, pid, got_unit) == (tid, 0, unit)
+    return recv(client, length - 1)
+
+
+def recv(client: socket.socket, n: int) -> bytes:
+    buf = b""
+    while len(buf) < n:
+        chunk = client.recv(n - len(buf))
+        assert chunk, "connection closed"
+        buf += chunk
+    return buf
+
+
+def test_golden_read_through_the_gateway(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        client.sendall(bytes.fromhex("00 01 00 00 00 06 01 03 30 06 00 02"))
+        assert recv(client, 13) == bytes.fromhex("00 01 00 00 00 07 01 03 04 05 AA 00 07")
+    # On the line: the RTU form of the same request.
+    rtu = bytes.fromhex("01 03 30 06 00 02")
+    assert sim.requests == [rtu + bb.crc16(rtu).to_bytes(2, "little")]
+    assert gateway.url == f"tcp://127.0.0.1:{gateway.address[1]}"
+
+
+def test_writes_reach_the_unit(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        assert ask(client, 2, bytes.fromhex("06 00 00 12 34"), tid=7) == bytes.fromhex(
+            "06 00 00 12 34"
+        )
+        assert sim.peek(2, 0) == [0x1234]
+        assert ask(client, 1, bytes.fromhex("10 30 06 00 02 04 00 01 00 02")) == bytes.fromhex(
+            "10 30 06 00 02"
+        )
+        assert sim.peek(1, 0x3006, 2) == [1, 2]
+    assert gateway.stats.requests == 2
+
+
+def test_exceptions_from_the_unit_and_from_the_gateway(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        sim.answer_exception(2, unit=1)
+        assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes([0x83, 0x02])
+        # A unit that does not answer: 0x0B, after the Bus's own timeout and retry.
+        assert ask(client, 9, bytes.fromhex("03 00 00 00 01")) == bytes([0x83, 0x0B])
+        assert [r[0] for r in sim.requests[-2:]] == [9, 9]
+        # A function the gateway does not forward: 0x01, and nothing on the line.
+        before = len(sim.requests)
+        assert ask(client, 1, bytes.fromhex("04 00 00 00 01")) == bytes([0x84, 0x01])
+        # A byte count that does not match: 0x03, nothing on the line.
+        assert ask(client, 1, bytes.fromhex("10 00 00 00 02 02 00 01")) == bytes([0x90, 0x03])
+        assert ask(client, 1, bytes.fromhex("03 00 00 00 00")) == bytes([0x83, 0x03])
+        assert len(sim.requests) == before
+    assert gateway.stats.gateway_exceptions == 4
+
+
+def test_a_lost_line_is_path_unavailable(gateway: bb.Gateway) -> None:
+    gateway.bus.close()
+    with connect(gateway) as client:
+        assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes([0x83, 0x0A])
+
+
+def test_device_identification_through_the_gateway(gateway: bb.Gateway) -> None:
+    with connect(gateway) as client:
+        reply = ask(client, 1, bytes.fromhex("2B 0E 01 00"))
+    assert reply[:7] == bytes([0x2B, 0x0E, 0x01, 0x01, 0x00, 0x00, 3])
+    objects, at = {}, 7
+    for _ in range(reply[6]):
+        object_id, size = reply[at], reply[at + 1]
+        objects[object_id] = reply[at + 2 : at + 2 + size].decode()
+        at += 2 + size
+    assert objects == IDENTITY
+
+
+def test_a_broadcast_is_sent_and_not_answered(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        client.sendall(bytes.fromhex("00 05 00 00 00 06 00 06 00 00 00 2A"))
+        # The next request's reply is the first thing to come back.
+        assert ask(client, 2, bytes.fromhex("03 00 00 00 01"), tid=6) == bytes.fromhex(
+            "03 02 00 2A"
+        )
+    assert sim.requests[0][:6] == bytes.fromhex("00 06 00 00 00 2A")
+
+
+def test_bad_frames_are_dropped(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        # Protocol id 1 is not Modbus: no reply, the connection goes on.
+        client.sendall(bytes.fromhex("00 01 00 01 00 06 01 03 30 06 00 01"))
+        assert ask(client, 1, bytes.fromhex("03 30 06 00 01"), tid=2) == bytes.fromhex(
+            "03 02 05 AA"
+        )
+        # A length no Modbus frame has: the connection is out of step and is closed.
+        client.sendall(bytes.fromhex("00 03 00 00 01 00 01"))
+        assert client.recv(16) == b""
+    assert gateway.stats.bad_frames == 2
+    assert len(sim.requests) == 1
+
+
+def test_clients_in_threads_get_their_own_replies(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    errors: list[str] = []
+
+    def client_loop(index: int) -> None:
+        with connect(gateway) as client:
+            for n in range(40):
+                value = index * 1000 + n
+                tid = (index << 8) | n
+                if ask(client, 2, struct.pack(">BHH", 6, index, value), tid) != struct.pack(
+                    ">BHH", 6, index, value
+                ):
+                    errors.append(f"client {index}: write {n}")
+                got = ask(client, 2, struct.pack(">BHH", 3, index, 1), tid)
+                if got != struct.pack(">BBH", 3, 2, value):
+                    errors.append(f"client {index}: read {n} gave {got.hex()}")
+
+    threads = [threading.Thread(target=client_loop, args=(i,)) for i in range(1, 5)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(30)
+    assert errors == []
+    # Every frame on the line whole: 4 clients x 40 x (write + read).
+    assert len(sim.requests) == 320
+    assert all(bb.crc16(f[:-2]).to_bytes(2, "little") == f[-2:] for f in sim.requests)
+
+
+@pytest.mark.parametrize("paced", [True, False])
+def test_write_intervals_hold_across_clients(
+    sim: Simulator[RegisterDevice | J2Device], paced: bool
+) -> None:
+    device = sim.devices[5]
+    assert isinstance(device, J2Device)
+    intervals = {5: 0.15} if paced else {}
+    with (
+        bb.Bus(sim.port, timeout=0.2, retries=0) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", write_intervals=intervals) as gw,
+    ):
+
+        def writer(value: int) -> None:
+            with connect(gw) as client:
+                for _ in range(3):
+                    ask(client, 5, struct.pack(">BHH", 6, 8, value))  # AL1
+
+        threads = [threading.Thread(target=writer, args=(v,)) for v in (100, 200)]
+        for t in threads:
+            t.start()
+        for t in threads:
+            t.join(10)
+    assert len(device.write_times) == 6
+    if paced:
+        assert device.write_violations == []
+    else:  # the clients' writes come closer than the controller allows
+        assert device.write_violations != []
+
+
+def test_gateway_arguments_are_checked(sim: Simulator[RegisterDevice | J2Device]) -> None:
+    with bb.Bus(sim.port) as bus:
+        with pytest.raises(ValueError, match="HOST:PORT"):
+            bb.Gateway(bus, "5020")
+        with pytest.raises(ValueError, match=r"0\.\.65535"):
+            bb.Gateway(bus, "127.0.0.1:70000")
+        with pytest.raises(ValueError, match=r"1\.\.255"):
+            bb.Gateway(bus, write_intervals={0: 0.1})
+        with pytest.raises(ValueError, match=r"0\.\.60"):
+            bb.Gateway(bus, write_intervals={1: -1.0})
+        with pytest.raises(TypeError, match=r"benchbus\.Bus"):
+            bb.Gateway("not a bus")  # type: ignore[arg-type]
+        taken = bb.Gateway(bus, "127.0.0.1:0").start()
+        try:
+            with pytest.raises(OSError):
+                bb.Gateway(bus, f"127.0.0.1:{taken.address[1]}").start()
+        finally:
+            taken.stop()
+    assert sim.requests == []
+
+
+def test_the_gateway_command(sim: Simulator[RegisterDevice | J2Device]) -> None:
+    proc = subprocess.Popen(
+        [
+            sys.executable,
+            "-m",
+            "benchbus",
+            "gateway",
+            "--port",
+            sim.port,
+            "--listen",
+            "127.0.0.1:0",
+            "--timeout",
+            "0.05",
+            "--seconds",
+            "20",
+            "--write-interval",
+            "5=0.15",
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        url = proc.stdout.readline().strip()
+        assert url.startswith("tcp://127.0.0.1:")
+        host, port = url[len("tcp://") :].rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=2.0) as client:
+            assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes.fromhex("03 02 05 AA")
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=10)
+    assert proc.returncode == 0, err
+    assert "gateway for" in err
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--listen", "nowhere"], "HOST:PORT"),
+        (["--write-interval", "5"], "UNIT=SECONDS"),
+        (["--write-interval", "5=-1"], "0..60"),
+        (["--write-interval", "0=0.1"], "UNIT"),
+    ],
+)
+def test_gateway_command_usage_errors(args: list[str], message: str) -> None:
+    result = subprocess.run(
+        [sys.executable, "-m", "benchbus", "gateway", "--port", "/dev/null", *args],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert result.returncode == 2
+    assert message in result.stderr
