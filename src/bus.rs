@@ -19,8 +19,9 @@
 //! the Bus does that itself, once per call, before the call's request goes out.
 
 use crate::codec::{
-    check_echo, decode_reply, encode_request, exception_meaning, reply_needed,
-    DeviceIdentification, Echo, FrameError, Needed, Reply, Request, Response, BROADCAST,
+    check_echo, decode_reply, encode_request, exception_meaning, is_gateway_exception,
+    reply_needed, DeviceIdentification, Echo, FrameError, Needed, Reply, Request, Response,
+    BROADCAST,
 };
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard};
@@ -507,7 +508,8 @@ impl Bus {
     }
 
     /// Whether `unit` answers a read of one register at `address` within `timeout` (an
-    /// exception reply counts as an answer). One attempt, no retries.
+    /// exception reply counts as an answer, except a gateway's 0x0A / 0x0B for it). One
+    /// attempt, no retries.
     ///
     /// Unlike a read's timeout, `timeout` here is the whole window a unit gets, counted from
     /// the start of the request (its own time on the wire included), so a scan of n absent
@@ -524,6 +526,8 @@ impl Bus {
             ..TxOptions::default()
         };
         match self.read_holding_registers(unit, address, 1, &opts) {
+            // A gateway's answer for a unit it could not reach is not the unit's.
+            Err(Error::Exception { code, .. }) if is_gateway_exception(code) => Ok(false),
             Ok(_) | Err(Error::Exception { .. }) => Ok(true),
             Err(Error::Timeout { .. } | Error::Frame { .. }) => Ok(false),
             Err(e) => Err(e),
@@ -663,9 +667,10 @@ impl Bus {
         // answers the same request, so retries do not wait. A probe's unit is not asked
         // again, and a late answer from it would name the wrong unit. Two timeouts: a unit
         // slower than the timeout may have queued the retry's reply behind the late one.
-        // A transport that pairs replies with requests (Modbus TCP) drops late ones itself.
-        let paired = matches!(&st.link, Link::Open(t) if t.matches_replies());
-        if timed_out && !opts.window_from_start && !paired {
+        // Over Modbus TCP transaction ids already keep a late reply from passing for the next
+        // answer, but a gateway that serves one request at a time is still busy with it: a
+        // request sent now would queue behind it and time out too.
+        if timed_out && !opts.window_from_start {
             st.late_until = Some(Instant::now() + timeout * 2);
         }
         result

@@ -423,29 +423,6 @@ fn out_of_step_stream_is_lost_not_misread() {
 }
 
 #[test]
-fn after_a_timeout_over_mbap_the_next_call_goes_at_once() {
-    // Transaction ids pair replies with requests: no listening for a late reply first.
-    let (l, port) = listener();
-    let server = thread::spawn(move || {
-        let mut s = accept(&l);
-        recv(&mut s, 12); // never answered
-        recv(&mut s, 12);
-        s.write_all(&mbap(2, &one_register(7))).unwrap();
-    });
-    let bus = Bus::open(config(&format!("tcp://127.0.0.1:{port}"), 300, 0)).unwrap();
-    assert!(matches!(read(&bus), Err(Error::Timeout { .. })));
-    let start = Instant::now();
-    assert_eq!(read(&bus).unwrap(), vec![7]);
-    // Listening for the late reply would have taken up to two timeouts (600 ms).
-    assert!(
-        start.elapsed() < Duration::from_millis(250),
-        "{:?}",
-        start.elapsed()
-    );
-    join(server);
-}
-
-#[test]
 fn echo_is_refused_over_mbap_before_connecting() {
     let (l, port) = listener();
     drop(l); // nothing listens: a connection attempt would be a Port error

@@ -141,8 +141,7 @@ class Bus:
         not echo (a single-register write then times out instead, its reply being the
         request's own bytes). Without ``echo``, a reply that begins with the request itself
         raises FrameError saying to open the Bus with ``echo=True``. Refused (ValueError)
-        on ``tcp://``, where the gateway keeps the line. After a timeout over ``tcp://`` the
-        next call goes at once: transaction ids keep a late reply from passing for it.
+        on ``tcp://``, where the gateway keeps the line.
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""

@@ -334,7 +334,10 @@ def _line_options(unit: bool) -> _Parser:
         "line options (defaults: the device family's line format and timing)"
     )
     group.add_argument(
-        "--port", metavar="PATH", default=_S, help=f"serial port (default ${PORT_ENV})"
+        "--port",
+        metavar="PORT",
+        default=_S,
+        help=f"serial port, tcp://HOST[:PORT] or rtu+tcp://HOST:PORT (default ${PORT_ENV})",
     )
     group.add_argument(
         "--baudrate", type=_integer(50, 4_000_000, "baudrate"), metavar="BPS", default=_S

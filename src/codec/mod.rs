@@ -6,7 +6,9 @@
 pub mod pdu;
 pub mod rtu;
 
-pub use pdu::{exception_meaning, DeviceIdentification, Request, RequestError, Response};
+pub use pdu::{
+    exception_meaning, is_gateway_exception, DeviceIdentification, Request, RequestError, Response,
+};
 pub use rtu::{
     check_echo, crc16, decode_reply, encode_request, reply_needed, Echo, FrameError, Needed, Reply,
     BROADCAST,

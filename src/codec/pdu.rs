@@ -190,6 +190,12 @@ pub struct DeviceIdentification {
     pub objects: BTreeMap<u8, Vec<u8>>,
 }
 
+/// Whether exception `code` is a gateway's answer for a unit behind it (spec section 7:
+/// 0x0A no path to the unit, 0x0B no answer from it) rather than the unit's own.
+pub fn is_gateway_exception(code: u8) -> bool {
+    matches!(code, 0x0A | 0x0B)
+}
+
 /// Standard meaning of a Modbus exception code (spec section 7).
 pub fn exception_meaning(code: u8) -> &'static str {
     match code {

@@ -24,11 +24,6 @@ use std::time::Duration;
 static LOG_RESET: OnceLock<pyo3_log::ResetHandle> = OnceLock::new();
 static EXCEPTIONS: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
 
-/// The exception codes a gateway answers for a unit behind it (Modbus application
-/// protocol 7): no path to it, or no answer from it.
-const GATEWAY_PATH_UNAVAILABLE: u8 = 0x0A;
-const GATEWAY_TARGET_FAILED: u8 = 0x0B;
-
 /// Maps a crate error to the Python exception tree of `benchbus.exceptions` (the one place
 /// this happens).
 fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
@@ -49,9 +44,11 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
         Error::Exception {
             unit,
             function,
-            code: GATEWAY_PATH_UNAVAILABLE | GATEWAY_TARGET_FAILED,
+            code,
             ..
-        } => ("GatewayError", Some(*unit), Some(*function)),
+        } if crate::codec::is_gateway_exception(*code) => {
+            ("GatewayError", Some(*unit), Some(*function))
+        }
         Error::Exception { unit, function, .. } => {
             ("ModbusException", Some(*unit), Some(*function))
         }

@@ -50,13 +50,6 @@ pub trait Transport: Send {
     fn is_serial_line(&self) -> bool {
         true
     }
-
-    /// Whether the transport pairs each reply with its request and drops any other (Modbus
-    /// TCP's transaction ids): a late reply can then never pass for the next call's answer,
-    /// and the Bus need not listen for one after a timeout.
-    fn matches_replies(&self) -> bool {
-        false
-    }
 }
 
 /// The error of a transport whose port is gone for good (see [`Transport`]).

@@ -444,8 +444,4 @@ impl Transport for TcpTransport {
     fn is_serial_line(&self) -> bool {
         self.mbap.is_none()
     }
-
-    fn matches_replies(&self) -> bool {
-        self.mbap.is_some()
-    }
 }
