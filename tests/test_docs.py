@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 import benchbus as bb
-from benchbus.sim import RegisterDevice, Simulator
+from benchbus.sim import DriveDevice, RegisterDevice, Simulator
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -35,6 +35,17 @@ def test_readme_hardware_example_on_a_simulated_line(capsys: pytest.CaptureFixtu
     assert drive.registers[0x2003:0x2005] == [25, 25]
     # The broadcast reached both units.
     assert drive.registers[0x2000] == meter.registers[0x2000] == 5
+
+
+def test_readme_networks_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """The Networks example, with a simulated Modbus TCP gateway in place of the real one."""
+    (block,) = [b for b in readme_blocks() if "tcp://192.168.1.50:502" in b]
+    drive = DriveDevice()
+    with Simulator({1: drive}, network="tcp") as sim:
+        exec(block.replace("tcp://192.168.1.50:502", sim.port), {})
+        assert sim.requests, "it went through the simulated gateway"
+    assert capsys.readouterr().out.splitlines() == ["1500"]
+    assert drive.peek(0x2001) == 1500
 
 
 def test_readme_simulator_example() -> None:
