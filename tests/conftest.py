@@ -1,9 +1,13 @@
-"""Shared fixtures: a scripted raw slave on a pseudo-terminal, for golden-frame tests."""
+"""Shared fixtures: a scripted raw slave on a pseudo-terminal, for golden-frame tests, and
+the ``benchbus gateway`` command run as a child process."""
 
 from __future__ import annotations
 
+import contextlib
 import os
 import select
+import subprocess
+import sys
 import termios
 import threading
 import time
@@ -84,3 +88,28 @@ def slave() -> Iterator[ScriptedSlave]:
     s = ScriptedSlave()
     yield s
     s.close()
+
+
+@contextlib.contextmanager
+def gateway_command(port: str, *options: str) -> Iterator[tuple[str, subprocess.Popen[str]]]:
+    """``benchbus gateway --port PORT --listen 127.0.0.1:0 OPTIONS`` as a child process: its
+    URL (the first line it prints) and the process, stopped with SIGTERM on leaving (its
+    ``returncode`` and ``stderr_text`` are then set)."""
+    proc = subprocess.Popen(
+        [
+            *(sys.executable, "-m", "benchbus", "gateway", "--port", port),
+            *("--listen", "127.0.0.1:0", "--seconds", "120", *options),
+        ],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        assert proc.stdout is not None
+        url = proc.stdout.readline().strip()
+        assert url.startswith("tcp://127.0.0.1:"), url
+        yield url, proc
+    finally:
+        proc.terminate()
+        _, err = proc.communicate(timeout=10)
+        proc.stderr_text = err  # type: ignore[attr-defined]

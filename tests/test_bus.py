@@ -148,6 +148,18 @@ def test_gateway_exceptions_are_gateway_errors(sim: Simulator, code: int, meanin
         assert type(other.value) is bb.ModbusException
 
 
+def test_write_interval_spaces_writes_to_a_unit(sim: Simulator) -> None:
+    with bb.Bus(sim.port, timeout=0.5) as bus:
+        bus.write_register(1, 0x10, 1, write_interval=0.3)
+        bus.write_registers(1, 0x10, [2, 3], write_interval=0.3)
+        bus.read_holding_registers(1, 0x10, 1)  # a read is not paced
+        bus.write_register(1, 0x10, 4)  # nor a write that asks for no interval
+    t = sim.request_times
+    assert t[1] - t[0] >= 0.3
+    assert t[3] - t[1] < 0.3
+    assert sim.peek(1, 0x10, 2) == [4, 3]
+
+
 class BusyAt0x100(RegisterDevice):
     """A device whose register 0x0100 answers "server device failure" (code 4)."""
 

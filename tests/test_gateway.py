@@ -16,9 +16,10 @@ import pytest
 
 import benchbus as bb
 from benchbus.sim import J2Device, RegisterDevice, Simulator
+from conftest import gateway_command
 
 TIMEOUT = 0.05
-IDENTITY = {0: "Bench Co", 1: "RB-1", 2: "1.0"}
+IDENTITY = {0: "Müller & Söhne €", 1: "RB-1", 2: "1.0"}
 
 
 @pytest.fixture
@@ -124,7 +125,7 @@ def test_device_identification_through_the_gateway(gateway: bb.Gateway) -> None:
     objects, at = {}, 7
     for _ in range(reply[6]):
         object_id, size = reply[at], reply[at + 1]
-        objects[object_id] = reply[at + 2 : at + 2 + size].decode()
+        objects[object_id] = reply[at + 2 : at + 2 + size].decode("utf-8")
         at += 2 + size
     assert objects == IDENTITY
 
@@ -139,6 +140,13 @@ def test_a_broadcast_is_sent_and_not_answered(
             "03 02 00 2A"
         )
     assert sim.requests[0][:6] == bytes.fromhex("00 06 00 00 00 2A")
+    # Any other broadcast is not forwarded, and not answered either.
+    with connect(gateway) as client:
+        client.sendall(bytes.fromhex("00 08 00 00 00 06 00 03 00 00 00 01"))
+        assert ask(client, 2, bytes.fromhex("03 00 00 00 01"), tid=9) == bytes.fromhex(
+            "03 02 00 2A"
+        )
+    assert [f[0] for f in sim.requests] == [0, 2, 2]
 
 
 def test_bad_frames_are_dropped(
@@ -215,6 +223,56 @@ def test_write_intervals_hold_across_clients(
         assert device.write_violations != []
 
 
+def test_write_intervals_hold_for_the_gateways_retries(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    device = sim.devices[5]
+    assert isinstance(device, J2Device)
+    with (
+        bb.Bus(sim.port, timeout=0.2, retries=2) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", write_intervals={5: 0.15}) as gw,
+        connect(gw) as client,
+    ):
+        ask(client, 5, struct.pack(">BHH", 6, 8, 100))
+        sim.corrupt_next(1)  # the next write's reply is lost: the Bus repeats the write
+        assert ask(client, 5, struct.pack(">BHH", 6, 8, 200)) == struct.pack(">BHH", 6, 8, 200)
+        assert bus.stats.retries == 1
+    assert len(device.write_times) == 3
+    assert device.write_violations == []
+
+
+def test_stop_ends_every_thread_and_connection(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    with bb.Bus(sim.port, timeout=TIMEOUT) as bus:
+        gw = bb.Gateway(bus, "127.0.0.1:0").start()
+        clients = [connect(gw) for _ in range(3)]
+        assert ask(clients[0], 2, bytes.fromhex("03 00 00 00 01")) == bytes.fromhex("03 02 00 00")
+        gw.stop()
+        assert [t.name for t in threading.enumerate() if "benchbus-gateway" in t.name] == []
+        for client in clients:
+            assert client.recv(16) == b""  # closed by the gateway
+            client.close()
+        with pytest.raises(ConnectionRefusedError):
+            socket.create_connection(gw.address, timeout=2.0)
+        gw.stop()  # idempotent
+        assert not bus.closed
+
+
+def test_connections_beyond_max_clients_are_closed(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    with (
+        bb.Bus(sim.port, timeout=TIMEOUT) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", max_clients=1) as gw,
+        connect(gw) as first,
+        connect(gw) as second,
+    ):
+        assert second.recv(16) == b""
+        assert ask(first, 2, bytes.fromhex("03 00 00 00 01")) == bytes.fromhex("03 02 00 00")
+        assert gw.stats.connections == 1
+
+
 def test_gateway_arguments_are_checked(sim: Simulator[RegisterDevice | J2Device]) -> None:
     with bb.Bus(sim.port) as bus:
         with pytest.raises(ValueError, match="HOST:PORT"):
@@ -225,6 +283,14 @@ def test_gateway_arguments_are_checked(sim: Simulator[RegisterDevice | J2Device]
             bb.Gateway(bus, write_intervals={0: 0.1})
         with pytest.raises(ValueError, match=r"0\.\.60"):
             bb.Gateway(bus, write_intervals={1: -1.0})
+        for bad in ("[]:5020", "[::1:5020", "::1:5020", "[127.0.0.1]:5020", "host name:1"):
+            with pytest.raises(ValueError, match="HOST:PORT"):
+                bb.Gateway(bus, bad)
+        with pytest.raises(ValueError, match="port"):
+            bb.Gateway(bus, "127.0.0.1:\u0665")  # an Arabic-Indic five
+        with pytest.raises(ValueError, match="max_clients"):
+            bb.Gateway(bus, max_clients=0)
+        assert bb.Gateway(bus, "[::1]:0").start().url.startswith("tcp://[::1]:")
         with pytest.raises(TypeError, match=r"benchbus\.Bus"):
             bb.Gateway("not a bus")  # type: ignore[arg-type]
         taken = bb.Gateway(bus, "127.0.0.1:0").start()
@@ -237,39 +303,12 @@ def test_gateway_arguments_are_checked(sim: Simulator[RegisterDevice | J2Device]
 
 
 def test_the_gateway_command(sim: Simulator[RegisterDevice | J2Device]) -> None:
-    proc = subprocess.Popen(
-        [
-            sys.executable,
-            "-m",
-            "benchbus",
-            "gateway",
-            "--port",
-            sim.port,
-            "--listen",
-            "127.0.0.1:0",
-            "--timeout",
-            "0.05",
-            "--seconds",
-            "20",
-            "--write-interval",
-            "5=0.15",
-        ],
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
-    try:
-        assert proc.stdout is not None
-        url = proc.stdout.readline().strip()
-        assert url.startswith("tcp://127.0.0.1:")
+    with gateway_command(sim.port, "--timeout", "0.05") as (url, proc):
         host, port = url[len("tcp://") :].rsplit(":", 1)
         with socket.create_connection((host, int(port)), timeout=2.0) as client:
             assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes.fromhex("03 02 05 AA")
-    finally:
-        proc.terminate()
-        _, err = proc.communicate(timeout=10)
-    assert proc.returncode == 0, err
-    assert "gateway for" in err
+    assert proc.returncode == 0, proc.stderr_text  # type: ignore[attr-defined]
+    assert "gateway for" in proc.stderr_text  # type: ignore[attr-defined]
 
 
 @pytest.mark.parametrize(

@@ -17,6 +17,7 @@ import pytest
 
 import benchbus as bb
 from benchbus.sim import DriveDevice, J2Device, RegisterDevice, Simulator
+from conftest import gateway_command
 
 NETWORKS = ("tcp", "rtu+tcp")
 
@@ -138,11 +139,13 @@ def test_a_slow_gateway_times_out_and_its_late_reply_is_never_taken(
     sim: Simulator[RegisterDevice | DriveDevice | J2Device],
 ) -> None:
     with bb.Bus(sim.port, timeout=0.1, retries=0) as bus:
-        sim.reply_delay = 0.25
+        # Late by one timeout: it comes while the next call listens for it (two timeouts).
+        sim.reply_delay = 0.2
         with pytest.raises(bb.ResponseTimeout):
             bus.read_holding_registers(2, 0x3006, 1)
         sim.reply_delay = 0.0
         bus.write_register(2, 0x3006, 7)
+        assert bus.stats.stale_bytes > 0, "the late reply came, and was dropped"
         # Whichever reply came late, each call gets its own.
         assert bus.read_holding_registers(2, 0x3006, 1) == [7]
         assert bus.read_holding_registers(1, 0x2001, 1) == sim.peek(1, 0x2001)
@@ -179,7 +182,7 @@ CLIENT = textwrap.dedent(
     import benchbus as bb
 
     url, index = sys.argv[1], int(sys.argv[2])
-    with bb.Bus(url, timeout=1.0) as bus:
+    with bb.Bus(url, timeout=1.0, retries=0) as bus:
         for n in range(60):
             value = index * 1000 + n
             bus.write_register(index, 0x10, value)
@@ -199,45 +202,20 @@ def test_several_processes_share_one_line_through_the_gateway() -> None:
         u: RegisterDevice({0x10: 0}) for u in (1, 2, 3)
     }
     devices[5] = J2Device()
-    with Simulator(devices) as sim:
-        gateway = subprocess.Popen(
-            [
-                sys.executable,
-                "-m",
-                "benchbus",
-                "gateway",
-                "--port",
-                sim.port,
-                "--listen",
-                "127.0.0.1:0",
-                "--timeout",
-                "0.1",
-                "--write-interval",
-                "5=0.15",
-                "--seconds",
-                "120",
-            ],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        try:
-            assert gateway.stdout is not None
-            url = gateway.stdout.readline().strip()
-            assert url.startswith("tcp://127.0.0.1:")
-            clients = [
-                subprocess.Popen(
-                    [sys.executable, "-c", CLIENT, url, str(index)],
-                    stdout=subprocess.PIPE,
-                    stderr=subprocess.PIPE,
-                    text=True,
-                )
-                for index in (1, 2, 3)
-            ]
-            results = [c.communicate(timeout=120) for c in clients]
-        finally:
-            gateway.terminate()
-            gateway.communicate(timeout=10)
+    with (
+        Simulator(devices) as sim,
+        gateway_command(sim.port, "--timeout", "0.1", "--write-interval", "5=0.15") as (url, gw),
+    ):
+        clients = [
+            subprocess.Popen(
+                [sys.executable, "-c", CLIENT, url, str(index)],
+                stdout=subprocess.PIPE,
+                stderr=subprocess.PIPE,
+                text=True,
+            )
+            for index in (1, 2, 3)
+        ]
+        results = [c.communicate(timeout=120) for c in clients]
         for index, (client, (out, err)) in enumerate(zip(clients, results, strict=True), 1):
             assert client.returncode == 0, err
             assert out.strip() == f"ok {index}"
@@ -251,4 +229,4 @@ def test_several_processes_share_one_line_through_the_gateway() -> None:
         assert len(device.write_times) == 9
         assert device.write_violations == []
         assert [sim.peek(u, 0x10) for u in (1, 2, 3)] == [[1059], [2059], [3059]]
-        assert gateway.returncode == 0
+    assert gw.returncode == 0, gw.stderr_text  # type: ignore[attr-defined]

@@ -146,15 +146,27 @@ class Bus:
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""
     def write_register(
-        self, unit: int, address: int, value: int, *, accept_count_echo: bool = False
+        self,
+        unit: int,
+        address: int,
+        value: int,
+        *,
+        accept_count_echo: bool = False,
+        write_interval: float = 0.0,
     ) -> None:
         """Write one register (function 0x06).
 
         With ``accept_count_echo``, a reply carrying a register count of 1 in place of the
-        value (as PBL drives send) is accepted.
+        value (as PBL drives send) is accepted. ``write_interval`` (seconds, 0..60) is the
+        least time the unit needs between two writes (a J2 controller: 0.15): the Bus waits
+        it out since its last write to the unit, before a retry too, while other units' calls
+        go on; a later broadcast waits for it as well.
         """
-    def write_registers(self, unit: int, address: int, values: Iterable[int]) -> None:
-        """Write 1..123 consecutive registers from ``address`` (function 0x10)."""
+    def write_registers(
+        self, unit: int, address: int, values: Iterable[int], *, write_interval: float = 0.0
+    ) -> None:
+        """Write 1..123 consecutive registers from ``address`` (function 0x10);
+        ``write_interval`` as for :meth:`write_register`."""
     def read_device_identification(
         self, unit: int, read_code: int = 1, object_id: int = 0
     ) -> dict[int, str]:

@@ -9,19 +9,22 @@
 Each client connection gets a thread; every request goes through the one :class:`Bus`, which
 runs one transaction at a time, so requests from several processes never interleave on the
 line. The Bus keeps its own t3.5, timeout and retries on the serial side; the gateway adds
-the per-unit write pacing the clients cannot keep for each other (``write_intervals``).
+the per-unit write pacing the clients cannot keep for each other (``write_intervals``,
+which the Bus applies, to its retries too).
 """
 
 from __future__ import annotations
 
 import contextlib
 import dataclasses
+import ipaddress
 import logging
+import re
 import socket
 import struct
 import threading
 import time
-from collections.abc import Callable, Iterator, Mapping
+from collections.abc import Callable, Mapping
 from types import TracebackType
 
 from benchbus._core import Bus
@@ -52,18 +55,34 @@ _MEI_DEVICE_ID = 0x0E
 
 
 def parse_listen(text: str) -> tuple[str, int]:
-    """``HOST:PORT`` (IPv6 in brackets: ``[::1]:5020``) as ``(host, port)``.
+    """``HOST:PORT`` (an IPv6 address in brackets: ``[::1]:5020``) as ``(host, port)``.
 
-    Raises ValueError for anything else; port 0 asks for any free port.
+    HOST is an IP address or a host name; port 0 asks for any free port. Raises ValueError
+    for anything else.
     """
+    form = f"listen address must be HOST:PORT, e.g. 127.0.0.1:5020, not {text!r}"
     host, sep, port = text.rpartition(":")
     if not sep or not host:
-        raise ValueError(f"listen address must be HOST:PORT, e.g. 127.0.0.1:5020, not {text!r}")
-    if host.startswith("[") and host.endswith("]"):
+        raise ValueError(form)
+    bracketed = host.startswith("[") or host.endswith("]")
+    if bracketed:
+        if not (host.startswith("[") and host.endswith("]")):
+            raise ValueError(form)
         host = host[1:-1]
-    if not port.isdigit() or not 0 <= int(port) <= 65535:
+    if not port.isascii() or not port.isdigit() or not 0 <= int(port) <= 65535:
         raise ValueError(f"listen port must be 0..65535, not {port!r}")
+    try:
+        address = ipaddress.ip_address(host)
+    except ValueError:
+        if bracketed or not _HOST_NAME.fullmatch(host):
+            raise ValueError(form) from None
+    else:
+        if bracketed != (address.version == 6):
+            raise ValueError(form)
     return host, int(port)
+
+
+_HOST_NAME = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)(\.(?!-)[A-Za-z0-9-]{1,63}(?<!-))*\.?")
 
 
 @dataclasses.dataclass
@@ -95,8 +114,13 @@ class Gateway:
     or closed. An exception reply from the unit is passed on as it is.
 
     ``write_intervals`` (``{unit: seconds}``) keeps that least time between two writes to a
-    unit on the line, whichever client sends them (a J2 controller needs 0.15 s; the
-    clients' own pacing cannot see each other's writes).
+    unit on the line, whichever client sends them, retries included (a J2 controller needs
+    0.15 s; the clients' own pacing cannot see each other's writes).
+
+    A client's timeout must cover the gateway's work: up to the Bus's ``timeout x (retries
+    + 1)``, the unit's write interval, and the requests of other clients queued ahead of it.
+    Give clients ``timeout=1.0`` (or more) and ``retries=0``: over TCP nothing is lost on the
+    way, and a repeated request only queues behind the first.
     """
 
     def __init__(
@@ -105,11 +129,14 @@ class Gateway:
         listen: str = "127.0.0.1:5020",
         *,
         write_intervals: Mapping[int, float] | None = None,
+        max_clients: int = 32,
     ) -> None:
         """Serve ``bus``'s units on ``listen`` (``HOST:PORT``; port 0: any free port).
 
-        Nothing listens until :meth:`start` (or ``with``). Raises ValueError for a bad
-        address or interval, TypeError for a ``bus`` that is not a :class:`Bus`.
+        Nothing listens until :meth:`start` (or ``with``). At most ``max_clients``
+        connections are served at once; one more is closed as soon as it is accepted.
+        Raises ValueError for a bad address, interval or limit, TypeError for a ``bus``
+        that is not a :class:`Bus`.
         """
         if not isinstance(bus, Bus):
             raise TypeError(f"bus must be a benchbus.Bus, not {type(bus).__name__}")
@@ -124,9 +151,9 @@ class Gateway:
             if not 0.0 <= seconds <= 60.0:
                 raise ValueError(f"write_intervals: unit {unit}: 0..60 seconds, not {seconds}")
             self._intervals[unit] = float(seconds)
-        self._last_write: dict[int, float] = {}
-        self._unit_locks: dict[int, threading.Lock] = {}
-        self._locks_lock = threading.Lock()
+        if isinstance(max_clients, bool) or not isinstance(max_clients, int) or max_clients < 1:
+            raise ValueError(f"max_clients must be an int >= 1, not {max_clients!r}")
+        self._max_clients = max_clients
         self._stats = GatewayStats()
         self._stats_lock = threading.Lock()
         self._server: socket.socket | None = None
@@ -165,7 +192,9 @@ class Gateway:
     def stop(self) -> None:
         """Stop listening, close every client connection and end the threads (idempotent).
 
-        The Bus stays open: it is the caller's.
+        A request already on its way finishes first (bounded by the Bus's timeout, retries
+        and the unit's write interval), so nothing reaches the line after this returns. The
+        Bus stays open: it is the caller's.
         """
         server, self._server = self._server, None
         if server is None:
@@ -177,8 +206,14 @@ class Gateway:
         for client in clients:
             with contextlib.suppress(OSError):
                 client.shutdown(socket.SHUT_RDWR)
+        bus = self.bus
+        longest_call = bus.timeout * (bus.retries + 1) + max(self._intervals.values(), default=0)
+        deadline = time.monotonic() + longest_call + FRAME_TIMEOUT
         for thread in self._threads:
-            thread.join(FRAME_TIMEOUT)
+            thread.join(max(0.0, deadline - time.monotonic()))
+        left = [t.name for t in self._threads if t.is_alive()]
+        if left:  # pragma: no cover - a Bus call outlived its own bound
+            log.error("gateway: threads still running after stop: %s", ", ".join(left))
         self._threads = []
 
     def serve_forever(self, poll: float = 0.2) -> None:
@@ -239,17 +274,29 @@ class Gateway:
                 client, peer = server.accept()
             except TimeoutError:
                 continue
-            except OSError:
-                break  # closed by stop()
-            client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            except OSError as exc:
+                if self._stopping.is_set():
+                    break  # closed by stop()
+                # Out of file descriptors, a connection reset before it was accepted...:
+                # the listening socket is still good, so keep serving.
+                log.warning("gateway: accept failed: %s", exc)
+                self._stopping.wait(0.1)
+                continue
             with self._stats_lock:
-                self._stats.connections += 1
-                self._clients.add(client)
+                full = len(self._clients) >= self._max_clients
+                if not full:
+                    self._stats.connections += 1
+                    self._clients.add(client)
+            if full:
+                log.warning("gateway: %d clients already; %s refused", self._max_clients, peer)
+                client.close()
+                continue
             log.debug("gateway: client %s connected", peer)
             self._spawn(self._serve_client, f"benchbus-gateway-{peer[1]}", client)
 
     def _serve_client(self, client: socket.socket) -> None:
         try:
+            client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             while not self._stopping.is_set():
                 header = _recv_exactly(client, 7, first=True)
                 if header is None:
@@ -265,6 +312,8 @@ class Gateway:
                 if pid != 0:
                     self._count(bad_frames=1)
                     continue
+                if self._stopping.is_set():
+                    return
                 reply = self.handle(unit, pdu)
                 if reply is not None:
                     client.sendall(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
@@ -317,56 +366,34 @@ class Gateway:
     def _forward(self, unit: int, function: int, data: bytes) -> bytes | None:
         bus = self.bus
         if unit == 0:
+            # A broadcast is never answered, whatever it asks.
             if function == 0x06 and len(data) == 4:
-                address, value = struct.unpack(">HH", data)
-                with self._paced(list(self._intervals)):
-                    bus.broadcast_write_register(address, value)
-                return None
-            raise _Unsupported
+                bus.broadcast_write_register(*struct.unpack(">HH", data))
+            else:
+                log.debug("gateway: broadcast of function %#04x not forwarded", function)
+            return None
+        interval = self._intervals.get(unit, 0.0)
         if function == 0x03 and len(data) == 4:
             address, count = struct.unpack(">HH", data)
             values = bus.read_holding_registers(unit, address, count)
             return struct.pack(f">BB{len(values)}H", 0x03, 2 * len(values), *values)
         if function == 0x06 and len(data) == 4:
             address, value = struct.unpack(">HH", data)
-            with self._paced([unit]):
-                bus.write_register(unit, address, value, accept_count_echo=True)
+            bus.write_register(
+                unit, address, value, accept_count_echo=True, write_interval=interval
+            )
             return bytes([0x06]) + data
         if function == 0x10 and len(data) >= 5:
             address, count, size = struct.unpack(">HHB", data[:5])
             if size != 2 * count or len(data) != 5 + size:
                 raise ValueError("byte count does not match the register count")
             values = list(struct.unpack(f">{count}H", data[5:]))
-            with self._paced([unit]):
-                bus.write_registers(unit, address, values)
+            bus.write_registers(unit, address, values, write_interval=interval)
             return struct.pack(">BHH", 0x10, address, count)
         if function == 0x2B and len(data) == 3 and data[0] == _MEI_DEVICE_ID:
             objects = bus.read_device_identification(unit, data[1], data[2])
             return _identification_reply(objects, data[1])
         raise _Unsupported
-
-    @contextlib.contextmanager
-    def _paced(self, units: list[int]) -> Iterator[None]:
-        """Hold each of ``units``' write lock, wait out its interval, and note the write."""
-        paced = sorted(u for u in units if self._intervals.get(u, 0.0) > 0.0)
-        with contextlib.ExitStack() as held:
-            for unit in paced:
-                held.enter_context(self._unit_lock(unit))
-            for unit in paced:
-                ready = self._last_write.get(unit, -1e9) + self._intervals[unit]
-                delay = ready - time.monotonic()
-                if delay > 0:
-                    time.sleep(delay)
-            try:
-                yield
-            finally:
-                now = time.monotonic()
-                for unit in paced:
-                    self._last_write[unit] = now
-
-    def _unit_lock(self, unit: int) -> threading.Lock:
-        with self._locks_lock:
-            return self._unit_locks.setdefault(unit, threading.Lock())
 
 
 class _Unsupported(Exception):
@@ -391,13 +418,15 @@ def _recv_exactly(sock: socket.socket, n: int, *, first: bool = False) -> bytes 
 
 def _identification_reply(objects: Mapping[int, str], read_code: int) -> bytes:
     """A 0x2B / 0x0E reply PDU carrying as many of ``objects`` as fit; "more follows" and
-    the next object's id when some do not (the client asks again from there)."""
+    the next object's id when some do not (the client asks again from there). The text goes
+    as UTF-8, as the Bus read it. The conformity level given is the read code asked for
+    (the Bus does not pass on the unit's own)."""
     body = b""
     count = 0
     next_object = 0
     more = 0x00
     for object_id, text in sorted(objects.items()):
-        value = text.encode("latin-1", "replace")[:245]
+        value = text.encode("utf-8")[:245]
         item = bytes([object_id, len(value)]) + value
         if 7 + len(body) + len(item) > MAX_PDU:
             more, next_object = 0xFF, object_id

@@ -92,6 +92,18 @@ fn on_wire<D: Send + Sync, T: Send>(
     result.map_err(|e| to_pyerr(py, e))
 }
 
+/// A write's `write_interval` in seconds, 0..=60 (None: 0, no pacing).
+fn write_interval_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Duration> {
+    let interval = opt(obj, Duration::ZERO, |w| seconds(w, "write_interval", true))?;
+    if interval > Duration::from_secs(60) {
+        return Err(PyValueError::new_err(format!(
+            "write_interval must be 0..=60 seconds, got {}",
+            interval.as_secs_f64()
+        )));
+    }
+    Ok(interval)
+}
+
 /// A bool argument (True or False, nothing truthy in their place).
 fn bool_arg(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<bool> {
     obj.cast::<PyBool>()
@@ -406,7 +418,10 @@ impl PyBus {
     }
 
     /// Writes one register (function 0x06).
-    #[pyo3(signature = (unit, address, value, *, accept_count_echo=false))]
+    #[pyo3(
+        signature = (unit, address, value, *, accept_count_echo=false, write_interval=None),
+        text_signature = "($self, unit, address, value, *, accept_count_echo=False, write_interval=0.0)"
+    )]
     fn write_register(
         &self,
         py: Python<'_>,
@@ -414,6 +429,7 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         value: &Bound<'_, PyAny>,
         accept_count_echo: bool,
+        write_interval: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let unit = unit_arg(unit)?;
         let address = u16_arg(address, "address")?;
@@ -424,26 +440,34 @@ impl PyBus {
             } else {
                 Echo::Strict
             },
+            write_interval: write_interval_arg(write_interval)?,
             ..TxOptions::default()
         };
         self.wire(py, |b| b.write_register(unit, address, value, &opts))
     }
 
     /// Writes 1..=123 consecutive registers from `address` (function 0x10).
+    #[pyo3(
+        signature = (unit, address, values, *, write_interval=None),
+        text_signature = "($self, unit, address, values, *, write_interval=0.0)"
+    )]
     fn write_registers(
         &self,
         py: Python<'_>,
         unit: &Bound<'_, PyAny>,
         address: &Bound<'_, PyAny>,
         values: &Bound<'_, PyAny>,
+        write_interval: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let unit = unit_arg(unit)?;
         let address = u16_arg(address, "address")?;
         let values = register_values(values)?;
         within_map(address, values.len())?;
-        self.wire(py, |b| {
-            b.write_registers(unit, address, &values, &TxOptions::default())
-        })
+        let opts = TxOptions {
+            write_interval: write_interval_arg(write_interval)?,
+            ..TxOptions::default()
+        };
+        self.wire(py, |b| b.write_registers(unit, address, &values, &opts))
     }
 
     /// Reads the device identification objects (function 0x2B, MEI 0x0E) as
