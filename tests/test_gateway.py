@@ -18,7 +18,7 @@ import benchbus as bb
 from benchbus.sim import J2Device, RegisterDevice, Simulator
 from conftest import gateway_command
 
-TIMEOUT = 0.05
+TIMEOUT = 0.3  # generous: a loaded machine must not turn a reply into a 0x0B
 IDENTITY = {0: "Müller & Söhne €", 1: "RB-1", 2: "1.0"}
 
 

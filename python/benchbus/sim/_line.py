@@ -7,7 +7,9 @@
 The forwarder cuts both byte streams into frames, logs them, applies the faults and routes
 each request: to the server (one at a time, as on a real half-duplex line), to several units
 (a broadcast), or to nobody. The random faults of a noisy line (``benchbus.sim._faults``)
-are applied to the replies here. Pure Python, no pymodbus.
+are applied to the replies here. The network gateway (``benchbus.sim._network``) uses the
+:class:`Framer` and :class:`LineState` too; what both ask the units is in
+``benchbus.sim._units``. Pure Python, no pymodbus.
 """
 
 from __future__ import annotations
@@ -16,7 +18,6 @@ import collections
 import contextlib
 import dataclasses
 import logging
-import math
 import os
 import select
 import threading
@@ -33,17 +34,14 @@ from benchbus.sim._rtu import (
     request_length,
     with_crc,
 )
+from benchbus.sim._units import Job, UnitHooks, refusal
 
-__all__ = ["Forwarder", "LineState", "PtyPair"]
+__all__ = ["Forwarder", "Framer", "LineState", "PtyPair"]
 
 log = logging.getLogger("benchbus.sim")
 
 #: How long the forwarder waits for the server's reply before giving the request up.
 SERVER_REPLY_TIMEOUT = 1.0
-#: Functions routed to the server; any other is answered exception 1 by the forwarder.
-SERVER_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
-#: The write functions, whose replies a unit may keep off the line (``answers_writes``).
-WRITE_FUNCTIONS = frozenset({0x06, 0x10})
 _MAX_OUTPUT = 1 << 20  # drop bytes toward a port nobody reads past this
 
 
@@ -128,27 +126,45 @@ class LineState:
                 return rule.code
         return None
 
+    def take_collision(self, frame: bytes) -> bytes:
+        """``frame`` as the line carries it: garbled if a collision is due, which this
+        consumes (call with the lock held)."""
+        if self.collisions <= 0:
+            return frame
+        self.collisions -= 1
+        # Another talker at once: the line carries neither frame intact.
+        return frame[:2] + bytes([frame[2] ^ 0x5A]) + frame[3:] if len(frame) > 2 else b"\0"
 
-@dataclasses.dataclass
-class _Job:
-    """One request for the server, or an already-made reply, waiting for its turn."""
+    def take_fault(self, reply: bytes) -> Injection:
+        """What goes on the line for the RTU frame ``reply``, with the fault due on it, which
+        this consumes (call with the lock held)."""
+        if self.corrupt > 0:
+            self.corrupt -= 1
+            return Injection([reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1] ^ 0xFF])])
+        if self.injector is not None:
+            return self.injector.apply(reply)
+        return Injection([reply])
 
-    frame: bytes
-    deliver: bool  # send the reply on to the library
-    made_reply: bytes | None = None  # answered by the forwarder itself, not the server
-    done: threading.Event | None = None  # internal probe: set when answered
-    reply: bytes | None = None
-    delay: float = 0.0  # the unit's own reply delay, read when the job is dispatched
 
+class Framer:
+    """Cuts a byte stream into frames by length, or by a silent gap when it is unknown.
 
-class _Framer:
-    """Cuts a byte stream into frames by length, or by a silent gap when it is unknown."""
+    ``length(buf)`` is the length of the frame at the start of ``buf``: 0 when more bytes
+    are needed to tell, None when it cannot be told (the gap ends the frame), below 0 when
+    ``buf`` holds no frame at all (then :attr:`invalid` is set and nothing more is cut).
+    With ``cut_partial`` the gap also ends a frame whose rest has not come (a serial line:
+    the talker stopped); without, the rest is awaited (a TCP stream).
+    """
 
-    def __init__(self, length: Callable[[bytes], int | None], gap: float) -> None:
+    def __init__(
+        self, length: Callable[[bytes], int | None], gap: float, *, cut_partial: bool
+    ) -> None:
         self.buf = b""
         self.last = 0.0
+        self.invalid = False  # the stream holds something that is not a frame
         self._length = length
         self._gap = gap
+        self._cut_partial = cut_partial
 
     def feed(self, data: bytes, now: float) -> None:
         self.buf += data
@@ -156,12 +172,14 @@ class _Framer:
 
     def frames(self, now: float) -> list[bytes]:
         out = []
-        while self.buf:
+        while self.buf and not self.invalid:
             n = self._length(self.buf)
-            if n and len(self.buf) >= n:
+            if n is not None and n < 0:
+                self.invalid = True
+            elif n and len(self.buf) >= n:
                 out.append(self.buf[:n])
                 self.buf = self.buf[n:]
-            elif now - self.last >= self._gap:
+            elif (n is None or self._cut_partial) and now - self.last >= self._gap:
                 out.append(self.buf)
                 self.buf = b""
             else:
@@ -169,7 +187,13 @@ class _Framer:
         return out
 
     def deadline(self) -> float | None:
-        return self.last + self._gap if self.buf else None
+        """When the gap would end the frame now buffered; None if no gap can (nothing
+        buffered, or a TCP stream whose frame length is known or still to be told)."""
+        if not self.buf or self.invalid:
+            return None
+        if not self._cut_partial and self._length(self.buf) is not None:
+            return None
+        return self.last + self._gap
 
 
 class Forwarder:
@@ -202,15 +226,18 @@ class Forwarder:
         self._b = server.master
         self._units = units
         self._broadcast = broadcast
-        self._answers_broadcast = answers_broadcast
-        self._answers_writes = answers_writes
-        self._unit_reply_delay = unit_reply_delay
-        self._shape_reply = shape_reply
+        self._hooks = UnitHooks(
+            "simulator",
+            answers_broadcast=answers_broadcast,
+            answers_writes=answers_writes,
+            reply_delay=unit_reply_delay,
+            shape_reply=shape_reply,
+        )
         gap = frame_gap(baudrate)
-        self._rx_a = _Framer(request_length, gap)
-        self._rx_b = _Framer(reply_length, gap)
-        self._jobs: collections.deque[_Job] = collections.deque()
-        self._inflight: _Job | None = None
+        self._rx_a = Framer(request_length, gap, cut_partial=True)
+        self._rx_b = Framer(reply_length, gap, cut_partial=True)
+        self._jobs: collections.deque[Job] = collections.deque()
+        self._inflight: Job | None = None
         self._inflight_deadline = 0.0
         self._held: collections.deque[tuple[float, bytes]] = collections.deque()
         self._last_release = 0.0
@@ -255,7 +282,7 @@ class Forwarder:
 
     def probe(self, frame: bytes, timeout: float) -> bytes | None:
         """Send ``frame`` to the server outside the logs and faults; its reply, or None."""
-        job = _Job(frame=frame, deliver=False, done=threading.Event())
+        job = Job(frame=frame, deliver=False, done=threading.Event())
         with self._lock:
             self._jobs.append(job)
         self._wake()
@@ -357,17 +384,11 @@ class Forwarder:
         state = self._state
         with state.lock:
             echo = state.echo
-            collided = state.collisions > 0
-            if collided:
-                state.collisions -= 1
-        if collided:
-            # Another talker at once: the line carries neither frame intact.
-            frame = frame[:2] + bytes([frame[2] ^ 0x5A]) + frame[3:] if len(frame) > 2 else b"\0"
-        if echo:
-            self._out_a += frame
-        with state.lock:
+            frame = state.take_collision(frame)
             state.requests.append(frame)
             state.request_times.append(complete)
+        if echo:
+            self._out_a += frame
         if not crc_ok(frame):
             log.debug("simulator: request with a bad CRC ignored: %s", frame.hex(" "))
             return
@@ -383,7 +404,7 @@ class Forwarder:
                 return
             forced = state.take_exception(unit)
         if forced is not None:
-            self._queue(_Job(frame, True, made_reply=exception_frame(unit, pdu[0], forced)))
+            self._queue(Job(frame, True, made_reply=exception_frame(unit, pdu[0], forced)))
         else:
             self._queue(self._unit_job(frame, deliver=True))
 
@@ -392,18 +413,14 @@ class Forwarder:
             units = [u for u in sorted(self._units) if not self._state.is_silent(u)]
         for unit in units:
             frame = with_crc(bytes([unit]) + pdu)
-            self._queue(self._unit_job(frame, deliver=self._answers_broadcast(unit)))
+            self._queue(self._unit_job(frame, deliver=self._hooks.answers_broadcast(unit)))
 
-    def _unit_job(self, frame: bytes, deliver: bool) -> _Job:
-        unit, function = frame[0], frame[1]
-        if function not in SERVER_FUNCTIONS:
-            return _Job(frame, deliver, made_reply=exception_frame(unit, function, 0x01))
-        if function == 0x03 and not 1 <= int.from_bytes(frame[4:6], "big") <= 125:
-            # pymodbus cannot decode such a request and would answer function 0x80.
-            return _Job(frame, deliver, made_reply=exception_frame(unit, function, 0x03))
-        return _Job(frame, deliver)
+    def _unit_job(self, frame: bytes, deliver: bool) -> Job:
+        code = refusal(frame[1:-2])
+        made = None if code is None else exception_frame(frame[0], frame[1], code)
+        return Job(frame, deliver, made_reply=made)
 
-    def _queue(self, job: _Job) -> None:
+    def _queue(self, job: Job) -> None:
         with self._lock:
             self._jobs.append(job)
 
@@ -415,44 +432,14 @@ class Forwarder:
                 job = self._jobs.popleft()
                 self._code_rewrite = None
             self._inflight = job
-            if job.done is None:
-                self._settle(job)
+            if job.done is None:  # a unit's request, not the internal probe
+                self._hooks.settle(job, job.frame[0], job.frame[1:-2])
             if job.made_reply is not None:
                 self._finish(job.made_reply)
                 continue
             self._rx_b.buf = b""
             self._out_b += job.frame
             self._inflight_deadline = now + SERVER_REPLY_TIMEOUT
-
-    def _settle(self, job: _Job) -> None:
-        """Ask the unit, just before it handles ``job``, how its reply goes on the line."""
-        unit, function = job.frame[0], job.frame[1]
-        job.delay = self._unit_delay(unit)
-        # A reply the forwarder made itself for a write is a forced exception: it stays.
-        if job.deliver and job.made_reply is None and function in WRITE_FUNCTIONS:
-            job.deliver = self._unit_answers_writes(unit)
-
-    def _unit_answers_writes(self, unit: int) -> bool:
-        if self._answers_writes is None:
-            return True
-        try:
-            return bool(self._answers_writes(unit))
-        except Exception:
-            log.exception("simulator: unit %d: answers_writes failed; answering", unit)
-            return True
-
-    def _unit_delay(self, unit: int) -> float:
-        if self._unit_reply_delay is None:
-            return 0.0
-        try:
-            delay = float(self._unit_reply_delay(unit))
-        except Exception:
-            log.exception("simulator: unit %d: reply_delay failed; no delay", unit)
-            return 0.0
-        if not (math.isfinite(delay) and delay >= 0.0):
-            log.error("simulator: unit %d: reply_delay %r is not >= 0; no delay", unit, delay)
-            return 0.0
-        return delay
 
     # replies from the server
 
@@ -466,23 +453,8 @@ class Forwarder:
             frame = with_crc(frame[:2] + bytes([code]))
         job = self._inflight
         if job.done is None and job.deliver:
-            frame = self._shaped(job.frame, frame)
+            frame = self._hooks.shape(job.frame[0], job.frame, frame)
         self._finish(frame)
-
-    def _shaped(self, request: bytes, reply: bytes) -> bytes:
-        """The unit's own form of the server's ``reply`` to ``request``."""
-        if self._shape_reply is None:
-            return reply
-        unit = request[0]
-        try:
-            shaped = self._shape_reply(unit, request, reply)
-        except Exception:
-            log.exception("simulator: unit %d: shape_reply failed; reply unchanged", unit)
-            return reply
-        if not isinstance(shaped, (bytes, bytearray)) or len(shaped) < 4:
-            log.error("simulator: unit %d: shape_reply gave %r; reply unchanged", unit, shaped)
-            return reply
-        return bytes(shaped)
 
     def _finish(self, reply: bytes | None) -> None:
         job, self._inflight = self._inflight, None
@@ -499,13 +471,7 @@ class Forwarder:
         state = self._state
         with state.lock:
             delay = max(state.reply_delay, unit_delay)
-            if state.corrupt > 0:
-                state.corrupt -= 1
-                out = Injection([reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1] ^ 0xFF])])
-            elif state.injector is not None:
-                out = state.injector.apply(reply)
-            else:
-                out = Injection([reply])
+            out = state.take_fault(reply)
         if out.kind is not None:
             log.debug("simulator: fault %s on %s", out.kind, reply.hex(" "))
         # Replies keep their order: one held longer holds back those after it.

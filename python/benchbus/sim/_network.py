@@ -20,7 +20,6 @@ import collections
 import contextlib
 import dataclasses
 import logging
-import math
 import selectors
 import socket
 import struct
@@ -30,13 +29,9 @@ from collections.abc import Callable
 from typing import Any
 
 from benchbus.sim._faults import Injection
-from benchbus.sim._line import (
-    SERVER_FUNCTIONS,
-    SERVER_REPLY_TIMEOUT,
-    WRITE_FUNCTIONS,
-    LineState,
-)
+from benchbus.sim._line import SERVER_REPLY_TIMEOUT, Framer, LineState
 from benchbus.sim._rtu import crc_ok, frame_gap, reply_length, request_length, with_crc
+from benchbus.sim._units import Job, UnitHooks, refusal
 
 __all__ = ["NETWORKS", "Gateway", "NetworkState", "probe"]
 
@@ -161,51 +156,7 @@ def _framing(network: str) -> _Framing:
     raise ValueError(f"network must be one of {NETWORKS}, not {network!r}")
 
 
-class _Cutter:
-    """Cuts a byte stream into frames by length, or by a silent gap when it is unknown."""
-
-    def __init__(self, length: Callable[[bytes], int | None], gap: float) -> None:
-        self.buf = b""
-        self.last = 0.0
-        self.invalid = False  # the stream holds something that is not a frame
-        self._length = length
-        self._gap = gap
-
-    def feed(self, data: bytes, now: float) -> None:
-        self.buf += data
-        self.last = now
-
-    def frames(self, now: float) -> list[bytes]:
-        out = []
-        while self.buf and not self.invalid:
-            n = self._length(self.buf)
-            if n is not None and n < 0:
-                self.invalid = True
-            elif n and len(self.buf) >= n:
-                out.append(self.buf[:n])
-                self.buf = self.buf[n:]
-            elif n is None and now - self.last >= self._gap:
-                out.append(self.buf)
-                self.buf = b""
-            else:
-                break
-        return out
-
-    def deadline(self) -> float | None:
-        return self.last + self._gap if self.buf and not self.invalid else None
-
-
 # ---- the connections -------------------------------------------------------------------------
-
-
-@dataclasses.dataclass
-class _Job:
-    """One request for the server, or an already-made reply, waiting for its turn."""
-
-    frame: bytes  # in the network's framing, addressed to one unit
-    deliver: bool  # send the reply on to the client
-    made_reply: bytes | None = None  # answered by the gateway itself, not the server
-    delay: float = 0.0  # the unit's own reply delay, read when the job is dispatched
 
 
 @dataclasses.dataclass
@@ -224,10 +175,11 @@ class _Conn:
         self.number = number
         self.client = client
         self.up = up
-        self.rx_req = _Cutter(f.request_length, gap)
-        self.rx_rep = _Cutter(f.reply_length, gap)
-        self.jobs: collections.deque[_Job] = collections.deque()
-        self.inflight: _Job | None = None
+        # Over TCP the rest of a frame is on its way: only an unknown length waits for a gap.
+        self.rx_req = Framer(f.request_length, gap, cut_partial=False)
+        self.rx_rep = Framer(f.reply_length, gap, cut_partial=False)
+        self.jobs: collections.deque[Job] = collections.deque()
+        self.inflight: Job | None = None
         self.inflight_deadline = 0.0
         self.held: collections.deque[_Held] = collections.deque()
         self.last_release = 0.0
@@ -279,10 +231,13 @@ class Gateway:
         self._f = _framing(network)
         self._units = units
         self._broadcast = broadcast
-        self._answers_broadcast = answers_broadcast
-        self._answers_writes = answers_writes
-        self._unit_reply_delay = unit_reply_delay
-        self._shape_reply = shape_reply
+        self._hooks = UnitHooks(
+            "simulator gateway",
+            answers_broadcast=answers_broadcast,
+            answers_writes=answers_writes,
+            reply_delay=unit_reply_delay,
+            shape_reply=shape_reply,
+        )
         self._gap = frame_gap(baudrate)
         self._host = host
         self._conns: dict[int, _Conn] = {}
@@ -591,13 +546,8 @@ class Gateway:
     def _on_request(self, conn: _Conn, frame: bytes, complete: float) -> None:
         state = self._state
         with state.lock:
-            collided = self._f.rtu and state.collisions > 0
-            if collided:
-                state.collisions -= 1
-        if collided:
-            # Another talker at once on the serial line behind: the frame arrives garbled.
-            frame = frame[:2] + bytes([frame[2] ^ 0x5A]) + frame[3:] if len(frame) > 2 else b"\0"
-        with state.lock:
+            if self._f.rtu:  # another talker on the serial line behind garbles the frame
+                frame = state.take_collision(frame)
             state.requests.append(frame)
             state.request_times.append(complete)
         if self._f.rtu and not crc_ok(frame):
@@ -611,7 +561,7 @@ class Gateway:
         if unit not in self._units:
             if not self._f.rtu:  # a Modbus TCP gateway says its target is not there
                 conn.jobs.append(
-                    _Job(frame, True, made_reply=self._exception(frame, GATEWAY_TARGET_FAILED))
+                    Job(frame, True, made_reply=self._exception(frame, GATEWAY_TARGET_FAILED))
                 )
             return
         with state.lock:
@@ -619,7 +569,7 @@ class Gateway:
                 return
             forced = state.take_exception(unit)
         if forced is not None:
-            conn.jobs.append(_Job(frame, True, made_reply=self._exception(frame, forced)))
+            conn.jobs.append(Job(frame, True, made_reply=self._exception(frame, forced)))
         else:
             conn.jobs.append(self._unit_job(frame, deliver=True))
 
@@ -629,69 +579,26 @@ class Gateway:
             units = [u for u in sorted(self._units) if not self._state.is_silent(u)]
         for unit in units:
             request = self._f.make(unit, pdu, frame)
-            conn.jobs.append(self._unit_job(request, deliver=self._answers(unit)))
+            conn.jobs.append(self._unit_job(request, deliver=self._hooks.answers_broadcast(unit)))
 
-    def _answers(self, unit: int) -> bool:
-        try:
-            return bool(self._answers_broadcast(unit))
-        except Exception:
-            log.exception("simulator gateway: unit %d: answers_broadcast failed", unit)
-            return False
-
-    def _unit_job(self, frame: bytes, deliver: bool) -> _Job:
-        pdu = self._f.pdu(frame)
-        function = pdu[0] if pdu else 0
-        if function not in SERVER_FUNCTIONS:
-            return _Job(frame, deliver, made_reply=self._exception(frame, 0x01))
-        if function == 0x03 and (len(pdu) != 5 or not 1 <= int.from_bytes(pdu[3:5], "big") <= 125):
-            # pymodbus cannot decode such a request and would answer function 0x80.
-            return _Job(frame, deliver, made_reply=self._exception(frame, 0x03))
-        return _Job(frame, deliver)
+    def _unit_job(self, frame: bytes, deliver: bool) -> Job:
+        code = refusal(self._f.pdu(frame))
+        made = None if code is None else self._exception(frame, code)
+        return Job(frame, deliver, made_reply=made)
 
     def _dispatch(self, conn: _Conn, now: float) -> None:
         while conn.inflight is None and conn.jobs:
             job = conn.jobs.popleft()
             conn.inflight = job
-            self._settle(job)
+            unit = self._f.unit(job.frame)
+            if unit in self._units:  # not the gateway's own answer for a unit it lacks
+                self._hooks.settle(job, unit, self._f.pdu(job.frame))
             if job.made_reply is not None:
                 self._finish(conn, job.made_reply)
                 continue
             conn.rx_rep.buf = b""
             conn.out_up += job.frame
             conn.inflight_deadline = now + SERVER_REPLY_TIMEOUT
-
-    def _settle(self, job: _Job) -> None:
-        """Ask the unit, just before it handles ``job``, how its reply goes on the network."""
-        unit = self._f.unit(job.frame)
-        pdu = self._f.pdu(job.frame)
-        if unit not in self._units:
-            return
-        job.delay = self._unit_delay(unit)
-        # A reply the gateway made itself for a write is a forced exception: it stays.
-        if job.deliver and job.made_reply is None and pdu and pdu[0] in WRITE_FUNCTIONS:
-            job.deliver = self._unit_answers_writes(unit)
-
-    def _unit_answers_writes(self, unit: int) -> bool:
-        if self._answers_writes is None:
-            return True
-        try:
-            return bool(self._answers_writes(unit))
-        except Exception:
-            log.exception("simulator gateway: unit %d: answers_writes failed; answering", unit)
-            return True
-
-    def _unit_delay(self, unit: int) -> float:
-        if self._unit_reply_delay is None:
-            return 0.0
-        try:
-            delay = float(self._unit_reply_delay(unit))
-        except Exception:
-            log.exception("simulator gateway: unit %d: reply_delay failed; no delay", unit)
-            return 0.0
-        if not (math.isfinite(delay) and delay >= 0.0):
-            log.error("simulator gateway: unit %d: reply_delay %r is not >= 0", unit, delay)
-            return 0.0
-        return delay
 
     # replies from the server
 
@@ -700,24 +607,15 @@ class Gateway:
         if job is None:
             log.debug("simulator gateway: unexpected bytes from the server: %s", frame.hex(" "))
             return
-        if job.deliver and self._shape_reply is not None:
+        if job.deliver:
             frame = self._shaped(job.frame, frame)
         self._finish(conn, frame)
 
     def _shaped(self, request: bytes, reply: bytes) -> bytes:
         """The unit's own form of the server's ``reply`` to ``request`` (shaped as RTU)."""
-        assert self._shape_reply is not None
-        unit = self._f.unit(request)
-        try:
-            shaped = self._shape_reply(unit, self._f.to_rtu(request), self._f.to_rtu(reply))
-            if not isinstance(shaped, (bytes, bytearray)) or len(shaped) < 4:
-                raise TypeError(f"shape_reply gave {shaped!r}")
-        except Exception:
-            log.exception("simulator gateway: unit %d: shape_reply failed; reply unchanged", unit)
-            return reply
-        if bytes(shaped) == self._f.to_rtu(reply):
-            return reply
-        return self._f.from_rtu(bytes(shaped), request)
+        rtu = self._f.to_rtu(reply)
+        shaped = self._hooks.shape(self._f.unit(request), self._f.to_rtu(request), rtu)
+        return reply if shaped == rtu else self._f.from_rtu(shaped, request)
 
     def _finish(self, conn: _Conn, reply: bytes | None) -> None:
         job, conn.inflight = conn.inflight, None
@@ -734,11 +632,8 @@ class Gateway:
                 state.resets -= 1
                 reset = True
                 out = Injection([reply[: len(reply) // 2]])
-            elif self._f.rtu and state.corrupt > 0:
-                state.corrupt -= 1
-                out = Injection([reply[:-2] + bytes([reply[-2] ^ 0xFF, reply[-1] ^ 0xFF])])
-            elif self._f.rtu and state.injector is not None:
-                out = state.injector.apply(reply)
+            elif self._f.rtu:  # the faults of a serial line apply to RTU frames only
+                out = state.take_fault(reply)
             else:
                 out = Injection([reply])
         if out.kind is not None:

@@ -1,0 +1,126 @@
+"""What the serial line and the network gateway share about the simulated units.
+
+Both the line's forwarder (``benchbus.sim._line``) and the gateway (``benchbus.sim._network``)
+turn each request for a unit into a :class:`Job`, answer themselves the requests the server
+cannot take (:func:`refusal`), and ask the unit's callbacks (:class:`UnitHooks`) how its reply
+goes out. A callback that fails or gives nonsense is logged and its default holds, so that a
+faulty device does not stop the line. Pure Python, no pymodbus.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+import threading
+from collections.abc import Callable
+
+__all__ = ["SERVER_FUNCTIONS", "WRITE_FUNCTIONS", "Job", "UnitHooks", "refusal"]
+
+log = logging.getLogger("benchbus.sim")
+
+#: Functions routed to the server; any other is answered exception 1 by the forwarder.
+SERVER_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
+#: The write functions, whose replies a unit may keep off the line (``answers_writes``).
+WRITE_FUNCTIONS = frozenset({0x06, 0x10})
+
+
+def refusal(pdu: bytes) -> int | None:
+    """The exception code answered for a request the server cannot take; None if it can."""
+    function = pdu[0] if pdu else 0
+    if function not in SERVER_FUNCTIONS:
+        return 0x01
+    if function == 0x03 and (len(pdu) != 5 or not 1 <= int.from_bytes(pdu[3:5], "big") <= 125):
+        # pymodbus cannot decode such a request and would answer function 0x80.
+        return 0x03
+    return None
+
+
+@dataclasses.dataclass
+class Job:
+    """One request for the server, or an already-made reply, waiting for its turn."""
+
+    frame: bytes  # in the line's or network's framing, addressed to one unit
+    deliver: bool  # send the reply on to the library
+    made_reply: bytes | None = None  # answered by the forwarder or gateway, not the server
+    delay: float = 0.0  # the unit's own reply delay, read when the job is dispatched
+    done: threading.Event | None = None  # the line's internal probe: set when answered
+    reply: bytes | None = None  # the probe's reply
+
+
+class UnitHooks:
+    """The units' callbacks, asked safely: one that fails is logged and its default holds."""
+
+    def __init__(
+        self,
+        who: str,
+        *,
+        answers_broadcast: Callable[[int], bool],
+        answers_writes: Callable[[int], bool] | None = None,
+        reply_delay: Callable[[int], float] | None = None,
+        shape_reply: Callable[[int, bytes, bytes], bytes] | None = None,
+    ) -> None:
+        """``who`` names the caller in the log (``"simulator"``, ``"simulator gateway"``).
+
+        ``answers_writes(unit)`` defaults to True, ``reply_delay(unit)`` to 0 and
+        ``shape_reply(unit, request, reply)``, on RTU frames, to the reply as is.
+        """
+        self._who = who
+        self._answers_broadcast = answers_broadcast
+        self._answers_writes = answers_writes
+        self._reply_delay = reply_delay
+        self._shape_reply = shape_reply
+
+    def answers_broadcast(self, unit: int) -> bool:
+        """Whether ``unit`` replies to a broadcast (False if the callback fails)."""
+        try:
+            return bool(self._answers_broadcast(unit))
+        except Exception:
+            log.exception("%s: unit %d: answers_broadcast failed; not answering", self._who, unit)
+            return False
+
+    def answers_writes(self, unit: int) -> bool:
+        """Whether ``unit`` replies to a write (True if the callback fails)."""
+        if self._answers_writes is None:
+            return True
+        try:
+            return bool(self._answers_writes(unit))
+        except Exception:
+            log.exception("%s: unit %d: answers_writes failed; answering", self._who, unit)
+            return True
+
+    def reply_delay(self, unit: int) -> float:
+        """How long ``unit`` holds its replies back (0 if the callback fails)."""
+        if self._reply_delay is None:
+            return 0.0
+        try:
+            delay = float(self._reply_delay(unit))
+        except Exception:
+            log.exception("%s: unit %d: reply_delay failed; no delay", self._who, unit)
+            return 0.0
+        if not (math.isfinite(delay) and delay >= 0.0):
+            log.error("%s: unit %d: reply_delay %r is not >= 0; no delay", self._who, unit, delay)
+            return 0.0
+        return delay
+
+    def shape(self, unit: int, request: bytes, reply: bytes) -> bytes:
+        """``unit``'s own form of the server's RTU ``reply`` to ``request`` (``reply`` if the
+        callback fails)."""
+        if self._shape_reply is None:
+            return reply
+        try:
+            shaped = self._shape_reply(unit, request, reply)
+        except Exception:
+            log.exception("%s: unit %d: shape_reply failed; reply unchanged", self._who, unit)
+            return reply
+        if not isinstance(shaped, (bytes, bytearray)) or len(shaped) < 4:
+            log.error("%s: unit %d: shape_reply gave %r; reply unchanged", self._who, unit, shaped)
+            return reply
+        return bytes(shaped)
+
+    def settle(self, job: Job, unit: int, pdu: bytes) -> None:
+        """Ask ``unit``, just before it handles ``job`` (its ``pdu``), how its reply goes out."""
+        job.delay = self.reply_delay(unit)
+        # A reply made without the server for a write is a forced exception: it stays.
+        if job.deliver and job.made_reply is None and pdu and pdu[0] in WRITE_FUNCTIONS:
+            job.deliver = self.answers_writes(unit)
