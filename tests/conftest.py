@@ -113,3 +113,19 @@ def gateway_command(port: str, *options: str) -> Iterator[tuple[str, subprocess.
         proc.terminate()
         _, err = proc.communicate(timeout=10)
         proc.stderr_text = err  # type: ignore[attr-defined]
+
+
+def crc(data: bytes) -> bytes:
+    """CRC-16/MODBUS, bit by bit, low byte first: independent of the library's own."""
+    value = 0xFFFF
+    for byte in data:
+        value ^= byte
+        for _ in range(8):
+            value = (value >> 1) ^ 0xA001 if value & 1 else value >> 1
+    return value.to_bytes(2, "little")
+
+
+def rtu(hexstr: str) -> bytes:
+    """The bytes of ``hexstr`` followed by their CRC: an RTU frame."""
+    data = bytes.fromhex(hexstr)
+    return data + crc(data)

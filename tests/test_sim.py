@@ -16,26 +16,11 @@ from collections.abc import Iterator
 import pytest
 
 from benchbus.sim import RegisterDevice, SimDevice, SimException, Simulator
-from conftest import read_up_to
+from conftest import crc, read_up_to
+from conftest import rtu as frame
 
 #: How long a test waits to conclude that no reply is coming.
 QUIET = 0.3
-
-
-def crc(data: bytes) -> bytes:
-    """CRC-16/MODBUS, bit by bit, low byte first."""
-    value = 0xFFFF
-    for byte in data:
-        value ^= byte
-        for _ in range(8):
-            value = (value >> 1) ^ 0xA001 if value & 1 else value >> 1
-    return value.to_bytes(2, "little")
-
-
-def frame(hexstr: str) -> bytes:
-    """The bytes of ``hexstr`` followed by their CRC."""
-    data = bytes.fromhex(hexstr)
-    return data + crc(data)
 
 
 def crc_valid(data: bytes) -> bool:

@@ -16,27 +16,12 @@ from urllib.parse import urlsplit
 import pytest
 
 from benchbus.sim import DriveDevice, Faults, RegisterDevice, SimDevice, SimException, Simulator
+from conftest import crc, rtu
 
 #: How long a test waits to conclude that no reply is coming.
 QUIET = 0.3
 #: Bound on any wait for something that should come.
 WAIT = 3.0
-
-
-def crc(data: bytes) -> bytes:
-    """CRC-16/MODBUS, bit by bit, low byte first."""
-    value = 0xFFFF
-    for byte in data:
-        value ^= byte
-        for _ in range(8):
-            value = (value >> 1) ^ 0xA001 if value & 1 else value >> 1
-    return value.to_bytes(2, "little")
-
-
-def rtu(hexstr: str) -> bytes:
-    """The bytes of ``hexstr`` followed by their CRC."""
-    data = bytes.fromhex(hexstr)
-    return data + crc(data)
 
 
 def mbap(tid: int, unit: int, pdu_hex: str) -> bytes:
