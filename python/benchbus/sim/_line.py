@@ -207,32 +207,21 @@ class Forwarder:
         *,
         units: frozenset[int],
         broadcast: bool,
-        answers_broadcast: Callable[[int], bool],
-        answers_writes: Callable[[int], bool] | None = None,
-        unit_reply_delay: Callable[[int], float] | None = None,
-        shape_reply: Callable[[int, bytes, bytes], bytes] | None = None,
+        hooks: UnitHooks,
         baudrate: int,
     ) -> None:
         """Forward between ``library`` and ``server`` for the simulated ``units``.
 
-        ``answers_writes(unit)`` (default: always True) and ``unit_reply_delay(unit)``
-        (default: 0) are asked once per request, when it is handed to the server.
-        ``shape_reply(unit, request, reply)`` (default: the reply as is) gives the frame that
-        goes on the line for each reply the server made that is delivered, before the
-        faults apply.
+        ``hooks`` are the units' callbacks: whether a unit answers writes and its reply
+        delay are asked once per request, when it is handed to the server; its own form of a
+        reply that is delivered, before the faults apply.
         """
         self._state = state
         self._a = library.master
         self._b = server.master
         self._units = units
         self._broadcast = broadcast
-        self._hooks = UnitHooks(
-            "simulator",
-            answers_broadcast=answers_broadcast,
-            answers_writes=answers_writes,
-            reply_delay=unit_reply_delay,
-            shape_reply=shape_reply,
-        )
+        self._hooks = hooks
         gap = frame_gap(baudrate)
         self._rx_a = Framer(request_length, gap, cut_partial=True)
         self._rx_b = Framer(reply_length, gap, cut_partial=True)
@@ -244,8 +233,7 @@ class Forwarder:
         self._out_a = bytearray()
         self._out_b = bytearray()
         self._inject: collections.deque[tuple[bytes, threading.Event]] = collections.deque()
-        self._code_rewrite: int | None = None
-        self._lock = threading.Lock()  # guards _jobs (from probe), _inject, _code_rewrite
+        self._lock = threading.Lock()  # guards _jobs (from probe) and _inject
         self._stopping = False
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
@@ -289,15 +277,6 @@ class Forwarder:
         assert job.done is not None
         job.done.wait(timeout)
         return job.reply
-
-    def rewrite_exception_code(self, code: int) -> None:
-        """Make the server's exception reply now being built carry ``code`` instead.
-
-        For codes the server cannot produce itself: it answers some exception code, and the
-        forwarder replaces that code in the reply (and fixes its CRC).
-        """
-        with self._lock:
-            self._code_rewrite = code
 
     def _wake(self) -> None:
         if self._wake_w >= 0:
@@ -430,7 +409,6 @@ class Forwarder:
                 if not self._jobs:
                     return
                 job = self._jobs.popleft()
-                self._code_rewrite = None
             self._inflight = job
             if job.done is None:  # a unit's request, not the internal probe
                 self._hooks.settle(job, job.frame[0], job.frame[1:-2])
@@ -447,10 +425,6 @@ class Forwarder:
         if self._inflight is None:
             log.debug("simulator: unexpected bytes from the server: %s", frame.hex(" "))
             return
-        with self._lock:
-            code, self._code_rewrite = self._code_rewrite, None
-        if code is not None and len(frame) == 5 and frame[1] & 0x80:
-            frame = with_crc(frame[:2] + bytes([code]))
         job = self._inflight
         if job.done is None and job.deliver:
             frame = self._hooks.shape(job.frame[0], job.frame, frame)

@@ -211,19 +211,17 @@ class Gateway:
         network: str,
         units: frozenset[int],
         broadcast: bool,
-        answers_broadcast: Callable[[int], bool],
-        answers_writes: Callable[[int], bool] | None = None,
-        unit_reply_delay: Callable[[int], float] | None = None,
-        shape_reply: Callable[[int, bytes, bytes], bytes] | None = None,
+        hooks: UnitHooks,
         baudrate: int = 19200,
         host: str = "127.0.0.1",
         refuse: bool = False,
     ) -> None:
         """Serve ``units`` of the server at ``upstream`` on a new port of ``host``.
 
-        The callbacks are those of ``benchbus.sim._line.Forwarder``; ``shape_reply`` is
-        given and gives RTU frames whatever the network. The port is bound here (see
-        :attr:`address`); with ``refuse`` nothing listens on it until :meth:`refuse` False.
+        ``hooks`` are the units' callbacks, as for ``benchbus.sim._line.Forwarder``; their
+        ``shape`` is given and gives RTU frames whatever the network. The port is bound here
+        (see :attr:`address`); with ``refuse`` nothing listens on it until :meth:`refuse`
+        False.
         """
         self._state = state
         self._upstream = upstream
@@ -231,13 +229,7 @@ class Gateway:
         self._f = _framing(network)
         self._units = units
         self._broadcast = broadcast
-        self._hooks = UnitHooks(
-            "simulator gateway",
-            answers_broadcast=answers_broadcast,
-            answers_writes=answers_writes,
-            reply_delay=unit_reply_delay,
-            shape_reply=shape_reply,
-        )
+        self._hooks = hooks
         self._gap = frame_gap(baudrate)
         self._host = host
         self._conns: dict[int, _Conn] = {}

@@ -15,6 +15,7 @@ from benchbus.sim._line import Forwarder, LineState, PtyPair
 from benchbus.sim._network import NETWORKS, Gateway, NetworkState, probe
 from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
 from benchbus.sim._rtu import with_crc
+from benchbus.sim._units import UnitHooks
 
 __all__ = ["Simulator"]
 
@@ -183,10 +184,7 @@ class Simulator(Generic[D]):
             server,
             units=units,
             broadcast=self.broadcast,
-            answers_broadcast=lambda unit: bool(self.devices[unit].answers_broadcast),
-            answers_writes=lambda unit: bool(self.devices[unit].answers_writes),
-            unit_reply_delay=lambda unit: float(self.devices[unit].reply_delay),
-            shape_reply=self._shape_reply,
+            hooks=self._unit_hooks("simulator"),
             baudrate=self.baudrate,
         )
         self._server = SerialServer(
@@ -207,6 +205,16 @@ class Simulator(Generic[D]):
         else:
             raise RuntimeError("the simulator's server does not answer")
         self._port = library.path
+
+    def _unit_hooks(self, who: str) -> UnitHooks:
+        """The units' callbacks, for the line or the network (``who`` names it in the log)."""
+        return UnitHooks(
+            who,
+            answers_broadcast=lambda unit: bool(self.devices[unit].answers_broadcast),
+            answers_writes=lambda unit: bool(self.devices[unit].answers_writes),
+            reply_delay=lambda unit: float(self.devices[unit].reply_delay),
+            shape_reply=self._shape_reply,
+        )
 
     def _start_network(self, network: str) -> None:
         units = frozenset(self.devices)
@@ -235,10 +243,7 @@ class Simulator(Generic[D]):
             network=network,
             units=units,
             broadcast=self.broadcast,
-            answers_broadcast=lambda unit: bool(self.devices[unit].answers_broadcast),
-            answers_writes=lambda unit: bool(self.devices[unit].answers_writes),
-            unit_reply_delay=lambda unit: float(self.devices[unit].reply_delay),
-            shape_reply=self._shape_reply,
+            hooks=self._unit_hooks("simulator gateway"),
             baudrate=self.baudrate,
             refuse=self._refusing,
         )
