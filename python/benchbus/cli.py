@@ -1228,23 +1228,23 @@ def _cmd_sim(args: argparse.Namespace) -> int:
     simulator = Simulator({u: _sim_device(kind, args) for u in units}, baudrate=baudrate)
     simulator.start()
     try:
-        print(simulator.port, flush=True)
         what = f"{args.model} drive" if kind == "drive" else kind
         at = ", ".join(str(u) for u in units)
-        print(
-            f"simulating {what} (unit {at}, {baudrate} baud frame timing) on "
-            f"{simulator.port}; Ctrl-C or SIGTERM stops it",
-            file=sys.stderr,
-            flush=True,
+        _serve_until_stopped(
+            simulator.port,
+            f"simulating {what} (unit {at}, {baudrate} baud frame timing)",
+            args.seconds,
         )
-        _wait_until_stopped(args.seconds)
     finally:
         simulator.stop()
     return 0
 
 
-def _wait_until_stopped(seconds: float | None) -> None:
-    """Block until Ctrl-C, SIGTERM or ``seconds`` (None: no limit), whichever comes first."""
+def _serve_until_stopped(where: str, what: str, seconds: float | None) -> None:
+    """Print ``where`` (what clients open) on stdout and ``what`` on stderr, then block
+    until Ctrl-C, SIGTERM or ``seconds`` (None: no limit), whichever comes first."""
+    print(where, flush=True)
+    print(f"{what} on {where}; Ctrl-C or SIGTERM stops it", file=sys.stderr, flush=True)
     stop = []
 
     def on_sigterm(signum: int, frame: FrameType | None) -> None:
@@ -1280,14 +1280,11 @@ def _cmd_gateway(args: argparse.Namespace) -> int:
         except OSError as exc:
             raise CliError(f"cannot listen on {args.listen}: {exc.strerror or exc}") from None
         try:
-            print(gateway.url, flush=True)
-            print(
-                f"gateway for {bus.port} ({line.describe(_opt(args, 'stopbits', 1))}) on "
-                f"{gateway.url}; Ctrl-C or SIGTERM stops it",
-                file=sys.stderr,
-                flush=True,
+            _serve_until_stopped(
+                gateway.url,
+                f"gateway for {bus.port} ({line.describe(_opt(args, 'stopbits', 1))})",
+                args.seconds,
             )
-            _wait_until_stopped(args.seconds)
         finally:
             gateway.stop()
     return 0
