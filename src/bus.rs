@@ -802,23 +802,16 @@ impl Bus {
         if let Some(until) = st.late_until.take() {
             let mut scratch = [0u8; crate::codec::rtu::MAX_ADU];
             let wait = until.saturating_duration_since(Instant::now());
-            if !wait.is_zero() {
-                // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
-                let quiet = self.frame_over();
-                let mut n = transport
-                    .read(&mut scratch, wait)
-                    .map_err(|e| self.io_error(e))?;
-                let mut dropped = 0;
-                while n > 0 && dropped < 2 * crate::codec::rtu::MAX_ADU {
-                    dropped += n;
-                    st.silence.busy_until(Instant::now());
-                    log::debug!(target: "benchbus::wire", "late reply dropped: {}", hex(&scratch[..n]));
-                    n = transport
-                        .read(&mut scratch, quiet)
-                        .map_err(|e| self.io_error(e))?;
-                }
-                st.stats.stale_bytes += dropped as u64;
+            // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
+            let mut n = self.read_within(transport, &mut scratch, wait)?;
+            let mut dropped = 0;
+            while n > 0 && dropped < 2 * crate::codec::rtu::MAX_ADU {
+                dropped += n;
+                st.silence.busy_until(Instant::now());
+                log::debug!(target: "benchbus::wire", "late reply dropped: {}", hex(&scratch[..n]));
+                n = self.read_within(transport, &mut scratch, self.frame_over())?;
             }
+            st.stats.stale_bytes += dropped as u64;
         }
         // Stale bytes are traffic: the line is quiet only t3.5 after the last of them, and
         // bytes that arrive during that wait restart it (a few times at most: a device that

@@ -341,10 +341,10 @@ impl Mbap {
     }
 
     /// Takes a whole MBAP frame: the awaited reply goes to `ready` in RTU form; anything
-    /// else is dropped. Returns whether it was taken.
-    fn take(&mut self, frame: &[u8]) -> bool {
+    /// else is dropped.
+    fn take(&mut self, frame: &[u8]) {
         let [t0, t1, p0, p1, _, _, adu @ ..] = frame else {
-            return false;
+            return;
         };
         let tid = u16::from_be_bytes([*t0, *t1]);
         let protocol = u16::from_be_bytes([*p0, *p1]);
@@ -354,7 +354,7 @@ impl Mbap {
                 "<- MBAP frame of protocol {protocol} (not Modbus), dropped: {}",
                 hex(frame)
             );
-            return false;
+            return;
         }
         if self.awaited != Some(tid) {
             let awaited = match self.awaited {
@@ -366,12 +366,11 @@ impl Mbap {
                 "<- MBAP reply to transaction {tid} ({awaited}): a late reply, dropped: {}",
                 hex(frame)
             );
-            return false;
+            return;
         }
         self.awaited = None;
         self.ready.extend(adu);
         self.ready.extend(crc16(adu).to_le_bytes());
-        true
     }
 }
 
