@@ -160,6 +160,7 @@ class Gateway:
         self._address: tuple[str, int] | None = None
         self._clients: set[socket.socket] = set()
         self._threads: list[threading.Thread] = []
+        self._acceptor: threading.Thread | None = None
         self._stopping = threading.Event()
 
     # ---- lifecycle -----------------------------------------------------------------------
@@ -185,7 +186,7 @@ class Gateway:
         self._stopping.clear()
         self._server = server
         self._address = server.getsockname()[:2]
-        self._spawn(self._accept_loop, "benchbus-gateway")
+        self._acceptor = self._spawn(self._accept_loop, "benchbus-gateway")
         log.info("gateway for %s listening on %s", self.bus.port, self.url)
         return self
 
@@ -201,15 +202,18 @@ class Gateway:
             return
         self._stopping.set()
         server.close()
+        bus = self.bus
+        longest_call = bus.timeout * (bus.retries + 1) + max(self._intervals.values(), default=0)
+        deadline = time.monotonic() + longest_call + FRAME_TIMEOUT
+        # Once the acceptor has ended, no client joins the lists below behind our back.
+        if self._acceptor is not None:
+            self._acceptor.join(max(0.0, deadline - time.monotonic()))
         with self._stats_lock:
             clients = list(self._clients)
         for client in clients:
             with contextlib.suppress(OSError):
                 client.shutdown(socket.SHUT_RDWR)
-        bus = self.bus
-        longest_call = bus.timeout * (bus.retries + 1) + max(self._intervals.values(), default=0)
-        deadline = time.monotonic() + longest_call + FRAME_TIMEOUT
-        for thread in self._threads:
+        for thread in list(self._threads):
             thread.join(max(0.0, deadline - time.monotonic()))
         left = [t.name for t in self._threads if t.is_alive()]
         if left:  # pragma: no cover - a Bus call outlived its own bound
@@ -261,11 +265,12 @@ class Gateway:
 
     # ---- threads -------------------------------------------------------------------------
 
-    def _spawn(self, target: Callable[..., None], name: str, *args: object) -> None:
+    def _spawn(self, target: Callable[..., None], name: str, *args: object) -> threading.Thread:
         thread = threading.Thread(target=target, args=args, name=name, daemon=True)
         self._threads = [t for t in self._threads if t.is_alive()]
         self._threads.append(thread)
         thread.start()
+        return thread
 
     def _accept_loop(self) -> None:
         server = self._server
