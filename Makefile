@@ -1,15 +1,34 @@
 # One command each: `make demo` installs benchbus and runs its demo on simulated devices,
 # `make test` installs and runs every test, `make lint` every check, `make bench` the
 # benchmark beside minimalmodbus and pymodbus.
-PYTHON ?= python3
+#
+# Every target installs into a virtual environment: the active one if there is one
+# ($VIRTUAL_ENV), else .venv here, made on first use. Debian 12 and Ubuntu 23.04+ refuse
+# `pip install` into the system Python (PEP 668); their Python makes a venv only with the
+# python3-venv package installed.
+BASE_PYTHON ?= python3
+ifdef VIRTUAL_ENV
+VENV := $(VIRTUAL_ENV)
+else
+VENV := .venv
+endif
+PYTHON := $(VENV)/bin/python
+PIP := $(PYTHON) -m pip install --quiet --editable
 
 .PHONY: install demo test lint fmt example bench
 
-install:
-	$(PYTHON) -m pip install --quiet --editable ".[dev]"
+$(VENV)/bin/python:
+	@$(BASE_PYTHON) -m venv $(VENV) >/dev/null 2>&1 || { rm -rf $(VENV); \
+	  echo "error: '$(BASE_PYTHON) -m venv' failed: cannot make the virtual environment $(VENV)." >&2; \
+	  echo "  On Debian or Ubuntu install the python3-venv package (apt install python3-venv)," >&2; \
+	  echo "  or activate a virtual environment of your own, then run make again." >&2; exit 1; }
+	@$(PYTHON) -m pip install --quiet --upgrade pip
 
-demo:
-	$(PYTHON) -m pip install --quiet ".[demo]"
+install: $(VENV)/bin/python
+	$(PIP) ".[dev]"
+
+demo: $(VENV)/bin/python
+	$(PIP) ".[demo]"
 	$(PYTHON) -m benchbus demo
 
 test: install
@@ -25,15 +44,15 @@ lint: install
 	$(PYTHON) -m mypy python/benchbus
 	$(PYTHON) -m mypy.stubtest benchbus._core
 
-fmt:
+fmt: $(VENV)/bin/python
 	cargo fmt
 	$(PYTHON) -m ruff format python tests examples bench
 
-example:
-	$(PYTHON) -m pip install --quiet ".[sim]"
+example: $(VENV)/bin/python
+	$(PIP) ".[sim]"
 	$(PYTHON) examples/first_steps.py
 	$(PYTHON) examples/drive_bench.py
 
-bench:
-	$(PYTHON) -m pip install --quiet ".[bench]"
+bench: $(VENV)/bin/python
+	$(PIP) ".[bench]"
 	$(PYTHON) bench/run.py
