@@ -204,6 +204,20 @@ def test_reply_from_wrong_unit_is_a_frame_error(slave: ScriptedSlave) -> None:
         assert bus.stats.frame_errors == 1
 
 
+def test_a_byte_count_that_disagrees_with_the_request_names_both(slave: ScriptedSlave) -> None:
+    # A valid frame (its CRC is right over all 7 bytes) with byte count 1, to a one-register
+    # read: not a CRC error, but the two counts; nothing of it is left for the next call.
+    reply = bytes.fromhex("01 03 01 00 07 09 86")
+    with bb.Bus(slave.port, timeout=0.2, retries=0) as bus:
+        slave.expect(8, reply)
+        with pytest.raises(bb.FrameError) as e:
+            bus.read_holding_registers(1, 0, 1)
+        assert not isinstance(e.value, bb.CrcError)
+        assert "byte count 1" in str(e.value) and "asked for 2 bytes" in str(e.value)
+        assert e.value.frame == "01 03 01 00 07 09 86"
+        assert (bus.stats.frame_errors, bus.stats.crc_errors, bus.stats.stale_bytes) == (1, 0, 0)
+
+
 def test_two_threads_share_one_bus_without_interleaving(sim: Simulator) -> None:
     errors: list[BaseException] = []
     with bb.Bus(sim.port, timeout=0.5) as bus:

@@ -10,6 +10,6 @@ pub use pdu::{
     exception_meaning, is_gateway_exception, DeviceIdentification, Request, RequestError, Response,
 };
 pub use rtu::{
-    check_echo, crc16, decode_reply, encode_request, reply_needed, Echo, FrameError, Needed, Reply,
-    BROADCAST,
+    check_echo, check_header, crc16, decode_reply, encode_request, reply_needed, Echo, FrameError,
+    Needed, Reply, BROADCAST,
 };

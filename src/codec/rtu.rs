@@ -39,8 +39,9 @@ pub enum Needed {
     More(usize),
     /// The reply is complete and is this many bytes long (the buffer may hold more).
     Complete(usize),
-    /// These bytes cannot begin a reply to the request (another function code, or a length
-    /// past the longest RTU frame): the length is unknown; read until the line is silent.
+    /// These bytes cannot begin a reply to the request (another function code, a byte count
+    /// the request does not call for, or a length past the longest RTU frame): the length is
+    /// unknown; read until the line is silent.
     Unknown,
 }
 
@@ -69,8 +70,10 @@ pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
         return Needed::Unknown;
     } else {
         match request {
-            Request::ReadHoldingRegisters { .. } => match buf.get(2) {
+            Request::ReadHoldingRegisters { count, .. } => match buf.get(2) {
                 None => return Needed::More(EXCEPTION_LEN - buf.len()),
+                // Not the length this request's reply has: see `check_header`.
+                Some(&n) if usize::from(n) != 2 * usize::from(*count) => return Needed::Unknown,
                 Some(&n) => 5 + usize::from(n),
             },
             Request::WriteSingleRegister { .. } | Request::WriteMultipleRegisters { .. } => 8,
@@ -164,6 +167,15 @@ pub enum FrameError {
     /// The reply's byte count or length does not fit the request.
     #[error("reply length wrong: {0}")]
     Length(String),
+    /// The byte count of a read reply from the addressed unit disagrees with the count the
+    /// request asked for (known from the reply's third byte, before the rest arrives).
+    #[error("reply byte count {received}, but the request asked for {expected} bytes")]
+    ByteCount {
+        /// Data bytes the request's count calls for.
+        expected: usize,
+        /// Byte count the reply carries.
+        received: u8,
+    },
     /// A write reply does not echo the request.
     #[error("write not echoed: sent {sent}, reply carries {received}")]
     Echo {
@@ -194,10 +206,37 @@ pub enum FrameError {
     UnexpectedEcho,
 }
 
+/// What the first bytes of a reply from `unit` to `request` already show to be wrong: a
+/// read reply whose byte count disagrees with the request ([`FrameError::ByteCount`]). Its
+/// length is then unknown ([`reply_needed`] says [`Needed::Unknown`]), so the caller takes
+/// the rest until the line is quiet and reports this, not the CRC of a length it cannot
+/// trust. Bytes from another unit, or too few to tell, are not judged here.
+///
+/// # Errors
+/// [`FrameError::ByteCount`] naming both counts.
+pub fn check_header(unit: u8, request: &Request, buf: &[u8]) -> Result<(), FrameError> {
+    match (request, buf) {
+        (Request::ReadHoldingRegisters { count, .. }, &[u, f, n, ..])
+            if u == unit && f == request.function() =>
+        {
+            let expected = 2 * usize::from(*count);
+            if usize::from(n) != expected {
+                return Err(FrameError::ByteCount {
+                    expected,
+                    received: n,
+                });
+            }
+            Ok(())
+        }
+        _ => Ok(()),
+    }
+}
+
 /// Decodes a complete reply `frame` to `request` sent to `unit`.
 ///
-/// Checks, in order: CRC, unit, function, then the length and byte count. The echo of a
-/// write is checked separately by [`check_echo`], so a caller may relax it.
+/// Checks, in order: the header ([`check_header`]: a byte count that disagrees with the
+/// request), CRC, unit, function, then the length. The echo of a write is checked
+/// separately by [`check_echo`], so a caller may relax it.
 ///
 /// # Errors
 /// [`FrameError`] saying what is wrong with the frame.
@@ -205,6 +244,7 @@ pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, 
     if frame.len() < EXCEPTION_LEN {
         return Err(FrameError::TooShort(frame.len()));
     }
+    check_header(unit, request, frame)?;
     let (body, crc) = frame.split_at(frame.len() - 2);
     let received = u16::from_le_bytes([crc[0], crc[1]]);
     let computed = crc16(body);
@@ -252,9 +292,9 @@ pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, 
     let response = match request {
         Request::ReadHoldingRegisters { count, .. } => {
             let want = 2 * usize::from(*count);
-            if data.len() != 1 + want || usize::from(data[0]) != want {
+            if data.len() != 1 + want {
                 return Err(FrameError::Length(format!(
-                    "byte count {} with {} data bytes, expected {want}",
+                    "byte count {} with {} data bytes",
                     data[0],
                     data.len() - 1
                 )));
@@ -514,9 +554,39 @@ mod tests {
             address: 0x2100,
             count: 2,
         };
-        assert!(matches!(
+        assert_eq!(
             decode_reply(1, &req2, &good),
-            Err(FrameError::Length(_))
-        ));
+            Err(FrameError::ByteCount {
+                expected: 4,
+                received: 2
+            })
+        );
+    }
+
+    /// The frame: `01 03 01 00 07` + CRC is a valid frame with byte count 1, the
+    /// answer to no one-register read. Known from its third byte; the CRC of a length the
+    /// request would give (6 bytes) is not what is reported.
+    #[test]
+    fn byte_count_that_disagrees_is_known_from_the_header() {
+        let req = Request::ReadHoldingRegisters {
+            address: 0,
+            count: 1,
+        };
+        let frame = [0x01, 0x03, 0x01, 0x00, 0x07, 0x09, 0x86];
+        assert_eq!(crc16(&frame[..5]).to_le_bytes(), [0x09, 0x86]);
+        let wrong = FrameError::ByteCount {
+            expected: 2,
+            received: 1,
+        };
+        assert_eq!(reply_needed(&req, &frame[..3]), Needed::Unknown);
+        assert_eq!(check_header(1, &req, &frame[..3]), Err(wrong.clone()));
+        assert_eq!(decode_reply(1, &req, &frame), Err(wrong.clone()));
+        // From another unit, or another function: not judged by the header.
+        assert_eq!(check_header(2, &req, &frame), Ok(()));
+        assert_eq!(check_header(1, &req, &[0x01, 0x83, 0x02]), Ok(()));
+        assert_eq!(
+            wrong.to_string(),
+            "reply byte count 1, but the request asked for 2 bytes"
+        );
     }
 }
