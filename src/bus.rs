@@ -69,6 +69,11 @@ pub struct BusConfig {
     /// while it transmits): each request's echo is read back and checked before the reply
     /// is awaited (`Bus::send`). For serial lines and `rtu+tcp://`; refused on `tcp://`.
     pub echo: bool,
+    /// Asked before each further attempt of a call (a retry, the next page of a device
+    /// identification): whether the caller wants the call to stop there. The Python
+    /// bindings run Python's signal handlers in it, so that Ctrl-C ends a call between
+    /// attempts ([`Error::Interrupted`]); the attempt in flight always completes.
+    pub interrupted: Option<fn() -> bool>,
 }
 
 impl BusConfig {
@@ -82,6 +87,7 @@ impl BusConfig {
             turnaround: Duration::from_millis(100),
             reconnect: false,
             echo: false,
+            interrupted: None,
         }
     }
 }
@@ -172,8 +178,9 @@ struct State {
     last_write: HashMap<u8, (Instant, Duration)>,
     /// When the last broadcast's turnaround ended: a write to every unit.
     last_broadcast: Option<Instant>,
-    /// Until when a reply to a call that timed out may still arrive (see [`Bus::send`]).
-    late_until: Option<Instant>,
+    /// Requests that timed out and whose replies may still arrive (see [`Bus::send`]): at
+    /// most one per unit, dropped once their window has passed.
+    late: Vec<Late>,
     /// Whether a local echo has come back right on this Bus (see [`Bus::read_echo`]).
     echo_seen: bool,
     stats: Stats,
@@ -231,7 +238,7 @@ impl Bus {
                 silence: SilenceGuard::new(),
                 last_write: HashMap::new(),
                 last_broadcast: None,
-                late_until: None,
+                late: Vec::new(),
                 echo_seen: false,
                 stats: Stats::default(),
             }),
@@ -446,11 +453,14 @@ impl Bus {
         let mut next = object_id;
         // A device may split its objects over several replies; 256 bounds a device that
         // keeps saying "more follows".
-        for _ in 0..256 {
+        for page in 0..256 {
             let request = Request::ReadDeviceIdentification {
                 read_code,
                 object_id: next,
             };
+            if page > 0 && self.interrupted() {
+                return Err(interrupted(unit, &request, page));
+            }
             let page = match self.transact(unit, &request, opts)? {
                 Response::DeviceIdentification(page) => page,
                 other => return Err(unexpected(unit, 0x2B, &other)),
@@ -579,6 +589,9 @@ impl Bus {
             // one is sent again, as a corrupt reply would be.
             for attempt in 0..attempts {
                 if attempt > 0 {
+                    if self.interrupted() {
+                        return Err(interrupted(unit, request, attempt));
+                    }
                     st.stats.retries += 1;
                     pace(st, unit, opts.write_interval);
                 }
@@ -607,6 +620,9 @@ impl Bus {
         let result = 'attempts: {
             for attempt in 0..attempts {
                 if attempt > 0 {
+                    if self.interrupted() {
+                        break 'attempts Err(interrupted(unit, request, attempt));
+                    }
                     st.stats.retries += 1;
                     if paced {
                         // A repeated write is a write command too: it keeps the interval.
@@ -662,16 +678,14 @@ impl Bus {
         };
         // An attempt timed out, so a reply to it may still come (even when a retry was then
         // answered: by the first attempt's late reply, perhaps). RTU replies carry no
-        // transaction id, so one arriving during the next call would pass as that call's
-        // answer: the next call listens for it first (see `send`). Within a call a late reply
-        // answers the same request, so retries do not wait. A probe's unit is not asked
-        // again, and a late answer from it would name the wrong unit. Two timeouts: a unit
-        // slower than the timeout may have queued the retry's reply behind the late one.
-        // Over Modbus TCP transaction ids already keep a late reply from passing for the next
-        // answer, but a gateway that serves one request at a time is still busy with it: a
-        // request sent now would queue behind it and time out too.
+        // transaction id, but they name their unit: the next request to the same unit listens
+        // for it first (see `send`), and a request to another unit goes out at once and drops
+        // it if it comes (see `attempt`). Within a call a late reply answers the same request,
+        // so retries do not wait. A probe's unit is not asked again, and a late answer from
+        // it would name the wrong unit. Two timeouts: a unit slower than the timeout may have
+        // queued the retry's reply behind the late one.
         if timed_out && !opts.window_from_start {
-            st.late_until = Some(Instant::now() + timeout * 2);
+            st.expect_late(unit, request, Instant::now() + timeout * 2);
         }
         result
     }
@@ -691,7 +705,13 @@ impl Bus {
         let mut buf = Vec::with_capacity(64);
         let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
         let line = self.config.line;
-        let State { link, silence, .. } = st;
+        let State {
+            link,
+            silence,
+            late,
+            stats,
+            ..
+        } = st;
         let transport = self.port(link)?;
         // The timeout is the device's allowance to start answering: its first character must
         // have arrived by `answer_by` + one character time. The rest of the reply's time on
@@ -699,8 +719,17 @@ impl Bus {
         // baud rate is not cut off. A compliant device cannot start before t3.5 of quiet after
         // the request, so on a serial line it always gets at least that.
         let serial = transport.is_serial_line();
-        let answer_by = if !serial {
-            sent_end + timeout
+        let mut answer_by = if !serial {
+            // A Modbus TCP gateway that serves one request at a time answers this one only
+            // after the late one it is still busy with: that time is not this unit's.
+            let queued = late
+                .iter()
+                .map(|l| l.until)
+                .max()
+                .map_or(Duration::ZERO, |end| {
+                    end.saturating_duration_since(sent_end)
+                });
+            sent_end + timeout + queued
         } else if window_from_start {
             let sent_start = sent_end
                 .checked_sub(line.frame_time(frame.len()))
@@ -715,8 +744,32 @@ impl Bus {
         // When the last byte of the reply so far arrived: the line is quiet since then.
         let mut last_byte = None;
         loop {
-            let (want, wait) = match reply_needed(request, &buf) {
-                Needed::Complete(_) => break,
+            // A late reply from another unit, which timed out earlier, may come first: taken
+            // whole and valid, it is dropped, and the wait for this reply goes on.
+            let other = late_reply_of(late, unit, &buf);
+            let needed = match other {
+                Some(l) => reply_needed(&l.request, &buf),
+                None => reply_needed(request, &buf),
+            };
+            let (want, wait) = match needed {
+                Needed::Complete(n) => {
+                    let Some(l) = other else { break };
+                    if decode_reply(l.unit, &l.request, &buf[..n]).is_err() {
+                        break;
+                    }
+                    log::debug!(target: "benchbus::wire", "late reply of unit {} dropped: {}", l.unit, hex(&buf[..n]));
+                    stats.stale_bytes += n as u64;
+                    buf.drain(..n);
+                    let at = last_byte.unwrap_or_else(Instant::now);
+                    silence.busy_until(at);
+                    // The line was taken until then; this unit's answer may follow it.
+                    if serial {
+                        answer_by = answer_by.max(at + line.t3_5());
+                    }
+                    continue;
+                }
+                // The rest of another unit's frame follows within a frame's gaps.
+                Needed::More(n) if other.is_some() => (n, self.frame_over()),
                 Needed::More(n) => {
                     let on_wire = match (serial, buf.is_empty()) {
                         (false, _) => Duration::ZERO,
@@ -735,7 +788,7 @@ impl Bus {
                 .min(crate::codec::rtu::MAX_ADU.saturating_sub(buf.len()));
             let n = self.read_within(transport, &mut chunk[..want], wait)?;
             if n == 0 {
-                if matches!(reply_needed(request, &buf), Needed::Unknown) || want == 0 {
+                if matches!(needed, Needed::Unknown) || other.is_some() || want == 0 {
                     break;
                 }
                 // Nothing came since `last_byte` (or since the request ended): the line has
@@ -796,10 +849,17 @@ impl Bus {
         let line = self.config.line;
         let transport = self.port(&mut st.link)?;
         let serial = transport.is_serial_line();
-        // After a call in which an attempt timed out, listen for a late reply for up to two
-        // more timeouts before sending anything: dropped here, it cannot be taken for the next
-        // answer.
-        if let Some(until) = st.late_until.take() {
+        // After a call to this unit in which an attempt timed out, listen for its late reply
+        // for what is left of its window before sending anything: dropped here, it cannot be
+        // taken for this request's answer. A broadcast waits for every unit's. Over Modbus TCP
+        // the transaction id tells a late reply from the answer (see `attempt`).
+        let target = frame.first().copied().unwrap_or(BROADCAST);
+        let late = if serial {
+            take_late(&mut st.late, target)
+        } else {
+            None
+        };
+        if let Some(until) = late {
             let mut scratch = [0u8; crate::codec::rtu::MAX_ADU];
             let wait = until.saturating_duration_since(Instant::now());
             // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
@@ -929,6 +989,11 @@ impl Bus {
         ))
     }
 
+    /// Whether the caller asks the call in progress to stop before its next attempt.
+    fn interrupted(&self) -> bool {
+        self.config.interrupted.is_some_and(|asked| asked())
+    }
+
     /// Reads into `buf` what arrives within `wait`: 0 if nothing did, or if there was no
     /// room or no time to wait.
     fn read_within(
@@ -1040,7 +1105,25 @@ impl Bus {
     }
 }
 
+/// A request that timed out: its reply may still arrive until `until`.
+struct Late {
+    unit: u8,
+    request: Request,
+    until: Instant,
+}
+
 impl State {
+    /// Records that the reply of `request` to `unit` may still arrive until `until`.
+    fn expect_late(&mut self, unit: u8, request: &Request, until: Instant) {
+        let now = Instant::now();
+        self.late.retain(|l| l.unit != unit && l.until > now);
+        self.late.push(Late {
+            unit,
+            request: request.clone(),
+            until,
+        });
+    }
+
     /// Records that a write to `unit` (whose device wants `interval` between writes) ended.
     fn wrote(&mut self, unit: u8, interval: Duration) {
         let now = Instant::now();
@@ -1125,6 +1208,24 @@ fn port_message(e: &Error) -> String {
     }
 }
 
+/// Until when a late reply that could pass for the answer of a request to `target` may come
+/// (a broadcast: any unit's), if one still may; those replies are no longer expected after.
+fn take_late(late: &mut Vec<Late>, target: u8) -> Option<Instant> {
+    let now = Instant::now();
+    let (taken, kept): (Vec<Late>, Vec<Late>) = std::mem::take(late)
+        .into_iter()
+        .filter(|l| l.until > now)
+        .partition(|l| target == BROADCAST || l.unit == target);
+    *late = kept;
+    taken.iter().map(|l| l.until).max()
+}
+
+/// The late request of another unit than `unit` that `buf`, a reply begun, may answer.
+fn late_reply_of<'a>(late: &'a [Late], unit: u8, buf: &[u8]) -> Option<&'a Late> {
+    let &first = buf.first()?;
+    late.iter().find(|l| l.unit == first && l.unit != unit)
+}
+
 /// Whether `request` writes (reads are always answered; writes are paced).
 fn is_write(request: &Request) -> bool {
     !matches!(
@@ -1152,6 +1253,14 @@ fn check_config(config: &BusConfig) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+fn interrupted(unit: u8, request: &Request, attempts: u32) -> Error {
+    Error::Interrupted {
+        unit,
+        function: request.function(),
+        attempts,
+    }
 }
 
 fn frame_error(unit: u8, function: u8, kind: FrameError, frame: Vec<u8>) -> Error {

@@ -79,6 +79,19 @@ pub enum Error {
         /// The exception reply frame.
         frame: Vec<u8>,
     },
+    /// The caller asked the call to stop between two attempts (see
+    /// [`crate::bus::BusConfig::interrupted`]: a signal handler raised, in Python a Ctrl-C).
+    /// The attempts made were whole, and a late reply to them is listened for as after any
+    /// timeout, so the line stays in step.
+    #[error("unit {unit}, function {function:#04x}: interrupted after {attempts} attempt{}", if *.attempts == 1 { "" } else { "s" })]
+    Interrupted {
+        /// Unit asked.
+        unit: u8,
+        /// Function asked.
+        function: u8,
+        /// How many times the request had been sent.
+        attempts: u32,
+    },
     /// A bug in benchbus: a panic, caught before it reached the caller (see [`guarded`]).
     #[error("internal error in benchbus (a bug; please report it): {0}")]
     Internal(String),

@@ -753,3 +753,175 @@ fn an_unanswered_write_with_a_garbled_echo_is_sent_again() {
     assert_eq!((s.transactions, s.frame_errors, s.retries), (1, 1, 1));
     assert_eq!(common::sent(&t).len(), 2);
 }
+
+#[test]
+fn a_request_to_another_unit_does_not_wait_for_a_late_reply() {
+    // A script looping over units: unit 2 is silent, unit 1 answers. A late reply names its
+    // unit, so unit 1's request goes out at once rather than after two more timeouts.
+    let (bus, t) = common::serial_bus(
+        vec![Act::Silent, common::words(1, &[9])],
+        19_200,
+        Duration::ZERO,
+    );
+    let timeout = bus.config().timeout;
+    assert!(matches!(
+        bus.read_holding_registers(2, 0, 1, &TxOptions::default()),
+        Err(Error::Timeout { .. })
+    ));
+    let gave_up = std::time::Instant::now();
+    assert_eq!(
+        bus.read_holding_registers(1, 0, 1, &TxOptions::default())
+            .unwrap(),
+        vec![9]
+    );
+    let gap = common::sent_at(&t)[1].saturating_duration_since(gave_up);
+    assert!(gap < timeout / 2, "waited {gap:?} before the next unit");
+}
+
+#[test]
+fn a_late_reply_from_another_unit_is_dropped_and_the_answer_taken() {
+    // Unit 2's late reply (value 7) comes in right after the request to unit 1 went out, and
+    // unit 1's answer (9) after it: the late frame is dropped whole, the answer taken.
+    let late = common::with_crc(&[2, 3, 2, 0, 7]);
+    let mut both = late.clone();
+    both.extend(common::with_crc(&[1, 3, 2, 0, 9]));
+    let (bus, _) = common::serial_bus(vec![Act::Silent, Act::Reply(both)], 19_200, Duration::ZERO);
+    assert!(bus
+        .read_holding_registers(2, 0, 1, &TxOptions::default())
+        .is_err());
+    assert_eq!(
+        bus.read_holding_registers(1, 0, 1, &TxOptions::default())
+            .unwrap(),
+        vec![9]
+    );
+    let stats = bus.stats();
+    assert_eq!(stats.stale_bytes, late.len() as u64);
+    assert_eq!((stats.frame_errors, stats.crc_errors), (0, 0));
+}
+
+#[test]
+fn a_frame_from_another_unit_not_awaited_is_still_a_frame_error() {
+    // Unit 2 never timed out: a frame naming it is not a late reply, but a wrong one.
+    let (bus, _) = common::serial_bus(
+        vec![Act::Reply(common::with_crc(&[2, 3, 2, 0, 7]))],
+        19_200,
+        Duration::ZERO,
+    );
+    assert!(matches!(
+        bus.read_holding_registers(1, 0, 1, &TxOptions::default()),
+        Err(Error::Frame {
+            kind: benchbus::codec::FrameError::WrongUnit { .. },
+            ..
+        })
+    ));
+}
+
+#[test]
+fn a_late_reply_from_the_same_unit_is_still_awaited_before_its_next_request() {
+    // Unit 1 timed out, then unit 2 answered at once; unit 1's next request (another
+    // register, a reply of the same shape) still listens out what is left of the window.
+    let (bus, t) = common::serial_bus(
+        vec![Act::Silent, common::words(2, &[5]), common::words(1, &[9])],
+        19_200,
+        Duration::ZERO,
+    );
+    let timeout = bus.config().timeout;
+    assert!(bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .is_err());
+    let gave_up = std::time::Instant::now();
+    assert_eq!(
+        bus.read_holding_registers(2, 0, 1, &TxOptions::default())
+            .unwrap(),
+        vec![5]
+    );
+    assert_eq!(
+        bus.read_holding_registers(1, 1, 1, &TxOptions::default())
+            .unwrap(),
+        vec![9]
+    );
+    let at = common::sent_at(&t);
+    assert!(at[1].saturating_duration_since(gave_up) < timeout / 2);
+    assert!(at[2].saturating_duration_since(gave_up) >= timeout * 2);
+}
+
+#[test]
+fn a_byte_count_that_disagrees_with_the_request_is_a_frame_error_naming_both() {
+    // 01 03 01 00 07 + CRC is a valid frame whose byte count (1) answers no one-register
+    // read: not a CRC error (as reading 6 bytes by its count would make it), but the counts.
+    let (bus, t) = common::serial_bus(
+        vec![Act::Reply(common::hex("01 03 01 00 07 09 86"))],
+        19_200,
+        Duration::ZERO,
+    );
+    let err = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    assert!(
+        matches!(
+            &err,
+            Error::Frame {
+                kind: benchbus::codec::FrameError::ByteCount {
+                    expected: 2,
+                    received: 1
+                },
+                frame,
+                ..
+            } if frame.len() == 7
+        ),
+        "{err:?}"
+    );
+    assert_eq!(bus.stats().frame_errors, 1);
+    assert_eq!(bus.stats().crc_errors, 0);
+    // Nothing of it was left for the next call.
+    assert!(t.0.lock().unwrap().pending.is_empty());
+}
+
+/// Set by the test below; read by its Bus's `interrupted` hook.
+static INTERRUPT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+#[test]
+fn an_interrupt_between_attempts_ends_the_call_and_keeps_the_line_in_step() {
+    use std::sync::atomic::Ordering;
+    fn asked() -> bool {
+        INTERRUPT.load(Ordering::SeqCst)
+    }
+    // Unit 1 is silent; its reply (7) comes late. The call has 4 attempts, but is asked to
+    // stop after the first: one request only. The next call still drops the late reply.
+    let (t, mut cfg) = common::mock(
+        vec![
+            Act::Late(with_crc(&[1, 3, 2, 0, 7])),
+            common::words(1, &[9]),
+        ],
+        3,
+    );
+    cfg.interrupted = Some(asked);
+    let bus = benchbus::Bus::with_transport(cfg, Box::new(t.clone()));
+    INTERRUPT.store(true, Ordering::SeqCst);
+    let err = bus
+        .read_holding_registers(1, 0, 1, &TxOptions::default())
+        .unwrap_err();
+    INTERRUPT.store(false, Ordering::SeqCst);
+    assert!(
+        matches!(
+            err,
+            Error::Interrupted {
+                unit: 1,
+                function: 3,
+                attempts: 1
+            }
+        ),
+        "{err:?}"
+    );
+    assert_eq!(
+        err.to_string(),
+        "unit 1, function 0x03: interrupted after 1 attempt"
+    );
+    assert_eq!(common::sent(&t).len(), 1);
+    assert_eq!((bus.stats().timeouts, bus.stats().retries), (1, 0));
+    assert_eq!(
+        bus.read_holding_registers(1, 1, 1, &TxOptions::default())
+            .unwrap(),
+        vec![9]
+    );
+}

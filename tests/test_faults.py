@@ -321,6 +321,44 @@ def test_late_reply_past_the_last_attempt_is_not_the_next_answer(
         assert got == OTHER, f"got {got}: the values of registers 10..11"
 
 
+def test_a_late_reply_names_its_unit_so_other_units_are_not_held_up() -> None:
+    """Unit 1's reply to registers 10..11 comes late. A request to unit 2 goes out at once
+    (no listening for unit 1's late reply first) and drops that reply when it comes; unit
+    1's next request, to other registers but a reply of the same shape, still listens for
+    what is left of the window and gets its own values."""
+    registers = {10: VALUES[0], 11: VALUES[1], 50: OTHER[0], 51: OTHER[1]}
+    units = {1: RegisterDevice(registers), 2: RegisterDevice({10: 7, 11: 8})}
+    with Simulator(units, baudrate=BAUD) as sim, bus(sim, retries=0) as b:
+        sim.faults = once("delay", delay=1.6 * TIMEOUT)
+        with pytest.raises(bb.ResponseTimeout):
+            read(b)
+        gave_up = time.monotonic()
+        assert b.read_holding_registers(2, 10, 2) == [7, 8]
+        assert b.stats.stale_bytes == len(CLEAN)  # unit 1's late reply, dropped
+        assert b.stats.frame_errors == 0
+        asked_unit_2 = time.monotonic() - gave_up
+        assert b.read_holding_registers(1, 50, 2) == OTHER
+        # Unit 2 waited for nothing but its own answer (and unit 1's late frame ahead of it).
+        assert asked_unit_2 < 1.6 * TIMEOUT, asked_unit_2
+
+
+def test_a_loop_over_absent_units_pays_one_timeout_each(sim: Simulator[RegisterDevice]) -> None:
+    """A script's own loop over units (retries=0), most of them absent: each absent unit
+    costs its timeout, not three (its own and two of listening for its late reply before
+    the next unit's request); the unit that is there still answers with its own values."""
+    with bus(sim, retries=0) as b:
+        found = []
+        start = time.monotonic()
+        for unit in (2, 3, 4, 5, 6, 1):
+            try:
+                found.append((unit, b.read_holding_registers(unit, 10, 2)))
+            except bb.ResponseTimeout:
+                pass
+        took = time.monotonic() - start
+    assert found == [(1, VALUES)]
+    assert took < 5 * 2 * TIMEOUT, took  # listening for late replies would take 15 x
+
+
 def test_a_unit_slower_than_the_timeout_does_not_shift_every_answer(
     sim: Simulator[RegisterDevice],
 ) -> None:

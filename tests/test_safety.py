@@ -350,6 +350,72 @@ def test_ctrl_c_during_a_read_leaves_the_stop_its_reply(caplog: pytest.LogCaptur
         assert "could not stop the motor" not in caplog.text
 
 
+def ctrl_c() -> None:
+    """A SIGINT handler's work, as Python's default one does it."""
+    raise KeyboardInterrupt
+
+
+@pytest.mark.parametrize("raises", [True, False])
+def test_ctrl_c_is_honoured_between_attempts(raises: bool) -> None:
+    """Unit 9 is absent; the call has 4 attempts of 0.4 s. Ctrl-C in the first attempt lets
+    that attempt run out, then raises at once: no further request. A handler that returns
+    (a timer) leaves the call alone: all 4 attempts."""
+    with Simulator(RegisterDevice({0x10: 111})) as sim, bb.Bus(sim.port, timeout=0.4, retries=3) as bus:
+        handler = ctrl_c if raises else (lambda: None)
+        started = time.monotonic()
+        with signal_during_the_next_call(signal.SIGUSR2, handler, 0.05) as seen:
+            if raises:
+                with pytest.raises(KeyboardInterrupt):
+                    bus.read_holding_registers(9, 0x10, 1)
+            else:
+                with pytest.raises(bb.ResponseTimeout):
+                    bus.read_holding_registers(9, 0x10, 1)
+        elapsed = time.monotonic() - started
+        asked = [r for r in sim.requests if r[0] == 9]
+        assert seen == [signal.SIGUSR2]
+        if raises:
+            assert len(asked) == 1
+            assert elapsed < 2 * 0.4, elapsed  # one attempt; four would take 1.6 s
+        else:
+            assert len(asked) == 4
+        # The line is in step: the next call gets its own unit's value.
+        assert bus.read_holding_registers(1, 0x10, 1) == [111]
+
+
+CLI_READ_SLOW = """
+import sys
+from benchbus.cli import main
+sys.exit(main(["read", "0", "--port", sys.argv[1], "--unit", "9", "--timeout", "2",
+               "--retries", "3"]))
+"""
+
+
+def test_ctrl_c_ends_a_cli_read_after_the_attempt_in_flight() -> None:
+    """``benchbus read --unit 9 --timeout 2 --retries 3`` to an absent unit: a real SIGINT
+    ends it after the attempt in flight (about 2 s), not after all four (8 s)."""
+    with Simulator(RegisterDevice({0: 1})) as sim:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", CLI_READ_SLOW, sim.port],
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            deadline = time.monotonic() + 10
+            while not any(r[0] == 9 for r in sim.requests) and time.monotonic() < deadline:
+                time.sleep(0.02)
+            proc.send_signal(signal.SIGINT)
+            sent = time.monotonic()
+            _, err = proc.communicate(timeout=15)
+            took = time.monotonic() - sent
+        finally:
+            proc.kill()
+        asked = [r for r in sim.requests if r[0] == 9]
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    assert len(asked) == 1
+    assert took < 4.0, took
+
+
 def test_a_panic_in_the_core_comes_out_as_benchbus_error() -> None:
     # The hook panics inside the guard every wire call runs in; without it PyO3 would raise
     # its PanicException, which is a BaseException that ``except Exception`` misses.

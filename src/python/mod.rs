@@ -22,6 +22,26 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 static LOG_RESET: OnceLock<pyo3_log::ResetHandle> = OnceLock::new();
+
+thread_local! {
+    /// The exception a signal handler raised between two attempts of this thread's call
+    /// (see [`signal_raised`]), until [`to_pyerr`] raises it.
+    static RAISED: std::cell::RefCell<Option<PyErr>> = const { std::cell::RefCell::new(None) };
+}
+
+/// Every Bus's [`BusConfig::interrupted`]: runs Python's signal handlers (from a detached
+/// call, so it takes the GIL for that moment) and says whether one raised, Ctrl-C's
+/// `KeyboardInterrupt` above all. Handlers run only in the main thread; elsewhere this is a
+/// cheap no.
+fn signal_raised() -> bool {
+    Python::attach(|py| match py.check_signals() {
+        Ok(()) => false,
+        Err(e) => {
+            RAISED.with(|slot| *slot.borrow_mut() = Some(e));
+            true
+        }
+    })
+}
 static EXCEPTIONS: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
 
 /// Maps a crate error to the Python exception tree of `benchbus.exceptions` (the one place
@@ -31,6 +51,11 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
     let frame = err.frame().map(hex);
     let (class, unit, function) = match &err {
         Error::InvalidArgument(m) => return PyValueError::new_err(m.clone()),
+        // The signal handler's own exception (KeyboardInterrupt), as Python would raise it.
+        Error::Interrupted { unit, function, .. } => match RAISED.with(|slot| slot.take()) {
+            Some(raised) => return raised,
+            None => ("BenchbusError", Some(*unit), Some(*function)),
+        },
         Error::Port { .. } | Error::Closed { .. } => ("PortError", None, None),
         Error::Timeout { unit, function, .. } => ("ResponseTimeout", Some(*unit), Some(*function)),
         Error::Frame {
@@ -390,6 +415,7 @@ impl PyBus {
         })?;
         config.reconnect = opt(reconnect, false, |r| bool_arg(r, "reconnect"))?;
         config.echo = opt(echo, false, |e| bool_arg(e, "echo"))?;
+        config.interrupted = Some(signal_raised);
         // Logging levels are read when a bus opens (pyo3-log caches them).
         if let Some(handle) = LOG_RESET.get() {
             handle.reset();

@@ -160,7 +160,7 @@ pub fn with_crc(body: &[u8]) -> Vec<u8> {
 }
 
 /// A script of `acts`, and the config of a quick 19200 8N1 mock line (5 ms timeout).
-fn mock(acts: Vec<Act>, retries: u32) -> (Scripted, BusConfig) {
+pub fn mock(acts: Vec<Act>, retries: u32) -> (Scripted, BusConfig) {
     let t = Scripted::default();
     t.0.lock().unwrap().acts = acts.into();
     let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1));
