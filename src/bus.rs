@@ -814,13 +814,15 @@ impl Bus {
             buf.extend_from_slice(&chunk[..n]);
             last_byte = Some(Instant::now());
         }
-        log::debug!(target: "benchbus::wire", "<- {}", hex(&buf));
+        // What crossed the wire (over Modbus TCP the MBAP frame), for the log and errors.
+        let shown = transport.on_the_wire(&buf, false);
+        log::debug!(target: "benchbus::wire", "<- {}", hex(shown.as_deref().unwrap_or(&buf)));
         let at = last_byte.unwrap_or_else(Instant::now);
         match decode_reply(unit, request, &buf) {
             Ok(reply) => {
                 // The addressed unit answered this request in full: it has stopped talking.
                 silence.reply_ended(at);
-                Ok((reply, buf))
+                Ok((reply, shown.unwrap_or(buf)))
             }
             Err(kind) => {
                 // Whatever this was (noise, another unit's late reply, a garbled length), it
@@ -831,7 +833,7 @@ impl Bus {
                 } else {
                     kind
                 };
-                Err(frame_error(unit, function, kind, buf))
+                Err(frame_error(unit, function, kind, shown.unwrap_or(buf)))
             }
         }
     }
@@ -890,7 +892,8 @@ impl Bus {
             }
             st.silence.wait(line.t3_5());
         }
-        log::debug!(target: "benchbus::wire", "-> {}", hex(frame));
+        let shown = transport.on_the_wire(frame, true);
+        log::debug!(target: "benchbus::wire", "-> {}", hex(shown.as_deref().unwrap_or(frame)));
         st.frames_out += 1;
         let start = Instant::now();
         transport.write_all(frame).map_err(|e| self.io_error(e))?;

@@ -6,6 +6,7 @@ shared by several client processes at once.
 
 from __future__ import annotations
 
+import logging
 import struct
 import subprocess
 import sys
@@ -162,6 +163,27 @@ def test_gateway_exceptions_over_modbus_tcp() -> None:
         sim.answer_exception(0x0A, unit=2)
         with pytest.raises(bb.GatewayError, match="path unavailable"):
             bus.read_holding_registers(2, 0, 1)
+
+
+def test_over_modbus_tcp_the_log_and_errors_show_the_bytes_on_the_network(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The wire log and an exception's ``.frame`` show the MBAP frames (transaction id,
+    protocol 0, length, unit, PDU) that crossed the socket, so they match a capture: the
+    requests as the server received them, the reply with the request's transaction id."""
+    caplog.set_level(logging.DEBUG, logger="benchbus.wire")
+    with Simulator({2: RegisterDevice({0: 1})}, network="tcp") as sim, bb.Bus(sim.port) as bus:
+        assert bus.read_holding_registers(2, 0, 1) == [1]
+        sim.answer_exception(0x02, unit=2)
+        with pytest.raises(bb.ModbusException) as info:
+            bus.read_holding_registers(2, 0, 1)
+        received = list(sim.requests)
+    sent = [m[3:] for m in (r.getMessage() for r in caplog.records) if m.startswith("-> ")]
+    assert [bytes.fromhex(h) for h in sent] == received
+    assert received[1][:2] == b"\x00\x02"  # the second transaction
+    assert info.value.frame == "00 02 00 00 00 03 02 83 02"
+    replies = [m[3:] for m in (r.getMessage() for r in caplog.records) if m.startswith("<- ")]
+    assert replies == ["00 01 00 00 00 05 02 03 02 00 01", "00 02 00 00 00 03 02 83 02"]
 
 
 def test_scan_and_identification_over_the_network(

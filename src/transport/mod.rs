@@ -50,6 +50,15 @@ pub trait Transport: Send {
     fn is_serial_line(&self) -> bool {
         true
     }
+
+    /// The bytes that cross the wire for `frame`, an RTU frame the Bus writes (`sent`: the
+    /// request about to go) or read (the reply to the last request), where they differ from
+    /// it: Modbus TCP sends an MBAP header and the PDU. The wire log and the errors' frames
+    /// show these, so they match a capture. None: the RTU frame itself.
+    fn on_the_wire(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
+        let _ = (frame, sent);
+        None
+    }
 }
 
 /// The error of a transport whose port is gone for good (see [`Transport`]).

@@ -312,6 +312,27 @@ impl Mbap {
         Ok(out)
     }
 
+    /// The MBAP frame that carries the RTU frame `frame` (its CRC dropped unchecked): as a
+    /// request it takes the next transaction id, as a reply the last request's. None for
+    /// bytes too short to be a frame.
+    fn shown(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
+        let (adu, _crc) = frame.split_last_chunk::<2>()?;
+        if adu.len() < 2 {
+            return None;
+        }
+        let tid = if sent {
+            self.next_tid
+        } else {
+            self.next_tid.wrapping_sub(1)
+        };
+        let mut out = Vec::with_capacity(MBAP_PREFIX + adu.len());
+        out.extend_from_slice(&tid.to_be_bytes());
+        out.extend_from_slice(&[0, 0]);
+        out.extend_from_slice(&u16::try_from(adu.len()).ok()?.to_be_bytes());
+        out.extend_from_slice(adu);
+        Some(out)
+    }
+
     /// The next whole MBAP frame in `raw`, taken out of it; None while it is incomplete.
     ///
     /// # Errors
@@ -442,5 +463,9 @@ impl Transport for TcpTransport {
 
     fn is_serial_line(&self) -> bool {
         self.mbap.is_none()
+    }
+
+    fn on_the_wire(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
+        self.mbap.as_ref()?.shown(frame, sent)
     }
 }
