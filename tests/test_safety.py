@@ -360,7 +360,10 @@ def test_ctrl_c_is_honoured_between_attempts(raises: bool) -> None:
     """Unit 9 is absent; the call has 4 attempts of 0.4 s. Ctrl-C in the first attempt lets
     that attempt run out, then raises at once: no further request. A handler that returns
     (a timer) leaves the call alone: all 4 attempts."""
-    with Simulator(RegisterDevice({0x10: 111})) as sim, bb.Bus(sim.port, timeout=0.4, retries=3) as bus:
+    with (
+        Simulator(RegisterDevice({0x10: 111})) as sim,
+        bb.Bus(sim.port, timeout=0.4, retries=3) as bus,
+    ):
         handler = ctrl_c if raises else (lambda: None)
         started = time.monotonic()
         with signal_during_the_next_call(signal.SIGUSR2, handler, 0.05) as seen:
