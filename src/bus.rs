@@ -631,6 +631,10 @@ impl Bus {
                 }
                 let outcome =
                     self.attempt(st, unit, request, frame, timeout, opts.window_from_start);
+                // Late frames the transport told apart and dropped itself (Modbus TCP).
+                if let Link::Open(transport) = &mut st.link {
+                    st.stats.stale_bytes += transport.take_dropped();
+                }
                 if is_write {
                     st.wrote(unit, opts.write_interval);
                 }

@@ -140,7 +140,8 @@ def test_a_slow_gateway_times_out_and_its_late_reply_is_never_taken(
     sim: Simulator[RegisterDevice | DriveDevice | J2Device],
 ) -> None:
     with bb.Bus(sim.port, timeout=0.1, retries=0) as bus:
-        # Late by one timeout: it comes while the next call listens for it (two timeouts).
+        # Late by one timeout: it comes during the next call, whose request went out at once;
+        # its transaction id is the last call's, so it is dropped (and counted).
         sim.reply_delay = 0.2
         with pytest.raises(bb.ResponseTimeout):
             bus.read_holding_registers(2, 0x3006, 1)

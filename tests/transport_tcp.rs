@@ -435,3 +435,33 @@ fn echo_is_refused_over_mbap_before_connecting() {
         other => panic!("{other:?}"),
     }
 }
+
+#[test]
+fn a_gateway_still_busy_gets_the_next_request_at_once_and_its_late_reply_is_dropped() {
+    // The gateway answers transaction 1 only after the Bus gave up on it (100 ms), then
+    // answers transaction 2. The second request goes out at once (transaction ids tell the
+    // late reply apart), and is given the gateway's remaining busy time on top of its own
+    // timeout; the late reply is dropped and counted.
+    let (l, port) = listener();
+    let server = thread::spawn(move || {
+        let mut s = accept(&l);
+        let _first = recv(&mut s, 12);
+        let second = recv(&mut s, 12);
+        let second_at = Instant::now();
+        thread::sleep(Duration::from_millis(120));
+        s.write_all(&mbap(1, &one_register(0x1111))).unwrap();
+        s.write_all(&mbap(2, &one_register(0x2222))).unwrap();
+        (second, second_at)
+    });
+    let bus = Bus::open(config(&format!("tcp://127.0.0.1:{port}"), 100, 0)).unwrap();
+    assert!(matches!(read(&bus), Err(Error::Timeout { .. })));
+    let gave_up = Instant::now();
+    assert_eq!(read(&bus).unwrap(), vec![0x2222]);
+    let (second, second_at) = join(server);
+    assert_eq!(second, request(2));
+    assert!(second_at.saturating_duration_since(gave_up) < Duration::from_millis(50));
+    assert_eq!(
+        bus.stats().stale_bytes,
+        mbap(1, &one_register(0x1111)).len() as u64
+    );
+}

@@ -51,6 +51,12 @@ pub trait Transport: Send {
         true
     }
 
+    /// How many bytes of frames this transport dropped by itself since it was last asked (a
+    /// late Modbus TCP reply, told by its transaction id): the Bus counts them as stale.
+    fn take_dropped(&mut self) -> u64 {
+        0
+    }
+
     /// The bytes that cross the wire for `frame`, an RTU frame the Bus writes (`sent`: the
     /// request about to go) or read (the reply to the last request), where they differ from
     /// it: Modbus TCP sends an MBAP header and the PDU. The wire log and the errors' frames

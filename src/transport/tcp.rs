@@ -141,6 +141,7 @@ impl TcpTransport {
                 awaited: None,
                 raw: Vec::new(),
                 ready: VecDeque::new(),
+                dropped: 0,
             }),
             Framing::Rtu => None,
         };
@@ -280,6 +281,8 @@ struct Mbap {
     raw: Vec<u8>,
     /// The awaited reply in RTU form, as much of it as the Bus has not read yet.
     ready: VecDeque<u8>,
+    /// Bytes of frames dropped (late replies, other protocols) since last asked.
+    dropped: u64,
 }
 
 impl Mbap {
@@ -369,6 +372,9 @@ impl Mbap {
         };
         let tid = u16::from_be_bytes([*t0, *t1]);
         let protocol = u16::from_be_bytes([*p0, *p1]);
+        if protocol != 0 || self.awaited != Some(tid) {
+            self.dropped += frame.len() as u64;
+        }
         if protocol != 0 {
             log::debug!(
                 target: "benchbus::wire",
@@ -467,5 +473,11 @@ impl Transport for TcpTransport {
 
     fn on_the_wire(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
         self.mbap.as_ref()?.shown(frame, sent)
+    }
+
+    fn take_dropped(&mut self) -> u64 {
+        self.mbap
+            .as_mut()
+            .map_or(0, |mbap| std::mem::take(&mut mbap.dropped))
     }
 }
