@@ -103,7 +103,8 @@ def test_readme_recording_example() -> None:
     (block,) = [b for b in readme_blocks() if "drive.record(" in b]
     from benchbus.sim import DriveDevice
 
-    with Simulator(DriveDevice()) as sim, bb.Drive(sim.port) as drive:
+    fast = DriveDevice(single_register_reads=False)  # a telemetry sample in one request
+    with Simulator(fast) as sim, bb.Drive(sim.port) as drive:
         drive.speed_setpoint = 600
         drive.forward()
         scope: dict[str, object] = {"drive": drive}

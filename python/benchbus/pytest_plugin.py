@@ -46,7 +46,7 @@ Override one in a ``conftest.py`` or a test module to simulate something else::
 
     @pytest.fixture
     def sim_drive_model():
-        return DriveDevice("C20", single_register_reads=True)
+        return DriveDevice("C20", single_register_reads=False)  # block reads answered
 
 **Real or simulated.** ``bench_drive``, ``bench_pbl``, ``bench_j2`` and ``bench_instrument``
 yield the device alone: on the port given with ``--benchbus-port`` if there is one,

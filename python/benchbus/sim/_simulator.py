@@ -130,9 +130,7 @@ class Simulator(Generic[D]):
         #: exception 4), and failures of :meth:`SimDevice.shape_reply` (the reply then goes
         #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
-        self._state: LineState = (
-            LineState(log_size) if network is None else NetworkState(log_size)
-        )
+        self._state: LineState = LineState(log_size) if network is None else NetworkState(log_size)
         self._refusing = False
         self.echo = echo
         self._faults: Faults | None = None
@@ -593,6 +591,11 @@ class Simulator(Generic[D]):
         self, unit: int, function: int, address: int, count: int, values: list[int] | None
     ) -> list[int] | int | None:
         device = self.devices[unit]
+        wanted, limit = (
+            (count, device.max_read) if values is None else (len(values), device.max_write)
+        )
+        if not 1 <= wanted <= limit:  # the device's own limit (its manual's), as data
+            return int(device.too_many_code)
         try:
             if values is None:
                 result = device.read_holding(address, count)
