@@ -218,15 +218,17 @@ class BusDevice(metaclass=_DeviceType):
     #: The family's line defaults (a subclass sets its own).
     LINE_DEFAULTS = LineDefaults(19200, "N", 0.1)
 
-    def __setattr__(self, name: str, value: Any) -> None:
-        """Set ``name``; AttributeError if the device is made and does not know it."""
-        if (
-            "_made" in self.__dict__
-            and name not in self.__dict__
-            and not _declared(type(self), name)
-        ):
-            raise _unknown_attribute(self, name)
-        super().__setattr__(name, value)
+    if not TYPE_CHECKING:  # a __setattr__ would make type checkers accept any name
+
+        def __setattr__(self, name: str, value: Any) -> None:
+            """Set ``name``; AttributeError if the device is made and does not know it."""
+            if (
+                "_made" in self.__dict__
+                and name not in self.__dict__
+                and not _declared(type(self), name)
+            ):
+                raise _unknown_attribute(self, name)
+            super().__setattr__(name, value)
 
     def _attach(
         self,
