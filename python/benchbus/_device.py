@@ -178,10 +178,18 @@ class _DeviceType(type):
 
 def _declared(cls: type, name: str) -> bool:
     """Whether ``name`` is defined or annotated on ``cls`` or one of its bases."""
-    return any(
-        name in vars(klass) or name in vars(klass).get("__annotations__", {})
-        for klass in cls.__mro__
-    )
+    return any(name in vars(klass) or name in _annotations(klass) for klass in cls.__mro__)
+
+
+def _annotations(klass: type) -> dict[str, Any]:
+    """The annotations of ``klass`` itself ({} if they cannot be evaluated)."""
+    annotations = vars(klass).get("__annotations__")
+    if annotations is None:  # Python 3.14 evaluates them on first access
+        try:
+            annotations = getattr(klass, "__annotations__", None)
+        except Exception:
+            annotations = None
+    return annotations if isinstance(annotations, dict) else {}
 
 
 def _unknown_attribute(device: object, name: str) -> AttributeError:
