@@ -210,7 +210,7 @@ def run_soak(
                 progress(i + 1, result)
         sim.faults = None
         result.faults = sim.fault_counts
-        result.requests = len(sim.requests)  # each answered once, so the replies seen
+        result.requests = sim.request_count  # each answered once, so the replies seen
         result.stats = bus.stats.as_dict()
         # On a clean line now, everything the units hold reads back as the model says.
         for unit in c.units:

@@ -313,13 +313,21 @@ def test_parameter_write_refused_without_enable_on_the_raw_bus(
 # ---- reads, writes and timing options -----------------------------------------------------
 
 
-def test_block_reads_are_used_when_allowed(bld: Line) -> None:
-    drive, sim, _ = bld
-    sim.clear_log()
-    snapshot = drive.telemetry()
-    assert len(sim.requests) == 1 and sim.requests[0][:6] == h("01 03 30 00 00 15")
-    assert drive.core.block_reads is True
-    assert isinstance(snapshot.hall_count, int)
+def test_block_reads_are_used_when_allowed() -> None:
+    with open_drive("BLD2", single_register_reads=False) as (drive, sim, _):
+        sim.clear_log()
+        snapshot = drive.telemetry()
+        assert len(sim.requests) == 1 and sim.requests[0][:6] == h("01 03 30 00 00 15")
+        assert drive.core.block_reads is True
+        assert isinstance(snapshot.hall_count, int)
+
+
+def test_the_default_simulated_drive_reads_one_register_a_request() -> None:
+    with open_drive("BLD2") as (drive, sim, _):
+        sim.clear_log()
+        drive.telemetry()
+        assert sim.replies[0][:3] == h("01 83 03")  # the block read refused: exception 3
+        assert drive.core.block_reads is False
 
 
 def test_single_register_drive_falls_back_once() -> None:
@@ -468,7 +476,7 @@ def test_parameter_write_still_refused_after_the_enable() -> None:
 
 
 def test_firmware_without_hall_registers() -> None:
-    with open_drive("BLD2", hall_registers=False) as (drive, sim, _):
+    with open_drive("BLD2", hall_registers=False, single_register_reads=False) as (drive, sim, _):
         first = drive.telemetry()
         sim.clear_log()
         second = drive.telemetry()

@@ -207,7 +207,7 @@ def test_a_missing_value_in_a_later_sample_is_nan() -> None:
 
 
 def test_record_a_drive_spinning_up_in_real_time() -> None:
-    with drive_line() as (sim, drive, _):
+    with drive_line(single_register_reads=False) as (sim, drive, _):  # one request a sample
         drive.accel_time = 1.0  # 0..3000 rpm in 1 s: 1500 rpm after 0.5 s
         drive.speed_setpoint = 1500
         drive.forward()

@@ -75,6 +75,8 @@ class Line:
 @contextmanager
 def open_line(model: str = "BLD2", **options: Any) -> Iterator[Line]:
     options.setdefault("clock", lambda: 0.0)  # time moves only by advance()
+    # Block reads, to check many registers at once; the default refusal has its own test.
+    options.setdefault("single_register_reads", False)
     drive = DriveDevice(model, **options)
     with Simulator(drive) as sim:
         client = Client(sim.port)
@@ -303,7 +305,9 @@ def test_block_reads(bld: Line) -> None:
 
 
 def test_single_register_reads() -> None:
-    with open_line(single_register_reads=True) as line:
+    # The default: the manuals' 0x03 format reads one register ("count 0x0001").
+    assert DriveDevice().single_register_reads and DriveDevice("C20").max_read == 1
+    with open_line(single_register_reads=DriveDevice().single_register_reads) as line:
         assert line.read(MODEL_ID) == [0x20]
         assert line.read_fails(COMMAND, 2) == 0x03
         assert line.read_fails(0x3000, 0x12) == 0x03

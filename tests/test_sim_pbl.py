@@ -39,6 +39,10 @@ class Line:
         return self.client.recv(reply_len)
 
     def read(self, address: int, count: int = 1) -> list[int]:
+        """``count`` parameters, in reads of at most 61 (the manual's frame)."""
+        if count > PblDevice.max_read:
+            head = self.read(address, PblDevice.max_read)
+            return head + self.read(address + PblDevice.max_read, count - PblDevice.max_read)
         reply = self.exchange(frame(f"11 03 {address:04X} {count:04X}"), 5 + 2 * count)
         assert crc_valid(reply) and reply[:3] == bytes([UNIT, 3, 2 * count]), reply.hex(" ")
         data = reply[3:-2]
@@ -64,6 +68,11 @@ class Line:
         return frame(f"11 10 {address:04X} {len(values):04X} {2 * len(values):02X} {data}")
 
     def write_many(self, address: int, values: list[int]) -> None:
+        """0x10, in writes of at most 59 (the manual's frame)."""
+        if len(values) > PblDevice.max_write:
+            self.write_many(address, values[: PblDevice.max_write])
+            self.write_many(address + PblDevice.max_write, values[PblDevice.max_write :])
+            return
         reply = self.exchange(self._many(address, values), 8)
         assert reply == frame(f"11 10 {address:04X} {len(values):04X}"), reply.hex(" ")
 
@@ -147,7 +156,7 @@ def test_manual_write_multiple_example(pbl: Line) -> None:
 
 def test_past_222_answers_2(pbl: Line) -> None:
     assert pbl.read(222) == [100]
-    assert len(pbl.read(100, 123)) == 123
+    assert len(pbl.read(162, 61)) == 61  # up to 222, in the most one read may ask for
     for address in (223, 224, 0x1000, 0xFFFF):
         assert pbl.read_fails(address) == 0x02
         assert pbl.write_fails(address, 0) == 0x02

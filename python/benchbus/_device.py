@@ -8,6 +8,7 @@ raw value (an enum, an int, a float) on the way out.
 
 from __future__ import annotations
 
+import difflib
 import enum
 import logging
 import os
@@ -165,17 +166,77 @@ def check_baudrate(baudrate: object, allowed: tuple[int, ...]) -> None:
         raise ValueError(f"baudrate must be {listed}, got {baudrate}")
 
 
-class BusDevice:
+class _DeviceType(type):
+    """The type of device classes: an instance takes new attributes only while it is made."""
+
+    def __call__(cls, *args: Any, **kwargs: Any) -> Any:
+        """Make the device, then refuse attributes it does not know (see BusDevice)."""
+        device = super().__call__(*args, **kwargs)
+        object.__setattr__(device, "_made", True)
+        return device
+
+
+def _declared(cls: type, name: str) -> bool:
+    """Whether ``name`` is defined or annotated on ``cls`` or one of its bases."""
+    return any(name in vars(klass) or name in _annotations(klass) for klass in cls.__mro__)
+
+
+def _annotations(klass: type) -> dict[str, Any]:
+    """The annotations of ``klass`` itself ({} if they cannot be evaluated)."""
+    annotations = vars(klass).get("__annotations__")
+    if annotations is None:  # Python 3.14 evaluates them on first access
+        try:
+            annotations = getattr(klass, "__annotations__", None)
+        except Exception:
+            annotations = None
+    return annotations if isinstance(annotations, dict) else {}
+
+
+def _unknown_attribute(device: object, name: str) -> AttributeError:
+    """An AttributeError for setting ``name``, naming the closest known names."""
+    known = {n for n in dir(type(device)) if not n.startswith("__")}
+    known |= set(vars(device))
+    known = {n for n in known if n.startswith("_") == name.startswith("_")} - {"_made"}
+    by_folded = {n.lower(): n for n in sorted(known)}
+    close = [by_folded[n] for n in difflib.get_close_matches(name.lower(), by_folded, n=3)]
+    hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+    error = AttributeError(
+        f"{type(device).__name__!r} object has no attribute {name!r} to set{hint}"
+    )
+    error.name, error.obj = name, device
+    return error
+
+
+class BusDevice(metaclass=_DeviceType):
     """A device on a Bus: its identity, and a context manager that closes what it opened.
 
     Subclasses set ``core`` and ``_owns_bus`` (whether :meth:`close` closes the Bus), the
     latter through :meth:`_attach`.
+
+    Once made, a device takes no new attribute: setting a name that is not one of its
+    properties, nor defined or annotated on its class, nor set while ``__init__`` ran,
+    raises AttributeError with the closest names (``j2.SV = 150``: did you mean 'sv'?),
+    so that a typo cannot pass for a setting. A subclass may set any attribute of its
+    own in its ``__init__``, or declare it on the class (``log: list[str]`` is enough) to
+    set it later.
     """
 
     core: Any
     _owns_bus: bool
     #: The family's line defaults (a subclass sets its own).
     LINE_DEFAULTS = LineDefaults(19200, "N", 0.1)
+
+    if not TYPE_CHECKING:  # a __setattr__ would make type checkers accept any name
+
+        def __setattr__(self, name: str, value: Any) -> None:
+            """Set ``name``; AttributeError if the device is made and does not know it."""
+            if (
+                "_made" in self.__dict__
+                and name not in self.__dict__
+                and not _declared(type(self), name)
+            ):
+                raise _unknown_attribute(self, name)
+            super().__setattr__(name, value)
 
     def _attach(
         self,

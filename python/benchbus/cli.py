@@ -1217,11 +1217,8 @@ def _sim_device(kind: str, args: argparse.Namespace) -> SimDevice:
 def _cmd_sim(args: argparse.Namespace) -> int:
     try:
         from benchbus.sim import Simulator
-    except ModuleNotFoundError as exc:
-        raise CliError(
-            f"the simulators need pymodbus and pyserial: pip install 'benchbus[sim]' "
-            f"(no module named {exc.name!r})"
-        ) from None
+    except ModuleNotFoundError as exc:  # the message says what to install
+        raise CliError(str(exc)) from None
     kind: str = args.device
     units: list[int] = args.unit
     baudrate: int = args.baudrate or SIM_DEVICES[kind]

@@ -46,7 +46,7 @@ Override one in a ``conftest.py`` or a test module to simulate something else::
 
     @pytest.fixture
     def sim_drive_model():
-        return DriveDevice("C20", single_register_reads=True)
+        return DriveDevice("C20", single_register_reads=False)  # block reads answered
 
 **Real or simulated.** ``bench_drive``, ``bench_pbl``, ``bench_j2`` and ``bench_instrument``
 yield the device alone: on the port given with ``--benchbus-port`` if there is one,
@@ -93,6 +93,7 @@ import pytest
 from benchbus._core import Bus
 from benchbus._device import BusDevice, MotorDevice
 from benchbus._drive import Drive
+from benchbus._extras import sim_missing
 from benchbus._instrument import Instrument
 from benchbus._j2 import J2Controller
 from benchbus._pbl import PblDrive
@@ -294,10 +295,7 @@ def _require_sim() -> None:
     try:
         import benchbus.sim  # noqa: F401
     except ImportError as exc:
-        pytest.fail(
-            f"the simulated devices need benchbus[sim] (pymodbus, pyserial): {exc}",
-            pytrace=False,
-        )
+        pytest.fail(str(sim_missing(exc) or exc), pytrace=False)
 
 
 @pytest.fixture

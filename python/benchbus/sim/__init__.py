@@ -16,7 +16,10 @@ A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) an
 temperature controller with a thermal process under its control, :class:`TaisongDevice` a
 Taisong panel instrument (a measured value moving toward its setpoint) and
 :class:`Atv31Device` the ATV31 drive of the Taisong manual's Modbus section, with Read Device
-Identification (paged on request, and the manual's 6-byte error form).
+Identification (paged on request, and the manual's 6-byte error form). Each refuses what its
+manual does not allow, among it requests for more registers than the manual's frame takes
+(:attr:`SimDevice.max_read` / :attr:`SimDevice.max_write`: a BLD drive reads one register a
+request, a PBL drive 61, a J2 16, a Taisong meter 37), with exception 3.
 
 The same units can sit behind a Modbus TCP gateway instead:
 ``Simulator(devices, network="tcp")`` (MBAP) or ``network="rtu+tcp"`` (RTU frames over TCP)

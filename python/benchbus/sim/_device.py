@@ -45,8 +45,24 @@ class SimDevice:
     0x06 and 0x10 (from its server thread, one request at a time); raising
     :class:`SimException` from either answers with that exception code, and any other
     exception answers code 4 (server device failure) and is kept in ``Simulator.errors``.
-    The base class has no registers: every access answers exception 2 (illegal data address).
+    A request for more registers than :attr:`max_read` / :attr:`max_write` is answered
+    with :attr:`too_many_code` before either is called. The base class has no registers:
+    every access answers exception 2 (illegal data address).
     """
+
+    #: Most registers one read (0x03) may ask for. The protocol allows 125; a device
+    #: simulator declares its manual's limit, so that a master which asks a real device for
+    #: more than it takes fails against the simulator too. Checked by the simulator before
+    #: :meth:`read_holding` is called (a direct call is not limited).
+    max_read: int = 125
+
+    #: Most registers one write (0x10) may carry: the protocol allows 123. As
+    #: :attr:`max_read`.
+    max_write: int = 123
+
+    #: The exception code answered to a request over :attr:`max_read` / :attr:`max_write`:
+    #: 3 (illegal data value), as the Modbus specification gives for a quantity out of range.
+    too_many_code: int = SimException.ILLEGAL_DATA_VALUE
 
     #: Read Device Identification (0x2B / MEI 0x0E) objects, ``{object id: text}``: 0 vendor
     #: name, 1 product code, 2 revision, 3 vendor URL, 4 product name, 5 model name,
@@ -149,10 +165,11 @@ class RegisterDevice(SimDevice):
 
     ``registers`` is a list of 65536 ints that a test reads and sets directly
     (``dev.registers[0x2000] = 5``). Requests for more than ``max_read`` (0x03) or
-    ``max_write`` (0x06 / 0x10) registers answer exception 3 (illegal data value), requests
-    past address 0xFFFF exception 2 (illegal data address), and a write touching a register
-    in ``readonly`` answers :attr:`readonly_code` (2, illegal data address, unless a
-    subclass changes it) and writes nothing.
+    ``max_write`` (0x06 / 0x10) registers answer exception 3 (illegal data value, see
+    :attr:`SimDevice.max_read`), requests past address 0xFFFF exception 2 (illegal data
+    address), and a write touching a register in ``readonly`` answers
+    :attr:`readonly_code` (2, illegal data address, unless a subclass changes it) and writes
+    nothing.
     """
 
     #: Exception code answered to a write that touches a read-only register.
@@ -163,17 +180,18 @@ class RegisterDevice(SimDevice):
         registers: Mapping[int, int] | None = None,
         *,
         identity: Mapping[int, str] | None = None,
-        max_read: int = 125,
-        max_write: int = 123,
+        max_read: int | None = None,
+        max_write: int | None = None,
         readonly: Iterable[int] = (),
     ) -> None:
         """Registers from ``{address: value}``; the others are 0.
 
-        ``max_read`` is at most 125 and ``max_write`` at most 123 (the protocol's limits).
+        ``max_read`` is at most 125 and ``max_write`` at most 123 (the protocol's limits);
+        None keeps the class's (:attr:`SimDevice.max_read`, which a subclass may declare).
         """
-        if not 1 <= max_read <= 125:
+        if max_read is not None and not 1 <= max_read <= 125:
             raise ValueError(f"max_read must be 1..125, not {max_read}")
-        if not 1 <= max_write <= 123:
+        if max_write is not None and not 1 <= max_write <= 123:
             raise ValueError(f"max_write must be 1..123, not {max_write}")
         self.registers: list[int] = [0] * _REGISTER_SPACE
         for address, value in (registers or {}).items():
@@ -181,16 +199,16 @@ class RegisterDevice(SimDevice):
             _check_value(value)
             self.registers[address] = value
         self.identity = dict(identity) if identity is not None else None
-        self.max_read: int = max_read
-        self.max_write: int = max_write
+        if max_read is not None:
+            self.max_read = max_read
+        if max_write is not None:
+            self.max_write = max_write
         self.readonly: set[int] = set(readonly)
         for address in self.readonly:
             _check_address(address)
 
     def read_holding(self, address: int, count: int) -> list[int]:
         """The registers ``address .. address + count - 1`` from :attr:`registers`."""
-        if not 1 <= count <= self.max_read:
-            raise SimException(SimException.ILLEGAL_DATA_VALUE)
         if not 0 <= address <= _REGISTER_SPACE - count:
             raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
         return self.registers[address : address + count]
@@ -198,8 +216,6 @@ class RegisterDevice(SimDevice):
     def write_holding(self, address: int, values: list[int]) -> None:
         """Store ``values`` from ``address``, all or nothing."""
         count = len(values)
-        if not 1 <= count <= self.max_write:
-            raise SimException(SimException.ILLEGAL_DATA_VALUE)
         if not 0 <= address <= _REGISTER_SPACE - count:
             raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
         if any(a in self.readonly for a in range(address, address + count)):

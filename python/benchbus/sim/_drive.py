@@ -158,8 +158,17 @@ class DriveDevice(ClockedModel, SimDevice):
     read-only register; 4 parameter write without 0x200E = 1; 3 value out of range (or an
     unknown command); 1 run command (1..4) while in fault or off; 8 W/R* register written
     while the motor turns (running, jogging, stopping or braking). A 0x10 write is applied
-    register by register in address order and is all or nothing. Block reads are answered
-    unless ``single_register_reads`` is set (then a count above 1 answers 3).
+    register by register in address order and is all or nothing.
+
+    **One register a read.** Both manuals give the 0x03 request's register count as
+    0x0001 and the reply's byte count as 2 (where 0x10 says N and 2 x N), so by default a
+    read of more than one register is refused with exception 3, "illegal data value"
+    (:attr:`max_read` is 1): an assumption, the manuals naming no code for it, and 0x06
+    "frame error" being for a wrong frame length or CRC. A master tested against the
+    default simulator therefore also works on a drive that reads one register a request
+    (the library's :class:`benchbus.Drive` falls back to such reads and remembers it).
+    ``single_register_reads=False`` answers block reads of up to 125 registers, for a
+    firmware that does, or a test that wants fewer requests.
 
     **Motor.** Evaluated lazily from ``clock`` (plus :meth:`advance`) on every access: the
     speed ramps toward its target at 3000 rpm per accel time (0x2003) when speeding up and
@@ -189,15 +198,16 @@ class DriveDevice(ClockedModel, SimDevice):
         self,
         model: str = "BLD2",
         *,
-        single_register_reads: bool = False,
+        single_register_reads: bool = True,
         hall_registers: bool = True,
         clock: Callable[[], float] = time.monotonic,
     ) -> None:
         """A stopped, healthy drive with every setting at its default.
 
-        ``model`` is "BLD2", "BLD3H" or "C20". ``single_register_reads=True`` refuses
-        0x03 requests for more than one register (exception 3), as the manuals' one-register
-        read format suggests a real unit may. ``hall_registers=False`` makes a BLD whose
+        ``model`` is "BLD2", "BLD3H" or "C20". ``single_register_reads`` (the default)
+        refuses 0x03 requests for more than one register with exception 3, as the manuals'
+        one-register read format suggests a real unit does; False answers block reads (see
+        the class doc). ``hall_registers=False`` makes a BLD whose
         firmware lacks 0x3012..0x3014 (the manual says they depend on the software version):
         they answer exception 2. ``clock`` gives the time in seconds for the
         motor model (a test may pass a fake one and move it, or call :meth:`advance`).
@@ -205,7 +215,7 @@ class DriveDevice(ClockedModel, SimDevice):
         if model not in self.MODELS:
             raise ValueError(f"model must be one of {', '.join(self.MODELS)}, not {model!r}")
         self._model = model
-        self.single_register_reads: bool = bool(single_register_reads)
+        self.single_register_reads = single_register_reads
         #: Overload flag, shown in status word 2 bit 4 (1 = overloaded on a BLD, 0 on a C20).
         self.overloaded: bool = False
         #: Whether a keypad is connected (status word 2 bit 7, BLD only).
@@ -234,6 +244,16 @@ class DriveDevice(ClockedModel, SimDevice):
         """ "BLD2", "BLD3H" or "C20" (fixed: the register tables follow it)."""
         return self._model
 
+    @property
+    def single_register_reads(self) -> bool:
+        """Whether a read (0x03) of more than one register is refused (exception 3): sets
+        :attr:`max_read` to 1, or back to the protocol's 125."""
+        return self.max_read == 1
+
+    @single_register_reads.setter
+    def single_register_reads(self, single: bool) -> None:
+        self.max_read = 1 if single else 125
+
     # ---- line behaviour ---------------------------------------------------------------------
 
     @property
@@ -250,8 +270,6 @@ class DriveDevice(ClockedModel, SimDevice):
 
     def read_holding(self, address: int, count: int) -> list[int]:
         """The registers ``address .. address + count - 1`` (all must exist)."""
-        if self.single_register_reads and count != 1:
-            raise SimException(_BAD_VALUE)
         with self._lock:
             self._update()
             self._heard = self._core.t

@@ -187,13 +187,17 @@ class J2Device(ClockedModel, SimDevice):
     TH 150, INP 152, OUD 154, FST 156 (:attr:`SIGNED_TABLE`, :attr:`UNSIGNED_TABLE`). A read
     (0x03) of 1..16 registers anywhere in 0..0xFFFF answers these words and 0 for every
     other address (the NC rows 4, 12, 28, 140, the odd addresses, anything outside the
-    tables). More than 16 registers answer exception 3, a block past 0xFFFF exception 2.
+    tables). More than 16 registers answer exception 3 (the manual's limit, as
+    :attr:`max_read` / :attr:`max_write`; which exception a real controller gives is not
+    documented, 3 is the Modbus specification's for a quantity out of range), a block past
+    0xFFFF exception 2.
 
     **Writes** (0x06, 0x10) are all or nothing, checked in this order:
 
+    - exception 3: more than 16 registers (refused before the controller handles the
+      write, so it does not count for the pacing below);
     - exception 6 (server device busy): the request came less than :attr:`write_interval`
       seconds after the previous write request (see *Write pacing*);
-    - exception 3: more than 16 registers;
     - exception 2: a block past 0xFFFF, or any address in it that is not a writable
       parameter (PV, NC, an odd address, an address outside the tables). As parameters sit
       at even addresses only, a 0x10 of two registers or more always answers 2: one request
@@ -293,8 +297,9 @@ class J2Device(ClockedModel, SimDevice):
     )
     #: P, I, D after an autotune (read-only mapping).
     TUNED: Mapping[str, float] = MappingProxyType(dict(_TUNED))
-    #: Most registers one read or write may carry.
+    #: Most registers one read or write may carry (the manual's 16).
     MAX_REGISTERS = _MAX_REGISTERS
+    max_read = max_write = _MAX_REGISTERS
     #: Process gain: temperature rise over ambient at 100 % output, degrees.
     GAIN = 400.0
     #: Process time constant, seconds.
@@ -353,8 +358,6 @@ class J2Device(ClockedModel, SimDevice):
 
     def read_holding(self, address: int, count: int) -> list[int]:
         """The words at ``address .. address + count - 1``; 0 where there is no parameter."""
-        if not 1 <= count <= _MAX_REGISTERS:
-            raise SimException(_BAD_VALUE)
         if not 0 <= address <= _REGISTER_SPACE - count:
             raise SimException(_BAD_ADDRESS)
         with self._lock:
@@ -370,8 +373,6 @@ class J2Device(ClockedModel, SimDevice):
         with self._lock:
             self._pace()
             count = len(values)
-            if not 1 <= count <= _MAX_REGISTERS:
-                raise SimException(_BAD_VALUE)
             if not 0 <= address <= _REGISTER_SPACE - count:
                 raise SimException(_BAD_ADDRESS)
             changes: dict[str, int] = {}

@@ -36,7 +36,7 @@ from benchbus.sim._rtu import (
 )
 from benchbus.sim._units import Job, UnitHooks, refusal
 
-__all__ = ["Forwarder", "Framer", "LineState", "PtyPair"]
+__all__ = ["LOG_SIZE", "Forwarder", "Framer", "LineState", "PtyPair"]
 
 log = logging.getLogger("benchbus.sim")
 
@@ -74,11 +74,15 @@ class _ExceptionRule:
     unit: int | None
 
 
+#: How many frames each log of a simulator keeps by default: the most recent ones.
+LOG_SIZE = 10_000
+
+
 class LineState:
     """Faults and frame logs, shared by the Simulator (any thread) and the forwarder thread."""
 
-    def __init__(self) -> None:
-        """No fault; empty logs."""
+    def __init__(self, log_size: int = LOG_SIZE) -> None:
+        """No fault; empty logs, each keeping the last ``log_size`` frames."""
         self.lock = threading.Lock()
         self.reply_delay = 0.0
         self.silent_all = False
@@ -89,14 +93,29 @@ class LineState:
         #: How many of the next requests a collision garbles (echo and units alike).
         self.collisions = 0
         self.exception_rules: list[_ExceptionRule] = []
-        self.requests: list[bytes] = []
+        self.requests: collections.deque[bytes] = collections.deque(maxlen=log_size)
         #: ``time.monotonic()`` when each frame in ``requests`` was complete (its last byte read).
-        self.request_times: list[float] = []
-        self.replies: list[bytes] = []
+        self.request_times: collections.deque[float] = collections.deque(maxlen=log_size)
+        self.replies: collections.deque[bytes] = collections.deque(maxlen=log_size)
+        #: Every request logged since the logs were last cleared, also those the logs dropped.
+        self.request_count = 0
         #: The random faults now applied to replies (None: none), and how many of each kind
         #: were injected since they were last set.
         self.injector: FaultInjector | None = None
         self.fault_counts: dict[str, int] = {}
+
+    def log_request(self, frame: bytes, complete: float) -> None:
+        """Log a request that was complete at ``complete`` (call with the lock held)."""
+        self.requests.append(frame)
+        self.request_times.append(complete)
+        self.request_count += 1
+
+    def clear_log(self) -> None:
+        """Empty the logs and the request count (call with the lock held)."""
+        self.requests.clear()
+        self.request_times.clear()
+        self.replies.clear()
+        self.request_count = 0
 
     def set_faults(self, faults: Faults | None) -> None:
         """Apply ``faults`` from the next reply on (None: stop); a new run restarts the counts."""
@@ -364,8 +383,7 @@ class Forwarder:
         with state.lock:
             echo = state.echo
             frame = state.take_collision(frame)
-            state.requests.append(frame)
-            state.request_times.append(complete)
+            state.log_request(frame, complete)
         if echo:
             self._out_a += frame
         if not crc_ok(frame):

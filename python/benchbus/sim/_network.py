@@ -29,7 +29,7 @@ from collections.abc import Callable
 from typing import Any
 
 from benchbus.sim._faults import Injection
-from benchbus.sim._line import SERVER_REPLY_TIMEOUT, Framer, LineState
+from benchbus.sim._line import LOG_SIZE, SERVER_REPLY_TIMEOUT, Framer, LineState
 from benchbus.sim._rtu import crc_ok, frame_gap, reply_length, request_length, with_crc
 from benchbus.sim._units import Job, UnitHooks, refusal
 
@@ -54,9 +54,9 @@ _MAX_OUTPUT = 1 << 20  # drop bytes toward a client that does not read past this
 class NetworkState(LineState):
     """The line's faults and logs, plus those only a network has."""
 
-    def __init__(self) -> None:
-        """No fault; empty logs."""
-        super().__init__()
+    def __init__(self, log_size: int = LOG_SIZE) -> None:
+        """No fault; empty logs, each keeping the last ``log_size`` frames."""
+        super().__init__(log_size)
         #: How many of the next delivered replies are cut halfway, with the connection reset.
         self.resets = 0
 
@@ -500,8 +500,7 @@ class Gateway:
             self._on_request(conn, frame, conn.rx_req.last)
         if conn.rx_req.invalid:
             with self._state.lock:
-                self._state.requests.append(conn.rx_req.buf)
-                self._state.request_times.append(conn.rx_req.last)
+                self._state.log_request(conn.rx_req.buf, conn.rx_req.last)
             log.warning(
                 "simulator gateway: connection %d: not an MBAP frame, closed: %s",
                 conn.number,
@@ -540,8 +539,7 @@ class Gateway:
         with state.lock:
             if self._f.rtu:  # another talker on the serial line behind garbles the frame
                 frame = state.take_collision(frame)
-            state.requests.append(frame)
-            state.request_times.append(complete)
+            state.log_request(frame, complete)
         if self._f.rtu and not crc_ok(frame):
             log.debug("simulator gateway: request with a bad CRC ignored: %s", frame.hex(" "))
             return

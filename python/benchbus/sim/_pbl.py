@@ -160,6 +160,13 @@ class PblDevice(ClockedModel, SimDevice):
     146..150, 152, 158, 180, 189..192, 195..198, 203) 0..1; any other 0..65535. See
     :attr:`DEFAULTS` for the values at power-up.
 
+    **Request size.** The manual's frame holds 1..123 data bytes: a read (0x03) may ask
+    for at most 61 parameters (a byte count and 122 data bytes in the reply) and a 0x10
+    write carry at most 59 (address, count, byte count and 118 data bytes), as
+    :attr:`max_read` / :attr:`max_write`. More is answered with exception 3 (illegal data
+    value): an assumption, as the manual names no exception codes; 3 is the Modbus
+    specification's answer to a quantity out of range.
+
     **Replies.** As the manual shows them: a 0x06 write is answered with the address and
     a register count of 1 instead of the written value, unless ``echo_writes``; a
     broadcast (unit 0) is acted on and answered with the unit's own address, unless
@@ -195,6 +202,9 @@ class PblDevice(ClockedModel, SimDevice):
     )
     #: Number of parameters: addresses 0..222.
     PARAMETERS = _PARAMETERS
+    #: Most parameters one read asks for / one write carries: the manual's frame holds at
+    #: most 123 data bytes.
+    max_read, max_write = 61, 59
     #: Motor current just above 0 rpm and at :attr:`FULL_SPEED`, A (linear between, 0 at
     #: rest; registers 9 and 53 show it rounded to whole amperes).
     NO_LOAD_CURRENT, FULL_SPEED_CURRENT = 0.5, 5.0

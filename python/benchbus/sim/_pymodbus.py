@@ -47,14 +47,25 @@ import threading
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
-from pymodbus.constants import DeviceInformation, ExcCodes
-from pymodbus.framer import FramerType
-from pymodbus.pdu import ExceptionResponse, ModbusPDU
-from pymodbus.pdu.device import DeviceInformationFactory, ModbusDeviceIdentification
-from pymodbus.pdu.mei_message import ReadDeviceInformationResponse
-from pymodbus.server import ModbusBaseServer, ModbusSerialServer, ModbusTcpServer
-from pymodbus.simulator import DataType, SimData
-from pymodbus.simulator import SimDevice as PymodbusSimDevice
+from benchbus._extras import sim_missing
+
+try:
+    # pymodbus imports pyserial only when it opens a port: ask for it here, so that a
+    # missing pyserial is said at import like a missing pymodbus.
+    import serial  # type: ignore[import-untyped]  # noqa: F401
+    from pymodbus.constants import DeviceInformation, ExcCodes
+    from pymodbus.framer import FramerType
+    from pymodbus.pdu import ExceptionResponse, ModbusPDU
+    from pymodbus.pdu.device import DeviceInformationFactory, ModbusDeviceIdentification
+    from pymodbus.pdu.mei_message import ReadDeviceInformationResponse
+    from pymodbus.server import ModbusBaseServer, ModbusSerialServer, ModbusTcpServer
+    from pymodbus.simulator import DataType, SimData
+    from pymodbus.simulator import SimDevice as PymodbusSimDevice
+except ImportError as exc:
+    missing = sim_missing(exc)
+    if missing is None:
+        raise
+    raise missing from exc
 
 __all__ = ["Dispatch", "IdentityOf", "PymodbusServer", "SerialServer", "TcpServer"]
 

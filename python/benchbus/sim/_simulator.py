@@ -11,7 +11,7 @@ from typing import Generic, TypeVar
 
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
-from benchbus.sim._line import Forwarder, LineState, PtyPair
+from benchbus.sim._line import LOG_SIZE, Forwarder, LineState, PtyPair
 from benchbus.sim._network import NETWORKS, Gateway, NetworkState, probe
 from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
 from benchbus.sim._rtu import with_crc
@@ -43,6 +43,8 @@ class Simulator(Generic[D]):
     :attr:`faults`), all of which are thread-safe and may be set before or while running.
     The library's adapter may echo what it sends (:attr:`echo`). What the units hold, the truth
     a test checks the library's results against, is in :attr:`devices` (:meth:`peek`).
+    The frame logs keep the most recent ``log_size`` frames each (10,000 by default), so a
+    simulator served for days does not grow; :attr:`request_count` counts every request.
 
     The line serves one request at a time, as a half-duplex RS485 line does. Requests to a
     unit not in :attr:`devices`, or with a bad CRC, get no reply. A broadcast (unit 0) is
@@ -88,6 +90,7 @@ class Simulator(Generic[D]):
         faults: Faults | None = None,
         echo: bool = False,
         network: str | None = None,
+        log_size: int = LOG_SIZE,
     ) -> None:
         """Simulate ``devices`` (``{unit: device}``; a single device is unit 1).
 
@@ -100,7 +103,9 @@ class Simulator(Generic[D]):
         makes the library's adapter echo what it sends (see :attr:`echo`). ``network``
         (``"tcp"`` or ``"rtu+tcp"``) serves the units over loopback TCP instead of a
         pseudo-terminal (see the class doc); ``baudrate`` then only sets the silent gap that
-        ends an RTU frame of unknown length.
+        ends an RTU frame of unknown length. ``log_size`` is how many frames each log
+        (:attr:`requests`, :attr:`request_times`, :attr:`replies`) keeps, the most recent:
+        an int >= 1, 10,000 by default.
         """
         if isinstance(devices, SimDevice):
             devices = {1: devices}
@@ -114,6 +119,10 @@ class Simulator(Generic[D]):
             raise ValueError(f"baudrate must be a positive int, not {baudrate!r}")
         if network is not None and network not in NETWORKS:
             raise ValueError(f"network must be None or one of {NETWORKS}, not {network!r}")
+        if isinstance(log_size, bool) or not isinstance(log_size, int):
+            raise TypeError(f"log_size must be an int, not {type(log_size).__name__}")
+        if log_size < 1:
+            raise ValueError(f"log_size must be >= 1, not {log_size}")
         self._network: str | None = network
         self.baudrate: int = baudrate
         self.broadcast: bool = broadcast
@@ -121,7 +130,7 @@ class Simulator(Generic[D]):
         #: exception 4), and failures of :meth:`SimDevice.shape_reply` (the reply then goes
         #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
-        self._state: LineState = LineState() if network is None else NetworkState()
+        self._state: LineState = LineState(log_size) if network is None else NetworkState(log_size)
         self._refusing = False
         self.echo = echo
         self._faults: Faults | None = None
@@ -516,13 +525,21 @@ class Simulator(Generic[D]):
     # ---- observation -----------------------------------------------------------------------
 
     @property
+    def log_size(self) -> int:
+        """How many frames each log keeps (the most recent ones); see :attr:`requests`."""
+        return int(self._state.requests.maxlen or 0)
+
+    @property
     def requests(self) -> list[bytes]:
-        """Every request frame received from the library, in order (as received, CRC too).
+        """The request frames received from the library, oldest first (as received, CRC
+        too): the most recent :attr:`log_size` of them (older ones are dropped, so the log
+        does not grow without bound; :attr:`request_count` counts them all).
 
         On a network: from every connection, the frames as they crossed the socket (the
-        MBAP header included for ``tcp``).
+        MBAP header included for ``tcp``). A new list at each access: a snapshot.
         """
-        return self._state.requests
+        with self._state.lock:
+            return list(self._state.requests)
 
     @property
     def request_times(self) -> list[float]:
@@ -530,14 +547,25 @@ class Simulator(Generic[D]):
 
         Same order and length as :attr:`requests`: the time the forwarder read the frame's
         last byte from the library's end of the line (for a frame cut by a silent gap, not
-        the end of the gap). For checking the spacing of a master's requests.
+        the end of the gap). For checking the spacing of a master's requests. Read with
+        :attr:`requests` while the line is idle to pair them up.
         """
-        return self._state.request_times
+        with self._state.lock:
+            return list(self._state.request_times)
 
     @property
     def replies(self) -> list[bytes]:
-        """Every reply frame sent toward the library, in order (as sent, after the faults)."""
-        return self._state.replies
+        """The reply frames sent toward the library, oldest first (as sent, after the
+        faults): the most recent :attr:`log_size` of them. A new list at each access."""
+        with self._state.lock:
+            return list(self._state.replies)
+
+    @property
+    def request_count(self) -> int:
+        """How many requests came since the start (or :meth:`clear_log`), also those the
+        bounded :attr:`requests` log no longer holds."""
+        with self._state.lock:
+            return self._state.request_count
 
     def peek(self, unit: int, address: int, count: int = 1) -> list[int]:
         """What unit ``unit`` holds in ``count`` holding registers from ``address``: the truth.
@@ -552,11 +580,10 @@ class Simulator(Generic[D]):
         return list(self.devices[unit].read_holding(address, count))
 
     def clear_log(self) -> None:
-        """Empty :attr:`requests`, :attr:`request_times` and :attr:`replies`."""
+        """Empty :attr:`requests`, :attr:`request_times` and :attr:`replies`, and set
+        :attr:`request_count` to 0."""
         with self._state.lock:
-            self._state.requests.clear()
-            self._state.request_times.clear()
-            self._state.replies.clear()
+            self._state.clear_log()
 
     # ---- called by the server thread -------------------------------------------------------
 
@@ -564,6 +591,11 @@ class Simulator(Generic[D]):
         self, unit: int, function: int, address: int, count: int, values: list[int] | None
     ) -> list[int] | int | None:
         device = self.devices[unit]
+        wanted, limit = (
+            (count, device.max_read) if values is None else (len(values), device.max_write)
+        )
+        if not 1 <= wanted <= limit:  # the device's own limit (its manual's), as data
+            return int(device.too_many_code)
         try:
             if values is None:
                 result = device.read_holding(address, count)

@@ -1,0 +1,24 @@
+"""What a missing optional extra says, in one place: the simulators' package, the command
+line and the pytest plugin all give this message."""
+
+from __future__ import annotations
+
+__all__ = ["SIM_MODULES", "sim_missing"]
+
+#: The top-level modules the ``sim`` extra installs (pymodbus, pyserial).
+SIM_MODULES = ("pymodbus", "serial")
+
+
+def sim_missing(exc: ImportError) -> ModuleNotFoundError | None:
+    """The error to raise for ``exc`` if it is a module of the ``sim`` extra missing (or one
+    too old or new to have what the simulators import), else None.
+
+    Its message says what to install: ``pip install 'benchbus[sim]'``.
+    """
+    name = exc.name or ""
+    if name.split(".")[0] not in SIM_MODULES:
+        return None
+    return ModuleNotFoundError(
+        f"the simulators need pymodbus and pyserial: pip install 'benchbus[sim]' ({exc})",
+        name=name,
+    )
