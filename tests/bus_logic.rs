@@ -753,3 +753,29 @@ fn an_unanswered_write_with_a_garbled_echo_is_sent_again() {
     assert_eq!((s.transactions, s.frame_errors, s.retries), (1, 1, 1));
     assert_eq!(common::sent(&t).len(), 2);
 }
+
+#[test]
+fn a_multiple_register_broadcast_goes_to_unit_0_once_and_waits_no_reply() {
+    let (bus, t) = bus(vec![], 2);
+    bus.broadcast_write_registers(0x2000, &[1, 0x0203]).unwrap();
+    assert_eq!(
+        common::sent(&t),
+        vec![with_crc(&common::hex("00 10 20 00 00 02 04 00 01 02 03"))]
+    );
+    let s = bus.stats();
+    assert_eq!((s.broadcasts, s.transactions, s.timeouts), (1, 1, 0));
+    // Malformed writes and reads are refused before anything is sent.
+    for e in [
+        bus.broadcast_write_registers(0, &[]).unwrap_err(),
+        bus.broadcast_write_registers(0, &[0; 124]).unwrap_err(),
+        bus.broadcast_write_registers(0xFFFF, &[1, 2]).unwrap_err(),
+        bus.broadcast(&benchbus::codec::Request::ReadHoldingRegisters {
+            address: 0,
+            count: 1,
+        })
+        .unwrap_err(),
+    ] {
+        assert!(matches!(e, Error::InvalidArgument(_)), "{e:?}");
+    }
+    assert_eq!(common::sent(&t).len(), 1);
+}

@@ -15,7 +15,7 @@ from collections.abc import Iterator
 import pytest
 
 import benchbus as bb
-from benchbus.sim import J2Device, RegisterDevice, Simulator
+from benchbus.sim import Atv31Device, J2Device, RegisterDevice, Simulator
 from conftest import gateway_command
 
 TIMEOUT = 0.3  # generous: a loaded machine must not turn a reply into a 0x0B
@@ -108,8 +108,14 @@ def test_exceptions_from_the_unit_and_from_the_gateway(
         # A byte count that does not match: 0x03, nothing on the line.
         assert ask(client, 1, bytes.fromhex("10 00 00 00 02 02 00 01")) == bytes([0x90, 0x03])
         assert ask(client, 1, bytes.fromhex("03 00 00 00 00")) == bytes([0x83, 0x03])
+        # A supported function with a malformed length: 0x03 (illegal data value), not 0x01.
+        for pdu in ("03 0C 1E 00", "03 00 00 00 01 00", "06 00 01", "10 00 00", "2B", "2B 0E 01"):
+            request = bytes.fromhex(pdu)
+            assert ask(client, 1, request) == bytes([request[0] | 0x80, 0x03]), pdu
+        # Another MEI type of 0x2B is not forwarded: 0x01.
+        assert ask(client, 1, bytes.fromhex("2B 0D 01 00")) == bytes([0xAB, 0x01])
         assert len(sim.requests) == before
-    assert gateway.stats.gateway_exceptions == 4
+    assert gateway.stats.gateway_exceptions == 11
 
 
 def test_a_lost_line_is_path_unavailable(gateway: bb.Gateway) -> None:
@@ -118,16 +124,40 @@ def test_a_lost_line_is_path_unavailable(gateway: bb.Gateway) -> None:
         assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes([0x83, 0x0A])
 
 
-def test_device_identification_through_the_gateway(gateway: bb.Gateway) -> None:
+def test_device_identification_through_the_gateway(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
     with connect(gateway) as client:
         reply = ask(client, 1, bytes.fromhex("2B 0E 01 00"))
-    assert reply[:7] == bytes([0x2B, 0x0E, 0x01, 0x01, 0x00, 0x00, 3])
+    # The conformity level is the one the unit sent (pymodbus: 0x83), not the read code.
+    (line_reply,) = sim.replies
+    assert line_reply[4] == 0x83
+    assert reply[:7] == bytes([0x2B, 0x0E, 0x01, 0x83, 0x00, 0x00, 3])
     objects, at = {}, 7
     for _ in range(reply[6]):
         object_id, size = reply[at], reply[at + 1]
         objects[object_id] = reply[at + 2 : at + 2 + size].decode("utf-8")
         at += 2 + size
     assert objects == IDENTITY
+
+
+@pytest.mark.parametrize(("conformity", "expected"), [(None, 0x02), (0x81, 0x81)])
+def test_identification_keeps_the_conformity_and_bytes_the_unit_sent(
+    conformity: int | None, expected: int
+) -> None:
+    # The ATV31 answers conformity 0x02 whatever the read code (3 here: extended).
+    with (
+        Simulator({3: Atv31Device(conformity=conformity)}) as sim,
+        bb.Bus(sim.port, timeout=TIMEOUT) as bus,
+        bb.Gateway(bus, "127.0.0.1:0") as gw,
+        connect(gw) as client,
+    ):
+        direct = bus._device_identification(3, 3, 0)
+        assert direct == (expected, {0: b"TELEMECANIQUE", 1: b"ATV31HU09M3S232", 2: b"0201"})
+        reply = ask(client, 3, bytes.fromhex("2B 0E 03 00"))
+        # Byte for byte the unit's own reply PDU: its conformity, its objects.
+        assert reply == sim.replies[-1][1:-2]
+        assert reply[3] == expected
 
 
 def test_a_broadcast_is_sent_and_not_answered(
@@ -147,6 +177,22 @@ def test_a_broadcast_is_sent_and_not_answered(
             "03 02 00 2A"
         )
     assert [f[0] for f in sim.requests] == [0, 2, 2]
+
+
+def test_a_multiple_register_broadcast_reaches_every_unit(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        client.sendall(bytes.fromhex("00 05 00 00 00 0B 00 10 30 06 00 02 04 01 02 03 04"))
+        # A malformed one (the byte count disagrees) goes nowhere, and is not answered.
+        client.sendall(bytes.fromhex("00 06 00 00 00 0B 00 10 30 06 00 02 03 01 02 03 04"))
+        assert ask(client, 1, bytes.fromhex("03 30 06 00 02"), tid=7) == bytes.fromhex(
+            "03 04 01 02 03 04"
+        )
+    rtu = bytes.fromhex("00 10 30 06 00 02 04 01 02 03 04")
+    assert sim.requests[0] == rtu + bb.crc16(rtu).to_bytes(2, "little")
+    assert [f[0] for f in sim.requests] == [0, 1]
+    assert sim.peek(1, 0x3006, 2) == [0x0102, 0x0304]
 
 
 def test_bad_frames_are_dropped(

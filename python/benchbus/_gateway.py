@@ -26,6 +26,7 @@ import threading
 import time
 from collections.abc import Callable, Mapping
 from types import TracebackType
+from typing import Any
 
 from benchbus._core import Bus
 from benchbus.exceptions import (
@@ -107,11 +108,14 @@ class Gateway:
         with bb.Bus("/dev/ttyUSB0") as bus, bb.Gateway(bus, "127.0.0.1:5020") as gw:
             ...  # other processes open bb.Bus(gw.url) and use their devices as usual
 
-    Forwards functions 0x03, 0x06, 0x10 and 0x2B / 0x0E (what the benchbus devices speak);
-    any other function is answered exception 0x01. Unit 0 with 0x06 is a broadcast: sent,
-    not answered. A failure on the line comes back as the gateway exceptions: 0x0B when the
-    unit gave no valid reply (after the Bus's retries), 0x0A when the serial port is lost
-    or closed. An exception reply from the unit is passed on as it is.
+    Forwards functions 0x03, 0x06, 0x10 and 0x2B / 0x0E (what the benchbus devices speak),
+    the identification with the conformity level and object bytes the unit sent; one of
+    these with a wrong length or byte count is answered exception 0x03 (illegal data
+    value), any other function 0x01. Unit 0 with 0x06 or 0x10 is a broadcast: sent, not
+    answered (nor is any other request to unit 0). A failure on the line comes back as
+    the gateway exceptions: 0x0B when the unit gave no valid reply (after the Bus's
+    retries), 0x0A when the serial port is lost or closed. An exception reply from the
+    unit is passed on as it is.
 
     ``write_intervals`` (``{unit: seconds}``) keeps that least time between two writes to a
     unit on the line, whichever client sends them, retries included (a J2 controller needs
@@ -343,62 +347,84 @@ class Gateway:
         happens on the line: those are exception replies.
         """
         function = pdu[0] if pdu else 0
+        reply: bytes | None = None
+        refusal = None
         try:
             reply = self._forward(unit, function, pdu[1:])
         except ModbusException as exc:  # the unit's own answer (a gateway's, passed on)
             reply = bytes([function | 0x80, exc.code])
         except (ResponseTimeout, FrameError) as exc:
             log.debug("gateway: unit %d did not answer: %s", unit, exc)
-            reply = self._refusal(function, TARGET_FAILED)
+            refusal = TARGET_FAILED
         except PortError as exc:
             log.warning("gateway: the line is unavailable: %s", exc)
-            reply = self._refusal(function, PATH_UNAVAILABLE)
+            refusal = PATH_UNAVAILABLE
         except (ValueError, TypeError, struct.error, IndexError) as exc:
             log.debug("gateway: request refused: %s", exc)
-            reply = self._refusal(function, ILLEGAL_DATA_VALUE)
+            refusal = ILLEGAL_DATA_VALUE
         except _Unsupported:
-            reply = self._refusal(function, ILLEGAL_FUNCTION)
+            refusal = ILLEGAL_FUNCTION
         except BenchbusError as exc:
             log.warning("gateway: request failed: %s", exc)
-            reply = self._refusal(function, SERVER_DEVICE_FAILURE)
+            refusal = SERVER_DEVICE_FAILURE
         self._count(requests=1)
-        return reply
-
-    def _refusal(self, function: int, code: int) -> bytes:
+        if unit == 0:  # a broadcast is never answered, whatever it asks and however it went
+            return None
+        if refusal is None:
+            return reply
         self._count(gateway_exceptions=1)
-        return bytes([(function | 0x80) & 0xFF, code])
+        return bytes([(function | 0x80) & 0xFF, refusal])
 
     def _forward(self, unit: int, function: int, data: bytes) -> bytes | None:
         bus = self.bus
+        args = _parse(function, data)
         if unit == 0:
-            # A broadcast is never answered, whatever it asks.
-            if function == 0x06 and len(data) == 4:
-                bus.broadcast_write_register(*struct.unpack(">HH", data))
+            if function == 0x06:
+                bus.broadcast_write_register(*args)
+            elif function == 0x10:
+                bus.broadcast_write_registers(*args)
             else:
                 log.debug("gateway: broadcast of function %#04x not forwarded", function)
             return None
         interval = self._intervals.get(unit, 0.0)
-        if function == 0x03 and len(data) == 4:
-            address, count = struct.unpack(">HH", data)
-            values = bus.read_holding_registers(unit, address, count)
+        if function == 0x03:
+            values = bus.read_holding_registers(unit, *args)
             return struct.pack(f">BB{len(values)}H", 0x03, 2 * len(values), *values)
-        if function == 0x06 and len(data) == 4:
-            address, value = struct.unpack(">HH", data)
-            bus.write_register(
-                unit, address, value, accept_count_echo=True, write_interval=interval
-            )
+        if function == 0x06:
+            bus.write_register(unit, *args, accept_count_echo=True, write_interval=interval)
             return bytes([0x06]) + data
-        if function == 0x10 and len(data) >= 5:
-            address, count, size = struct.unpack(">HHB", data[:5])
-            if size != 2 * count or len(data) != 5 + size:
-                raise ValueError("byte count does not match the register count")
-            values = list(struct.unpack(f">{count}H", data[5:]))
+        if function == 0x10:
+            address, values = args
             bus.write_registers(unit, address, values, write_interval=interval)
-            return struct.pack(">BHH", 0x10, address, count)
-        if function == 0x2B and len(data) == 3 and data[0] == _MEI_DEVICE_ID:
-            objects = bus.read_device_identification(unit, data[1], data[2])
-            return _identification_reply(objects, data[1])
-        raise _Unsupported
+            return struct.pack(">BHH", 0x10, address, len(values))
+        read_code, object_id = args
+        conformity, objects = bus._device_identification(unit, read_code, object_id)
+        return _identification_reply(read_code, conformity, objects)
+
+
+def _parse(function: int, data: bytes) -> tuple[Any, ...]:
+    """The arguments of a request the gateway forwards, from its data (the PDU after the
+    function code). Raises _Unsupported for a function it does not forward, ValueError
+    (answered 0x03, illegal data value) for a supported one whose length or byte count is
+    wrong (Modbus application protocol, 6.3, 6.6, 6.12, 6.21)."""
+    if function in (0x03, 0x06):
+        if len(data) != 4:
+            raise ValueError(f"function {function:#04x} takes 4 data bytes, not {len(data)}")
+        return struct.unpack(">HH", data)
+    if function == 0x10:
+        if len(data) < 5:
+            raise ValueError(f"function 0x10 takes at least 5 data bytes, not {len(data)}")
+        address, count, size = struct.unpack(">HHB", data[:5])
+        if size != 2 * count or len(data) != 5 + size:
+            raise ValueError("byte count does not match the register count")
+        return address, list(struct.unpack(f">{count}H", data[5:]))
+    if function == 0x2B and not data:
+        raise ValueError("0x2B without its MEI type")
+    if function == 0x2B and data[0] == _MEI_DEVICE_ID:
+        if len(data) != 3:
+            raise ValueError(f"0x2B / 0x0E takes 3 data bytes, not {len(data)}")
+        return data[1], data[2]
+    raise _Unsupported
 
 
 class _Unsupported(Exception):
@@ -421,22 +447,19 @@ def _recv_exactly(sock: socket.socket, n: int, *, first: bool = False) -> bytes 
     return buf
 
 
-def _identification_reply(objects: Mapping[int, str], read_code: int) -> bytes:
-    """A 0x2B / 0x0E reply PDU carrying as many of ``objects`` as fit; "more follows" and
-    the next object's id when some do not (the client asks again from there). The text goes
-    as UTF-8, as the Bus read it. The conformity level given is the read code asked for
-    (the Bus does not pass on the unit's own)."""
+def _identification_reply(read_code: int, conformity: int, objects: Mapping[int, bytes]) -> bytes:
+    """A 0x2B / 0x0E reply PDU carrying as many of ``objects`` as fit, with the device's own
+    conformity level; "more follows" and the next object's id when some do not (the client
+    asks again from there). The objects' bytes go as the unit sent them."""
     body = b""
     count = 0
     next_object = 0
     more = 0x00
-    for object_id, text in sorted(objects.items()):
-        value = text.encode("utf-8")[:245]
-        item = bytes([object_id, len(value)]) + value
+    for object_id, value in sorted(objects.items()):
+        item = bytes([object_id, len(value[:245])]) + value[:245]
         if 7 + len(body) + len(item) > MAX_PDU:
             more, next_object = 0xFF, object_id
             break
         body += item
         count += 1
-    conformity = read_code if 1 <= read_code <= 3 else 0x01
     return bytes([0x2B, _MEI_DEVICE_ID, read_code, conformity, more, next_object, count]) + body
