@@ -19,12 +19,14 @@ import contextlib
 import dataclasses
 import ipaddress
 import logging
+import math
 import re
+import select
 import socket
 import struct
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
@@ -37,7 +39,7 @@ from benchbus.exceptions import (
     ResponseTimeout,
 )
 
-__all__ = ["Gateway", "GatewayStats", "parse_listen"]
+__all__ = ["Gateway", "GatewayStats", "parse_allow", "parse_listen"]
 
 log = logging.getLogger("benchbus.gateway")
 
@@ -52,6 +54,8 @@ TARGET_FAILED = 0x0B
 MAX_PDU = 253
 #: How long a client may stay silent mid-frame before its connection is dropped.
 FRAME_TIMEOUT = 5.0
+#: How long a client may stay silent between requests, by default, before it is dropped.
+IDLE_TIMEOUT = 60.0
 _MEI_DEVICE_ID = 0x0E
 
 
@@ -83,6 +87,36 @@ def parse_listen(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
+def parse_allow(text: str) -> ipaddress.IPv4Network | ipaddress.IPv6Network:
+    """``ADDR`` or ``ADDR/BITS`` (IPv4 or IPv6: ``192.168.1.0/24``, ``::1``) as a network.
+
+    Raises ValueError, saying what is wrong, for anything else (host bits set included:
+    ``192.168.1.5/24`` is refused, naming ``192.168.1.0/24``).
+    """
+    if not isinstance(text, str):
+        raise TypeError(f"allow: an address is a str, not {type(text).__name__}")
+    try:
+        return ipaddress.ip_network(text.strip(), strict=True)
+    except ValueError as exc:
+        try:
+            network = ipaddress.ip_network(text.strip(), strict=False)
+        except ValueError:
+            raise ValueError(
+                f"allow: {text!r} is not ADDR or ADDR/BITS (e.g. 192.168.1.0/24, ::1): {exc}"
+            ) from None
+        raise ValueError(f"allow: {text!r} has host bits set: the network is {network}") from None
+
+
+def _on_this_machine(host: str) -> bool:
+    """Whether a listen address ``host`` is reachable from this machine only (loopback)."""
+    if host.lower().rstrip(".") == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a host name: assume the network
+
+
 _HOST_NAME = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)(\.(?!-)[A-Za-z0-9-]{1,63}(?<!-))*\.?")
 
 
@@ -98,6 +132,22 @@ class GatewayStats:
     gateway_exceptions: int = 0
     #: Frames dropped: a protocol id other than 0, a length out of range.
     bad_frames: int = 0
+    #: Connections closed as soon as accepted: from an address ``allow`` leaves out, or
+    #: while every one of ``max_clients`` was in the middle of a request.
+    refused: int = 0
+    #: Connections closed for being idle: silent for ``idle_timeout``, or the longest idle
+    #: one when a new client came and ``max_clients`` were connected.
+    idle_closed: int = 0
+
+
+@dataclasses.dataclass
+class _Client:
+    """A connection's state, kept under the gateway's lock."""
+
+    #: ``time.monotonic()`` when it connected or its last request was answered.
+    idle_since: float
+    #: Whether a request of it is being read or served (it is then never dropped).
+    busy: bool = False
 
 
 class Gateway:
@@ -125,6 +175,17 @@ class Gateway:
     + 1)``, the unit's write interval, and the requests of other clients queued ahead of it.
     Give clients ``timeout=1.0`` (or more) and ``retries=0``: over TCP nothing is lost on the
     way, and a repeated request only queues behind the first.
+
+    Connections: a client silent for ``idle_timeout`` seconds between requests is dropped;
+    when ``max_clients`` are connected, a new client takes the place of the one idle the
+    longest (a client in the middle of a request is never dropped; a new one is refused
+    only when every one is). A client opened with ``reconnect=True`` does not notice.
+
+    Modbus TCP has no authentication: whoever reaches the port drives the devices on the
+    line. Listening on an address other than loopback logs a warning (``benchbus.gateway``
+    logger; ``benchbus gateway`` prints it), and ``allow`` (``["192.168.1.0/24", "::1"]``)
+    limits who may connect: a connection from elsewhere is closed at once and counted
+    (:attr:`GatewayStats.refused`).
     """
 
     def __init__(
@@ -134,13 +195,17 @@ class Gateway:
         *,
         write_intervals: Mapping[int, float] | None = None,
         max_clients: int = 32,
+        idle_timeout: float | None = IDLE_TIMEOUT,
+        allow: str | Iterable[str] | None = None,
     ) -> None:
         """Serve ``bus``'s units on ``listen`` (``HOST:PORT``; port 0: any free port).
 
         Nothing listens until :meth:`start` (or ``with``). At most ``max_clients``
-        connections are served at once; one more is closed as soon as it is accepted.
-        Raises ValueError for a bad address, interval or limit, TypeError for a ``bus``
-        that is not a :class:`Bus`.
+        connections are served at once (a new one replaces the longest idle); one silent
+        for ``idle_timeout`` seconds between requests is closed (None: never). ``allow``:
+        the addresses (``ADDR`` or ``ADDR/BITS``, IPv4 or IPv6) that may connect; None:
+        any. Raises ValueError for a bad address, network, interval, limit or timeout,
+        TypeError for a ``bus`` that is not a :class:`Bus`.
         """
         if not isinstance(bus, Bus):
             raise TypeError(f"bus must be a benchbus.Bus, not {type(bus).__name__}")
@@ -158,11 +223,23 @@ class Gateway:
         if isinstance(max_clients, bool) or not isinstance(max_clients, int) or max_clients < 1:
             raise ValueError(f"max_clients must be an int >= 1, not {max_clients!r}")
         self._max_clients = max_clients
+        if idle_timeout is not None and (
+            isinstance(idle_timeout, bool) or not isinstance(idle_timeout, (int, float))
+        ):
+            raise TypeError(f"idle_timeout must be seconds or None, not {idle_timeout!r}")
+        if idle_timeout is not None and not (idle_timeout > 0 and math.isfinite(idle_timeout)):
+            raise ValueError(f"idle_timeout must be > 0 seconds (or None), not {idle_timeout}")
+        self._idle_timeout = None if idle_timeout is None else float(idle_timeout)
+        if isinstance(allow, str):
+            allow = [allow]
+        self._allow = None if allow is None else [parse_allow(a) for a in allow]
+        if self._allow == []:
+            raise ValueError("allow is empty: no client could connect (None allows any)")
         self._stats = GatewayStats()
         self._stats_lock = threading.Lock()
         self._server: socket.socket | None = None
         self._address: tuple[str, int] | None = None
-        self._clients: set[socket.socket] = set()
+        self._clients: dict[socket.socket, _Client] = {}
         self._threads: list[threading.Thread] = []
         self._acceptor: threading.Thread | None = None
         self._stopping = threading.Event()
@@ -177,6 +254,15 @@ class Gateway:
         if self._server is not None:
             return self
         host, port = self._listen
+        if not _on_this_machine(host):
+            log.warning(
+                "gateway: listening on %s, beyond this machine: Modbus TCP has no "
+                "authentication, whoever reaches the port drives the devices on the line; %s",
+                host,
+                "limit who may connect with allow (--allow ADDR[/BITS])"
+                if self._allow is None
+                else "only " + ", ".join(map(str, self._allow)) + " may connect",
+            )
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         server = socket.socket(family, socket.SOCK_STREAM)
         try:
@@ -291,23 +377,63 @@ class Gateway:
                 log.warning("gateway: accept failed: %s", exc)
                 self._stopping.wait(0.1)
                 continue
+            if not self._allowed(peer[0]):
+                self._count(refused=1)
+                log.warning("gateway: %s may not connect (allow); connection closed", peer[0])
+                client.close()
+                continue
             with self._stats_lock:
+                dropped = self._make_room()
                 full = len(self._clients) >= self._max_clients
-                if not full:
+                if full:
+                    self._stats.refused += 1
+                else:
                     self._stats.connections += 1
-                    self._clients.add(client)
+                    self._clients[client] = _Client(time.monotonic())
+            if dropped is not None:
+                log.info(
+                    "gateway: %d clients: the longest idle closed for %s", self._max_clients, peer
+                )
             if full:
-                log.warning("gateway: %d clients already; %s refused", self._max_clients, peer)
+                log.warning(
+                    "gateway: %d clients, each mid-request: %s refused", self._max_clients, peer
+                )
                 client.close()
                 continue
             log.debug("gateway: client %s connected", peer)
             self._spawn(self._serve_client, f"benchbus-gateway-{peer[1]}", client)
 
+    def _allowed(self, host: str) -> bool:
+        if self._allow is None:
+            return True
+        address = ipaddress.ip_address(host.partition("%")[0])
+        if isinstance(address, ipaddress.IPv6Address) and address.ipv4_mapped is not None:
+            address = address.ipv4_mapped  # an IPv4 client of a dual-stack socket
+        return any(address in network for network in self._allow)
+
+    def _make_room(self) -> socket.socket | None:
+        """When ``max_clients`` are connected, close the one idle the longest and return it;
+        None if there is room, or every client is in the middle of a request (call with the
+        lock held)."""
+        if len(self._clients) < self._max_clients:
+            return None
+        # A request whose first bytes wait unread is a request under way: not idle.
+        idle = [(c.idle_since, s) for s, c in self._clients.items() if not c.busy]
+        idle = [(since, s) for since, s in idle if not _readable(s)]
+        if not idle:
+            return None
+        _, sock = min(idle, key=lambda pair: pair[0])
+        del self._clients[sock]
+        self._stats.idle_closed += 1
+        with contextlib.suppress(OSError):
+            sock.shutdown(socket.SHUT_RDWR)  # its thread sees the end and closes it
+        return sock
+
     def _serve_client(self, client: socket.socket) -> None:
         try:
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            while not self._stopping.is_set():
-                header = _recv_exactly(client, 7, first=True)
+            while not self._stopping.is_set() and self._next_request(client):
+                header = _recv_exactly(client, 7)
                 if header is None:
                     return
                 tid, pid, length, unit = struct.unpack(">HHHB", header)
@@ -330,8 +456,35 @@ class Gateway:
             log.debug("gateway: client connection ended: %s", exc)
         finally:
             with self._stats_lock:
-                self._clients.discard(client)
+                self._clients.pop(client, None)
             client.close()
+
+    def _next_request(self, client: socket.socket) -> bool:
+        """Wait, idle, for the first byte of the client's next request; then mark it busy.
+        False when the client closed, was silent for ``idle_timeout`` or was dropped."""
+        with self._stats_lock:
+            state = self._clients.get(client)
+            if state is None:
+                return False
+            if state.busy:  # its request was answered: idle from now
+                state.busy, state.idle_since = False, time.monotonic()
+        client.settimeout(self._idle_timeout)
+        try:
+            # Peeked, not read: while the byte waits, the client is not taken for idle.
+            if not client.recv(1, socket.MSG_PEEK):
+                return False
+        except TimeoutError:
+            with self._stats_lock:
+                if self._clients.pop(client, None) is not None:
+                    self._stats.idle_closed += 1
+            log.debug("gateway: a client idle for %g s closed", self._idle_timeout)
+            return False
+        with self._stats_lock:
+            state = self._clients.get(client)
+            if state is None:
+                return False
+            state.busy = True
+        return True
 
     def _count(self, **counts: int) -> None:
         with self._stats_lock:
@@ -431,12 +584,12 @@ class _Unsupported(Exception):
     """A function (or form of it) the gateway does not forward."""
 
 
-def _recv_exactly(sock: socket.socket, n: int, *, first: bool = False) -> bytes | None:
-    """``n`` bytes from ``sock``; None when the client closed (or stalled mid-frame)."""
+def _recv_exactly(sock: socket.socket, n: int) -> bytes | None:
+    """``n`` bytes from ``sock``; None when the client closed or stalled mid-frame (silent
+    for FRAME_TIMEOUT)."""
     buf = b""
+    sock.settimeout(FRAME_TIMEOUT)
     while len(buf) < n:
-        # Between frames a client may stay quiet for as long as it likes; within one, not.
-        sock.settimeout(None if first and not buf else FRAME_TIMEOUT)
         try:
             chunk = sock.recv(n - len(buf))
         except TimeoutError:
@@ -445,6 +598,15 @@ def _recv_exactly(sock: socket.socket, n: int, *, first: bool = False) -> bytes 
             return None
         buf += chunk
     return buf
+
+
+def _readable(sock: socket.socket) -> bool:
+    """Whether bytes (or the peer's close) wait to be read on ``sock``; does not wait."""
+    if hasattr(select, "poll"):
+        poller = select.poll()
+        poller.register(sock, select.POLLIN)
+        return bool(poller.poll(0))
+    return bool(select.select([sock], [], [], 0)[0])  # pragma: no cover - Windows
 
 
 def _identification_reply(read_code: int, conformity: int, objects: Mapping[int, bytes]) -> bytes:

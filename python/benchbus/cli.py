@@ -43,7 +43,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 import benchbus as bb
 from benchbus._clock import ticks
-from benchbus._gateway import parse_listen
+from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen
 
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
@@ -178,6 +178,14 @@ _PARITIES = {"n": "N", "none": "N", "e": "E", "even": "E", "o": "O", "odd": "O"}
 def _listen(text: str) -> str:
     try:
         parse_listen(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _allow(text: str) -> str:
+    try:
+        parse_allow(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
@@ -623,7 +631,9 @@ def build_parser() -> argparse.ArgumentParser:
         "one at a time, with this command's timeout and retries; a unit that does not answer "
         "comes back to the client as exception 0x0B, a lost port as 0x0A (the port is "
         "reopened at the next request). Forwards functions 0x03, 0x06, 0x10 and 0x2B. For "
-        "one machine; for a line shared across a network, use a dedicated gateway (mbusd).",
+        "one machine; for a line shared across a network, use a dedicated gateway (mbusd). "
+        "Modbus TCP has no authentication: listening beyond loopback prints a warning; "
+        "--allow limits who may connect.",
     )
     gateway.add_argument(
         "--listen",
@@ -640,6 +650,29 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         help="least seconds between two writes to UNIT on the line, from any client "
         "(repeatable; a J2 controller needs 0.15)",
+    )
+    gateway.add_argument(
+        "--idle-timeout",
+        type=_seconds,
+        default=IDLE_TIMEOUT,
+        metavar="S",
+        help=f"close a client silent for S seconds between requests (default {IDLE_TIMEOUT:g}); "
+        "when --max-clients are connected, a new one replaces the longest idle",
+    )
+    gateway.add_argument(
+        "--max-clients",
+        type=_integer(1, 10_000, "max-clients"),
+        default=32,
+        metavar="N",
+        help="clients served at once (default 32)",
+    )
+    gateway.add_argument(
+        "--allow",
+        metavar="ADDR[/BITS]",
+        type=_allow,
+        action="append",
+        help="only this address or network may connect, e.g. 192.168.1.0/24 or ::1 "
+        "(repeatable; default: any)",
     )
     gateway.add_argument("--seconds", type=_seconds, metavar="S", help="stop after S seconds")
     gateway.set_defaults(handler=_cmd_gateway)
@@ -1274,7 +1307,14 @@ def _serve_until_stopped(where: str, what: str, seconds: float | None) -> None:
 def _cmd_gateway(args: argparse.Namespace) -> int:
     line = _line(args, "gateway")
     with _open_bus(args, "gateway", reconnect=True) as bus:
-        gateway = bb.Gateway(bus, args.listen, write_intervals=dict(args.write_interval))
+        gateway = bb.Gateway(
+            bus,
+            args.listen,
+            write_intervals=dict(args.write_interval),
+            max_clients=args.max_clients,
+            idle_timeout=args.idle_timeout,
+            allow=args.allow,
+        )
         try:
             gateway.start()
         except OSError as exc:
