@@ -91,7 +91,7 @@ def parse_allow(text: str) -> ipaddress.IPv4Network | ipaddress.IPv6Network:
     """``ADDR`` or ``ADDR/BITS`` (IPv4 or IPv6: ``192.168.1.0/24``, ``::1``) as a network.
 
     Raises ValueError, saying what is wrong, for anything else (host bits set included:
-    ``192.168.1.5/24`` is refused, naming ``192.168.1.0/24``).
+    ``192.168.1.5/24`` is refused, naming ``192.168.1.0/24``); TypeError for a non-str.
     """
     if not isinstance(text, str):
         raise TypeError(f"allow: an address is a str, not {type(text).__name__}")
