@@ -477,21 +477,47 @@ impl Bus {
         Ok(all)
     }
 
-    /// Writes one register on every unit (unit 0). Waits for no reply, then keeps the line
-    /// quiet for the turnaround delay; any answer a device sends anyway is dropped. A
+    /// Writes one register on every unit (unit 0): [`Bus::broadcast`] of a 0x06.
+    ///
+    /// # Errors
+    /// As [`Bus::broadcast`].
+    pub fn broadcast_write_register(&self, address: u16, value: u16) -> Result<()> {
+        self.broadcast(&Request::WriteSingleRegister { address, value })
+    }
+
+    /// Writes consecutive registers on every unit (unit 0): [`Bus::broadcast`] of a 0x10.
+    ///
+    /// # Errors
+    /// As [`Bus::broadcast`].
+    pub fn broadcast_write_registers(&self, address: u16, values: &[u16]) -> Result<()> {
+        self.broadcast(&Request::WriteMultipleRegisters {
+            address,
+            values: values.to_vec(),
+        })
+    }
+
+    /// Sends a write `request` to every unit (unit 0). Waits for no reply, then keeps the
+    /// line quiet for the turnaround delay; any answer a device sends anyway is dropped. A
     /// broadcast is a write to every unit: it waits out each unit's write interval, and the
     /// next paced write to any unit waits its interval after it.
     ///
     /// # Errors
-    /// [`Error::Port`] or [`Error::Closed`]; on a Bus opened with `echo`, [`Error::Frame`]
-    /// if the local echo was garbled (not repeated: whether the units got the write is not
-    /// known; the turnaround is kept all the same).
-    pub fn broadcast_write_register(&self, address: u16, value: u16) -> Result<()> {
-        let request = Request::WriteSingleRegister { address, value };
-        let frame = encode_request(BROADCAST, &request);
+    /// [`Error::InvalidArgument`] for a request that is not a write or is malformed (before
+    /// anything is sent); [`Error::Port`] or [`Error::Closed`]; on a Bus opened with `echo`,
+    /// [`Error::Frame`] if the local echo was garbled (not repeated: whether the units got
+    /// the write is not known; the turnaround is kept all the same).
+    pub fn broadcast(&self, request: &Request) -> Result<()> {
+        if !is_write(request) {
+            return Err(Error::InvalidArgument(format!(
+                "only a write can be broadcast, not function {:#04x}",
+                request.function()
+            )));
+        }
+        request.validate()?;
+        let frame = encode_request(BROADCAST, request);
         let mut st = self.lock_when(State::broadcast_ready);
         self.on_port(&mut st, |st| {
-            let sent = self.send(st, &frame, &request, self.config.timeout);
+            let sent = self.send(st, &frame, request, self.config.timeout);
             let sent_end = match &sent {
                 Ok(end) => *end,
                 Err(Error::Frame { .. }) => Instant::now(),

@@ -755,6 +755,32 @@ fn an_unanswered_write_with_a_garbled_echo_is_sent_again() {
 }
 
 #[test]
+fn a_multiple_register_broadcast_goes_to_unit_0_once_and_waits_no_reply() {
+    let (bus, t) = bus(vec![], 2);
+    bus.broadcast_write_registers(0x2000, &[1, 0x0203]).unwrap();
+    assert_eq!(
+        common::sent(&t),
+        vec![with_crc(&common::hex("00 10 20 00 00 02 04 00 01 02 03"))]
+    );
+    let s = bus.stats();
+    assert_eq!((s.broadcasts, s.transactions, s.timeouts), (1, 1, 0));
+    // Malformed writes and reads are refused before anything is sent.
+    for e in [
+        bus.broadcast_write_registers(0, &[]).unwrap_err(),
+        bus.broadcast_write_registers(0, &[0; 124]).unwrap_err(),
+        bus.broadcast_write_registers(0xFFFF, &[1, 2]).unwrap_err(),
+        bus.broadcast(&benchbus::codec::Request::ReadHoldingRegisters {
+            address: 0,
+            count: 1,
+        })
+        .unwrap_err(),
+    ] {
+        assert!(matches!(e, Error::InvalidArgument(_)), "{e:?}");
+    }
+    assert_eq!(common::sent(&t).len(), 1);
+}
+
+#[test]
 fn a_request_to_another_unit_does_not_wait_for_a_late_reply() {
     // A script looping over units: unit 2 is silent, unit 1 answers. A late reply names its
     // unit, so unit 1's request goes out at once rather than after two more timeouts.

@@ -212,6 +212,19 @@ EXPLICIT: list[Case] = [
     *calls("Bus", "broadcast_write_register", ValueError, "address", A(-1, 0), A(HUGE, 0)),
     *calls("Bus", "broadcast_write_register", ValueError, "value", A(0, 0x10000), A(0, HUGE)),
     *calls("Bus", "broadcast_write_register", TypeError, "value", A(0, NAN), A(0, "0")),
+    *calls(
+        "Bus", "broadcast_write_registers", ValueError, "address", A(-1, [1]), A(0xFFFF, [1, 2])
+    ),
+    *calls("Bus", "broadcast_write_registers", ValueError, "values", A(0, []), A(0, [0] * 124)),
+    *calls("Bus", "broadcast_write_registers", ValueError, "value", A(0, [HUGE]), A(0, [1, -1])),
+    *calls("Bus", "broadcast_write_registers", TypeError, "value", A(0, [NAN]), A(0, [1, None])),
+    *calls(
+        "Bus",
+        "broadcast_write_registers",
+        TypeError,
+        "values",
+        *(A(0, v) for v in ("12", b"12", None, 5)),
+    ),
     # A bad unit anywhere in the list is refused before the first probe.
     *calls("Bus", "scan", ValueError, "unit", A([0]), A([-1]), A([HUGE]), A([1, 2, 0])),
     *calls("Bus", "scan", TypeError, "unit", A(["1"]), A([1, None])),

@@ -11,12 +11,16 @@ giving up), not which format a real line would need.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import os
 import select
 import signal
+import socket
+import struct
 import subprocess
 import sys
+import threading
 import time
 from collections.abc import Iterator, Sequence
 from pathlib import Path
@@ -275,6 +279,103 @@ def test_scan_auto_tries_every_format_before_it_gives_up() -> None:
     for line_format in ("19200 8N1", "115200 8E1", "9600 8N1", "4800 8N1", "2400 8N1"):
         assert f"unit 2 at {line_format}" in done.stderr
     assert done.stderr.splitlines()[-1].startswith("benchbus: no unit answered on ")
+
+
+class AnyUnitServer:
+    """A Modbus TCP server on loopback that answers every unit id, as libmodbus and many
+    devices that speak Modbus TCP themselves do: 0x03 with each register's address as its
+    value; any other function, as libmodbus 3.1.6 does, only after 0.5 s, dropping what
+    arrived meanwhile, with exception 1."""
+
+    STALL = 0.5
+
+    def __init__(self) -> None:
+        self._server = socket.create_server(("127.0.0.1", 0))
+        self._server.settimeout(0.1)
+        self.url = f"tcp://127.0.0.1:{self._server.getsockname()[1]}"
+        #: Every request PDU, in order.
+        self.requests: list[bytes] = []
+        self._stop = threading.Event()
+        self._threads = [threading.Thread(target=self._accept)]
+        self._threads[0].start()
+
+    def __enter__(self) -> AnyUnitServer:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self._stop.set()
+        for thread in self._threads:
+            thread.join(5)
+        self._server.close()
+
+    def _accept(self) -> None:
+        while not self._stop.is_set():
+            try:
+                conn, _ = self._server.accept()
+            except TimeoutError:
+                continue
+            thread = threading.Thread(target=self._serve, args=(conn,))
+            self._threads.append(thread)
+            thread.start()
+
+    def _serve(self, conn: socket.socket) -> None:
+        buf = b""
+        with conn:
+            conn.settimeout(0.1)
+            while not self._stop.is_set():
+                try:
+                    chunk = conn.recv(512)
+                except TimeoutError:
+                    continue
+                except OSError:
+                    return
+                if not chunk:
+                    return
+                buf += chunk
+                while len(buf) >= 7 and len(buf) >= 6 + int.from_bytes(buf[4:6], "big"):
+                    length = int.from_bytes(buf[4:6], "big")
+                    header, pdu, buf = buf[:7], buf[7 : 6 + length], buf[6 + length :]
+                    self.requests.append(pdu)
+                    if pdu[0] == 0x03 and len(pdu) == 5:
+                        address, count = struct.unpack(">HH", pdu[1:])
+                        values = [(address + i) & 0xFFFF for i in range(count)]
+                        reply = struct.pack(f">BB{count}H", 3, 2 * count, *values)
+                    else:
+                        time.sleep(self.STALL)
+                        buf = b""
+                        with contextlib.suppress(TimeoutError):
+                            while conn.recv(512):
+                                pass
+                        reply = bytes([pdu[0] | 0x80, 0x01])
+                    conn.sendall(
+                        header[:4] + struct.pack(">H", len(reply) + 1) + header[6:] + reply
+                    )
+
+
+def test_scan_over_tcp_of_a_server_that_answers_every_unit_id_is_quick() -> None:
+    with AnyUnitServer() as server:
+        started = time.monotonic()
+        done = run("scan", "--port", server.url, "--units", "1-247")
+        elapsed = time.monotonic() - started
+        # Read Device Identification stalls this server: asked of the first unit only.
+        assert [pdu[0] for pdu in server.requests].count(0x2B) == 1
+    lines = ok(done)
+    # 0.5 s for each unit's identification took over 2 minutes.
+    assert elapsed < 10, elapsed
+    assert lines[0].split() == ["unit", "hex", "line", "model"]
+    rows = [line.split() for line in lines[1:-1]]
+    assert [int(row[0]) for row in rows] == list(range(1, 248))
+    assert {row[2] for row in rows} == {"tcp"}
+    assert lines[-1].startswith(f"every unit id tried answered: the server at {server.url}")
+
+
+def test_scan_over_tcp_shows_the_transport_and_identifies_units() -> None:
+    with Simulator({1: Atv31Device(), 3: DriveDevice("BLD2")}, network="tcp") as sim:
+        done = run("scan", "--port", sim.port, "--units", "1-4", "--auto")
+    assert ok(done)[1:] == [
+        "1     0x01  tcp   TELEMECANIQUE ATV31HU09M3S232",
+        "3     0x03  tcp   Drive BLD2",
+    ]
 
 
 # ---- read / write --------------------------------------------------------------------------------

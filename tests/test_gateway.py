@@ -5,17 +5,19 @@ simulator on the serial side (which sees every frame the gateway puts on the lin
 
 from __future__ import annotations
 
+import logging
 import socket
 import struct
 import subprocess
 import sys
 import threading
+import time
 from collections.abc import Iterator
 
 import pytest
 
 import benchbus as bb
-from benchbus.sim import J2Device, RegisterDevice, Simulator
+from benchbus.sim import Atv31Device, J2Device, RegisterDevice, Simulator
 from conftest import gateway_command
 
 TIMEOUT = 0.3  # generous: a loaded machine must not turn a reply into a 0x0B
@@ -108,8 +110,14 @@ def test_exceptions_from_the_unit_and_from_the_gateway(
         # A byte count that does not match: 0x03, nothing on the line.
         assert ask(client, 1, bytes.fromhex("10 00 00 00 02 02 00 01")) == bytes([0x90, 0x03])
         assert ask(client, 1, bytes.fromhex("03 00 00 00 00")) == bytes([0x83, 0x03])
+        # A supported function with a malformed length: 0x03 (illegal data value), not 0x01.
+        for pdu in ("03 0C 1E 00", "03 00 00 00 01 00", "06 00 01", "10 00 00", "2B", "2B 0E 01"):
+            request = bytes.fromhex(pdu)
+            assert ask(client, 1, request) == bytes([request[0] | 0x80, 0x03]), pdu
+        # Another MEI type of 0x2B is not forwarded: 0x01.
+        assert ask(client, 1, bytes.fromhex("2B 0D 01 00")) == bytes([0xAB, 0x01])
         assert len(sim.requests) == before
-    assert gateway.stats.gateway_exceptions == 4
+    assert gateway.stats.gateway_exceptions == 11
 
 
 def test_a_lost_line_is_path_unavailable(gateway: bb.Gateway) -> None:
@@ -118,16 +126,40 @@ def test_a_lost_line_is_path_unavailable(gateway: bb.Gateway) -> None:
         assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes([0x83, 0x0A])
 
 
-def test_device_identification_through_the_gateway(gateway: bb.Gateway) -> None:
+def test_device_identification_through_the_gateway(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
     with connect(gateway) as client:
         reply = ask(client, 1, bytes.fromhex("2B 0E 01 00"))
-    assert reply[:7] == bytes([0x2B, 0x0E, 0x01, 0x01, 0x00, 0x00, 3])
+    # The conformity level is the one the unit sent (pymodbus: 0x83), not the read code.
+    (line_reply,) = sim.replies
+    assert line_reply[4] == 0x83
+    assert reply[:7] == bytes([0x2B, 0x0E, 0x01, 0x83, 0x00, 0x00, 3])
     objects, at = {}, 7
     for _ in range(reply[6]):
         object_id, size = reply[at], reply[at + 1]
         objects[object_id] = reply[at + 2 : at + 2 + size].decode("utf-8")
         at += 2 + size
     assert objects == IDENTITY
+
+
+@pytest.mark.parametrize(("conformity", "expected"), [(None, 0x02), (0x81, 0x81)])
+def test_identification_keeps_the_conformity_and_bytes_the_unit_sent(
+    conformity: int | None, expected: int
+) -> None:
+    # The ATV31 answers conformity 0x02 whatever the read code (3 here: extended).
+    with (
+        Simulator({3: Atv31Device(conformity=conformity)}) as sim,
+        bb.Bus(sim.port, timeout=TIMEOUT) as bus,
+        bb.Gateway(bus, "127.0.0.1:0") as gw,
+        connect(gw) as client,
+    ):
+        direct = bus._device_identification(3, 3, 0)
+        assert direct == (expected, {0: b"TELEMECANIQUE", 1: b"ATV31HU09M3S232", 2: b"0201"})
+        reply = ask(client, 3, bytes.fromhex("2B 0E 03 00"))
+        # Byte for byte the unit's own reply PDU: its conformity, its objects.
+        assert reply == sim.replies[-1][1:-2]
+        assert reply[3] == expected
 
 
 def test_a_broadcast_is_sent_and_not_answered(
@@ -147,6 +179,22 @@ def test_a_broadcast_is_sent_and_not_answered(
             "03 02 00 2A"
         )
     assert [f[0] for f in sim.requests] == [0, 2, 2]
+
+
+def test_a_multiple_register_broadcast_reaches_every_unit(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        client.sendall(bytes.fromhex("00 05 00 00 00 0B 00 10 30 06 00 02 04 01 02 03 04"))
+        # A malformed one (the byte count disagrees) goes nowhere, and is not answered.
+        client.sendall(bytes.fromhex("00 06 00 00 00 0B 00 10 30 06 00 02 03 01 02 03 04"))
+        assert ask(client, 1, bytes.fromhex("03 30 06 00 02"), tid=7) == bytes.fromhex(
+            "03 04 01 02 03 04"
+        )
+    rtu = bytes.fromhex("00 10 30 06 00 02 04 01 02 03 04")
+    assert sim.requests[0] == rtu + bb.crc16(rtu).to_bytes(2, "little")
+    assert [f[0] for f in sim.requests] == [0, 1]
+    assert sim.peek(1, 0x3006, 2) == [0x0102, 0x0304]
 
 
 def test_bad_frames_are_dropped(
@@ -248,6 +296,7 @@ def test_stop_ends_every_thread_and_connection(
         gw = bb.Gateway(bus, "127.0.0.1:0").start()
         clients = [connect(gw) for _ in range(3)]
         assert ask(clients[0], 2, bytes.fromhex("03 00 00 00 01")) == bytes.fromhex("03 02 00 00")
+        accepted(gw, 3)  # one still in the listen queue would be reset, not closed
         gw.stop()
         assert [t.name for t in threading.enumerate() if "benchbus-gateway" in t.name] == []
         for client in clients:
@@ -259,18 +308,138 @@ def test_stop_ends_every_thread_and_connection(
         assert not bus.closed
 
 
-def test_connections_beyond_max_clients_are_closed(
+READ = bytes.fromhex("03 00 00 00 01")  # unit 2's register 0
+
+
+def accepted(gw: bb.Gateway, n: int) -> None:
+    """Wait (up to 2 s) until the gateway has accepted ``n`` connections in all: a client's
+    connect() returns before the gateway takes the connection."""
+    deadline = time.monotonic() + 2.0
+    while gw.stats.connections < n:
+        assert time.monotonic() < deadline, f"{gw.stats.connections} of {n} accepted"
+        time.sleep(0.005)
+
+
+def closed(client: socket.socket) -> bool:
+    """Whether the gateway closed this connection (waits up to the client's timeout)."""
+    try:
+        return client.recv(16) == b""
+    except ConnectionResetError:
+        return True
+
+
+def test_a_new_client_takes_the_place_of_the_longest_idle_one(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    with (
+        bb.Bus(sim.port, timeout=TIMEOUT) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", max_clients=2) as gw,
+        connect(gw) as first,
+        connect(gw) as second,
+    ):
+        accepted(gw, 2)
+        assert ask(first, 2, READ) == bytes.fromhex("03 02 00 00")  # first: no longer idle
+        with connect(gw) as third:
+            assert closed(second)
+            assert ask(third, 2, READ) == bytes.fromhex("03 02 00 00")
+            assert ask(first, 2, READ) == bytes.fromhex("03 02 00 00")
+        stats = gw.stats
+        assert (stats.connections, stats.idle_closed, stats.refused) == (3, 1, 0)
+
+
+def test_a_client_in_the_middle_of_a_request_is_never_dropped(
     sim: Simulator[RegisterDevice | J2Device],
 ) -> None:
     with (
         bb.Bus(sim.port, timeout=TIMEOUT) as bus,
         bb.Gateway(bus, "127.0.0.1:0", max_clients=1) as gw,
         connect(gw) as first,
-        connect(gw) as second,
     ):
-        assert second.recv(16) == b""
-        assert ask(first, 2, bytes.fromhex("03 00 00 00 01")) == bytes.fromhex("03 02 00 00")
-        assert gw.stats.connections == 1
+        request = struct.pack(">HHHB", 1, 0, len(READ) + 1, 2) + READ
+        first.sendall(request[:3])  # half a header: a request under way
+        with connect(gw) as second:
+            assert closed(second)
+        first.sendall(request[3:])
+        assert recv(first, 11)[7:] == bytes.fromhex("03 02 00 00")
+        assert (gw.stats.connections, gw.stats.refused, gw.stats.idle_closed) == (1, 1, 0)
+
+
+def test_thirty_two_silent_connections_do_not_lock_out_the_next(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    silent = [connect(gateway) for _ in range(32)]
+    try:
+        accepted(gateway, 32)
+        with connect(gateway) as client:
+            assert ask(client, 2, READ) == bytes.fromhex("03 02 00 00")
+        assert closed(silent[0])  # the one idle the longest made room
+        assert gateway.stats.idle_closed == 1
+    finally:
+        for s in silent:
+            s.close()
+
+
+def test_idle_clients_are_closed_after_idle_timeout(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    with (
+        bb.Bus(sim.port, timeout=TIMEOUT) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", idle_timeout=0.3) as gw,
+        connect(gw) as idle,
+        connect(gw) as busy,
+    ):
+        started = time.monotonic()
+        while time.monotonic() - started < 0.9:  # three idle timeouts, never silent for one
+            assert ask(busy, 2, READ) == bytes.fromhex("03 02 00 00")
+            time.sleep(0.1)
+        assert closed(idle)
+        assert ask(busy, 2, READ) == bytes.fromhex("03 02 00 00")
+        assert gw.stats.idle_closed == 1
+
+
+def connect_from(gw: bb.Gateway, source: str) -> socket.socket:
+    """A connection to the gateway from the local address ``source``."""
+    client = socket.socket(socket.AF_INET6 if ":" in source else socket.AF_INET)
+    client.settimeout(2.0)
+    client.bind((source, 0))
+    client.connect(gw.address)
+    return client
+
+
+def test_allow_limits_who_may_connect(sim: Simulator[RegisterDevice | J2Device]) -> None:
+    with bb.Bus(sim.port, timeout=TIMEOUT) as bus:
+        with bb.Gateway(bus, "127.0.0.1:0", allow=["127.0.0.1", "10.0.0.0/8"]) as gw:
+            with connect_from(gw, "127.0.0.2") as stranger:
+                assert closed(stranger)
+            with connect_from(gw, "127.0.0.1") as friend:
+                assert ask(friend, 2, READ) == bytes.fromhex("03 02 00 00")
+            assert (gw.stats.refused, gw.stats.connections) == (1, 1)
+        # A network, and IPv6.
+        with (
+            bb.Gateway(bus, "127.0.0.1:0", allow="127.0.0.0/30") as gw,
+            connect_from(gw, "127.0.0.2") as client,
+        ):
+            assert ask(client, 2, READ) == bytes.fromhex("03 02 00 00")
+        with bb.Gateway(bus, "[::1]:0", allow=["::1/128"]) as gw:
+            with connect_from(gw, "::1") as client:
+                assert ask(client, 2, READ) == bytes.fromhex("03 02 00 00")
+            assert gw.stats.refused == 0
+
+
+def test_listening_beyond_this_machine_warns(
+    sim: Simulator[RegisterDevice | J2Device], caplog: pytest.LogCaptureFixture
+) -> None:
+    with bb.Bus(sim.port) as bus:
+        for local in ("127.0.0.1:0", "[::1]:0", "localhost:0"):
+            bb.Gateway(bus, local).start().stop()
+        assert [r for r in caplog.records if r.levelno >= logging.WARNING] == []
+        # 203.0.113.1 (TEST-NET-3) is no address of this machine: warned, then not bound.
+        with pytest.raises(OSError):
+            bb.Gateway(bus, "203.0.113.1:0").start()
+        (warning,) = [r for r in caplog.records if r.levelno >= logging.WARNING]
+        assert warning.name == "benchbus.gateway"
+        assert "no authentication" in warning.getMessage()
+        assert "allow" in warning.getMessage()
 
 
 def test_gateway_arguments_are_checked(sim: Simulator[RegisterDevice | J2Device]) -> None:
@@ -290,6 +459,22 @@ def test_gateway_arguments_are_checked(sim: Simulator[RegisterDevice | J2Device]
             bb.Gateway(bus, "127.0.0.1:\u0665")  # an Arabic-Indic five
         with pytest.raises(ValueError, match="max_clients"):
             bb.Gateway(bus, max_clients=0)
+        for bad_timeout in (0, -1.0, float("nan"), float("inf")):
+            with pytest.raises(ValueError, match="idle_timeout"):
+                bb.Gateway(bus, idle_timeout=bad_timeout)
+        with pytest.raises(TypeError, match="idle_timeout"):
+            bb.Gateway(bus, idle_timeout="60")  # type: ignore[arg-type]
+        for bad_allow, message in [
+            (["10.0.0.1/33"], "ADDR/BITS"),
+            (["10.0.0.5/24"], r"host bits set: the network is 10\.0\.0\.0/24"),
+            (["nowhere"], "ADDR/BITS"),
+            (["::1/129"], "ADDR/BITS"),
+            ([], "allow is empty"),
+        ]:
+            with pytest.raises(ValueError, match=message):
+                bb.Gateway(bus, allow=bad_allow)
+        with pytest.raises(TypeError, match="allow"):
+            bb.Gateway(bus, allow=[0x7F000001])  # type: ignore[list-item]
         assert bb.Gateway(bus, "[::1]:0").start().url.startswith("tcp://[::1]:")
         with pytest.raises(TypeError, match=r"benchbus\.Bus"):
             bb.Gateway("not a bus")  # type: ignore[arg-type]
@@ -318,6 +503,10 @@ def test_the_gateway_command(sim: Simulator[RegisterDevice | J2Device]) -> None:
         (["--write-interval", "5"], "UNIT=SECONDS"),
         (["--write-interval", "5=-1"], "0..60"),
         (["--write-interval", "0=0.1"], "UNIT"),
+        (["--allow", "10.0.0.5/24"], "host bits set: the network is 10.0.0.0/24"),
+        (["--allow", "127.0.0.1", "--allow", "10.0.0.0/40"], "ADDR/BITS"),
+        (["--idle-timeout", "0"], "> 0"),
+        (["--max-clients", "0"], "max-clients"),
     ],
 )
 def test_gateway_command_usage_errors(args: list[str], message: str) -> None:
@@ -329,3 +518,33 @@ def test_gateway_command_usage_errors(args: list[str], message: str) -> None:
     )
     assert result.returncode == 2
     assert message in result.stderr
+    assert len(result.stderr.splitlines()) == 1, result.stderr
+
+
+def test_the_gateway_command_limits_and_warns(sim: Simulator[RegisterDevice | J2Device]) -> None:
+    with gateway_command(sim.port, "--allow", "127.0.0.2", "--idle-timeout", "0.2") as (url, _):
+        host, port = url[len("tcp://") :].rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=2.0) as client:
+            assert closed(client)  # from 127.0.0.1: not allowed
+        with socket.socket() as client:
+            client.settimeout(2.0)
+            client.bind(("127.0.0.2", 0))
+            client.connect((host, int(port)))
+            assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes.fromhex("03 02 05 AA")
+            started = time.monotonic()
+            assert closed(client)  # idle for 0.2 s
+            assert time.monotonic() - started < 1.5
+    # Beyond loopback (203.0.113.1, TEST-NET-3, is no address of this machine: not bound).
+    result = subprocess.run(
+        [
+            *(sys.executable, "-m", "benchbus", "gateway", "--port", sim.port),
+            *("--listen", "203.0.113.1:0", "--seconds", "1"),
+        ],
+        capture_output=True,
+        text=True,
+        timeout=30,
+    )
+    assert result.returncode == 1
+    warning, error = result.stderr.splitlines()
+    assert "203.0.113.1" in warning and "no authentication" in warning and "--allow" in warning
+    assert error.startswith("benchbus: cannot listen on 203.0.113.1:0")

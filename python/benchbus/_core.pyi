@@ -171,8 +171,17 @@ class Bus:
         self, unit: int, read_code: int = 1, object_id: int = 0
     ) -> dict[int, str]:
         """Read device identification objects (0x2B / MEI 0x0E) as ``{object_id: text}``."""
+    def _device_identification(
+        self, unit: int, read_code: int, object_id: int
+    ) -> tuple[int, dict[int, bytes]]:
+        """Internal (the gateway's): ``(conformity, {object_id: raw bytes})``, the
+        conformity level the device sent and its objects undecoded. Use
+        :meth:`read_device_identification`."""
     def broadcast_write_register(self, address: int, value: int) -> None:
         """Write one register on every unit (unit 0); waits no reply."""
+    def broadcast_write_registers(self, address: int, values: Iterable[int]) -> None:
+        """Write 1..123 consecutive registers from ``address`` on every unit (unit 0,
+        function 0x10); waits no reply."""
     def scan(
         self, units: Iterable[int] | None = None, timeout: float = 0.05, address: int = 0
     ) -> list[int]:

@@ -19,13 +19,16 @@ import contextlib
 import dataclasses
 import ipaddress
 import logging
+import math
 import re
+import select
 import socket
 import struct
 import threading
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from types import TracebackType
+from typing import Any
 
 from benchbus._core import Bus
 from benchbus.exceptions import (
@@ -36,7 +39,7 @@ from benchbus.exceptions import (
     ResponseTimeout,
 )
 
-__all__ = ["Gateway", "GatewayStats", "parse_listen"]
+__all__ = ["Gateway", "GatewayStats", "parse_allow", "parse_listen"]
 
 log = logging.getLogger("benchbus.gateway")
 
@@ -51,6 +54,8 @@ TARGET_FAILED = 0x0B
 MAX_PDU = 253
 #: How long a client may stay silent mid-frame before its connection is dropped.
 FRAME_TIMEOUT = 5.0
+#: How long a client may stay silent between requests, by default, before it is dropped.
+IDLE_TIMEOUT = 60.0
 _MEI_DEVICE_ID = 0x0E
 
 
@@ -82,6 +87,36 @@ def parse_listen(text: str) -> tuple[str, int]:
     return host, int(port)
 
 
+def parse_allow(text: str) -> ipaddress.IPv4Network | ipaddress.IPv6Network:
+    """``ADDR`` or ``ADDR/BITS`` (IPv4 or IPv6: ``192.168.1.0/24``, ``::1``) as a network.
+
+    Raises ValueError, saying what is wrong, for anything else (host bits set included:
+    ``192.168.1.5/24`` is refused, naming ``192.168.1.0/24``); TypeError for a non-str.
+    """
+    if not isinstance(text, str):
+        raise TypeError(f"allow: an address is a str, not {type(text).__name__}")
+    try:
+        return ipaddress.ip_network(text.strip(), strict=True)
+    except ValueError as exc:
+        try:
+            network = ipaddress.ip_network(text.strip(), strict=False)
+        except ValueError:
+            raise ValueError(
+                f"allow: {text!r} is not ADDR or ADDR/BITS (e.g. 192.168.1.0/24, ::1): {exc}"
+            ) from None
+        raise ValueError(f"allow: {text!r} has host bits set: the network is {network}") from None
+
+
+def _on_this_machine(host: str) -> bool:
+    """Whether a listen address ``host`` is reachable from this machine only (loopback)."""
+    if host.lower().rstrip(".") == "localhost":
+        return True
+    try:
+        return ipaddress.ip_address(host).is_loopback
+    except ValueError:
+        return False  # a host name: assume the network
+
+
 _HOST_NAME = re.compile(r"(?!-)[A-Za-z0-9-]{1,63}(?<!-)(\.(?!-)[A-Za-z0-9-]{1,63}(?<!-))*\.?")
 
 
@@ -97,6 +132,22 @@ class GatewayStats:
     gateway_exceptions: int = 0
     #: Frames dropped: a protocol id other than 0, a length out of range.
     bad_frames: int = 0
+    #: Connections closed as soon as accepted: from an address ``allow`` leaves out, or
+    #: while every one of ``max_clients`` was in the middle of a request.
+    refused: int = 0
+    #: Connections closed for being idle: silent for ``idle_timeout``, or the longest idle
+    #: one when a new client came and ``max_clients`` were connected.
+    idle_closed: int = 0
+
+
+@dataclasses.dataclass
+class _Client:
+    """A connection's state, kept under the gateway's lock."""
+
+    #: ``time.monotonic()`` when it connected or its last request was answered.
+    idle_since: float
+    #: Whether a request of it is being read or served (it is then never dropped).
+    busy: bool = False
 
 
 class Gateway:
@@ -107,11 +158,14 @@ class Gateway:
         with bb.Bus("/dev/ttyUSB0") as bus, bb.Gateway(bus, "127.0.0.1:5020") as gw:
             ...  # other processes open bb.Bus(gw.url) and use their devices as usual
 
-    Forwards functions 0x03, 0x06, 0x10 and 0x2B / 0x0E (what the benchbus devices speak);
-    any other function is answered exception 0x01. Unit 0 with 0x06 is a broadcast: sent,
-    not answered. A failure on the line comes back as the gateway exceptions: 0x0B when the
-    unit gave no valid reply (after the Bus's retries), 0x0A when the serial port is lost
-    or closed. An exception reply from the unit is passed on as it is.
+    Forwards functions 0x03, 0x06, 0x10 and 0x2B / 0x0E (what the benchbus devices speak),
+    the identification with the conformity level and object bytes the unit sent; one of
+    these with a wrong length or byte count is answered exception 0x03 (illegal data
+    value), any other function 0x01. Unit 0 with 0x06 or 0x10 is a broadcast: sent, not
+    answered (nor is any other request to unit 0). A failure on the line comes back as
+    the gateway exceptions: 0x0B when the unit gave no valid reply (after the Bus's
+    retries), 0x0A when the serial port is lost or closed. An exception reply from the
+    unit is passed on as it is.
 
     ``write_intervals`` (``{unit: seconds}``) keeps that least time between two writes to a
     unit on the line, whichever client sends them, retries included (a J2 controller needs
@@ -121,6 +175,17 @@ class Gateway:
     + 1)``, the unit's write interval, and the requests of other clients queued ahead of it.
     Give clients ``timeout=1.0`` (or more) and ``retries=0``: over TCP nothing is lost on the
     way, and a repeated request only queues behind the first.
+
+    Connections: a client silent for ``idle_timeout`` seconds between requests is dropped;
+    when ``max_clients`` are connected, a new client takes the place of the one idle the
+    longest (a client in the middle of a request is never dropped; a new one is refused
+    only when every one is). A client opened with ``reconnect=True`` does not notice.
+
+    Modbus TCP has no authentication: whoever reaches the port drives the devices on the
+    line. Listening on an address other than loopback logs a warning (``benchbus.gateway``
+    logger; ``benchbus gateway`` prints it), and ``allow`` (``["192.168.1.0/24", "::1"]``)
+    limits who may connect: a connection from elsewhere is closed at once and counted
+    (:attr:`GatewayStats.refused`).
     """
 
     def __init__(
@@ -130,13 +195,17 @@ class Gateway:
         *,
         write_intervals: Mapping[int, float] | None = None,
         max_clients: int = 32,
+        idle_timeout: float | None = IDLE_TIMEOUT,
+        allow: str | Iterable[str] | None = None,
     ) -> None:
         """Serve ``bus``'s units on ``listen`` (``HOST:PORT``; port 0: any free port).
 
         Nothing listens until :meth:`start` (or ``with``). At most ``max_clients``
-        connections are served at once; one more is closed as soon as it is accepted.
-        Raises ValueError for a bad address, interval or limit, TypeError for a ``bus``
-        that is not a :class:`Bus`.
+        connections are served at once (a new one replaces the longest idle); one silent
+        for ``idle_timeout`` seconds between requests is closed (None: never). ``allow``:
+        the addresses (``ADDR`` or ``ADDR/BITS``, IPv4 or IPv6) that may connect; None:
+        any. Raises ValueError for a bad address, network, interval, limit or timeout,
+        TypeError for a ``bus`` that is not a :class:`Bus`.
         """
         if not isinstance(bus, Bus):
             raise TypeError(f"bus must be a benchbus.Bus, not {type(bus).__name__}")
@@ -154,11 +223,23 @@ class Gateway:
         if isinstance(max_clients, bool) or not isinstance(max_clients, int) or max_clients < 1:
             raise ValueError(f"max_clients must be an int >= 1, not {max_clients!r}")
         self._max_clients = max_clients
+        if idle_timeout is not None and (
+            isinstance(idle_timeout, bool) or not isinstance(idle_timeout, (int, float))
+        ):
+            raise TypeError(f"idle_timeout must be seconds or None, not {idle_timeout!r}")
+        if idle_timeout is not None and not (idle_timeout > 0 and math.isfinite(idle_timeout)):
+            raise ValueError(f"idle_timeout must be > 0 seconds (or None), not {idle_timeout}")
+        self._idle_timeout = None if idle_timeout is None else float(idle_timeout)
+        if isinstance(allow, str):
+            allow = [allow]
+        self._allow = None if allow is None else [parse_allow(a) for a in allow]
+        if self._allow == []:
+            raise ValueError("allow is empty: no client could connect (None allows any)")
         self._stats = GatewayStats()
         self._stats_lock = threading.Lock()
         self._server: socket.socket | None = None
         self._address: tuple[str, int] | None = None
-        self._clients: set[socket.socket] = set()
+        self._clients: dict[socket.socket, _Client] = {}
         self._threads: list[threading.Thread] = []
         self._acceptor: threading.Thread | None = None
         self._stopping = threading.Event()
@@ -173,6 +254,15 @@ class Gateway:
         if self._server is not None:
             return self
         host, port = self._listen
+        if not _on_this_machine(host):
+            log.warning(
+                "gateway: listening on %s, beyond this machine: Modbus TCP has no "
+                "authentication, whoever reaches the port drives the devices on the line; %s",
+                host,
+                "limit who may connect with allow (--allow ADDR[/BITS])"
+                if self._allow is None
+                else "only " + ", ".join(map(str, self._allow)) + " may connect",
+            )
         family = socket.AF_INET6 if ":" in host else socket.AF_INET
         server = socket.socket(family, socket.SOCK_STREAM)
         try:
@@ -287,23 +377,63 @@ class Gateway:
                 log.warning("gateway: accept failed: %s", exc)
                 self._stopping.wait(0.1)
                 continue
+            if not self._allowed(peer[0]):
+                self._count(refused=1)
+                log.warning("gateway: %s may not connect (allow); connection closed", peer[0])
+                client.close()
+                continue
             with self._stats_lock:
+                dropped = self._make_room()
                 full = len(self._clients) >= self._max_clients
-                if not full:
+                if full:
+                    self._stats.refused += 1
+                else:
                     self._stats.connections += 1
-                    self._clients.add(client)
+                    self._clients[client] = _Client(time.monotonic())
+            if dropped is not None:
+                log.info(
+                    "gateway: %d clients: the longest idle closed for %s", self._max_clients, peer
+                )
             if full:
-                log.warning("gateway: %d clients already; %s refused", self._max_clients, peer)
+                log.warning(
+                    "gateway: %d clients, each mid-request: %s refused", self._max_clients, peer
+                )
                 client.close()
                 continue
             log.debug("gateway: client %s connected", peer)
             self._spawn(self._serve_client, f"benchbus-gateway-{peer[1]}", client)
 
+    def _allowed(self, host: str) -> bool:
+        if self._allow is None:
+            return True
+        address = ipaddress.ip_address(host.partition("%")[0])
+        if isinstance(address, ipaddress.IPv6Address) and address.ipv4_mapped is not None:
+            address = address.ipv4_mapped  # an IPv4 client of a dual-stack socket
+        return any(address in network for network in self._allow)
+
+    def _make_room(self) -> socket.socket | None:
+        """When ``max_clients`` are connected, close the one idle the longest and return it;
+        None if there is room, or every client is in the middle of a request (call with the
+        lock held)."""
+        if len(self._clients) < self._max_clients:
+            return None
+        # A request whose first bytes wait unread is a request under way: not idle.
+        idle = [(c.idle_since, s) for s, c in self._clients.items() if not c.busy]
+        idle = [(since, s) for since, s in idle if not _readable(s)]
+        if not idle:
+            return None
+        _, sock = min(idle, key=lambda pair: pair[0])
+        del self._clients[sock]
+        self._stats.idle_closed += 1
+        with contextlib.suppress(OSError):
+            sock.shutdown(socket.SHUT_RDWR)  # its thread sees the end and closes it
+        return sock
+
     def _serve_client(self, client: socket.socket) -> None:
         try:
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            while not self._stopping.is_set():
-                header = _recv_exactly(client, 7, first=True)
+            while not self._stopping.is_set() and self._next_request(client):
+                header = _recv_exactly(client, 7)
                 if header is None:
                     return
                 tid, pid, length, unit = struct.unpack(">HHHB", header)
@@ -326,8 +456,35 @@ class Gateway:
             log.debug("gateway: client connection ended: %s", exc)
         finally:
             with self._stats_lock:
-                self._clients.discard(client)
+                self._clients.pop(client, None)
             client.close()
+
+    def _next_request(self, client: socket.socket) -> bool:
+        """Wait, idle, for the first byte of the client's next request; then mark it busy.
+        False when the client closed, was silent for ``idle_timeout`` or was dropped."""
+        with self._stats_lock:
+            state = self._clients.get(client)
+            if state is None:
+                return False
+            if state.busy:  # its request was answered: idle from now
+                state.busy, state.idle_since = False, time.monotonic()
+        client.settimeout(self._idle_timeout)
+        try:
+            # Peeked, not read: while the byte waits, the client is not taken for idle.
+            if not client.recv(1, socket.MSG_PEEK):
+                return False
+        except TimeoutError:
+            with self._stats_lock:
+                if self._clients.pop(client, None) is not None:
+                    self._stats.idle_closed += 1
+            log.debug("gateway: a client idle for %g s closed", self._idle_timeout)
+            return False
+        with self._stats_lock:
+            state = self._clients.get(client)
+            if state is None:
+                return False
+            state.busy = True
+        return True
 
     def _count(self, **counts: int) -> None:
         with self._stats_lock:
@@ -343,74 +500,96 @@ class Gateway:
         happens on the line: those are exception replies.
         """
         function = pdu[0] if pdu else 0
+        reply: bytes | None = None
+        refusal = None
         try:
             reply = self._forward(unit, function, pdu[1:])
         except ModbusException as exc:  # the unit's own answer (a gateway's, passed on)
             reply = bytes([function | 0x80, exc.code])
         except (ResponseTimeout, FrameError) as exc:
             log.debug("gateway: unit %d did not answer: %s", unit, exc)
-            reply = self._refusal(function, TARGET_FAILED)
+            refusal = TARGET_FAILED
         except PortError as exc:
             log.warning("gateway: the line is unavailable: %s", exc)
-            reply = self._refusal(function, PATH_UNAVAILABLE)
+            refusal = PATH_UNAVAILABLE
         except (ValueError, TypeError, struct.error, IndexError) as exc:
             log.debug("gateway: request refused: %s", exc)
-            reply = self._refusal(function, ILLEGAL_DATA_VALUE)
+            refusal = ILLEGAL_DATA_VALUE
         except _Unsupported:
-            reply = self._refusal(function, ILLEGAL_FUNCTION)
+            refusal = ILLEGAL_FUNCTION
         except BenchbusError as exc:
             log.warning("gateway: request failed: %s", exc)
-            reply = self._refusal(function, SERVER_DEVICE_FAILURE)
+            refusal = SERVER_DEVICE_FAILURE
         self._count(requests=1)
-        return reply
-
-    def _refusal(self, function: int, code: int) -> bytes:
+        if unit == 0:  # a broadcast is never answered, whatever it asks and however it went
+            return None
+        if refusal is None:
+            return reply
         self._count(gateway_exceptions=1)
-        return bytes([(function | 0x80) & 0xFF, code])
+        return bytes([(function | 0x80) & 0xFF, refusal])
 
     def _forward(self, unit: int, function: int, data: bytes) -> bytes | None:
         bus = self.bus
+        args = _parse(function, data)
         if unit == 0:
-            # A broadcast is never answered, whatever it asks.
-            if function == 0x06 and len(data) == 4:
-                bus.broadcast_write_register(*struct.unpack(">HH", data))
+            if function == 0x06:
+                bus.broadcast_write_register(*args)
+            elif function == 0x10:
+                bus.broadcast_write_registers(*args)
             else:
                 log.debug("gateway: broadcast of function %#04x not forwarded", function)
             return None
         interval = self._intervals.get(unit, 0.0)
-        if function == 0x03 and len(data) == 4:
-            address, count = struct.unpack(">HH", data)
-            values = bus.read_holding_registers(unit, address, count)
+        if function == 0x03:
+            values = bus.read_holding_registers(unit, *args)
             return struct.pack(f">BB{len(values)}H", 0x03, 2 * len(values), *values)
-        if function == 0x06 and len(data) == 4:
-            address, value = struct.unpack(">HH", data)
-            bus.write_register(
-                unit, address, value, accept_count_echo=True, write_interval=interval
-            )
+        if function == 0x06:
+            bus.write_register(unit, *args, accept_count_echo=True, write_interval=interval)
             return bytes([0x06]) + data
-        if function == 0x10 and len(data) >= 5:
-            address, count, size = struct.unpack(">HHB", data[:5])
-            if size != 2 * count or len(data) != 5 + size:
-                raise ValueError("byte count does not match the register count")
-            values = list(struct.unpack(f">{count}H", data[5:]))
+        if function == 0x10:
+            address, values = args
             bus.write_registers(unit, address, values, write_interval=interval)
-            return struct.pack(">BHH", 0x10, address, count)
-        if function == 0x2B and len(data) == 3 and data[0] == _MEI_DEVICE_ID:
-            objects = bus.read_device_identification(unit, data[1], data[2])
-            return _identification_reply(objects, data[1])
-        raise _Unsupported
+            return struct.pack(">BHH", 0x10, address, len(values))
+        read_code, object_id = args
+        conformity, objects = bus._device_identification(unit, read_code, object_id)
+        return _identification_reply(read_code, conformity, objects)
+
+
+def _parse(function: int, data: bytes) -> tuple[Any, ...]:
+    """The arguments of a request the gateway forwards, from its data (the PDU after the
+    function code). Raises _Unsupported for a function it does not forward, ValueError
+    (answered 0x03, illegal data value) for a supported one whose length or byte count is
+    wrong (Modbus application protocol, 6.3, 6.6, 6.12, 6.21)."""
+    if function in (0x03, 0x06):
+        if len(data) != 4:
+            raise ValueError(f"function {function:#04x} takes 4 data bytes, not {len(data)}")
+        return struct.unpack(">HH", data)
+    if function == 0x10:
+        if len(data) < 5:
+            raise ValueError(f"function 0x10 takes at least 5 data bytes, not {len(data)}")
+        address, count, size = struct.unpack(">HHB", data[:5])
+        if size != 2 * count or len(data) != 5 + size:
+            raise ValueError("byte count does not match the register count")
+        return address, list(struct.unpack(f">{count}H", data[5:]))
+    if function == 0x2B and not data:
+        raise ValueError("0x2B without its MEI type")
+    if function == 0x2B and data[0] == _MEI_DEVICE_ID:
+        if len(data) != 3:
+            raise ValueError(f"0x2B / 0x0E takes 3 data bytes, not {len(data)}")
+        return data[1], data[2]
+    raise _Unsupported
 
 
 class _Unsupported(Exception):
     """A function (or form of it) the gateway does not forward."""
 
 
-def _recv_exactly(sock: socket.socket, n: int, *, first: bool = False) -> bytes | None:
-    """``n`` bytes from ``sock``; None when the client closed (or stalled mid-frame)."""
+def _recv_exactly(sock: socket.socket, n: int) -> bytes | None:
+    """``n`` bytes from ``sock``; None when the client closed or stalled mid-frame (silent
+    for FRAME_TIMEOUT)."""
     buf = b""
+    sock.settimeout(FRAME_TIMEOUT)
     while len(buf) < n:
-        # Between frames a client may stay quiet for as long as it likes; within one, not.
-        sock.settimeout(None if first and not buf else FRAME_TIMEOUT)
         try:
             chunk = sock.recv(n - len(buf))
         except TimeoutError:
@@ -421,22 +600,28 @@ def _recv_exactly(sock: socket.socket, n: int, *, first: bool = False) -> bytes 
     return buf
 
 
-def _identification_reply(objects: Mapping[int, str], read_code: int) -> bytes:
-    """A 0x2B / 0x0E reply PDU carrying as many of ``objects`` as fit; "more follows" and
-    the next object's id when some do not (the client asks again from there). The text goes
-    as UTF-8, as the Bus read it. The conformity level given is the read code asked for
-    (the Bus does not pass on the unit's own)."""
+def _readable(sock: socket.socket) -> bool:
+    """Whether bytes (or the peer's close) wait to be read on ``sock``; does not wait."""
+    if hasattr(select, "poll"):
+        poller = select.poll()
+        poller.register(sock, select.POLLIN)
+        return bool(poller.poll(0))
+    return bool(select.select([sock], [], [], 0)[0])  # pragma: no cover - Windows
+
+
+def _identification_reply(read_code: int, conformity: int, objects: Mapping[int, bytes]) -> bytes:
+    """A 0x2B / 0x0E reply PDU carrying as many of ``objects`` as fit, with the device's own
+    conformity level; "more follows" and the next object's id when some do not (the client
+    asks again from there). The objects' bytes go as the unit sent them."""
     body = b""
     count = 0
     next_object = 0
     more = 0x00
-    for object_id, text in sorted(objects.items()):
-        value = text.encode("utf-8")[:245]
-        item = bytes([object_id, len(value)]) + value
+    for object_id, value in sorted(objects.items()):
+        item = bytes([object_id, len(value[:245])]) + value[:245]
         if 7 + len(body) + len(item) > MAX_PDU:
             more, next_object = 0xFF, object_id
             break
         body += item
         count += 1
-    conformity = read_code if 1 <= read_code <= 3 else 0x01
     return bytes([0x2B, _MEI_DEVICE_ID, read_code, conformity, more, next_object, count]) + body

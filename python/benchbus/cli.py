@@ -43,7 +43,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 import benchbus as bb
 from benchbus._clock import ticks
-from benchbus._gateway import parse_listen
+from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen
 
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
@@ -178,6 +178,14 @@ _PARITIES = {"n": "N", "none": "N", "e": "E", "even": "E", "o": "O", "odd": "O"}
 def _listen(text: str) -> str:
     try:
         parse_listen(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+    return text
+
+
+def _allow(text: str) -> str:
+    try:
+        parse_allow(text)
     except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
     return text
@@ -403,7 +411,10 @@ def build_parser() -> argparse.ArgumentParser:
         "a J2's SV within LSP..USP, a Taisong's 37-register read limit; '?' when nothing "
         f"fits. --auto tries, in order: {formats}. A unit found at one format is not asked "
         "again at the next. On a pseudo-terminal (a simulator) every format carries, so "
-        "every unit shows at the first one.",
+        "every unit shows at the first one. Over tcp:// the line shows as 'tcp', --auto "
+        "has nothing to try, identification gets the scan's --timeout (once unanswered, it "
+        "is not asked of the next units), and a server that answers every unit id tried "
+        "is said to, once.",
     )
     scan.add_argument(
         "--units",
@@ -623,7 +634,9 @@ def build_parser() -> argparse.ArgumentParser:
         "one at a time, with this command's timeout and retries; a unit that does not answer "
         "comes back to the client as exception 0x0B, a lost port as 0x0A (the port is "
         "reopened at the next request). Forwards functions 0x03, 0x06, 0x10 and 0x2B. For "
-        "one machine; for a line shared across a network, use a dedicated gateway (mbusd).",
+        "one machine; for a line shared across a network, use a dedicated gateway (mbusd). "
+        "Modbus TCP has no authentication: listening beyond loopback prints a warning; "
+        "--allow limits who may connect.",
     )
     gateway.add_argument(
         "--listen",
@@ -640,6 +653,29 @@ def build_parser() -> argparse.ArgumentParser:
         default=[],
         help="least seconds between two writes to UNIT on the line, from any client "
         "(repeatable; a J2 controller needs 0.15)",
+    )
+    gateway.add_argument(
+        "--idle-timeout",
+        type=_seconds,
+        default=IDLE_TIMEOUT,
+        metavar="S",
+        help=f"close a client silent for S seconds between requests (default {IDLE_TIMEOUT:g}); "
+        "when --max-clients are connected, a new one replaces the longest idle",
+    )
+    gateway.add_argument(
+        "--max-clients",
+        type=_integer(1, 10_000, "max-clients"),
+        default=32,
+        metavar="N",
+        help="clients served at once (default 32)",
+    )
+    gateway.add_argument(
+        "--allow",
+        metavar="ADDR[/BITS]",
+        type=_allow,
+        action="append",
+        help="only this address or network may connect, e.g. 192.168.1.0/24 or ::1 "
+        "(repeatable; default: any)",
     )
     gateway.add_argument("--seconds", type=_seconds, metavar="S", help="stop after S seconds")
     gateway.set_defaults(handler=_cmd_gateway)
@@ -761,10 +797,21 @@ def _refused(bus: bb.Bus, unit: int, address: int, count: int, code: int) -> boo
     return False
 
 
-def guess_model(bus: bb.Bus, unit: int) -> str:
+def _identification(bus: bb.Bus, unit: int) -> str | None:
+    """Vendor and product code from Read Device Identification (0x2B / 0x0E); None when the
+    unit refuses it or garbles the reply. A timeout is raised."""
+    try:
+        objects = bus.read_device_identification(unit)
+    except (bb.ModbusException, bb.FrameError):
+        return None
+    return " ".join(objects[k] for k in (0, 1) if objects.get(k)) or "identified (no vendor)"
+
+
+def guess_model(bus: bb.Bus, unit: int, *, identify: bool = True) -> str:
     """A best guess at what answers at ``unit``, in this order (each a few reads):
 
-    - Read Device Identification (0x2B / 0x0E) answered: its vendor and product code;
+    - Read Device Identification (0x2B / 0x0E) answered: its vendor and product code (not
+      asked with ``identify`` False);
     - a drive: 0x2100 holds a drive state (1..6) and 0x2103 a model code (0x20 BLD2 or
       C20, 0x30 BLD3H); a 0x20 that answers the BLD-only 0x2012 is a BLD2, else a C20;
     - a PBL drive: parameter 222 reads and 223 is refused as an illegal address;
@@ -774,13 +821,13 @@ def guess_model(bus: bb.Bus, unit: int) -> str:
       exception 3 (its request limit);
     - otherwise ``?``.
     """
-    try:
-        objects = bus.read_device_identification(unit)
-    except (bb.ModbusException, bb.ResponseTimeout, bb.FrameError):
-        pass
-    else:
-        text = " ".join(objects[k] for k in (0, 1) if objects.get(k))
-        return text or "identified (no vendor)"
+    if identify:
+        try:
+            name = _identification(bus, unit)
+        except bb.ResponseTimeout:
+            name = None
+        if name:
+            return name
     state = _register(bus, unit, 0x2100)
     if state and state[0] in {s.value for s in bb.DriveState}:
         code = _register(bus, unit, 0x2103)
@@ -809,23 +856,30 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     line = _line(args, "scan")
     stopbits = _opt(args, "stopbits", 1)
     formats = [(b, p) for b, p, _ in AUTO_FORMATS] if args.auto else [(line.baudrate, line.parity)]
+    # Over Modbus TCP the server (or gateway) keeps the line: there is no line format to try,
+    # and a request it left unanswered is its own doing, not a unit's.
+    tcp = port.lower().startswith("tcp://")
+    if tcp:
+        formats = formats[:1]
     units: list[int] = args.units
     progress = Progress(
         len(units) * len(formats), sys.stderr, bool(args.progress or sys.stderr.isatty())
     )
     found: dict[int, tuple[str, str]] = {}
     pending: tuple[int, str] | None = None  # a unit that answered, being identified
+    identify = True  # whether to ask for Read Device Identification
     done = 0
     try:
         for baudrate, parity in formats:
-            fmt = f"{baudrate} 8{parity}{stopbits}"
+            fmt = "tcp" if tcp else f"{baudrate} 8{parity}{stopbits}"
             with bb.Bus(
                 port,
                 baudrate=baudrate,
                 parity=parity,
                 stopbits=stopbits,
-                timeout=max(line.timeout, 0.1),
-                retries=1,
+                # Over the network the identification gets the scan's own time, once.
+                timeout=line.timeout if tcp else max(line.timeout, 0.1),
+                retries=0 if tcp else 1,
             ) as bus:
                 for unit in units:
                     done += 1
@@ -836,7 +890,14 @@ def _cmd_scan(args: argparse.Namespace) -> int:
                         if bus.scan([unit], timeout=line.timeout, address=args.address):
                             pending = (unit, fmt)
                             progress.show(done, f"unit {unit} at {fmt}: identifying")
-                            found[unit] = (fmt, guess_model(bus, unit))
+                            name = None
+                            if identify:
+                                try:
+                                    name = _identification(bus, unit)
+                                except bb.ResponseTimeout:
+                                    # The server does not answer it: not asked of every unit.
+                                    identify = not tcp
+                            found[unit] = (fmt, name or guess_model(bus, unit, identify=False))
                             pending = None
                             break
             progress.show(done, f"{len(found)} found")
@@ -850,9 +911,14 @@ def _cmd_scan(args: argparse.Namespace) -> int:
     finally:
         progress.close()
     if not found:
-        tried = ", ".join(f"{b} 8{p}{stopbits}" for b, p in formats)
+        tried = "tcp" if tcp else ", ".join(f"{b} 8{p}{stopbits}" for b, p in formats)
         raise CliError(f"no unit answered on {port} (at {tried})")
     _print_found(found)
+    if tcp and len(units) > 1 and len(found) == len(units):
+        print(
+            f"every unit id tried answered: the server at {port} answers any unit id (a "
+            "device that speaks Modbus TCP itself, not a gateway to a line of units)"
+        )
     return 0
 
 
@@ -1271,7 +1337,14 @@ def _serve_until_stopped(where: str, what: str, seconds: float | None) -> None:
 def _cmd_gateway(args: argparse.Namespace) -> int:
     line = _line(args, "gateway")
     with _open_bus(args, "gateway", reconnect=True) as bus:
-        gateway = bb.Gateway(bus, args.listen, write_intervals=dict(args.write_interval))
+        gateway = bb.Gateway(
+            bus,
+            args.listen,
+            write_intervals=dict(args.write_interval),
+            max_clients=args.max_clients,
+            idle_timeout=args.idle_timeout,
+            allow=args.allow,
+        )
         try:
             gateway.start()
         except OSError as exc:

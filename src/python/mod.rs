@@ -522,6 +522,27 @@ impl PyBus {
             .collect())
     }
 
+    /// The unit's identification as the gateway forwards it: `(conformity, {object_id:
+    /// raw bytes})`, the conformity level the device sent and its objects undecoded
+    /// (internal: `read_device_identification` is the public form).
+    #[pyo3(signature = (unit, read_code, object_id))]
+    fn _device_identification(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        read_code: &Bound<'_, PyAny>,
+        object_id: &Bound<'_, PyAny>,
+    ) -> PyResult<(u8, std::collections::BTreeMap<u8, Vec<u8>>)> {
+        let unit = unit_arg(unit)?;
+        let read_code = u8_in(read_code, "read_code", 1, 4)?;
+        let object_id = u8_in(object_id, "object_id", 0, 255)?;
+        let id = self.wire(py, |b| {
+            b.read_device_identification(unit, read_code, object_id, &TxOptions::default())
+        })?;
+        // PyO3 gives each Vec<u8> to Python as bytes.
+        Ok((id.conformity, id.objects))
+    }
+
     /// Writes one register on every unit (unit 0); waits no reply.
     fn broadcast_write_register(
         &self,
@@ -532,6 +553,20 @@ impl PyBus {
         let address = u16_arg(address, "address")?;
         let value = u16_arg(value, "value")?;
         self.wire(py, |b| b.broadcast_write_register(address, value))
+    }
+
+    /// Writes 1..=123 consecutive registers from `address` on every unit (unit 0, function
+    /// 0x10); waits no reply.
+    fn broadcast_write_registers(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let address = u16_arg(address, "address")?;
+        let values = register_values(values)?;
+        within_map(address, values.len())?;
+        self.wire(py, |b| b.broadcast_write_registers(address, &values))
     }
 
     /// The units among `units` that answer a read of register `address` within `timeout`
