@@ -21,6 +21,7 @@ from typing import TYPE_CHECKING, TextIO
 
 import benchbus as bb
 from benchbus._clock import ticks
+from benchbus._device import add_note
 
 if TYPE_CHECKING:
     from benchbus._drive import Drive
@@ -100,12 +101,21 @@ def _hardware(port: str, unit: int) -> Iterator[_Devices]:
     """The drive at ``port``; the settings the session changes are put back afterwards."""
     with bb.Drive(port, unit=unit) as drive:
         kept = {name: drive.get(name) for name in ("accel_time", "decel_time", "speed_setpoint")}
-        try:
-            yield _Devices(drive)
-        finally:
+
+        def restore() -> None:
             drive.stop()
             for name, value in kept.items():
                 drive.set(name, value)
+
+        try:
+            yield _Devices(drive)
+        except BaseException as exc:
+            try:
+                restore()
+            except Exception as failure:  # the error that ended the session goes on
+                add_note(exc, f"the drive's settings could not be put back ({failure})")
+            raise
+        restore()
 
 
 def _prepare(d: _Devices) -> None:

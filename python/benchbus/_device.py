@@ -27,14 +27,33 @@ __all__ = [
     "LineDefaults",
     "MeasuredProperty",
     "MotorDevice",
+    "NOTED",
     "PrintableIntEnum",
     "RegisterProperty",
+    "add_note",
     "as_enum",
     "check_baudrate",
     "to_enum",
     "to_float",
     "to_int",
 ]
+
+
+#: Set on a log record whose text is also a note on the exception being raised (a reader
+#: that reports the exception with its notes need not show the record too).
+NOTED = "benchbus_noted"
+
+
+def add_note(exc: BaseException, text: str) -> None:
+    """Add ``text`` to ``exc.__notes__`` (``BaseException.add_note`` from Python 3.11)."""
+    notes = getattr(exc, "__notes__", None)
+    if not isinstance(notes, list):
+        notes = []
+    notes.append(text)
+    try:
+        exc.__notes__ = notes
+    except AttributeError:  # an exception type without attributes: the log still says it
+        pass
 
 
 class PrintableIntEnum(enum.IntEnum):
@@ -323,13 +342,20 @@ class MotorDevice(BusDevice):
         """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
 
         If stopping fails while another exception is on its way out, that exception goes
-        on and the failure is logged; otherwise the failure is raised.
+        on, carrying the failure as a note (``__notes__``, shown in its traceback), and the
+        failure is logged as an error; otherwise the failure is raised.
         """
         try:
             self._stop_on_exit()
-        except Exception:
+        except Exception as failure:
             if exc is None:
                 raise
-            log.exception("unit %d: could not stop the motor on leaving the block", self.unit)
+            text = (
+                f"unit {self.unit}: could not stop the motor on leaving the block "
+                f"({type(failure).__name__}: {failure})"
+            )
+            add_note(exc, text)
+            log.error(text, extra={NOTED: True})
+            log.debug("the stop's failure", exc_info=failure)
         finally:
             self.close()

@@ -43,6 +43,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 import benchbus as bb
 from benchbus._clock import ticks
+from benchbus._device import NOTED
 from benchbus._gateway import parse_listen
 
 if TYPE_CHECKING:
@@ -85,6 +86,9 @@ def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, bb.ResponseTimeout):
         text += " (is the unit there, at this line format? see --port, --baudrate, --unit)"
+    notes = getattr(exc, "__notes__", None)
+    if isinstance(notes, list):
+        text = "; ".join([text, *(" ".join(str(n).split()) for n in notes)])
     return text
 
 
@@ -1303,11 +1307,16 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 # ---- main --------------------------------------------------------------------------------------
 
 
-def _configure_logging(verbose: bool) -> None:
-    """Warnings of the library on stderr; with ``verbose``, every frame too (the wire log)."""
+def _configure_logging(verbose: bool, traceback: bool = False) -> None:
+    """Warnings of the library on stderr; with ``verbose``, every frame too (the wire log).
+
+    Without ``traceback``, a record that is also a note on the exception being raised is
+    left to the error line, which shows the notes."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setLevel(logging.WARNING)  # the wire log has its own handler
     handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    if not traceback:
+        handler.addFilter(lambda record: not getattr(record, NOTED, False))
     logging.getLogger("benchbus").addHandler(handler)
     if verbose:
         bb.enable_wire_log(sys.stderr)
@@ -1321,7 +1330,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version (0) and usage errors (2)
         return exc.code if isinstance(exc.code, int) else 2
     if _opt(args, "traceback", False):
-        _configure_logging(bool(_opt(args, "verbose", False)))
+        _configure_logging(bool(_opt(args, "verbose", False)), traceback=True)
         return int(args.handler(args))
     try:
         _configure_logging(bool(_opt(args, "verbose", False)))
@@ -1348,7 +1357,9 @@ def main(argv: list[str] | None = None) -> int:
     except (bb.BenchbusError, ValueError, TypeError, OSError, RuntimeError, ImportError) as exc:
         print(f"{PROG}: {_one_line(exc)}", file=sys.stderr)
         return 1
-    except Exception as exc:
+    except (Exception, BaseException) as exc:  # also a panic in the core (PanicException)
+        if isinstance(exc, (SystemExit, GeneratorExit)):
+            raise
         print(
             f"{PROG}: unexpected {type(exc).__name__}: {_one_line(exc)} "
             "(run again with --traceback to see where)",
