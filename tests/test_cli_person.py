@@ -4,15 +4,22 @@ plain words and ranges, units. Run as a user runs it, against the simulators."""
 from __future__ import annotations
 
 import subprocess
-import sys
+from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from test_cli import MODULE, _env, ok, one_line_error, run
 
-import benchbus as bb
 from benchbus import cli
-from benchbus.sim import DriveDevice, RegisterDevice, Simulator
-from test_cli import MODULE, _env, one_line_error, run
+from benchbus.sim import (
+    DriveDevice,
+    J2Device,
+    PblDevice,
+    RegisterDevice,
+    SimDevice,
+    Simulator,
+    TaisongDevice,
+)
 
 # ---- never a traceback -------------------------------------------------------------------------
 
@@ -69,3 +76,35 @@ def test_an_error_that_is_no_exception_is_one_line(
     assert err == [
         "benchbus: unexpected _Panic: index out of bounds (run again with --traceback to see where)"
     ]
+
+
+# ---- the wrong device --------------------------------------------------------------------------
+
+SIMULATED: dict[str, Callable[[], SimDevice]] = {
+    "drive": lambda: DriveDevice("BLD2"),
+    "pbl": PblDevice,
+    "j2": J2Device,
+}
+NAMES = {"drive": "a BLD drive", "pbl": "a PBL drive", "j2": "a J2 controller"}
+WRONG = [(cmd, dev) for cmd in SIMULATED for dev in SIMULATED if cmd != dev]
+
+
+@pytest.mark.parametrize(("command", "device"), WRONG)
+def test_status_and_monitor_refuse_another_family(command: str, device: str) -> None:
+    with Simulator({1: SIMULATED[device]()}) as sim:
+        for args in ([command, "status"], ["monitor", command, "--count", "1"]):
+            done = run(*args, "--port", sim.port, "--timeout", "0.2")
+            line = one_line_error(done, 1)
+            assert f"unit 1 answers but is not {NAMES[command]}" in line, line
+            assert f"(looks like {NAMES[device]}" in line, line
+            assert done.stdout == ""
+
+
+@pytest.mark.parametrize("command", list(SIMULATED))
+def test_status_goes_on_with_its_own_family_and_an_unknown_device(command: str) -> None:
+    with Simulator({1: SIMULATED[command](), 2: TaisongDevice()}) as sim:
+        assert ok(run(command, "status", "--port", sim.port))
+        # nothing recognises a Taisong meter as one of these: it is given the benefit of
+        # the doubt (no refusal on a guess)
+        done = run(command, "status", "--port", sim.port, "--unit", "2", "--timeout", "0.2")
+        assert "answers but is not" not in done.stderr

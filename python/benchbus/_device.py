@@ -8,6 +8,7 @@ raw value (an enum, an int, a float) on the way out.
 
 from __future__ import annotations
 
+import contextlib
 import enum
 import logging
 import os
@@ -23,11 +24,11 @@ if TYPE_CHECKING:
     from typing_extensions import Self
 
 __all__ = [
+    "NOTED",
     "BusDevice",
     "LineDefaults",
     "MeasuredProperty",
     "MotorDevice",
-    "NOTED",
     "PrintableIntEnum",
     "RegisterProperty",
     "add_note",
@@ -50,10 +51,8 @@ def add_note(exc: BaseException, text: str) -> None:
     if not isinstance(notes, list):
         notes = []
     notes.append(text)
-    try:
-        exc.__notes__ = notes
-    except AttributeError:  # an exception type without attributes: the log still says it
-        pass
+    with contextlib.suppress(AttributeError):  # a type without attributes: the log says it
+        setattr(exc, "__notes__", notes)  # noqa: B010 (BaseException lacks it before 3.11)
 
 
 class PrintableIntEnum(enum.IntEnum):

@@ -45,6 +45,7 @@ import benchbus as bb
 from benchbus._clock import ticks
 from benchbus._device import NOTED
 from benchbus._gateway import parse_listen
+from benchbus._recognise import family, mismatch
 
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
@@ -924,11 +925,22 @@ def _open_drive(bus: bb.Bus, args: argparse.Namespace) -> bb.Drive:
     return bb.Drive(bus, _unit(args, "drive"), family=_opt(args, "family", "BLD"))
 
 
+def _check_family(device: bb.Drive | bb.PblDrive | bb.J2Controller, key: str) -> None:
+    """Refuse a unit recognised as another family than the command talks to."""
+    other = mismatch(device.bus, device.unit, key)
+    if other is not None:
+        raise CliError(
+            f"unit {device.unit} answers but is not {family(key).name} (looks like "
+            f"{other.name}: see '{PROG} {other.key} --help', or check --port and --unit)"
+        )
+
+
 def _cmd_drive(args: argparse.Namespace) -> int:
     with _open_bus(args, "drive") as bus:
         drive = _open_drive(bus, args)  # not a `with`: that would stop the motor on leaving
         unit = drive.unit
         if args.action == "status":
+            _check_family(drive, "drive")
             status = drive.status()
             t = drive.telemetry()
             rows = [
@@ -967,6 +979,7 @@ def _cmd_pbl(args: argparse.Namespace) -> int:
         pbl = bb.PblDrive(bus, _unit(args, "pbl"))
         unit = pbl.unit
         if args.action == "status":
+            _check_family(pbl, "pbl")
             status = pbl.status()
             sample = pbl.sample()
             alarms = sorted(pbl.alarms)
@@ -1014,6 +1027,7 @@ def _cmd_j2(args: argparse.Namespace) -> int:
         j2 = bb.J2Controller(bus, _unit(args, "j2"))
         unit = j2.unit
         if args.action == "status":
+            _check_family(j2, "j2")
             names = ["PV", "SV", "MV", "AM", "LSP", "USP", "AT", "RAPNF", "INP"]
             v = dict(zip(names, j2.read_many(names)))
             rows = [
@@ -1151,6 +1165,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
             device = bb.PblDrive(bus, _unit(args, kind))
         else:
             device = bb.J2Controller(bus, _unit(args, kind))
+        _check_family(device, kind)
         title = f"{kind} unit {device.unit} on {bus.port}, every {_fmt(args.interval)} s"
         table: LiveTable | None = None
         try:
