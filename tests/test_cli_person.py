@@ -3,12 +3,21 @@ plain words and ranges, units. Run as a user runs it, against the simulators."""
 
 from __future__ import annotations
 
+import fcntl
+import os
+import pty
+import re
+import select
 import subprocess
+import termios
+import time
 from collections.abc import Callable
 from pathlib import Path
+from typing import IO
 
 import pytest
-from test_cli import MODULE, _env, ok, one_line_error, run
+from test_cli import MODULE, _env, ok, one_line_error, readline, run, start
+from test_port_loss import Adapter
 
 from benchbus import cli
 from benchbus.sim import (
@@ -108,3 +117,120 @@ def test_status_goes_on_with_its_own_family_and_an_unknown_device(command: str) 
         # the doubt (no refusal on a guess)
         done = run(command, "status", "--port", sim.port, "--unit", "2", "--timeout", "0.2")
         assert "answers but is not" not in done.stderr
+
+
+# ---- a lost port -------------------------------------------------------------------------------
+
+
+def _lines_until(stream: IO[str] | None, text: str, timeout: float = 10.0) -> list[str]:
+    """Lines read from a child's pipe up to the one that holds ``text``."""
+    lines = []
+    end = time.monotonic() + timeout
+    while not lines or text not in lines[-1]:
+        lines.append(readline(stream, max(end - time.monotonic(), 0.01)))
+    return lines
+
+
+def test_monitor_rides_out_a_lost_port(tmp_path: Path) -> None:
+    adapter = Adapter(Simulator({1: DriveDevice("BLD2")}), tmp_path / "ttyUSB0")
+    proc = start("monitor", "drive", "--port", adapter.port, "--interval", "0.05", "--count", "40")
+    try:
+        first = _lines_until(proc.stdout, "0.100")  # a few samples in
+        adapter.unplug()
+        lost = _lines_until(proc.stderr, "lost")
+        assert lost == [f"benchbus: monitor: lost {adapter.port} ({lost[0].split('(', 1)[1]}"]
+        assert "reconnecting" in lost[0]
+        time.sleep(0.3)
+        adapter.plug()
+        back = _lines_until(proc.stderr, "is back")
+        assert len(back) == 1 and back[0].startswith(f"benchbus: monitor: {adapter.port} is back")
+        out, err = proc.communicate(timeout=30)
+    finally:
+        adapter.unplug()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 0, err
+    assert err.splitlines() == ["40 samples"]
+    assert len(first) + len(out.splitlines()) == 1 + 40  # the header and every sample
+
+
+def test_monitor_no_reconnect_ends_at_a_lost_port(tmp_path: Path) -> None:
+    adapter = Adapter(Simulator({1: DriveDevice("BLD2")}), tmp_path / "ttyUSB0")
+    proc = start("monitor", "drive", "--port", adapter.port, "--interval", "0.05", "--no-reconnect")
+    try:
+        _lines_until(proc.stdout, "0.100")
+        adapter.unplug()
+        _, err = proc.communicate(timeout=30)
+    finally:
+        adapter.unplug()
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 1
+    assert len(err.splitlines()) == 1 and err.startswith("benchbus: "), err
+    assert "Traceback" not in err
+
+
+# ---- words, ranges and counts ------------------------------------------------------------------
+
+
+def _on_a_terminal(*args: object, after: str) -> str:
+    """``benchbus ARGS`` on a pseudo-terminal of its own, Ctrl-C typed once ``after`` shows:
+    everything the terminal showed (the ^C echo included)."""
+    master, slave = pty.openpty()
+
+    def controlling_tty() -> None:
+        os.setsid()
+        fcntl.ioctl(0, termios.TIOCSCTTY, 0)
+
+    proc = subprocess.Popen(
+        [*MODULE, *map(str, args)],
+        stdin=slave,
+        stdout=slave,
+        stderr=slave,
+        env=_env(),
+        preexec_fn=controlling_tty,
+    )
+    os.close(slave)
+    seen = b""
+    typed = False
+    try:
+        end = time.monotonic() + 20
+        while time.monotonic() < end:
+            ready, _, _ = select.select([master], [], [], 0.2)
+            if ready:
+                try:
+                    chunk = os.read(master, 4096)
+                except OSError:  # EIO: the child closed its end
+                    break
+                if not chunk:
+                    break
+                seen += chunk
+            if not typed and after.encode() in seen:
+                os.write(master, b"\x03")
+                typed = True
+        assert proc.wait(timeout=10) == 0
+    finally:
+        os.close(master)
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert typed, seen
+    return seen.decode(errors="replace")
+
+
+def test_monitor_summary_after_ctrl_c_starts_a_line_of_its_own() -> None:
+    with Simulator({1: J2Device()}) as sim:
+        shown = _on_a_terminal(
+            "monitor", "j2", "--port", sim.port, "--interval", "0.05", after="sample 3"
+        )
+    assert "^C" in shown
+    tail = shown[shown.rindex("^C") :]
+    assert re.fullmatch(r"\^C\r\n\d+ samples\r\n", tail), repr(tail)
+
+
+def test_one_sample_is_singular() -> None:
+    with Simulator({1: J2Device()}) as sim:
+        done = run("monitor", "j2", "--port", sim.port, "--count", "1")
+    assert done.returncode == 0 and done.stderr == "1 sample\n"

@@ -21,7 +21,7 @@ from datetime import datetime
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, cast, overload
 
 from benchbus._clock import ticks
-from benchbus._display import html_table
+from benchbus._display import html_table, plural
 
 if TYPE_CHECKING:
     import pandas
@@ -269,7 +269,7 @@ class Recording:
     def _summary(self) -> str:
         """``Drive unit 1: 30 samples every 0.05 s over 1.45 s, 0 missed``."""
         span = f" over {self.times[-1]:.3g} s" if self.times else ""
-        count = f"{len(self)} sample{'' if len(self) == 1 else 's'}"
+        count = plural(len(self), "sample")
         text = f"{count} every {self.interval:g} s{span}, {self.missed} missed"
         if self.interrupted:
             text += ", interrupted"
@@ -387,7 +387,8 @@ def record(
         try:
             kept.recording = rec
             if hasattr(kept, "add_note"):  # Python 3.11+: shown with the traceback
-                kept.add_note(f"the {len(rec)} samples recorded before it are in .recording")
+                taken = plural(len(rec), "sample")
+                kept.add_note(f"the {taken} recorded before it are in .recording")
         except (AttributeError, TypeError):  # an exception that takes no attributes
             pass
         raise

@@ -44,6 +44,7 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn
 import benchbus as bb
 from benchbus._clock import ticks
 from benchbus._device import NOTED
+from benchbus._display import plural
 from benchbus._gateway import parse_listen
 from benchbus._recognise import family, mismatch
 
@@ -553,7 +554,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="On a terminal the table is redrawn in place; otherwise one line is printed "
         "per sample. Samples are taken on a steady clock (deadlines that pass while a "
         "sample is read are skipped, and counted). The CSV file gets every measurement, "
-        "with a header when the file is new; an existing file must have the same columns.",
+        "with a header when the file is new; an existing file must have the same columns. "
+        "A lost port (an adapter unplugged) is reported in one line and reopened at each "
+        "sample until it is back.",
     )
     monitor.add_argument("device", choices=("drive", "pbl", "j2"), metavar="drive|pbl|j2")
     monitor.add_argument(
@@ -565,6 +568,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     until.add_argument("--duration", type=_seconds, metavar="S", help="stop after S seconds")
     monitor.add_argument("--csv", metavar="FILE", help="append each sample to FILE")
+    monitor.add_argument(
+        "--no-reconnect",
+        dest="reconnect",
+        action="store_false",
+        help="end with an error when the port is lost (default: say so, reopen it and go on)",
+    )
     monitor.add_argument(
         "--fields",
         metavar="NAMES",
@@ -1149,6 +1158,10 @@ class LiveTable:
         self.stream.write(out)
         self.stream.flush()
 
+    def below(self) -> None:
+        """Draw the next sample below what was printed since (not over it)."""
+        self._drawn = 0
+
     def _row(self, cells: list[str]) -> str:
         return "  ".join(c.rjust(w) for c, w in zip(cells, self._widths))
 
@@ -1157,7 +1170,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
     kind: str = args.device
     log = CsvLog(args.csv) if args.csv else None
     samples = 0
-    with _open_bus(args, kind) as bus:
+    lost: float | None = None  # when the port was lost, while it is
+    with _open_bus(args, kind, reconnect=args.reconnect) as bus:
         device: bb.Drive | bb.PblDrive | bb.J2Controller
         if kind == "drive":
             device = _open_drive(bus, args)
@@ -1170,7 +1184,18 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         table: LiveTable | None = None
         try:
             for n, _deadline, missed in ticks(args.interval, args.duration):
-                sample = device.sample()
+                try:
+                    sample = device.sample()
+                except bb.PortError as exc:
+                    if not args.reconnect:
+                        raise
+                    if lost is None:
+                        lost = time.monotonic()
+                        _note(table, f"lost {bus.port} ({_one_line(exc)}): reconnecting")
+                    continue
+                if lost is not None:
+                    _note(table, f"{bus.port} is back after {time.monotonic() - lost:.1f} s")
+                    lost = None
                 now = datetime.datetime.now().astimezone()
                 t = n * args.interval
                 if table is None:
@@ -1185,12 +1210,26 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         except (KeyboardInterrupt, SystemError) as exc:
             if not interrupted(exc):
                 raise
+            _end_ctrl_c_line()
         finally:
             if log is not None:
                 log.close()
     where = f", appended to {args.csv}" if args.csv else ""
-    print(f"{samples} samples{where}", file=sys.stderr)
+    print(f"{plural(samples, 'sample')}{where}", file=sys.stderr)
     return 0
+
+
+def _end_ctrl_c_line() -> None:
+    """On a terminal, end the line its ``^C`` echo is on, so what follows starts a line."""
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+
+
+def _note(table: LiveTable | None, text: str) -> None:
+    """One line on stderr while the monitor runs, below the table (redrawn after it)."""
+    print(f"{PROG}: monitor: {text}", file=sys.stderr, flush=True)
+    if table is not None:
+        table.below()
 
 
 def _fields(spec: str | None, kind: str, sample: dict[str, float]) -> list[str]:
@@ -1362,6 +1401,7 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         if args.command in ("monitor", "sim", "gateway"):
             return 0
+        _end_ctrl_c_line()
         print(f"{PROG}: interrupted", file=sys.stderr)
         return 130
     except BrokenPipeError:
