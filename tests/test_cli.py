@@ -151,8 +151,11 @@ def test_numbers_are_decimal_or_hex_and_unit_lists_take_ranges() -> None:
         -5,
         7,
     ]
-    for bad in ("", "0x", "1.5", "ten", "0b11", "1e3"):
+    for bad in ("", "0x", "ten", "0b11"):
         with pytest.raises(ValueError, match="not a number"):
+            cli.parse_int(bad)
+    for bad in ("1.5", "1e3"):
+        with pytest.raises(ValueError, match="not a whole number"):
             cli.parse_int(bad)
     assert cli.parse_units("1-3,0x10,5,2") == [1, 2, 3, 5, 16]
     for bad in ("5-2", "0", "1-", "1--3", "256", "a-b", ""):
@@ -169,7 +172,7 @@ def test_numbers_are_decimal_or_hex_and_unit_lists_take_ranges() -> None:
         (["read", "0"], 2, "--port is required"),
         (["read", "--port", "/dev/no-such-benchbus-port", "0"], 1, "cannot open"),
         (["read", "--port", "/dev/null", "zz"], 2, "'zz' is not a number"),
-        (["read", "--port", "/dev/null", "0x10000"], 2, "ADDRESS must be 0..65535"),
+        (["read", "--port", "/dev/null", "0x10000"], 2, "ADDRESS must be 0 to 65535"),
         (["write", "--port", "/dev/null", "0", "70000"], 2, "does not fit"),
         (["read", "--port", "/dev/null", "0", "--hex", "--signed"], 2, "--hex"),
         (["frobnicate"], 2, "invalid choice: 'frobnicate'"),
@@ -365,7 +368,7 @@ def test_pbl_start_reverse_and_the_start_stop_source() -> None:
         ok(run("pbl", "reverse", *pbl))
         assert device.peek(0) == 0b11
         status = table(ok(run("pbl", "status", *pbl)))
-        assert status["running"] == "yes" and status["direction asked"] == "REVERSE"
+        assert status["running"].startswith("yes, ") and status["direction asked"] == "REVERSE"
         assert status["speed setpoint"] == "900 rpm" and status["alarms"] == "none"
         ok(run("pbl", "stop", *pbl))
         assert device.peek(0) == 0b10
@@ -385,7 +388,7 @@ def test_j2_setpoint_modes_and_output() -> None:
         assert status["sv"] == "150.5" and status["mv"] == "30 %" and status["mode"] == "MANUAL"
         ok(run("j2", *j2, "auto"))
         assert device.auto
-        assert "LSP..USP" in one_line_error(run("j2", *j2, "set-sv", "500"), 1)
+        assert "LSP to USP" in one_line_error(run("j2", *j2, "set-sv", "500"), 1)
         assert device.value("SV") == 150.5
 
 

@@ -16,9 +16,10 @@ from pathlib import Path
 from typing import IO
 
 import pytest
-from test_cli import MODULE, _env, ok, one_line_error, readline, run, start
+from test_cli import MODULE, _env, ok, one_line_error, readline, run, start, table
 from test_port_loss import Adapter
 
+import benchbus as bb
 from benchbus import cli
 from benchbus.sim import (
     DriveDevice,
@@ -234,3 +235,48 @@ def test_one_sample_is_singular() -> None:
     with Simulator({1: J2Device()}) as sim:
         done = run("monitor", "j2", "--port", sim.port, "--count", "1")
     assert done.returncode == 0 and done.stderr == "1 sample\n"
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["read", "--port", "/dev/null", "1.5"], "'1.5' is not a whole number"),
+        (["read", "--port", "/dev/null", "0", "--unit", "2.0"], "'2.0' is not a whole number"),
+        (["read", "--port", "/dev/null", "--unit", "0", "0"], "give --unit 1 to 255"),
+        (["read", "--port", "/dev/null", "--unit", "256", "0"], "unit must be 0 to 255, got 256"),
+        (["write", "--port", "/dev/null", "0", "70000"], "(-32768 to 65535 raw)"),
+    ],
+)
+def test_usage_errors_use_plain_words_and_ranges(args: list[str], says: str) -> None:
+    line = one_line_error(run(*args), 2)
+    assert says in line and ".." not in line, line
+
+
+def test_library_errors_use_plain_ranges_and_public_names() -> None:
+    """The messages raised from the compiled core, as a user of the Python API sees them."""
+    with Simulator({1: J2Device(), 2: DriveDevice("BLD2")}) as sim, bb.Bus(sim.port) as bus:
+        j2 = bb.J2Controller(bus, 1)
+        j2.limits = (0, 200)
+        with pytest.raises(ValueError) as caught:
+            j2.sv = 250
+        assert str(caught.value) == (
+            "SV must be within the setpoint limits LSP to USP, 0 to 200, got 250 "
+            "(set both with j2.limits = (low, high))"
+        )
+        with pytest.raises(ValueError, match=r"^unit must be 1 to 255, got 256$"):
+            bus.read_holding_registers(256, 0, 1)
+        with pytest.raises(ValueError, match=r"^count must be 1 to 125, got 126"):
+            bus.read_holding_registers(1, 0, 126)
+        with pytest.raises(ValueError, match=r"^accel_time must be 0.1 to 600 s, got 700"):
+            bb.Drive(bus, 2).accel_time = 700
+        with pytest.raises(ValueError, match=r"^parameter must be 0 to 222, got 300$"):
+            bb.PblDrive(bus, 3).read_parameter(300)
+
+
+def test_pbl_status_does_not_say_stopped_and_turning_at_once() -> None:
+    with Simulator({1: PblDevice()}) as sim:
+        status = table(ok(run("pbl", "status", "--port", sim.port)))
+        assert status["running"] == "no" and "turning" not in status
+        ok(run("pbl", "start", "--port", sim.port, "--speed", "900", "--take-control"))
+        status = table(ok(run("pbl", "status", "--port", sim.port)))
+        assert status["running"] == "yes, FORWARD"

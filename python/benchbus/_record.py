@@ -387,8 +387,8 @@ def record(
         try:
             kept.recording = rec
             if hasattr(kept, "add_note"):  # Python 3.11+: shown with the traceback
-                taken = plural(len(rec), "sample")
-                kept.add_note(f"the {taken} recorded before it are in .recording")
+                count = plural(len(rec), "sample")
+                kept.add_note(f"the {count} recorded before it are in .recording")
         except (AttributeError, TypeError):  # an exception that takes no attributes
             pass
         raise

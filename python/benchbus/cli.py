@@ -103,6 +103,12 @@ def parse_int(text: str) -> int:
     """An integer written in decimal (``100``) or hex (``0x64``), with an optional sign."""
     s = text.strip().lower().replace("_", "")
     if not _INTEGER.fullmatch(s):
+        try:
+            number = Decimal(s).is_finite()
+        except InvalidOperation:
+            number = False
+        if number:
+            raise ValueError(f"{text!r} is not a whole number")
         raise ValueError(f"{text!r} is not a number (write decimal, 100, or hex, 0x64)")
     return int(s, 16 if "x" in s else 10)
 
@@ -116,7 +122,7 @@ def _integer(low: int, high: int, what: str) -> Callable[[str], int]:
         except ValueError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
         if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{what} must be {low}..{high}, got {text}")
+            raise argparse.ArgumentTypeError(f"{what} must be {low} to {high}, got {text}")
         return value
 
     convert.__name__ = what  # argparse names the type in some messages
@@ -132,7 +138,7 @@ def parse_units(text: str, low: int = 1, high: int = 255) -> list[int]:
             raise ValueError(f"{text!r} is not a list of units (e.g. 1-10,17,0x20)")
         first, last = parse_int(bounds[0]), parse_int(bounds[-1])
         if not low <= first <= last <= high:
-            raise ValueError(f"units must be {low}..{high}, in increasing ranges: got {part!r}")
+            raise ValueError(f"units must be {low} to {high}, in increasing ranges: got {part!r}")
         units.update(range(first, last + 1))
     return sorted(units)
 
@@ -228,7 +234,7 @@ def _word(text: str, decimals: int) -> int:
             raise UsageError(f"{text!r} has more than {decimals} decimals")
         value = int(scaled)
     if not -0x8000 <= value <= 0xFFFF:
-        raise UsageError(f"{text!r} does not fit in a register (-32768..65535 raw)")
+        raise UsageError(f"{text!r} does not fit in a register (-32768 to 65535 raw)")
     return value & 0xFFFF
 
 
@@ -716,7 +722,7 @@ def _open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False)
 def _unit(args: argparse.Namespace, family: str, *, broadcast: bool = False) -> int:
     unit = int(_line(args, family).unit)
     if unit == 0 and not broadcast:
-        raise UsageError("unit 0 is the broadcast address: give --unit 1..255")
+        raise UsageError("unit 0 is the broadcast address: give --unit 1 to 255")
     return unit
 
 
@@ -993,8 +999,7 @@ def _cmd_pbl(args: argparse.Namespace) -> int:
             sample = pbl.sample()
             alarms = sorted(pbl.alarms)
             rows = [
-                ("running", "yes" if status.running else "no"),
-                ("turning", _name(status.direction)),
+                ("running", f"yes, {_name(status.direction)}" if status.running else "no"),
                 ("direction asked", _name(pbl.direction)),
                 ("speed", f"{_fmt(sample['speed'])} rpm"),
                 ("speed setpoint", f"{pbl.speed_setpoint} rpm"),

@@ -531,7 +531,7 @@ impl Drive {
                 let words = self.read(TELEMETRY, wanted.len() as u16)?;
                 log::debug!(
                     target: "benchbus::device",
-                    "unit {}: no registers 0x3012..0x3014 on this firmware", self.unit
+                    "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit
                 );
                 self.hall_registers.store(BLOCK_NO, Ordering::Relaxed);
                 words

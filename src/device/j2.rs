@@ -188,8 +188,8 @@ impl Param {
                 (self.range.0..=self.range.1).contains(&value) && !(lo..=hi).contains(&value);
             match e {
                 Error::InvalidArgument(m) if cut_off => Error::InvalidArgument(format!(
-                    "{m} (the manual gives {}..{}, but a signed 16-bit register in tenths \
-                         holds -3276.8..3276.7)",
+                    "{m} (the manual gives {} to {}, but a signed 16-bit register in tenths \
+                         holds -3276.8 to 3276.7)",
                     self.range.0, self.range.1
                 )),
                 other => other,
@@ -433,14 +433,14 @@ impl J2 {
             "USP" if value < low => Some(format!("USP must stay >= LSP = {low}")),
             "LSP" | "USP" => None,
             _ if value < low || value > high => Some(format!(
-                "{} must be within LSP..USP = {low}..={high}",
+                "{} must be within the setpoint limits LSP to USP, {low} to {high}",
                 p.name
             )),
             _ => None,
         };
         match refused {
             Some(m) => Err(Error::InvalidArgument(format!(
-                "{m}, got {value} (set both with set_limits)"
+                "{m}, got {value} (set both with j2.limits = (low, high))"
             ))),
             None => Ok(()),
         }
@@ -544,7 +544,7 @@ mod tests {
         assert!(check("FST", 20.0) && !check("FST", 19.0) && !check("FST", 20.5));
         assert!(!check("PV", 1.0) && !check("MV", 100.1) && !check("MV", f64::NAN));
         let msg = by_name("AL1").and_then(|p| p.encode(5000.0)).err();
-        assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999..9999")));
+        assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999 to 9999")));
     }
 
     #[test]

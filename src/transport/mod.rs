@@ -233,7 +233,7 @@ fn parse_tcp_port(p: &str) -> Result<u16, String> {
     }
     match p.parse::<u16>() {
         Ok(n) if n > 0 && p.bytes().all(|b| b.is_ascii_digit()) => Ok(n),
-        _ => Err(format!("bad TCP port {p:?} (1..=65535)")),
+        _ => Err(format!("bad TCP port {p:?} (1 to 65535)")),
     }
 }
 
