@@ -12,6 +12,7 @@
     benchbus monitor --port PATH drive|pbl|j2 [--interval S] [--count N | --duration S] [--csv FILE]
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
+    benchbus ports
 
 The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--unit``,
 ``--timeout``, ``--retries``) go anywhere after the command; their defaults are those of the
@@ -663,6 +664,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     gateway.add_argument("--seconds", type=_seconds, metavar="S", help="stop after S seconds")
     gateway.set_defaults(handler=_cmd_gateway)
+
+    # ports
+    ports = command(
+        "ports",
+        "list the serial ports, with the USB adapter's ids, names and chip",
+        [general],
+        epilog="For a USB adapter: its vendor:product ids, the chip family they belong to "
+        "(FTDI, CH340, CP210x, PL2303...), and the manufacturer, product and serial number "
+        "it reports. A port without them is the board's own (or the system does not say).",
+    )
+    ports.add_argument("--sysfs-root", metavar="DIR", help=_S)  # another sysfs tree, for tests
+    ports.set_defaults(handler=_cmd_ports)
 
     # demo
     demo = command(
@@ -1350,6 +1363,33 @@ def _cmd_gateway(args: argparse.Namespace) -> int:
             )
         finally:
             gateway.stop()
+    return 0
+
+
+# ---- ports -------------------------------------------------------------------------------------
+
+
+def _cmd_ports(args: argparse.Namespace) -> int:
+    from benchbus._core import list_ports
+
+    found = list_ports(args.sysfs_root)
+    if not found:
+        raise CliError("no serial port found (is the adapter plugged in?)")
+
+    def cell(port: dict[str, str | int | None], key: str) -> str:
+        value = port.get(key)
+        return "-" if value is None else str(value)
+
+    rows = [
+        [
+            cell(p, "path"),
+            cell(p, "chip"),
+            "-" if p["vid"] is None else f"{p['vid']:04x}:{p['pid']:04x}",
+            *(cell(p, k) for k in ("manufacturer", "product", "serial_number", "driver")),
+        ]
+        for p in found
+    ]
+    _print_table(["port", "chip", "usb id", "manufacturer", "product", "serial", "driver"], rows)
     return 0
 
 

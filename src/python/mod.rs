@@ -8,6 +8,7 @@ mod instrument;
 mod j2;
 mod pbl;
 mod poll;
+mod ports;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
@@ -728,6 +729,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<pbl::PyPblCore>()?;
     m.add_class::<poll::PyPoll>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
+    m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -5,6 +5,7 @@
 //!
 //! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]).
 
+pub mod ports;
 mod serial;
 mod tcp;
 
