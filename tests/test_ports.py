@@ -8,6 +8,7 @@ from pathlib import Path
 import pytest
 from test_cli import ok, one_line_error, run
 
+import benchbus as bb
 from benchbus._core import list_ports
 
 
@@ -75,6 +76,7 @@ def test_list_ports_reads_what_sysfs_knows(sysfs: Path) -> None:
     }
     assert (ports[2]["chip"], ports[2]["vid"], ports[2]["serial_number"]) == ("CH340", 0x1A86, None)
     assert list_ports(str(sysfs)) == ports  # a str or a path
+    assert bb.list_ports is list_ports
 
 
 def test_no_tty_class_is_no_port(tmp_path: Path) -> None:
