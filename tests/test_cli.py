@@ -385,7 +385,7 @@ def test_j2_setpoint_modes_and_output() -> None:
         ok(run("j2", *j2, "set-output", "30", "--manual"))
         assert not device.auto and device.value("MV") == 30.0
         status = table(ok(run("j2", "status", *j2)))
-        assert status["sv"] == "150.5" and status["mv"] == "30 %" and status["mode"] == "MANUAL"
+        assert status["sv"] == "150.5 °C" and status["mv"] == "30 %" and status["mode"] == "MANUAL"
         ok(run("j2", *j2, "auto"))
         assert device.auto
         assert "LSP to USP" in one_line_error(run("j2", *j2, "set-sv", "500"), 1)
@@ -401,12 +401,13 @@ def test_monitor_count_appends_rows_to_a_csv_file(tmp_path: Path) -> None:
     with Simulator(units) as sim:
         args = ["monitor", "j2", "--port", sim.port, "--interval", "0.1", "--csv", log]
         lines = ok(run(*args, "--count", "3"))
-        assert lines[0].split() == ["t", "pv", "sv", "mv"] and len(lines) == 4
+        assert lines[0].split() == ["t", "(s)", "pv", "(°C)", "sv", "(°C)", "mv", "(%)"]
+        assert len(lines) == 4
         t = [round(float(line.split()[0]) * 10) for line in lines[1:]]  # in intervals
         assert t[0] == 0 and t[0] < t[1] < t[2]  # on the ticks (one may be skipped if late)
         with log.open() as f:
             rows = list(csv.reader(f))
-        assert rows[0] == ["time", "t", "pv", "sv", "mv"] and len(rows) == 4
+        assert rows[0] == ["time", "t (s)", "pv (°C)", "sv (°C)", "mv (%)"] and len(rows) == 4
         assert all(float(r[3]) == 100.0 for r in rows[1:])  # SV at power-up
         ok(run(*args, "--count", "2"))  # appends, without a second header
         with log.open() as f:
@@ -425,7 +426,7 @@ def test_monitor_duration_and_fields(drive: tuple[Simulator[DriveDevice], DriveD
         "--fields", "speed,bus_voltage",
     )  # fmt: skip
     lines = ok(done)
-    assert lines[0].split() == ["t", "speed", "bus_voltage"]
+    assert lines[0].split() == ["t", "(s)", "speed", "(rpm)", "bus_voltage", "(V)"]
     assert 1 <= len(lines) - 1 <= 3
     assert all(line.split()[1:] == ["0", "311"] for line in lines[1:])
     bad = run("monitor", "drive", "--port", sim.port, "--count", "1", "--fields", "rpm")
@@ -436,7 +437,7 @@ def test_monitor_ends_at_ctrl_c_with_status_0() -> None:
     with Simulator({1: PblDevice()}) as sim:
         proc = start("monitor", "pbl", "--port", sim.port, "--interval", "0.05")
         try:
-            assert readline(proc.stdout).split()[:2] == ["t", "speed"]
+            assert readline(proc.stdout).split()[:4] == ["t", "(s)", "speed", "(rpm)"]
             assert readline(proc.stdout).split()[0] == "0.000"
         finally:
             status, _, err = stop(proc, signal.SIGINT)

@@ -280,3 +280,41 @@ def test_pbl_status_does_not_say_stopped_and_turning_at_once() -> None:
         ok(run("pbl", "start", "--port", sim.port, "--speed", "900", "--take-control"))
         status = table(ok(run("pbl", "status", "--port", sim.port)))
         assert status["running"] == "yes, FORWARD"
+
+
+# ---- units -------------------------------------------------------------------------------------
+
+
+def test_monitor_shows_units_from_the_register_tables(tmp_path: Path) -> None:
+    log = tmp_path / "drive.csv"
+    with Simulator({1: DriveDevice("BLD2")}) as sim:
+        fields = "speed,output_current,temperature,hall_state"
+        args = ("monitor", "drive", "--port", sim.port, "--fields", fields, "--csv", log)
+        lines = ok(run(*args, "--count", "1"))
+    header = [cell.strip() for cell in re.split(r"\s{2,}", lines[0].strip())]
+    assert header == [
+        "t (s)",
+        "speed (rpm)",
+        "output_current (A)",
+        "temperature (°C)",
+        "hall_state",
+    ]
+    with log.open(encoding="utf-8") as f:
+        first = f.readline().strip().split(",")
+    assert first[:3] == ["time", "t (s)", "set_frequency (Hz)"]
+    assert "speed (rpm)" in first and "temperature (°C)" in first and "hall_state" in first
+
+
+def test_j2_status_shows_units() -> None:
+    with Simulator({1: J2Device()}) as sim:
+        status = table(ok(run("j2", "status", "--port", sim.port)))
+    assert status["pv"].endswith(" °C") and status["sv"] == "100 °C" and status["mv"].endswith(" %")
+    assert status["limits"] == "0 to 400 °C"
+
+
+def test_drive_and_pbl_status_show_units_from_their_tables() -> None:
+    with Simulator({1: DriveDevice("BLD2"), 2: PblDevice()}) as sim:
+        drive = table(ok(run("drive", "status", "--port", sim.port)))
+        pbl = table(ok(run("pbl", "status", "--port", sim.port, "--unit", "2")))
+    assert drive["temperature"].endswith(" °C") and drive["output current"].endswith(" A")
+    assert pbl["speed setpoint"].endswith(" rpm") and pbl["power"].endswith(" W")

@@ -476,6 +476,9 @@ class J2Core:
     def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
         """``(name, address, signed, writable, low, high, within_limits)`` of each
         parameter."""
+    @staticmethod
+    def units() -> dict[str, str]:
+        """The unit of each parameter by name (``""`` for none): ``{"MV": "%", "PV": "°C"}``."""
 
 @final
 class InstrumentCore:

@@ -245,6 +245,17 @@ class BusDevice:
     #: ``record(columns=...)`` is refused before anything is sent.
     SAMPLE_FIELDS: tuple[str, ...] | None = None
 
+    def units(self) -> dict[str, str]:
+        """The unit of each register or parameter by name, from the family's table (``""``
+        for none; empty for a device without a fixed table)."""
+        return {}
+
+    def sample_units(self) -> dict[str, str]:
+        """The unit of each field :meth:`sample` gives, from the family's table (``""`` for
+        none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
+        units = self.units()
+        return {f: units.get(f, "") for f in self.SAMPLE_FIELDS or ()}
+
     def sample(self) -> dict[str, float]:
         """One snapshot of the device's main measurements, ``{name: value}`` as numbers, in
         as few requests as the device allows: what :meth:`record`, ``benchbus monitor`` and
@@ -291,6 +302,7 @@ class BusDevice:
             device=f"{type(self).__name__} unit {self.unit}",
             columns=columns,
             known=self.SAMPLE_FIELDS,
+            units=self.sample_units(),
             clock=clock,
             sleep=sleep,
         )

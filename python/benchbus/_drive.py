@@ -580,6 +580,10 @@ class Drive(MotorDevice):
         """The register table: ``(name, address, scale, unit, access, low, high)``."""
         return self.core.registers()
 
+    def units(self) -> dict[str, str]:
+        """The unit of each register by name, from :meth:`registers` (``""`` for none)."""
+        return {row[0]: row[3] for row in self.registers()}
+
     # ---- lifecycle -------------------------------------------------------------------------
 
     def close(self) -> None:

@@ -48,6 +48,7 @@ from benchbus._device import NOTED
 from benchbus._display import plural
 from benchbus._gateway import parse_listen
 from benchbus._recognise import family, mismatch
+from benchbus._record import with_unit
 
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
@@ -244,6 +245,11 @@ def _fmt(value: float) -> str:
     if float(value).is_integer():
         return str(int(value))
     return f"{value:.4f}".rstrip("0").rstrip(".")
+
+
+def _measured(value: float, unit: str) -> str:
+    """A value with its unit: ``1450 rpm``, ``25.3 °C`` (the number alone without one)."""
+    return f"{_fmt(value)} {unit}".rstrip()
 
 
 def _csv_number(value: float) -> str:
@@ -971,16 +977,17 @@ def _cmd_drive(args: argparse.Namespace) -> int:
             _check_family(drive, "drive")
             status = drive.status()
             t = drive.telemetry()
+            u = drive.units()
             rows = [
                 ("model", _name(drive.model)),
                 ("state", _name(status.state)),
                 ("fault", str(status.fault) if status.fault else "none"),
-                ("speed", f"{t.speed} rpm"),
-                ("speed setpoint", f"{drive.speed_setpoint} rpm"),
-                ("output frequency", f"{_fmt(t.output_frequency)} Hz"),
-                ("output current", f"{_fmt(t.output_current)} A"),
-                ("bus voltage", f"{_fmt(t.bus_voltage)} V"),
-                ("temperature", f"{_fmt(t.temperature)} degC"),
+                ("speed", _measured(t.speed, u["speed"])),
+                ("speed setpoint", _measured(drive.speed_setpoint, u["speed_setpoint"])),
+                ("output frequency", _measured(t.output_frequency, u["output_frequency"])),
+                ("output current", _measured(t.output_current, u["output_current"])),
+                ("bus voltage", _measured(t.bus_voltage, u["bus_voltage"])),
+                ("temperature", _measured(t.temperature, u["temperature"])),
                 ("command source", _name(status.control_source)),
             ]
             _print_table(None, rows)
@@ -1011,14 +1018,15 @@ def _cmd_pbl(args: argparse.Namespace) -> int:
             status = pbl.status()
             sample = pbl.sample()
             alarms = sorted(pbl.alarms)
+            u = pbl.units()
             rows = [
                 ("running", f"yes, {_name(status.direction)}" if status.running else "no"),
                 ("direction asked", _name(pbl.direction)),
-                ("speed", f"{_fmt(sample['speed'])} rpm"),
-                ("speed setpoint", f"{pbl.speed_setpoint} rpm"),
-                ("bus voltage", f"{_fmt(sample['bus_voltage'])} V"),
-                ("current", f"{_fmt(sample['current'])} A"),
-                ("power", f"{_fmt(sample['power'])} W"),
+                ("speed", _measured(sample["speed"], u["speed"])),
+                ("speed setpoint", _measured(pbl.speed_setpoint, u["internal_speed"])),
+                ("bus voltage", _measured(sample["bus_voltage"], u["bus_voltage"])),
+                ("current", _measured(sample["current"], u["current"])),
+                ("power", _measured(sample["power"], u["power"])),
                 ("alarms", ", ".join(alarms) if alarms else "none"),
                 ("start/stop source", _name(pbl.start_stop_source)),
             ]
@@ -1057,12 +1065,13 @@ def _cmd_j2(args: argparse.Namespace) -> int:
             _check_family(j2, "j2")
             names = ["PV", "SV", "MV", "AM", "LSP", "USP", "AT", "RAPNF", "INP"]
             v = dict(zip(names, j2.read_many(names)))
+            u = j2.units()
             rows = [
-                ("pv", _fmt(v["PV"])),
-                ("sv", _fmt(v["SV"])),
-                ("mv", f"{_fmt(v['MV'])} %"),
+                ("pv", _measured(v["PV"], u["PV"])),
+                ("sv", _measured(v["SV"], u["SV"])),
+                ("mv", _measured(v["MV"], u["MV"])),
                 ("mode", _name(_enum(bb.J2Mode, v["AM"]))),
-                ("limits", f"{_fmt(v['LSP'])} .. {_fmt(v['USP'])}"),
+                ("limits", f"{_fmt(v['LSP'])} to {_measured(v['USP'], u['USP'])}"),
                 ("autotune", "running" if v["AT"] else "off"),
                 ("ramp", "running" if v["RAPNF"] else "off"),
                 ("input", _name(_enum(bb.InputType, v["INP"]))),
@@ -1109,16 +1118,22 @@ DRIVE_FIELDS = (
 
 
 class CsvLog:
-    """Samples appended to a CSV file: ``time`` (ISO 8601), ``t`` (s), then the fields."""
+    """Samples appended to a CSV file: ``time`` (ISO 8601), ``t (s)``, then the fields, each
+    named with its unit (``speed (rpm)``)."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, units: dict[str, str]) -> None:
         self.path = path
+        self.units = units
         self._file: IO[str] | None = None
         self._writer: Any = None
 
     def write(self, when: datetime.datetime, t: float, sample: dict[str, float]) -> None:
         """Append one row (the header first, if the file is new or empty)."""
-        header = ["time", "t", *sample]
+        header = [
+            "time",
+            with_unit("t", "s"),
+            *(with_unit(k, self.units.get(k, "")) for k in sample),
+        ]
         if self._file is None:
             existing = self._header()
             if existing is not None and existing != header:
@@ -1150,13 +1165,17 @@ class CsvLog:
 class LiveTable:
     """The monitor's screen: redrawn in place on a terminal, a line per sample otherwise."""
 
-    def __init__(self, stream: IO[str], title: str, fields: list[str], tty: bool) -> None:
+    def __init__(
+        self, stream: IO[str], title: str, fields: list[str], units: dict[str, str], tty: bool
+    ) -> None:
         self.stream = stream
         self.title = title
         self.fields = fields
+        self.units = [units.get(f, "") for f in fields]
         self.tty = tty
         self._drawn = 0
-        self._widths = [max(len(f), 9) for f in ["t", *fields]]
+        self._header = [with_unit("t", "s"), *map(with_unit, fields, self.units)]
+        self._widths = [max(len(h), 9) for h in self._header]
 
     def show(self, n: int, t: float, missed: int, sample: dict[str, float]) -> None:
         """Show one sample."""
@@ -1164,14 +1183,15 @@ class LiveTable:
         if self.tty:
             late = f", {missed} deadlines missed" if missed else ""
             lines = [self.title, f"sample {n}  t {t:.1f} s{late}  (Ctrl-C to stop)"]
-            lines += _table(None, [[f, v.rjust(12)] for f, v in zip(self.fields, values)])
+            rows = [[f, v.rjust(12), u] for f, v, u in zip(self.fields, values, self.units)]
+            lines += _table(None, rows)
             out = f"\x1b[{self._drawn}A\r" if self._drawn else ""
             out += "".join(f"{line}\x1b[K\n" for line in lines)
             self._drawn = len(lines)
         else:
             out = ""
             if n == 1:
-                out += self._row(["t", *self.fields]) + "\n"
+                out += self._row(self._header) + "\n"
             out += self._row([f"{t:.3f}", *values]) + "\n"
         self.stream.write(out)
         self.stream.flush()
@@ -1186,7 +1206,7 @@ class LiveTable:
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
     kind: str = args.device
-    log = CsvLog(args.csv) if args.csv else None
+    log: CsvLog | None = None
     samples = 0
     lost: float | None = None  # when the port was lost, while it is
     with _open_bus(args, kind, reconnect=args.reconnect) as bus:
@@ -1198,6 +1218,8 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         else:
             device = bb.J2Controller(bus, _unit(args, kind))
         _check_family(device, kind)
+        units = device.sample_units()
+        log = CsvLog(args.csv, units) if args.csv else None
         title = f"{kind} unit {device.unit} on {bus.port}, every {_fmt(args.interval)} s"
         table: LiveTable | None = None
         try:
@@ -1218,7 +1240,7 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
                 t = n * args.interval
                 if table is None:
                     fields = _fields(args.fields, kind, sample)
-                    table = LiveTable(sys.stdout, title, fields, sys.stdout.isatty())
+                    table = LiveTable(sys.stdout, title, fields, units, sys.stdout.isatty())
                 samples += 1
                 if log is not None:
                     log.write(now, t, sample)
