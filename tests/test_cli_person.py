@@ -8,6 +8,7 @@ import os
 import pty
 import re
 import select
+import signal
 import subprocess
 import termios
 import time
@@ -318,3 +319,25 @@ def test_drive_and_pbl_status_show_units_from_their_tables() -> None:
         pbl = table(ok(run("pbl", "status", "--port", sim.port, "--unit", "2")))
     assert drive["temperature"].endswith(" °C") and drive["output current"].endswith(" A")
     assert pbl["speed setpoint"].endswith(" rpm") and pbl["power"].endswith(" W")
+
+
+def test_ctrl_c_with_a_drive_gone_silent_says_so_in_one_line(tmp_path: Path) -> None:
+    """The demo on a port: the drive stops answering, then Ctrl-C. Neither putting its
+    settings back nor the stop on leaving gets through: one line says all three."""
+    with Simulator({1: DriveDevice("BLD2")}) as sim:
+        proc = start("demo", "--port", sim.port, "--out", tmp_path / "d.png")
+        try:
+            _lines_until(proc.stdout, "spin up")
+            sim.set_silent(1)
+            time.sleep(0.1)
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=30)
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+    assert proc.returncode == 130, err
+    assert "Traceback" not in err
+    (line,) = err.splitlines()
+    assert line.startswith("benchbus: interrupted; ")
+    assert "settings could not be put back" in line and "could not stop the motor" in line

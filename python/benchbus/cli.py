@@ -90,10 +90,14 @@ def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, bb.ResponseTimeout):
         text += " (is the unit there, at this line format? see --port, --baudrate, --unit)"
+    return "; ".join([text, *_notes(exc)])
+
+
+def _notes(exc: BaseException) -> list[str]:
+    """The notes added to ``exc`` on its way out (a failed stop on leaving a block), each in
+    one line."""
     notes = getattr(exc, "__notes__", None)
-    if isinstance(notes, list):
-        text = "; ".join([text, *(" ".join(str(n).split()) for n in notes)])
-    return text
+    return [" ".join(str(n).split()) for n in notes] if isinstance(notes, list) else []
 
 
 # ---- numbers -----------------------------------------------------------------------------------
@@ -1469,7 +1473,7 @@ def main(argv: list[str] | None = None) -> int:
         if args.command in ("monitor", "sim", "gateway"):
             return 0
         _end_ctrl_c_line()
-        print(f"{PROG}: interrupted", file=sys.stderr)
+        print("; ".join([f"{PROG}: interrupted", *_notes(exc)]), file=sys.stderr)
         return 130
     except BrokenPipeError:
         # The reader went away (`benchbus read ... | head`): nothing more to say to it.
