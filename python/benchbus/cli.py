@@ -483,7 +483,7 @@ def build_parser() -> argparse.ArgumentParser:
         "write",
         "write holding registers (0x06 for one value, 0x10 for several)",
         device,
-        epilog="Values are -32768..65535 (negative ones in two's complement), decimal or hex; "
+        epilog="Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
         "with --decimals N, decimal numbers written as value x 10**N. --unit 0 broadcasts "
         "one value and waits for no reply.",
     )
@@ -552,7 +552,7 @@ def build_parser() -> argparse.ArgumentParser:
     j2 = command("j2", "a J2 PID controller (9600 8N1): status and common actions", device)
     actions = j2.add_subparsers(dest="action", metavar="ACTION", required=True)
     action(actions, "status", "PV, SV, MV, mode, limits", device)
-    p = action(actions, "set-sv", "set the setpoint SV (checked against LSP..USP)", device)
+    p = action(actions, "set-sv", "set the setpoint SV (checked against LSP to USP)", device)
     p.add_argument("value", type=_number, metavar="VALUE")
     action(actions, "auto", "automatic mode: the PID sets the output", device)
     action(actions, "manual", "manual mode: the output stays as set", device)
