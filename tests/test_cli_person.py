@@ -341,3 +341,10 @@ def test_ctrl_c_with_a_drive_gone_silent_says_so_in_one_line(tmp_path: Path) -> 
     (line,) = err.splitlines()
     assert line.startswith("benchbus: interrupted; ")
     assert "settings could not be put back" in line and "could not stop the motor" in line
+
+
+def test_a_unit_above_the_drives_range_is_judged_too() -> None:
+    """A J2 at unit 250 (J2 stations go to 255, drives to 247) asked as a PBL."""
+    with Simulator({250: J2Device()}) as sim:
+        line = one_line_error(run("pbl", "status", "--port", sim.port, "--unit", "250"), 1)
+    assert "unit 250 answers but is not a PBL drive (looks like a J2 controller" in line

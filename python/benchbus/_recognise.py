@@ -47,7 +47,11 @@ class Probe:
 def _bld(probe: Probe) -> bool | None:
     """The identification code (0x2103) names a model the manuals list."""
     try:
-        model = Drive(probe.bus, probe.unit).model
+        drive = Drive(probe.bus, probe.unit)
+    except ValueError:  # a unit no drive can have (above 247)
+        return False
+    try:
+        model = drive.model
     except ModbusException:
         return None
     return isinstance(model, Model)
