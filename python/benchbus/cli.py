@@ -10,9 +10,10 @@
     benchbus pbl     --port PATH status|start|stop|reverse|set-speed RPM
     benchbus j2      --port PATH status|set-sv VALUE|auto|manual|set-output PERCENT
     benchbus monitor --port PATH drive|pbl|j2 [--interval S] [--count N | --duration S] [--csv FILE]
+                                              [--no-reconnect]
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
-    benchbus ports
+    benchbus ports   (the serial ports, with their USB ids, chip, maker and serial number)
 
 The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--unit``,
 ``--timeout``, ``--retries``) go anywhere after the command; their defaults are those of the
@@ -21,7 +22,8 @@ device family the command talks to. ``--port`` falls back to ``$BENCHBUS_PORT``.
 
 Errors print one line, ``benchbus: <what went wrong>``, on stderr and exit with 1 (2 for a
 usage error, 130 after Ctrl-C; in ``monitor`` and ``sim`` Ctrl-C is the normal end and exits
-0). ``--traceback`` shows the Python traceback instead, for a bug report.
+0). ``--traceback`` shows the Python traceback instead, for a bug report. ``status`` and
+``monitor`` refuse a unit recognised as another family than the command's.
 """
 
 from __future__ import annotations
