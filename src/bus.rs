@@ -578,7 +578,7 @@ impl Bus {
     pub fn transact(&self, unit: u8, request: &Request, opts: &TxOptions) -> Result<Response> {
         if !UNITS.contains(&unit) {
             return Err(Error::InvalidArgument(format!(
-                "unit must be 1..=255, got {unit} (unit 0 is broadcast: use broadcast_write_register)"
+                "unit must be 1 to 255, got {unit} (unit 0 is broadcast: use broadcast_write_register)"
             )));
         }
         request.validate()?;

@@ -159,7 +159,7 @@ fn family_differences_are_checked_before_sending() {
     let e = bld
         .set("station_address", 200.0)
         .expect_err("BLD takes 1..127");
-    assert_eq!(e.to_string(), "station_address must be 1..=127, got 200");
+    assert_eq!(e.to_string(), "station_address must be 1 to 127, got 200");
     assert!(bld.set("speed", 1.0).is_err());
     assert!(bld.set("pole_pairs", 2.5).is_err());
     assert!(bld.set("no_such_register", 1.0).is_err());

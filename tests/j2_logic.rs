@@ -141,7 +141,7 @@ fn values_within_lsp_usp_are_checked_against_the_controllers_limits() {
     let err = c.write("SV", 250.0).err().map(|e| e.to_string());
     assert_eq!(
         err.as_deref(),
-        Some("SV must be within LSP..USP = 0..=200, got 250 (set both with set_limits)")
+        Some("SV must be within the setpoint limits LSP to USP, 0 to 200, got 250 (set both with j2.limits = (low, high))")
     );
     assert_eq!(summary(&t), vec![(3, 0x14, 3)]); // the limits read, nothing written
                                                  // Out of the widest range: refused before anything is sent.

@@ -8,6 +8,9 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from typing import Any
+
+import pytest
 
 import benchbus as bb
 from benchbus.sim import RegisterDevice, Simulator
@@ -85,3 +88,33 @@ def test_the_hardware_session_puts_the_drive_settings_back() -> None:
         with bb.Drive(sim.port) as drive:
             assert (drive.accel_time, drive.speed_setpoint) == (2.5, 900)
             assert drive.state == bb.DriveState.STOPPED or drive.speed < 1500
+
+
+def test_demo_plot_labels_carry_units_and_show_the_output(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """The plot's axes name their units (from the devices' tables), the J2's output MV is
+    plotted, and no label speaks of the simulation's speed-up."""
+    from benchbus import _demo
+
+    figures = []
+    plot = _demo._plot
+
+    def keep(*args: Any) -> Any:
+        figures.append(plot(*args))
+        return figures[-1]
+
+    monkeypatch.setattr(_demo, "_plot", keep)
+    monkeypatch.setattr(_demo, "STEPS", ((0.0, "spin up"), (1.5, "end")))
+    out = io.StringIO()
+    _demo.run(out=tmp_path / "demo.png", stream=out)
+    header = out.getvalue().splitlines()[1]
+    assert "drive rpm" in header and "J2 PV °C" in header and "J2 MV %" in header
+    (fig,) = figures
+    labels = [ax.get_ylabel() for ax in fig.axes]
+    assert labels[0].startswith("speed (rpm")
+    assert "temperature (°C)" in labels and "output MV (%)" in labels
+    assert not any("x20" in label or "process x" in label for label in labels)
+    mv_ax = fig.axes[labels.index("output MV (%)")]
+    (mv,) = mv_ax.get_lines()
+    assert len(mv.get_ydata()) >= 5 and max(mv.get_ydata()) > 0  # heating

@@ -482,7 +482,7 @@ def test_firmware_without_hall_registers() -> None:
         second = drive.telemetry()
         assert first.hall_count is None and second.hall_count is None
         assert sim.requests == [h("01 03 30 00 00 12 ca c7")]  # 18 registers, one request
-        assert first.units["output_current"] == "A" and first.units["temperature"] == "degC"
+        assert first.units["output_current"] == "A" and first.units["temperature"] == "°C"
 
 
 def test_leaving_the_block_ends_a_jog() -> None:

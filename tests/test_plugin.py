@@ -294,7 +294,7 @@ def test_devices_on_one_line_need_one_line_format(
     ("option", "message"),
     [
         ("--benchbus-unit=oven=2", "argument --benchbus-unit: 'oven' is not one of drive, pbl,*"),
-        ("--benchbus-unit=256", "argument --benchbus-unit: a unit address is 1..255, not 256"),
+        ("--benchbus-unit=256", "argument --benchbus-unit: a unit address is 1 to 255, not 256"),
         ("--benchbus-baudrate=fast", "argument --benchbus-baudrate: 'fast' is not a baud rate"),
         ("--benchbus-parity=X", "argument --benchbus-parity: invalid choice: 'X'*"),
     ],

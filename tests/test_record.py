@@ -432,6 +432,7 @@ def test_to_pandas() -> None:
         "interval": 0.5,
         "start": start,
         "missed": 1,
+        "units": {"a": "", "b": ""},
     }
     empty = Recording([], [], {"pv": []}, interval=0.1).to_pandas()
     assert empty.shape == (0, 1) and empty.index.name == "time"

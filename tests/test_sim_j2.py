@@ -243,8 +243,8 @@ def test_lsp_and_usp_bound_each_other_and_the_setpoints(j2: Line) -> None:
 
 def test_unimplemented_addresses_read_0(j2: Line) -> None:
     assert j2.read(0, 16) == [0, 0, 250, 0, 0, 0, 1000, 0, 0, 0, 0, 0, 0, 0, 400, 0]
-    assert j2.read(16, 16) == [2400, 0, 300, 0, 0, 0, 4000, 0, 0, 0, 0, 0, 0, 0, 0, 0]
-    assert j2.read(32, 16) == [0, 0, 1000, 0, 0, 0, 100, 0, 0, 0, 400, 0, 2400, 0, 300, 0]
+    assert j2.read(16, 16) == [1200, 0, 0, 0, 0, 0, 4000, 0, 0, 0, 0, 0, 0, 0, 0, 0]
+    assert j2.read(32, 16) == [0, 0, 1000, 0, 0, 0, 100, 0, 0, 0, 400, 0, 1200, 0, 0, 0]
     assert j2.read(48, 16) == [0] * 14 + [10, 0]  # ... DIE = 1.0 at 62
     assert j2.read(64, 16) == [0] * 16
     assert j2.read(128, 16) == [1, 0, 0, 0, 0, 0, 2, 0, 0, 0, 0, 0, 0, 0, 0, 0]
@@ -283,7 +283,7 @@ def test_a_write_of_several_registers_meets_an_odd_address(j2: Line) -> None:
     assert j2.write_many_fails(SV, [x10(50.0), 0]) == 2
     assert j2.write_many_fails(PROP, [x10(10.0), 0, x10(60.0)]) == 2
     assert j2.write_many_fails(0, [0] * 16) == 2
-    assert j2.read(SV) == [1000] and j2.read(PROP, 3) == [400, 0, 2400]  # all or nothing
+    assert j2.read(SV) == [1000] and j2.read(PROP, 3) == [400, 0, 1200]  # all or nothing
     assert j2.write_many_fails(PV, [0]) == 2
     j2.write_many(PROP, [x10(10.0)])
     assert j2.read(PROP) == [100]
@@ -445,6 +445,21 @@ def test_pv_approaches_sv_in_auto_with_a_fast_clock() -> None:
         assert abs(mv - 18.75) < 0.2
 
 
+@pytest.mark.parametrize(("sv", "by"), [(50.0, 260), (80.0, 260), (100.0, 320)])
+def test_pv_settles_at_sv_without_a_lasting_overshoot(sv: float, by: int) -> None:
+    """From ambient, at the power-up PID: PV reaches SV, overshoots by less than half a
+    degree, and is within 0.3 degrees of it ``by`` process seconds on (at 80, the demo's:
+    its 13 s at 20 times real time) and from then on."""
+    device = J2Device(clock=lambda: 0.0)
+    device.set_value("SV", sv)
+    trace = []
+    for _ in range(600):
+        device.advance(1.0)
+        trace.append(device.pv)
+    assert max(trace) < sv + 0.5
+    assert all(abs(pv - sv) <= 0.3 for pv in trace[by - 1 :]), trace[by - 1]
+
+
 def test_the_clock_times_speedup_is_process_time() -> None:
     now = [50.0]
     fast = J2Device(speedup=100.0, clock=lambda: now[0])
@@ -515,6 +530,7 @@ def test_pv_register_limits(j2: Line) -> None:
 
 def test_holding_a_temperature_does_not_kick_the_derivative(j2: Line) -> None:
     device = j2.j2
+    j2.write(DERIV, x10(30.0))
     device.hold_temperature(60.0)  # a jump of 35 degrees, at once
     device.advance(device.STEP)
     assert device.mv == 100.0  # 40 degrees below SV with P = 40: full output
@@ -527,7 +543,7 @@ def test_a_held_temperature_does_not_wind_the_integral_up(j2: Line) -> None:
     device = j2.j2
     device.hold_temperature(90.0)  # below SV for an hour: the output saturates
     device.advance(3600.0)
-    assert device.mv == pytest.approx(100.0) and device.temperature == 90.0
+    assert device.mv == pytest.approx(100.0, abs=0.05) and device.temperature == 90.0
     device.hold_temperature(None)  # the integral stopped at saturation: a limited overshoot
     peak = 0.0
     for _ in range(150):
@@ -589,7 +605,7 @@ def test_ending_a_ramp_and_a_rate_of_zero(j2: Line) -> None:
 
 def test_autotune_runs_a_minute_then_sets_pid(j2: Line) -> None:
     device = j2.j2
-    assert j2.read(PROP, 5) == [400, 0, 2400, 0, 300]
+    assert j2.read(PROP, 5) == [400, 0, 1200, 0, 0]
     j2.write(AT, 1)
     assert j2.read(AT) == [1]
     outputs = set()
@@ -615,7 +631,7 @@ def test_autotune_is_aborted_by_at_0(j2: Line) -> None:
     j2.write(AT, 0)
     assert j2.read(AT) == [0]
     device.advance(60.0)
-    assert j2.read(PROP, 5) == [400, 0, 2400, 0, 300]
+    assert j2.read(PROP, 5) == [400, 0, 1200, 0, 0]
     assert 0.0 < device.mv < 100.0  # the PID again, not the relay
     # A change of mode does not stop it.
     j2.write(AT, 1)
@@ -704,7 +720,7 @@ def test_defaults() -> None:
         if name in J2Device.BETWEEN_LSP_USP:
             low, high = J2Device.DEFAULTS["LSP"], J2Device.DEFAULTS["USP"]
         assert low <= default <= high, name
-    expected = {"SV": 100.0, "P": 40.0, "I": 240.0, "D": 30.0, "LSP": 0.0, "USP": 400.0}
+    expected = {"SV": 100.0, "P": 40.0, "I": 120.0, "D": 0.0, "LSP": 0.0, "USP": 400.0}
     expected |= {"OUL": 0.0, "OUH": 100.0, "AM": 1.0, "INP": 6.0, "DP": 1.0, "CYT": 2.0}
     expected |= {"FST": 50.0, "DIE": 1.0, "AL1": 0.0, "MV": 0.0, "RAP": 10.0}
     assert {k: J2Device.DEFAULTS[k] for k in expected} == expected

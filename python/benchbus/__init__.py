@@ -22,7 +22,7 @@ Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 
 from __future__ import annotations
 
-from benchbus._core import Bus, Poll, Stats, __version__, crc16, refresh_logging
+from benchbus._core import Bus, Poll, Stats, __version__, crc16, list_ports, refresh_logging
 from benchbus._drive import (
     C20ControlMode,
     CommandSource,
@@ -109,5 +109,6 @@ __all__ = [
     "__version__",
     "crc16",
     "enable_wire_log",
+    "list_ports",
     "refresh_logging",
 ]

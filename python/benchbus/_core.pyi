@@ -18,6 +18,7 @@ __all__ = [
     "__version__",
     "_panic_on_wire",
     "crc16",
+    "list_ports",
     "refresh_logging",
 ]
 
@@ -25,6 +26,14 @@ __version__: str
 
 def crc16(data: bytes) -> int:
     """CRC-16/MODBUS of ``data`` (sent low byte first on the wire)."""
+
+def list_ports(
+    sysfs_root: str | os.PathLike[str] | None = None,
+) -> list[dict[str, str | int | None]]:
+    """The serial ports of this system, sorted by path: a dict for each with ``path``,
+    ``driver``, and for a USB adapter ``vid``, ``pid``, ``manufacturer``, ``product``,
+    ``serial_number`` and ``chip`` (FTDI, CH340, CP210x, PL2303...; None where the system
+    does not say). ``sysfs_root`` reads another sysfs tree than ``/sys`` (Linux only)."""
 
 def refresh_logging() -> None:
     """Re-read the Python logging levels (cached for speed; a Bus reads them when it opens)."""
@@ -476,6 +485,9 @@ class J2Core:
     def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
         """``(name, address, signed, writable, low, high, within_limits)`` of each
         parameter."""
+    @staticmethod
+    def units() -> dict[str, str]:
+        """The unit of each parameter by name (``""`` for none): ``{"MV": "%", "PV": "°C"}``."""
 
 @final
 class InstrumentCore:

@@ -21,8 +21,11 @@ from typing import TYPE_CHECKING, TextIO
 
 import benchbus as bb
 from benchbus._clock import ticks
+from benchbus._device import add_note
 
 if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
     from benchbus._drive import Drive
     from benchbus._j2 import J2Controller
     from benchbus._pbl import PblDrive
@@ -100,12 +103,21 @@ def _hardware(port: str, unit: int) -> Iterator[_Devices]:
     """The drive at ``port``; the settings the session changes are put back afterwards."""
     with bb.Drive(port, unit=unit) as drive:
         kept = {name: drive.get(name) for name in ("accel_time", "decel_time", "speed_setpoint")}
-        try:
-            yield _Devices(drive)
-        finally:
+
+        def restore() -> None:
             drive.stop()
             for name, value in kept.items():
                 drive.set(name, value)
+
+        try:
+            yield _Devices(drive)
+        except BaseException as exc:
+            try:
+                restore()
+            except Exception as failure:  # the error that ended the session goes on
+                add_note(exc, f"the drive's settings could not be put back ({failure})")
+            raise
+        restore()
 
 
 def _prepare(d: _Devices) -> None:
@@ -155,12 +167,27 @@ def _sample(d: _Devices, sign: list[float]) -> dict[str, float]:
 
 
 _HEAD = {
-    "drive_rpm": "drive rpm",
-    "pbl_rpm": "PBL rpm",
+    "drive_rpm": "drive",
+    "pbl_rpm": "PBL",
     "j2_pv": "J2 PV",
     "j2_sv": "J2 SV",
-    "j2_mv": "J2 MV %",
+    "j2_mv": "J2 MV",
 }
+
+
+def _units(d: _Devices) -> dict[str, str]:
+    """The unit of each column, from the devices' tables."""
+    units = {"drive_rpm": d.drive.sample_units()["speed"]}
+    if d.pbl is not None:
+        units["pbl_rpm"] = d.pbl.sample_units()["speed"]
+    if d.j2 is not None:
+        units.update({f"j2_{k}": v for k, v in d.j2.sample_units().items()})
+    return units
+
+
+def _head(name: str, units: dict[str, str]) -> str:
+    """A column's heading with its unit: ``drive rpm``, ``J2 PV °C``."""
+    return f"{_HEAD[name]} {units.get(name, '')}".rstrip()
 
 
 def _row(t: float, step: str, values: dict[str, float]) -> str:
@@ -168,7 +195,8 @@ def _row(t: float, step: str, values: dict[str, float]) -> str:
     return f"{t:6.2f}  {step:<8}{cells}"
 
 
-def _plot(trace: _Trace, out: Path) -> None:
+def _plot(trace: _Trace, units: dict[str, str], out: Path) -> Figure:
+    """Speeds above; the J2's PV and SV, and its output MV on an axis of its own, below."""
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(9, 6), layout="constrained")
@@ -176,22 +204,27 @@ def _plot(trace: _Trace, out: Path) -> None:
     for name in ("drive_rpm", "pbl_rpm"):
         if name in trace.columns:
             speed_ax.plot(trace.t, trace.columns[name], label=_HEAD[name])
-    speed_ax.set_ylabel("speed, rpm (negative: reverse)")
+    speed_ax.set_ylabel(f"speed ({units['drive_rpm']}; negative: reverse)")
     speed_ax.legend(loc="upper right")
     speed_ax.grid(True, alpha=0.3)
     if "j2_pv" in trace.columns:
-        temp_ax.plot(trace.t, trace.columns["j2_pv"], label="PV")
-        temp_ax.plot(trace.t, trace.columns["j2_sv"], "--", label="SV")
-        temp_ax.set_ylabel(f"temperature (process x{J2_SPEEDUP:g})")
-        temp_ax.legend(loc="lower right")
+        lines = temp_ax.plot(trace.t, trace.columns["j2_pv"], label="PV")
+        lines += temp_ax.plot(trace.t, trace.columns["j2_sv"], "--", label="SV")
+        temp_ax.set_ylabel(f"temperature ({units['j2_pv']})")
+        mv_ax = temp_ax.twinx()
+        lines += mv_ax.plot(trace.t, trace.columns["j2_mv"], ":", color="tab:red", label="MV")
+        mv_ax.set_ylabel(f"output MV ({units['j2_mv']})")
+        mv_ax.set_ylim(0, 105)
+        temp_ax.legend(lines, [line.get_label() for line in lines], loc="center right")
     temp_ax.grid(True, alpha=0.3)
-    temp_ax.set_xlabel("time, s")
+    temp_ax.set_xlabel("time (s)")
     for at, step in STEPS[1:-1]:
         for ax in (speed_ax, temp_ax):
             ax.axvline(at, color="grey", lw=0.8, ls=":")
         speed_ax.annotate(step, (at, 0), xytext=(3, 3), textcoords="offset points", fontsize=8)
     fig.suptitle("benchbus demo")
     fig.savefig(out, dpi=100)
+    return fig
 
 
 def run(
@@ -223,6 +256,7 @@ def run(
         step = ""
         header = ""
         sign = [1.0]
+        units = _units(d)
         start = time.monotonic()
         for _, deadline, _ in ticks(INTERVAL):
             t = deadline - start
@@ -234,9 +268,9 @@ def run(
             values = _sample(d, sign)
             trace.add(t, values)
             if not header:
-                header = "     t  step    " + "".join(f"{_HEAD[k]:>11}" for k in values)
+                header = "     t  step    " + "".join(f"{_head(k, units):>11}" for k in values)
                 print(header, file=stream)
             print(_row(t, step, values), file=stream, flush=True)
-    _plot(trace, target)
+    _plot(trace, units, target)
     print(f"plot written to {target}", file=stream)
     return target

@@ -8,6 +8,7 @@ raw value (an enum, an int, a float) on the way out.
 
 from __future__ import annotations
 
+import contextlib
 import difflib
 import enum
 import logging
@@ -24,18 +25,35 @@ if TYPE_CHECKING:
     from typing_extensions import Self
 
 __all__ = [
+    "NOTED",
     "BusDevice",
     "LineDefaults",
     "MeasuredProperty",
     "MotorDevice",
     "PrintableIntEnum",
     "RegisterProperty",
+    "add_note",
     "as_enum",
     "check_baudrate",
     "to_enum",
     "to_float",
     "to_int",
 ]
+
+
+#: Set on a log record whose text is also a note on the exception being raised (a reader
+#: that reports the exception with its notes need not show the record too).
+NOTED = "benchbus_noted"
+
+
+def add_note(exc: BaseException, text: str) -> None:
+    """Add ``text`` to ``exc.__notes__`` (``BaseException.add_note`` from Python 3.11)."""
+    notes = getattr(exc, "__notes__", None)
+    if not isinstance(notes, list):
+        notes = []
+    notes.append(text)
+    with contextlib.suppress(AttributeError):  # a type without attributes: the log says it
+        setattr(exc, "__notes__", notes)  # noqa: B010 (BaseException lacks it before 3.11)
 
 
 class PrintableIntEnum(enum.IntEnum):
@@ -288,6 +306,17 @@ class BusDevice(metaclass=_DeviceType):
     #: ``record(columns=...)`` is refused before anything is sent.
     SAMPLE_FIELDS: tuple[str, ...] | None = None
 
+    def units(self) -> dict[str, str]:
+        """The unit of each register or parameter by name, from the family's table (``""``
+        for none; empty for a device without a fixed table)."""
+        return {}
+
+    def sample_units(self) -> dict[str, str]:
+        """The unit of each field :meth:`sample` gives, from the family's table (``""`` for
+        none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
+        units = self.units()
+        return {f: units.get(f, "") for f in self.SAMPLE_FIELDS or ()}
+
     def sample(self) -> dict[str, float]:
         """One snapshot of the device's main measurements, ``{name: value}`` as numbers, in
         as few requests as the device allows: what :meth:`record`, ``benchbus monitor`` and
@@ -334,6 +363,7 @@ class BusDevice(metaclass=_DeviceType):
             device=f"{type(self).__name__} unit {self.unit}",
             columns=columns,
             known=self.SAMPLE_FIELDS,
+            units=self.sample_units(),
             clock=clock,
             sleep=sleep,
         )
@@ -384,13 +414,20 @@ class MotorDevice(BusDevice):
         """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
 
         If stopping fails while another exception is on its way out, that exception goes
-        on and the failure is logged; otherwise the failure is raised.
+        on, carrying the failure as a note (``__notes__``, shown in its traceback), and the
+        failure is logged as an error; otherwise the failure is raised.
         """
         try:
             self._stop_on_exit()
-        except Exception:
+        except Exception as failure:
             if exc is None:
                 raise
-            log.exception("unit %d: could not stop the motor on leaving the block", self.unit)
+            text = (
+                f"unit {self.unit}: could not stop the motor on leaving the block "
+                f"({type(failure).__name__}: {failure})"
+            )
+            add_note(exc, text)
+            log.error(text, extra={NOTED: True})
+            log.debug("the stop's failure", exc_info=failure)
         finally:
             self.close()

@@ -13,7 +13,12 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
-__all__ = ["dataclass_table", "field_table", "format_value", "html_table"]
+__all__ = ["dataclass_table", "field_table", "format_value", "html_table", "plural"]
+
+
+def plural(count: int, noun: str) -> str:
+    """``1 sample``, ``2 samples``, ``0 samples``."""
+    return f"{count} {noun}{'' if count == 1 else 's'}"
 
 
 def format_value(value: object) -> str:

@@ -429,7 +429,7 @@ class Drive(MotorDevice):
                 raise TypeError(f"{name} must be a number, got {type(value).__name__}")
         for name, value in (("rpm", rpm), ("tolerance", tolerance)):
             if not 0 <= value <= 3000:
-                raise ValueError(f"{name} must be 0..3000 rpm, got {value}")
+                raise ValueError(f"{name} must be 0 to 3000 rpm, got {value}")
         if not 0 < timeout <= 3600:
             raise ValueError(f"timeout must be 0 < s <= 3600, got {timeout}")
         if not 0 < interval <= 10:
@@ -523,7 +523,7 @@ class Drive(MotorDevice):
         # Written so that NaN, the infinities and ints too big for a float all fail it.
         if not (seconds == 0 or 0.1 <= seconds <= 60.0):
             raise ValueError(
-                f"comm_loss_timeout (F08.04) must be 0 (off) or 0.1..60.0 s, got {seconds!r}"
+                f"comm_loss_timeout (F08.04) must be 0 (off) or 0.1 to 60.0 s, got {seconds!r}"
             )
         self._check_comm_loss_family()
         self.write_parameter("F08.04", round(seconds * 10))
@@ -579,6 +579,10 @@ class Drive(MotorDevice):
     def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
         """The register table: ``(name, address, scale, unit, access, low, high)``."""
         return self.core.registers()
+
+    def units(self) -> dict[str, str]:
+        """The unit of each register by name, from :meth:`registers` (``""`` for none)."""
+        return {row[0]: row[3] for row in self.registers()}
 
     # ---- lifecycle -------------------------------------------------------------------------
 

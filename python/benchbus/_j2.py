@@ -236,6 +236,16 @@ class J2Controller(BusDevice):
         within_limits)``; ``within_limits`` means the manual's range is LSP..USP."""
         return J2Core.table()
 
+    def units(self) -> dict[str, str]:
+        """The unit of each parameter by its manual name (``"PV"``), from the family's table
+        (``""`` for none; a linear input, INP = LN, reads in its own scale, not °C)."""
+        return J2Core.units()
+
+    def sample_units(self) -> dict[str, str]:
+        """The unit of each field :meth:`sample` gives (``pv``, ``sv``: °C; ``mv``: %)."""
+        units = self.units()
+        return {f: units.get(f.upper(), "") for f in self.SAMPLE_FIELDS}
+
     def status(self) -> J2Status:
         """PV, SV, MV, mode, autotune, ramp and alarm values, in two requests."""
         pv, sv, mv, al1, al2, am, rapnf, at = self.core.read_many(

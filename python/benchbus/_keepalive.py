@@ -34,7 +34,7 @@ def check_interval(interval: object) -> float:
     """``interval`` as a float, or TypeError / ValueError if it is not 0.01..60 seconds."""
     seconds = check_seconds("interval", interval)
     if not MIN_INTERVAL <= seconds <= MAX_INTERVAL:
-        raise ValueError(f"interval must be {MIN_INTERVAL}..{MAX_INTERVAL} s, got {interval!r}")
+        raise ValueError(f"interval must be {MIN_INTERVAL} to {MAX_INTERVAL} s, got {interval!r}")
     return seconds
 
 

@@ -249,6 +249,10 @@ class PblDrive(MotorDevice):
         """The parameter table: ``(number, name, unit, access, low, high)``."""
         return PblCore.table()
 
+    def units(self) -> dict[str, str]:
+        """The unit of each parameter by name, from :meth:`table` (``""`` for none)."""
+        return {row[1]: row[2] for row in PblCore.table()}
+
     def restore_defaults(self) -> None:
         """Ask for the factory defaults (1511 to parameter 214).
 

@@ -21,7 +21,7 @@ from datetime import datetime
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, cast, overload
 
 from benchbus._clock import ticks
-from benchbus._display import html_table
+from benchbus._display import html_table, plural
 
 if TYPE_CHECKING:
     import pandas
@@ -88,8 +88,10 @@ class Recording:
         start: datetime | None = None,
         clock_start: float | None = None,
         interrupted: bool = False,
+        units: Mapping[str, str] | None = None,
     ) -> None:
-        """A recording of the given samples (copied); every column as long as ``times``."""
+        """A recording of the given samples (copied); every column as long as ``times``;
+        ``units`` the unit of each column (a column it does not name has none)."""
         #: When each sample was taken, seconds since the start (the clock read just before
         #: the sample's request).
         self.times: list[float] = [float(t) for t in times]
@@ -114,6 +116,10 @@ class Recording:
         self.clock_start: float | None = clock_start
         #: Whether Ctrl-C ended the recording before its duration.
         self.interrupted: bool = interrupted
+        #: The unit of each column, from the device's register table (``""`` for none).
+        self.units: dict[str, str] = {
+            name: str((units or {}).get(name, "")) for name in self.columns
+        }
         if len(self.deadlines) != len(self.times) or any(
             len(values) != len(self.times) for values in self.columns.values()
         ):
@@ -182,8 +188,9 @@ class Recording:
 
     def to_pandas(self) -> pandas.DataFrame:
         """The samples as a DataFrame: a column per measurement, indexed by ``time`` in
-        seconds since the start. ``frame.attrs`` holds ``device``, ``interval``, ``start``
-        and ``missed``. Needs pandas (``pip install 'benchbus[data]'``)."""
+        seconds since the start. ``frame.attrs`` holds ``device``, ``interval``, ``start``,
+        ``missed`` and ``units`` (the unit of each column, ``{"speed": "rpm", ...}``; ``""``
+        for none). Needs pandas (``pip install 'benchbus[data]'``)."""
         try:
             import pandas as pd
         except ImportError as exc:
@@ -198,7 +205,11 @@ class Recording:
             dtype=float,
         )
         frame.attrs.update(
-            device=self.device, interval=self.interval, start=self.start, missed=self.missed
+            device=self.device,
+            interval=self.interval,
+            start=self.start,
+            missed=self.missed,
+            units=self.unit_map(),
         )
         return frame
 
@@ -233,8 +244,12 @@ class Recording:
             else:
                 figure = Figure(figsize=(8, 4), layout="constrained")
             ax = figure.add_subplot()
+        units = self.unit_map()
         for name in names:
-            ax.plot(self.times, self.columns[name], label=name)
+            ax.plot(self.times, self.columns[name], label=with_unit(name, units[name]))
+        shown = list(dict.fromkeys(units[name] for name in names if units[name]))
+        if shown:
+            ax.set_ylabel(", ".join(shown))
         ax.set_xlabel("time (s)")
         ax.set_title(self._title())
         ax.grid(True, alpha=0.3)
@@ -246,6 +261,10 @@ class Recording:
                 root = root.figure
             root.savefig(path, format=None if os.path.splitext(path)[1] else "png")
         return ax
+
+    def unit_map(self) -> dict[str, str]:
+        """The unit of each column (``""`` for none), in column order."""
+        return {name: self.units.get(name, "") for name in self.columns}
 
     def _select(self, columns: Iterable[str] | None) -> list[str]:
         """The column names asked for (all by default), checked."""
@@ -269,7 +288,7 @@ class Recording:
     def _summary(self) -> str:
         """``Drive unit 1: 30 samples every 0.05 s over 1.45 s, 0 missed``."""
         span = f" over {self.times[-1]:.3g} s" if self.times else ""
-        count = f"{len(self)} sample{'' if len(self) == 1 else 's'}"
+        count = plural(len(self), "sample")
         text = f"{count} every {self.interval:g} s{span}, {self.missed} missed"
         if self.interrupted:
             text += ", interrupted"
@@ -312,6 +331,11 @@ class Recording:
         return f"<div>{html_table(header, rows, caption='; '.join(lines), numeric=numeric)}</div>"
 
 
+def with_unit(name: str, unit: str) -> str:
+    """``speed (rpm)``; the name alone when there is no unit."""
+    return f"{name} ({unit})" if unit else name
+
+
 def check_seconds(name: str, value: object) -> float:
     """``value`` as a positive, finite number of seconds; TypeError or ValueError if not."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
@@ -344,6 +368,7 @@ def record(
     device: str = "",
     columns: Iterable[str] | None = None,
     known: Iterable[str] | None = None,
+    units: Mapping[str, str] | None = None,
     clock: Callable[[], float] = time.monotonic,
     sleep: Callable[[float], None] = time.sleep,
 ) -> Recording:
@@ -355,7 +380,7 @@ def record(
     ValueError then); a later sample without one of them records NaN for it. An exception
     from ``sample()`` ends the recording and goes on, carrying what was recorded before it
     as its ``recording`` attribute. Ctrl-C (KeyboardInterrupt) ends it too, and returns
-    what was recorded, with ``interrupted`` set.
+    what was recorded, with ``interrupted`` set. ``units`` gives the unit of each column.
     """
     duration = check_seconds("duration", duration)
     interval = check_seconds("interval", interval)
@@ -379,6 +404,7 @@ def record(
             if names is None:
                 names = _first_columns(values, wanted)
                 rec.columns = {name: [] for name in names}
+                rec.units = {name: (units or {}).get(name, "") for name in names}
             rec._append(taken, n * interval, [float(values.get(name, math.nan)) for name in names])
     except KeyboardInterrupt:
         rec.interrupted = True
@@ -387,7 +413,8 @@ def record(
         try:
             kept.recording = rec
             if hasattr(kept, "add_note"):  # Python 3.11+: shown with the traceback
-                kept.add_note(f"the {len(rec)} samples recorded before it are in .recording")
+                count = plural(len(rec), "sample")
+                kept.add_note(f"the {count} recorded before it are in .recording")
         except (AttributeError, TypeError):  # an exception that takes no attributes
             pass
         raise

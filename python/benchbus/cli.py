@@ -10,8 +10,10 @@
     benchbus pbl     --port PATH status|start|stop|reverse|set-speed RPM
     benchbus j2      --port PATH status|set-sv VALUE|auto|manual|set-output PERCENT
     benchbus monitor --port PATH drive|pbl|j2 [--interval S] [--count N | --duration S] [--csv FILE]
+                                              [--no-reconnect]
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
+    benchbus ports   (the serial ports, with their USB ids, chip, maker and serial number)
 
 The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--unit``,
 ``--timeout``, ``--retries``) go anywhere after the command; their defaults are those of the
@@ -20,7 +22,8 @@ device family the command talks to. ``--port`` falls back to ``$BENCHBUS_PORT``.
 
 Errors print one line, ``benchbus: <what went wrong>``, on stderr and exit with 1 (2 for a
 usage error, 130 after Ctrl-C; in ``monitor`` and ``sim`` Ctrl-C is the normal end and exits
-0). ``--traceback`` shows the Python traceback instead, for a bug report.
+0). ``--traceback`` shows the Python traceback instead, for a bug report. ``status`` and
+``monitor`` refuse a unit recognised as another family than the command's.
 """
 
 from __future__ import annotations
@@ -43,7 +46,11 @@ from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 import benchbus as bb
 from benchbus._clock import ticks
+from benchbus._device import NOTED
+from benchbus._display import plural
 from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen
+from benchbus._recognise import family, mismatch
+from benchbus._record import with_unit
 
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
@@ -85,7 +92,14 @@ def _one_line(exc: BaseException) -> str:
     text = " ".join(str(exc).split()) or type(exc).__name__
     if isinstance(exc, bb.ResponseTimeout):
         text += " (is the unit there, at this line format? see --port, --baudrate, --unit)"
-    return text
+    return "; ".join([text, *_notes(exc)])
+
+
+def _notes(exc: BaseException) -> list[str]:
+    """The notes added to ``exc`` on its way out (a failed stop on leaving a block), each in
+    one line."""
+    notes = getattr(exc, "__notes__", None)
+    return [" ".join(str(n).split()) for n in notes] if isinstance(notes, list) else []
 
 
 # ---- numbers -----------------------------------------------------------------------------------
@@ -97,6 +111,12 @@ def parse_int(text: str) -> int:
     """An integer written in decimal (``100``) or hex (``0x64``), with an optional sign."""
     s = text.strip().lower().replace("_", "")
     if not _INTEGER.fullmatch(s):
+        try:
+            number = Decimal(s).is_finite()
+        except InvalidOperation:
+            number = False
+        if number:
+            raise ValueError(f"{text!r} is not a whole number")
         raise ValueError(f"{text!r} is not a number (write decimal, 100, or hex, 0x64)")
     return int(s, 16 if "x" in s else 10)
 
@@ -110,7 +130,7 @@ def _integer(low: int, high: int, what: str) -> Callable[[str], int]:
         except ValueError as exc:
             raise argparse.ArgumentTypeError(str(exc)) from None
         if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{what} must be {low}..{high}, got {text}")
+            raise argparse.ArgumentTypeError(f"{what} must be {low} to {high}, got {text}")
         return value
 
     convert.__name__ = what  # argparse names the type in some messages
@@ -126,7 +146,7 @@ def parse_units(text: str, low: int = 1, high: int = 255) -> list[int]:
             raise ValueError(f"{text!r} is not a list of units (e.g. 1-10,17,0x20)")
         first, last = parse_int(bounds[0]), parse_int(bounds[-1])
         if not low <= first <= last <= high:
-            raise ValueError(f"units must be {low}..{high}, in increasing ranges: got {part!r}")
+            raise ValueError(f"units must be {low} to {high}, in increasing ranges: got {part!r}")
         units.update(range(first, last + 1))
     return sorted(units)
 
@@ -230,7 +250,7 @@ def _word(text: str, decimals: int) -> int:
             raise UsageError(f"{text!r} has more than {decimals} decimals")
         value = int(scaled)
     if not -0x8000 <= value <= 0xFFFF:
-        raise UsageError(f"{text!r} does not fit in a register (-32768..65535 raw)")
+        raise UsageError(f"{text!r} does not fit in a register (-32768 to 65535 raw)")
     return value & 0xFFFF
 
 
@@ -239,6 +259,11 @@ def _fmt(value: float) -> str:
     if float(value).is_integer():
         return str(int(value))
     return f"{value:.4f}".rstrip("0").rstrip(".")
+
+
+def _measured(value: float, unit: str) -> str:
+    """A value with its unit: ``1450 rpm``, ``25.3 °C`` (the number alone without one)."""
+    return f"{_fmt(value)} {unit}".rstrip()
 
 
 def _csv_number(value: float) -> str:
@@ -471,7 +496,7 @@ def build_parser() -> argparse.ArgumentParser:
         "write",
         "write holding registers (0x06 for one value, 0x10 for several)",
         device,
-        epilog="Values are -32768..65535 (negative ones in two's complement), decimal or hex; "
+        epilog="Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
         "with --decimals N, decimal numbers written as value x 10**N. --unit 0 broadcasts "
         "one value and waits for no reply.",
     )
@@ -540,7 +565,7 @@ def build_parser() -> argparse.ArgumentParser:
     j2 = command("j2", "a J2 PID controller (9600 8N1): status and common actions", device)
     actions = j2.add_subparsers(dest="action", metavar="ACTION", required=True)
     action(actions, "status", "PV, SV, MV, mode, limits", device)
-    p = action(actions, "set-sv", "set the setpoint SV (checked against LSP..USP)", device)
+    p = action(actions, "set-sv", "set the setpoint SV (checked against LSP to USP)", device)
     p.add_argument("value", type=_number, metavar="VALUE")
     action(actions, "auto", "automatic mode: the PID sets the output", device)
     action(actions, "manual", "manual mode: the output stays as set", device)
@@ -559,7 +584,9 @@ def build_parser() -> argparse.ArgumentParser:
         epilog="On a terminal the table is redrawn in place; otherwise one line is printed "
         "per sample. Samples are taken on a steady clock (deadlines that pass while a "
         "sample is read are skipped, and counted). The CSV file gets every measurement, "
-        "with a header when the file is new; an existing file must have the same columns.",
+        "with a header when the file is new; an existing file must have the same columns. "
+        "A lost port (an adapter unplugged) is reported in one line and reopened at each "
+        "sample until it is back.",
     )
     monitor.add_argument("device", choices=("drive", "pbl", "j2"), metavar="drive|pbl|j2")
     monitor.add_argument(
@@ -571,6 +598,12 @@ def build_parser() -> argparse.ArgumentParser:
     )
     until.add_argument("--duration", type=_seconds, metavar="S", help="stop after S seconds")
     monitor.add_argument("--csv", metavar="FILE", help="append each sample to FILE")
+    monitor.add_argument(
+        "--no-reconnect",
+        dest="reconnect",
+        action="store_false",
+        help="end with an error when the port is lost (default: say so, reopen it and go on)",
+    )
     monitor.add_argument(
         "--fields",
         metavar="NAMES",
@@ -680,6 +713,18 @@ def build_parser() -> argparse.ArgumentParser:
     gateway.add_argument("--seconds", type=_seconds, metavar="S", help="stop after S seconds")
     gateway.set_defaults(handler=_cmd_gateway)
 
+    # ports
+    ports = command(
+        "ports",
+        "list the serial ports, with the USB adapter's ids, names and chip",
+        [general],
+        epilog="For a USB adapter: its vendor:product ids, the chip family they belong to "
+        "(FTDI, CH340, CP210x, PL2303...), and the manufacturer, product and serial number "
+        "it reports. A port without them is the board's own (or the system does not say).",
+    )
+    ports.add_argument("--sysfs-root", metavar="DIR", help=_S)  # another sysfs tree, for tests
+    ports.set_defaults(handler=_cmd_ports)
+
     # demo
     demo = command(
         "demo",
@@ -738,7 +783,7 @@ def _open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False)
 def _unit(args: argparse.Namespace, family: str, *, broadcast: bool = False) -> int:
     unit = int(_line(args, family).unit)
     if unit == 0 and not broadcast:
-        raise UsageError("unit 0 is the broadcast address: give --unit 1..255")
+        raise UsageError("unit 0 is the broadcast address: give --unit 1 to 255")
     return unit
 
 
@@ -986,23 +1031,35 @@ def _open_drive(bus: bb.Bus, args: argparse.Namespace) -> bb.Drive:
     return bb.Drive(bus, _unit(args, "drive"), family=_opt(args, "family", "BLD"))
 
 
+def _check_family(device: bb.Drive | bb.PblDrive | bb.J2Controller, key: str) -> None:
+    """Refuse a unit recognised as another family than the command talks to."""
+    other = mismatch(device.bus, device.unit, key)
+    if other is not None:
+        raise CliError(
+            f"unit {device.unit} answers but is not {family(key).name} (looks like "
+            f"{other.name}: see '{PROG} {other.key} --help', or check --port and --unit)"
+        )
+
+
 def _cmd_drive(args: argparse.Namespace) -> int:
     with _open_bus(args, "drive") as bus:
         drive = _open_drive(bus, args)  # not a `with`: that would stop the motor on leaving
         unit = drive.unit
         if args.action == "status":
+            _check_family(drive, "drive")
             status = drive.status()
             t = drive.telemetry()
+            u = drive.units()
             rows = [
                 ("model", _name(drive.model)),
                 ("state", _name(status.state)),
                 ("fault", str(status.fault) if status.fault else "none"),
-                ("speed", f"{t.speed} rpm"),
-                ("speed setpoint", f"{drive.speed_setpoint} rpm"),
-                ("output frequency", f"{_fmt(t.output_frequency)} Hz"),
-                ("output current", f"{_fmt(t.output_current)} A"),
-                ("bus voltage", f"{_fmt(t.bus_voltage)} V"),
-                ("temperature", f"{_fmt(t.temperature)} degC"),
+                ("speed", _measured(t.speed, u["speed"])),
+                ("speed setpoint", _measured(drive.speed_setpoint, u["speed_setpoint"])),
+                ("output frequency", _measured(t.output_frequency, u["output_frequency"])),
+                ("output current", _measured(t.output_current, u["output_current"])),
+                ("bus voltage", _measured(t.bus_voltage, u["bus_voltage"])),
+                ("temperature", _measured(t.temperature, u["temperature"])),
                 ("command source", _name(status.control_source)),
             ]
             _print_table(None, rows)
@@ -1029,18 +1086,19 @@ def _cmd_pbl(args: argparse.Namespace) -> int:
         pbl = bb.PblDrive(bus, _unit(args, "pbl"))
         unit = pbl.unit
         if args.action == "status":
+            _check_family(pbl, "pbl")
             status = pbl.status()
             sample = pbl.sample()
             alarms = sorted(pbl.alarms)
+            u = pbl.units()
             rows = [
-                ("running", "yes" if status.running else "no"),
-                ("turning", _name(status.direction)),
+                ("running", f"yes, {_name(status.direction)}" if status.running else "no"),
                 ("direction asked", _name(pbl.direction)),
-                ("speed", f"{_fmt(sample['speed'])} rpm"),
-                ("speed setpoint", f"{pbl.speed_setpoint} rpm"),
-                ("bus voltage", f"{_fmt(sample['bus_voltage'])} V"),
-                ("current", f"{_fmt(sample['current'])} A"),
-                ("power", f"{_fmt(sample['power'])} W"),
+                ("speed", _measured(sample["speed"], u["speed"])),
+                ("speed setpoint", _measured(pbl.speed_setpoint, u["internal_speed"])),
+                ("bus voltage", _measured(sample["bus_voltage"], u["bus_voltage"])),
+                ("current", _measured(sample["current"], u["current"])),
+                ("power", _measured(sample["power"], u["power"])),
                 ("alarms", ", ".join(alarms) if alarms else "none"),
                 ("start/stop source", _name(pbl.start_stop_source)),
             ]
@@ -1076,14 +1134,16 @@ def _cmd_j2(args: argparse.Namespace) -> int:
         j2 = bb.J2Controller(bus, _unit(args, "j2"))
         unit = j2.unit
         if args.action == "status":
+            _check_family(j2, "j2")
             names = ["PV", "SV", "MV", "AM", "LSP", "USP", "AT", "RAPNF", "INP"]
             v = dict(zip(names, j2.read_many(names)))
+            u = j2.units()
             rows = [
-                ("pv", _fmt(v["PV"])),
-                ("sv", _fmt(v["SV"])),
-                ("mv", f"{_fmt(v['MV'])} %"),
+                ("pv", _measured(v["PV"], u["PV"])),
+                ("sv", _measured(v["SV"], u["SV"])),
+                ("mv", _measured(v["MV"], u["MV"])),
                 ("mode", _name(_enum(bb.J2Mode, v["AM"]))),
-                ("limits", f"{_fmt(v['LSP'])} .. {_fmt(v['USP'])}"),
+                ("limits", f"{_fmt(v['LSP'])} to {_measured(v['USP'], u['USP'])}"),
                 ("autotune", "running" if v["AT"] else "off"),
                 ("ramp", "running" if v["RAPNF"] else "off"),
                 ("input", _name(_enum(bb.InputType, v["INP"]))),
@@ -1130,16 +1190,22 @@ DRIVE_FIELDS = (
 
 
 class CsvLog:
-    """Samples appended to a CSV file: ``time`` (ISO 8601), ``t`` (s), then the fields."""
+    """Samples appended to a CSV file: ``time`` (ISO 8601), ``t (s)``, then the fields, each
+    named with its unit (``speed (rpm)``)."""
 
-    def __init__(self, path: str) -> None:
+    def __init__(self, path: str, units: dict[str, str]) -> None:
         self.path = path
+        self.units = units
         self._file: IO[str] | None = None
         self._writer: Any = None
 
     def write(self, when: datetime.datetime, t: float, sample: dict[str, float]) -> None:
         """Append one row (the header first, if the file is new or empty)."""
-        header = ["time", "t", *sample]
+        header = [
+            "time",
+            with_unit("t", "s"),
+            *(with_unit(k, self.units.get(k, "")) for k in sample),
+        ]
         if self._file is None:
             existing = self._header()
             if existing is not None and existing != header:
@@ -1171,13 +1237,17 @@ class CsvLog:
 class LiveTable:
     """The monitor's screen: redrawn in place on a terminal, a line per sample otherwise."""
 
-    def __init__(self, stream: IO[str], title: str, fields: list[str], tty: bool) -> None:
+    def __init__(
+        self, stream: IO[str], title: str, fields: list[str], units: dict[str, str], tty: bool
+    ) -> None:
         self.stream = stream
         self.title = title
         self.fields = fields
+        self.units = [units.get(f, "") for f in fields]
         self.tty = tty
         self._drawn = 0
-        self._widths = [max(len(f), 9) for f in ["t", *fields]]
+        self._header = [with_unit("t", "s"), *map(with_unit, fields, self.units)]
+        self._widths = [max(len(h), 9) for h in self._header]
 
     def show(self, n: int, t: float, missed: int, sample: dict[str, float]) -> None:
         """Show one sample."""
@@ -1185,17 +1255,22 @@ class LiveTable:
         if self.tty:
             late = f", {missed} deadlines missed" if missed else ""
             lines = [self.title, f"sample {n}  t {t:.1f} s{late}  (Ctrl-C to stop)"]
-            lines += _table(None, [[f, v.rjust(12)] for f, v in zip(self.fields, values)])
+            rows = [[f, v.rjust(12), u] for f, v, u in zip(self.fields, values, self.units)]
+            lines += _table(None, rows)
             out = f"\x1b[{self._drawn}A\r" if self._drawn else ""
             out += "".join(f"{line}\x1b[K\n" for line in lines)
             self._drawn = len(lines)
         else:
             out = ""
             if n == 1:
-                out += self._row(["t", *self.fields]) + "\n"
+                out += self._row(self._header) + "\n"
             out += self._row([f"{t:.3f}", *values]) + "\n"
         self.stream.write(out)
         self.stream.flush()
+
+    def below(self) -> None:
+        """Draw the next sample below what was printed since (not over it)."""
+        self._drawn = 0
 
     def _row(self, cells: list[str]) -> str:
         return "  ".join(c.rjust(w) for c, w in zip(cells, self._widths))
@@ -1203,9 +1278,10 @@ class LiveTable:
 
 def _cmd_monitor(args: argparse.Namespace) -> int:
     kind: str = args.device
-    log = CsvLog(args.csv) if args.csv else None
+    log: CsvLog | None = None
     samples = 0
-    with _open_bus(args, kind) as bus:
+    lost: float | None = None  # when the port was lost, while it is
+    with _open_bus(args, kind, reconnect=args.reconnect) as bus:
         device: bb.Drive | bb.PblDrive | bb.J2Controller
         if kind == "drive":
             device = _open_drive(bus, args)
@@ -1213,16 +1289,30 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
             device = bb.PblDrive(bus, _unit(args, kind))
         else:
             device = bb.J2Controller(bus, _unit(args, kind))
+        _check_family(device, kind)
+        units = device.sample_units()
+        log = CsvLog(args.csv, units) if args.csv else None
         title = f"{kind} unit {device.unit} on {bus.port}, every {_fmt(args.interval)} s"
         table: LiveTable | None = None
         try:
             for n, _deadline, missed in ticks(args.interval, args.duration):
-                sample = device.sample()
+                try:
+                    sample = device.sample()
+                except bb.PortError as exc:
+                    if not args.reconnect:
+                        raise
+                    if lost is None:
+                        lost = time.monotonic()
+                        _note(table, f"lost {bus.port} ({_one_line(exc)}): reconnecting")
+                    continue
+                if lost is not None:
+                    _note(table, f"{bus.port} is back after {time.monotonic() - lost:.1f} s")
+                    lost = None
                 now = datetime.datetime.now().astimezone()
                 t = n * args.interval
                 if table is None:
                     fields = _fields(args.fields, kind, sample)
-                    table = LiveTable(sys.stdout, title, fields, sys.stdout.isatty())
+                    table = LiveTable(sys.stdout, title, fields, units, sys.stdout.isatty())
                 samples += 1
                 if log is not None:
                     log.write(now, t, sample)
@@ -1232,12 +1322,26 @@ def _cmd_monitor(args: argparse.Namespace) -> int:
         except (KeyboardInterrupt, SystemError) as exc:
             if not interrupted(exc):
                 raise
+            _end_ctrl_c_line()
         finally:
             if log is not None:
                 log.close()
     where = f", appended to {args.csv}" if args.csv else ""
-    print(f"{samples} samples{where}", file=sys.stderr)
+    print(f"{plural(samples, 'sample')}{where}", file=sys.stderr)
     return 0
+
+
+def _end_ctrl_c_line() -> None:
+    """On a terminal, end the line its ``^C`` echo is on, so what follows starts a line."""
+    if sys.stderr.isatty():
+        print(file=sys.stderr)
+
+
+def _note(table: LiveTable | None, text: str) -> None:
+    """One line on stderr while the monitor runs, below the table (redrawn after it)."""
+    print(f"{PROG}: monitor: {text}", file=sys.stderr, flush=True)
+    if table is not None:
+        table.below()
 
 
 def _fields(spec: str | None, kind: str, sample: dict[str, float]) -> list[str]:
@@ -1360,6 +1464,33 @@ def _cmd_gateway(args: argparse.Namespace) -> int:
     return 0
 
 
+# ---- ports -------------------------------------------------------------------------------------
+
+
+def _cmd_ports(args: argparse.Namespace) -> int:
+    from benchbus._core import list_ports
+
+    found = list_ports(args.sysfs_root)
+    if not found:
+        raise CliError("no serial port found (is the adapter plugged in?)")
+
+    def cell(port: dict[str, str | int | None], key: str) -> str:
+        value = port.get(key)
+        return "-" if value is None else str(value)
+
+    rows = [
+        [
+            cell(p, "path"),
+            cell(p, "chip"),
+            "-" if p["vid"] is None else f"{p['vid']:04x}:{p['pid']:04x}",
+            *(cell(p, k) for k in ("manufacturer", "product", "serial_number", "driver")),
+        ]
+        for p in found
+    ]
+    _print_table(["port", "chip", "usb id", "manufacturer", "product", "serial", "driver"], rows)
+    return 0
+
+
 # ---- demo --------------------------------------------------------------------------------------
 
 
@@ -1373,11 +1504,16 @@ def _cmd_demo(args: argparse.Namespace) -> int:
 # ---- main --------------------------------------------------------------------------------------
 
 
-def _configure_logging(verbose: bool) -> None:
-    """Warnings of the library on stderr; with ``verbose``, every frame too (the wire log)."""
+def _configure_logging(verbose: bool, traceback: bool = False) -> None:
+    """Warnings of the library on stderr; with ``verbose``, every frame too (the wire log).
+
+    Without ``traceback``, a record that is also a note on the exception being raised is
+    left to the error line, which shows the notes."""
     handler = logging.StreamHandler(sys.stderr)
     handler.setLevel(logging.WARNING)  # the wire log has its own handler
     handler.setFormatter(logging.Formatter("%(levelname)s %(name)s: %(message)s"))
+    if not traceback:
+        handler.addFilter(lambda record: not getattr(record, NOTED, False))
     logging.getLogger("benchbus").addHandler(handler)
     if verbose:
         bb.enable_wire_log(sys.stderr)
@@ -1391,7 +1527,7 @@ def main(argv: list[str] | None = None) -> int:
     except SystemExit as exc:  # --help, --version (0) and usage errors (2)
         return exc.code if isinstance(exc.code, int) else 2
     if _opt(args, "traceback", False):
-        _configure_logging(bool(_opt(args, "verbose", False)))
+        _configure_logging(bool(_opt(args, "verbose", False)), traceback=True)
         return int(args.handler(args))
     try:
         _configure_logging(bool(_opt(args, "verbose", False)))
@@ -1408,7 +1544,8 @@ def main(argv: list[str] | None = None) -> int:
             return 1
         if args.command in ("monitor", "sim", "gateway"):
             return 0
-        print(f"{PROG}: interrupted", file=sys.stderr)
+        _end_ctrl_c_line()
+        print("; ".join([f"{PROG}: interrupted", *_notes(exc)]), file=sys.stderr)
         return 130
     except BrokenPipeError:
         # The reader went away (`benchbus read ... | head`): nothing more to say to it.
@@ -1418,7 +1555,9 @@ def main(argv: list[str] | None = None) -> int:
     except (bb.BenchbusError, ValueError, TypeError, OSError, RuntimeError, ImportError) as exc:
         print(f"{PROG}: {_one_line(exc)}", file=sys.stderr)
         return 1
-    except Exception as exc:
+    except (Exception, BaseException) as exc:  # also a panic in the core (PanicException)
+        if isinstance(exc, (SystemExit, GeneratorExit)):
+            raise
         print(
             f"{PROG}: unexpected {type(exc).__name__}: {_one_line(exc)} "
             "(run again with --traceback to see where)",

@@ -176,7 +176,7 @@ def _unit_option(text: str) -> tuple[str, int]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"{number!r} is not a unit address") from None
     if not 1 <= unit <= 255:
-        raise argparse.ArgumentTypeError(f"a unit address is 1..255, not {unit}")
+        raise argparse.ArgumentTypeError(f"a unit address is 1 to 255, not {unit}")
     return kind, unit
 
 

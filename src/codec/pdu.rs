@@ -59,7 +59,7 @@ pub enum Request {
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum RequestError {
     /// A register count outside what the function allows.
-    #[error("count must be 1..={max}, got {count}")]
+    #[error("count must be 1 to {max}, got {count}")]
     Count {
         /// The count asked for.
         count: usize,
@@ -75,7 +75,7 @@ pub enum RequestError {
         count: usize,
     },
     /// A Read Device ID code other than 1..=4.
-    #[error("read device id code must be 1..=4, got {0}")]
+    #[error("read device id code must be 1 to 4, got {0}")]
     ReadCode(u8),
 }
 

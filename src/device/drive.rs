@@ -190,7 +190,7 @@ pub const REGISTERS: &[DriveRegister] = &[
     measured("hall_state", 0x3009, 1.0, "", Same),
     measured("software_version", 0x300A, 0.01, "", Same),
     measured("last_fault", 0x300B, 1.0, "", Same),
-    signed(measured("temperature", 0x300C, 0.1, "degC", Same)),
+    signed(measured("temperature", 0x300C, 0.1, "°C", Same)),
     measured("input_terminals", 0x300D, 1.0, "", Same),
     measured("output_terminals", 0x300E, 1.0, "", Same),
     measured("ai1_voltage", 0x300F, 0.01, "V", Same),
@@ -531,7 +531,7 @@ impl Drive {
                 let words = self.read(TELEMETRY, wanted.len() as u16)?;
                 log::debug!(
                     target: "benchbus::device",
-                    "unit {}: no registers 0x3012..0x3014 on this firmware", self.unit
+                    "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit
                 );
                 self.hall_registers.store(BLOCK_NO, Ordering::Relaxed);
                 words

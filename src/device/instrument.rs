@@ -107,7 +107,7 @@ fn unscaled(v: f64, decimals: u8) -> f64 {
 fn check_decimals(decimals: u8) -> Result<()> {
     if decimals > 9 {
         return Err(Error::InvalidArgument(format!(
-            "decimals must be 0..=9, got {decimals}"
+            "decimals must be 0 to 9, got {decimals}"
         )));
     }
     Ok(())
@@ -138,12 +138,12 @@ impl Instrument {
     ) -> Result<Instrument> {
         if !(1..=MAX_READ_COUNT).contains(&max_read) {
             return Err(Error::InvalidArgument(format!(
-                "max_read must be 1..={MAX_READ_COUNT}, got {max_read}"
+                "max_read must be 1 to {MAX_READ_COUNT}, got {max_read}"
             )));
         }
         if !(1..=MAX_WRITE_COUNT).contains(&max_write) {
             return Err(Error::InvalidArgument(format!(
-                "max_write must be 1..={MAX_WRITE_COUNT}, got {max_write}"
+                "max_write must be 1 to {MAX_WRITE_COUNT}, got {max_write}"
             )));
         }
         Ok(Instrument {
@@ -410,7 +410,7 @@ impl Instrument {
 fn check_span(address: u16, count: usize) -> Result<()> {
     if count == 0 || usize::from(address) + count > 0x1_0000 {
         return Err(Error::InvalidArgument(format!(
-            "{count} registers from {address:#06x} are not a span within 0x0000..=0xFFFF \
+            "{count} registers from {address:#06x} are not a span within 0x0000 to 0xFFFF \
              (at least 1)"
         )));
     }

@@ -46,9 +46,23 @@ pub struct Param {
     pub range: (f64, f64),
     /// Held to the limits LSP..USP the controller holds (SV).
     pub within_limits: bool,
+    /// The unit of its value ("" for none): percent for the output, °C for the process
+    /// value and the parameters in its scale (a linear input, INP = LN, reads in its own).
+    pub unit: &'static str,
+}
+
+impl Param {
+    /// The parameter with `unit`.
+    const fn with_unit(self, unit: &'static str) -> Param {
+        Param { unit, ..self }
+    }
 }
 
 const LIMITS_RANGE: (f64, f64) = (-1999.0, 9999.0);
+/// The unit of the output and its limits.
+const PERCENT: &str = "%";
+/// The unit of the process value, and of the parameters in its scale.
+const PROCESS: &str = "°C";
 
 const fn s(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
     Param {
@@ -58,6 +72,7 @@ const fn s(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
         writable: true,
         range: (lo, hi),
         within_limits: false,
+        unit: "",
     }
 }
 
@@ -71,6 +86,7 @@ const fn lim(name: &'static str, address: u16, held: bool) -> Param {
         writable: true,
         range: LIMITS_RANGE,
         within_limits: held,
+        unit: "",
     }
 }
 
@@ -82,27 +98,28 @@ const fn u(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
         writable: true,
         range: (lo, hi),
         within_limits: false,
+        unit: "",
     }
 }
 
 /// Both tables, in address order; the manual's "NC" (empty) addresses are left out.
 #[rustfmt::skip]
 pub const PARAMETERS: [Param; 43] = [
-    s("MV", 0x00, 0.0, 100.0),
-    Param { name: "PV", address: 0x02, signed: true, writable: false, range: (WORD_MIN, WORD_MAX), within_limits: false },
-    lim("SV", 0x06, true),
-    s("AL1", 0x08, -1999.0, 9999.0),
-    s("AL2", 0x0A, -1999.0, 9999.0),
+    s("MV", 0x00, 0.0, 100.0).with_unit(PERCENT),
+    Param { name: "PV", address: 0x02, signed: true, writable: false, range: (WORD_MIN, WORD_MAX), within_limits: false, unit: PROCESS },
+    lim("SV", 0x06, true).with_unit(PROCESS),
+    s("AL1", 0x08, -1999.0, 9999.0).with_unit(PROCESS),
+    s("AL2", 0x0A, -1999.0, 9999.0).with_unit(PROCESS),
     s("P", 0x0E, 0.1, 3600.0),
     s("I", 0x10, 0.0, 3600.0),
     s("D", 0x12, 0.0, 3600.0),
-    s("LSP", 0x14, -1999.0, 9999.0),
-    s("USP", 0x16, -1999.0, 9999.0),
+    s("LSP", 0x14, -1999.0, 9999.0).with_unit(PROCESS),
+    s("USP", 0x16, -1999.0, 9999.0).with_unit(PROCESS),
     lim("HY1", 0x18, false),
     lim("HY2", 0x1A, false),
     lim("HYS", 0x1E, false),
-    s("OUL", 0x20, 0.0, 100.0),
-    s("OUH", 0x22, 0.0, 100.0),
+    s("OUL", 0x20, 0.0, 100.0).with_unit(PERCENT),
+    s("OUH", 0x22, 0.0, 100.0).with_unit(PERCENT),
     s("GAP", 0x24, -50.0, 50.0),
     lim("RAP", 0x26, false),
     s("RTM", 0x28, 0.0, 3600.0),
@@ -111,7 +128,7 @@ pub const PARAMETERS: [Param; 43] = [
     s("D1", 0x2E, 0.0, 3600.0),
     lim("TRL", 0x30, false),
     lim("TRH", 0x32, false),
-    s("PVOS", 0x34, -50.0, 50.0),
+    s("PVOS", 0x34, -50.0, 50.0).with_unit(PROCESS),
     lim("SRT", 0x36, false),
     s("LMO", 0x38, 0.0, 100.0),
     lim("TOP", 0x3A, false),
@@ -160,7 +177,7 @@ impl Param {
             address: self.address,
             scale,
             signed: self.signed,
-            unit: "",
+            unit: self.unit,
             access: if self.writable {
                 Access::ReadWrite
             } else {
@@ -188,8 +205,8 @@ impl Param {
                 (self.range.0..=self.range.1).contains(&value) && !(lo..=hi).contains(&value);
             match e {
                 Error::InvalidArgument(m) if cut_off => Error::InvalidArgument(format!(
-                    "{m} (the manual gives {}..{}, but a signed 16-bit register in tenths \
-                         holds -3276.8..3276.7)",
+                    "{m} (the manual gives {} to {}, but a signed 16-bit register in tenths \
+                         holds -3276.8 to 3276.7)",
                     self.range.0, self.range.1
                 )),
                 other => other,
@@ -433,14 +450,14 @@ impl J2 {
             "USP" if value < low => Some(format!("USP must stay >= LSP = {low}")),
             "LSP" | "USP" => None,
             _ if value < low || value > high => Some(format!(
-                "{} must be within LSP..USP = {low}..={high}",
+                "{} must be within the setpoint limits LSP to USP, {low} to {high}",
                 p.name
             )),
             _ => None,
         };
         match refused {
             Some(m) => Err(Error::InvalidArgument(format!(
-                "{m}, got {value} (set both with set_limits)"
+                "{m}, got {value} (set both with j2.limits = (low, high))"
             ))),
             None => Ok(()),
         }
@@ -544,7 +561,7 @@ mod tests {
         assert!(check("FST", 20.0) && !check("FST", 19.0) && !check("FST", 20.5));
         assert!(!check("PV", 1.0) && !check("MV", 100.1) && !check("MV", f64::NAN));
         let msg = by_name("AL1").and_then(|p| p.encode(5000.0)).err();
-        assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999..9999")));
+        assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999 to 9999")));
     }
 
     #[test]

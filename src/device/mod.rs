@@ -82,7 +82,7 @@ impl Register {
             || value > hi + tolerance * self.scale
         {
             return Err(Error::InvalidArgument(format!(
-                "{} must be {}..={}{}, got {}",
+                "{} must be {} to {}{}, got {}",
                 self.name,
                 fmt_num(lo),
                 fmt_num(hi),
@@ -152,7 +152,7 @@ mod tests {
         let msg = TENTHS.encode(700.0).err().map(|e| e.to_string());
         assert_eq!(
             msg.as_deref(),
-            Some("accel_time must be 0.1..=600 s, got 700")
+            Some("accel_time must be 0.1 to 600 s, got 700")
         );
     }
 

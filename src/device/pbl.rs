@@ -314,7 +314,7 @@ pub fn by_name(name: &str) -> Result<&'static Register> {
 pub fn by_number(number: u16) -> Result<&'static Register> {
     PARAMETERS
         .get(usize::from(number))
-        .ok_or_else(|| Error::InvalidArgument(format!("PBL parameters are 0..=222, got {number}")))
+        .ok_or_else(|| Error::InvalidArgument(format!("PBL parameters are 0 to 222, got {number}")))
 }
 
 /// The names of the alarm bits set in `word` (the manual names none: "alarm bit N").
@@ -408,7 +408,7 @@ impl Pbl {
     pub fn read_parameters(&self, start: u16, count: u16) -> Result<Vec<u16>> {
         if count == 0 || usize::from(start) + usize::from(count) > PARAMETERS.len() {
             return Err(Error::InvalidArgument(format!(
-                "parameters {start}+{count} are not within 0..=222"
+                "parameters {start}+{count} are not within 0 to 222"
             )));
         }
         let mut words = Vec::with_capacity(count.into());

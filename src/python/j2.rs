@@ -198,6 +198,16 @@ impl PyJ2Core {
         Ok(out)
     }
 
+    /// The unit of each parameter by name ("" for none): `{"MV": "%", "PV": "°C", ...}`.
+    #[staticmethod]
+    fn units<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for p in &PARAMETERS {
+            out.set_item(p.name, p.unit)?;
+        }
+        Ok(out)
+    }
+
     fn __repr__(&self) -> String {
         format!("J2Core(unit={})", self.j2.unit())
     }

@@ -8,6 +8,7 @@ mod instrument;
 mod j2;
 mod pbl;
 mod poll;
+mod ports;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
@@ -122,7 +123,7 @@ fn write_interval_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Duration> {
     let interval = opt(obj, Duration::ZERO, |w| seconds(w, "write_interval", true))?;
     if interval > Duration::from_secs(60) {
         return Err(PyValueError::new_err(format!(
-            "write_interval must be 0..=60 seconds, got {}",
+            "write_interval must be 0 to 60 seconds, got {}",
             interval.as_secs_f64()
         )));
     }
@@ -148,7 +149,7 @@ fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64>
     match obj.extract::<i64>() {
         Ok(v) if (lo..=hi).contains(&v) => Ok(v),
         _ => Err(PyValueError::new_err(format!(
-            "{name} must be {lo}..={hi}, got {obj}"
+            "{name} must be {lo} to {hi}, got {obj}"
         ))),
     }
 }
@@ -226,7 +227,7 @@ fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Dur
     let ok = value.is_finite() && (value > 0.0 || (allow_zero && value == 0.0)) && value <= 3600.0;
     if !ok || obj.is_instance_of::<PyString>() {
         let range = if allow_zero {
-            "0..=3600"
+            "0 to 3600"
         } else {
             "0 < seconds <= 3600"
         };
@@ -267,7 +268,7 @@ fn register_list(obj: &Bound<'_, PyAny>, max: usize) -> PyResult<Vec<u16>> {
         .collect::<PyResult<Vec<u16>>>()?;
     if values.is_empty() || values.len() > max {
         return Err(PyValueError::new_err(format!(
-            "values must hold 1..={max} registers, got {}",
+            "values must hold 1 to {max} registers, got {}",
             values.len()
         )));
     }
@@ -789,6 +790,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<pbl::PyPblCore>()?;
     m.add_class::<poll::PyPoll>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
+    m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

@@ -36,7 +36,7 @@ fn parameter_number(py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
     }
     if key.is_instance_of::<PyBool>() || !key.is_instance_of::<PyInt>() {
         return Err(PyTypeError::new_err(format!(
-            "a parameter is a number 0..=222 or a name, got {}",
+            "a parameter is a number 0 to 222 or a name, got {}",
             key.get_type().name()?
         )));
     }

@@ -5,6 +5,7 @@
 //!
 //! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]).
 
+pub mod ports;
 mod serial;
 mod tcp;
 
@@ -248,7 +249,7 @@ fn parse_tcp_port(p: &str) -> Result<u16, String> {
     }
     match p.parse::<u16>() {
         Ok(n) if n > 0 && p.bytes().all(|b| b.is_ascii_digit()) => Ok(n),
-        _ => Err(format!("bad TCP port {p:?} (1..=65535)")),
+        _ => Err(format!("bad TCP port {p:?} (1 to 65535)")),
     }
 }
 

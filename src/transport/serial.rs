@@ -75,16 +75,28 @@ impl SerialTransport {
 
 /// What an open error means, for the message of a PortError: "in use" for a port another
 /// Bus or program holds (the crate reports both `EBUSY` and a refused `flock` as
-/// `NoDevice`), the system's own words otherwise.
+/// `NoDevice`), how to get the permission for a port the user may not open, the system's
+/// own words otherwise.
 pub fn describe_open_error(e: &serialport::Error) -> String {
     match e.kind() {
         serialport::ErrorKind::NoDevice => format!(
             "in use by another Bus or program (benchbus opens a port exclusively): {}",
             e.description
         ),
+        serialport::ErrorKind::Io(io::ErrorKind::PermissionDenied) => {
+            format!("{} ({PERMISSION_HINT})", e.description)
+        }
         _ => e.description.clone(),
     }
 }
+
+/// How a user gets the permission to open a serial port.
+#[cfg(target_os = "linux")]
+const PERMISSION_HINT: &str = "serial ports belong to the dialout group: add yourself with \
+                               'sudo usermod -aG dialout $USER', then log out and in again";
+#[cfg(not(target_os = "linux"))]
+const PERMISSION_HINT: &str = "your user may not open this port: ask for access to it \
+                               (on most systems, membership of the group that owns it)";
 
 fn is_invalid_input(e: &serialport::Error) -> bool {
     matches!(e.kind(), serialport::ErrorKind::InvalidInput)
@@ -237,6 +249,26 @@ mod tests {
             "{:?}",
             start.elapsed()
         );
+    }
+
+    #[test]
+    fn a_port_the_user_may_not_open_says_how_to_get_the_permission() {
+        let e = serialport::Error::new(
+            serialport::ErrorKind::Io(io::ErrorKind::PermissionDenied),
+            "Permission denied",
+        );
+        let text = describe_open_error(&e);
+        assert!(text.starts_with("Permission denied ("), "{text}");
+        #[cfg(target_os = "linux")]
+        assert!(
+            text.contains("dialout") && text.contains("sudo usermod -aG dialout $USER"),
+            "{text}"
+        );
+        let other = serialport::Error::new(
+            serialport::ErrorKind::Io(io::ErrorKind::NotFound),
+            "No such file or directory",
+        );
+        assert_eq!(describe_open_error(&other), "No such file or directory");
     }
 
     #[test]
