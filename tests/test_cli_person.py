@@ -134,7 +134,9 @@ def _lines_until(stream: IO[str] | None, text: str, timeout: float = 10.0) -> li
 
 
 def test_monitor_rides_out_a_lost_port(tmp_path: Path) -> None:
-    adapter = Adapter(Simulator({1: DriveDevice("BLD2")}), tmp_path / "ttyUSB0")
+    # A drive that answers block reads: one request a sample keeps to the 50 ms interval.
+    drive = DriveDevice("BLD2", single_register_reads=False)
+    adapter = Adapter(Simulator({1: drive}), tmp_path / "ttyUSB0")
     proc = start("monitor", "drive", "--port", adapter.port, "--interval", "0.05", "--count", "40")
     try:
         first = _lines_until(proc.stdout, "0.100")  # a few samples in
@@ -158,7 +160,9 @@ def test_monitor_rides_out_a_lost_port(tmp_path: Path) -> None:
 
 
 def test_monitor_no_reconnect_ends_at_a_lost_port(tmp_path: Path) -> None:
-    adapter = Adapter(Simulator({1: DriveDevice("BLD2")}), tmp_path / "ttyUSB0")
+    # A drive that answers block reads: one request a sample keeps to the 50 ms interval.
+    drive = DriveDevice("BLD2", single_register_reads=False)
+    adapter = Adapter(Simulator({1: drive}), tmp_path / "ttyUSB0")
     proc = start("monitor", "drive", "--port", adapter.port, "--interval", "0.05", "--no-reconnect")
     try:
         _lines_until(proc.stdout, "0.100")
