@@ -1,6 +1,6 @@
 """benchbus beside minimalmodbus and pymodbus, on a line that takes as long as a real one.
 
-    python bench/run.py            # the full run (about 3 minutes)
+    python bench/run.py            # the full run (about 7 minutes)
     python bench/run.py --quick    # every scenario, briefly (what CI runs)
 
 Each library goes through the same scenarios against the same fake slave (bench/lineemu.py),
