@@ -270,6 +270,17 @@ impl Conn {
     }
 }
 
+/// The MBAP frame of transaction `tid` carrying `adu` (unit + PDU, of a length in
+/// [`MBAP_LENGTH`]): transaction id, protocol id 0, length, then `adu`.
+fn mbap_frame(tid: u16, adu: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(MBAP_PREFIX + adu.len());
+    out.extend_from_slice(&tid.to_be_bytes());
+    out.extend_from_slice(&[0, 0]);
+    out.extend_from_slice(&(adu.len() as u16).to_be_bytes());
+    out.extend_from_slice(adu);
+    out
+}
+
 /// The Modbus TCP side of a [`TcpTransport`].
 struct Mbap {
     /// The transaction id of the next request.
@@ -307,12 +318,7 @@ impl Mbap {
         let tid = self.next_tid;
         self.next_tid = tid.wrapping_add(1);
         self.awaited = Some(tid);
-        let mut out = Vec::with_capacity(MBAP_PREFIX + adu.len());
-        out.extend_from_slice(&tid.to_be_bytes());
-        out.extend_from_slice(&[0, 0]);
-        out.extend_from_slice(&(adu.len() as u16).to_be_bytes());
-        out.extend_from_slice(adu);
-        Ok(out)
+        Ok(mbap_frame(tid, adu))
     }
 
     /// The MBAP frame that carries the RTU frame `frame` (its CRC dropped unchecked): as a
@@ -320,7 +326,7 @@ impl Mbap {
     /// bytes too short to be a frame.
     fn shown(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
         let (adu, _crc) = frame.split_last_chunk::<2>()?;
-        if adu.len() < 2 {
+        if !MBAP_LENGTH.contains(&adu.len()) {
             return None;
         }
         let tid = if sent {
@@ -328,12 +334,7 @@ impl Mbap {
         } else {
             self.next_tid.wrapping_sub(1)
         };
-        let mut out = Vec::with_capacity(MBAP_PREFIX + adu.len());
-        out.extend_from_slice(&tid.to_be_bytes());
-        out.extend_from_slice(&[0, 0]);
-        out.extend_from_slice(&u16::try_from(adu.len()).ok()?.to_be_bytes());
-        out.extend_from_slice(adu);
-        Some(out)
+        Some(mbap_frame(tid, adu))
     }
 
     /// The next whole MBAP frame in `raw`, taken out of it; None while it is incomplete.
