@@ -23,6 +23,7 @@ use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
 static LOG_RESET: OnceLock<pyo3_log::ResetHandle> = OnceLock::new();
+static EXCEPTIONS: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
 
 thread_local! {
     /// The exception a signal handler raised between two attempts of this thread's call
@@ -43,7 +44,6 @@ fn signal_raised() -> bool {
         }
     })
 }
-static EXCEPTIONS: PyOnceLock<Py<PyModule>> = PyOnceLock::new();
 
 /// Maps a crate error to the Python exception tree of `benchbus.exceptions` (the one place
 /// this happens).
@@ -252,6 +252,18 @@ fn own_timing(
 
 fn register_values(obj: &Bound<'_, PyAny>) -> PyResult<Vec<u16>> {
     register_list(obj, usize::from(MAX_WRITE_COUNT))
+}
+
+/// The `address` and `values` of a 0x10 write, checked: a start address, 1..=123 register
+/// values, and a block that stays within the register map.
+fn register_block(
+    address: &Bound<'_, PyAny>,
+    values: &Bound<'_, PyAny>,
+) -> PyResult<(u16, Vec<u16>)> {
+    let address = u16_arg(address, "address")?;
+    let values = register_values(values)?;
+    within_map(address, values.len())?;
+    Ok((address, values))
 }
 
 /// A sequence of 1..=`max` register values (ints 0..=0xFFFF).
@@ -487,9 +499,7 @@ impl PyBus {
         write_interval: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let unit = unit_arg(unit)?;
-        let address = u16_arg(address, "address")?;
-        let values = register_values(values)?;
-        within_map(address, values.len())?;
+        let (address, values) = register_block(address, values)?;
         let opts = TxOptions {
             write_interval: write_interval_arg(write_interval)?,
             ..TxOptions::default()
@@ -564,9 +574,7 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         values: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let address = u16_arg(address, "address")?;
-        let values = register_values(values)?;
-        within_map(address, values.len())?;
+        let (address, values) = register_block(address, values)?;
         self.wire(py, |b| b.broadcast_write_registers(address, &values))
     }
 
