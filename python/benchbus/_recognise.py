@@ -19,7 +19,7 @@ from benchbus._j2 import J2Controller
 from benchbus._pbl import PblDrive
 from benchbus.exceptions import FrameError, ModbusException, ResponseTimeout
 
-__all__ = ["FAMILIES", "Family", "Probe", "family", "mismatch", "recognise"]
+__all__ = ["FAMILIES", "Family", "Probe", "family", "mismatch", "recognise", "verdict"]
 
 
 class Probe:
@@ -102,7 +102,7 @@ FAMILIES = (
 )
 
 
-def _verdict(family: Family, probe: Probe) -> bool | None:
+def verdict(family: Family, probe: Probe) -> bool | None:
     """The family's test, with a timeout or a garbled reply as 'cannot tell'."""
     try:
         return family.test(probe)
@@ -113,7 +113,7 @@ def _verdict(family: Family, probe: Probe) -> bool | None:
 def recognise(bus: Bus, unit: int) -> Family | None:
     """The first family the unit at ``unit`` is recognised as, or None."""
     probe = Probe(bus, unit)
-    return next((f for f in FAMILIES if _verdict(f, probe)), None)
+    return next((f for f in FAMILIES if verdict(f, probe)), None)
 
 
 def family(key: str) -> Family:
@@ -133,4 +133,4 @@ def mismatch(bus: Bus, unit: int, key: str) -> Family | None:
     probe = Probe(bus, unit)
     if expected.test(probe):
         return None
-    return next((f for f in FAMILIES if f is not expected and _verdict(f, probe)), None)
+    return next((f for f in FAMILIES if f is not expected and verdict(f, probe)), None)

@@ -49,7 +49,7 @@ from benchbus._clock import ticks
 from benchbus._device import NOTED
 from benchbus._display import plural
 from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen
-from benchbus._recognise import family, mismatch
+from benchbus._recognise import Probe, family, mismatch, verdict
 from benchbus._record import with_unit
 
 if TYPE_CHECKING:
@@ -859,9 +859,8 @@ def guess_model(bus: bb.Bus, unit: int, *, identify: bool = True) -> str:
       asked with ``identify`` False);
     - a drive: 0x2100 holds a drive state (1..6) and 0x2103 a model code (0x20 BLD2 or
       C20, 0x30 BLD3H); a 0x20 that answers the BLD-only 0x2012 is a BLD2, else a C20;
-    - a PBL drive: parameter 222 reads and 223 is refused as an illegal address;
-    - a J2 controller: AM (128) is 0 or 1 and SV (6) lies within LSP (20) .. USP (22),
-      with LSP < USP (signed tenths);
+    - a PBL drive, then a J2 controller, by their tests in :mod:`benchbus._recognise`
+      (the same that ``status`` and ``monitor`` check a unit's family with);
     - a Taisong meter: a read of 37 registers from 0 is answered and one of 38 refused with
       exception 3 (its request limit);
     - otherwise ``?``.
@@ -881,13 +880,10 @@ def guess_model(bus: bb.Bus, unit: int, *, identify: bool = True) -> str:
         if code and code[0] == 0x20:
             bld = _register(bus, unit, 0x2012) is not None
             return f"Drive {bb.Model.BLD2 if bld else bb.Model.C20}"
-    if _register(bus, unit, 222) is not None and _refused(bus, unit, 223, 1, 2):
-        return "PBL"
-    sv, limits, am = _register(bus, unit, 6), _register(bus, unit, 20, 3), _register(bus, unit, 128)
-    if sv and limits and am and am[0] in (0, 1):
-        low, high, value = _signed(limits[0]), _signed(limits[2]), _signed(sv[0])
-        if low < high and low <= value <= high:
-            return "J2"
+    probe = Probe(bus, unit)
+    for key, name in (("pbl", "PBL"), ("j2", "J2")):
+        if verdict(family(key), probe):
+            return name
     if _register(bus, unit, 0, 37) is not None and _refused(bus, unit, 0, 38, 3):
         return "Taisong"
     return "?"
