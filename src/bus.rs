@@ -6,7 +6,7 @@
 //! ```text
 //!  master  ...quiet >= t3.5 | request (n chars) |                         | quiet >= t3.5 | next
 //!  slave                                        | turnaround | reply     |
-//!                                               ^ timeout counts from the end of the request
+//!          ^ timeout counts from the start of the request (at least timeout / 2 after its end)
 //! ```
 //!
 //! Stale bytes in the input buffer are dropped (and counted) before each request; the reply
@@ -105,9 +105,9 @@ pub struct TxOptions {
     pub retries: Option<u32>,
     /// The device family's meaning of an exception code.
     pub meaning: fn(u8) -> &'static str,
-    /// Whether the timeout is the whole window from the start of the request (a scan's
-    /// probe: n silent units take n x timeout), rather than the device's allowance after
-    /// the request's end.
+    /// Whether the timeout is the whole window from the start of the request however long
+    /// the request (a scan's probe: n silent units take n x timeout), rather than leaving the
+    /// device at least half the timeout after a long request's end.
     pub window_from_start: bool,
     /// Whether a write is answered. False for devices set to answer no write (a BLD drive
     /// with F08.06 = 1): the write is sent once and nothing is awaited. Reads are always
@@ -547,10 +547,10 @@ impl Bus {
     /// exception reply counts as an answer, except a gateway's 0x0A / 0x0B for it). One
     /// attempt, no retries.
     ///
-    /// Unlike a read's timeout, `timeout` here is the whole window a unit gets, counted from
-    /// the start of the request (its own time on the wire included), so a scan of n absent
-    /// units takes n x `timeout`. The device is always left at least t3.5 after the request
-    /// to start its answer.
+    /// `timeout` is the whole window a unit gets, counted from the start of the request (its
+    /// own time on the wire included), so a scan of n absent units takes n x `timeout`. Unlike
+    /// a read, which leaves the device at least half its timeout after a long request, a
+    /// probe leaves it only t3.5 after the request to start its answer.
     ///
     /// # Errors
     /// [`Error::Port`] or [`Error::Closed`]; timeouts and corrupt frames mean "absent".
@@ -743,13 +743,28 @@ impl Bus {
             ..
         } = st;
         let transport = self.port(link)?;
-        // The timeout is the device's allowance to start answering: its first character must
-        // have arrived by `answer_by` + one character time. The rest of the reply's time on
-        // the wire (known as its length becomes known) comes on top, so a long reply at a low
-        // baud rate is not cut off. A compliant device cannot start before t3.5 of quiet after
-        // the request, so on a serial line it always gets at least that.
+        // The timeout counts from the start of the request, as in other Modbus masters, so a
+        // silent unit costs one timeout per attempt: the device's first character must have
+        // arrived by `answer_by` + one character time. The rest of the reply's time on the
+        // wire (known as its length becomes known) comes on top, so a long reply at a low baud
+        // rate is not cut off. A request that takes over half the timeout on the wire still
+        // leaves the device half the timeout after its end (a probe: only t3.5, the least a
+        // compliant device needs before it may start).
         let serial = transport.is_serial_line();
-        let mut answer_by = if !serial {
+        let mut answer_by = if serial {
+            let sent_start = sent_end
+                .checked_sub(line.frame_time(frame.len()))
+                .unwrap_or(sent_end);
+            let least = if window_from_start {
+                line.t3_5()
+            } else {
+                (timeout / 2).max(line.t3_5())
+            };
+            (sent_start + timeout)
+                .checked_sub(line.char_time())
+                .unwrap_or(sent_start)
+                .max(sent_end + least)
+        } else {
             // A Modbus TCP gateway that serves one request at a time answers this one only
             // after the late one it is still busy with: that time is not this unit's.
             let queued = late
@@ -760,16 +775,6 @@ impl Bus {
                     end.saturating_duration_since(sent_end)
                 });
             sent_end + timeout + queued
-        } else if window_from_start {
-            let sent_start = sent_end
-                .checked_sub(line.frame_time(frame.len()))
-                .unwrap_or(sent_end);
-            (sent_start + timeout)
-                .checked_sub(line.char_time())
-                .unwrap_or(sent_start)
-                .max(sent_end + line.t3_5())
-        } else {
-            sent_end + timeout.max(line.t3_5())
         };
         // When the last byte of the reply so far arrived: the line is quiet since then.
         let mut last_byte = None;
@@ -935,7 +940,7 @@ impl Bus {
         if self.config.echo {
             let echoed = self.read_echo(transport, frame, request, end + timeout, st.echo_seen);
             // The line was busy until the echo's last byte (or whatever came in its place).
-            // The reply's allowance still counts from the reckoned end: the echo's wait is
+            // The reply's window still counts from the reckoned request: the echo's wait is
             // charged to the attempt, which keeps the call within its bound.
             st.silence.busy_until(Instant::now().max(end));
             st.echo_seen |= echoed.is_ok();

@@ -240,8 +240,9 @@ fn a_timeout_with_nothing_received_leaves_the_line_quiet_since_the_request() {
     // Nothing came back: the line has been quiet since the request ended, far longer than
     // t3.5, so the retry goes out as soon as the timeout has passed.
     let (gap, line, _) = retry_gap(Act::Silent);
-    // request on the wire + timeout + the first reply character's time
-    let expected = line.frame_time(8) + Duration::from_millis(40) + line.char_time();
+    // The 66.7 ms request is longer than half the 40 ms timeout: the device is left half the
+    // timeout after its end, then the first reply character's time.
+    let expected = line.frame_time(8) + Duration::from_millis(20) + line.char_time();
     assert!(gap >= expected, "{gap:?}");
     assert!(
         gap < expected + line.t3_5() * 4 / 5,
@@ -254,9 +255,48 @@ fn late_bytes_found_before_a_request_are_traffic_and_restart_the_silence() {
     // The reply came after the timeout: it is dropped as stale, and the retry waits t3.5
     // after finding it rather than going out into the rest of it.
     let (gap, line, bus) = retry_gap(Act::Late(vec![1, 3, 2]));
-    let timed_out = line.frame_time(8) + Duration::from_millis(40) + line.char_time();
+    let timed_out = line.frame_time(8) + Duration::from_millis(20) + line.char_time();
     assert!(gap >= timed_out + line.t3_5(), "{gap:?}");
     assert_eq!(bus.stats().stale_bytes, 3);
+}
+
+/// The time between the requests of two reads of silent units at 1200 baud (8-byte requests
+/// of 66.7 ms), one attempt each with `timeout`.
+fn silent_read_gap(timeout: Duration) -> Duration {
+    let (bus, t) = common::serial_bus(vec![Act::Silent, Act::Silent], 1200, Duration::ZERO);
+    let opts = TxOptions {
+        retries: Some(0),
+        timeout: Some(timeout),
+        ..TxOptions::default()
+    };
+    for unit in [5, 6] {
+        assert!(matches!(
+            bus.read_holding_registers(unit, 0, 1, &opts),
+            Err(benchbus::Error::Timeout { .. })
+        ));
+    }
+    let at = common::sent_at(&t);
+    at[1] - at[0]
+}
+
+#[test]
+fn a_read_timeout_counts_from_the_start_of_the_request() {
+    // As in other Modbus masters, a silent unit costs one timeout per attempt, the request's
+    // own time on the wire included: 200 ms, not 66.7 + 200 ms.
+    let gap = silent_read_gap(Duration::from_millis(200));
+    assert!(gap >= Duration::from_millis(199), "{gap:?}");
+    assert!(gap < Duration::from_millis(230), "{gap:?}");
+}
+
+#[test]
+fn a_read_leaves_the_device_half_its_timeout_after_a_long_request() {
+    // The 66.7 ms request is longer than the 100 ms timeout less half of it: the device still
+    // gets 50 ms after the request's end to start answering (then a character's time).
+    let line = benchbus::LineFormat::new(1200, benchbus::Parity::None, 1);
+    let gap = silent_read_gap(Duration::from_millis(100));
+    let expected = line.frame_time(8) + Duration::from_millis(50) + line.char_time();
+    assert!(gap >= expected, "{gap:?}");
+    assert!(gap < expected + Duration::from_millis(25), "{gap:?}");
 }
 
 #[test]

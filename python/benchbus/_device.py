@@ -170,7 +170,7 @@ class LineDefaults(NamedTuple):
     baudrate: int
     #: "N", "E" or "O".
     parity: str
-    #: Seconds a device of the family may take to start answering.
+    #: Seconds from the start of a request by which a device of the family starts answering.
     timeout: float
 
 

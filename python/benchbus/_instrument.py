@@ -97,7 +97,8 @@ class Instrument(BusDevice):
     is not used). Reads and writes of any length are split into requests of at most
     ``max_read`` / ``max_write`` registers; writes go at least ``min_write_interval``
     seconds apart. A split write that fails part-way leaves the requests before it written.
-    The timeout is the device's allowance to start answering: a long reply's own time on
+    The timeout counts from the start of the request (a request longer than half of it on
+    the wire still leaves the device half of it after its end); a long reply's own time on
     the wire comes on top.
     """
 
