@@ -14,6 +14,7 @@
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
     benchbus ports   (the serial ports, with their USB ids, chip, maker and serial number)
+    benchbus doctor  --port PATH [--unit N]  (what stands between benchbus and the port)
 
 The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--unit``,
 ``--timeout``, ``--retries``) go anywhere after the command; their defaults are those of the
@@ -724,6 +725,21 @@ def build_parser() -> argparse.ArgumentParser:
     )
     ports.add_argument("--sysfs-root", metavar="DIR", help=_S)  # another sysfs tree, for tests
     ports.set_defaults(handler=_cmd_ports)
+
+    # doctor
+    doctor = command(
+        "doctor",
+        "check a serial port: what stands between benchbus and the devices on it",
+        device,
+        epilog="One line per finding: its verdict (ok, info, warn, fail), what was checked, "
+        "what was found and the fix. Checks the platform, the port and who holds it, the "
+        "permission to open it, the USB chip and an FTDI's latency timer, the driver's "
+        "low-latency mode, the kernel RS485 mode, and whether a request comes back (a local "
+        "echo: one read of register 0 goes to --unit). Exits 1 if any finding fails.",
+    )
+    doctor.add_argument("--sysfs-root", metavar="DIR", help=_S)  # other trees, for tests
+    doctor.add_argument("--proc-root", metavar="DIR", help=_S)
+    doctor.set_defaults(handler=_cmd_doctor)
 
     # demo
     demo = command(
@@ -1485,6 +1501,26 @@ def _cmd_ports(args: argparse.Namespace) -> int:
     ]
     _print_table(["port", "chip", "usb id", "manufacturer", "product", "serial", "driver"], rows)
     return 0
+
+
+# ---- doctor ------------------------------------------------------------------------------------
+
+
+def _cmd_doctor(args: argparse.Namespace) -> int:
+    line = _line(args, "read")
+    findings = bb.doctor(
+        _port(args),
+        baudrate=line.baudrate,
+        parity=line.parity,
+        stopbits=_opt(args, "stopbits", 1),
+        unit=_unit(args, "read"),
+        timeout=line.timeout,
+        sysfs_root=args.sysfs_root,
+        proc_root=args.proc_root,
+    )
+    for finding in findings:
+        print(finding)
+    return 1 if any(f.verdict == "fail" for f in findings) else 0
 
 
 # ---- demo --------------------------------------------------------------------------------------

@@ -188,8 +188,17 @@ pub fn diagnose(port: &str, checkup: &Checkup) -> Result<Vec<Finding>, String> {
             let mut fix = "see the message";
             if matches!(e.kind(), serialport::ErrorKind::NoDevice) {
                 fix = "close the program or Bus that holds it, then try again";
-                if !holders.is_empty() {
-                    let who: Vec<String> = holders.iter().map(describe_holder).collect();
+                // Another process if any holds it, else this one (a Bus left open here).
+                let others: Vec<_> = holders
+                    .iter()
+                    .filter(|h| holder_pid(h) != std::process::id())
+                    .collect();
+                let who: Vec<String> = if others.is_empty() {
+                    holders.iter().map(describe_holder).collect()
+                } else {
+                    others.into_iter().map(describe_holder).collect()
+                };
+                if !who.is_empty() {
                     message = format!("{message}; held by {}", who.join(", "));
                 }
             }
