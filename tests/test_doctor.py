@@ -150,6 +150,7 @@ def test_an_ftdi_at_16_ms_is_a_warning_with_the_fix_and_the_udev_rule(
 ) -> None:
     sysfs, port = _ftdi_tree(tmp_path, pty, 16)
     found = by_name(bb.doctor(port, sysfs_root=sysfs))
+    assert found["port"].message == f"{port} exists, a link to {pty}"
     assert found["usb"].verdict == "ok"
     assert found["usb"].message == (
         "FTDI adapter (0403:6001 FTDI FT232R USB UART, serial A50285BI, driver ftdi_sio)"

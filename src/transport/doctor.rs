@@ -141,9 +141,16 @@ pub fn diagnose(port: &str, checkup: &Checkup) -> Result<Vec<Finding>, String> {
                 ));
                 return Ok(out);
             }
-            Ok(meta) => out.push(exists(port, &meta, &names)),
+            Ok(meta) => {
+                let found = exists(port, &meta);
+                let stop = found.verdict == Verdict::Fail;
+                out.push(found);
+                if stop {
+                    return Ok(out);
+                }
+            }
         }
-        out.push(permissions(port));
+        out.push(permissions(port, may_read_and_write(port)));
     }
     #[cfg(target_os = "linux")]
     let holders = {
@@ -270,7 +277,7 @@ fn tty_names(port: &str) -> Vec<String> {
 }
 
 #[cfg(unix)]
-fn exists(port: &str, meta: &std::fs::Metadata, names: &[String]) -> Finding {
+fn exists(port: &str, meta: &std::fs::Metadata) -> Finding {
     use std::os::unix::fs::FileTypeExt;
     if !meta.file_type().is_char_device() {
         return finding(
@@ -280,19 +287,24 @@ fn exists(port: &str, meta: &std::fs::Metadata, names: &[String]) -> Finding {
         )
         .fix("run 'benchbus ports' to list the serial ports");
     }
-    let also = match names.last() {
-        Some(name) if names.len() > 1 => format!(" (the device {name})"),
+    let also = match std::fs::canonicalize(port) {
+        Ok(device) if device != Path::new(port) => format!(", a link to {}", device.display()),
         _ => String::new(),
     };
     finding("port", Verdict::Ok, format!("{port} exists{also}"))
 }
 
+/// Whether this process may open `port` for reading and writing (`access`).
 #[cfg(unix)]
-fn permissions(port: &str) -> Finding {
-    let allowed = std::ffi::CString::new(port).is_ok_and(|c| {
+fn may_read_and_write(port: &str) -> bool {
+    std::ffi::CString::new(port).is_ok_and(|c| {
         // SAFETY: a NUL-terminated path; access only reads it.
         unsafe { libc::access(c.as_ptr(), libc::R_OK | libc::W_OK) == 0 }
-    });
+    })
+}
+
+#[cfg_attr(not(unix), allow(dead_code))]
+fn permissions(port: &str, allowed: bool) -> Finding {
     if allowed {
         finding("permissions", Verdict::Ok, "you may read and write it")
     } else {
@@ -651,6 +663,35 @@ mod tests {
         assert_eq!(latency_timer("ttyUSB0", 16, Some(1)).verdict, Verdict::Info);
         assert_eq!(latency_timer("ttyUSB0", 1, Some(1)).verdict, Verdict::Ok);
         assert_eq!(latency_timer("ttyUSB0", 1, Some(1)).fix, None);
+    }
+
+    #[test]
+    fn a_port_the_user_may_not_open_gets_the_permission_hint() {
+        let f = permissions("/dev/ttyUSB0", false);
+        assert_eq!(f.verdict, Verdict::Fail);
+        assert_eq!(
+            f.fix.as_deref(),
+            Some(super::super::serial::PERMISSION_HINT)
+        );
+        #[cfg(target_os = "linux")]
+        assert!(f.fix.unwrap().contains("sudo usermod -aG dialout $USER"));
+        assert_eq!(permissions("/dev/ttyUSB0", true).verdict, Verdict::Ok);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_file_that_is_no_serial_device_stops_the_check_up() {
+        let file = std::env::temp_dir().join(format!("benchbus-not-a-tty-{}", std::process::id()));
+        std::fs::write(&file, "").unwrap();
+        let found = diagnose(file.to_str().unwrap(), &checkup()).unwrap();
+        std::fs::remove_file(&file).unwrap();
+        let last = found.last().unwrap();
+        assert_eq!((last.name, last.verdict), ("port", Verdict::Fail));
+        assert!(
+            last.message.contains("not a serial device"),
+            "{}",
+            last.message
+        );
     }
 
     #[test]
