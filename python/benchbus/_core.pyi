@@ -151,8 +151,9 @@ class Bus:
         other Modbus masters (a request longer than half of it on the wire still leaves the
         device half of it after the request's end); a reply's own time on the wire comes on
         top. Over TCP it counts from the request's sending and covers the network's delay.
-        ``turnaround`` is the quiet time after a broadcast. Raises PortError if the port cannot be opened (absent, or in use by
-        another Bus or program) or the connection made (refused, or no answer within 3 s),
+        ``turnaround`` is the quiet time after a broadcast. Raises PortError if the port
+        cannot be opened (absent, or in use by another Bus or program) or the connection
+        made (refused, or no answer within 3 s),
         ValueError for a malformed ``scheme://`` port or other bad arguments, TypeError for
         arguments of the wrong type.
 
