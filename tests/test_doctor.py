@@ -14,7 +14,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from test_cli import run
+from test_cli import one_line_error, run
 from test_ports import _usb
 
 import benchbus as bb
@@ -333,3 +333,18 @@ def test_rs485_arguments_are_checked_before_the_port_opens(
 def test_rs485_over_the_network_is_refused() -> None:
     with pytest.raises(ValueError, match="rs485=True is for a local serial port"):
         bb.Bus("tcp://127.0.0.1:1", rs485=True)
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the kernel RS485 mode is Linux's")
+def test_the_command_line_asks_for_rs485_mode_with_a_flag(pty: str) -> None:
+    line = one_line_error(run("read", "0", "--port", pty, "--rs485", "--rts-delay", "0.001,0"), 1)
+    assert line == (
+        f"benchbus: port {pty}: cannot open: this port has no kernel RS485 mode (a USB RS485 "
+        "adapter switches direction by itself: leave rs485 off)"
+    )
+    line = one_line_error(run("read", "0", "--port", pty, "--rts-delay", "0.001,0"), 2)
+    assert line == "benchbus: read: --rts-delay goes with --rs485"
+    done = run("read", "0", "--port", pty, "--rs485", "--rts-delay", "1ms")
+    assert done.returncode == 2 and "--rts-delay takes BEFORE,AFTER in seconds" in done.stderr
+    line = one_line_error(run("scan", "--port", pty, "--rs485", "--units", "1"), 1)
+    assert "no kernel RS485 mode" in line
