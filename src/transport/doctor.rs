@@ -74,6 +74,26 @@ impl Finding {
     }
 }
 
+/// A process that holds a device open (Linux: from `/proc/<pid>/fd`).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Holder {
+    /// Its process id.
+    pub pid: u32,
+    /// Its command name (`/proc/<pid>/comm`), if readable.
+    pub command: Option<String>,
+}
+
+impl std::fmt::Display for Holder {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let who = if self.pid == std::process::id() {
+            "this process"
+        } else {
+            self.command.as_deref().unwrap_or("?")
+        };
+        write!(f, "pid {} ({who})", self.pid)
+    }
+}
+
 /// What the check-up uses: the line format and unit of its echo test, and the system's
 /// trees.
 #[derive(Debug, Clone)]
@@ -158,60 +178,13 @@ pub fn diagnose(port: &str, checkup: &Checkup) -> Result<Vec<Finding>, String> {
         super::linux::holders(&checkup.proc_root, &[Path::new(port), &canonical])
     };
     #[cfg(not(target_os = "linux"))]
-    let holders: Vec<(u32, Option<String>)> = Vec::new();
+    let holders: Vec<Holder> = Vec::new();
     let info = port_info(&names, checkup);
     #[cfg(target_os = "linux")]
     let timer_before = ftdi_name(info.as_ref(), &names)
         .and_then(|name| super::linux::latency_timer(&checkup.sysfs, name).map(|ms| (name, ms)));
     let opened = SerialTransport::open(port, &checkup.line);
-    match &opened {
-        Ok(_) => {
-            out.push(finding(
-                "open",
-                Verdict::Ok,
-                format!("opens, exclusively, at {}", checkup.line),
-            ));
-            let others: Vec<String> = holders
-                .iter()
-                .filter(|h| holder_pid(h) != std::process::id())
-                .map(describe_holder)
-                .collect();
-            if !others.is_empty() {
-                out.push(
-                    finding(
-                        "holders",
-                        Verdict::Warn,
-                        format!(
-                            "also open in {}: it may read the replies before benchbus does",
-                            others.join(", ")
-                        ),
-                    )
-                    .fix("close that program (a terminal such as minicom or screen, ModemManager, another script)"),
-                );
-            }
-        }
-        Err(e) => {
-            let mut message = format!("cannot open: {}", describe_open_error(e));
-            let mut fix = "see the message";
-            if matches!(e.kind(), serialport::ErrorKind::NoDevice) {
-                fix = "close the program or Bus that holds it, then try again";
-                // Another process if any holds it, else this one (a Bus left open here).
-                let others: Vec<_> = holders
-                    .iter()
-                    .filter(|h| holder_pid(h) != std::process::id())
-                    .collect();
-                let who: Vec<String> = if others.is_empty() {
-                    holders.iter().map(describe_holder).collect()
-                } else {
-                    others.into_iter().map(describe_holder).collect()
-                };
-                if !who.is_empty() {
-                    message = format!("{message}; held by {}", who.join(", "));
-                }
-            }
-            out.push(finding("open", Verdict::Fail, message).fix(fix));
-        }
-    }
+    out.extend(open_findings(&opened, &holders, &checkup.line));
     out.push(usb(info.as_ref()));
     let transport = opened.ok();
     #[cfg(target_os = "linux")]
@@ -317,29 +290,72 @@ fn permissions(port: &str, allowed: bool) -> Finding {
     }
 }
 
-#[cfg(target_os = "linux")]
-fn holder_pid(h: &super::linux::Holder) -> u32 {
-    h.pid
-}
-
-#[cfg(target_os = "linux")]
-fn describe_holder(h: &super::linux::Holder) -> String {
-    let who = if h.pid == std::process::id() {
-        "this process".to_string()
-    } else {
-        h.command.clone().unwrap_or_else(|| "?".into())
+/// Whether the port opened (exclusively, at `line`), and who else has it open: the
+/// processes in `holders` that are not this one. A port in use names who holds it (this
+/// process if no other does: a Bus left open here).
+fn open_findings(
+    opened: &serialport::Result<SerialTransport>,
+    holders: &[Holder],
+    line: &LineFormat,
+) -> Vec<Finding> {
+    let me = std::process::id();
+    let others: Vec<String> = holders
+        .iter()
+        .filter(|h| h.pid != me)
+        .map(Holder::to_string)
+        .collect();
+    let e = match opened {
+        Ok(_) => {
+            let mut out = vec![finding(
+                "open",
+                Verdict::Ok,
+                format!("opens, exclusively, at {line}"),
+            )];
+            if !others.is_empty() {
+                out.push(
+                    finding(
+                        "holders",
+                        Verdict::Warn,
+                        format!(
+                            "also open in {}: it may read the replies before benchbus does",
+                            others.join(", ")
+                        ),
+                    )
+                    .fix(
+                        "close that program (a terminal such as minicom or screen, \
+                         ModemManager, another script)",
+                    ),
+                );
+            }
+            return out;
+        }
+        Err(e) => e,
     };
-    format!("pid {} ({who})", h.pid)
-}
-
-#[cfg(not(target_os = "linux"))]
-fn holder_pid(h: &(u32, Option<String>)) -> u32 {
-    h.0
-}
-
-#[cfg(not(target_os = "linux"))]
-fn describe_holder(h: &(u32, Option<String>)) -> String {
-    format!("pid {}", h.0)
+    let message = format!("cannot open: {}", describe_open_error(e));
+    vec![match e.kind() {
+        serialport::ErrorKind::NoDevice => {
+            let who = if others.is_empty() {
+                holders.iter().map(Holder::to_string).collect()
+            } else {
+                others
+            };
+            let held = if who.is_empty() {
+                message
+            } else {
+                format!("{message}; held by {}", who.join(", "))
+            };
+            finding("open", Verdict::Fail, held)
+                .fix("close the program or Bus that holds it, then try again")
+        }
+        // The hint goes in the fix, not in the message too.
+        serialport::ErrorKind::Io(std::io::ErrorKind::PermissionDenied) => finding(
+            "open",
+            Verdict::Fail,
+            format!("cannot open: {}", e.description),
+        )
+        .fix(super::serial::PERMISSION_HINT),
+        _ => finding("open", Verdict::Fail, message),
+    }]
 }
 
 /// What the system knows of the port, from the port list ([`ports::list_ports_in`] under
@@ -691,6 +707,44 @@ mod tests {
             last.message.contains("not a serial device"),
             "{}",
             last.message
+        );
+    }
+
+    #[test]
+    fn a_port_in_use_names_who_holds_it_and_a_refused_one_the_permission() {
+        let line = checkup().line;
+        let minicom = Holder {
+            pid: std::process::id() + 1,
+            command: Some("minicom".into()),
+        };
+        let me = Holder {
+            pid: std::process::id(),
+            command: Some("python3".into()),
+        };
+        let busy = Err(serialport::Error::new(
+            serialport::ErrorKind::NoDevice,
+            "Unable to acquire exclusive lock on serial port",
+        ));
+        let found = open_findings(&busy, &[me.clone(), minicom.clone()], &line);
+        assert_eq!(found.len(), 1);
+        assert!(
+            found[0]
+                .message
+                .ends_with(&format!("; held by pid {} (minicom)", minicom.pid)),
+            "{}",
+            found[0].message
+        );
+        let found = open_findings(&busy, &[me], &line);
+        assert!(found[0].message.ends_with("(this process)"), "{found:?}");
+        let denied = Err(serialport::Error::new(
+            serialport::ErrorKind::Io(std::io::ErrorKind::PermissionDenied),
+            "Permission denied",
+        ));
+        let found = open_findings(&denied, &[], &line);
+        assert_eq!(found[0].message, "cannot open: Permission denied");
+        assert_eq!(
+            found[0].fix.as_deref(),
+            Some(super::super::serial::PERMISSION_HINT)
         );
     }
 

@@ -4,6 +4,7 @@
 //! processes hold a device open (`/proc/<pid>/fd`). Each probe takes a raw file descriptor
 //! or a path (and the `/proc` root as a parameter, so tests can use a tree of their own).
 
+use super::doctor::Holder;
 use super::tuning::{LowLatency, Rs485, Rs485State};
 use std::io;
 use std::os::unix::io::RawFd;
@@ -175,15 +176,6 @@ pub(crate) fn set_rs485(fd: RawFd, rs485: &Rs485) -> Result<Rs485State, String> 
         Ok(_) => Err(super::tuning::NO_RS485_MODE.to_string()),
         Err(e) => Err(format!("cannot read back the RS485 mode: {e}")),
     }
-}
-
-/// A process that holds a device open.
-#[derive(Debug, Clone, PartialEq, Eq)]
-pub struct Holder {
-    /// Its process id.
-    pub pid: u32,
-    /// Its command name (`/proc/<pid>/comm`), if readable.
-    pub command: Option<String>,
 }
 
 /// The processes under `proc_root` (`/proc` on a running system) with a file descriptor on
