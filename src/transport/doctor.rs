@@ -16,6 +16,8 @@ use super::tuning::{LowLatency, Rs485State};
 use super::{describe_open_error, parse_endpoint, Endpoint, SerialTransport, Transport};
 use crate::codec::{encode_request, Request};
 use crate::timing::LineFormat;
+#[cfg(target_os = "linux")]
+use std::os::unix::io::AsRawFd;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -194,7 +196,11 @@ pub fn diagnose(port: &str, checkup: &Checkup) -> Result<Vec<Finding>, String> {
     }
     if let Some(transport) = transport {
         out.push(low_latency(&transport.tuned().low_latency));
-        out.push(rs485(&transport.tuned().rs485, info.as_ref()));
+        #[cfg(target_os = "linux")]
+        let settable = || super::linux::rs485_settable(transport.as_raw_fd());
+        #[cfg(not(target_os = "linux"))]
+        let settable = || false;
+        out.push(rs485(&transport.tuned().rs485, settable));
         out.push(echo(transport, checkup));
     }
     Ok(out)
@@ -493,7 +499,11 @@ fn low_latency(state: &LowLatency) -> Finding {
     }
 }
 
-fn rs485(state: &Rs485State, info: Option<&PortInfo>) -> Finding {
+/// The RS485 finding from the mode the open read; `settable` asks the driver, for a mode
+/// that is off, whether it could switch it on (see [`super::linux::rs485_settable`]).
+fn rs485(state: &Rs485State, settable: impl FnOnce() -> bool) -> Finding {
+    let none = "no kernel RS485 mode (a USB RS485 adapter switches direction by itself; a \
+                pseudo-terminal or a plain UART has none): leave rs485 off";
     match state {
         Rs485State::On {
             rts_on_send,
@@ -513,26 +523,17 @@ fn rs485(state: &Rs485State, info: Option<&PortInfo>) -> Finding {
                 }
             ),
         ),
-        Rs485State::Off if info.is_some_and(|i| i.usb.is_none()) => finding(
+        Rs485State::Off if settable() => finding(
             "rs485",
             Verdict::Info,
-            "this UART has a kernel RS485 mode, and it is off",
+            "this UART's driver has a kernel RS485 mode, and it is off",
         )
-        .fix("if it drives an RS485 transceiver (a HAT, an industrial PC's port), open the Bus with rs485=True"),
-        Rs485State::Off => finding(
-            "rs485",
-            Verdict::Info,
-            "the driver has a kernel RS485 mode, and it is off",
+        .fix(
+            "if it drives an RS485 transceiver (a HAT, an industrial PC's port), open the Bus \
+             with rs485=True",
         ),
-        Rs485State::Unsupported => finding(
-            "rs485",
-            Verdict::Info,
-            "no kernel RS485 mode (a USB RS485 adapter switches direction by itself; a \
-             pseudo-terminal has none): leave rs485 off",
-        ),
-        Rs485State::NotChecked => {
-            finding("rs485", Verdict::Info, "not checked on this platform")
-        }
+        Rs485State::Off | Rs485State::Unsupported => finding("rs485", Verdict::Info, none),
+        Rs485State::NotChecked => finding("rs485", Verdict::Info, "not checked on this platform"),
     }
 }
 
@@ -745,6 +746,34 @@ mod tests {
         assert_eq!(
             found[0].fix.as_deref(),
             Some(super::super::serial::PERMISSION_HINT)
+        );
+    }
+
+    #[test]
+    fn rs485_mode_off_is_worth_a_fix_only_where_the_driver_can_set_it() {
+        let off = rs485(&Rs485State::Off, || true);
+        assert!(off
+            .message
+            .contains("has a kernel RS485 mode, and it is off"));
+        assert!(off.fix.unwrap().contains("rs485=True"));
+        // A 16550A reads its mode (off) but has no rs485_config to set one.
+        let plain = rs485(&Rs485State::Off, || false);
+        assert!(
+            plain.message.starts_with("no kernel RS485 mode"),
+            "{plain:?}"
+        );
+        assert_eq!(plain.fix, None);
+        let on = rs485(
+            &Rs485State::On {
+                rts_on_send: true,
+                rts_delay_ms: (1, 2),
+                rx_during_tx: false,
+            },
+            || unreachable!(),
+        );
+        assert_eq!(
+            on.message,
+            "kernel RS485 mode on: RTS high while sending, delays 1 ms before and 2 ms after"
         );
     }
 

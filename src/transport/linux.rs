@@ -130,6 +130,19 @@ pub(crate) fn rs485_state(fd: RawFd) -> io::Result<Rs485State> {
     Ok(state_of(&conf))
 }
 
+/// Whether the driver of `fd` can set a kernel RS485 mode: its current one is set again,
+/// unchanged (a UART whose driver has no `rs485_config` reads its mode but refuses to set
+/// any). False for a port without the mode at all.
+pub(crate) fn rs485_settable(fd: RawFd) -> bool {
+    let mut conf = SerialRs485::default();
+    // SAFETY: TIOCGRS485 writes one serial_rs485 into the buffer we own.
+    if unsafe { libc::ioctl(fd, libc::TIOCGRS485, &mut conf as *mut SerialRs485) } < 0 {
+        return false;
+    }
+    // SAFETY: TIOCSRS485 reads one serial_rs485 from the buffer we own.
+    unsafe { libc::ioctl(fd, libc::TIOCSRS485, &conf as *const SerialRs485) == 0 }
+}
+
 fn state_of(conf: &SerialRs485) -> Rs485State {
     if conf.flags & SER_RS485_ENABLED == 0 {
         return Rs485State::Off;
@@ -317,6 +330,7 @@ mod tests {
         let (master, slave) = pty();
         assert_eq!(ask_low_latency(slave), LowLatency::Unsupported);
         assert_eq!(rs485_state(slave).unwrap(), Rs485State::Unsupported);
+        assert!(!rs485_settable(slave));
         let rs485 = Rs485::new(Duration::ZERO, Duration::ZERO).unwrap();
         let e = set_rs485(slave, &rs485).unwrap_err();
         assert!(e.contains("no kernel RS485 mode"), "{e}");

@@ -149,6 +149,13 @@ fn note_parity_dropped(path: &str, line: &LineFormat) {
     });
 }
 
+/// The port's descriptor, for the Linux probes of [`super::doctor`].
+impl AsRawFd for SerialTransport {
+    fn as_raw_fd(&self) -> std::os::unix::io::RawFd {
+        self.port.as_raw_fd()
+    }
+}
+
 impl SerialTransport {
     /// Whether the port has hung up: `poll` on it reports `POLLHUP`, `POLLERR` or `POLLNVAL`.
     fn hung_up(&self) -> bool {
