@@ -70,8 +70,10 @@ def doctor(
     :class:`Finding`). The port must be free: it is opened (exclusively) at ``baudrate``,
     ``parity`` and ``stopbits``, and one harmless request goes out, a read of holding register
     0 from ``unit``, to see whether it comes back within ``timeout`` seconds (a local echo);
-    then the port is closed. ``sysfs_root`` and ``proc_root`` read other trees than ``/sys``
-    and ``/proc`` (Linux; for tests).
+    then the port is closed. On Linux the open asks the driver for low latency, as every
+    benchbus open does, and the RS485 check sets a mode that is off to what it is, to see
+    whether the driver could switch it on. ``sysfs_root`` and ``proc_root`` read other trees
+    than ``/sys`` and ``/proc`` (Linux; for tests).
 
     ValueError for a network port (``tcp://``, ``rtu+tcp://``) or a bad argument. Findings
     that cannot be checked on this system say so.

@@ -5,7 +5,8 @@
 //! open); whether the port exists; who else holds it (Linux, from `/proc/<pid>/fd`); the
 //! permission to open it; whether it opens (exclusively, at the line format given); the USB
 //! chip behind it (from [`super::ports`]); an FTDI's latency timer (Linux); the driver's
-//! low-latency mode and the kernel RS485 mode as the open found them ([`super::tuning`]);
+//! low-latency mode and the kernel RS485 mode as the open found them ([`super::tuning`]; a
+//! mode that is off is set again as it is, to see whether the driver could switch it on);
 //! and whether a request comes back as a local echo (a read of one register, sent once).
 //!
 //! The system's trees are parameters ([`Checkup::sysfs`], [`Checkup::proc_root`]) so tests
