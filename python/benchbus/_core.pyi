@@ -142,7 +142,7 @@ class Bus:
         reconnect: bool = False,
         echo: bool = False,
         rs485: bool = False,
-        rts_delay: tuple[float, float] | None = None,
+        rts_delay: Sequence[float] | None = None,
     ) -> Self:
         """Open ``port`` (``/dev/ttyUSB0``, ``tcp://HOST[:PORT]`` or ``rtu+tcp://HOST:PORT``)
         at the given line format (the serial line's; unused by ``tcp://``).

@@ -166,13 +166,22 @@ fn rs485_arg(
             "rts_delay is for the kernel RS485 mode: give rs485=True with it",
         ));
     }
-    let pair: (Bound<'_, PyAny>, Bound<'_, PyAny>) = delay.extract().map_err(|_| {
-        PyTypeError::new_err("rts_delay must be a pair of seconds: (before, after)")
-    })?;
+    let not_a_pair =
+        || PyTypeError::new_err("rts_delay must be a pair of seconds: (before, after)");
+    if delay.is_instance_of::<PyString>() || delay.is_instance_of::<PyBytes>() {
+        return Err(not_a_pair());
+    }
+    let pair = delay
+        .try_iter()
+        .map_err(|_| not_a_pair())?
+        .collect::<PyResult<Vec<_>>>()?;
+    if pair.len() != 2 {
+        return Err(not_a_pair());
+    }
     let mut each = [Duration::ZERO; 2];
     for (slot, (obj, name)) in each
         .iter_mut()
-        .zip([(&pair.0, "rts_delay before"), (&pair.1, "rts_delay after")])
+        .zip(pair.iter().zip(["rts_delay before", "rts_delay after"]))
     {
         let value = seconds_value(obj, name)?;
         if !(value.is_finite() && value >= 0.0) {
