@@ -25,6 +25,7 @@ use crate::codec::{
 };
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard};
+use crate::transport::tuning::{check_rs485_platform, Rs485};
 use crate::transport::{
     describe_connect_error, describe_open_error, is_lost, parse_endpoint, Endpoint, Framing,
     SerialTransport, TcpTransport, Transport,
@@ -74,6 +75,9 @@ pub struct BusConfig {
     /// bindings run Python's signal handlers in it, so that Ctrl-C ends a call between
     /// attempts ([`Error::Interrupted`]); the attempt in flight always completes.
     pub interrupted: Option<fn() -> bool>,
+    /// The kernel RS485 mode to set on a board UART when the port opens (Linux; see
+    /// [`crate::transport::tuning`]); None leaves the port's mode as it is.
+    pub rs485: Option<Rs485>,
 }
 
 impl BusConfig {
@@ -88,6 +92,7 @@ impl BusConfig {
             reconnect: false,
             echo: false,
             interrupted: None,
+            rs485: None,
         }
     }
 }
@@ -1212,7 +1217,7 @@ fn open_port(config: &BusConfig) -> Result<Box<dyn Transport>> {
     let endpoint = parse_endpoint(&config.port).map_err(Error::InvalidArgument)?;
     let (host, port, framing) = match &endpoint {
         Endpoint::Serial(path) => {
-            return match SerialTransport::open(path, &config.line) {
+            return match SerialTransport::open_with(path, &config.line, config.rs485.as_ref()) {
                 Ok(transport) => Ok(Box::new(transport)),
                 Err(e) => Err(Error::Port {
                     port: config.port.clone(),
@@ -1280,6 +1285,14 @@ fn check_config(config: &BusConfig) -> Result<()> {
                 .into(),
         ));
     }
+    if config.rs485.is_some() && !matches!(parse_endpoint(&config.port), Ok(Endpoint::Serial(_))) {
+        return Err(Error::InvalidArgument(
+            "rs485=True is for a local serial port: over the network the gateway or device \
+             server drives the line"
+                .into(),
+        ));
+    }
+    check_rs485_platform(config.rs485.as_ref()).map_err(Error::InvalidArgument)?;
     let line = &config.line;
     if line.baudrate == 0 {
         return Err(Error::InvalidArgument("baudrate must be positive".into()));

@@ -23,6 +23,7 @@ Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 from __future__ import annotations
 
 from benchbus._core import Bus, Poll, Stats, __version__, crc16, list_ports, refresh_logging
+from benchbus._doctor import Finding, doctor
 from benchbus._drive import (
     C20ControlMode,
     CommandSource,
@@ -78,6 +79,7 @@ __all__ = [
     "DriveStatus",
     "DriveTelemetry",
     "Fault",
+    "Finding",
     "FrameError",
     "Gateway",
     "GatewayError",
@@ -108,6 +110,7 @@ __all__ = [
     "StopMode",
     "__version__",
     "crc16",
+    "doctor",
     "enable_wire_log",
     "list_ports",
     "refresh_logging",

@@ -18,6 +18,7 @@ __all__ = [
     "__version__",
     "_panic_on_wire",
     "crc16",
+    "diagnose",
     "list_ports",
     "refresh_logging",
 ]
@@ -34,6 +35,23 @@ def list_ports(
     ``driver``, and for a USB adapter ``vid``, ``pid``, ``manufacturer``, ``product``,
     ``serial_number`` and ``chip`` (FTDI, CH340, CP210x, PL2303...; None where the system
     does not say). ``sysfs_root`` reads another sysfs tree than ``/sys`` (Linux only)."""
+
+def diagnose(
+    port: str | os.PathLike[str],
+    baudrate: int = 19200,
+    parity: str = "N",
+    stopbits: int = 1,
+    unit: int = 1,
+    timeout: float = 0.1,
+    sysfs_root: str | os.PathLike[str] | None = None,
+    proc_root: str | os.PathLike[str] | None = None,
+) -> list[tuple[str, str, str, str | None]]:
+    """The check-up of the serial port ``port``: ``(name, verdict, message, fix)`` for each
+    finding (see :func:`benchbus.doctor`, which returns them as :class:`benchbus.Finding`).
+    The port is opened at the line format given, and ``unit`` is sent one read of holding
+    register 0 to see whether it comes back within ``timeout`` seconds. ``sysfs_root`` and
+    ``proc_root`` read other trees than ``/sys`` and ``/proc`` (Linux). ValueError for a
+    network port."""
 
 def refresh_logging() -> None:
     """Re-read the Python logging levels (cached for speed; a Bus reads them when it opens)."""
@@ -123,6 +141,8 @@ class Bus:
         turnaround: float = 0.1,
         reconnect: bool = False,
         echo: bool = False,
+        rs485: bool = False,
+        rts_delay: Sequence[float] | None = None,
     ) -> Self:
         """Open ``port`` (``/dev/ttyUSB0``, ``tcp://HOST[:PORT]`` or ``rtu+tcp://HOST:PORT``)
         at the given line format (the serial line's; unused by ``tcp://``).
@@ -130,9 +150,10 @@ class Bus:
         ``timeout`` is per attempt, in seconds, counted from the start of the request as in
         other Modbus masters (a request longer than half of it on the wire still leaves the
         device half of it after the request's end); a reply's own time on the wire comes on
-        top. Over TCP it counts from the request's sending and covers the network's delay. ``turnaround`` is the quiet time after a
-        broadcast. Raises PortError if the port cannot be opened (absent, or in use by
-        another Bus or program) or the connection made (refused, or no answer within 3 s),
+        top. Over TCP it counts from the request's sending and covers the network's delay.
+        ``turnaround`` is the quiet time after a broadcast. Raises PortError if the port
+        cannot be opened (absent, or in use by another Bus or program) or the connection
+        made (refused, or no answer within 3 s),
         ValueError for a malformed ``scheme://`` port or other bad arguments, TypeError for
         arguments of the wrong type.
 
@@ -153,6 +174,21 @@ class Bus:
         request's own bytes). Without ``echo``, a reply that begins with the request itself
         raises FrameError saying to open the Bus with ``echo=True``. Refused (ValueError)
         on ``tcp://``, where the gateway keeps the line.
+
+        ``rs485=True`` is for a board UART wired to an RS485 transceiver (a Raspberry Pi
+        HAT, an industrial PC's port): the port is opened in the Linux kernel's RS485 mode
+        (``TIOCSRS485``: RTS drives the transceiver, high while sending), with
+        ``rts_delay=(before, after)`` seconds between RTS and the first bit and after the
+        last (each 0 to 0.1, whole milliseconds; default no delay). The mode is set at every
+        open and stays on after the port closes, as the kernel keeps it. A port without the
+        mode (a USB adapter, which switches direction by itself; a pseudo-terminal) raises
+        PortError and is left closed. ValueError before anything is opened: ``rts_delay``
+        without ``rs485=True``, a negative or too long delay, ``rs485`` on a network port or
+        on a system other than Linux.
+
+        On Linux every serial port is also asked for its driver's low-latency mode (an FTDI
+        adapter then uses a 1 ms latency timer); a port without it opens as before
+        (:func:`benchbus.doctor` reports which).
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""
@@ -259,6 +295,9 @@ class Bus:
     @property
     def echo(self) -> bool:
         """Whether the adapter's local echo of each request is read back (see ``echo=``)."""
+    @property
+    def rs485(self) -> bool:
+        """Whether the port was opened in the kernel's RS485 mode (see ``rs485=``)."""
     def __enter__(self) -> Self:
         """Return the bus itself."""
     def __exit__(

@@ -14,9 +14,11 @@
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
     benchbus ports   (the serial ports, with their USB ids, chip, maker and serial number)
+    benchbus doctor  --port PATH [--unit N]  (what stands between benchbus and the port)
 
 The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--unit``,
-``--timeout``, ``--retries``) go anywhere after the command; their defaults are those of the
+``--timeout``, ``--retries``; ``--rs485`` and ``--rts-delay BEFORE,AFTER`` for a board UART in
+the Linux kernel's RS485 mode) go anywhere after the command; their defaults are those of the
 device family the command talks to. ``--port`` falls back to ``$BENCHBUS_PORT``. Numbers
 (addresses, values, units) are decimal or ``0x`` hex.
 
@@ -361,7 +363,21 @@ def _general_options() -> _Parser:
     return parent
 
 
-def _line_options(unit: bool) -> _Parser:
+def _rts_delay(text: str) -> tuple[float, float]:
+    """An argparse type: ``BEFORE,AFTER`` seconds (the core checks their range)."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        before, after = (float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--rts-delay takes BEFORE,AFTER in seconds, e.g. 0.001,0.001; got {text!r}"
+        ) from None
+    return before, after
+
+
+def _line_options(unit: bool, rs485: bool = True) -> _Parser:
     parent = _Parser(add_help=False)
     group = parent.add_argument_group(
         "line options (defaults: the device family's line format and timing)"
@@ -391,7 +407,30 @@ def _line_options(unit: bool) -> _Parser:
         default=_S,
         help="repeats after a timeout or a corrupt reply",
     )
+    if rs485:
+        group.add_argument(
+            "--rs485",
+            action="store_true",
+            default=_S,
+            help="open a board UART in the Linux kernel's RS485 mode (RTS drives the "
+            "transceiver; a USB adapter switches by itself and needs none)",
+        )
+        group.add_argument(
+            "--rts-delay",
+            type=_rts_delay,
+            metavar="BEFORE,AFTER",
+            default=_S,
+            help="with --rs485: seconds from RTS on to the first bit, and after the last",
+        )
     return parent
+
+
+def _rs485(args: argparse.Namespace) -> dict[str, Any]:
+    """The Bus's ``rs485`` and ``rts_delay`` from ``--rs485`` and ``--rts-delay``."""
+    rs485, delay = bool(_opt(args, "rs485", False)), _opt(args, "rts_delay")
+    if delay is not None and not rs485:
+        raise UsageError("--rts-delay goes with --rs485")
+    return {"rs485": rs485, "rts_delay": delay}
 
 
 def _family_options() -> _Parser:
@@ -725,6 +764,21 @@ def build_parser() -> argparse.ArgumentParser:
     ports.add_argument("--sysfs-root", metavar="DIR", help=_S)  # another sysfs tree, for tests
     ports.set_defaults(handler=_cmd_ports)
 
+    # doctor
+    doctor = command(
+        "doctor",
+        "check a serial port: what stands between benchbus and the devices on it",
+        [general, _line_options(unit=True, rs485=False)],
+        epilog="One line per finding: its verdict (ok, info, warn, fail), what was checked, "
+        "what was found and the fix. Checks the platform, the port and who holds it, the "
+        "permission to open it, the USB chip and an FTDI's latency timer, the driver's "
+        "low-latency mode, the kernel RS485 mode, and whether a request comes back (a local "
+        "echo: one read of register 0 goes to --unit). Exits 1 if any finding fails.",
+    )
+    doctor.add_argument("--sysfs-root", metavar="DIR", help=_S)  # other trees, for tests
+    doctor.add_argument("--proc-root", metavar="DIR", help=_S)
+    doctor.set_defaults(handler=_cmd_doctor)
+
     # demo
     demo = command(
         "demo",
@@ -777,6 +831,7 @@ def _open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False)
         timeout=line.timeout,
         retries=line.retries,
         reconnect=reconnect,
+        **_rs485(args),
     )
 
 
@@ -921,6 +976,7 @@ def _cmd_scan(args: argparse.Namespace) -> int:
                 # Over the network the identification gets the scan's own time, once.
                 timeout=line.timeout if tcp else max(line.timeout, 0.1),
                 retries=0 if tcp else 1,
+                **_rs485(args),
             ) as bus:
                 for unit in units:
                     done += 1
@@ -1485,6 +1541,26 @@ def _cmd_ports(args: argparse.Namespace) -> int:
     ]
     _print_table(["port", "chip", "usb id", "manufacturer", "product", "serial", "driver"], rows)
     return 0
+
+
+# ---- doctor ------------------------------------------------------------------------------------
+
+
+def _cmd_doctor(args: argparse.Namespace) -> int:
+    line = _line(args, "read")
+    findings = bb.doctor(
+        _port(args),
+        baudrate=line.baudrate,
+        parity=line.parity,
+        stopbits=_opt(args, "stopbits", 1),
+        unit=_unit(args, "read"),
+        timeout=line.timeout,
+        sysfs_root=args.sysfs_root,
+        proc_root=args.proc_root,
+    )
+    for finding in findings:
+        print(finding)
+    return 1 if any(f.verdict == "fail" for f in findings) else 0
 
 
 # ---- demo --------------------------------------------------------------------------------------

@@ -3,6 +3,7 @@
 //! Every call that touches the wire runs inside `py.detach`, so other Python threads (and
 //! other buses) go on while one waits for its device.
 
+mod doctor;
 mod drive;
 mod instrument;
 mod j2;
@@ -15,6 +16,7 @@ use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
 use crate::codec::{Echo, FrameError};
 use crate::error::{hex, Error};
 use crate::timing::{LineFormat, Parity};
+use crate::transport::tuning::Rs485;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
@@ -128,6 +130,71 @@ fn write_interval_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Duration> {
         )));
     }
     Ok(interval)
+}
+
+/// A line format from `baudrate` (default 19200), `parity` (a letter, default "N") and
+/// `stopbits` (default 1).
+fn line_arg(
+    baudrate: Option<&Bound<'_, PyAny>>,
+    parity: Option<&Bound<'_, PyAny>>,
+    stopbits: Option<&Bound<'_, PyAny>>,
+) -> PyResult<LineFormat> {
+    let baudrate = opt(baudrate, 19_200, |b| int_in(b, "baudrate", 50, 4_000_000))? as u32;
+    let letter: String = opt(parity, "N".to_string(), |p| {
+        p.extract()
+            .map_err(|_| PyTypeError::new_err("parity must be 'N', 'E' or 'O'"))
+    })?;
+    let parity = Parity::from_letter(&letter).ok_or_else(|| {
+        PyValueError::new_err(format!("parity must be 'N', 'E' or 'O', got {letter:?}"))
+    })?;
+    let stop_bits = opt(stopbits, 1, |s| u8_in(s, "stopbits", 1, 2))?;
+    Ok(LineFormat::new(baudrate, parity, stop_bits))
+}
+
+/// `rs485` and `rts_delay` of a Bus: the kernel RS485 mode to set, if any. `rts_delay` is
+/// `(before, after)` in seconds, each 0 to 0.1, and only with `rs485=True`.
+fn rs485_arg(
+    rs485: Option<&Bound<'_, PyAny>>,
+    rts_delay: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<Rs485>> {
+    let on = opt(rs485, false, |r| bool_arg(r, "rs485"))?;
+    let Some(delay) = rts_delay.filter(|d| !d.is_none()) else {
+        return Ok(on.then(Rs485::default));
+    };
+    if !on {
+        return Err(PyValueError::new_err(
+            "rts_delay is for the kernel RS485 mode: give rs485=True with it",
+        ));
+    }
+    let not_a_pair =
+        || PyTypeError::new_err("rts_delay must be a pair of seconds: (before, after)");
+    if delay.is_instance_of::<PyString>() || delay.is_instance_of::<PyBytes>() {
+        return Err(not_a_pair());
+    }
+    let pair = delay
+        .try_iter()
+        .map_err(|_| not_a_pair())?
+        .collect::<PyResult<Vec<_>>>()?;
+    if pair.len() != 2 {
+        return Err(not_a_pair());
+    }
+    let mut each = [Duration::ZERO; 2];
+    for (slot, (obj, name)) in each
+        .iter_mut()
+        .zip(pair.iter().zip(["rts_delay before", "rts_delay after"]))
+    {
+        let value = seconds_value(obj, name)?;
+        if !(value.is_finite() && value >= 0.0) {
+            return Err(PyValueError::new_err(format!(
+                "{name} sending must be 0 or more seconds, got {value}"
+            )));
+        }
+        *slot = Duration::try_from_secs_f64(value)
+            .map_err(|_| PyValueError::new_err(format!("{name} is out of range: {value}")))?;
+    }
+    Rs485::new(each[0], each[1])
+        .map(Some)
+        .map_err(PyValueError::new_err)
 }
 
 /// A bool argument (True or False, nothing truthy in their place).
@@ -383,8 +450,8 @@ impl PyBus {
 impl PyBus {
     #[new]
     #[pyo3(
-        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None, echo=None),
-        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False, echo=False)"
+        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None, echo=None, rs485=None, rts_delay=None),
+        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False, echo=False, rs485=False, rts_delay=None)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -398,6 +465,8 @@ impl PyBus {
         turnaround: Option<&Bound<'_, PyAny>>,
         reconnect: Option<&Bound<'_, PyAny>>,
         echo: Option<&Bound<'_, PyAny>>,
+        rs485: Option<&Bound<'_, PyAny>>,
+        rts_delay: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let port: std::path::PathBuf = port
             .extract()
@@ -409,18 +478,7 @@ impl PyBus {
         if port.is_empty() {
             return Err(PyValueError::new_err("port must not be empty"));
         }
-        let baudrate = opt(baudrate, 19_200, |b| int_in(b, "baudrate", 50, 4_000_000))? as u32;
-        let parity_str: String = opt(parity, "N".to_string(), |p| {
-            p.extract()
-                .map_err(|_| PyTypeError::new_err("parity must be 'N', 'E' or 'O'"))
-        })?;
-        let parity = Parity::from_letter(&parity_str).ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "parity must be 'N', 'E' or 'O', got {parity_str:?}"
-            ))
-        })?;
-        let stop_bits = opt(stopbits, 1, |s| u8_in(s, "stopbits", 1, 2))?;
-        let mut config = BusConfig::new(&port, LineFormat::new(baudrate, parity, stop_bits));
+        let mut config = BusConfig::new(&port, line_arg(baudrate, parity, stopbits)?);
         config.timeout = opt(timeout, config.timeout, |t| seconds(t, "timeout", false))?;
         config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, 100))? as u32;
         config.turnaround = opt(turnaround, config.turnaround, |t| {
@@ -428,6 +486,7 @@ impl PyBus {
         })?;
         config.reconnect = opt(reconnect, false, |r| bool_arg(r, "reconnect"))?;
         config.echo = opt(echo, false, |e| bool_arg(e, "echo"))?;
+        config.rs485 = rs485_arg(rs485, rts_delay)?;
         config.interrupted = Some(signal_raised);
         // Logging levels are read when a bus opens (pyo3-log caches them).
         if let Some(handle) = LOG_RESET.get() {
@@ -670,6 +729,12 @@ impl PyBus {
         self.bus.config().echo
     }
 
+    /// Whether the port was opened in the kernel's RS485 mode (``rs485=True``).
+    #[getter]
+    fn rs485(&self) -> bool {
+        self.bus.config().rs485.is_some()
+    }
+
     fn __enter__(slf: Py<Self>) -> Py<Self> {
         slf
     }
@@ -737,7 +802,7 @@ impl PyBus {
     fn __repr__(&self) -> String {
         let c = self.bus.config();
         format!(
-            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{})",
+            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{})",
             c.port.replace('\\', "\\\\").replace('\'', "\\'"),
             c.line.baudrate,
             c.line.parity.letter(),
@@ -746,6 +811,11 @@ impl PyBus {
             c.retries,
             if c.reconnect { ", reconnect=True" } else { "" },
             if c.echo { ", echo=True" } else { "" },
+            if c.rs485.is_some() {
+                ", rs485=True"
+            } else {
+                ""
+            },
             if self.bus.is_closed() {
                 ", closed"
             } else if self.bus.is_lost() {
@@ -799,6 +869,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<poll::PyPoll>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
     m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
+    m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;

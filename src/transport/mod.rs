@@ -5,9 +5,13 @@
 //!
 //! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]).
 
+pub mod doctor;
+#[cfg(target_os = "linux")]
+mod linux;
 pub mod ports;
 mod serial;
 mod tcp;
+pub mod tuning;
 
 pub use serial::{describe_open_error, SerialTransport};
 pub use tcp::{

@@ -1,5 +1,6 @@
 //! The serial transport on the serialport crate: a USB RS485 adapter or a pseudo-terminal.
 
+use super::tuning::{self, Rs485, Tuned};
 use super::{port_lost, Transport};
 use crate::timing::{LineFormat, Parity};
 use serialport::{SerialPort, TTYPort};
@@ -20,6 +21,8 @@ use std::time::Duration;
 pub struct SerialTransport {
     port: TTYPort,
     line: LineFormat,
+    /// What the open asked of the driver, and got (see [`super::tuning`]).
+    tuned: Tuned,
 }
 
 /// What a write may take beyond the frame's own time on the wire: the driver's and the
@@ -46,6 +49,20 @@ impl SerialTransport {
     /// # Errors
     /// The serialport error if the port cannot be opened.
     pub fn open(path: &str, line: &LineFormat) -> serialport::Result<SerialTransport> {
+        SerialTransport::open_with(path, line, None)
+    }
+
+    /// Opens `path` as [`SerialTransport::open`] does, asks its driver for low latency, and
+    /// sets the kernel's RS485 mode if `rs485` is given (see [`super::tuning`]).
+    ///
+    /// # Errors
+    /// The serialport error if the port cannot be opened, or (the port closed again) if it
+    /// has no RS485 mode to set.
+    pub fn open_with(
+        path: &str,
+        line: &LineFormat,
+        rs485: Option<&Rs485>,
+    ) -> serialport::Result<SerialTransport> {
         let stop_bits = if line.stop_bits == 2 {
             serialport::StopBits::Two
         } else {
@@ -62,14 +79,29 @@ impl SerialTransport {
             Err(e) if wanted != serialport::Parity::None && is_invalid_input(&e) => {
                 let port = TTYPort::open(&builder.parity(serialport::Parity::None))?;
                 note_parity_dropped(path, line);
-                return Ok(SerialTransport { port, line: *line });
+                port
             }
             Err(e) => return Err(e),
         };
         if wanted != serialport::Parity::None && port.parity().ok() != Some(wanted) {
             note_parity_dropped(path, line);
         }
-        Ok(SerialTransport { port, line: *line })
+        let tuned = tuning::on_open(&port, rs485).map_err(|message| {
+            serialport::Error::new(
+                serialport::ErrorKind::Io(io::ErrorKind::Unsupported),
+                message,
+            )
+        })?;
+        Ok(SerialTransport {
+            port,
+            line: *line,
+            tuned,
+        })
+    }
+
+    /// What the open asked of the driver (low latency, RS485 mode), and got.
+    pub fn tuned(&self) -> &Tuned {
+        &self.tuned
     }
 }
 
@@ -92,11 +124,11 @@ pub fn describe_open_error(e: &serialport::Error) -> String {
 
 /// How a user gets the permission to open a serial port.
 #[cfg(target_os = "linux")]
-const PERMISSION_HINT: &str = "serial ports belong to the dialout group: add yourself with \
-                               'sudo usermod -aG dialout $USER', then log out and in again";
+pub(crate) const PERMISSION_HINT: &str = "serial ports belong to the dialout group: add \
+    yourself with 'sudo usermod -aG dialout $USER', then log out and in again";
 #[cfg(not(target_os = "linux"))]
-const PERMISSION_HINT: &str = "your user may not open this port: ask for access to it \
-                               (on most systems, membership of the group that owns it)";
+pub(crate) const PERMISSION_HINT: &str = "your user may not open this port: ask for access \
+    to it (on most systems, membership of the group that owns it)";
 
 fn is_invalid_input(e: &serialport::Error) -> bool {
     matches!(e.kind(), serialport::ErrorKind::InvalidInput)
@@ -115,6 +147,13 @@ fn note_parity_dropped(path: &str, line: &LineFormat) {
              timing still uses {line}"
         );
     });
+}
+
+/// The port's descriptor, for the Linux probes of [`super::doctor`].
+impl AsRawFd for SerialTransport {
+    fn as_raw_fd(&self) -> std::os::unix::io::RawFd {
+        self.port.as_raw_fd()
+    }
 }
 
 impl SerialTransport {
