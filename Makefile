@@ -15,7 +15,7 @@ endif
 PYTHON := $(VENV)/bin/python
 PIP := $(PYTHON) -m pip install --quiet --editable
 
-.PHONY: install demo test lint fmt example bench
+.PHONY: install demo test lint fmt example bench cross
 
 $(VENV)/bin/python:
 	@$(BASE_PYTHON) -m venv $(VENV) >/dev/null 2>&1 || { rm -rf $(VENV); \
@@ -43,6 +43,10 @@ lint: install
 	$(PYTHON) -m ruff format --check python tests examples bench
 	$(PYTHON) -m mypy python/benchbus
 	$(PYTHON) -m mypy.stubtest benchbus._core
+
+# The checks for other operating systems that can run on Linux (see the README's Platforms).
+cross:
+	.ci/cross-macos.sh
 
 fmt: $(VENV)/bin/python
 	cargo fmt
