@@ -43,6 +43,7 @@ lint: install
 	$(PYTHON) -m ruff format --check python tests examples bench
 	$(PYTHON) -m mypy python/benchbus
 	$(PYTHON) -m mypy.stubtest benchbus._core
+	$(PYTHON) -m check_jsonschema --builtin-schema vendor.github-workflows .github/workflows/*.yml
 
 # An abi3 wheel for Linux (cp39-abi3, manylinux2014: glibc 2.17 and later) in dist/, built
 # against an old glibc with zig (PyPI's ziglang), no Docker; maturin audits the tag. maturin

@@ -23,7 +23,9 @@ else
     }
     wheel=${wheels[0]}
 fi
-wheel=$(cd "$(dirname "$wheel")" && pwd)/$(basename "$wheel")
+# Absolute paths, in the form the interpreter takes (Git Bash on Windows: pwd -W gives C:/...).
+native() { (cd "$1" && { pwd -W 2>/dev/null || pwd; }); }
+wheel=$(native "$(dirname "$wheel")")/$(basename "$wheel")
 
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
@@ -50,4 +52,4 @@ fi
 cp -R "$root/tests/wheel_smoke" "$tmp/smoke"
 cd "$tmp/smoke"
 echo "wheel-smoke: $("$py" --version) from $(basename "$wheel")${extras:+ with $extras}${select[1]:+, -m \"${select[1]}\"}"
-env -u PYTHONPATH BENCHBUS_CHECKOUT="$root" "$py" -m pytest -q -p no:cacheprovider ${select[@]+"${select[@]}"}
+env -u PYTHONPATH BENCHBUS_CHECKOUT="$(native "$root")" "$py" -m pytest -q -p no:cacheprovider ${select[@]+"${select[@]}"}
