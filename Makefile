@@ -15,7 +15,7 @@ endif
 PYTHON := $(VENV)/bin/python
 PIP := $(PYTHON) -m pip install --quiet --editable
 
-.PHONY: install demo test lint fmt example bench
+.PHONY: install demo test lint fmt example bench cross wheel wheel-smoke
 
 $(VENV)/bin/python:
 	@$(BASE_PYTHON) -m venv $(VENV) >/dev/null 2>&1 || { rm -rf $(VENV); \
@@ -43,6 +43,25 @@ lint: install
 	$(PYTHON) -m ruff format --check python tests examples bench
 	$(PYTHON) -m mypy python/benchbus
 	$(PYTHON) -m mypy.stubtest benchbus._core
+	$(PYTHON) -m check_jsonschema --builtin-schema vendor.github-workflows .github/workflows/*.yml
+
+# An abi3 wheel for Linux (cp39-abi3, manylinux2014: glibc 2.17 and later) in dist/, built
+# against an old glibc with zig (PyPI's ziglang), no Docker; maturin audits the tag. maturin
+# runs `python -m ziglang`, so this environment's python comes first on PATH.
+wheel: $(VENV)/bin/python
+	$(PYTHON) -m pip install --quiet "maturin>=1.7,<2" ziglang
+	rm -f dist/benchbus-*.whl
+	PATH="$(abspath $(VENV))/bin:$$PATH" $(PYTHON) -m maturin build --release --quiet \
+	  --zig --compatibility manylinux2014 --out dist
+
+# That wheel installed into a fresh environment outside the checkout, and its smoke suite
+# (tests/wheel_smoke) run there.
+wheel-smoke: wheel
+	.ci/wheel-smoke.sh
+
+# The checks for other operating systems that can run on Linux (see the README's Platforms).
+cross:
+	.ci/cross-macos.sh
 
 fmt: $(VENV)/bin/python
 	cargo fmt

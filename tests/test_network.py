@@ -253,3 +253,24 @@ def test_several_processes_share_one_line_through_the_gateway() -> None:
         assert device.write_violations == []
         assert [sim.peek(u, 0x10) for u in (1, 2, 3)] == [[1059], [2059], [3059]]
     assert gw.returncode == 0, gw.stderr_text  # type: ignore[attr-defined]
+
+
+def test_a_network_simulator_needs_no_terminal_support() -> None:
+    """Windows has no termios (so no tty module): a TCP simulator and a read through it work
+    without them, as on a Windows test machine."""
+    code = textwrap.dedent(
+        """
+        import sys
+        sys.modules["tty"] = None  # importing tty now fails, as on Windows
+        import benchbus as bb
+        from benchbus.sim import RegisterDevice, Simulator
+        with Simulator({3: RegisterDevice({0x10: 1234})}, network="tcp") as sim:
+            with bb.Bus(sim.port, timeout=1) as bus:
+                print(bus.read_holding_registers(3, 0x10, 1))
+        """
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=60, check=False
+    )
+    assert done.returncode == 0, done.stderr
+    assert done.stdout.strip() == "[1234]"

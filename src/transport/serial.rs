@@ -252,8 +252,9 @@ mod tests {
                 &mut master,
                 &mut slave,
                 name.as_mut_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
+                // Null *mut: macOS declares these two *mut, Linux *const (a *mut coerces).
+                std::ptr::null_mut(),
+                std::ptr::null_mut(),
             )
         };
         assert_eq!(rc, 0, "openpty: {}", io::Error::last_os_error());

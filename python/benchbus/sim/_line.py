@@ -22,7 +22,6 @@ import os
 import select
 import threading
 import time
-import tty
 from collections.abc import Callable
 
 from benchbus.sim._faults import FaultInjector, Faults, Injection
@@ -50,6 +49,9 @@ class PtyPair:
 
     def __init__(self) -> None:
         """Open the pair; ``path`` is the slave's /dev/pts/N."""
+        # Imported here: tty needs termios, which Windows lacks, and a TCP simulator needs no pty.
+        import tty
+
         self.master, self.slave = os.openpty()
         try:
             tty.setraw(self.slave)
