@@ -8,6 +8,8 @@
 pub mod ports;
 mod serial;
 mod tcp;
+#[cfg(windows)]
+mod windows;
 
 pub use serial::{describe_open_error, SerialTransport};
 pub use tcp::{
