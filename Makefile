@@ -1,6 +1,7 @@
 # One command each: `make demo` installs benchbus and runs its demo on simulated devices,
 # `make test` installs and runs every test, `make lint` every check, `make bench` the
-# benchmark beside minimalmodbus and pymodbus.
+# benchmark beside minimalmodbus and pymodbus, `make cross` the checks for other systems
+# (Windows: cross-built, run under wine; it installs what it needs).
 #
 # Every target installs into a virtual environment: the active one if there is one
 # ($VIRTUAL_ENV), else .venv here, made on first use. Debian 12 and Ubuntu 23.04+ refuse
@@ -15,7 +16,7 @@ endif
 PYTHON := $(VENV)/bin/python
 PIP := $(PYTHON) -m pip install --quiet --editable
 
-.PHONY: install demo test lint fmt example bench
+.PHONY: install demo test lint fmt example bench cross
 
 $(VENV)/bin/python:
 	@$(BASE_PYTHON) -m venv $(VENV) >/dev/null 2>&1 || { rm -rf $(VENV); \
@@ -43,6 +44,9 @@ lint: install
 	$(PYTHON) -m ruff format --check python tests examples bench
 	$(PYTHON) -m mypy python/benchbus
 	$(PYTHON) -m mypy.stubtest benchbus._core
+
+cross: install
+	PYTHON=$(PYTHON) .ci/cross-windows.sh
 
 fmt: $(VENV)/bin/python
 	cargo fmt

@@ -96,8 +96,8 @@ pub(super) fn is_gone_code(code: u32) -> bool {
 
 /// Why the port whose handle `port` holds is gone, given the error `e` a call on it failed
 /// with; None if it is still there. Gone: `e` carries one of the codes of
-/// [`is_gone_code`], or the port no longer answers `ClearCommError` (the serialport crate's
-/// own errors carry no code, so the port is asked).
+/// [`is_gone_code`] (then `e` says why), or the port no longer answers `ClearCommError` (the
+/// serialport crate's own errors carry no code, so the port is asked; its error says why).
 pub(super) fn gone(port: &impl AsRawHandle, e: &io::Error) -> Option<String> {
     let code = e.raw_os_error().and_then(|c| u32::try_from(c).ok());
     if code.is_some_and(is_gone_code) {
@@ -118,7 +118,7 @@ pub(super) fn gone(port: &impl AsRawHandle, e: &io::Error) -> Option<String> {
     }
     // SAFETY: reads the calling thread's last error, nothing else.
     let probe = io::Error::from_raw_os_error(unsafe { GetLastError() } as i32);
-    Some(format!("{e}; the port answers no more: {probe}"))
+    Some(probe.to_string())
 }
 
 /// A serial timeout as the serialport crate gives it to `COMMTIMEOUTS`: whole milliseconds,
@@ -197,6 +197,94 @@ mod tests {
         for code in [87, 121, 997] {
             assert!(!is_gone_code(code), "{code}");
         }
+    }
+
+    /// A file of its own in the temporary directory, removed on drop.
+    struct TempFile(std::path::PathBuf);
+
+    impl TempFile {
+        fn new(tag: &str) -> TempFile {
+            let path = std::env::temp_dir().join(format!(
+                "benchbus-{tag}-{}-{:?}",
+                std::process::id(),
+                std::thread::current().id()
+            ));
+            std::fs::write(&path, b"").unwrap();
+            TempFile(path)
+        }
+
+        fn path(&self) -> &str {
+            self.0.to_str().unwrap()
+        }
+    }
+
+    impl Drop for TempFile {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+
+    fn crate_error() -> Error {
+        Error::new(ErrorKind::NoDevice, "Access denied.")
+    }
+
+    #[test]
+    fn an_open_refused_because_another_holds_the_port_is_in_use() {
+        // Held without sharing, as the serialport crate holds a COM port. (Wine does not
+        // refuse a second open of a device; it does of a file, so a file stands in for it.)
+        let file = TempFile::new("held");
+        let held = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .share_mode(0)
+            .open(file.path())
+            .unwrap();
+        let e = open_error(file.path(), crate_error());
+        assert_eq!(
+            (e.kind(), e.description.as_str()),
+            (ErrorKind::NoDevice, "Access denied.")
+        );
+        drop(held);
+        // Free again by the time it is asked: the crate's own error stands.
+        let e = open_error(file.path(), crate_error());
+        assert_eq!(e.kind(), ErrorKind::NoDevice);
+    }
+
+    #[test]
+    fn an_open_of_a_port_that_does_not_exist_is_not_found() {
+        for missing in [r"\\.\COM199", r"C:\no-such-dir\port"] {
+            let e = open_error(
+                missing,
+                Error::new(
+                    ErrorKind::NoDevice,
+                    "The system cannot find the file specified.",
+                ),
+            );
+            assert_eq!(
+                e.kind(),
+                ErrorKind::Io(io::ErrorKind::NotFound),
+                "{missing}"
+            );
+            assert_eq!(e.description, "The system cannot find the file specified.");
+        }
+    }
+
+    #[test]
+    fn other_open_errors_are_left_as_the_crate_gave_them() {
+        let e = open_error(
+            r"\\.\COM199",
+            Error::new(ErrorKind::InvalidInput, "bad name"),
+        );
+        assert_eq!(e.kind(), ErrorKind::InvalidInput);
+        let file = TempFile::new("free");
+        let e = open_error(
+            file.path(),
+            Error::new(
+                ErrorKind::Io(io::ErrorKind::Other),
+                "The parameter is incorrect.",
+            ),
+        );
+        assert_eq!(e.kind(), ErrorKind::Io(io::ErrorKind::Other));
     }
 
     #[test]
