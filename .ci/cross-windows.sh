@@ -54,8 +54,10 @@ trap stop EXIT
 # controlling terminal, and the hang-up the unplug test makes sends it SIGHUP (Debian's build
 # then dumps all its objects on stderr). The server lingers until stopped.
 .ci/wine/run --server -k 2>/dev/null || true
+mkdir -p "$WINEPREFIX"
 .ci/wine/run --server -f -p >"$control/wineserver.log" 2>&1 &
-pids+=("$!")
+server=$!
+pids+=("$server")
 mkdir -p target/wine-shim
 shim=target/wine-shim/bcryptprimitives.dll
 if [ ! -f "$shim" ] || [ .ci/wine/bcryptprimitives.c -nt "$shim" ]; then
@@ -68,39 +70,44 @@ if [ ! -f "$WINEPREFIX/system.reg" ]; then
     echo "wineboot: $((SECONDS - started)) s"
 fi
 cp "$shim" "$WINEPREFIX/drive_c/windows/system32/bcryptprimitives.dll"
+kill -0 "$server" 2>/dev/null || { echo "wineserver stopped:" >&2; cat "$control/wineserver.log" >&2; exit 1; }
 
 step "the Rust test suite under wine"
 cargo test --quiet --target "$target"
 
 step "COM ports under wine"
 
-# serve COMn: a simulated Taisong meter (unit 1) on a pseudo-terminal, $WINEPREFIX/dosdevices/comn
-# a link to it; its pid in $served.
-serve() {
-    local com=$1 out="$control/$1.out"
-    "$python" -m benchbus sim instrument --baudrate 19200 >"$out" 2>"$control/$com.err" &
+# start_sim COMn: a simulated Taisong meter (unit 1) on a pseudo-terminal for COMn; its pid
+# in $served. link_sim COMn: once it has said its pseudo-terminal, $WINEPREFIX/dosdevices/comn
+# is a link to it.
+start_sim() {
+    "$python" -m benchbus sim instrument --baudrate 19200 >"$control/$1.out" 2>"$control/$1.err" &
     served=$!
     pids+=("$served")
-    for _ in $(seq 100); do
+}
+link_sim() {
+    local out="$control/$1.out" pty
+    for _ in $(seq 200); do
         [ -s "$out" ] && break
         sleep 0.1
     done
-    local pty
     pty=$(head -n 1 "$out")
-    [ -c "$pty" ] || { echo "the simulator for $com gave no pseudo-terminal" >&2; cat "$control/$com.err" >&2; exit 1; }
-    ln -sfn "$pty" "$WINEPREFIX/dosdevices/$com"
+    [ -c "$pty" ] || { echo "the simulator for $1 gave no pseudo-terminal" >&2; cat "$control/$1.err" >&2; exit 1; }
+    ln -sfn "$pty" "$WINEPREFIX/dosdevices/$1"
 }
-serve com5
-serve com12
-serve com6
+start_sim com5
+start_sim com12
+start_sim com6
 unplugged=$served
+for com in com5 com12 com6; do link_sim "$com"; done
 # The unplug test's far end: stopped when the test asks, then served again on the same name.
 (
     trap 'kill "$served" 2>/dev/null; exit 0' TERM
     for _ in $(seq 600); do [ -e "$control/unplug" ] && break; sleep 0.05; done
     kill "$unplugged"
     wait "$unplugged" 2>/dev/null || true
-    serve com6
+    start_sim com6
+    link_sim com6
     touch "$control/replugged"
     wait "$served"
 ) &
