@@ -4,7 +4,7 @@
 //!
 //! On Linux the ports are read from sysfs (`/sys/class/tty/<name>/device`, then up the
 //! device tree to the USB device's `idVendor`, `idProduct`, `manufacturer`, `product` and
-//! `serial`), under a root that [`list_ports_in`] takes as a parameter; elsewhere
+//! `serial`), under a root that `list_ports_in` (Linux only) takes as a parameter; elsewhere
 //! [`list_ports`] asks the serialport crate.
 
 use std::io;

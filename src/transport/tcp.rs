@@ -5,7 +5,7 @@
 //! caller's deadline, so a read waits at most its timeout and a signal (EINTR) only makes it
 //! wait on to the same deadline. A connection that ends (the peer closed it: end of file; or it was reset or
 //! aborted, or any other socket error) fails the call at once with
-//! [`port_lost`](super::port_lost): the Bus drops it, and [`Bus::reopen`](crate::Bus::reopen)
+//! [`port_lost`]: the Bus drops it, and [`Bus::reopen`](crate::Bus::reopen)
 //! or a reconnecting Bus connects again.
 
 use super::{port_lost, Transport};
