@@ -30,7 +30,7 @@ if ((${#packages[@]})); then
     as_root apt-get update -qq
     DEBIAN_FRONTEND=noninteractive as_root apt-get install -y -qq "${packages[@]}" >/dev/null
 fi
-rustup target list --installed | grep -qx "$target" || rustup target add "$target"
+rustup target list --installed | grep -x "$target" >/dev/null || rustup target add "$target"
 
 step "clippy for $target"
 cargo clippy --quiet --all-targets --target "$target" -- -D warnings
