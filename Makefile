@@ -1,6 +1,7 @@
 # One command each: `make demo` installs benchbus and runs its demo on simulated devices,
 # `make test` installs and runs every test, `make lint` every check, `make bench` the
-# benchmark beside minimalmodbus and pymodbus.
+# benchmark beside minimalmodbus and pymodbus, `make cross` the checks for other systems
+# (Windows: cross-built, run under wine; it installs what it needs).
 #
 # Every target installs into a virtual environment: the active one if there is one
 # ($VIRTUAL_ENV), else .venv here, made on first use. Debian 12 and Ubuntu 23.04+ refuse
@@ -60,8 +61,11 @@ wheel-smoke: wheel
 	.ci/wheel-smoke.sh
 
 # The checks for other operating systems that can run on Linux (see the README's Platforms).
-cross:
+# macOS: clippy for both Apple targets; Windows: clippy, the Rust suite and COM ports under
+# wine, and the Windows wheel (the scripts install their own targets and tools).
+cross: install
 	.ci/cross-macos.sh
+	PYTHON=$(PYTHON) .ci/cross-windows.sh
 
 fmt: $(VENV)/bin/python
 	cargo fmt

@@ -169,7 +169,9 @@ impl SilenceGuard {
 /// Linux lets a sleeping thread wake up to its timer slack late (50 us by default, see
 /// `/proc/self/timerslack_ns`), so a plain sleep of t3.5 (1.75 ms) overshoots by some
 /// 50-60 us. For the duration of the sleep the calling thread's slack is lowered to 1 ns, and
-/// put back afterwards (also if the sleep unwinds). Elsewhere this is a plain sleep.
+/// put back afterwards (also if the sleep unwinds). Elsewhere this is a plain sleep: on
+/// Windows, `std::thread::sleep` waits on a high-resolution waitable timer (Windows 10 1803
+/// and later), not in the system's 15.6 ms timer ticks.
 pub fn sleep_until(deadline: Instant) {
     let now = Instant::now();
     if deadline <= now {
@@ -436,6 +438,64 @@ mod tests {
         assert!(Instant::now() >= past);
     }
 
+    /// The CPU time the calling thread has used.
+    #[cfg(unix)]
+    fn thread_cpu_time() -> Duration {
+        let mut ts = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: a valid out-pointer to a timespec on this stack frame.
+        let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
+        assert_eq!(rc, 0);
+        Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32)
+    }
+
+    /// The CPU time the calling thread has used.
+    #[cfg(windows)]
+    fn thread_cpu_time() -> Duration {
+        use windows_sys::Win32::Foundation::FILETIME;
+        use windows_sys::Win32::System::Threading::{GetCurrentThread, GetThreadTimes};
+        let zero = || FILETIME {
+            dwLowDateTime: 0,
+            dwHighDateTime: 0,
+        };
+        let (mut created, mut exited, mut kernel, mut user) = (zero(), zero(), zero(), zero());
+        // SAFETY: the current thread's pseudo-handle and four valid out-pointers.
+        let ok = unsafe {
+            GetThreadTimes(
+                GetCurrentThread(),
+                &mut created,
+                &mut exited,
+                &mut kernel,
+                &mut user,
+            )
+        };
+        assert_ne!(ok, 0);
+        let ticks = |t: FILETIME| (u64::from(t.dwHighDateTime) << 32) | u64::from(t.dwLowDateTime);
+        Duration::from_nanos((ticks(kernel) + ticks(user)) * 100)
+    }
+
+    #[test]
+    fn a_t35_wait_is_not_rounded_up_to_timer_ticks_nor_spun() {
+        // Windows's default timer tick is 15.6 ms: a sleep that waited in ticks would turn
+        // the 1.75 ms t3.5 of a fast line into some 15 ms, a wait that spun would burn a core.
+        let t35 = LineFormat::new(38_400, Parity::None, 1).t3_5();
+        let rounds = 40;
+        let cpu = thread_cpu_time();
+        let start = Instant::now();
+        for _ in 0..rounds {
+            sleep_until(Instant::now() + t35);
+        }
+        let (took, cpu) = (start.elapsed(), thread_cpu_time() - cpu);
+        let mean = took / rounds;
+        assert!(
+            mean >= t35 && mean < Duration::from_millis(6),
+            "a 1.75 ms wait took {mean:?} on average"
+        );
+        assert!(cpu < took / 4, "{cpu:?} of CPU in {took:?} of waits");
+    }
+
     #[cfg(target_os = "linux")]
     fn thread_slack() -> libc::c_int {
         // SAFETY: PR_GET_TIMERSLACK takes no pointers and only reads this thread's slack.
@@ -565,7 +625,8 @@ mod tests {
         );
         assert_eq!(s.end, None);
         // A deadline past what an Instant holds ends the schedule instead of overflowing.
-        let mut s = Schedule::new(start, Duration::from_secs(u64::MAX / 4), None);
+        // Deadline 2 is past any platform's Instant (Linux's i64 seconds, Windows's u64).
+        let mut s = Schedule::new(start, Duration::from_secs(u64::MAX / 2), None);
         assert_eq!(s.next(start), Some((0, start)));
         let _ = s.next(start); // deadline 1 may or may not fit in an Instant
         assert_eq!(s.next(start), None);

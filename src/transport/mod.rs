@@ -12,6 +12,8 @@ pub mod ports;
 mod serial;
 mod tcp;
 pub mod tuning;
+#[cfg(windows)]
+mod windows;
 
 pub use serial::{describe_open_error, SerialTransport};
 pub use tcp::{

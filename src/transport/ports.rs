@@ -4,7 +4,7 @@
 //!
 //! On Linux the ports are read from sysfs (`/sys/class/tty/<name>/device`, then up the
 //! device tree to the USB device's `idVendor`, `idProduct`, `manufacturer`, `product` and
-//! `serial`), under a root that [`list_ports_in`] takes as a parameter; elsewhere
+//! `serial`), under a root that `list_ports_in` (Linux only) takes as a parameter; elsewhere
 //! [`list_ports`] asks the serialport crate.
 
 use std::io;
@@ -100,8 +100,23 @@ fn from_serialport() -> io::Result<Vec<PortInfo>> {
             },
         })
         .collect();
-    out.sort_by(|a, b| a.path.cmp(&b.path));
+    sort_by_path(&mut out);
     Ok(out)
+}
+
+/// Sorts ports by path, a number at its end by value: `COM2` before `COM10`, `/dev/ttyUSB2`
+/// before `/dev/ttyUSB10`.
+fn sort_by_path(ports: &mut [PortInfo]) {
+    ports.sort_by(|a, b| path_key(&a.path).cmp(&path_key(&b.path)));
+}
+
+/// A path's sort key: the text before its trailing digits, then those digits by value (a
+/// longer run of digits, leading zeros aside, is a larger number).
+fn path_key(path: &str) -> (&str, usize, &str) {
+    let head = path.trim_end_matches(|c: char| c.is_ascii_digit());
+    let digits = path.get(head.len()..).unwrap_or_default();
+    let digits = digits.trim_start_matches('0');
+    (head, digits.len(), digits)
 }
 
 /// How many directories up from a tty's device the USB device may be (the tty's own
@@ -142,7 +157,7 @@ pub fn list_ports_in(sysfs: &Path) -> io::Result<Vec<PortInfo>> {
             usb: usb_above(&device),
         });
     }
-    out.sort_by(|a, b| a.path.cmp(&b.path));
+    sort_by_path(&mut out);
     Ok(out)
 }
 
@@ -182,6 +197,47 @@ fn read_text(path: &Path) -> Option<String> {
     let text = std::fs::read_to_string(path).ok()?;
     let text = text.trim();
     (!text.is_empty()).then(|| text.to_owned())
+}
+
+#[cfg(test)]
+mod sort_tests {
+    use super::*;
+
+    #[test]
+    fn ports_sort_by_the_number_at_the_end_of_their_path() {
+        let mut ports: Vec<PortInfo> = [
+            "COM10",
+            "COM2",
+            "COM1",
+            "/dev/ttyUSB10",
+            "/dev/ttyUSB2",
+            "/dev/ttyS0",
+            "COM",
+            "COM03",
+        ]
+        .into_iter()
+        .map(|path| PortInfo {
+            path: path.into(),
+            driver: None,
+            usb: None,
+        })
+        .collect();
+        sort_by_path(&mut ports);
+        let paths: Vec<&str> = ports.iter().map(|p| p.path.as_str()).collect();
+        assert_eq!(
+            paths,
+            [
+                "/dev/ttyS0",
+                "/dev/ttyUSB2",
+                "/dev/ttyUSB10",
+                "COM",
+                "COM1",
+                "COM2",
+                "COM03",
+                "COM10"
+            ]
+        );
+    }
 }
 
 #[cfg(all(test, target_os = "linux"))]

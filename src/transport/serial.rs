@@ -1,25 +1,42 @@
-//! The serial transport on the serialport crate: a USB RS485 adapter or a pseudo-terminal.
+//! The serial transport on the serialport crate: a USB RS485 adapter, a board's UART or a
+//! pseudo-terminal on Linux and macOS, a COM port on Windows.
 
 use super::tuning::{self, Rs485, Tuned};
 use super::{port_lost, Transport};
 use crate::timing::{LineFormat, Parity};
-use serialport::{SerialPort, TTYPort};
+use serialport::SerialPort;
 use std::io::{self, Read, Write};
+#[cfg(unix)]
 use std::os::unix::io::AsRawFd;
 use std::sync::Once;
 use std::time::Duration;
 
+/// The serialport crate's port on this system.
+#[cfg(unix)]
+type Port = serialport::TTYPort;
+#[cfg(windows)]
+type Port = serialport::COMPort;
+
 /// A serial port opened for Modbus RTU (raw mode, exclusive).
 ///
-/// Exclusive: the serialport crate sets `TIOCEXCL` (a later open by another non-root program
-/// fails with `EBUSY`) and takes an exclusive `flock` (a later open by anything that locks,
-/// such as another Bus in this or another process, fails); see [`describe_open_error`].
+/// Exclusive: on Linux and macOS the serialport crate sets `TIOCEXCL` (a later open by
+/// another non-root program fails with `EBUSY`) and takes an exclusive `flock` (a later open
+/// by anything that locks, such as another Bus in this or another process, fails); on
+/// Windows it opens the port without sharing, and Windows refuses any later open. See
+/// [`describe_open_error`].
 ///
-/// A port that hangs up (a USB adapter unplugged, a pseudo-terminal whose master closed)
-/// fails every call at once with [`port_lost`]: the kernel marks the file hung up, so a read
-/// returns nothing or `EIO`, an ioctl `EIO`, and `poll` reports `POLLHUP`.
+/// A port that is gone fails every call at once with [`port_lost`]. On Linux and macOS it
+/// hangs up (a USB adapter unplugged, a pseudo-terminal whose master closed): the kernel
+/// marks the file hung up, so a read returns nothing or `EIO`, an ioctl `EIO`, and `poll`
+/// reports `POLLHUP`. On Windows the handle of an unplugged adapter stays, and every call on
+/// it fails with one of the errors its driver gives then (`ERROR_BAD_COMMAND`,
+/// `ERROR_ACCESS_DENIED`, `ERROR_DEVICE_REMOVED`, `ERROR_OPERATION_ABORTED`...), or the port
+/// no longer answers `ClearCommError`.
+///
+/// On Windows a name `COM1`..`COM256` is opened as `\\.\COMn` (the form `COM10` and up
+/// need); the Bus keeps the name it was given.
 pub struct SerialTransport {
-    port: TTYPort,
+    port: Port,
     line: LineFormat,
     /// What the open asked of the driver, and got (see [`super::tuning`]).
     tuned: Tuned,
@@ -68,20 +85,25 @@ impl SerialTransport {
         } else {
             serialport::StopBits::One
         };
-        let builder = serialport::new(path, line.baudrate)
+        #[cfg(windows)]
+        let device = super::windows::device_path(path);
+        #[cfg(not(windows))]
+        let device = path.to_string();
+        let builder = serialport::new(device.as_str(), line.baudrate)
             .data_bits(serialport::DataBits::Eight)
             .stop_bits(stop_bits)
             .flow_control(serialport::FlowControl::None)
             .timeout(Duration::from_millis(100));
         let wanted = to_serialport_parity(line.parity);
-        let port = match TTYPort::open(&builder.clone().parity(wanted)) {
+        let port = match Port::open(&builder.clone().parity(wanted)) {
             Ok(port) => port,
             Err(e) if wanted != serialport::Parity::None && is_invalid_input(&e) => {
-                let port = TTYPort::open(&builder.parity(serialport::Parity::None))?;
+                let port = Port::open(&builder.parity(serialport::Parity::None))
+                    .map_err(|e| open_error(&device, e))?;
                 note_parity_dropped(path, line);
                 port
             }
-            Err(e) => return Err(e),
+            Err(e) => return Err(open_error(&device, e)),
         };
         if wanted != serialport::Parity::None && port.parity().ok() != Some(wanted) {
             note_parity_dropped(path, line);
@@ -105,10 +127,23 @@ impl SerialTransport {
     }
 }
 
+/// The error of a failed open of `device`, as [`describe_open_error`] reads it.
+#[cfg(windows)]
+fn open_error(device: &str, e: serialport::Error) -> serialport::Error {
+    super::windows::open_error(device, e)
+}
+
+/// The error of a failed open, as [`describe_open_error`] reads it (the crate's own).
+#[cfg(not(windows))]
+fn open_error(_device: &str, e: serialport::Error) -> serialport::Error {
+    e
+}
+
 /// What an open error means, for the message of a PortError: "in use" for a port another
 /// Bus or program holds (the crate reports both `EBUSY` and a refused `flock` as
-/// `NoDevice`), how to get the permission for a port the user may not open, the system's
-/// own words otherwise.
+/// `NoDevice`; on Windows `ERROR_ACCESS_DENIED`, which [`SerialTransport::open`] reports so
+/// too), how to get the permission for a port the user may not open, the ports that exist
+/// for one that does not, the system's own words otherwise.
 pub fn describe_open_error(e: &serialport::Error) -> String {
     match e.kind() {
         serialport::ErrorKind::NoDevice => format!(
@@ -118,7 +153,22 @@ pub fn describe_open_error(e: &serialport::Error) -> String {
         serialport::ErrorKind::Io(io::ErrorKind::PermissionDenied) => {
             format!("{} ({PERMISSION_HINT})", e.description)
         }
+        serialport::ErrorKind::Io(io::ErrorKind::NotFound) => {
+            format!("{} ({})", e.description, ports_here())
+        }
         _ => e.description.clone(),
+    }
+}
+
+/// The serial ports this system has, for the message of a port that does not exist.
+fn ports_here() -> String {
+    match super::ports::list_ports() {
+        Ok(ports) if ports.is_empty() => "this system lists no serial ports".into(),
+        Ok(ports) => {
+            let paths: Vec<&str> = ports.iter().map(|p| p.path.as_str()).collect();
+            format!("the serial ports here: {}", paths.join(", "))
+        }
+        Err(e) => format!("the serial ports cannot be listed: {e}"),
     }
 }
 
@@ -150,6 +200,7 @@ fn note_parity_dropped(path: &str, line: &LineFormat) {
 }
 
 /// The port's descriptor, for the Linux probes of [`super::doctor`].
+#[cfg(unix)]
 impl AsRawFd for SerialTransport {
     fn as_raw_fd(&self) -> std::os::unix::io::RawFd {
         self.port.as_raw_fd()
@@ -158,6 +209,7 @@ impl AsRawFd for SerialTransport {
 
 impl SerialTransport {
     /// Whether the port has hung up: `poll` on it reports `POLLHUP`, `POLLERR` or `POLLNVAL`.
+    #[cfg(unix)]
     fn hung_up(&self) -> bool {
         let mut fd = libc::pollfd {
             fd: self.port.as_raw_fd(),
@@ -171,6 +223,7 @@ impl SerialTransport {
 
     /// `e` as [`port_lost`] if the port has hung up; as it is otherwise (an interrupted
     /// system call is never a lost port).
+    #[cfg(unix)]
     fn checked(&self, e: io::Error) -> io::Error {
         if e.kind() != io::ErrorKind::Interrupted && self.hung_up() {
             port_lost(format!("hung up (unplugged, or its other end closed): {e}"))
@@ -178,16 +231,31 @@ impl SerialTransport {
             e
         }
     }
+
+    /// `e` as [`port_lost`] if the port is gone (unplugged); as it is otherwise.
+    #[cfg(windows)]
+    fn checked(&self, e: io::Error) -> io::Error {
+        match super::windows::gone(&self.port, &e) {
+            Some(why) => port_lost(format!("gone (unplugged?): {why}")),
+            None => e,
+        }
+    }
+
+    /// Sets the port's timeout for the next read or write.
+    fn set_timeout(&mut self, timeout: Duration) -> io::Result<()> {
+        #[cfg(windows)]
+        let timeout = super::windows::comm_timeout(timeout);
+        self.port
+            .set_timeout(timeout)
+            .map_err(|e| self.checked(e.into()))
+    }
 }
 
 impl Transport for SerialTransport {
     fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
         // The port's timeout is the last read's (zero after a stale-input drain): a write gets
         // its own, so a momentarily full output buffer is waited for, boundedly.
-        let timeout = WRITE_SLACK + self.line.frame_time(frame.len()) * 2;
-        self.port
-            .set_timeout(timeout)
-            .map_err(|e| self.checked(e.into()))?;
+        self.set_timeout(WRITE_SLACK + self.line.frame_time(frame.len()) * 2)?;
         self.port.write_all(frame).map_err(|e| self.checked(e))
     }
 
@@ -195,9 +263,7 @@ impl Transport for SerialTransport {
         let deadline = std::time::Instant::now() + timeout;
         loop {
             let left = deadline.saturating_duration_since(std::time::Instant::now());
-            self.port
-                .set_timeout(left)
-                .map_err(|e| self.checked(e.into()))?;
+            self.set_timeout(left)?;
             return match self.port.read(buf) {
                 Err(e) if e.kind() == io::ErrorKind::TimedOut => Ok(0),
                 // A signal (Ctrl-C, a timer) interrupted the wait: the reply is still on its
@@ -238,11 +304,14 @@ impl Transport for SerialTransport {
 #[cfg(test)]
 mod tests {
     use super::*;
+    #[cfg(unix)]
     use crate::transport::is_lost;
+    #[cfg(unix)]
     use std::time::Instant;
 
     /// A pseudo-terminal pair: (master fd, slave path). The slave stays open in the test
     /// only through the transport.
+    #[cfg(unix)]
     fn pty() -> (libc::c_int, String) {
         let (mut master, mut slave) = (-1, -1);
         let mut name = [0 as libc::c_char; 128];
@@ -267,10 +336,12 @@ mod tests {
         (master, path)
     }
 
+    #[cfg(unix)]
     fn line() -> LineFormat {
         LineFormat::new(19_200, Parity::None, 1)
     }
 
+    #[cfg(unix)]
     #[test]
     fn a_hung_up_port_fails_every_call_at_once_as_lost() {
         let (master, path) = pty();
@@ -305,12 +376,36 @@ mod tests {
             "{text}"
         );
         let other = serialport::Error::new(
+            serialport::ErrorKind::Io(io::ErrorKind::InvalidData),
+            "Bad data",
+        );
+        assert_eq!(describe_open_error(&other), "Bad data");
+    }
+
+    #[test]
+    fn a_port_that_does_not_exist_is_told_with_the_ports_that_do() {
+        let e = serialport::Error::new(
             serialport::ErrorKind::Io(io::ErrorKind::NotFound),
             "No such file or directory",
         );
-        assert_eq!(describe_open_error(&other), "No such file or directory");
+        let text = describe_open_error(&e);
+        let ports: Vec<String> = crate::transport::ports::list_ports()
+            .unwrap()
+            .into_iter()
+            .map(|p| p.path)
+            .collect();
+        let expected = if ports.is_empty() {
+            "No such file or directory (this system lists no serial ports)".to_string()
+        } else {
+            format!(
+                "No such file or directory (the serial ports here: {})",
+                ports.join(", ")
+            )
+        };
+        assert_eq!(text, expected);
     }
 
+    #[cfg(unix)]
     #[test]
     fn a_port_held_by_another_opener_is_refused_as_in_use() {
         let (master, path) = pty();

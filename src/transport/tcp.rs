@@ -1,11 +1,11 @@
 //! TCP transports on `std::net::TcpStream`: Modbus TCP (MBAP frames) to a gateway
 //! (`tcp://`), and raw RTU frames over TCP to a serial device server (`rtu+tcp://`).
 //!
-//! The socket is non-blocking; every wait is a `poll` bounded by the caller's deadline, so a
-//! read waits at most its timeout and a signal (EINTR) only makes it wait on to the same
-//! deadline. A connection that ends (the peer closed it: end of file; or it was reset or
+//! The socket is non-blocking; every wait is a `poll` (`WSAPoll` on Windows) bounded by the
+//! caller's deadline, so a read waits at most its timeout and a signal (EINTR) only makes it
+//! wait on to the same deadline. A connection that ends (the peer closed it: end of file; or it was reset or
 //! aborted, or any other socket error) fails the call at once with
-//! [`port_lost`](super::port_lost): the Bus drops it, and [`Bus::reopen`](crate::Bus::reopen)
+//! [`port_lost`]: the Bus drops it, and [`Bus::reopen`](crate::Bus::reopen)
 //! or a reconnecting Bus connects again.
 
 use super::{port_lost, Transport};
@@ -14,6 +14,7 @@ use crate::error::hex;
 use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
+#[cfg(unix)]
 use std::os::unix::io::AsRawFd;
 use std::time::{Duration, Instant};
 
@@ -195,7 +196,7 @@ impl Conn {
             if left.is_zero() {
                 return Ok(0);
             }
-            self.wait(libc::POLLIN, left)?;
+            self.wait(false, left)?;
         }
     }
 
@@ -215,7 +216,7 @@ impl Conn {
                             self.peer
                         )));
                     }
-                    self.wait(libc::POLLOUT, left)?;
+                    self.wait(true, left)?;
                 }
                 Err(e) if e.kind() == io::ErrorKind::Interrupted => {}
                 Err(e) => return Err(self.failed(e)),
@@ -224,13 +225,23 @@ impl Conn {
         Ok(())
     }
 
-    /// Waits up to `timeout` (rounded up to whole milliseconds) for `events` on the socket;
-    /// returns early on a signal, for the caller to try again and wait on to its deadline.
-    fn wait(&self, events: libc::c_short, timeout: Duration) -> io::Result<()> {
+    /// Waits up to `timeout` (rounded up to whole milliseconds) for the socket to be
+    /// readable (or writable, if `write`), or to fail; returns early on a signal, for the
+    /// caller to try again and wait on to its deadline.
+    #[cfg(windows)]
+    fn wait(&self, write: bool, timeout: Duration) -> io::Result<()> {
+        super::windows::wait_socket(&self.stream, write, timeout)
+    }
+
+    /// Waits up to `timeout` (rounded up to whole milliseconds) for the socket to be
+    /// readable (or writable, if `write`), or to fail; returns early on a signal, for the
+    /// caller to try again and wait on to its deadline.
+    #[cfg(unix)]
+    fn wait(&self, write: bool, timeout: Duration) -> io::Result<()> {
         let ms = timeout.as_micros().div_ceil(1000).min(i32::MAX as u128) as libc::c_int;
         let mut fd = libc::pollfd {
             fd: self.stream.as_raw_fd(),
-            events,
+            events: if write { libc::POLLOUT } else { libc::POLLIN },
             revents: 0,
         };
         // SAFETY: one valid pollfd, owned by this stack frame, on a socket this owns.
