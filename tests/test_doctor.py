@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from test_cli import one_line_error, run
-from test_ports import _usb
+from test_ports import _ftdi
 
 import benchbus as bb
 from benchbus.sim import RegisterDevice, Simulator
@@ -126,16 +126,7 @@ def _ftdi_tree(tmp_path: Path, pty: str, latency_ms: int) -> tuple[Path, Path]:
     """A sysfs tree with an FTDI adapter at ttyUSB0 whose latency timer is ``latency_ms``,
     and a ``ttyUSB0`` link to the pty, so the port opens: (sysfs root, port path)."""
     root = tmp_path / "sys"
-    _usb(
-        root,
-        "ttyUSB0",
-        "1-1",
-        ("0403", "6001"),
-        "ftdi_sio",
-        manufacturer="FTDI",
-        product="FT232R USB UART",
-        serial="A50285BI",
-    )
+    _ftdi(root)
     timer = root / "bus/usb-serial/devices/ttyUSB0"
     timer.mkdir(parents=True)
     (timer / "latency_timer").write_text(f"{latency_ms}\n")

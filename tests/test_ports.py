@@ -27,9 +27,8 @@ def _usb(root: Path, tty: str, usb: str, ids: tuple[str, str], driver: str, **st
     (root / "class/tty" / tty / "device").symlink_to(port)
 
 
-@pytest.fixture
-def sysfs(tmp_path: Path) -> Path:
-    root = tmp_path / "sys"
+def _ftdi(root: Path) -> None:
+    """An FTDI FT232R adapter holding ``ttyUSB0``."""
     _usb(
         root,
         "ttyUSB0",
@@ -40,6 +39,12 @@ def sysfs(tmp_path: Path) -> Path:
         product="FT232R USB UART",
         serial="A50285BI",
     )
+
+
+@pytest.fixture
+def sysfs(tmp_path: Path) -> Path:
+    root = tmp_path / "sys"
+    _ftdi(root)
     _usb(root, "ttyUSB1", "1-2", ("1a86", "7523"), "ch341-uart", product="USB Serial")
     uart = root / "devices/platform/fe201000.serial"
     uart.mkdir(parents=True)

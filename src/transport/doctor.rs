@@ -784,35 +784,10 @@ mod tests {
         assert!(diagnose("", &checkup()).is_err());
     }
 
-    /// A pseudo-terminal pair: (master fd, slave path).
-    #[cfg(target_os = "linux")]
-    fn pty() -> (libc::c_int, String) {
-        let (mut master, mut slave) = (-1, -1);
-        let mut name = [0 as libc::c_char; 128];
-        // SAFETY: valid out-pointers; a name buffer far longer than any /dev/pts/N.
-        let rc = unsafe {
-            libc::openpty(
-                &mut master,
-                &mut slave,
-                name.as_mut_ptr(),
-                std::ptr::null(),
-                std::ptr::null(),
-            )
-        };
-        assert_eq!(rc, 0);
-        // SAFETY: openpty wrote a NUL-terminated path; our own slave fd, closed once.
-        let path = unsafe { std::ffi::CStr::from_ptr(name.as_ptr()) }
-            .to_string_lossy()
-            .into_owned();
-        // SAFETY: our own fd, closed once.
-        unsafe { libc::close(slave) };
-        (master, path)
-    }
-
     #[cfg(target_os = "linux")]
     #[test]
     fn a_pty_opens_without_low_latency_rs485_mode_or_echo() {
-        let (master, path) = pty();
+        let (master, path) = crate::transport::test_pty();
         let mut c = checkup();
         c.sysfs = PathBuf::from("/nonexistent/sysfs");
         let found = diagnose(&path, &c).unwrap();
@@ -847,7 +822,7 @@ mod tests {
     #[cfg(target_os = "linux")]
     #[test]
     fn rs485_on_a_pty_is_refused_and_leaves_the_port_closed() {
-        let (master, path) = pty();
+        let (master, path) = crate::transport::test_pty();
         let line = checkup().line;
         let rs485 = super::super::tuning::Rs485::default();
         let e = SerialTransport::open_with(&path, &line, Some(&rs485))

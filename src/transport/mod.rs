@@ -259,6 +259,33 @@ fn parse_tcp_port(p: &str) -> Result<u16, String> {
     }
 }
 
+/// A pseudo-terminal pair for the transport's tests: (master fd, slave path). The slave
+/// stays open only through what the test opens on the path.
+#[cfg(all(test, unix))]
+pub(crate) fn test_pty() -> (libc::c_int, String) {
+    let (mut master, mut slave) = (-1, -1);
+    let mut name = [0 as libc::c_char; 128];
+    // SAFETY: valid out-pointers; a name buffer far longer than any /dev/pts/N.
+    let rc = unsafe {
+        libc::openpty(
+            &mut master,
+            &mut slave,
+            name.as_mut_ptr(),
+            // Null *mut: macOS declares these two *mut, Linux *const (a *mut coerces).
+            std::ptr::null_mut(),
+            std::ptr::null_mut(),
+        )
+    };
+    assert_eq!(rc, 0, "openpty: {}", io::Error::last_os_error());
+    // SAFETY: openpty wrote a NUL-terminated path into `name`.
+    let path = unsafe { std::ffi::CStr::from_ptr(name.as_ptr()) }
+        .to_string_lossy()
+        .into_owned();
+    // SAFETY: our own fd, closed once.
+    unsafe { libc::close(slave) };
+    (master, path)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -309,33 +309,6 @@ mod tests {
     #[cfg(unix)]
     use std::time::Instant;
 
-    /// A pseudo-terminal pair: (master fd, slave path). The slave stays open in the test
-    /// only through the transport.
-    #[cfg(unix)]
-    fn pty() -> (libc::c_int, String) {
-        let (mut master, mut slave) = (-1, -1);
-        let mut name = [0 as libc::c_char; 128];
-        // SAFETY: valid out-pointers; a name buffer far longer than any /dev/pts/N.
-        let rc = unsafe {
-            libc::openpty(
-                &mut master,
-                &mut slave,
-                name.as_mut_ptr(),
-                // Null *mut: macOS declares these two *mut, Linux *const (a *mut coerces).
-                std::ptr::null_mut(),
-                std::ptr::null_mut(),
-            )
-        };
-        assert_eq!(rc, 0, "openpty: {}", io::Error::last_os_error());
-        // SAFETY: openpty wrote a NUL-terminated path into `name`.
-        let path = unsafe { std::ffi::CStr::from_ptr(name.as_ptr()) }
-            .to_string_lossy()
-            .into_owned();
-        // SAFETY: our own fd, closed once.
-        unsafe { libc::close(slave) };
-        (master, path)
-    }
-
     #[cfg(unix)]
     fn line() -> LineFormat {
         LineFormat::new(19_200, Parity::None, 1)
@@ -344,7 +317,7 @@ mod tests {
     #[cfg(unix)]
     #[test]
     fn a_hung_up_port_fails_every_call_at_once_as_lost() {
-        let (master, path) = pty();
+        let (master, path) = crate::transport::test_pty();
         let mut t = SerialTransport::open(&path, &line()).unwrap();
         t.write_all(&[1, 2, 3]).unwrap();
         // SAFETY: our own fd, closed once: the far end goes away, as an unplugged adapter.
@@ -408,7 +381,7 @@ mod tests {
     #[cfg(unix)]
     #[test]
     fn a_port_held_by_another_opener_is_refused_as_in_use() {
-        let (master, path) = pty();
+        let (master, path) = crate::transport::test_pty();
         let held = SerialTransport::open(&path, &line()).unwrap();
         let e = SerialTransport::open(&path, &line())
             .err()
