@@ -58,6 +58,8 @@ def test_benchbus_is_the_installed_wheel() -> None:
     assert "archive_info" in origin and origin["url"].endswith(".whl"), origin
     tags = (dist.read_text("WHEEL") or "").splitlines()
     assert any(t.startswith("Tag: cp39-abi3-") for t in tags), tags
+    # One version: the wheel's metadata is Cargo.toml's, as the compiled core reports it.
+    assert dist.version == bb.__version__, (dist.version, bb.__version__)
 
 
 def modules(prefix: str) -> list[str]:
