@@ -127,6 +127,7 @@ class Direction:
         self.char_time = char_time
         self.queue: deque[tuple[float, int]] = deque()
         self.free_at = 0.0  # when the last scheduled character ends on the wire
+        self.written = 0.0  # when the last write of released bytes began
 
     def push(self, data: bytes, now: float) -> None:
         """Schedule ``data``, written by the sender at ``now``."""
@@ -142,7 +143,9 @@ class Direction:
 
     def release(self, now: float) -> float | None:
         """Write the bytes that are due. When that ends a frame, return how late its last
-        byte left (the emulator's own error), else None."""
+        byte left (the emulator's own error), else None. ``written`` is when the last write
+        began: the receiver cannot have the bytes before then, so a quiet time counted from
+        it is never too long, however late this process runs after the write."""
         out = bytearray()
         due = 0.0
         while self.queue and self.queue[0][0] <= now:
@@ -150,8 +153,9 @@ class Direction:
             out.append(b)
         if not out:
             return None
+        self.written = time.monotonic()
         os.write(self.out_fd, bytes(out))
-        return time.monotonic() - due if not self.queue else None
+        return self.written - due if not self.queue else None
 
 
 class Slave:
@@ -222,13 +226,14 @@ class Line:
             self.requests.append(now)
             if self.reply_end is not None:
                 self.gaps.append(now - self.reply_end)
-                # 20 us of grace: the master may read the last byte before its stamp is taken.
+                # 20 us of grace for the clocks' reading: the reply's end is stamped just before
+                # the write that delivers its last byte, so the master never sees it earlier.
                 self.early += now - self.reply_end < self.t35 - 20e-6
                 self.reply_end = None
         self.last_request_byte = now
         if self.plain:
             if self.slave.feed(data, now):
-                self.reply_end = time.monotonic()
+                self.reply_end = self.slave.wrote_at
         else:
             assert self.up is not None
             self.up.push(data, now)
@@ -263,7 +268,7 @@ class Line:
             self.late.append(late)
         if self.down is not None and (late := self.down.release(now)) is not None:
             self.late.append(late)
-            self.reply_end = time.monotonic()
+            self.reply_end = self.down.written
 
     def take_stats(self) -> dict[str, object]:
         """What was measured since the last call, and clear it."""
