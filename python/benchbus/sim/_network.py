@@ -28,6 +28,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from benchbus import _mbap
 from benchbus.sim._faults import Injection
 from benchbus.sim._line import LOG_SIZE, SERVER_REPLY_TIMEOUT, Framer, LineState
 from benchbus.sim._rtu import crc_ok, frame_gap, reply_length, request_length, with_crc
@@ -44,8 +45,6 @@ GATEWAY_TARGET_FAILED = 0x0B
 #: How long a connection cut by ``reset_next`` lingers after its half reply, so that the
 #: half is on its way before the reset.
 RESET_GRACE = 0.02
-#: The most bytes an MBAP length field may announce (unit + a PDU of at most 253 bytes).
-_MBAP_MAX_LENGTH = 254
 _CONNECT_TIMEOUT = 2.0
 _RECV_SIZE = 65536
 _MAX_OUTPUT = 1 << 20  # drop bytes toward a client that does not read past this
@@ -98,27 +97,22 @@ class _Framing:
 
 
 class _Mbap(_Framing):
-    """Modbus TCP: ``transaction id, protocol id 0, length, unit`` then the PDU."""
+    """Modbus TCP (``benchbus._mbap``): ``transaction id, protocol id 0, length, unit``,
+    then the PDU."""
 
     def request_length(self, buf: bytes) -> int | None:
-        if len(buf) < 6:
-            return 0
-        protocol = int.from_bytes(buf[2:4], "big")
-        length = int.from_bytes(buf[4:6], "big")
-        if protocol != 0 or not 2 <= length <= _MBAP_MAX_LENGTH:
-            return -1
-        return 6 + length
+        return _mbap.frame_length(buf)
 
     reply_length = request_length
 
     def unit(self, frame: bytes) -> int:
-        return frame[6]
+        return _mbap.Header.parse(frame).unit
 
     def pdu(self, frame: bytes) -> bytes:
-        return frame[7:]
+        return frame[_mbap.HEADER_SIZE :]
 
     def make(self, unit: int, pdu: bytes, request: bytes) -> bytes:
-        return request[:2] + struct.pack(">HHB", 0, len(pdu) + 1, unit) + pdu
+        return _mbap.frame(_mbap.Header.parse(request).transaction, unit, pdu)
 
 
 class _Rtu(_Framing):
