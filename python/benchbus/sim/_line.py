@@ -23,6 +23,7 @@ import threading
 import time
 
 from benchbus.sim._faults import FaultInjector, Faults, Injection
+from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import Router, framing
 from benchbus.sim._rtu import frame_gap
 from benchbus.sim._units import Job, UnitHooks
@@ -162,7 +163,7 @@ class LineState:
         return Injection([reply])
 
 
-class Forwarder:
+class Forwarder(StepLoop):
     """The thread between master A (library side) and master B (server side): the I/O of a
     :class:`~benchbus.sim._router.Router`."""
 
@@ -181,6 +182,7 @@ class Forwarder:
 
         ``hooks`` are the units' callbacks (see :class:`~benchbus.sim._router.Router`).
         """
+        super().__init__("simulator line thread", "benchbus-sim-line")
         self._a = library.master
         self._b = server.master
         self._router = Router(
@@ -194,26 +196,15 @@ class Forwarder:
         )
         self._inject: collections.deque[tuple[bytes, threading.Event]] = collections.deque()
         self._lock = threading.Lock()  # guards _inject
-        self._stopping = False
         self._wake_r, self._wake_w = os.pipe()
         os.set_blocking(self._wake_r, False)
         os.set_blocking(self._wake_w, False)
-        self._thread = threading.Thread(target=self._run, name="benchbus-sim-line", daemon=True)
 
     # ---- called from other threads -------------------------------------------------------
 
-    def start(self) -> None:
-        """Start the forwarder thread."""
-        self._thread.start()
-
     def stop(self, timeout: float = 5.0) -> None:
         """Stop the thread and close the wake-up pipe (the pty pairs are the caller's)."""
-        self._stopping = True
-        self._wake()
-        if self._thread.is_alive():
-            self._thread.join(timeout)
-        if self._thread.is_alive():  # pragma: no cover - the loop always ends within a select
-            log.error("simulator line thread did not stop")
+        if not self._end(timeout):
             return
         for fd in (self._wake_r, self._wake_w):
             os.close(fd)
@@ -244,16 +235,7 @@ class Forwarder:
 
     # ---- the forwarder thread ----------------------------------------------------------------
 
-    def _run(self) -> None:
-        try:
-            while not self._stopping:
-                self._step()
-        except Exception:  # pragma: no cover - a bug here must not pass silently
-            log.exception("simulator line thread failed")
-        finally:
-            self._fail_pending()
-
-    def _fail_pending(self) -> None:
+    def _ended(self) -> None:
         pending = self._router.pending()
         with self._lock:
             injects = list(self._inject)

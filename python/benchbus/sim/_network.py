@@ -30,6 +30,7 @@ from collections.abc import Callable
 from typing import Any
 
 from benchbus.sim._line import LOG_SIZE, LineState
+from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import NETWORKS, Router, framing
 from benchbus.sim._rtu import frame_gap
 from benchbus.sim._units import UnitHooks
@@ -88,7 +89,7 @@ _LISTENER = "listener"
 _WAKE = "wake"
 
 
-class Gateway:
+class Gateway(StepLoop):
     """The proxy thread between the library's TCP clients and the pymodbus TCP server."""
 
     def __init__(
@@ -111,6 +112,7 @@ class Gateway:
         (see :attr:`address`); with ``refuse`` nothing listens on it until :meth:`refuse`
         False.
         """
+        super().__init__("simulator gateway thread", "benchbus-sim-gateway")
         self._state = state
         self._upstream = upstream
         self.network = network
@@ -126,7 +128,6 @@ class Gateway:
         self._commands: collections.deque[_Command] = collections.deque()
         self._open = 0
         self._accepted = 0
-        self._stopping = False
         self._sel = selectors.DefaultSelector()
         self._wake_r, self._wake_w = socket.socketpair()
         self._listener: socket.socket | None = None
@@ -141,7 +142,6 @@ class Gateway:
         except BaseException:
             self._close_all()
             raise
-        self._thread = threading.Thread(target=self._run, name="benchbus-sim-gateway", daemon=True)
 
     # ---- called from other threads -------------------------------------------------------
 
@@ -157,20 +157,10 @@ class Gateway:
         with self._lock:
             return self._accepted
 
-    def start(self) -> None:
-        """Start the thread."""
-        self._thread.start()
-
     def stop(self, timeout: float = 5.0) -> None:
         """Stop the thread; close every socket (clients, server side, the port)."""
-        self._stopping = True
-        self._wake()
-        if self._thread.is_alive():
-            self._thread.join(timeout)
-        if self._thread.is_alive():  # pragma: no cover - the loop ends within a select
-            log.error("simulator gateway thread did not stop")
-            return
-        self._close_all()
+        if self._end(timeout):
+            self._close_all()
 
     def refuse(self, refuse: bool, timeout: float = 2.0) -> None:
         """Stop (True) or start again (False) listening on the port; returns once done."""
@@ -306,19 +296,13 @@ class Gateway:
 
     # ---- the gateway thread ----------------------------------------------------------------
 
-    def _run(self) -> None:
-        try:
-            while not self._stopping:
-                self._step()
-        except Exception:  # pragma: no cover - a bug here must not pass silently
-            log.exception("simulator gateway thread failed")
-        finally:
-            with self._lock:
-                commands = list(self._commands)
-                self._commands.clear()
-            for command in commands:
-                command.error = RuntimeError("the simulator's gateway stopped")
-                command.done.set()
+    def _ended(self) -> None:
+        with self._lock:
+            commands = list(self._commands)
+            self._commands.clear()
+        for command in commands:
+            command.error = RuntimeError("the simulator's gateway stopped")
+            command.done.set()
 
     def _step(self) -> None:
         events = self._sel.select(self._timeout(time.monotonic()))
