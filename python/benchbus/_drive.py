@@ -61,7 +61,10 @@ class DriveState(PrintableIntEnum):
 
 
 class ControlMode(PrintableIntEnum):
-    """Control mode (0x2005) of a BLD2 / BLD3H drive."""
+    """Control mode (0x2005) of a BLD2 / BLD3H drive.
+
+    The drive also takes 5, which its manual lists as reserved (read back as the int 5).
+    """
 
     TEST = 0
     HALL_OPEN_LOOP = 1

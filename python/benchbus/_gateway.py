@@ -30,6 +30,7 @@ from collections.abc import Callable, Iterable, Mapping
 from types import TracebackType
 from typing import Any
 
+from benchbus import _mbap
 from benchbus._core import Bus
 from benchbus.exceptions import (
     BenchbusError,
@@ -50,8 +51,7 @@ SERVER_DEVICE_FAILURE = 0x04
 PATH_UNAVAILABLE = 0x0A
 TARGET_FAILED = 0x0B
 
-#: The longest PDU (Modbus application protocol, 4.1).
-MAX_PDU = 253
+MAX_PDU = _mbap.MAX_PDU
 #: How long a client may stay silent mid-frame before its connection is dropped.
 FRAME_TIMEOUT = 5.0
 #: How long a client may stay silent between requests, by default, before it is dropped.
@@ -433,25 +433,27 @@ class Gateway:
         try:
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             while not self._stopping.is_set() and self._next_request(client):
-                header = _recv_exactly(client, 7)
-                if header is None:
+                data = _recv_exactly(client, _mbap.HEADER_SIZE)
+                if data is None:
                     return
-                tid, pid, length, unit = struct.unpack(">HHHB", header)
-                if not 2 <= length <= MAX_PDU + 1:
+                header = _mbap.Header.parse(data)
+                if not header.length_ok:
                     self._count(bad_frames=1)
-                    log.warning("gateway: MBAP length %d out of range; connection dropped", length)
+                    log.warning(
+                        "gateway: MBAP length %d out of range; connection dropped", header.length
+                    )
                     return
-                pdu = _recv_exactly(client, length - 1)
+                pdu = _recv_exactly(client, header.length - 1)
                 if pdu is None:
                     return
-                if pid != 0:
+                if header.protocol != 0:
                     self._count(bad_frames=1)
                     continue
                 if self._stopping.is_set():
                     return
-                reply = self.handle(unit, pdu)
+                reply = self.handle(header.unit, pdu)
                 if reply is not None:
-                    client.sendall(struct.pack(">HHHB", tid, 0, len(reply) + 1, unit) + reply)
+                    client.sendall(_mbap.frame(header.transaction, header.unit, reply))
         except OSError as exc:
             log.debug("gateway: client connection ended: %s", exc)
         finally:

@@ -159,8 +159,9 @@ pub const REGISTERS: &[DriveRegister] = &[
     reg("pole_pairs", 0x2002, 1.0, "", RWS, (1.0, 20.0), Same),
     reg("accel_time", 0x2003, 0.1, "s", RW, (0.1, 600.0), Same),
     reg("decel_time", 0x2004, 0.1, "s", RW, (0.1, 600.0), Same),
-    // 5 is "reserved" on the BLD; C20 has 0..3 (3 = DIP switch).
-    reg("control_mode", 0x2005, 1.0, "", RWS, (0.0, 4.0), Range(0.0, 3.0)),
+    // Manual 000, B.3, 2005H: "控制模式選擇（0~5）", 5 listed as reserved: the range the
+    // drive takes is 0..5. C20 (manual 001, 2005H): 0..3 (3 = DIP switch).
+    reg("control_mode", 0x2005, 1.0, "", RWS, (0.0, 5.0), Range(0.0, 3.0)),
     // 3 is "reserved" on the BLD, the DIP switch (SW3) on the C20.
     reg("command_source", 0x2006, 1.0, "", RW, (0.0, 2.0), Range(0.0, 3.0)),
     // The C20 text says 0~5 but lists 0..6 (6 = simple PLC); its list is taken.

@@ -9,6 +9,7 @@ from collections.abc import Mapping
 from types import TracebackType
 from typing import Generic, TypeVar
 
+from benchbus import _mbap
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
 from benchbus.sim._line import LOG_SIZE, Forwarder, LineState, PtyPair
@@ -239,7 +240,7 @@ class Simulator(Generic[D]):
         if rtu:
             probe_frame = with_crc(bytes([unit]) + pdu)
         else:
-            probe_frame = os.urandom(2) + bytes([0, 0, 0, len(pdu) + 1, unit]) + pdu
+            probe_frame = _mbap.frame(int.from_bytes(os.urandom(2), "big"), unit, pdu)
         for _ in range(3):
             if probe(server.address, probe_frame, timeout=_START_TIMEOUT / 3) == probe_frame:
                 break

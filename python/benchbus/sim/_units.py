@@ -1,10 +1,11 @@
 """What the serial line and the network gateway share about the simulated units.
 
-Both the line's forwarder (``benchbus.sim._line``) and the gateway (``benchbus.sim._network``)
-turn each request for a unit into a :class:`Job`, answer themselves the requests the server
-cannot take (:func:`refusal`), and ask the unit's callbacks (:class:`UnitHooks`) how its reply
-goes out. A callback that fails or gives nonsense is logged and its default holds, so that a
-faulty device does not stop the line. Pure Python, no pymodbus.
+The router of both the line's forwarder (``benchbus.sim._line``) and the gateway
+(``benchbus.sim._network``), ``benchbus.sim._router``, turns each request for a unit into a
+:class:`Job`, answers itself the requests the server cannot take (:func:`refusal`), and asks
+the unit's callbacks (:class:`UnitHooks`) how its reply goes out. A callback that fails or
+gives nonsense is logged and its default holds, so that a faulty device does not stop the
+line. Pure Python, no pymodbus.
 """
 
 from __future__ import annotations
@@ -65,7 +66,7 @@ class UnitHooks:
         ``answers_writes(unit)`` defaults to True, ``reply_delay(unit)`` to 0 and
         ``shape_reply(unit, request, reply)``, on RTU frames, to the reply as is.
         """
-        self._who = who
+        self.who = who
         self._answers_broadcast = answers_broadcast
         self._answers_writes = answers_writes
         self._reply_delay = reply_delay
@@ -76,7 +77,7 @@ class UnitHooks:
         try:
             return bool(self._answers_broadcast(unit))
         except Exception:
-            log.exception("%s: unit %d: answers_broadcast failed; not answering", self._who, unit)
+            log.exception("%s: unit %d: answers_broadcast failed; not answering", self.who, unit)
             return False
 
     def answers_writes(self, unit: int) -> bool:
@@ -86,7 +87,7 @@ class UnitHooks:
         try:
             return bool(self._answers_writes(unit))
         except Exception:
-            log.exception("%s: unit %d: answers_writes failed; answering", self._who, unit)
+            log.exception("%s: unit %d: answers_writes failed; answering", self.who, unit)
             return True
 
     def reply_delay(self, unit: int) -> float:
@@ -96,10 +97,10 @@ class UnitHooks:
         try:
             delay = float(self._reply_delay(unit))
         except Exception:
-            log.exception("%s: unit %d: reply_delay failed; no delay", self._who, unit)
+            log.exception("%s: unit %d: reply_delay failed; no delay", self.who, unit)
             return 0.0
         if not (math.isfinite(delay) and delay >= 0.0):
-            log.error("%s: unit %d: reply_delay %r is not >= 0; no delay", self._who, unit, delay)
+            log.error("%s: unit %d: reply_delay %r is not >= 0; no delay", self.who, unit, delay)
             return 0.0
         return delay
 
@@ -111,10 +112,10 @@ class UnitHooks:
         try:
             shaped = self._shape_reply(unit, request, reply)
         except Exception:
-            log.exception("%s: unit %d: shape_reply failed; reply unchanged", self._who, unit)
+            log.exception("%s: unit %d: shape_reply failed; reply unchanged", self.who, unit)
             return reply
         if not isinstance(shaped, (bytes, bytearray)) or len(shaped) < 4:
-            log.error("%s: unit %d: shape_reply gave %r; reply unchanged", self._who, unit, shaped)
+            log.error("%s: unit %d: shape_reply gave %r; reply unchanged", self.who, unit, shaped)
             return reply
         return bytes(shaped)
 
