@@ -27,7 +27,7 @@ use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
 use crate::transport::{
-    describe_connect_error, describe_open_error, is_lost, parse_endpoint, Endpoint, Framing,
+    describe_connect_error, describe_open_error, is_lost, parse_endpoint, Endpoint, Framed,
     SerialTransport, TcpTransport, Transport,
 };
 use std::collections::HashMap;
@@ -163,7 +163,7 @@ pub type Opener = Box<dyn FnMut(&BusConfig) -> Result<Box<dyn Transport>> + Send
 
 /// The port, as the Bus holds it.
 enum Link {
-    Open(Box<dyn Transport>),
+    Open(Framed),
     /// Lost (for this reason); the transport was dropped, so the port is released.
     Lost(String),
     /// Closed by [`Bus::close`].
@@ -234,10 +234,11 @@ impl Bus {
     }
 
     fn build(config: BusConfig, transport: Box<dyn Transport>, opener: Option<Opener>) -> Bus {
+        let link = Link::Open(Framed::new(transport, &config.port));
         Bus {
             config,
             state: Mutex::new(State {
-                link: Link::Open(transport),
+                link,
                 opener,
                 frames_out: 0,
                 silence: SilenceGuard::new(),
@@ -313,7 +314,7 @@ impl Bus {
             None => Err(self.cannot_reopen()),
         };
         let transport = opened?;
-        st.link = Link::Open(transport);
+        st.link = Link::Open(Framed::new(transport, &self.config.port));
         st.stats.reopens += 1;
         log::debug!(target: "benchbus::wire", "port {} reopened", self.config.port);
         Ok(())
@@ -969,7 +970,7 @@ impl Bus {
     /// echo's place (the adapter does not echo, and `echo` is wrong for it).
     fn read_echo(
         &self,
-        transport: &mut Box<dyn Transport>,
+        transport: &mut Framed,
         frame: &[u8],
         request: &Request,
         deadline: Instant,
@@ -1039,12 +1040,7 @@ impl Bus {
 
     /// Reads into `buf` what arrives within `wait`: 0 if nothing did, or if there was no
     /// room or no time to wait.
-    fn read_within(
-        &self,
-        transport: &mut Box<dyn Transport>,
-        buf: &mut [u8],
-        wait: Duration,
-    ) -> Result<usize> {
+    fn read_within(&self, transport: &mut Framed, buf: &mut [u8], wait: Duration) -> Result<usize> {
         if buf.is_empty() || wait.is_zero() {
             return Ok(0);
         }
@@ -1068,7 +1064,7 @@ impl Bus {
     }
 
     /// The open port's transport (an error if there is none: closed, or lost).
-    fn port<'a>(&self, link: &'a mut Link) -> Result<&'a mut Box<dyn Transport>> {
+    fn port<'a>(&self, link: &'a mut Link) -> Result<&'a mut Framed> {
         match link {
             Link::Open(transport) => Ok(transport),
             Link::Closed => Err(self.closed()),
@@ -1215,7 +1211,7 @@ fn pace(st: &State, unit: u8, interval: Duration) {
 /// [`Error::Port`] if the port cannot be opened or the connection made.
 fn open_port(config: &BusConfig) -> Result<Box<dyn Transport>> {
     let endpoint = parse_endpoint(&config.port).map_err(Error::InvalidArgument)?;
-    let (host, port, framing) = match &endpoint {
+    let (host, port) = match &endpoint {
         Endpoint::Serial(path) => {
             return match SerialTransport::open_with(path, &config.line, config.rs485.as_ref()) {
                 Ok(transport) => Ok(Box::new(transport)),
@@ -1226,10 +1222,9 @@ fn open_port(config: &BusConfig) -> Result<Box<dyn Transport>> {
                 }),
             }
         }
-        Endpoint::ModbusTcp { host, port } => (host, *port, Framing::Mbap),
-        Endpoint::RtuOverTcp { host, port } => (host, *port, Framing::Rtu),
+        Endpoint::ModbusTcp { host, port } | Endpoint::RtuOverTcp { host, port } => (host, *port),
     };
-    match TcpTransport::connect(host, port, framing) {
+    match TcpTransport::connect(host, port) {
         Ok(transport) => Ok(Box::new(transport)),
         Err(e) => Err(Error::Port {
             port: config.port.clone(),
