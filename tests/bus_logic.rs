@@ -795,6 +795,33 @@ fn an_unanswered_write_with_a_garbled_echo_is_sent_again() {
 }
 
 #[test]
+fn an_unanswered_write_whose_echo_stays_garbled_fails_after_its_attempts() {
+    let (bus, t) = common::echo_bus(vec![], 2);
+    t.0.lock().unwrap().garble_echo = 5;
+    let opts = TxOptions {
+        write_reply: false,
+        ..TxOptions::default()
+    };
+    let e = bus.write_register(1, 1, 5, &opts).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Frame {
+                kind: FrameError::LocalEcho { .. },
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let s = bus.stats();
+    assert_eq!(
+        (s.transactions, s.frame_errors, s.retries, s.timeouts),
+        (0, 3, 2, 0)
+    );
+    assert_eq!(common::sent(&t).len(), 3);
+}
+
+#[test]
 fn a_multiple_register_broadcast_goes_to_unit_0_once_and_waits_no_reply() {
     let (bus, t) = bus(vec![], 2);
     bus.broadcast_write_registers(0x2000, &[1, 0x0203]).unwrap();

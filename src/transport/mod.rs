@@ -7,7 +7,8 @@
 //! a transport and its framing together (`framed`, which passes RTU frames through and
 //! runs a Modbus TCP session for `tcp://`); timing, checks and retries are the Bus's.
 //!
-//! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]).
+//! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]), and
+//! opened by [`open`].
 
 pub mod doctor;
 mod framed;
@@ -25,6 +26,9 @@ pub use serial::{describe_open_error, SerialTransport};
 pub use tcp::{describe_connect_error, TcpTransport, CONNECT_TIMEOUT, WRITE_TIMEOUT};
 
 use crate::codec::Framing;
+use crate::error::Error;
+use crate::timing::LineFormat;
+use tuning::Rs485;
 
 use std::io;
 use std::net::{Ipv4Addr, Ipv6Addr};
@@ -128,6 +132,46 @@ impl Endpoint {
                 }
             }
         }
+    }
+}
+
+/// Opens the transport the port string `port` names ([`parse_endpoint`]): a serial port
+/// at `line` (and, on a board UART, the kernel RS485 mode `rs485`), or a TCP connection
+/// (Modbus TCP, or RTU frames over TCP). Opening again connects again.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a malformed `scheme://` port, before anything is opened;
+/// [`Error::Port`] if the port cannot be opened or the connection made.
+pub fn open(
+    port: &str,
+    line: &LineFormat,
+    rs485: Option<&Rs485>,
+) -> crate::Result<Box<dyn Transport>> {
+    let endpoint = parse_endpoint(port).map_err(Error::InvalidArgument)?;
+    let (host, tcp_port) = match &endpoint {
+        Endpoint::Serial(path) => {
+            return match SerialTransport::open_with(path, line, rs485) {
+                Ok(transport) => Ok(Box::new(transport)),
+                Err(e) => Err(Error::Port {
+                    port: port.to_string(),
+                    message: format!("cannot open: {}", describe_open_error(&e)),
+                    source: None,
+                }),
+            }
+        }
+        Endpoint::ModbusTcp { host, port } | Endpoint::RtuOverTcp { host, port } => (host, *port),
+    };
+    match TcpTransport::connect(host, tcp_port) {
+        Ok(transport) => Ok(Box::new(transport)),
+        Err(e) => Err(Error::Port {
+            port: port.to_string(),
+            message: format!(
+                "cannot connect to {}: {}",
+                endpoint.address(),
+                describe_connect_error(&e)
+            ),
+            source: None,
+        }),
     }
 }
 
