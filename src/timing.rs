@@ -313,9 +313,10 @@ mod slack {
 /// spent between samples never accumulates as drift. A sample taken late (by the caller or a
 /// slow reply) skips the deadlines already past rather than firing them in a burst, and
 /// counts them in [`Schedule::missed`]. With a duration the deadlines end before the first
-/// one at or after `start + duration`, counted in ticks as Python's `benchbus._clock.ticks`
-/// counts them: tick `n` is the end if `n * interval >= duration - epsilon`, with `epsilon`
-/// 1 ns per second of duration (at least 1 ns), so 0.9 s at 0.3 s is 3 ticks, not 4.
+/// one at or after `start + duration`, counted in ticks (in floats, as a Python loop would
+/// count them; `benchbus._core._Ticks` gives the deadlines to Python): tick `n` is the end
+/// if `n * interval >= duration - epsilon`, with `epsilon` 1 ns per second of duration (at
+/// least 1 ns), so 0.9 s at 0.3 s is 3 ticks, not 4.
 ///
 /// Pure bookkeeping: it is given `now` and never reads a clock or sleeps.
 #[derive(Debug, Clone)]
