@@ -24,12 +24,9 @@ use crate::codec::{
     BROADCAST,
 };
 use crate::error::{hex, Error, Result};
-use crate::timing::{sleep_until, LineFormat, SilenceGuard};
+use crate::timing::{sleep_until, LineFormat, SilenceGuard, WritePacing};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
-use crate::transport::{
-    describe_connect_error, describe_open_error, is_lost, parse_endpoint, Endpoint, Framing,
-    SerialTransport, TcpTransport, Transport,
-};
+use crate::transport::{is_lost, open, parse_endpoint, Endpoint, Framed, Transport};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -163,7 +160,7 @@ pub type Opener = Box<dyn FnMut(&BusConfig) -> Result<Box<dyn Transport>> + Send
 
 /// The port, as the Bus holds it.
 enum Link {
-    Open(Box<dyn Transport>),
+    Open(Framed),
     /// Lost (for this reason); the transport was dropped, so the port is released.
     Lost(String),
     /// Closed by [`Bus::close`].
@@ -178,11 +175,7 @@ struct State {
     /// anything on the wire yet.
     frames_out: u64,
     silence: SilenceGuard,
-    /// When each unit's last write ended, and the longest write interval its device asked
-    /// for.
-    last_write: HashMap<u8, (Instant, Duration)>,
-    /// When the last broadcast's turnaround ended: a write to every unit.
-    last_broadcast: Option<Instant>,
+    pacing: WritePacing,
     /// Requests that timed out and whose replies may still arrive (see [`Bus::send`]): at
     /// most one per unit, dropped once their window has passed.
     late: Vec<Late>,
@@ -214,7 +207,10 @@ impl Bus {
     /// [`Error::Port`] if the port cannot be opened or the connection made;
     /// [`Error::InvalidArgument`] for a bad line format or a malformed `scheme://` port.
     pub fn open(config: BusConfig) -> Result<Bus> {
-        Bus::with_opener(config, Box::new(open_port))
+        Bus::with_opener(
+            config,
+            Box::new(|c: &BusConfig| open(&c.port, &c.line, c.rs485.as_ref())),
+        )
     }
 
     /// A Bus over the transport `opener` makes from the config, now and at each reopen.
@@ -234,15 +230,15 @@ impl Bus {
     }
 
     fn build(config: BusConfig, transport: Box<dyn Transport>, opener: Option<Opener>) -> Bus {
+        let link = Link::Open(Framed::new(transport, &config.port));
         Bus {
             config,
             state: Mutex::new(State {
-                link: Link::Open(transport),
+                link,
                 opener,
                 frames_out: 0,
                 silence: SilenceGuard::new(),
-                last_write: HashMap::new(),
-                last_broadcast: None,
+                pacing: WritePacing::new(),
                 late: Vec::new(),
                 echo_seen: false,
                 stats: Stats::default(),
@@ -313,7 +309,7 @@ impl Bus {
             None => Err(self.cannot_reopen()),
         };
         let transport = opened?;
-        st.link = Link::Open(transport);
+        st.link = Link::Open(Framed::new(transport, &self.config.port));
         st.stats.reopens += 1;
         log::debug!(target: "benchbus::wire", "port {} reopened", self.config.port);
         Ok(())
@@ -520,7 +516,7 @@ impl Bus {
         }
         request.validate()?;
         let frame = encode_request(BROADCAST, request);
-        let mut st = self.lock_when(State::broadcast_ready);
+        let mut st = self.lock_when(|st| st.pacing.broadcast_ready());
         self.on_port(&mut st, |st| {
             let sent = self.send(st, &frame, request, self.config.timeout);
             let sent_end = match &sent {
@@ -539,7 +535,7 @@ impl Bus {
             }
             let now = Instant::now();
             st.silence.busy_until(now);
-            st.last_broadcast = Some(now);
+            st.pacing.broadcast(now);
             if let Err(e) = sent {
                 st.stats.frame_errors += 1;
                 return Err(e);
@@ -599,7 +595,9 @@ impl Bus {
         })
     }
 
-    /// A request's attempts on the open port, and its checked response.
+    /// A request's attempts on the open port, and its checked response: the one loop that
+    /// retries, after a timeout or a corrupt frame (a garbled local echo included), never
+    /// after an exception reply.
     fn exchange(
         &self,
         st: &mut State,
@@ -610,42 +608,14 @@ impl Bus {
     ) -> Result<Response> {
         let is_write = is_write(request);
         let paced = is_write && !opts.write_interval.is_zero();
+        // Nothing comes back but the local echo on a Bus opened with `echo`: a garbled one
+        // is sent again, as a corrupt reply would be.
+        let unanswered = is_write && !opts.write_reply;
         let timeout = opts.timeout.unwrap_or(self.config.timeout);
         let attempts = opts
             .retries
             .unwrap_or(self.config.retries)
             .saturating_add(1);
-        if is_write && !opts.write_reply {
-            // Nothing comes back but the local echo on a Bus opened with `echo`: a garbled
-            // one is sent again, as a corrupt reply would be.
-            for attempt in 0..attempts {
-                if attempt > 0 {
-                    if self.interrupted() {
-                        return Err(interrupted(unit, request, attempt));
-                    }
-                    st.stats.retries += 1;
-                    pace(st, unit, opts.write_interval);
-                }
-                let sent = self.send(st, frame, request, timeout);
-                st.wrote(unit, opts.write_interval);
-                match sent {
-                    Ok(_) => {
-                        st.stats.transactions += 1;
-                        return Ok(unanswered_write(request));
-                    }
-                    Err(e @ Error::Frame { .. }) if attempt + 1 < attempts => {
-                        log::debug!(target: "benchbus::wire", "unanswered write, sent again: {e}");
-                        st.stats.frame_errors += 1;
-                    }
-                    Err(e) => {
-                        if matches!(e, Error::Frame { .. }) {
-                            st.stats.frame_errors += 1;
-                        }
-                        return Err(e);
-                    }
-                }
-            }
-        }
         let mut last_error = None;
         let mut timed_out = false;
         let result = 'attempts: {
@@ -660,16 +630,24 @@ impl Bus {
                         pace(st, unit, opts.write_interval);
                     }
                 }
-                let outcome =
-                    self.attempt(st, unit, request, frame, timeout, opts.window_from_start);
-                // Late frames the transport told apart and dropped itself (Modbus TCP).
+                let outcome = if unanswered {
+                    self.send(st, frame, request, timeout)
+                        .map(|_| (Reply::Normal(unanswered_write(request)), Vec::new()))
+                } else {
+                    self.attempt(st, unit, request, frame, timeout, opts.window_from_start)
+                };
+                // Late frames the framing told apart and dropped itself (Modbus TCP).
                 if let Link::Open(transport) = &mut st.link {
                     st.stats.stale_bytes += transport.take_dropped();
                 }
                 if is_write {
-                    st.wrote(unit, opts.write_interval);
+                    st.pacing.wrote(unit, opts.write_interval, Instant::now());
                 }
                 let error = match outcome {
+                    Ok((Reply::Normal(response), _)) if unanswered => {
+                        st.stats.transactions += 1;
+                        break 'attempts Ok(response);
+                    }
                     Ok((Reply::Normal(response), reply)) => {
                         match check_echo(request, &response, opts.echo) {
                             Ok(()) => {
@@ -703,6 +681,9 @@ impl Bus {
                     } => st.stats.crc_errors += 1,
                     Error::Frame { .. } => st.stats.frame_errors += 1,
                     _ => break 'attempts Err(error),
+                }
+                if unanswered && attempt + 1 < attempts {
+                    log::debug!(target: "benchbus::wire", "unanswered write, sent again: {error}");
                 }
                 last_error = Some(error);
             }
@@ -969,7 +950,7 @@ impl Bus {
     /// echo's place (the adapter does not echo, and `echo` is wrong for it).
     fn read_echo(
         &self,
-        transport: &mut Box<dyn Transport>,
+        transport: &mut Framed,
         frame: &[u8],
         request: &Request,
         deadline: Instant,
@@ -1039,12 +1020,7 @@ impl Bus {
 
     /// Reads into `buf` what arrives within `wait`: 0 if nothing did, or if there was no
     /// room or no time to wait.
-    fn read_within(
-        &self,
-        transport: &mut Box<dyn Transport>,
-        buf: &mut [u8],
-        wait: Duration,
-    ) -> Result<usize> {
+    fn read_within(&self, transport: &mut Framed, buf: &mut [u8], wait: Duration) -> Result<usize> {
         if buf.is_empty() || wait.is_zero() {
             return Ok(0);
         }
@@ -1068,7 +1044,7 @@ impl Bus {
     }
 
     /// The open port's transport (an error if there is none: closed, or lost).
-    fn port<'a>(&self, link: &'a mut Link) -> Result<&'a mut Box<dyn Transport>> {
+    fn port<'a>(&self, link: &'a mut Link) -> Result<&'a mut Framed> {
         match link {
             Link::Open(transport) => Ok(transport),
             Link::Closed => Err(self.closed()),
@@ -1105,7 +1081,7 @@ impl Bus {
     /// The bus, once `interval` has passed since the last write to `unit`. The wait happens
     /// without the lock, so requests to other units go on meanwhile.
     fn lock_paced(&self, unit: u8, interval: Duration) -> MutexGuard<'_, State> {
-        self.lock_when(|st| st.write_ready(unit, interval))
+        self.lock_when(|st| st.pacing.write_ready(unit, interval))
     }
 
     /// The bus, once `ready(state)` (the instant it may go on) has passed; the waiting
@@ -1166,80 +1142,12 @@ impl State {
             until,
         });
     }
-
-    /// Records that a write to `unit` (whose device wants `interval` between writes) ended.
-    fn wrote(&mut self, unit: u8, interval: Duration) {
-        let now = Instant::now();
-        self.last_write
-            .entry(unit)
-            .and_modify(|(at, widest)| {
-                *at = now;
-                *widest = (*widest).max(interval);
-            })
-            .or_insert((now, interval));
-    }
-
-    /// When a write to `unit` may go, `interval` after its last write or the last broadcast.
-    fn write_ready(&self, unit: u8, interval: Duration) -> Option<Instant> {
-        let last = self.last_write.get(&unit).map(|&(at, _)| at);
-        last.max(self.last_broadcast).map(|at| at + interval)
-    }
-
-    /// When a broadcast may go: every unit's own write interval has passed since its last
-    /// write, and the widest of them since the last broadcast.
-    fn broadcast_ready(&self) -> Option<Instant> {
-        let widest = self.last_write.values().map(|&(_, i)| i).max();
-        let after_broadcast = self
-            .last_broadcast
-            .map(|at| at + widest.unwrap_or_default());
-        self.last_write
-            .values()
-            .map(|&(at, interval)| at + interval)
-            .chain(after_broadcast)
-            .max()
-    }
 }
 
 /// Sleeps (holding the bus) until `interval` has passed since the last write to `unit`.
 fn pace(st: &State, unit: u8, interval: Duration) {
-    if let Some(ready) = st.write_ready(unit, interval) {
+    if let Some(ready) = st.pacing.write_ready(unit, interval) {
         sleep_until(ready);
-    }
-}
-
-/// Opens the transport `config.port` names ([`parse_endpoint`]): a serial port, or a TCP
-/// connection (Modbus TCP, or RTU frames over TCP). Reopening connects again.
-///
-/// # Errors
-/// [`Error::InvalidArgument`] for a malformed `scheme://` port, before anything is opened;
-/// [`Error::Port`] if the port cannot be opened or the connection made.
-fn open_port(config: &BusConfig) -> Result<Box<dyn Transport>> {
-    let endpoint = parse_endpoint(&config.port).map_err(Error::InvalidArgument)?;
-    let (host, port, framing) = match &endpoint {
-        Endpoint::Serial(path) => {
-            return match SerialTransport::open_with(path, &config.line, config.rs485.as_ref()) {
-                Ok(transport) => Ok(Box::new(transport)),
-                Err(e) => Err(Error::Port {
-                    port: config.port.clone(),
-                    message: format!("cannot open: {}", describe_open_error(&e)),
-                    source: None,
-                }),
-            }
-        }
-        Endpoint::ModbusTcp { host, port } => (host, *port, Framing::Mbap),
-        Endpoint::RtuOverTcp { host, port } => (host, *port, Framing::Rtu),
-    };
-    match TcpTransport::connect(host, port, framing) {
-        Ok(transport) => Ok(Box::new(transport)),
-        Err(e) => Err(Error::Port {
-            port: config.port.clone(),
-            message: format!(
-                "cannot connect to {}: {}",
-                endpoint.address(),
-                describe_connect_error(&e)
-            ),
-            source: None,
-        }),
     }
 }
 

@@ -1,8 +1,10 @@
 //! Line format to wire timing: character time, t1.5 and t3.5 (Modbus over Serial Line V1.02,
 //! 2.5.1.1: above 19200 baud fixed values of 750 us and 1.750 ms are used); precise sleeps to
-//! a monotonic deadline ([`sleep_until`]); the absolute deadlines of a polling loop
-//! ([`Schedule`]).
+//! a monotonic deadline ([`sleep_until`]); the line's silence before a frame
+//! ([`SilenceGuard`]) and the per-unit pacing of writes ([`WritePacing`]); the absolute
+//! deadlines of a polling loop ([`Schedule`]).
 
+use std::collections::HashMap;
 use std::time::{Duration, Instant};
 
 /// Parity of the line.
@@ -163,6 +165,65 @@ impl SilenceGuard {
     }
 }
 
+/// Per-unit write pacing: the least time between two write requests to the same unit that
+/// its device asks for (J2: 150 ms), where a broadcast counts as a write to every unit.
+///
+/// Pure bookkeeping: it is told when writes ended and answers when the next may go; it never
+/// reads a clock or sleeps.
+#[derive(Debug, Clone, Default)]
+pub struct WritePacing {
+    /// When each unit's last write ended, and the longest write interval its device asked
+    /// for.
+    last_write: HashMap<u8, (Instant, Duration)>,
+    /// When the last broadcast's turnaround ended: a write to every unit.
+    last_broadcast: Option<Instant>,
+}
+
+impl WritePacing {
+    /// No write yet: every write may go at once.
+    pub fn new() -> WritePacing {
+        WritePacing::default()
+    }
+
+    /// Records that a write to `unit` (whose device wants `interval` between writes) ended
+    /// at `at`.
+    pub fn wrote(&mut self, unit: u8, interval: Duration, at: Instant) {
+        self.last_write
+            .entry(unit)
+            .and_modify(|(last, widest)| {
+                *last = at;
+                *widest = (*widest).max(interval);
+            })
+            .or_insert((at, interval));
+    }
+
+    /// Records that a broadcast (a write to every unit) ended at `at`.
+    pub fn broadcast(&mut self, at: Instant) {
+        self.last_broadcast = Some(at);
+    }
+
+    /// When a write to `unit` may go: `interval` after its last write or the last
+    /// broadcast; None if there was neither.
+    pub fn write_ready(&self, unit: u8, interval: Duration) -> Option<Instant> {
+        let last = self.last_write.get(&unit).map(|&(at, _)| at);
+        last.max(self.last_broadcast).map(|at| at + interval)
+    }
+
+    /// When a broadcast may go: every unit's own write interval has passed since its last
+    /// write, and the widest of them since the last broadcast; None if nothing holds it.
+    pub fn broadcast_ready(&self) -> Option<Instant> {
+        let widest = self.last_write.values().map(|&(_, i)| i).max();
+        let after_broadcast = self
+            .last_broadcast
+            .map(|at| at + widest.unwrap_or_default());
+        self.last_write
+            .values()
+            .map(|&(at, interval)| at + interval)
+            .chain(after_broadcast)
+            .max()
+    }
+}
+
 /// Sleeps until `deadline` on the monotonic clock; returns at once if it has passed. Never
 /// returns before it, and never spins.
 ///
@@ -252,9 +313,10 @@ mod slack {
 /// spent between samples never accumulates as drift. A sample taken late (by the caller or a
 /// slow reply) skips the deadlines already past rather than firing them in a burst, and
 /// counts them in [`Schedule::missed`]. With a duration the deadlines end before the first
-/// one at or after `start + duration`, counted in ticks as Python's `benchbus._clock.ticks`
-/// counts them: tick `n` is the end if `n * interval >= duration - epsilon`, with `epsilon`
-/// 1 ns per second of duration (at least 1 ns), so 0.9 s at 0.3 s is 3 ticks, not 4.
+/// one at or after `start + duration`, counted in ticks (in floats, as a Python loop would
+/// count them; `benchbus._core._Ticks` gives the deadlines to Python): tick `n` is the end
+/// if `n * interval >= duration - epsilon`, with `epsilon` 1 ns per second of duration (at
+/// least 1 ns), so 0.9 s at 0.3 s is 3 ticks, not 4.
 ///
 /// Pure bookkeeping: it is given `now` and never reads a clock or sleeps.
 #[derive(Debug, Clone)]
@@ -631,6 +693,33 @@ mod tests {
         let _ = s.next(start); // deadline 1 may or may not fit in an Instant
         assert_eq!(s.next(start), None);
         assert_eq!(s.next(start), None);
+    }
+
+    #[test]
+    fn write_pacing_per_unit_and_across_broadcasts() {
+        let t0 = Instant::now();
+        let mut p = WritePacing::new();
+        assert_eq!(p.write_ready(1, ms(150)), None);
+        assert_eq!(p.broadcast_ready(), None);
+        p.wrote(1, ms(150), t0);
+        assert_eq!(p.write_ready(1, ms(150)), Some(t0 + ms(150)));
+        // Another unit is not held up by unit 1's writes.
+        assert_eq!(p.write_ready(2, ms(150)), None);
+        // A broadcast waits out unit 1's interval...
+        assert_eq!(p.broadcast_ready(), Some(t0 + ms(150)));
+        p.wrote(2, ms(0), t0 + ms(10));
+        assert_eq!(p.broadcast_ready(), Some(t0 + ms(150)));
+        // ...and every unit's next write waits its interval after the broadcast.
+        p.broadcast(t0 + ms(200));
+        assert_eq!(p.write_ready(1, ms(150)), Some(t0 + ms(350)));
+        assert_eq!(p.write_ready(2, ms(20)), Some(t0 + ms(220)));
+        // The next broadcast waits the widest interval any unit asked for.
+        assert_eq!(p.broadcast_ready(), Some(t0 + ms(350)));
+        // A unit's widest interval is kept even when a later write asks for less.
+        p.wrote(1, ms(50), t0 + ms(400));
+        assert_eq!(p.broadcast_ready(), Some(t0 + ms(550)));
+        p.broadcast(t0 + ms(500));
+        assert_eq!(p.broadcast_ready(), Some(t0 + ms(650)));
     }
 
     #[test]

@@ -732,16 +732,7 @@ fn once_an_echo_was_seen_a_reply_in_its_place_is_retried() {
     let e = bus
         .read_holding_registers(1, 0, 1, &TxOptions::default())
         .unwrap_err();
-    assert!(
-        matches!(
-            e,
-            Error::Frame {
-                kind: FrameError::LocalEcho { .. },
-                ..
-            }
-        ),
-        "{e:?}"
-    );
+    assert!(is_local_echo(&e), "{e:?}");
     assert_eq!(bus.stats().retries, 1);
 }
 
@@ -758,21 +749,23 @@ fn a_truncated_write_reply_is_a_timeout_not_an_echo() {
     assert!(matches!(e, Error::Timeout { .. }), "{e:?}");
 }
 
+/// Whether `e` is a garbled (or missing) local echo.
+fn is_local_echo(e: &Error) -> bool {
+    matches!(
+        e,
+        Error::Frame {
+            kind: FrameError::LocalEcho { .. },
+            ..
+        }
+    )
+}
+
 #[test]
 fn a_broadcast_with_a_garbled_echo_keeps_its_turnaround() {
     let (bus, t) = common::echo_bus(vec![], 0);
     t.0.lock().unwrap().garble_echo = 1;
     let e = bus.broadcast_write_register(1, 5).unwrap_err();
-    assert!(
-        matches!(
-            e,
-            Error::Frame {
-                kind: FrameError::LocalEcho { .. },
-                ..
-            }
-        ),
-        "{e:?}"
-    );
+    assert!(is_local_echo(&e), "{e:?}");
     let s = bus.stats();
     assert_eq!((s.broadcasts, s.frame_errors), (1, 1));
     assert_eq!(common::sent(&t).len(), 1, "a broadcast is not repeated");
@@ -792,6 +785,24 @@ fn an_unanswered_write_with_a_garbled_echo_is_sent_again() {
     let s = bus.stats();
     assert_eq!((s.transactions, s.frame_errors, s.retries), (1, 1, 1));
     assert_eq!(common::sent(&t).len(), 2);
+}
+
+#[test]
+fn an_unanswered_write_whose_echo_stays_garbled_fails_after_its_attempts() {
+    let (bus, t) = common::echo_bus(vec![], 2);
+    t.0.lock().unwrap().garble_echo = 5;
+    let opts = TxOptions {
+        write_reply: false,
+        ..TxOptions::default()
+    };
+    let e = bus.write_register(1, 1, 5, &opts).unwrap_err();
+    assert!(is_local_echo(&e), "{e:?}");
+    let s = bus.stats();
+    assert_eq!(
+        (s.transactions, s.frame_errors, s.retries, s.timeouts),
+        (0, 3, 2, 0)
+    );
+    assert_eq!(common::sent(&t).len(), 3);
 }
 
 #[test]

@@ -1,4 +1,4 @@
-"""Recordings: the steady clock (``benchbus._clock.ticks``), ``device.record()`` on the
+"""Recordings: ``device.record()`` on the
 simulators, the Recording's exports and the notebook displays of status objects.
 
 Timing is checked two ways: with a fake clock and sleep, where every deadline and every
@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import csv
 import io
-import itertools
 import math
 import os
 import subprocess
@@ -26,7 +25,6 @@ from typing import Any
 import pytest
 
 import benchbus as bb
-from benchbus._clock import ticks
 from benchbus._record import PeriodStats, Recording, record
 from benchbus.sim import DriveDevice, J2Device, PblDevice, Simulator
 
@@ -79,58 +77,6 @@ def recording(n: int = 3, **kwargs: Any) -> Recording:
     columns = {"a": [float(i) for i in range(n)], "b": [10.0 + i / 4 for i in range(n)]}
     kwargs.setdefault("interval", 0.5)
     return Recording(times, times, columns, **kwargs)
-
-
-# ---- the steady clock --------------------------------------------------------------------------
-
-
-def test_ticks_keep_absolute_deadlines_whatever_the_loop_costs() -> None:
-    """Each pass takes 0.1 s and every sleep overshoots by 1/16 s: a loop that slept one
-    interval after its body would be 3.25 s late after 20 passes; the ticks are not."""
-    fake = FakeTime(oversleep=0.0625)
-    seen = []
-    for n, deadline, missed in ticks(0.25, 5.0, clock=fake.clock, sleep=fake.sleep):
-        seen.append((n, deadline, missed, fake.now))
-        fake.now += 0.1  # the loop body
-    assert [s[0] for s in seen] == list(range(20))
-    assert [s[1] for s in seen] == [1024.0 + n * 0.25 for n in range(20)]
-    assert all(s[2] == 0 for s in seen)
-    # Every pass starts one oversleep after its deadline, the first on time: no drift.
-    assert [s[3] - s[1] for s in seen] == [0.0] + [0.0625] * 19
-
-
-def test_ticks_skip_the_deadlines_an_overrun_passed_and_count_them() -> None:
-    fake = FakeTime()
-    body = {4: 0.875}  # the pass at deadline 1.0 takes until 1.875: 1.25 and 1.5 are gone
-    seen = []
-    for n, deadline, missed in ticks(0.25, 3.0, clock=fake.clock, sleep=fake.sleep):
-        seen.append((n, deadline - 1024.0, missed, fake.now - 1024.0))
-        fake.now += body.get(n, 0.0625)
-    assert [s[0] for s in seen] == [0, 1, 2, 3, 4, 7, 8, 9, 10, 11]
-    assert seen[5] == (7, 1.75, 2, 1.875)  # the latest deadline past, at once
-    assert seen[6] == (8, 2.0, 0, 2.0)  # then on the grid again
-    assert sum(s[2] for s in seen) == 2
-
-
-def test_ticks_without_duration_go_on_and_with_zero_duration_never_start() -> None:
-    fake = FakeTime()
-    first = list(itertools.islice(ticks(0.5, clock=fake.clock, sleep=fake.sleep), 100))
-    assert [d for _, d, _ in first] == [1024.0 + n * 0.5 for n in range(100)]
-    assert list(ticks(0.5, 0, clock=fake.clock, sleep=fake.sleep)) == []
-    # An interval longer than the duration: one tick, at the start.
-    assert [n for n, _, _ in ticks(2.0, 0.5, clock=fake.clock, sleep=fake.sleep)] == [0]
-
-
-@pytest.mark.parametrize(
-    ("interval", "duration"),
-    [
-        *[(bad, 1.0) for bad in (0, -0.1, math.nan, math.inf, "0.1")],
-        *[(0.1, bad) for bad in (-1.0, math.nan, math.inf)],
-    ],
-)
-def test_ticks_refuse_bad_arguments(interval: Any, duration: Any) -> None:
-    with pytest.raises(ValueError):
-        next(ticks(interval, duration))
 
 
 # ---- record() on a fake clock --------------------------------------------------------------------
@@ -611,20 +557,6 @@ def test_display_helpers_format_and_escape() -> None:
         "<thead><tr><th>a&amp;b</th></tr></thead><tbody><tr><td>&lt;x&gt;</td></tr></tbody>"
         "</table>"
     )
-
-
-def test_tick_count_does_not_depend_on_where_the_clock_starts() -> None:
-    from benchbus._clock import ticks
-
-    for start in (0.0, 1000.0, 123456.7):
-        for interval, duration in ((0.3, 0.9), (0.7, 2.1), (0.1, 1.0)):
-            now = [start]
-
-            def advance(d: float, now: list[float] = now) -> None:
-                now[0] += d
-
-            got = list(ticks(interval, duration, clock=lambda now=now: now[0], sleep=advance))
-            assert len(got) == round(duration / interval), (start, interval, duration)
 
 
 def test_unknown_columns_are_refused_before_anything_is_sent() -> None:

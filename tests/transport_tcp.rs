@@ -127,7 +127,7 @@ fn mbap_request_is_golden_and_transaction_ids_count_up() {
     assert_eq!(read(&bus).unwrap(), vec![0x1234]);
     assert_eq!(read(&bus).unwrap(), vec![0xABCD]);
     let (first, second) = join(server);
-    // The first transaction id is 1 (benchbus::transport::FIRST_TRANSACTION_ID).
+    // The first transaction id is 1 (benchbus::codec::mbap::FIRST_TRANSACTION_ID).
     assert_eq!(first, [0, 1, 0, 0, 0, 6, 1, 3, 0x30, 6, 0, 1]);
     assert_eq!(second, [0, 2, 0, 0, 0, 6, 1, 3, 0x30, 6, 0, 1]);
     assert_eq!(bus.stats().transactions, 2);

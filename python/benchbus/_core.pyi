@@ -1,7 +1,7 @@
 """Type stubs for the compiled core (``benchbus._core``)."""
 
 import os
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from types import TracebackType
 from typing import Any
 
@@ -15,6 +15,7 @@ __all__ = [
     "PblCore",
     "Poll",
     "Stats",
+    "_Ticks",
     "__version__",
     "_panic_on_wire",
     "crc16",
@@ -362,6 +363,23 @@ class Poll:
         Python's ``time.monotonic()`` and the poll's deadlines read the same clock
         (CLOCK_MONOTONIC on Linux), so ``started + t`` is sample ``t``'s deadline on it.
         """
+
+@final
+class _Ticks:
+    """Deadlines every ``interval`` seconds from the first ``next()`` (the Schedule of
+    :meth:`Bus.poll`), for ``duration`` seconds or for ever; internal."""
+
+    def __new__(
+        cls,
+        interval: float,
+        duration: float | None = None,
+        *,
+        clock: Callable[[], float] | None = None,
+        sleep: Callable[[float], object] | None = None,
+    ) -> Self: ...
+    def __iter__(self) -> Self: ...
+    def __next__(self) -> tuple[int, float, int]:
+        """Wait for the next deadline not yet past; ``(n, deadline, missed)``."""
 
 @final
 class DriveCore:

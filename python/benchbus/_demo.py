@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, TextIO
 
 import benchbus as bb
-from benchbus._clock import ticks
+from benchbus._core import _Ticks as ticks
 from benchbus._device import add_note
 
 if TYPE_CHECKING:

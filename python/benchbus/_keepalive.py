@@ -14,7 +14,7 @@ from collections.abc import Callable
 from types import TracebackType
 from typing import TYPE_CHECKING
 
-from benchbus._clock import ticks
+from benchbus._core import _Ticks
 from benchbus._record import check_seconds
 
 if TYPE_CHECKING:
@@ -84,7 +84,7 @@ class KeepAlive:
         self._stopping.wait(seconds)
 
     def _run(self) -> None:
-        for _n, _deadline, _missed in ticks(self.interval, sleep=self._wait):
+        for _n, _deadline, _missed in _Ticks(self.interval, sleep=self._wait):
             if self._stopping.is_set():
                 return
             try:

@@ -1,7 +1,7 @@
 """Recordings: a device's measurements sampled on a steady clock, for notebooks and benches.
 
 :meth:`benchbus.Drive.record` (and every device with ``sample()``) samples on absolute
-deadlines (:func:`benchbus._clock.ticks`) into a :class:`Recording`, which gives its
+deadlines (the Schedule of :meth:`benchbus.Bus.poll`) into a :class:`Recording`, which gives its
 samples as CSV (standard library only), a pandas DataFrame (``pip install
 'benchbus[data]'``) or a matplotlib plot (``pip install 'benchbus[plot]'``). pandas and
 matplotlib are imported only when asked for.
@@ -20,7 +20,7 @@ from collections.abc import Callable, Iterable, Mapping, Sequence
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, cast, overload
 
-from benchbus._clock import ticks
+from benchbus._core import _Ticks
 from benchbus._display import html_table, plural
 
 if TYPE_CHECKING:
@@ -394,7 +394,14 @@ def record(
     rec = Recording([], [], {}, interval=interval, duration=duration, device=device)
     names: list[str] | None = None
     try:
-        for n, deadline, missed in ticks(interval, duration, clock=clock, sleep=sleep):
+        # The real clock and sleep are the schedule's own (it waits without the GIL).
+        ticks = _Ticks(
+            interval,
+            duration,
+            clock=None if clock is time.monotonic else clock,
+            sleep=None if sleep is time.sleep else sleep,
+        )
+        for n, deadline, missed in ticks:
             if rec.clock_start is None:
                 rec.clock_start = deadline - n * interval
                 rec.start = datetime.now().astimezone()

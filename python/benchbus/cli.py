@@ -47,7 +47,7 @@ from types import FrameType
 from typing import IO, TYPE_CHECKING, Any, NoReturn
 
 import benchbus as bb
-from benchbus._clock import ticks
+from benchbus._core import _Ticks as ticks
 from benchbus._device import NOTED
 from benchbus._display import plural
 from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen

@@ -10,6 +10,7 @@ mod j2;
 mod pbl;
 mod poll;
 mod ports;
+mod ticks;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
@@ -867,6 +868,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<j2::PyJ2Core>()?;
     m.add_class::<pbl::PyPblCore>()?;
     m.add_class::<poll::PyPoll>()?;
+    m.add_class::<ticks::PyTicks>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
     m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
     m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;

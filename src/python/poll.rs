@@ -1,6 +1,6 @@
 //! `Bus.poll`: an iterator of holding-register reads on absolute deadlines. The deadline
 //! bookkeeping is [`crate::timing::Schedule`]; this file sleeps (GIL released, in slices that
-//! let Ctrl-C through), reads and maps errors.
+//! let Ctrl-C through: [`sleep_near`], which `_Ticks` shares), reads and maps errors.
 
 use super::{
     int_in, on_wire, opt, seconds, seconds_value, to_pyerr, u16_arg, unit_arg, within_map,
@@ -114,17 +114,9 @@ impl PyPoll {
         let Some((n, deadline)) = self.next_deadline(py)? else {
             return Ok(None);
         };
-        // Long waits in slices, with the GIL released, so Ctrl-C gets through; the last
-        // slice and the request share one release, so the request is not held up waiting
-        // for the GIL after the sleep.
-        loop {
-            let now = Instant::now();
-            if deadline.saturating_duration_since(now) <= SLICE {
-                break;
-            }
-            py.detach(move || sleep_until(now + SLICE));
-            py.check_signals()?;
-        }
+        // The last slice and the request share one release, so the request is not held up
+        // waiting for the GIL after the sleep.
+        sleep_near(py, deadline)?;
         let (unit, address, count) = (self.unit, self.address, self.count);
         let values = on_wire(py, &self.bus, move |b| {
             sleep_until(deadline);
@@ -162,6 +154,22 @@ impl PyPoll {
     }
 }
 
+/// Sleeps until `deadline` is at most one [`SLICE`] away: in slices, with the GIL released,
+/// so Ctrl-C (and other signals) get through between them.
+///
+/// # Errors
+/// What a signal handler raised (KeyboardInterrupt).
+pub(super) fn sleep_near(py: Python<'_>, deadline: Instant) -> PyResult<()> {
+    loop {
+        let now = Instant::now();
+        if deadline.saturating_duration_since(now) <= SLICE {
+            return Ok(());
+        }
+        py.detach(move || sleep_until(now + SLICE));
+        py.check_signals()?;
+    }
+}
+
 /// A duration argument: a finite number of seconds >= 0, as given and on the clock.
 fn duration_arg(obj: &Bound<'_, PyAny>) -> PyResult<(f64, Duration)> {
     let value = seconds_value(obj, "duration")?;
@@ -179,7 +187,7 @@ fn duration_arg(obj: &Bound<'_, PyAny>) -> PyResult<(f64, Duration)> {
 /// The monotonic clock now, as an `Instant` and as `time.monotonic()` seconds taken at the
 /// same moment. On Linux both are `CLOCK_MONOTONIC`, read back to back; elsewhere (or should
 /// that read fail) Python's own clock is read right after the `Instant`.
-fn monotonic_start(py: Python<'_>) -> PyResult<(Instant, f64)> {
+pub(super) fn monotonic_start(py: Python<'_>) -> PyResult<(Instant, f64)> {
     #[cfg(target_os = "linux")]
     if let Some(pair) = crate::timing::monotonic_now() {
         return Ok(pair);

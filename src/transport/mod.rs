@@ -1,11 +1,17 @@
 //! Byte pipes under the [`Bus`](crate::bus::Bus). A transport moves bytes and knows nothing
-//! of Modbus; the bus does the framing, timing and checking. (The Modbus TCP transport is the
-//! one exception: it translates the Bus's RTU frames to and from MBAP frames, see
-//! [`TcpTransport`].)
+//! of Modbus: a serial port ([`SerialTransport`]) or a TCP connection ([`TcpTransport`]).
 //!
-//! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]).
+//! What goes where: the frames' bytes are the codec's ([`crate::codec::rtu`] for RTU,
+//! [`crate::codec::mbap`] for Modbus TCP's MBAP header and transaction ids); which framing
+//! an endpoint speaks is [`Endpoint::framing`]; the Bus writes and reads RTU frames through
+//! a transport and its framing together (`framed`, which passes RTU frames through and
+//! runs a Modbus TCP session for `tcp://`); timing, checks and retries are the Bus's.
+//!
+//! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]), and
+//! opened by [`open`].
 
 pub mod doctor;
+mod framed;
 #[cfg(target_os = "linux")]
 mod linux;
 pub mod ports;
@@ -15,11 +21,14 @@ pub mod tuning;
 #[cfg(windows)]
 mod windows;
 
+pub(crate) use framed::Framed;
 pub use serial::{describe_open_error, SerialTransport};
-pub use tcp::{
-    describe_connect_error, Framing, TcpTransport, CONNECT_TIMEOUT, FIRST_TRANSACTION_ID,
-    WRITE_TIMEOUT,
-};
+pub use tcp::{describe_connect_error, TcpTransport, CONNECT_TIMEOUT, WRITE_TIMEOUT};
+
+use crate::codec::Framing;
+use crate::error::Error;
+use crate::timing::LineFormat;
+use tuning::Rs485;
 
 use std::io;
 use std::net::{Ipv4Addr, Ipv6Addr};
@@ -56,21 +65,6 @@ pub trait Transport: Send {
     /// Whether the bytes cross a serial line, where frames are separated by t3.5 of silence.
     fn is_serial_line(&self) -> bool {
         true
-    }
-
-    /// How many bytes of frames this transport dropped by itself since it was last asked (a
-    /// late Modbus TCP reply, told by its transaction id): the Bus counts them as stale.
-    fn take_dropped(&mut self) -> u64 {
-        0
-    }
-
-    /// The bytes that cross the wire for `frame`, an RTU frame the Bus writes (`sent`: the
-    /// request about to go) or read (the reply to the last request), where they differ from
-    /// it: Modbus TCP sends an MBAP header and the PDU. The wire log and the errors' frames
-    /// show these, so they match a capture. None: the RTU frame itself.
-    fn on_the_wire(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
-        let _ = (frame, sent);
-        None
     }
 }
 
@@ -116,6 +110,15 @@ pub enum Endpoint {
 }
 
 impl Endpoint {
+    /// The frames that cross it: Modbus TCP's MBAP frames for `tcp://`, RTU frames for a
+    /// serial port and `rtu+tcp://`.
+    pub fn framing(&self) -> Framing {
+        match self {
+            Endpoint::ModbusTcp { .. } => Framing::Mbap,
+            Endpoint::Serial(_) | Endpoint::RtuOverTcp { .. } => Framing::Rtu,
+        }
+    }
+
     /// `HOST:PORT` of a network endpoint (an IPv6 address in brackets), as `connect` takes
     /// it and messages show it; the path of a serial one.
     pub fn address(&self) -> String {
@@ -129,6 +132,46 @@ impl Endpoint {
                 }
             }
         }
+    }
+}
+
+/// Opens the transport the port string `port` names ([`parse_endpoint`]): a serial port
+/// at `line` (and, on a board UART, the kernel RS485 mode `rs485`), or a TCP connection
+/// (Modbus TCP, or RTU frames over TCP). Opening again connects again.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a malformed `scheme://` port, before anything is opened;
+/// [`Error::Port`] if the port cannot be opened or the connection made.
+pub fn open(
+    port: &str,
+    line: &LineFormat,
+    rs485: Option<&Rs485>,
+) -> crate::Result<Box<dyn Transport>> {
+    let endpoint = parse_endpoint(port).map_err(Error::InvalidArgument)?;
+    let (host, tcp_port) = match &endpoint {
+        Endpoint::Serial(path) => {
+            return match SerialTransport::open_with(path, line, rs485) {
+                Ok(transport) => Ok(Box::new(transport)),
+                Err(e) => Err(Error::Port {
+                    port: port.to_string(),
+                    message: format!("cannot open: {}", describe_open_error(&e)),
+                    source: None,
+                }),
+            }
+        }
+        Endpoint::ModbusTcp { host, port } | Endpoint::RtuOverTcp { host, port } => (host, *port),
+    };
+    match TcpTransport::connect(host, tcp_port) {
+        Ok(transport) => Ok(Box::new(transport)),
+        Err(e) => Err(Error::Port {
+            port: port.to_string(),
+            message: format!(
+                "cannot connect to {}: {}",
+                endpoint.address(),
+                describe_connect_error(&e)
+            ),
+            source: None,
+        }),
     }
 }
 

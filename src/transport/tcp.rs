@@ -1,5 +1,6 @@
-//! TCP transports on `std::net::TcpStream`: Modbus TCP (MBAP frames) to a gateway
-//! (`tcp://`), and raw RTU frames over TCP to a serial device server (`rtu+tcp://`).
+//! A TCP connection on `std::net::TcpStream`, as a byte pipe: to a Modbus TCP gateway
+//! (`tcp://`, whose MBAP framing is the codec's: [`crate::codec::mbap`]) or to a serial
+//! device server passing raw RTU frames (`rtu+tcp://`).
 //!
 //! The socket is non-blocking; every wait is a `poll` (`WSAPoll` on Windows) bounded by the
 //! caller's deadline, so a read waits at most its timeout and a signal (EINTR) only makes it
@@ -9,9 +10,6 @@
 //! or a reconnecting Bus connects again.
 
 use super::{port_lost, Transport};
-use crate::codec::crc16;
-use crate::error::hex;
-use std::collections::VecDeque;
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 #[cfg(unix)]
@@ -29,66 +27,28 @@ pub const CONNECT_TIMEOUT: Duration = Duration::from_secs(3);
 /// step anyway).
 pub const WRITE_TIMEOUT: Duration = Duration::from_secs(1);
 
-/// The transaction id of the first request on a Modbus TCP connection; each request after
-/// it takes the next (wrapping after 65535).
-pub const FIRST_TRANSACTION_ID: u16 = 1;
-
-/// MBAP header bytes before the length field's count starts: transaction id, protocol id,
-/// length.
-const MBAP_PREFIX: usize = 6;
-
-/// The MBAP length field's sane range: unit id + function code at least, unit id + the
-/// longest PDU (253 bytes) at most.
-const MBAP_LENGTH: std::ops::RangeInclusive<usize> = 2..=254;
-
 /// The most a drain takes in one go: a peer that never stops sending does not hold it.
 const DRAIN_LIMIT: usize = 64 * 1024;
 
 /// The longest wait a deadline is computed for (a timeout beyond it waits this long).
 const LONGEST_WAIT: Duration = Duration::from_secs(86_400);
 
-/// What crosses the TCP connection.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Framing {
-    /// Modbus TCP: MBAP header + PDU, translated to and from the Bus's RTU frames.
-    Mbap,
-    /// The Bus's RTU frames (CRC included), byte for byte.
-    Rtu,
-}
-
-/// A TCP connection to a Modbus TCP gateway or a serial device server.
+/// A TCP connection: bytes written go out as they are, bytes read are what came.
 ///
-/// **`rtu+tcp://` ([`Framing::Rtu`])**: a plain byte pipe. A serial line sits behind the
-/// device server, so [`Transport::is_serial_line`] is true: the Bus keeps t3.5 between
-/// frames and reckons wire time from its line format, which is the serial side's (give the
-/// Bus the baudrate the device server runs its serial port at). The network's own delay
-/// comes out of the reply timeout.
-///
-/// **`tcp://` ([`Framing::Mbap`])**: the Bus builds and reads RTU frames; this transport
-/// translates, so the Bus's reply reading, checks, retries and late-reply handling serve it
-/// unchanged. A frame written is checked for its CRC, which is stripped, and sent as an
-/// MBAP frame: transaction id ([`FIRST_TRANSACTION_ID`] first, then one more per request),
-/// protocol id 0, length (1 + PDU length), unit id (the RTU frame's first byte), PDU. A
-/// broadcast (unit 0) is sent like any request. What is read is taken whole MBAP frames at
-/// a time and handed to the Bus in RTU form (unit + PDU + CRC-16), in as many pieces as it
-/// asks for. A frame whose transaction id is not the last request's (a late reply to an
-/// earlier one), whose protocol id is not 0, or that comes after the last request was
-/// already answered, is dropped (logged at DEBUG on `benchbus::wire`). A header whose
-/// length is outside 2..=254 means the stream is out of step (or not Modbus TCP at all):
-/// there is no telling where the next frame starts, so the connection is reported lost and
-/// the Bus drops it; a reopen (or a reconnecting Bus) starts a fresh one. The gateway does
-/// the serial timing, so [`Transport::is_serial_line`] is false: no t3.5, no wire time.
+/// Behind a serial device server (`rtu+tcp://`) sits a serial line, so
+/// [`Transport::is_serial_line`] is true: the Bus keeps t3.5 between frames and reckons
+/// wire time from its line format, which is the serial side's (give the Bus the baudrate the
+/// device server runs its serial port at). The network's own delay comes out of the reply
+/// timeout. Over Modbus TCP (`tcp://`) the Bus frames its requests with the codec's MBAP
+/// session, and the gateway keeps the line.
 pub struct TcpTransport {
     conn: Conn,
-    /// The MBAP translation state; None for raw RTU over TCP.
-    mbap: Option<Mbap>,
 }
 
 impl std::fmt::Debug for TcpTransport {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("TcpTransport")
             .field("peer", &self.conn.peer)
-            .field("mbap", &self.mbap.is_some())
             .finish()
     }
 }
@@ -101,7 +61,7 @@ impl TcpTransport {
     /// # Errors
     /// The I/O error of the last address tried (see [`describe_connect_error`]), or of the
     /// name lookup.
-    pub fn connect(host: &str, port: u16, framing: Framing) -> io::Result<TcpTransport> {
+    pub fn connect(host: &str, port: u16) -> io::Result<TcpTransport> {
         let peer = if host.contains(':') {
             format!("[{host}]:{port}")
         } else {
@@ -114,7 +74,7 @@ impl TcpTransport {
         let mut last = None;
         for addr in &addrs {
             match TcpStream::connect_timeout(addr, CONNECT_TIMEOUT) {
-                Ok(stream) => return TcpTransport::over(stream, peer, framing),
+                Ok(stream) => return TcpTransport::over(stream, peer),
                 Err(e) => {
                     log::debug!(target: "benchbus::transport", "connect to {addr} failed: {e}");
                     last = Some(e);
@@ -133,22 +93,11 @@ impl TcpTransport {
     ///
     /// # Errors
     /// The I/O error if the socket cannot be set up.
-    pub fn over(stream: TcpStream, peer: String, framing: Framing) -> io::Result<TcpTransport> {
+    pub fn over(stream: TcpStream, peer: String) -> io::Result<TcpTransport> {
         stream.set_nodelay(true)?;
         stream.set_nonblocking(true)?;
-        let mbap = match framing {
-            Framing::Mbap => Some(Mbap {
-                next_tid: FIRST_TRANSACTION_ID,
-                awaited: None,
-                raw: Vec::new(),
-                ready: VecDeque::new(),
-                dropped: 0,
-            }),
-            Framing::Rtu => None,
-        };
         Ok(TcpTransport {
             conn: Conn { stream, peer },
-            mbap,
         })
     }
 }
@@ -281,215 +230,18 @@ impl Conn {
     }
 }
 
-/// The MBAP frame of transaction `tid` carrying `adu` (unit + PDU, of a length in
-/// [`MBAP_LENGTH`]): transaction id, protocol id 0, length, then `adu`.
-fn mbap_frame(tid: u16, adu: &[u8]) -> Vec<u8> {
-    let mut out = Vec::with_capacity(MBAP_PREFIX + adu.len());
-    out.extend_from_slice(&tid.to_be_bytes());
-    out.extend_from_slice(&[0, 0]);
-    out.extend_from_slice(&(adu.len() as u16).to_be_bytes());
-    out.extend_from_slice(adu);
-    out
-}
-
-/// The Modbus TCP side of a [`TcpTransport`].
-struct Mbap {
-    /// The transaction id of the next request.
-    next_tid: u16,
-    /// The transaction id of the request whose reply is awaited: the last one written, until
-    /// it is answered (or the input is discarded before the next request).
-    awaited: Option<u16>,
-    /// Bytes received that do not yet make a whole MBAP frame.
-    raw: Vec<u8>,
-    /// The awaited reply in RTU form, as much of it as the Bus has not read yet.
-    ready: VecDeque<u8>,
-    /// Bytes of frames dropped (late replies, other protocols) since last asked.
-    dropped: u64,
-}
-
-impl Mbap {
-    /// The MBAP frame for the RTU frame `frame` (CRC checked and stripped); the next
-    /// transaction id is used up and awaited.
-    fn wrap(&mut self, frame: &[u8]) -> io::Result<Vec<u8>> {
-        let not_rtu = |why: &str| {
-            io::Error::new(
-                io::ErrorKind::InvalidInput,
-                format!("cannot send {} over Modbus TCP: {why}", hex(frame)),
-            )
-        };
-        let Some((adu, crc)) = frame.split_last_chunk::<2>() else {
-            return Err(not_rtu("not an RTU frame"));
-        };
-        if !MBAP_LENGTH.contains(&adu.len()) {
-            return Err(not_rtu("not an RTU frame (length)"));
-        }
-        if crc16(adu).to_le_bytes() != *crc {
-            return Err(not_rtu("its CRC is wrong"));
-        }
-        let tid = self.next_tid;
-        self.next_tid = tid.wrapping_add(1);
-        self.awaited = Some(tid);
-        Ok(mbap_frame(tid, adu))
-    }
-
-    /// The MBAP frame that carries the RTU frame `frame` (its CRC dropped unchecked): as a
-    /// request it takes the next transaction id, as a reply the last request's. None for
-    /// bytes too short to be a frame.
-    fn shown(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
-        let (adu, _crc) = frame.split_last_chunk::<2>()?;
-        if !MBAP_LENGTH.contains(&adu.len()) {
-            return None;
-        }
-        let tid = if sent {
-            self.next_tid
-        } else {
-            self.next_tid.wrapping_sub(1)
-        };
-        Some(mbap_frame(tid, adu))
-    }
-
-    /// The next whole MBAP frame in `raw`, taken out of it; None while it is incomplete.
-    ///
-    /// # Errors
-    /// [`port_lost`] if the header's length is not sane (the stream is out of step); what
-    /// was buffered is dropped.
-    fn next_frame(&mut self, peer: &str) -> io::Result<Option<Vec<u8>>> {
-        let length = match self.raw.as_slice() {
-            [_, _, _, _, hi, lo, ..] => usize::from(u16::from_be_bytes([*hi, *lo])),
-            _ => return Ok(None),
-        };
-        if !MBAP_LENGTH.contains(&length) {
-            let seen = hex(&self.raw[..self.raw.len().min(16)]);
-            self.raw.clear();
-            self.ready.clear();
-            return Err(port_lost(format!(
-                "Modbus TCP stream from {peer} out of step (MBAP length {length}, bytes {seen}): \
-                 is it a Modbus TCP gateway? (a serial device server passing raw RTU frames is \
-                 rtu+tcp://); connection dropped"
-            )));
-        }
-        let total = MBAP_PREFIX + length;
-        if self.raw.len() < total {
-            return Ok(None);
-        }
-        let rest = self.raw.split_off(total);
-        Ok(Some(std::mem::replace(&mut self.raw, rest)))
-    }
-
-    /// Takes a whole MBAP frame: the awaited reply goes to `ready` in RTU form; anything
-    /// else is dropped.
-    fn take(&mut self, frame: &[u8]) {
-        let [t0, t1, p0, p1, _, _, adu @ ..] = frame else {
-            return;
-        };
-        let tid = u16::from_be_bytes([*t0, *t1]);
-        let protocol = u16::from_be_bytes([*p0, *p1]);
-        if protocol != 0 || self.awaited != Some(tid) {
-            self.dropped += frame.len() as u64;
-        }
-        if protocol != 0 {
-            log::debug!(
-                target: "benchbus::wire",
-                "<- MBAP frame of protocol {protocol} (not Modbus), dropped: {}",
-                hex(frame)
-            );
-            return;
-        }
-        if self.awaited != Some(tid) {
-            let awaited = match self.awaited {
-                Some(t) => format!("transaction {t} is awaited"),
-                None => "no reply is awaited".into(),
-            };
-            log::debug!(
-                target: "benchbus::wire",
-                "<- MBAP reply to transaction {tid} ({awaited}): a late reply, dropped: {}",
-                hex(frame)
-            );
-            return;
-        }
-        self.awaited = None;
-        self.ready.extend(adu);
-        self.ready.extend(crc16(adu).to_le_bytes());
-    }
-}
-
 impl Transport for TcpTransport {
     fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
-        match &mut self.mbap {
-            None => self.conn.send(frame),
-            Some(mbap) => {
-                let out = mbap.wrap(frame)?;
-                self.conn.send(&out)
-            }
-        }
+        self.conn.send(frame)
     }
 
     fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
-        let Some(mbap) = &mut self.mbap else {
-            return self.conn.recv(buf, timeout);
-        };
-        if buf.is_empty() {
-            return Ok(0);
-        }
-        let deadline = Instant::now() + timeout.min(LONGEST_WAIT);
-        let mut chunk = [0u8; 512];
-        let mut expired = false;
-        loop {
-            while let Some(frame) = mbap.next_frame(&self.conn.peer)? {
-                mbap.take(&frame);
-            }
-            if !mbap.ready.is_empty() {
-                let n = buf.len().min(mbap.ready.len());
-                for (slot, byte) in buf.iter_mut().zip(mbap.ready.drain(..n)) {
-                    *slot = byte;
-                }
-                return Ok(n);
-            }
-            // One non-blocking try once the deadline has passed, then give up: frames that
-            // keep coming but are all dropped do not hold the read past its deadline.
-            if expired {
-                return Ok(0);
-            }
-            let left = deadline.saturating_duration_since(Instant::now());
-            expired = left.is_zero();
-            let n = self.conn.recv(&mut chunk, left)?;
-            if n == 0 {
-                return Ok(0);
-            }
-            mbap.raw
-                .extend_from_slice(chunk.get(..n).unwrap_or_default());
-        }
+        self.conn.recv(buf, timeout)
     }
 
     fn discard_input(&mut self) -> io::Result<Vec<u8>> {
-        let Some(mbap) = &mut self.mbap else {
-            let mut stale = Vec::new();
-            self.conn.drain(&mut stale)?;
-            return Ok(stale);
-        };
-        // The awaited reply's unread rest, then every whole frame waiting. A frame's
-        // beginning stays: its rest is on its way, and without it the stream is out of step.
-        let mut stale: Vec<u8> = mbap.ready.drain(..).collect();
-        self.conn.drain(&mut mbap.raw)?;
-        while let Some(frame) = mbap.next_frame(&self.conn.peer)? {
-            stale.extend_from_slice(&frame);
-        }
-        // Whatever answers an earlier request from now on is late.
-        mbap.awaited = None;
+        let mut stale = Vec::new();
+        self.conn.drain(&mut stale)?;
         Ok(stale)
-    }
-
-    fn is_serial_line(&self) -> bool {
-        self.mbap.is_none()
-    }
-
-    fn on_the_wire(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
-        self.mbap.as_ref()?.shown(frame, sent)
-    }
-
-    fn take_dropped(&mut self) -> u64 {
-        self.mbap
-            .as_mut()
-            .map_or(0, |mbap| std::mem::take(&mut mbap.dropped))
     }
 }

@@ -1,0 +1,461 @@
+//! The Modbus TCP application data unit: `MBAP header | PDU`, and a sans-IO session that
+//! carries the Bus's RTU frames over it.
+//!
+//! MODBUS Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3 (MBAP header: transaction
+//! id, protocol id 0, length = the bytes that follow it, unit id; 7 bytes).
+//!
+//! The Bus builds requests and reads replies as RTU frames (`unit | PDU | CRC`) whatever
+//! the line, so one reply decoder serves both. A [`Session`] is what sits between those RTU
+//! frames and the bytes of a Modbus TCP connection: a request's CRC is checked and dropped
+//! and an MBAP header put in its place (the next transaction id); received bytes are cut
+//! into whole MBAP frames, only the reply to the awaited transaction is kept, and it is
+//! handed back as the RTU frame the decoder reads (its CRC computed here, since TCP carries
+//! none). Like the rest of the codec it touches no port and no clock.
+
+use super::rtu::crc16;
+use std::collections::VecDeque;
+use std::ops::RangeInclusive;
+
+/// The transaction id of the first request on a Modbus TCP connection; each request after
+/// it takes the next (wrapping after 65535).
+pub const FIRST_TRANSACTION_ID: u16 = 1;
+
+/// MBAP header bytes before the length field's count starts: transaction id, protocol id,
+/// length.
+pub const PREFIX: usize = 6;
+
+/// The MBAP length field's sane range: unit id + function code at least, unit id + the
+/// longest PDU (253 bytes) at most.
+pub const LENGTH: RangeInclusive<usize> = 2..=254;
+
+/// The Modbus protocol id (any other is another protocol on the same port).
+pub const MODBUS_PROTOCOL: u16 = 0;
+
+/// The MBAP frame of transaction `tid` carrying `adu` (unit id + PDU, of a length in
+/// [`LENGTH`]): transaction id, protocol id 0, length, then `adu`.
+pub fn encode(tid: u16, adu: &[u8]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(PREFIX + adu.len());
+    out.extend_from_slice(&tid.to_be_bytes());
+    out.extend_from_slice(&MODBUS_PROTOCOL.to_be_bytes());
+    out.extend_from_slice(&(adu.len() as u16).to_be_bytes());
+    out.extend_from_slice(adu);
+    out
+}
+
+/// A whole MBAP frame taken apart.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Frame<'a> {
+    /// Transaction id.
+    pub tid: u16,
+    /// Protocol id (0 for Modbus).
+    pub protocol: u16,
+    /// Unit id + PDU (the length field's count).
+    pub adu: &'a [u8],
+}
+
+/// How long the MBAP frame at the start of `buf` is, once its header's length field has
+/// arrived: `Ok(None)` before that.
+///
+/// # Errors
+/// The length field's value, if it is outside [`LENGTH`]: the stream is out of step (or not
+/// Modbus TCP at all), and there is no telling where the next frame starts.
+pub fn frame_len(buf: &[u8]) -> Result<Option<usize>, usize> {
+    let length = match buf {
+        [_, _, _, _, hi, lo, ..] => usize::from(u16::from_be_bytes([*hi, *lo])),
+        _ => return Ok(None),
+    };
+    if LENGTH.contains(&length) {
+        Ok(Some(PREFIX + length))
+    } else {
+        Err(length)
+    }
+}
+
+/// `frame`, one whole MBAP frame (as [`frame_len`] measured it), taken apart; None for
+/// fewer bytes than a header.
+pub fn decode(frame: &[u8]) -> Option<Frame<'_>> {
+    let [t0, t1, p0, p1, _, _, adu @ ..] = frame else {
+        return None;
+    };
+    Some(Frame {
+        tid: u16::from_be_bytes([*t0, *t1]),
+        protocol: u16::from_be_bytes([*p0, *p1]),
+        adu,
+    })
+}
+
+/// Why an RTU frame cannot be sent over Modbus TCP.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum NotRtu {
+    /// Too short to hold a CRC.
+    Short,
+    /// Its unit + PDU is outside [`LENGTH`].
+    Length,
+    /// Its CRC does not match its bytes.
+    Crc,
+}
+
+/// A frame a [`Session`] dropped, and why.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Dropped {
+    /// A frame of another protocol than Modbus.
+    Protocol {
+        /// Its protocol id.
+        protocol: u16,
+        /// The whole frame.
+        frame: Vec<u8>,
+    },
+    /// A reply to a transaction other than the awaited one (a late reply), or one that came
+    /// when no reply was awaited.
+    Late {
+        /// Its transaction id.
+        tid: u16,
+        /// The transaction awaited, if any.
+        awaited: Option<u16>,
+        /// The whole frame.
+        frame: Vec<u8>,
+    },
+}
+
+/// Modbus TCP on one connection, as the Bus's RTU frames see it (see the module docs).
+#[derive(Debug)]
+pub struct Session {
+    /// The transaction id of the next request.
+    next_tid: u16,
+    /// The transaction id of the request whose reply is awaited: the last one written, until
+    /// it is answered (or the input is discarded before the next request).
+    awaited: Option<u16>,
+    /// Bytes received that do not yet make a whole MBAP frame.
+    raw: Vec<u8>,
+    /// The awaited reply in RTU form, as much of it as has not been read yet.
+    ready: VecDeque<u8>,
+    /// Bytes of frames dropped (late replies, other protocols) since last asked.
+    dropped: u64,
+}
+
+impl Default for Session {
+    fn default() -> Self {
+        Session::new()
+    }
+}
+
+impl Session {
+    /// A new connection's session: [`FIRST_TRANSACTION_ID`] comes next, nothing is awaited.
+    pub fn new() -> Session {
+        Session {
+            next_tid: FIRST_TRANSACTION_ID,
+            awaited: None,
+            raw: Vec::new(),
+            ready: VecDeque::new(),
+            dropped: 0,
+        }
+    }
+
+    /// The MBAP frame for the RTU frame `frame` (CRC checked and dropped); the next
+    /// transaction id is used up and awaited. A broadcast (unit 0) goes like any request.
+    ///
+    /// # Errors
+    /// Why `frame` is not an RTU frame that fits an MBAP frame; nothing is used up.
+    pub fn request(&mut self, frame: &[u8]) -> Result<Vec<u8>, NotRtu> {
+        let Some((adu, crc)) = frame.split_last_chunk::<2>() else {
+            return Err(NotRtu::Short);
+        };
+        if !LENGTH.contains(&adu.len()) {
+            return Err(NotRtu::Length);
+        }
+        if crc16(adu).to_le_bytes() != *crc {
+            return Err(NotRtu::Crc);
+        }
+        let tid = self.next_tid;
+        self.next_tid = tid.wrapping_add(1);
+        self.awaited = Some(tid);
+        Ok(encode(tid, adu))
+    }
+
+    /// The MBAP frame that carries the RTU frame `frame` (its CRC dropped unchecked): as a
+    /// request (`sent`) it takes the next transaction id, as a reply the last request's.
+    /// None for bytes too short to be a frame.
+    pub fn shown(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
+        let (adu, _crc) = frame.split_last_chunk::<2>()?;
+        if !LENGTH.contains(&adu.len()) {
+            return None;
+        }
+        let tid = if sent {
+            self.next_tid
+        } else {
+            self.next_tid.wrapping_sub(1)
+        };
+        Some(encode(tid, adu))
+    }
+
+    /// Takes bytes received from the connection.
+    pub fn receive(&mut self, bytes: &[u8]) {
+        self.raw.extend_from_slice(bytes);
+    }
+
+    /// Cuts what was received into whole frames: the awaited reply is kept for
+    /// [`Session::read`] in RTU form; anything else is dropped and returned, for the log.
+    ///
+    /// # Errors
+    /// The out-of-range length of a header ([`frame_len`]): the stream is out of step, and
+    /// what was buffered is dropped. The first bytes received are returned with it.
+    pub fn take_frames(&mut self) -> Result<Vec<Dropped>, (usize, Vec<u8>)> {
+        let mut dropped = Vec::new();
+        while let Some(frame) = self.next_frame()? {
+            dropped.extend(self.accept(&frame));
+        }
+        Ok(dropped)
+    }
+
+    /// Copies the awaited reply's next bytes (RTU form) into `buf`: how many (0 if none are
+    /// ready).
+    pub fn read(&mut self, buf: &mut [u8]) -> usize {
+        let n = buf.len().min(self.ready.len());
+        for (slot, byte) in buf.iter_mut().zip(self.ready.drain(..n)) {
+            *slot = byte;
+        }
+        n
+    }
+
+    /// Drops everything received before a request and returns it: the awaited reply's
+    /// unread rest, then every whole frame waiting (`received`, just taken from the
+    /// connection, first added). A frame's beginning stays: its rest is on its way, and
+    /// without it the stream is out of step. Whatever answers an earlier request from now
+    /// on is late.
+    ///
+    /// # Errors
+    /// As [`Session::take_frames`].
+    pub fn discard(&mut self, received: &[u8]) -> Result<Vec<u8>, (usize, Vec<u8>)> {
+        let mut stale: Vec<u8> = self.ready.drain(..).collect();
+        self.receive(received);
+        while let Some(frame) = self.next_frame()? {
+            stale.extend_from_slice(&frame);
+        }
+        self.awaited = None;
+        Ok(stale)
+    }
+
+    /// How many bytes of frames were dropped (late replies, other protocols) since last
+    /// asked.
+    pub fn take_dropped(&mut self) -> u64 {
+        std::mem::take(&mut self.dropped)
+    }
+
+    /// The next whole MBAP frame received, taken out; None while it is incomplete.
+    fn next_frame(&mut self) -> Result<Option<Vec<u8>>, (usize, Vec<u8>)> {
+        let total = match frame_len(&self.raw) {
+            Ok(Some(total)) => total,
+            Ok(None) => return Ok(None),
+            Err(length) => {
+                let seen = self.raw[..self.raw.len().min(16)].to_vec();
+                self.raw.clear();
+                self.ready.clear();
+                return Err((length, seen));
+            }
+        };
+        if self.raw.len() < total {
+            return Ok(None);
+        }
+        let rest = self.raw.split_off(total);
+        Ok(Some(std::mem::replace(&mut self.raw, rest)))
+    }
+
+    /// Takes a whole MBAP frame: the awaited reply goes to `ready` in RTU form; anything
+    /// else is dropped (and returned).
+    fn accept(&mut self, frame: &[u8]) -> Option<Dropped> {
+        let header = decode(frame)?;
+        if header.protocol != MODBUS_PROTOCOL {
+            self.dropped += frame.len() as u64;
+            return Some(Dropped::Protocol {
+                protocol: header.protocol,
+                frame: frame.to_vec(),
+            });
+        }
+        if self.awaited != Some(header.tid) {
+            self.dropped += frame.len() as u64;
+            return Some(Dropped::Late {
+                tid: header.tid,
+                awaited: self.awaited,
+                frame: frame.to_vec(),
+            });
+        }
+        self.awaited = None;
+        self.ready.extend(header.adu);
+        self.ready.extend(crc16(header.adu).to_le_bytes());
+        None
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Read holding registers of unit 1, 0x0000, 1 register, as an RTU frame.
+    const RTU_READ: [u8; 8] = [0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x84, 0x0A];
+
+    /// The same request over Modbus TCP, transaction 1:
+    /// tid 00 01 | protocol 00 00 | length 00 06 | unit 01 | PDU 03 00 00 00 01.
+    const MBAP_READ: [u8; 12] = [
+        0x00, 0x01, 0x00, 0x00, 0x00, 0x06, 0x01, 0x03, 0x00, 0x00, 0x00, 0x01,
+    ];
+
+    /// Its reply (value 0x1234), transaction 1: length 5 = unit + 03 02 12 34.
+    const MBAP_REPLY: [u8; 11] = [
+        0x00, 0x01, 0x00, 0x00, 0x00, 0x05, 0x01, 0x03, 0x02, 0x12, 0x34,
+    ];
+
+    fn read_all(s: &mut Session) -> Vec<u8> {
+        let mut buf = [0u8; 300];
+        let n = s.read(&mut buf);
+        buf[..n].to_vec()
+    }
+
+    #[test]
+    fn encode_is_golden() {
+        assert_eq!(encode(1, &RTU_READ[..6]), MBAP_READ);
+        assert_eq!(
+            encode(0xBEEF, &[0x00, 0x06, 0x00, 0x01, 0x00, 0x02]),
+            [0xBE, 0xEF, 0, 0, 0, 6, 0x00, 0x06, 0x00, 0x01, 0x00, 0x02]
+        );
+    }
+
+    #[test]
+    fn frame_len_reads_the_header_and_refuses_insane_lengths() {
+        assert_eq!(frame_len(&MBAP_READ[..5]), Ok(None));
+        assert_eq!(frame_len(&MBAP_READ[..6]), Ok(Some(12)));
+        assert_eq!(frame_len(&MBAP_READ), Ok(Some(12)));
+        assert_eq!(frame_len(&[0, 1, 0, 0, 0, 1]), Err(1));
+        assert_eq!(frame_len(&[0, 1, 0, 0, 0, 255]), Err(255));
+        assert_eq!(frame_len(&[0, 1, 0, 0, 0, 254]), Ok(Some(260)));
+    }
+
+    #[test]
+    fn decode_takes_the_header_apart() {
+        assert_eq!(
+            decode(&MBAP_REPLY),
+            Some(Frame {
+                tid: 1,
+                protocol: 0,
+                adu: &MBAP_REPLY[6..],
+            })
+        );
+        assert_eq!(decode(&MBAP_REPLY[..5]), None);
+    }
+
+    #[test]
+    fn requests_drop_the_crc_and_count_transaction_ids_up() {
+        let mut s = Session::new();
+        assert_eq!(s.shown(&RTU_READ, true).as_deref(), Some(&MBAP_READ[..]));
+        assert_eq!(s.request(&RTU_READ).as_deref(), Ok(&MBAP_READ[..]));
+        // As a reply, the shown frame takes the last request's id.
+        assert_eq!(s.shown(&RTU_READ, false).as_deref(), Some(&MBAP_READ[..]));
+        let second = s.request(&RTU_READ).unwrap();
+        assert_eq!(&second[..2], &[0x00, 0x02]);
+        let mut bad = RTU_READ;
+        bad[7] ^= 1;
+        assert_eq!(s.request(&bad), Err(NotRtu::Crc));
+        assert_eq!(s.request(&[0x01, 0x03]), Err(NotRtu::Length));
+        assert_eq!(s.request(&[0x01]), Err(NotRtu::Short));
+        // Refused frames use no id up.
+        assert_eq!(&s.request(&RTU_READ).unwrap()[..2], &[0x00, 0x03]);
+    }
+
+    #[test]
+    fn transaction_ids_wrap() {
+        let mut s = Session::new();
+        s.next_tid = u16::MAX;
+        assert_eq!(&s.request(&RTU_READ).unwrap()[..2], &[0xFF, 0xFF]);
+        assert_eq!(&s.request(&RTU_READ).unwrap()[..2], &[0x00, 0x00]);
+    }
+
+    #[test]
+    fn the_awaited_reply_comes_back_in_rtu_form_in_pieces() {
+        let mut s = Session::new();
+        s.request(&RTU_READ).unwrap();
+        s.receive(&MBAP_REPLY[..4]);
+        assert_eq!(s.take_frames(), Ok(vec![]));
+        assert_eq!(read_all(&mut s), Vec::<u8>::new());
+        s.receive(&MBAP_REPLY[4..]);
+        assert_eq!(s.take_frames(), Ok(vec![]));
+        let mut two = [0u8; 2];
+        assert_eq!(s.read(&mut two), 2);
+        assert_eq!(two, [0x01, 0x03]);
+        // unit 01 | 03 02 12 34 | CRC 0xB533 low byte first.
+        assert_eq!(read_all(&mut s), [0x02, 0x12, 0x34, 0xB5, 0x33]);
+        assert_eq!(s.take_dropped(), 0);
+    }
+
+    #[test]
+    fn late_replies_and_other_protocols_are_dropped_and_counted() {
+        let mut s = Session::new();
+        s.request(&RTU_READ).unwrap();
+        s.request(&RTU_READ).unwrap();
+        let mut foreign = MBAP_REPLY;
+        foreign[1] = 2;
+        foreign[3] = 7;
+        let mut answer = MBAP_REPLY;
+        answer[1] = 2;
+        s.receive(&MBAP_REPLY);
+        s.receive(&foreign);
+        s.receive(&answer);
+        s.receive(&answer);
+        let dropped = s.take_frames().unwrap();
+        assert_eq!(
+            dropped,
+            vec![
+                Dropped::Late {
+                    tid: 1,
+                    awaited: Some(2),
+                    frame: MBAP_REPLY.to_vec()
+                },
+                Dropped::Protocol {
+                    protocol: 7,
+                    frame: foreign.to_vec()
+                },
+                // Already answered: nothing is awaited any more.
+                Dropped::Late {
+                    tid: 2,
+                    awaited: None,
+                    frame: answer.to_vec()
+                },
+            ]
+        );
+        assert_eq!(s.take_dropped(), 33);
+        assert_eq!(s.take_dropped(), 0);
+        assert_eq!(read_all(&mut s), [0x01, 0x03, 0x02, 0x12, 0x34, 0xB5, 0x33]);
+    }
+
+    #[test]
+    fn out_of_step_stream_is_an_error_and_drops_the_buffer() {
+        let mut s = Session::new();
+        s.request(&RTU_READ).unwrap();
+        s.receive(&[0x01, 0x03, 0x02, 0x12, 0x34, 0xB5, 0x33]);
+        assert_eq!(
+            s.take_frames(),
+            Err((0x34B5, vec![0x01, 0x03, 0x02, 0x12, 0x34, 0xB5, 0x33]))
+        );
+        assert_eq!(s.take_frames(), Ok(vec![]));
+    }
+
+    #[test]
+    fn discard_returns_whole_frames_keeps_a_beginning_and_awaits_nothing() {
+        let mut s = Session::new();
+        s.request(&RTU_READ).unwrap();
+        s.receive(&MBAP_REPLY);
+        s.take_frames().unwrap();
+        let mut one = [0u8; 1];
+        s.read(&mut one);
+        let mut received = MBAP_REPLY.to_vec();
+        received.extend_from_slice(&MBAP_REPLY[..3]);
+        let stale = s.discard(&received).unwrap();
+        let mut want = vec![0x03, 0x02, 0x12, 0x34, 0xB5, 0x33];
+        want.extend_from_slice(&MBAP_REPLY);
+        assert_eq!(stale, want);
+        // The beginning's rest completes a frame, which answers nothing awaited.
+        s.receive(&MBAP_REPLY[3..]);
+        assert!(matches!(
+            s.take_frames().unwrap().as_slice(),
+            [Dropped::Late { awaited: None, .. }]
+        ));
+    }
+}
