@@ -50,8 +50,9 @@ import benchbus as bb
 from benchbus._clock import ticks
 from benchbus._device import NOTED
 from benchbus._display import plural
+from benchbus._families import FAMILIES, command_families, family, mismatch
 from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen
-from benchbus._recognise import Probe, family, mismatch, verdict
+from benchbus._recognise import Probe
 from benchbus._record import with_unit
 
 if TYPE_CHECKING:
@@ -326,10 +327,8 @@ LINES = {
     "scan": Line(19200, "N", 0.05, 0),
     "read": Line(19200, "N", 0.1, 2),
     "write": Line(19200, "N", 0.1, 2),
-    "drive": Line(*bb.Drive.LINE_DEFAULTS, 2),
-    "pbl": Line(*bb.PblDrive.LINE_DEFAULTS, 2),
-    "j2": Line(*bb.J2Controller.LINE_DEFAULTS, 2),
     "gateway": Line(19200, "N", 0.1, 2),
+    **{f.key: Line(*f.line, 2) for f in command_families()},
 }
 
 #: The line formats ``scan --auto`` tries, in order, and who uses them.
@@ -627,7 +626,8 @@ def build_parser() -> argparse.ArgumentParser:
         "A lost port (an adapter unplugged) is reported in one line and reopened at each "
         "sample until it is back.",
     )
-    monitor.add_argument("device", choices=("drive", "pbl", "j2"), metavar="drive|pbl|j2")
+    kinds = tuple(f.key for f in command_families())
+    monitor.add_argument("device", choices=kinds, metavar="|".join(kinds))
     monitor.add_argument(
         "--interval", type=_seconds, default=0.5, metavar="S", help="seconds between samples"
     )
@@ -878,25 +878,6 @@ def _signed(word: int) -> int:
     return word - 0x10000 if word & 0x8000 else word
 
 
-def _register(bus: bb.Bus, unit: int, address: int, count: int = 1) -> list[int] | None:
-    """Registers read, or None if the unit answers with an exception, times out or garbles."""
-    try:
-        return bus.read_holding_registers(unit, address, count)
-    except (bb.ModbusException, bb.ResponseTimeout, bb.FrameError):
-        return None
-
-
-def _refused(bus: bb.Bus, unit: int, address: int, count: int, code: int) -> bool:
-    """Whether the unit answers this read with exception ``code``."""
-    try:
-        bus.read_holding_registers(unit, address, count)
-    except bb.ModbusException as exc:
-        return exc.code == code
-    except (bb.ResponseTimeout, bb.FrameError):
-        return False
-    return False
-
-
 def _identification(bus: bb.Bus, unit: int) -> str | None:
     """Vendor and product code from Read Device Identification (0x2B / 0x0E); None when the
     unit refuses it or garbles the reply. A timeout is raised."""
@@ -912,12 +893,10 @@ def guess_model(bus: bb.Bus, unit: int, *, identify: bool = True) -> str:
 
     - Read Device Identification (0x2B / 0x0E) answered: its vendor and product code (not
       asked with ``identify`` False);
-    - a drive: 0x2100 holds a drive state (1..6) and 0x2103 a model code (0x20 BLD2 or
-      C20, 0x30 BLD3H); a 0x20 that answers the BLD-only 0x2012 is a BLD2, else a C20;
-    - a PBL drive, then a J2 controller, by their tests in :mod:`benchbus._recognise`
-      (the same that ``status`` and ``monitor`` check a unit's family with);
-    - a Taisong meter: a read of 37 registers from 0 is answered and one of 38 refused with
-      exception 3 (its request limit);
+    - each family of :data:`benchbus._families.FAMILIES` in turn, by its model probe: a
+      drive by the model code at 0x2103 (:func:`benchbus._recognise.drive_model`), a PBL
+      drive, then a J2 controller, by the tests that ``status`` and ``monitor`` check a
+      unit's family with, a Taisong meter by its request limit (37 registers);
     - otherwise ``?``.
     """
     if identify:
@@ -927,21 +906,8 @@ def guess_model(bus: bb.Bus, unit: int, *, identify: bool = True) -> str:
             name = None
         if name:
             return name
-    state = _register(bus, unit, 0x2100)
-    if state and state[0] in {s.value for s in bb.DriveState}:
-        code = _register(bus, unit, 0x2103)
-        if code and code[0] == 0x30:
-            return f"Drive {bb.Model.BLD3H}"
-        if code and code[0] == 0x20:
-            bld = _register(bus, unit, 0x2012) is not None
-            return f"Drive {bb.Model.BLD2 if bld else bb.Model.C20}"
     probe = Probe(bus, unit)
-    for key, name in (("pbl", "PBL"), ("j2", "J2")):
-        if verdict(family(key), probe):
-            return name
-    if _register(bus, unit, 0, 37) is not None and _refused(bus, unit, 0, 38, 3):
-        return "Taisong"
-    return "?"
+    return next((name for f in FAMILIES if (name := f.identify(probe))), "?")
 
 
 def _cmd_scan(args: argparse.Namespace) -> int:
@@ -1413,27 +1379,12 @@ def _fields(spec: str | None, kind: str, sample: dict[str, float]) -> list[str]:
 # ---- sim ---------------------------------------------------------------------------------------
 
 #: Each simulated device, with the baud rate its family usually runs at.
-SIM_DEVICES: dict[str, int] = {
-    "drive": bb.Drive.LINE_DEFAULTS.baudrate,
-    "pbl": bb.PblDrive.LINE_DEFAULTS.baudrate,
-    "j2": bb.J2Controller.LINE_DEFAULTS.baudrate,
-    "instrument": bb.Instrument.LINE_DEFAULTS.baudrate,
-    "atv31": 19200,
-}
+SIM_DEVICES: dict[str, int] = {f.key: f.line.baudrate for f in FAMILIES}
 
 
 def _sim_device(kind: str, args: argparse.Namespace) -> SimDevice:
-    from benchbus import sim
-
-    if kind == "drive":
-        return sim.DriveDevice(args.model)
-    if kind == "pbl":
-        return sim.PblDevice()
-    if kind == "j2":
-        return sim.J2Device(speedup=args.speedup)
-    if kind == "instrument":
-        return sim.TaisongDevice(speedup=args.speedup)
-    return sim.Atv31Device()
+    of = family(kind)
+    return of.simulate(**{option: getattr(args, option) for option in of.sim_options})
 
 
 def _cmd_sim(args: argparse.Namespace) -> int:
