@@ -38,6 +38,8 @@ def test_each_command_is_a_module_that_parses_and_runs_it() -> None:
     for module in cli.COMMANDS:
         name = module.__name__.rsplit(".", 1)[1]
         assert commands[name].get_default("handler") is module.run, name
+        assert commands[name].description == module.HELP, name
+        assert commands[name].epilog == getattr(module, "EPILOG", None), name
 
 
 def test_the_entry_points_are_the_package_main() -> None:

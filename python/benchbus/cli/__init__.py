@@ -27,8 +27,12 @@ usage error, 130 after Ctrl-C; in ``monitor`` and ``sim`` Ctrl-C is the normal e
 0). ``--traceback`` shows the Python traceback instead, for a bug report. ``status`` and
 ``monitor`` refuse a unit recognised as another family than the command's.
 
-Each command is a module of this package with its parser (``add_parser``) beside its
-handler (``run``); :data:`COMMANDS` lists them in the order ``--help`` shows them.
+Each command is a module of this package named after it, its parser beside its handler:
+``HELP`` (and optionally ``EPILOG``) for ``--help``, ``LINE_OPTIONS`` (the keywords of
+:func:`~benchbus.cli._args.line_options`; none without) and ``FAMILY_OPTION`` (True: takes
+``--family``), ``add_arguments(parser, parents)`` for its own arguments and actions, and
+``run(args)``, its handler, which returns the exit status. :data:`COMMANDS` lists them in the
+order ``--help`` shows them.
 """
 
 from __future__ import annotations
@@ -54,7 +58,17 @@ from benchbus.cli import (
     sim,
     write,
 )
-from benchbus.cli._args import PORT_ENV, PROG, Parser, general_options, parse_int, parse_units
+from benchbus.cli._args import (
+    PORT_ENV,
+    PROG,
+    Parser,
+    add_command,
+    family_options,
+    general_options,
+    line_options,
+    parse_int,
+    parse_units,
+)
 from benchbus.cli._errors import CliError, UsageError, end_ctrl_c_line, interrupted, notes, one_line
 from benchbus.cli._line import LINES, Line, opt
 from benchbus.cli.scan import AUTO_FORMATS, guess_model
@@ -82,7 +96,7 @@ COMMANDS = (scan, read, write, drive, pbl, j2, monitor, sim, gateway, ports, doc
 
 
 def build_parser() -> argparse.ArgumentParser:
-    """The whole command line: each command's parser comes from its module."""
+    """The whole command line, from the commands' modules."""
     general = general_options()
     parser = Parser(
         prog=PROG,
@@ -94,8 +108,18 @@ def build_parser() -> argparse.ArgumentParser:
     )
     parser.add_argument("--version", action="version", version=f"{PROG} {bb.__version__}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
-    for command in COMMANDS:
-        command.add_parser(commands, general)
+    for module in COMMANDS:
+        parents = [general]
+        line = getattr(module, "LINE_OPTIONS", None)
+        if line is not None:
+            parents.append(line_options(**line))
+        if getattr(module, "FAMILY_OPTION", False):
+            parents.append(family_options())
+        name = module.__name__.rpartition(".")[2]
+        epilog = getattr(module, "EPILOG", None)
+        command = add_command(commands, name, module.HELP, parents, epilog=epilog)
+        module.add_arguments(command, parents)
+        command.set_defaults(handler=module.run)
     return parser
 
 

@@ -3,11 +3,10 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
-from benchbus.cli._args import Parser, add_command, parse_int
+from benchbus.cli._args import Parser, parse_int
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -18,18 +17,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``demo`` command's parser, under ``commands``."""
-    demo = add_command(
-        commands,
-        "demo",
-        "run the benchbus demo and save its plot",
-        [general],
-        epilog="Without --port the demo runs on simulated devices.",
-    )
-    demo.add_argument("--port", metavar="PATH", help="a real port to run the demo on")
-    demo.add_argument("--out", metavar="FILE.png", help="where to save the plot")
-    demo.add_argument(
+#: What ``benchbus demo`` does, as ``--help`` says.
+HELP = "run the benchbus demo and save its plot"
+#: The rest of its ``--help``.
+EPILOG = "Without --port the demo runs on simulated devices."
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus demo`` (``parents``: its option groups, for its actions)."""
+    parser.add_argument("--port", metavar="PATH", help="a real port to run the demo on")
+    parser.add_argument("--out", metavar="FILE.png", help="where to save the plot")
+    parser.add_argument(
         "--unit", type=parse_int, default=1, help="the BLD drive's unit with --port (default 1)"
     )
-    demo.set_defaults(handler=run)

@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 import benchbus as bb
-from benchbus.cli._args import Parser, add_command, line_options
+from benchbus.cli._args import Parser
 from benchbus.cli._line import line_of, opt, port_of, unit_of
 
 _S = argparse.SUPPRESS
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,19 +31,21 @@ def run(args: argparse.Namespace) -> int:
     return 1 if any(f.verdict == "fail" for f in findings) else 0
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``doctor`` command's parser, under ``commands``."""
-    doctor = add_command(
-        commands,
-        "doctor",
-        "check a serial port: what stands between benchbus and the devices on it",
-        [general, line_options(unit=True, rs485=False)],
-        epilog="One line per finding: its verdict (ok, info, warn, fail), what was checked, "
-        "what was found and the fix. Checks the platform, the port and who holds it, the "
-        "permission to open it, the USB chip and an FTDI's latency timer, the driver's "
-        "low-latency mode, the kernel RS485 mode, and whether a request comes back (a local "
-        "echo: one read of register 0 goes to --unit). Exits 1 if any finding fails.",
-    )
-    doctor.add_argument("--sysfs-root", metavar="DIR", help=_S)  # other trees, for tests
-    doctor.add_argument("--proc-root", metavar="DIR", help=_S)
-    doctor.set_defaults(handler=run)
+#: What ``benchbus doctor`` does, as ``--help`` says.
+HELP = "check a serial port: what stands between benchbus and the devices on it"
+#: The rest of its ``--help``.
+EPILOG = (
+    "One line per finding: its verdict (ok, info, warn, fail), what was checked, "
+    "what was found and the fix. Checks the platform, the port and who holds it, the "
+    "permission to open it, the USB chip and an FTDI's latency timer, the driver's "
+    "low-latency mode, the kernel RS485 mode, and whether a request comes back (a local "
+    "echo: one read of register 0 goes to --unit). Exits 1 if any finding fails."
+)
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True, "rs485": False}
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus doctor`` (``parents``: its option groups, for its actions)."""
+    parser.add_argument("--sysfs-root", metavar="DIR", help=_S)  # other trees, for tests
+    parser.add_argument("--proc-root", metavar="DIR", help=_S)

@@ -3,13 +3,12 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
-from benchbus.cli._args import Parser, add_command, family_options, integer, line_options
+from benchbus.cli._args import Parser, add_command, integer
 from benchbus.cli._line import check_family, open_bus, open_drive
 from benchbus.cli._output import enum_name, measured, print_table
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -53,27 +52,25 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``drive`` command's parser, under ``commands``."""
-    device = [general, line_options(unit=True)]
-    family = family_options()
-    drive = add_command(
-        commands,
-        "drive",
-        "a BLD2 / BLD3H / ZBLD.C20 drive (19200 8N1): status and common actions",
-        [*device, family],
-    )
-    actions = drive.add_subparsers(dest="action", metavar="ACTION", required=True)
+#: What ``benchbus drive`` does, as ``--help`` says.
+HELP = "a BLD2 / BLD3H / ZBLD.C20 drive (19200 8N1): status and common actions"
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True}
+#: Whether it takes ``--family``.
+FAMILY_OPTION = True
 
-    leaf = [*device, family]
-    add_command(actions, "status", "state, fault, speeds and measurements", leaf)
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus drive`` (``parents``: its option groups, for its actions)."""
+    actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+
+    add_command(actions, "status", "state, fault, speeds and measurements", parents)
     for name, what in (("start", "run forward"), ("reverse", "run in reverse")):
-        p = add_command(actions, name, f"{what} at the speed setpoint", leaf)
+        p = add_command(actions, name, f"{what} at the speed setpoint", parents)
         p.add_argument(
             "--speed", type=integer(0, 3000, "rpm"), metavar="RPM", help="set the setpoint first"
         )
-    add_command(actions, "stop", "stop (decelerate, or as the stop mode says)", leaf)
-    p = add_command(actions, "set-speed", "set the speed setpoint (0x2001)", leaf)
+    add_command(actions, "stop", "stop (decelerate, or as the stop mode says)", parents)
+    p = add_command(actions, "set-speed", "set the speed setpoint (0x2001)", parents)
     p.add_argument("rpm", type=integer(0, 3000, "RPM"), metavar="RPM")
-    add_command(actions, "reset-fault", "reset a fault (command 7)", leaf)
-    drive.set_defaults(handler=run)
+    add_command(actions, "reset-fault", "reset a fault (command 7)", parents)

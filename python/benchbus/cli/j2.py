@@ -4,15 +4,14 @@ from __future__ import annotations
 
 import argparse
 import enum
-from typing import Any
 
 import benchbus as bb
-from benchbus.cli._args import PROG, Parser, add_command, line_options, number
+from benchbus.cli._args import PROG, Parser, add_command, number
 from benchbus.cli._errors import CliError
 from benchbus.cli._line import check_family, open_bus, unit_of
 from benchbus.cli._output import enum_name, fmt, measured, print_table
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -61,21 +60,22 @@ def _enum(kind: type[enum.IntEnum], value: float) -> enum.IntEnum | int:
         return int(value)
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``j2`` command's parser, under ``commands``."""
-    device = [general, line_options(unit=True)]
-    j2 = add_command(
-        commands, "j2", "a J2 PID controller (9600 8N1): status and common actions", device
-    )
-    actions = j2.add_subparsers(dest="action", metavar="ACTION", required=True)
-    add_command(actions, "status", "PV, SV, MV, mode, limits", device)
-    p = add_command(actions, "set-sv", "set the setpoint SV (checked against LSP to USP)", device)
+#: What ``benchbus j2`` does, as ``--help`` says.
+HELP = "a J2 PID controller (9600 8N1): status and common actions"
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True}
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus j2`` (``parents``: its option groups, for its actions)."""
+    actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    add_command(actions, "status", "PV, SV, MV, mode, limits", parents)
+    p = add_command(actions, "set-sv", "set the setpoint SV (checked against LSP to USP)", parents)
     p.add_argument("value", type=number, metavar="VALUE")
-    add_command(actions, "auto", "automatic mode: the PID sets the output", device)
-    add_command(actions, "manual", "manual mode: the output stays as set", device)
-    p = add_command(actions, "set-output", "set the output MV, percent (manual mode only)", device)
+    add_command(actions, "auto", "automatic mode: the PID sets the output", parents)
+    add_command(actions, "manual", "manual mode: the output stays as set", parents)
+    p = add_command(actions, "set-output", "set the output MV, percent (manual mode only)", parents)
     p.add_argument("percent", type=number, metavar="PERCENT")
     p.add_argument(
         "--manual", action="store_true", help="switch to manual mode first if in automatic"
     )
-    j2.set_defaults(handler=run)

@@ -17,17 +17,14 @@ from benchbus._record import with_unit
 from benchbus.cli._args import (
     PROG,
     Parser,
-    add_command,
-    family_options,
     integer,
-    line_options,
     seconds,
 )
 from benchbus.cli._errors import CliError, UsageError, end_ctrl_c_line, interrupted, one_line
 from benchbus.cli._line import check_family, open_bus, open_drive, unit_of
 from benchbus.cli._output import csv_number, fmt, text_table
 
-__all__ = ["DRIVE_FIELDS", "CsvLog", "LiveTable", "add_parser", "run"]
+__all__ = ["DRIVE_FIELDS", "HELP", "CsvLog", "LiveTable", "add_arguments", "run"]
 
 
 #: What a drive's monitor shows unless --fields says otherwise (its sample has ~20 fields).
@@ -207,42 +204,44 @@ def _fields(spec: str | None, kind: str, sample: dict[str, float]) -> list[str]:
     return names
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``monitor`` command's parser, under ``commands``."""
-    device = [general, line_options(unit=True)]
-    family = family_options()
-    monitor = add_command(
-        commands,
-        "monitor",
-        "a live table of a device's measurements until Ctrl-C",
-        [*device, family],
-        epilog="On a terminal the table is redrawn in place; otherwise one line is printed "
-        "per sample. Samples are taken on a steady clock (deadlines that pass while a "
-        "sample is read are skipped, and counted). The CSV file gets every measurement, "
-        "with a header when the file is new; an existing file must have the same columns. "
-        "A lost port (an adapter unplugged) is reported in one line and reopened at each "
-        "sample until it is back.",
-    )
+#: What ``benchbus monitor`` does, as ``--help`` says.
+HELP = "a live table of a device's measurements until Ctrl-C"
+#: The rest of its ``--help``.
+EPILOG = (
+    "On a terminal the table is redrawn in place; otherwise one line is printed "
+    "per sample. Samples are taken on a steady clock (deadlines that pass while a "
+    "sample is read are skipped, and counted). The CSV file gets every measurement, "
+    "with a header when the file is new; an existing file must have the same columns. "
+    "A lost port (an adapter unplugged) is reported in one line and reopened at each "
+    "sample until it is back."
+)
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True}
+#: Whether it takes ``--family``.
+FAMILY_OPTION = True
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus monitor`` (``parents``: its option groups, for its actions)."""
     kinds = tuple(f.key for f in command_families())
-    monitor.add_argument("device", choices=kinds, metavar="|".join(kinds))
-    monitor.add_argument(
+    parser.add_argument("device", choices=kinds, metavar="|".join(kinds))
+    parser.add_argument(
         "--interval", type=seconds, default=0.5, metavar="S", help="seconds between samples"
     )
-    until = monitor.add_mutually_exclusive_group()
+    until = parser.add_mutually_exclusive_group()
     until.add_argument(
         "--count", type=integer(1, 10**9, "count"), metavar="N", help="stop after N samples"
     )
     until.add_argument("--duration", type=seconds, metavar="S", help="stop after S seconds")
-    monitor.add_argument("--csv", metavar="FILE", help="append each sample to FILE")
-    monitor.add_argument(
+    parser.add_argument("--csv", metavar="FILE", help="append each sample to FILE")
+    parser.add_argument(
         "--no-reconnect",
         dest="reconnect",
         action="store_false",
         help="end with an error when the port is lost (default: say so, reopen it and go on)",
     )
-    monitor.add_argument(
+    parser.add_argument(
         "--fields",
         metavar="NAMES",
         help="comma-separated measurements to show (default: all; for a drive, the main ones)",
     )
-    monitor.set_defaults(handler=run)

@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
 import benchbus as bb
-from benchbus.cli._args import Parser, add_command, integer, line_options
+from benchbus.cli._args import Parser, add_command, integer
 from benchbus.cli._errors import CliError
 from benchbus.cli._line import check_family, open_bus, unit_of
 from benchbus.cli._output import enum_name, measured, print_table
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -63,16 +62,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``pbl`` command's parser, under ``commands``."""
-    device = [general, line_options(unit=True)]
-    pbl = add_command(
-        commands, "pbl", "a PBL-series drive (115200 8E1): status and common actions", device
-    )
-    actions = pbl.add_subparsers(dest="action", metavar="ACTION", required=True)
-    add_command(actions, "status", "running, direction, speeds, measurements and alarms", device)
+#: What ``benchbus pbl`` does, as ``--help`` says.
+HELP = "a PBL-series drive (115200 8E1): status and common actions"
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True}
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus pbl`` (``parents``: its option groups, for its actions)."""
+    actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    add_command(actions, "status", "running, direction, speeds, measurements and alarms", parents)
     for name, what in (("start", "run forward"), ("reverse", "run in reverse")):
-        p = add_command(actions, name, f"{what} (control word bits 1 and 0)", device)
+        p = add_command(actions, name, f"{what} (control word bits 1 and 0)", parents)
         p.add_argument(
             "--speed", type=integer(0, 65535, "rpm"), metavar="RPM", help="set the setpoint first"
         )
@@ -81,7 +82,6 @@ def add_parser(commands: Any, general: Parser) -> None:
             action="store_true",
             help="set the start/stop source (204) to communication first if it is not",
         )
-    add_command(actions, "stop", "stop (clear control word bit 0)", device)
-    p = add_command(actions, "set-speed", "set the speed setpoint (parameter 201)", device)
+    add_command(actions, "stop", "stop (clear control word bit 0)", parents)
+    p = add_command(actions, "set-speed", "set the speed setpoint (parameter 201)", parents)
     p.add_argument("rpm", type=integer(0, 65535, "RPM"), metavar="RPM")
-    pbl.set_defaults(handler=run)

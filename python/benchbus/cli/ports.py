@@ -3,15 +3,14 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
 
-from benchbus.cli._args import Parser, add_command
+from benchbus.cli._args import Parser
 from benchbus.cli._errors import CliError
 from benchbus.cli._output import print_table
 
 _S = argparse.SUPPRESS
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def run(args: argparse.Namespace) -> int:
@@ -39,16 +38,16 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``ports`` command's parser, under ``commands``."""
-    ports = add_command(
-        commands,
-        "ports",
-        "list the serial ports, with the USB adapter's ids, names and chip",
-        [general],
-        epilog="For a USB adapter: its vendor:product ids, the chip family they belong to "
-        "(FTDI, CH340, CP210x, PL2303...), and the manufacturer, product and serial number "
-        "it reports. A port without them is the board's own (or the system does not say).",
-    )
-    ports.add_argument("--sysfs-root", metavar="DIR", help=_S)  # another sysfs tree, for tests
-    ports.set_defaults(handler=run)
+#: What ``benchbus ports`` does, as ``--help`` says.
+HELP = "list the serial ports, with the USB adapter's ids, names and chip"
+#: The rest of its ``--help``.
+EPILOG = (
+    "For a USB adapter: its vendor:product ids, the chip family they belong to "
+    "(FTDI, CH340, CP210x, PL2303...), and the manufacturer, product and serial number "
+    "it reports. A port without them is the board's own (or the system does not say)."
+)
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus ports`` (``parents``: its option groups, for its actions)."""
+    parser.add_argument("--sysfs-root", metavar="DIR", help=_S)  # another sysfs tree, for tests

@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import argparse
 from decimal import Decimal
-from typing import Any
 
-from benchbus.cli._args import Parser, add_command, integer, line_options
+from benchbus.cli._args import Parser, integer
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import open_bus, unit_of
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def _signed(word: int) -> int:
@@ -40,18 +39,18 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``read`` command's parser, under ``commands``."""
-    device = [general, line_options(unit=True)]
-    read = add_command(
-        commands,
-        "read",
-        "read holding registers (function 0x03)",
-        device,
-        epilog="Prints one line per register: the address in hex, in decimal, and the value.",
-    )
-    read.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
-    read.add_argument(
+#: What ``benchbus read`` does, as ``--help`` says.
+HELP = "read holding registers (function 0x03)"
+#: The rest of its ``--help``.
+EPILOG = "Prints one line per register: the address in hex, in decimal, and the value."
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True}
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus read`` (``parents``: its option groups, for its actions)."""
+    parser.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
+    parser.add_argument(
         "count",
         type=integer(1, 0x10000, "COUNT"),
         nargs="?",
@@ -59,13 +58,12 @@ def add_parser(commands: Any, general: Parser) -> None:
         metavar="COUNT",
         help="registers to read (default 1; more than 125 go in several requests)",
     )
-    read.add_argument("--hex", action="store_true", help="print the values in hex")
-    read.add_argument("--signed", action="store_true", help="values are 16-bit two's complement")
-    read.add_argument(
+    parser.add_argument("--hex", action="store_true", help="print the values in hex")
+    parser.add_argument("--signed", action="store_true", help="values are 16-bit two's complement")
+    parser.add_argument(
         "--decimals",
         type=integer(0, 9, "decimals"),
         default=0,
         metavar="N",
         help="divide the values by 10**N",
     )
-    read.set_defaults(handler=run)

@@ -4,17 +4,17 @@ from __future__ import annotations
 
 import argparse
 import sys
-from typing import IO, Any
+from typing import IO
 
 import benchbus as bb
 from benchbus._families import FAMILIES
 from benchbus._recognise import Probe
-from benchbus.cli._args import Parser, add_command, integer, line_options, units_type
+from benchbus.cli._args import Parser, integer, units_type
 from benchbus.cli._errors import CliError, UsageError, interrupted
 from benchbus.cli._line import line_of, opt, port_of, rs485_options
 from benchbus.cli._output import print_table
 
-__all__ = ["AUTO_FORMATS", "add_parser", "guess_model", "run"]
+__all__ = ["AUTO_FORMATS", "HELP", "add_arguments", "guess_model", "run"]
 
 
 #: The line formats ``scan --auto`` tries, in order, and who uses them.
@@ -171,44 +171,47 @@ def _print_found(found: dict[int, tuple[str, str]]) -> None:
         sys.stdout.flush()
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``scan`` command's parser, under ``commands``."""
-    formats = "; ".join(f"{b} 8{p}1: {who}" for b, p, who in AUTO_FORMATS)
-    scan = add_command(
-        commands,
-        "scan",
-        "find the units that answer on a port",
-        [general, line_options(unit=False)],
-        epilog="Each unit is asked for one register (--address); an exception reply counts as "
-        "an answer. The model is a best guess from Read Device Identification, then from "
-        "registers: a drive's model code at 0x2103, a PBL's parameter table ending at 222, "
-        "a J2's SV within LSP..USP, a Taisong's 37-register read limit; '?' when nothing "
-        f"fits. --auto tries, in order: {formats}. A unit found at one format is not asked "
-        "again at the next. On a pseudo-terminal (a simulator) every format carries, so "
-        "every unit shows at the first one. Over tcp:// the line shows as 'tcp', --auto "
-        "has nothing to try, identification gets the scan's --timeout (once unanswered, it "
-        "is not asked of the next units), and a server that answers every unit id tried "
-        "is said to, once.",
-    )
-    scan.add_argument(
+_FORMATS = "; ".join(f"{b} 8{p}1: {who}" for b, p, who in AUTO_FORMATS)
+
+#: What ``benchbus scan`` does, as ``--help`` says.
+HELP = "find the units that answer on a port"
+#: The rest of its ``--help``.
+EPILOG = (
+    "Each unit is asked for one register (--address); an exception reply counts as "
+    "an answer. The model is a best guess from Read Device Identification, then from "
+    "registers: a drive's model code at 0x2103, a PBL's parameter table ending at 222, "
+    "a J2's SV within LSP..USP, a Taisong's 37-register read limit; '?' when nothing "
+    f"fits. --auto tries, in order: {_FORMATS}. A unit found at one format is not asked "
+    "again at the next. On a pseudo-terminal (a simulator) every format carries, so "
+    "every unit shows at the first one. Over tcp:// the line shows as 'tcp', --auto "
+    "has nothing to try, identification gets the scan's --timeout (once unanswered, it "
+    "is not asked of the next units), and a server that answers every unit id tried "
+    "is said to, once."
+)
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": False}
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus scan`` (``parents``: its option groups, for its actions)."""
+    parser.add_argument(
         "--units",
         type=units_type(1, 255),
         default=list(range(1, 248)),
         metavar="LIST",
         help="units to try: numbers and ranges, e.g. 1-10,17,0x20 (default 1-247)",
     )
-    scan.add_argument(
+    parser.add_argument(
         "--auto", action="store_true", help="try every line format the benchbus devices use"
     )
-    scan.add_argument(
+    parser.add_argument(
         "--address",
         type=integer(0, 0xFFFF, "address"),
         default=0,
         help="the register each unit is asked for (default 0)",
     )
-    scan.add_argument(
+    parser.add_argument(
         "--progress",
         action="store_true",
         help="show the progress bar on stderr even when it is not a terminal",
     )
-    scan.set_defaults(handler=run)

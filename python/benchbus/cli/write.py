@@ -4,13 +4,12 @@ from __future__ import annotations
 
 import argparse
 from decimal import Decimal, InvalidOperation
-from typing import Any
 
-from benchbus.cli._args import Parser, add_command, integer, line_options, parse_int
+from benchbus.cli._args import Parser, integer, parse_int
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import open_bus, unit_of
 
-__all__ = ["add_parser", "run"]
+__all__ = ["HELP", "add_arguments", "run"]
 
 
 def _word(text: str, decimals: int) -> int:
@@ -64,31 +63,32 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def add_parser(commands: Any, general: Parser) -> None:
-    """The ``write`` command's parser, under ``commands``."""
-    device = [general, line_options(unit=True)]
-    write = add_command(
-        commands,
-        "write",
-        "write holding registers (0x06 for one value, 0x10 for several)",
-        device,
-        epilog="Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
-        "with --decimals N, decimal numbers written as value x 10**N. --unit 0 broadcasts "
-        "one value and waits for no reply.",
-    )
-    write.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
-    write.add_argument("values", nargs="+", metavar="VALUE")
-    write.add_argument("--multiple", action="store_true", help="use 0x10 even for a single value")
-    write.add_argument(
+#: What ``benchbus write`` does, as ``--help`` says.
+HELP = "write holding registers (0x06 for one value, 0x10 for several)"
+#: The rest of its ``--help``.
+EPILOG = (
+    "Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
+    "with --decimals N, decimal numbers written as value x 10**N. --unit 0 broadcasts "
+    "one value and waits for no reply."
+)
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True}
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus write`` (``parents``: its option groups, for its actions)."""
+    parser.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
+    parser.add_argument("values", nargs="+", metavar="VALUE")
+    parser.add_argument("--multiple", action="store_true", help="use 0x10 even for a single value")
+    parser.add_argument(
         "--decimals",
         type=integer(0, 9, "decimals"),
         default=0,
         metavar="N",
         help="multiply the values by 10**N",
     )
-    write.add_argument(
+    parser.add_argument(
         "--accept-count-echo",
         action="store_true",
         help="accept a 0x06 reply that carries a count of 1 instead of the value (PBL)",
     )
-    write.set_defaults(handler=run)
