@@ -8,6 +8,7 @@ import os
 from typing import Any
 
 import benchbus as bb
+from benchbus._device import BusDevice
 from benchbus._families import command_families, family, mismatch
 from benchbus.cli._args import PORT_ENV, PROG
 from benchbus.cli._errors import CliError, UsageError
@@ -99,7 +100,15 @@ def open_drive(bus: bb.Bus, args: argparse.Namespace) -> bb.Drive:
     return bb.Drive(bus, unit_of(args, "drive"), family=opt(args, "family", "BLD"))
 
 
-def check_family(device: bb.Drive | bb.PblDrive | bb.J2Controller, key: str) -> None:
+def open_device(bus: bb.Bus, args: argparse.Namespace, kind: str) -> BusDevice:
+    """The device of the family ``kind`` at the unit given on ``bus`` (a drive of
+    ``--family``)."""
+    if kind == "drive":
+        return open_drive(bus, args)
+    return family(kind).open(bus, unit_of(args, kind))
+
+
+def check_family(device: BusDevice, key: str) -> None:
     """Refuse a unit recognised as another family than the command talks to."""
     other = mismatch(device.bus, device.unit, key)
     if other is not None:

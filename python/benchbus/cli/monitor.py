@@ -21,7 +21,7 @@ from benchbus.cli._args import (
     seconds,
 )
 from benchbus.cli._errors import CliError, UsageError, end_ctrl_c_line, interrupted, one_line
-from benchbus.cli._line import check_family, open_bus, open_drive, unit_of
+from benchbus.cli._line import check_family, open_bus, open_device
 from benchbus.cli._output import csv_number, fmt, text_table
 
 __all__ = ["DRIVE_FIELDS", "HELP", "CsvLog", "LiveTable", "add_arguments", "run"]
@@ -134,13 +134,7 @@ def run(args: argparse.Namespace) -> int:
     samples = 0
     lost: float | None = None  # when the port was lost, while it is
     with open_bus(args, kind, reconnect=args.reconnect) as bus:
-        device: bb.Drive | bb.PblDrive | bb.J2Controller
-        if kind == "drive":
-            device = open_drive(bus, args)
-        elif kind == "pbl":
-            device = bb.PblDrive(bus, unit_of(args, kind))
-        else:
-            device = bb.J2Controller(bus, unit_of(args, kind))
+        device = open_device(bus, args, kind)
         check_family(device, kind)
         units = device.sample_units()
         log = CsvLog(args.csv, units) if args.csv else None
