@@ -81,7 +81,7 @@ def test_an_error_that_is_no_exception_is_one_line(
     def panics(args: object) -> int:
         raise _Panic("index out of bounds")
 
-    monkeypatch.setattr(cli, "_cmd_read", panics)
+    monkeypatch.setattr(cli.read, "run", panics)
     assert cli.main(["read", "--port", "/dev/null", "0"]) == 1
     err = capsys.readouterr().err.splitlines()
     assert err == [

@@ -431,6 +431,10 @@ class DriveCore:
         """Sends command ``code`` (1..9) to 0x2000."""
     def status(self) -> dict[str, int | bool | str | None]:
         """0x2100..0x2102 decoded."""
+    @staticmethod
+    def model_from_id(family: str, id: int) -> str | None:
+        """The model an identification code (0x2103) names on a drive of ``family``: "BLD2",
+        "BLD3H" or "C20", or None for a code the manuals do not list."""
     def model(self) -> str | int:
         """The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown."""
     def telemetry(self) -> dict[str, Any]:

@@ -17,11 +17,12 @@ import time
 from collections.abc import Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 import benchbus as bb
 from benchbus._core import _Ticks as ticks
 from benchbus._device import add_note
+from benchbus._families import family
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -29,6 +30,7 @@ if TYPE_CHECKING:
     from benchbus._drive import Drive
     from benchbus._j2 import J2Controller
     from benchbus._pbl import PblDrive
+    from benchbus.sim import SimDevice
 
 __all__ = ["run"]
 
@@ -79,19 +81,16 @@ def _check_matplotlib() -> None:
 @contextlib.contextmanager
 def _simulated() -> Iterator[_Devices]:
     """Three simulated devices, each on its own line at its family's format."""
-    from benchbus.sim import DriveDevice, J2Device, PblDevice, Simulator
+    from benchbus.sim import Simulator
+
+    def simulator(kind: str, unit: int, **options: Any) -> Simulator[SimDevice]:
+        of = family(kind)
+        return Simulator({unit: of.simulate(**options)}, baudrate=of.line.baudrate)
 
     with contextlib.ExitStack() as stack:
-        line = {cls: cls.LINE_DEFAULTS.baudrate for cls in (bb.Drive, bb.PblDrive, bb.J2Controller)}
-        drive_sim = stack.enter_context(
-            Simulator({1: DriveDevice("BLD2")}, baudrate=line[bb.Drive])
-        )
-        pbl_sim = stack.enter_context(
-            Simulator({PBL_UNIT: PblDevice()}, baudrate=line[bb.PblDrive])
-        )
-        j2_sim = stack.enter_context(
-            Simulator({1: J2Device(speedup=J2_SPEEDUP)}, baudrate=line[bb.J2Controller])
-        )
+        drive_sim = stack.enter_context(simulator("drive", 1, model="BLD2"))
+        pbl_sim = stack.enter_context(simulator("pbl", PBL_UNIT))
+        j2_sim = stack.enter_context(simulator("j2", 1, speedup=J2_SPEEDUP))
         drive = stack.enter_context(bb.Drive(drive_sim.port, unit=1))
         pbl = stack.enter_context(bb.PblDrive(pbl_sim.port, unit=PBL_UNIT))
         j2 = stack.enter_context(bb.J2Controller(j2_sim.port, unit=1))

@@ -18,6 +18,10 @@ from benchbus._display import field_table
 
 __all__ = ["Identification", "Instrument"]
 
+#: A Taisong v2.1 meter's request limits (its manual): registers per read and per write.
+TAISONG_MAX_READ = 37
+TAISONG_MAX_WRITE = 20
+
 #: Which register of a 32-bit value comes first: "big" the high word (the Modbus
 #: convention), "little" the low word.
 WordOrder = Literal["big", "little"]
@@ -110,8 +114,8 @@ class Instrument(BusDevice):
         self,
         port_or_bus: str | os.PathLike[str] | Bus,
         unit: int = 1,
-        max_read: int = 37,
-        max_write: int = 20,
+        max_read: int = TAISONG_MAX_READ,
+        max_write: int = TAISONG_MAX_WRITE,
         min_write_interval: float = 0.0,
         baudrate: int = 9600,
         *,

@@ -1,25 +1,22 @@
 """Which device family answers at a unit, from a few reads each family answers its own way.
 
-Each family has one small test (:data:`FAMILIES`), run on a :class:`Probe` that caches the
-replies, so a read two tests share goes out once. A test says True (it is one), False (it
-is not) or None (it cannot tell: the unit refused a read the family would answer, or garbled
-it), and a unit is never judged on a read it refused::
-
-    mismatch(bus, 1, "j2")   # None, or the family unit 1 looks like instead (FAMILIES[1])
+Each family has one small test, run on a :class:`Probe` that caches the replies, so a read
+two tests share goes out once. A test says True (it is one), False (it is not) or None (it
+cannot tell: the unit refused a read the family would answer, or garbled it), and a unit is
+never judged on a read it refused. The tests are the families' model probes in
+:mod:`benchbus._families`, which runs them.
 """
 
 from __future__ import annotations
 
-import dataclasses
-from collections.abc import Callable
-
-from benchbus._core import Bus
-from benchbus._drive import Drive, Model
+from benchbus._core import Bus, DriveCore
+from benchbus._drive import Drive, DriveState, Model
+from benchbus._instrument import TAISONG_MAX_READ
 from benchbus._j2 import J2Controller
 from benchbus._pbl import PblDrive
 from benchbus.exceptions import FrameError, ModbusException, ResponseTimeout
 
-__all__ = ["FAMILIES", "Family", "Probe", "family", "mismatch", "recognise", "verdict"]
+__all__ = ["Probe", "drive_model", "is_drive", "is_j2", "is_pbl", "is_taisong"]
 
 
 class Probe:
@@ -43,8 +40,16 @@ class Probe:
                 self._replies[key] = exc.code
         return self._replies[key]
 
+    def answers(self, address: int, count: int = 1) -> bool:
+        """Whether the unit answers this read with registers (not an exception, a timeout or
+        a garbled reply)."""
+        try:
+            return isinstance(self.read(address, count), list)
+        except (ResponseTimeout, FrameError):
+            return False
 
-def _bld(probe: Probe) -> bool | None:
+
+def is_drive(probe: Probe) -> bool | None:
     """The identification code (0x2103) names a model the manuals list."""
     try:
         drive = Drive(probe.bus, probe.unit)
@@ -57,11 +62,29 @@ def _bld(probe: Probe) -> bool | None:
     return isinstance(model, Model)
 
 
+_DRIVE_STATES = {s.value for s in DriveState}
+
+
+def drive_model(probe: Probe) -> str | None:
+    """``Drive BLD2`` (the model) if 0x2100 holds a drive state (1..6) and 0x2103 a model
+    code, else None. A code both drive families use (0x20: BLD2 or C20) is told apart by
+    the BLD-only 0x2012: a drive that answers it is a BLD."""
+    state = probe.read(0x2100)
+    if not isinstance(state, list) or not state or state[0] not in _DRIVE_STATES:
+        return None
+    code = probe.read(0x2103)
+    if not isinstance(code, list) or not code:
+        return None
+    bld, c20 = (DriveCore.model_from_id(f, code[0]) for f in ("BLD", "C20"))
+    name = bld if bld == c20 or probe.answers(0x2012) else c20
+    return None if name is None else f"Drive {Model(name)}"
+
+
 #: The PBL's last parameter: the one after it is refused as an illegal address (code 2).
 _PBL_LAST = max(row[0] for row in PblDrive.table())
 
 
-def _pbl(probe: Probe) -> bool | None:
+def is_pbl(probe: Probe) -> bool | None:
     """The last parameter reads and the one after it is refused as an illegal address."""
     last = probe.read(_PBL_LAST)
     if not isinstance(last, list):
@@ -69,7 +92,7 @@ def _pbl(probe: Probe) -> bool | None:
     return probe.read(_PBL_LAST + 1) == 2
 
 
-def _j2(probe: Probe) -> bool | None:
+def is_j2(probe: Probe) -> bool | None:
     """AM is 0 or 1, LSP < USP with SV between them, and an unused address reads (as 0)."""
     try:
         am, low, high, sv = J2Controller(probe.bus, probe.unit).read_many(
@@ -82,55 +105,9 @@ def _j2(probe: Probe) -> bool | None:
     return isinstance(probe.read(_PBL_LAST + 1), list)
 
 
-@dataclasses.dataclass(frozen=True)
-class Family:
-    """A device family the command line can recognise."""
-
-    #: The family's key (the command that talks to it).
-    key: str
-    #: How a sentence names it: "a BLD drive".
-    name: str
-    #: Whether a unit is one of the family (None: cannot tell).
-    test: Callable[[Probe], bool | None]
-
-
-#: The families, in the order they are tried when naming what a unit looks like.
-FAMILIES = (
-    Family("drive", "a BLD drive", _bld),
-    Family("pbl", "a PBL drive", _pbl),
-    Family("j2", "a J2 controller", _j2),
-)
-
-
-def verdict(family: Family, probe: Probe) -> bool | None:
-    """The family's test, with a timeout or a garbled reply as 'cannot tell'."""
-    try:
-        return family.test(probe)
-    except (ResponseTimeout, FrameError):
-        return None
-
-
-def recognise(bus: Bus, unit: int) -> Family | None:
-    """The first family the unit at ``unit`` is recognised as, or None."""
-    probe = Probe(bus, unit)
-    return next((f for f in FAMILIES if verdict(f, probe)), None)
-
-
-def family(key: str) -> Family:
-    """The family called ``key`` ("drive", "pbl", "j2")."""
-    return next(f for f in FAMILIES if f.key == key)
-
-
-def mismatch(bus: Bus, unit: int, key: str) -> Family | None:
-    """None if ``unit`` may be of the family ``key``, else the family it looks like.
-
-    The family's own test runs first (a unit that does not answer it raises the timeout);
-    only if it does not recognise the unit are the others tried, and only a unit another
-    family recognises is refused: one that no test recognises is given the benefit of the
-    doubt.
-    """
-    expected = family(key)
-    probe = Probe(bus, unit)
-    if expected.test(probe):
-        return None
-    return next((f for f in FAMILIES if f is not expected and verdict(f, probe)), None)
+def is_taisong(probe: Probe) -> bool:
+    """A read of 37 registers from 0 is answered and one of 38 refused with exception 3
+    (the meter's request limit)."""
+    return isinstance(probe.read(0, TAISONG_MAX_READ), list) and (
+        probe.read(0, TAISONG_MAX_READ + 1) == 3
+    )

@@ -94,6 +94,7 @@ from benchbus._core import Bus
 from benchbus._device import BusDevice, MotorDevice
 from benchbus._drive import Drive
 from benchbus._extras import sim_missing
+from benchbus._families import FAMILIES, family
 from benchbus._instrument import Instrument
 from benchbus._j2 import J2Controller
 from benchbus._pbl import PblDrive
@@ -110,8 +111,8 @@ if TYPE_CHECKING:
 
 __all__ = ["INSTRUMENT_SPEEDUP", "J2_SPEEDUP", "KINDS", "SIM_UNIT", "SimBench"]
 
-#: The device kinds, as ``--benchbus-unit`` names them.
-KINDS = ("drive", "pbl", "j2", "instrument")
+#: The device kinds, as ``--benchbus-unit`` names them: the families with a benchbus class.
+KINDS = tuple(f.key for f in FAMILIES if f.device is not None)
 #: The unit address of every simulated device.
 SIM_UNIT = 1
 #: How many times faster than real time the simulated J2 controller's process runs.
@@ -147,23 +148,6 @@ class SimBench(Generic[DevT, ModelT]):
 
 
 # ---- options ---------------------------------------------------------------------------------
-
-
-@dataclasses.dataclass(frozen=True)
-class _Family:
-    """A device family's line defaults."""
-
-    baudrate: int
-    parity: str
-    timeout: float
-
-
-_FAMILIES = {
-    "drive": _Family(*Drive.LINE_DEFAULTS),
-    "pbl": _Family(*PblDrive.LINE_DEFAULTS),
-    "j2": _Family(*J2Controller.LINE_DEFAULTS),
-    "instrument": _Family(*Instrument.LINE_DEFAULTS),
-}
 
 
 def _unit_option(text: str) -> tuple[str, int]:
@@ -206,8 +190,8 @@ class _Settings:
 
     def line_format(self, kind: str) -> tuple[int, str]:
         """(baudrate, parity) to open the real port at for ``kind``."""
-        family = _FAMILIES[kind]
-        return (self.baudrate or family.baudrate, self.parity or family.parity)
+        line = family(kind).line
+        return (self.baudrate or line.baudrate, self.parity or line.parity)
 
 
 _SETTINGS = pytest.StashKey[_Settings]()
@@ -337,32 +321,31 @@ def sim_instrument_model() -> TaisongDevice:
 
 
 @contextlib.contextmanager
-def _simulated(
-    kind: str, model: ModelT, open_device: Callable[[str], DevT]
-) -> Iterator[SimBench[DevT, ModelT]]:
-    """``model`` at :data:`SIM_UNIT` on a running Simulator, ``open_device(port)`` on it;
-    afterwards the device closed and the simulator stopped."""
+def _simulated(kind: str, model: ModelT, **options: Any) -> Iterator[SimBench[Any, ModelT]]:
+    """``model`` at :data:`SIM_UNIT` on a running Simulator, the ``kind`` device opened on
+    it with ``options``; afterwards the device closed and the simulator stopped."""
     _require_sim()
     from benchbus.sim import Simulator
 
-    with Simulator({SIM_UNIT: model}, baudrate=_FAMILIES[kind].baudrate) as sim:
-        device = open_device(sim.port)
+    of = family(kind)
+    with Simulator({SIM_UNIT: model}, baudrate=of.line.baudrate) as sim:
+        device = of.open(sim.port, SIM_UNIT, **options)
         try:
             yield SimBench(device, sim, model)
         finally:
             device.close()
 
 
-def _open_drive(model: DriveDevice) -> Callable[[str], Drive]:
-    family = "C20" if model.model == "C20" else "BLD"
-    return lambda port: Drive(port, SIM_UNIT, family=family)
+def _drive_options(model: DriveDevice) -> dict[str, Any]:
+    """The simulated drive's family, as :class:`benchbus.Drive` takes it."""
+    return {"family": "C20" if model.model == "C20" else "BLD"}
 
 
 @pytest.fixture
 def sim_drive(sim_drive_model: DriveDevice) -> Iterator[SimBench[Drive, DriveDevice]]:
     """The drive of ``sim_drive_model`` (a BLD2) on a simulator, as a :class:`SimBench`:
     ``.device`` (:class:`benchbus.Drive`), ``.sim``, ``.model``. Closed and stopped after."""
-    with _simulated("drive", sim_drive_model, _open_drive(sim_drive_model)) as bench:
+    with _simulated("drive", sim_drive_model, **_drive_options(sim_drive_model)) as bench:
         yield bench
 
 
@@ -370,7 +353,7 @@ def sim_drive(sim_drive_model: DriveDevice) -> Iterator[SimBench[Drive, DriveDev
 def sim_pbl(sim_pbl_model: PblDevice) -> Iterator[SimBench[PblDrive, PblDevice]]:
     """The drive of ``sim_pbl_model`` on a simulator, as a :class:`SimBench`: ``.device``
     (:class:`benchbus.PblDrive`), ``.sim``, ``.model``. Closed and stopped after."""
-    with _simulated("pbl", sim_pbl_model, lambda port: PblDrive(port, SIM_UNIT)) as bench:
+    with _simulated("pbl", sim_pbl_model) as bench:
         yield bench
 
 
@@ -378,7 +361,7 @@ def sim_pbl(sim_pbl_model: PblDevice) -> Iterator[SimBench[PblDrive, PblDevice]]
 def sim_j2(sim_j2_model: J2Device) -> Iterator[SimBench[J2Controller, J2Device]]:
     """The controller of ``sim_j2_model`` on a simulator, as a :class:`SimBench`: ``.device``
     (:class:`benchbus.J2Controller`), ``.sim``, ``.model``. Closed and stopped after."""
-    with _simulated("j2", sim_j2_model, lambda port: J2Controller(port, SIM_UNIT)) as bench:
+    with _simulated("j2", sim_j2_model) as bench:
         yield bench
 
 
@@ -389,9 +372,7 @@ def sim_instrument(
     """The meter of ``sim_instrument_model`` on a simulator, as a :class:`SimBench`:
     ``.device`` (:class:`benchbus.Instrument`), ``.sim``, ``.model``. Closed and stopped
     after."""
-    with _simulated(
-        "instrument", sim_instrument_model, lambda port: Instrument(port, SIM_UNIT)
-    ) as bench:
+    with _simulated("instrument", sim_instrument_model) as bench:
         yield bench
 
 
@@ -421,7 +402,7 @@ class _Line:
                 " the line's with --benchbus-baudrate and --benchbus-parity",
                 pytrace=False,
             )
-        return self._bus, self._settings.unit(kind), _FAMILIES[kind].timeout
+        return self._bus, self._settings.unit(kind), family(kind).line.timeout
 
     def close(self) -> None:
         """Close the Bus if it was opened."""
@@ -464,59 +445,41 @@ def _in_use(device: DevT) -> Iterator[DevT]:
 def _bench(
     request: pytest.FixtureRequest,
     kind: str,
-    open_sim: Callable[[Any], Callable[[str], DevT]],
-    open_real: Callable[[Bus, int, float | None], DevT],
-) -> Iterator[DevT]:
-    """The ``kind`` device under test: ``open_real(bus, unit, timeout)`` on
-    ``--benchbus-port``, else ``open_sim(model)(port)`` on the simulated ``sim_<kind>_model``;
-    in use until the test ends (see :func:`_in_use`)."""
+    sim_options: Callable[[Any], dict[str, Any]] = lambda model: {},
+) -> Iterator[Any]:
+    """The ``kind`` device under test: on ``--benchbus-port`` with the family's timeout,
+    else on the simulated ``sim_<kind>_model`` (opened with ``sim_options(model)``); in use
+    until the test ends (see :func:`_in_use`)."""
     line = _real_line(request)
     if line is None:
         model = request.getfixturevalue(f"sim_{kind}_model")
-        with _simulated(kind, model, open_sim(model)) as bench, _in_use(bench.device):
+        with _simulated(kind, model, **sim_options(model)) as bench, _in_use(bench.device):
             yield bench.device
     else:
         bus, unit, timeout = line.open(kind)
-        with _in_use(open_real(bus, unit, timeout)) as device:
+        with _in_use(family(kind).open(bus, unit, timeout=timeout)) as device:
             yield device
 
 
 @pytest.fixture
 def bench_drive(request: pytest.FixtureRequest) -> Iterator[Drive]:
     """The drive under test: on ``--benchbus-port``, or a simulated BLD2. Stopped after."""
-    yield from _bench(
-        request, "drive", _open_drive, lambda bus, unit, t: Drive(bus, unit, timeout=t)
-    )
+    yield from _bench(request, "drive", _drive_options)
 
 
 @pytest.fixture
 def bench_pbl(request: pytest.FixtureRequest) -> Iterator[PblDrive]:
     """The PBL drive under test: on ``--benchbus-port``, or simulated. Stopped after."""
-    yield from _bench(
-        request,
-        "pbl",
-        lambda _: lambda port: PblDrive(port, SIM_UNIT),
-        lambda bus, unit, t: PblDrive(bus, unit, timeout=t),
-    )
+    yield from _bench(request, "pbl")
 
 
 @pytest.fixture
 def bench_j2(request: pytest.FixtureRequest) -> Iterator[J2Controller]:
     """The J2 controller under test: on ``--benchbus-port``, or simulated (sped up)."""
-    yield from _bench(
-        request,
-        "j2",
-        lambda _: lambda port: J2Controller(port, SIM_UNIT),
-        lambda bus, unit, t: J2Controller(bus, unit, timeout=t),
-    )
+    yield from _bench(request, "j2")
 
 
 @pytest.fixture
 def bench_instrument(request: pytest.FixtureRequest) -> Iterator[Instrument]:
     """The instrument under test: on ``--benchbus-port``, or a simulated Taisong meter."""
-    yield from _bench(
-        request,
-        "instrument",
-        lambda _: lambda port: Instrument(port, SIM_UNIT),
-        lambda bus, unit, t: Instrument(bus, unit, timeout=t),
-    )
+    yield from _bench(request, "instrument")

@@ -2,7 +2,7 @@
 //! (Python) wraps with enums, dataclasses and the context manager.
 
 use super::{int_in, number, on_wire, own_timing, standard_unit_arg, to_pyerr, PyBus};
-use crate::device::drive::{fault_name, Command, Drive, Family, REGISTERS};
+use crate::device::drive::{fault_name, Command, Drive, Family, Model, REGISTERS};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat, PyInt, PyList};
@@ -25,6 +25,15 @@ impl PyDriveCore {
     }
 }
 
+/// The drive family called `name`, or a ValueError naming the two.
+fn family_arg(name: &str) -> PyResult<Family> {
+    Family::from_name(name).ok_or_else(|| {
+        PyValueError::new_err(format!(
+            "family must be \"BLD\" (BLD2, BLD3H) or \"C20\", got {name:?}"
+        ))
+    })
+}
+
 /// A number argument (int or float, not bool or str) as f64.
 #[pymethods]
 impl PyDriveCore {
@@ -39,11 +48,7 @@ impl PyDriveCore {
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let unit = standard_unit_arg(unit)?;
-        let family = Family::from_name(family).ok_or_else(|| {
-            PyValueError::new_err(format!(
-                "family must be \"BLD\" (BLD2, BLD3H) or \"C20\", got {family:?}"
-            ))
-        })?;
+        let family = family_arg(family)?;
         let (timeout, retries) = own_timing(timeout, retries)?;
         let core = Arc::clone(&bus.get().bus);
         let drive = Drive::new(core, unit, family, write_ack).with_timing(timeout, retries);
@@ -135,6 +140,15 @@ impl PyDriveCore {
         out.set_item("fault_code", s.fault_code)?;
         out.set_item("fault_name", fault_name(s.fault_code))?;
         Ok(out)
+    }
+
+    /// The model an identification code (0x2103) names on a drive of `family`: "BLD2",
+    /// "BLD3H" or "C20", or None for a code the manuals do not list.
+    #[staticmethod]
+    fn model_from_id(family: &str, id: &Bound<'_, PyAny>) -> PyResult<Option<&'static str>> {
+        let family = family_arg(family)?;
+        let id = int_in(id, "id", 0, 0xFFFF)? as u16;
+        Ok(Model::from_id(family, id).map(Model::name))
     }
 
     /// The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown.

@@ -1,0 +1,162 @@
+"""The device families benchbus knows, each declared once.
+
+A :class:`Family` ties a kind of device (``"drive"``, ``"pbl"``, ``"j2"``, ``"instrument"``,
+``"atv31"``) to its benchbus class, its line defaults (the class's ``LINE_DEFAULTS``), its
+simulator in :mod:`benchbus.sim` (imported only when asked for: it needs the ``sim``
+extra) and its model probe (:mod:`benchbus._recognise`). The command line (its device
+commands, ``sim``, ``scan``'s model guess and the family check of ``status`` and
+``monitor``), the pytest plugin and the demo all read :data:`FAMILIES`::
+
+    family("pbl").line              # LineDefaults(baudrate=115200, parity='E', timeout=0.1)
+    family("j2").simulate(speedup=20)   # a benchbus.sim.J2Device
+    mismatch(bus, 1, "j2")          # None, or the family unit 1 looks like instead
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import TYPE_CHECKING, Any
+
+from benchbus._core import Bus
+from benchbus._device import BusDevice, LineDefaults
+from benchbus._drive import Drive
+from benchbus._instrument import Instrument
+from benchbus._j2 import J2Controller
+from benchbus._pbl import PblDrive
+from benchbus._recognise import Probe, drive_model, is_drive, is_j2, is_pbl, is_taisong
+from benchbus.exceptions import FrameError, ResponseTimeout
+
+if TYPE_CHECKING:
+    from benchbus.sim import SimDevice
+
+__all__ = ["FAMILIES", "Family", "command_families", "family", "mismatch"]
+
+
+@dataclasses.dataclass(frozen=True)
+class Family:
+    """A kind of device: its class, line defaults, simulator and model probe."""
+
+    #: The family's key (the command that talks to it, the pytest plugin's kind).
+    key: str
+    #: How a sentence names it: "a BLD drive".
+    name: str
+    #: The benchbus class that talks to it (None: a device only simulated).
+    device: type[BusDevice] | None
+    #: The name of its simulator class in :mod:`benchbus.sim`.
+    simulator: str
+    #: The options of ``benchbus sim`` its simulator takes (keywords of its constructor).
+    sim_options: tuple[str, ...] = ()
+    #: Whether a unit is one of the family (None: cannot tell); None: no test.
+    test: Callable[[Probe], bool | None] | None = None
+    #: What ``scan`` calls a unit its test recognises.
+    label: str = ""
+    #: What ``scan`` calls a unit of the family, from reads of its own, instead of
+    #: ``label`` after the test (None: not one of the family).
+    model: Callable[[Probe], str | None] | None = None
+    #: Whether the command line has a command for it (``benchbus drive``, ...).
+    command: bool = False
+
+    @property
+    def line(self) -> LineDefaults:
+        """Its line defaults: its class's (the generic device's without a class)."""
+        return (self.device or BusDevice).LINE_DEFAULTS
+
+    def open(self, port_or_bus: str | Bus, unit: int, **options: Any) -> BusDevice:
+        """Its benchbus device at ``unit`` on ``port_or_bus``, made with ``options``
+        (``timeout``, ``family``...). ValueError for a family with no benchbus class."""
+        if self.device is None:
+            raise ValueError(f"{self.name} has no benchbus class, only a simulator")
+        cls: Callable[..., BusDevice] = self.device
+        return cls(port_or_bus, unit, **options)
+
+    def simulate(self, **options: Any) -> SimDevice:
+        """A new simulated device of the family, made with ``options``.
+
+        Raises ImportError (saying what to install) without the ``sim`` extra."""
+        import benchbus.sim
+
+        cls: Callable[..., SimDevice] = getattr(benchbus.sim, self.simulator)
+        return cls(**options)
+
+    def verdict(self, probe: Probe) -> bool | None:
+        """The family's test, with a timeout or a garbled reply as 'cannot tell'."""
+        if self.test is None:
+            return None
+        try:
+            return self.test(probe)
+        except (ResponseTimeout, FrameError):
+            return None
+
+    def identify(self, probe: Probe) -> str | None:
+        """What ``scan`` calls the unit if it is one of the family, else None."""
+        if self.model is None:
+            return self.label if self.verdict(probe) else None
+        try:
+            return self.model(probe)
+        except (ResponseTimeout, FrameError):
+            return None
+
+
+#: The families, in the order they are tried when naming what a unit looks like.
+FAMILIES = (
+    Family(
+        "drive",
+        "a BLD drive",
+        Drive,
+        "DriveDevice",
+        ("model",),
+        test=is_drive,
+        model=drive_model,
+        command=True,
+    ),
+    Family("pbl", "a PBL drive", PblDrive, "PblDevice", test=is_pbl, label="PBL", command=True),
+    Family(
+        "j2",
+        "a J2 controller",
+        J2Controller,
+        "J2Device",
+        ("speedup",),
+        test=is_j2,
+        label="J2",
+        command=True,
+    ),
+    Family(
+        "instrument",
+        "a Taisong meter",
+        Instrument,
+        "TaisongDevice",
+        ("speedup",),
+        test=is_taisong,
+        label="Taisong",
+    ),
+    Family("atv31", "the Taisong manual's ATV31 drive", None, "Atv31Device"),
+)
+
+
+def family(key: str) -> Family:
+    """The family called ``key`` ("drive", "pbl", "j2", "instrument", "atv31")."""
+    found = next((f for f in FAMILIES if f.key == key), None)
+    if found is None:
+        raise ValueError(f"no device family {key!r}: one of {', '.join(f.key for f in FAMILIES)}")
+    return found
+
+
+def command_families() -> tuple[Family, ...]:
+    """The families the command line has a command for, in order."""
+    return tuple(f for f in FAMILIES if f.command)
+
+
+def mismatch(bus: Bus, unit: int, key: str) -> Family | None:
+    """None if ``unit`` may be of the family ``key``, else the family it looks like.
+
+    The family's own test runs first (a unit that does not answer it raises the timeout);
+    only if it does not recognise the unit are the other families with a command tried,
+    and only a unit another family recognises is refused: one that no test recognises is
+    given the benefit of the doubt.
+    """
+    expected = family(key)
+    probe = Probe(bus, unit)
+    if expected.test is None or expected.test(probe):
+        return None
+    return next((f for f in command_families() if f is not expected and f.verdict(probe)), None)

@@ -1,0 +1,231 @@
+"""The command line's arguments: numbers as written, the parser, the shared option groups."""
+
+from __future__ import annotations
+
+import argparse
+import re
+from collections.abc import Callable
+from decimal import Decimal, InvalidOperation
+from typing import Any, NoReturn
+
+PROG = "benchbus"
+
+
+PORT_ENV = "BENCHBUS_PORT"
+
+
+_INTEGER = re.compile(r"[+-]?(?:0x[0-9a-f]+|[0-9]+)")
+
+
+def parse_int(text: str) -> int:
+    """An integer written in decimal (``100``) or hex (``0x64``), with an optional sign."""
+    s = text.strip().lower().replace("_", "")
+    if not _INTEGER.fullmatch(s):
+        try:
+            number = Decimal(s).is_finite()
+        except InvalidOperation:
+            number = False
+        if number:
+            raise ValueError(f"{text!r} is not a whole number")
+        raise ValueError(f"{text!r} is not a number (write decimal, 100, or hex, 0x64)")
+    return int(s, 16 if "x" in s else 10)
+
+
+def integer(low: int, high: int, what: str) -> Callable[[str], int]:
+    """An argparse type: an integer in ``low..high``."""
+
+    def convert(text: str) -> int:
+        try:
+            value = parse_int(text)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{what} must be {low} to {high}, got {text}")
+        return value
+
+    convert.__name__ = what  # argparse names the type in some messages
+    return convert
+
+
+def parse_units(text: str, low: int = 1, high: int = 255) -> list[int]:
+    """Unit addresses from a list of numbers and ranges: ``1-10,17,0x20-0x22``."""
+    units: set[int] = set()
+    for part in text.split(","):
+        bounds = [b for b in (s.strip() for s in part.split("-")) if b] if part.strip() else []
+        if not 1 <= len(bounds) <= 2 or part.count("-") != len(bounds) - 1:
+            raise ValueError(f"{text!r} is not a list of units (e.g. 1-10,17,0x20)")
+        first, last = parse_int(bounds[0]), parse_int(bounds[-1])
+        if not low <= first <= last <= high:
+            raise ValueError(f"units must be {low} to {high}, in increasing ranges: got {part!r}")
+        units.update(range(first, last + 1))
+    return sorted(units)
+
+
+def units_type(low: int, high: int) -> Callable[[str], list[int]]:
+    """An argparse type: a list of units in ``low..high`` (see :func:`parse_units`)."""
+
+    def convert(text: str) -> list[int]:
+        try:
+            return parse_units(text, low, high)
+        except ValueError as exc:
+            raise argparse.ArgumentTypeError(str(exc)) from None
+
+    convert.__name__ = "units"
+    return convert
+
+
+def positive(what: str) -> Callable[[str], float]:
+    """An argparse type: a positive number (of seconds, or a factor)."""
+
+    def convert(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"{what}: {text!r} is not a number") from None
+        if not 0 < value < 1e9:
+            raise argparse.ArgumentTypeError(f"{what} must be > 0, got {text}")
+        return value
+
+    convert.__name__ = what
+    return convert
+
+
+seconds = positive("seconds")
+
+
+def number(text: str) -> float:
+    """An argparse type: a finite number (an engineering value)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
+    if value != value or value in (float("inf"), float("-inf")):
+        raise argparse.ArgumentTypeError(f"{text!r} is not a finite number")
+    return value
+
+
+_PARITIES = {"n": "N", "none": "N", "e": "E", "even": "E", "o": "O", "odd": "O"}
+
+
+def parity(text: str) -> str:
+    """An argparse type: N, E or O (or none, even, odd; any case)."""
+    try:
+        return _PARITIES[text.strip().lower()]
+    except KeyError:
+        raise argparse.ArgumentTypeError(f"parity is N, E or O, got {text!r}") from None
+
+
+class Parser(argparse.ArgumentParser):
+    """An ArgumentParser whose usage errors are one line: ``benchbus: read: <message>``."""
+
+    def error(self, message: str) -> NoReturn:
+        """Print the one-line usage error and exit with 2."""
+        where = self.prog[len(PROG) :].strip() if self.prog.startswith(PROG) else self.prog
+        text = f"{where}: {message}" if where else message
+        self.exit(2, f"{PROG}: {text} (see {self.prog} --help)\n")
+
+
+_S = argparse.SUPPRESS
+
+
+def general_options() -> Parser:
+    """The options every command takes: ``--verbose``, ``--traceback``."""
+    parent = Parser(add_help=False)
+    group = parent.add_argument_group("general options")
+    group.add_argument(
+        "-v",
+        "--verbose",
+        action="store_true",
+        default=_S,
+        help="log every frame sent and received, in hex, on stderr",
+    )
+    group.add_argument(
+        "--traceback",
+        action="store_true",
+        default=_S,
+        help="on an error, show the Python traceback instead of one line",
+    )
+    return parent
+
+
+def _rts_delay(text: str) -> tuple[float, float]:
+    """An argparse type: ``BEFORE,AFTER`` seconds (the core checks their range)."""
+    parts = text.split(",")
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        before, after = (float(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"--rts-delay takes BEFORE,AFTER in seconds, e.g. 0.001,0.001; got {text!r}"
+        ) from None
+    return before, after
+
+
+def line_options(unit: bool, rs485: bool = True) -> Parser:
+    """The line options (``--port``, ``--baudrate``...; ``--unit`` with ``unit``, the RS485
+    ones with ``rs485``), each left out of the namespace unless given."""
+    parent = Parser(add_help=False)
+    group = parent.add_argument_group(
+        "line options (defaults: the device family's line format and timing)"
+    )
+    group.add_argument(
+        "--port",
+        metavar="PORT",
+        default=_S,
+        help=f"serial port, tcp://HOST[:PORT] or rtu+tcp://HOST:PORT (default ${PORT_ENV})",
+    )
+    group.add_argument(
+        "--baudrate", type=integer(50, 4_000_000, "baudrate"), metavar="BPS", default=_S
+    )
+    group.add_argument("--parity", type=parity, metavar="N|E|O", default=_S)
+    group.add_argument("--stopbits", type=integer(1, 2, "stopbits"), metavar="1|2", default=_S)
+    if unit:
+        group.add_argument(
+            "--unit", type=integer(0, 255, "unit"), metavar="N", default=_S, help="default 1"
+        )
+    group.add_argument(
+        "--timeout", type=seconds, metavar="S", default=_S, help="seconds to wait for a reply"
+    )
+    group.add_argument(
+        "--retries",
+        type=integer(0, 10, "retries"),
+        metavar="N",
+        default=_S,
+        help="repeats after a timeout or a corrupt reply",
+    )
+    if rs485:
+        group.add_argument(
+            "--rs485",
+            action="store_true",
+            default=_S,
+            help="open a board UART in the Linux kernel's RS485 mode (RTS drives the "
+            "transceiver; a USB adapter switches by itself and needs none)",
+        )
+        group.add_argument(
+            "--rts-delay",
+            type=_rts_delay,
+            metavar="BEFORE,AFTER",
+            default=_S,
+            help="with --rs485: seconds from RTS on to the first bit, and after the last",
+        )
+    return parent
+
+
+def family_options() -> Parser:
+    """``--family BLD|C20``, for the commands that talk to a drive."""
+    parent = Parser(add_help=False)
+    parent.add_argument(
+        "--family",
+        type=str.upper,
+        choices=("BLD", "C20"),
+        default=_S,
+        help="BLD (BLD2, BLD3H; the default) or C20 (ZBLD.C20)",
+    )
+    return parent
+
+
+def add_command(subparsers: Any, name: str, help: str, parents: list[Parser], **kw: Any) -> Any:
+    """A command (or a command's action) called ``name`` under ``subparsers``, with the
+    option groups of ``parents``; ``help`` is also its description."""
+    return subparsers.add_parser(name, help=help, description=help, parents=parents, **kw)

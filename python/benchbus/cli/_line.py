@@ -1,0 +1,118 @@
+"""The line a command talks on: its family's defaults with the options given, the Bus, the unit."""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import os
+from typing import Any
+
+import benchbus as bb
+from benchbus._device import BusDevice
+from benchbus._families import command_families, family, mismatch
+from benchbus.cli._args import PORT_ENV, PROG
+from benchbus.cli._errors import CliError, UsageError
+
+
+@dataclasses.dataclass(frozen=True)
+class Line:
+    """A device family's line defaults."""
+
+    baudrate: int
+    parity: str
+    timeout: float
+    retries: int
+    unit: int = 1
+
+    def describe(self, stopbits: int = 1) -> str:
+        """``19200 8N1``."""
+        return f"{self.baudrate} 8{self.parity}{stopbits}"
+
+
+#: The line defaults of each command (the scan's timeout is per unit probed).
+LINES = {
+    "scan": Line(19200, "N", 0.05, 0),
+    "read": Line(19200, "N", 0.1, 2),
+    "write": Line(19200, "N", 0.1, 2),
+    "gateway": Line(19200, "N", 0.1, 2),
+    **{f.key: Line(*f.line, 2) for f in command_families()},
+}
+
+
+def rs485_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The Bus's ``rs485`` and ``rts_delay`` from ``--rs485`` and ``--rts-delay``."""
+    rs485, delay = bool(opt(args, "rs485", False)), opt(args, "rts_delay")
+    if delay is not None and not rs485:
+        raise UsageError("--rts-delay goes with --rs485")
+    return {"rs485": rs485, "rts_delay": delay}
+
+
+def opt(args: argparse.Namespace, name: str, default: Any = None) -> Any:
+    """The option ``name`` if it was given, else ``default``."""
+    return getattr(args, name, default)
+
+
+def port_of(args: argparse.Namespace) -> str:
+    """``--port``, else ``$BENCHBUS_PORT``; a UsageError without either."""
+    port = opt(args, "port") or os.environ.get(PORT_ENV)
+    if not port:
+        raise UsageError(f"--port is required (or set ${PORT_ENV})")
+    return str(port)
+
+
+def line_of(args: argparse.Namespace, family: str) -> Line:
+    """The family's line defaults with the options given on the command line."""
+    base = LINES[family]
+    return Line(
+        baudrate=opt(args, "baudrate", base.baudrate),
+        parity=opt(args, "parity", base.parity),
+        timeout=opt(args, "timeout", base.timeout),
+        retries=opt(args, "retries", base.retries),
+        unit=opt(args, "unit", base.unit),
+    )
+
+
+def open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) -> bb.Bus:
+    """A Bus on the port at the ``family``'s line with the options given."""
+    line = line_of(args, family)
+    return bb.Bus(
+        port_of(args),
+        baudrate=line.baudrate,
+        parity=line.parity,
+        stopbits=opt(args, "stopbits", 1),
+        timeout=line.timeout,
+        retries=line.retries,
+        reconnect=reconnect,
+        **rs485_options(args),
+    )
+
+
+def unit_of(args: argparse.Namespace, family: str, *, broadcast: bool = False) -> int:
+    """The unit to talk to (``--unit``, else the family's); 0 only for a ``broadcast``."""
+    unit = int(line_of(args, family).unit)
+    if unit == 0 and not broadcast:
+        raise UsageError("unit 0 is the broadcast address: give --unit 1 to 255")
+    return unit
+
+
+def open_drive(bus: bb.Bus, args: argparse.Namespace) -> bb.Drive:
+    """The Drive at the unit given, of ``--family`` (BLD by default), on ``bus``."""
+    return bb.Drive(bus, unit_of(args, "drive"), family=opt(args, "family", "BLD"))
+
+
+def open_device(bus: bb.Bus, args: argparse.Namespace, kind: str) -> BusDevice:
+    """The device of the family ``kind`` at the unit given on ``bus`` (a drive of
+    ``--family``)."""
+    if kind == "drive":
+        return open_drive(bus, args)
+    return family(kind).open(bus, unit_of(args, kind))
+
+
+def check_family(device: BusDevice, key: str) -> None:
+    """Refuse a unit recognised as another family than the command talks to."""
+    other = mismatch(device.bus, device.unit, key)
+    if other is not None:
+        raise CliError(
+            f"unit {device.unit} answers but is not {family(key).name} (looks like "
+            f"{other.name}: see '{PROG} {other.key} --help', or check --port and --unit)"
+        )

@@ -1,0 +1,94 @@
+"""``benchbus write``: write holding registers."""
+
+from __future__ import annotations
+
+import argparse
+from decimal import Decimal, InvalidOperation
+
+from benchbus.cli._args import Parser, integer, parse_int
+from benchbus.cli._errors import UsageError
+from benchbus.cli._line import open_bus, unit_of
+
+__all__ = ["HELP", "add_arguments", "run"]
+
+
+def _word(text: str, decimals: int) -> int:
+    """A register word from a value as written on the command line.
+
+    Without ``decimals``: an integer -32768..65535 (decimal or hex; negative values are
+    written in two's complement). With ``decimals`` N: a decimal number with at most N
+    decimals, written as value x 10**N.
+    """
+    if decimals == 0:
+        try:
+            value = parse_int(text)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+    else:
+        try:
+            scaled = Decimal(text.strip()).scaleb(decimals)
+        except InvalidOperation:
+            raise UsageError(f"{text!r} is not a number") from None
+        if not scaled.is_finite() or scaled != scaled.to_integral_value():
+            raise UsageError(f"{text!r} has more than {decimals} decimals")
+        value = int(scaled)
+    if not -0x8000 <= value <= 0xFFFF:
+        raise UsageError(f"{text!r} does not fit in a register (-32768 to 65535 raw)")
+    return value & 0xFFFF
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``benchbus write`` as ``args`` say; the exit status."""
+    words = [_word(v, args.decimals) for v in args.values]
+    if args.address + len(words) > 0x10000:
+        raise UsageError(f"{len(words)} registers from {args.address:#06x} run past 0xFFFF")
+    unit = unit_of(args, "write", broadcast=True)
+    if unit == 0 and len(words) > 1:
+        raise UsageError("a broadcast (unit 0) writes one register")
+    with open_bus(args, "write") as bus:
+        if unit == 0:
+            bus.broadcast_write_register(args.address, words[0])
+            how = "broadcast"
+        elif len(words) == 1 and not args.multiple:
+            bus.write_register(
+                unit, args.address, words[0], accept_count_echo=args.accept_count_echo
+            )
+            how = "0x06"
+        else:
+            for i in range(0, len(words), 123):
+                bus.write_registers(unit, args.address + i, words[i : i + 123])
+            how = "0x10"
+    shown = " ".join(str(w) for w in words)
+    print(f"unit {unit}: wrote {shown} at 0x{args.address:04X} ({how})")
+    return 0
+
+
+#: What ``benchbus write`` does, as ``--help`` says.
+HELP = "write holding registers (0x06 for one value, 0x10 for several)"
+#: The rest of its ``--help``.
+EPILOG = (
+    "Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
+    "with --decimals N, decimal numbers written as value x 10**N. --unit 0 broadcasts "
+    "one value and waits for no reply."
+)
+#: Its line options (see :func:`benchbus.cli._args.line_options`).
+LINE_OPTIONS = {"unit": True}
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus write`` (``parents``: its option groups, for its actions)."""
+    parser.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
+    parser.add_argument("values", nargs="+", metavar="VALUE")
+    parser.add_argument("--multiple", action="store_true", help="use 0x10 even for a single value")
+    parser.add_argument(
+        "--decimals",
+        type=integer(0, 9, "decimals"),
+        default=0,
+        metavar="N",
+        help="multiply the values by 10**N",
+    )
+    parser.add_argument(
+        "--accept-count-echo",
+        action="store_true",
+        help="accept a 0x06 reply that carries a count of 1 instead of the value (PBL)",
+    )
