@@ -44,6 +44,9 @@ rm -rf "$control" && mkdir -p "$control"
 pids=()
 stop() {
     local pid
+    # Wine's own processes (services.exe, plugplay.exe, winedevice.exe) outlive a killed
+    # server and keep polling: the server's -k ends them with it.
+    [ -n "${WINEPREFIX:-}" ] && .ci/wine/run --server -k 2>/dev/null || true
     for pid in "${pids[@]}"; do kill "$pid" 2>/dev/null || true; done
     for pid in "${pids[@]}"; do wait "$pid" 2>/dev/null || true; done
     pids=()
