@@ -13,6 +13,7 @@ from collections.abc import Iterator
 import pytest
 
 import benchbus as bb
+from benchbus._core import DriveCore
 from benchbus.sim import DriveDevice, SimException, Simulator
 from conftest import FakeClock
 
@@ -78,6 +79,20 @@ def test_manual_command_frames(any_family: Line) -> None:
     drive.speed_setpoint = 3000
     assert exchanged(sim, "01 06 20 01 0B B8 D4 88", "01 06 20 01 0B B8 D4 88")
     assert device.commands == [1, 2, 5, 7]
+
+
+def test_every_command_of_the_table_is_a_method_that_sends_its_code(bld: Line) -> None:
+    """The command codes are declared once, in the core's table; each is a Drive method."""
+    drive, _sim, device = bld
+    table = DriveCore.commands()
+    assert [code for _name, code in table] == list(range(1, 10))
+    for name, code in table:
+        method = getattr(drive, name)
+        assert f"(command {code})" in (method.__doc__ or "")
+        method()
+        assert device.commands[-1] == code
+    with pytest.raises(ValueError, match='no drive command "Forward"'):
+        drive.core.command("Forward")
 
 
 def test_manual_parameter_frames(any_family: Line) -> None:

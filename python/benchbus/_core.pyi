@@ -427,8 +427,12 @@ class DriveCore:
         """Reads the register called ``name``: an int, or a float for a scaled register."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``."""
-    def command(self, code: int) -> None:
-        """Sends command ``code`` (1..9) to 0x2000."""
+    def command(self, name: str) -> None:
+        """Sends the command called ``name`` ("forward", see ``commands()``) to 0x2000."""
+    @staticmethod
+    def commands() -> list[tuple[str, int]]:
+        """The command table: ``(name, code)`` of every value the command register 0x2000
+        takes, in code order, the brake stop (BLD only) included."""
     def status(self) -> dict[str, int | bool | str | None]:
         """0x2100..0x2102 decoded."""
     @staticmethod

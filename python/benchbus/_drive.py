@@ -335,42 +335,42 @@ class Drive(MotorDevice):
 
     def forward(self) -> None:
         """Run forward at the speed setpoint (command 1)."""
-        self.core.command(1)
+        self.core.command("forward")
 
     def reverse(self) -> None:
         """Run in reverse at the speed setpoint (command 2)."""
-        self.core.command(2)
+        self.core.command("reverse")
 
     def jog_forward(self) -> None:
         """Jog forward (command 3)."""
-        self.core.command(3)
+        self.core.command("jog_forward")
         self._jogging = True
 
     def jog_reverse(self) -> None:
         """Jog in reverse (command 4)."""
-        self.core.command(4)
+        self.core.command("jog_reverse")
         self._jogging = True
 
     def stop(self) -> None:
         """Stop: decelerate, or as :attr:`stop_mode` says (command 5)."""
-        self.core.command(5)
+        self.core.command("stop")
 
     def coast(self) -> None:
         """Free stop (emergency stop): cut the output and let the motor coast (command 6)."""
-        self.core.command(6)
+        self.core.command("coast")
 
     def reset_fault(self) -> None:
         """Reset a fault (command 7)."""
-        self.core.command(7)
+        self.core.command("reset_fault")
 
     def jog_stop(self) -> None:
         """End a jog (command 8)."""
-        self.core.command(8)
+        self.core.command("jog_stop")
         self._jogging = False
 
     def brake(self) -> None:
         """Brake stop, BLD only (command 9); ValueError on a C20."""
-        self.core.command(9)
+        self.core.command("brake")
 
     # ---- status and measurements -----------------------------------------------------------
 

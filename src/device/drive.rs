@@ -67,14 +67,52 @@ pub enum Command {
 }
 
 impl Command {
+    /// Every command, in code order.
+    pub const ALL: [Command; 9] = [
+        Command::Forward,
+        Command::Reverse,
+        Command::JogForward,
+        Command::JogReverse,
+        Command::Stop,
+        Command::Coast,
+        Command::ResetFault,
+        Command::JogStop,
+        Command::Brake,
+    ];
+
     /// The command of its register value.
     pub fn from_code(code: u16) -> Option<Command> {
-        use Command::*;
-        [
-            Forward, Reverse, JogForward, JogReverse, Stop, Coast, ResetFault, JogStop, Brake,
-        ]
-        .into_iter()
-        .find(|c| *c as u16 == code)
+        Command::ALL.into_iter().find(|c| *c as u16 == code)
+    }
+
+    /// The value written to 0x2000.
+    pub fn code(self) -> u16 {
+        self as u16
+    }
+
+    /// The name of the `Drive` method that sends it ("forward", "jog_stop"...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Command::Forward => "forward",
+            Command::Reverse => "reverse",
+            Command::JogForward => "jog_forward",
+            Command::JogReverse => "jog_reverse",
+            Command::Stop => "stop",
+            Command::Coast => "coast",
+            Command::ResetFault => "reset_fault",
+            Command::JogStop => "jog_stop",
+            Command::Brake => "brake",
+        }
+    }
+
+    /// The command called `name` (see [`name`](Self::name)).
+    pub fn from_name(name: &str) -> Option<Command> {
+        Command::ALL.into_iter().find(|c| c.name() == name)
+    }
+
+    /// Whether the C20 manual lists it (all but the brake stop).
+    pub fn on_c20(self) -> bool {
+        self != Command::Brake
     }
 }
 
@@ -472,12 +510,12 @@ impl Drive {
     /// # Errors
     /// Any [`Error`]; [`Error::InvalidArgument`] for the brake on a C20.
     pub fn command(&self, command: Command) -> Result<()> {
-        if command == Command::Brake && self.family == Family::C20 {
+        if !command.on_c20() && self.family == Family::C20 {
             return Err(Error::InvalidArgument(
                 "the brake stop (command 0x0009) exists on BLD drives only, not on the C20".into(),
             ));
         }
-        self.write(COMMAND, command as u16)
+        self.write(COMMAND, command.code())
     }
 
     /// Reads 0x2100..0x2102.
@@ -767,6 +805,11 @@ mod tests {
         assert_eq!(Model::from_id(Family::Bld, 0x40), None);
         assert_eq!(Command::from_code(9), Some(Command::Brake));
         assert_eq!(Command::from_code(10), None);
+        for (code, command) in (1..).zip(Command::ALL) {
+            assert_eq!(command.code(), code);
+            assert_eq!(Command::from_name(command.name()), Some(command));
+        }
+        assert_eq!(Command::from_name("Forward"), None);
         assert_eq!(meaning(8), "not changeable while running");
         assert_eq!(meaning(0x0B), exception_meaning(0x0B));
     }

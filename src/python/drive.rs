@@ -119,12 +119,23 @@ impl PyDriveCore {
         self.wire(py, move |d| d.set(&name, value))
     }
 
-    /// Sends command `code` (1..9) to 0x2000.
-    fn command(&self, py: Python<'_>, code: &Bound<'_, PyAny>) -> PyResult<()> {
-        let code = int_in(code, "command", 1, 9)? as u16;
-        let command = Command::from_code(code)
-            .ok_or_else(|| PyValueError::new_err(format!("no drive command {code}")))?;
+    /// Sends the command called `name` ("forward", see `commands()`) to 0x2000.
+    fn command(&self, py: Python<'_>, name: &str) -> PyResult<()> {
+        let command = Command::from_name(name).ok_or_else(|| {
+            let names: Vec<_> = Command::ALL.iter().map(|c| c.name()).collect();
+            PyValueError::new_err(format!(
+                "no drive command {name:?}; the commands are {}",
+                names.join(", ")
+            ))
+        })?;
         self.wire(py, move |d| d.command(command))
+    }
+
+    /// The command table: `(name, code)` of every value the command register 0x2000 takes,
+    /// in code order, the brake stop (BLD only) included.
+    #[staticmethod]
+    fn commands() -> Vec<(&'static str, u16)> {
+        Command::ALL.iter().map(|c| (c.name(), c.code())).collect()
     }
 
     /// 0x2100..0x2102 decoded: a dict of state, bus_voltage_ready, overloaded,
