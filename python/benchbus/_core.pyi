@@ -433,6 +433,12 @@ class DriveCore:
     def commands() -> list[tuple[str, int]]:
         """The command table: ``(name, code)`` of every value the command register 0x2000
         takes, in code order, the brake stop (BLD only) included."""
+    def read_setting(self, name: str) -> float:
+        """Reads the setting called ``name`` (a function-code parameter in engineering units,
+        "comm_loss_timeout" for F08.04)."""
+    def write_setting(self, name: str, value: float) -> None:
+        """Writes ``value`` (engineering units) to the setting called ``name``, enabling 0x200E
+        around it; the value and the family are checked before anything is sent."""
     def status(self) -> dict[str, int | bool | str | None]:
         """0x2100..0x2102 decoded."""
     @staticmethod

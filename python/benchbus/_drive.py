@@ -514,29 +514,11 @@ class Drive(MotorDevice):
         is W/R*: writing it while the motor turns is refused by the drive (exception 0x08).
         BLD family only: the ZBLD.C20 manual lists no F08.04, so a C20 raises ValueError.
         """
-        self._check_comm_loss_family()
-        return self.read_parameter("F08.04") / 10.0
+        return self.core.read_setting("comm_loss_timeout")
 
     @comm_loss_timeout.setter
     def comm_loss_timeout(self, seconds: float) -> None:
-        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)):
-            raise TypeError(
-                f"comm_loss_timeout must be a number of seconds, got {type(seconds).__name__}"
-            )
-        # Written so that NaN, the infinities and ints too big for a float all fail it.
-        if not (seconds == 0 or 0.1 <= seconds <= 60.0):
-            raise ValueError(
-                f"comm_loss_timeout (F08.04) must be 0 (off) or 0.1 to 60.0 s, got {seconds!r}"
-            )
-        self._check_comm_loss_family()
-        self.write_parameter("F08.04", round(seconds * 10))
-
-    def _check_comm_loss_family(self) -> None:
-        if self.family == "C20":
-            raise ValueError(
-                "comm_loss_timeout: the ZBLD.C20 manual lists no F08.04 (communication-loss"
-                " timeout); it is a BLD2 / BLD3H parameter"
-            )
+        self.core.write_setting("comm_loss_timeout", seconds)
 
     def keepalive(self, interval: float = 0.5) -> KeepAlive:
         """Read the drive state every ``interval`` seconds (0.01..60) from a daemon thread.

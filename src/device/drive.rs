@@ -374,6 +374,79 @@ pub fn parameter_address(code: &str) -> Result<u16> {
     }
 }
 
+/// A function-code parameter read and written in engineering units, through
+/// [`Drive::read_setting`] and [`Drive::write_setting`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setting {
+    /// Its name in the Python API (`comm_loss_timeout`).
+    pub name: &'static str,
+    /// The parameter, as the manual writes it ("F08.04").
+    pub code: &'static str,
+    /// What the manual calls it.
+    pub what: &'static str,
+    /// Engineering value = raw word x scale; a write is rounded to the nearest step.
+    pub scale: f64,
+    /// Unit of the engineering value.
+    pub unit: &'static str,
+    /// The values a write may carry besides 0 (off), inclusive.
+    pub range: (f64, f64),
+    /// Whether the C20 manual lists it.
+    pub on_c20: bool,
+}
+
+impl Setting {
+    /// Steps per unit of the engineering value (10 for tenths).
+    fn per_unit(&self) -> f64 {
+        (1.0 / self.scale).round()
+    }
+
+    /// The engineering value of a raw word.
+    pub fn decode(&self, raw: u16) -> f64 {
+        f64::from(raw) / self.per_unit()
+    }
+
+    /// The raw word for an engineering value: 0, or one in [`range`](Self::range) rounded
+    /// to the nearest step (half to even).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for anything else (NaN and the infinities included).
+    pub fn encode(&self, value: f64) -> Result<u16> {
+        let (lo, hi) = self.range;
+        if !(value == 0.0 || (lo..=hi).contains(&value)) {
+            return Err(Error::InvalidArgument(format!(
+                "{} ({}) must be 0 (off) or {lo:?} to {hi:?} {}, got {value:?}",
+                self.name, self.code, self.unit
+            )));
+        }
+        // In range, so it fits a register (checked against 16 bits in the tests).
+        Ok((value * self.per_unit()).round_ties_even() as u16)
+    }
+}
+
+/// F08.04, the communication-loss timeout: a drive that hears no request for that long
+/// trips and stops its motor; 0 = off (the default), else 0.1..60.0 s in tenths. The
+/// ZBLD.C20 manual lists no F08.04.
+pub const COMM_LOSS_TIMEOUT: Setting = Setting {
+    name: "comm_loss_timeout",
+    code: "F08.04",
+    what: "communication-loss timeout",
+    scale: 0.1,
+    unit: "s",
+    range: (0.1, 60.0),
+    on_c20: false,
+};
+
+/// Every [`Setting`] of the drive.
+pub const SETTINGS: &[Setting] = &[COMM_LOSS_TIMEOUT];
+
+fn find_setting(name: &str) -> Result<Setting> {
+    SETTINGS
+        .iter()
+        .find(|s| s.name == name)
+        .copied()
+        .ok_or_else(|| Error::InvalidArgument(format!("the drive has no setting {name:?}")))
+}
+
 const BLOCK_UNKNOWN: u8 = 0;
 const BLOCK_YES: u8 = 1;
 const BLOCK_NO: u8 = 2;
@@ -627,6 +700,42 @@ impl Drive {
         }
     }
 
+    /// The [`Setting`] called `name`, if this drive's family has it.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if there is no such setting, or not on this family.
+    pub fn setting(&self, name: &str) -> Result<Setting> {
+        let setting = find_setting(name)?;
+        if self.family == Family::C20 && !setting.on_c20 {
+            return Err(Error::InvalidArgument(format!(
+                "{name}: the ZBLD.C20 manual lists no {} ({}); it is a BLD2 / BLD3H parameter",
+                setting.code, setting.what
+            )));
+        }
+        Ok(setting)
+    }
+
+    /// Reads the setting called `name`, in engineering units.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a setting this family lacks.
+    pub fn read_setting(&self, name: &str) -> Result<f64> {
+        let setting = self.setting(name)?;
+        Ok(setting.decode(self.read_parameter(setting.code)?))
+    }
+
+    /// Writes `value` (engineering units) to the setting called `name`, as
+    /// [`write_parameter`](Self::write_parameter) does; the value is checked before the
+    /// family, and both before anything is sent.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a bad value or a setting this family
+    /// lacks.
+    pub fn write_setting(&self, name: &str, value: f64) -> Result<()> {
+        let raw = find_setting(name)?.encode(value)?;
+        self.write_parameter(self.setting(name)?.code, raw)
+    }
+
     /// Reads the raw value of function-code parameter `code` ("F00.10").
     ///
     /// # Errors
@@ -792,6 +901,33 @@ mod tests {
             assert!(lo <= hi, "{}", r.name);
             assert!(lo / r.scale >= 0.0 && hi / r.scale <= 65535.0, "{}", r.name);
             assert_eq!(r.access == Access::Read, r.address >= STATUS, "{}", r.name);
+        }
+    }
+
+    #[test]
+    fn comm_loss_timeout_is_off_or_tenths_of_0_1_to_60_s() {
+        let s = COMM_LOSS_TIMEOUT;
+        for (seconds, raw) in [
+            (0.0, 0),
+            (0.1, 1),
+            (0.25, 2),
+            (0.35, 4),
+            (12.34, 123),
+            (60.0, 600),
+        ] {
+            assert_eq!(s.encode(seconds).ok(), Some(raw), "{seconds}");
+        }
+        for bad in [-0.1, 0.05, 60.1, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert!(s.encode(bad).is_err(), "{bad}");
+        }
+        assert_eq!(s.decode(25), 2.5);
+        assert_eq!(parameter_address(s.code).ok(), Some(0x0804));
+        for setting in SETTINGS {
+            assert!(
+                setting.range.1 / setting.scale <= 65535.0,
+                "{}",
+                setting.name
+            );
         }
     }
 

@@ -224,6 +224,22 @@ impl PyDriveCore {
         self.wire(py, move |d| d.write_parameter(&code, value))
     }
 
+    /// Reads the setting called `name` (a function-code parameter in engineering units,
+    /// "comm_loss_timeout" for F08.04).
+    fn read_setting(&self, py: Python<'_>, name: &str) -> PyResult<f64> {
+        self.drive.setting(name).map_err(|e| to_pyerr(py, e))?;
+        let name = name.to_string();
+        self.wire(py, move |d| d.read_setting(&name))
+    }
+
+    /// Writes `value` (engineering units) to the setting called `name`, enabling 0x200E
+    /// around it; the value and the family are checked before anything is sent.
+    fn write_setting(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let value = number(value, name)?;
+        let name = name.to_string();
+        self.wire(py, move |d| d.write_setting(&name, value))
+    }
+
     /// The register table: `(name, address, scale, unit, access, low, high)` for each
     /// register of this family; access is "R", "W/R" or "W/R*".
     fn registers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
