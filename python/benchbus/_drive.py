@@ -430,9 +430,10 @@ class Drive(MotorDevice):
         ):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+        top = next(row[6] for row in self.registers() if row[0] == "speed_setpoint")
         for name, value in (("rpm", rpm), ("tolerance", tolerance)):
-            if not 0 <= value <= 3000:
-                raise ValueError(f"{name} must be 0 to 3000 rpm, got {value}")
+            if not 0 <= value <= top:
+                raise ValueError(f"{name} must be 0 to {top:g} rpm, got {value}")
         if not 0 < timeout <= 3600:
             raise ValueError(f"timeout must be 0 < s <= 3600, got {timeout}")
         if not 0 < interval <= 10:
