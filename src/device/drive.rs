@@ -464,16 +464,16 @@ pub struct Drive {
 }
 
 impl Drive {
-    /// The drive at `unit` on `bus`. `write_reply` is false for a drive set to F08.06 = 1,
+    /// The drive at `unit` on `bus`. `write_ack` is false for a drive set to F08.06 = 1,
     /// which answers no write.
-    pub fn new(bus: Arc<Bus>, unit: u8, family: Family, write_reply: bool) -> Drive {
+    pub fn new(bus: Arc<Bus>, unit: u8, family: Family, write_ack: bool) -> Drive {
         Drive {
             bus,
             unit,
             family,
             opts: TxOptions {
                 meaning,
-                write_reply,
+                write_ack,
                 ..TxOptions::default()
             },
             block_reads: AtomicU8::new(BLOCK_UNKNOWN),
@@ -519,8 +519,8 @@ impl Drive {
     }
 
     /// Whether writes are answered (false when set to F08.06 = 1).
-    pub fn write_reply(&self) -> bool {
-        self.opts.write_reply
+    pub fn write_ack(&self) -> bool {
+        self.opts.write_ack
     }
 
     /// Whether the drive answers multi-register reads: None until one was tried.

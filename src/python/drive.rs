@@ -79,7 +79,7 @@ impl PyDriveCore {
     /// Whether writes are answered (False for a drive set to F08.06 = 1).
     #[getter]
     fn write_ack(&self) -> bool {
-        self.drive.write_reply()
+        self.drive.write_ack()
     }
 
     /// Reply timeout of the drive's requests, in seconds (its own, or the Bus's).
@@ -265,7 +265,7 @@ impl PyDriveCore {
             "DriveCore(unit={}, family='{}', write_ack={})",
             self.drive.unit(),
             self.drive.family().name(),
-            if self.drive.write_reply() {
+            if self.drive.write_ack() {
                 "True"
             } else {
                 "False"
