@@ -447,9 +447,51 @@ fn find_setting(name: &str) -> Result<Setting> {
         .ok_or_else(|| Error::InvalidArgument(format!("the drive has no setting {name:?}")))
 }
 
-const BLOCK_UNKNOWN: u8 = 0;
-const BLOCK_YES: u8 = 1;
-const BLOCK_NO: u8 = 2;
+/// Whether a drive does something the manuals leave open (block reads, the hall count
+/// registers): not tried yet, or learned from its first answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Support {
+    /// Not tried yet.
+    Unknown = 0,
+    /// It does.
+    Yes = 1,
+    /// It does not.
+    No = 2,
+}
+
+impl Support {
+    /// True or false once learned, None while unknown.
+    pub fn known(self) -> Option<bool> {
+        match self {
+            Support::Unknown => None,
+            Support::Yes => Some(true),
+            Support::No => Some(false),
+        }
+    }
+}
+
+/// A [`Support`] that threads sharing a drive learn together.
+#[derive(Debug)]
+struct AtomicSupport(AtomicU8);
+
+impl AtomicSupport {
+    fn new(support: Support) -> AtomicSupport {
+        AtomicSupport(AtomicU8::new(support as u8))
+    }
+
+    fn get(&self) -> Support {
+        match self.0.load(Ordering::Relaxed) {
+            1 => Support::Yes,
+            2 => Support::No,
+            _ => Support::Unknown,
+        }
+    }
+
+    fn set(&self, support: Support) {
+        self.0.store(support as u8, Ordering::Relaxed);
+    }
+}
 
 /// A BLD2 / BLD3H / C20 drive on a bus.
 #[derive(Debug)]
@@ -458,9 +500,9 @@ pub struct Drive {
     unit: u8,
     family: Family,
     opts: TxOptions,
-    block_reads: AtomicU8,
+    block_reads: AtomicSupport,
     /// Whether the firmware has 0x3012..0x3014 ("software version dependent" in 000).
-    hall_registers: AtomicU8,
+    hall_registers: AtomicSupport,
 }
 
 impl Drive {
@@ -476,11 +518,11 @@ impl Drive {
                 write_ack,
                 ..TxOptions::default()
             },
-            block_reads: AtomicU8::new(BLOCK_UNKNOWN),
-            hall_registers: AtomicU8::new(if family == Family::Bld {
-                BLOCK_UNKNOWN
+            block_reads: AtomicSupport::new(Support::Unknown),
+            hall_registers: AtomicSupport::new(if family == Family::Bld {
+                Support::Unknown
             } else {
-                BLOCK_NO
+                Support::No
             }),
         }
     }
@@ -525,11 +567,7 @@ impl Drive {
 
     /// Whether the drive answers multi-register reads: None until one was tried.
     pub fn block_reads(&self) -> Option<bool> {
-        match self.block_reads.load(Ordering::Relaxed) {
-            BLOCK_YES => Some(true),
-            BLOCK_NO => Some(false),
-            _ => None,
-        }
+        self.block_reads.get().known()
     }
 
     /// The register called `name`, as this drive's family has it.
@@ -619,7 +657,7 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn telemetry(&self) -> Result<Telemetry> {
-        let with_hall = self.hall_registers.load(Ordering::Relaxed) != BLOCK_NO;
+        let with_hall = self.hall_registers.get() != Support::No;
         let entries = |hall: bool| -> Vec<Register> {
             REGISTERS
                 .iter()
@@ -632,12 +670,12 @@ impl Drive {
         let words = match self.read(TELEMETRY, wanted.len() as u16) {
             Ok(words) => {
                 if with_hall {
-                    self.hall_registers.store(BLOCK_YES, Ordering::Relaxed);
+                    self.hall_registers.set(Support::Yes);
                 }
                 words
             }
             Err(Error::Exception { code: 0x02, .. })
-                if with_hall && self.hall_registers.load(Ordering::Relaxed) == BLOCK_UNKNOWN =>
+                if with_hall && self.hall_registers.get() == Support::Unknown =>
             {
                 wanted = entries(false);
                 let words = self.read(TELEMETRY, wanted.len() as u16)?;
@@ -645,7 +683,7 @@ impl Drive {
                     target: "benchbus::device",
                     "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit
                 );
-                self.hall_registers.store(BLOCK_NO, Ordering::Relaxed);
+                self.hall_registers.set(Support::No);
                 words
             }
             Err(e) => return Err(e),
@@ -794,17 +832,15 @@ impl Drive {
     /// drive has refused a block read that it then answered register by register.
     fn read(&self, address: u16, count: u16) -> Result<Vec<u16>> {
         let bus = &self.bus;
-        if count > 1 && self.block_reads.load(Ordering::Relaxed) != BLOCK_NO {
+        if count > 1 && self.block_reads.get() != Support::No {
             match bus.read_holding_registers(self.unit, address, count, &self.opts) {
                 Ok(words) => {
-                    self.block_reads.store(BLOCK_YES, Ordering::Relaxed);
+                    self.block_reads.set(Support::Yes);
                     return Ok(words);
                 }
                 // A refusal: an exception reply, or a reply of the wrong shape (a drive that
                 // answers one register whatever the count). Not a timeout or a bad CRC.
-                Err(e)
-                    if self.block_reads.load(Ordering::Relaxed) == BLOCK_UNKNOWN
-                        && is_refusal(&e) => {}
+                Err(e) if self.block_reads.get() == Support::Unknown && is_refusal(&e) => {}
                 Err(e) => return Err(e),
             }
             let words = self.read_singly(address, count)?;
@@ -812,7 +848,7 @@ impl Drive {
                 target: "benchbus::device",
                 "unit {}: block reads refused, reading one register per request", self.unit
             );
-            self.block_reads.store(BLOCK_NO, Ordering::Relaxed);
+            self.block_reads.set(Support::No);
             return Ok(words);
         }
         self.read_singly(address, count)
@@ -929,6 +965,18 @@ mod tests {
                 setting.name
             );
         }
+    }
+
+    #[test]
+    fn support_is_learned_once_per_state() {
+        let learned = AtomicSupport::new(Support::Unknown);
+        assert_eq!(learned.get().known(), None);
+        for support in [Support::Yes, Support::No, Support::Unknown] {
+            learned.set(support);
+            assert_eq!(learned.get(), support);
+        }
+        assert_eq!(Support::Yes.known(), Some(true));
+        assert_eq!(Support::No.known(), Some(false));
     }
 
     #[test]
