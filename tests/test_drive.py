@@ -268,6 +268,18 @@ def test_model() -> None:
             assert drive.model is expected
 
 
+def test_the_model_enum_is_the_cores_model_table(caplog: pytest.LogCaptureFixture) -> None:
+    """Each model is declared once, in the core: name, code, family; the enum follows it."""
+    table = DriveCore.models()
+    assert [name for name, _id, _family in table] == [m.value for m in bb.Model]
+    for name, code, family in table:
+        assert DriveCore.model_from_id(family, code) == name
+        with Simulator(DriveDevice(name)) as sim, bb.Drive(sim.port, family=family) as drive:
+            with caplog.at_level("WARNING", logger="benchbus.drive"):
+                assert drive.model is bb.Model(name)
+    assert caplog.text == ""  # each model on its own family: nothing to report
+
+
 # ---- errors -----------------------------------------------------------------------------------
 
 

@@ -445,6 +445,10 @@ class DriveCore:
     def model_from_id(family: str, id: int) -> str | None:
         """The model an identification code (0x2103) names on a drive of ``family``: "BLD2",
         "BLD3H" or "C20", or None for a code the manuals do not list."""
+    @staticmethod
+    def models() -> list[tuple[str, int, str]]:
+        """The model table: ``(name, identification code, family)`` of each model the manuals
+        name."""
     def model(self) -> str | int:
         """The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown."""
     def telemetry(self) -> dict[str, Any]:

@@ -211,6 +211,10 @@ class DriveTelemetry:
         return dataclass_table(self, self.units)
 
 
+#: The family (manual) each model follows, from the core's model table.
+_MODEL_FAMILY = {Model(name): family for name, _id, family in DriveCore.models()}
+
+
 def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode | int:
     return as_enum(C20ControlMode if drive.family == "C20" else ControlMode, int(raw))
 
@@ -321,7 +325,7 @@ class Drive(MotorDevice):
         if not isinstance(name, str):
             return name
         model = Model(name)
-        if (model is Model.C20) != (self.family == "C20") and model is not Model.BLD2:
+        if _MODEL_FAMILY[model] != self.family:
             log.warning(
                 "unit %d identifies as %s but this Drive was made for family %s: status bit 4"
                 " (overload) is read with that family's polarity",

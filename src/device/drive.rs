@@ -275,12 +275,35 @@ pub enum Model {
 }
 
 impl Model {
-    /// The model of an identification code, as `family` reads it.
+    /// Every model, in the order of the manuals.
+    pub const ALL: [Model; 3] = [Model::Bld2, Model::Bld3h, Model::C20];
+
+    /// Its identification code (0x2103).
+    pub fn id(self) -> u16 {
+        match self {
+            Model::Bld2 | Model::C20 => 0x0020,
+            Model::Bld3h => 0x0030,
+        }
+    }
+
+    /// The manual it follows.
+    pub fn family(self) -> Family {
+        match self {
+            Model::Bld2 | Model::Bld3h => Family::Bld,
+            Model::C20 => Family::C20,
+        }
+    }
+
+    /// The model of an identification code, as `family` reads it: the family's own model
+    /// with that code, else the one model of any family that has it (0x0030 is a BLD3H
+    /// whichever family the drive was opened as).
     pub fn from_id(family: Family, id: u16) -> Option<Model> {
-        match (family, id) {
-            (Family::Bld, 0x0020) => Some(Model::Bld2),
-            (Family::C20, 0x0020) => Some(Model::C20),
-            (_, 0x0030) => Some(Model::Bld3h),
+        let mut with_id = Model::ALL.into_iter().filter(|m| m.id() == id);
+        if let Some(own) = with_id.clone().find(|m| m.family() == family) {
+            return Some(own);
+        }
+        match (with_id.next(), with_id.next()) {
+            (Some(only), None) => Some(only),
             _ => None,
         }
     }
@@ -987,6 +1010,9 @@ mod tests {
         assert_eq!(Model::from_id(Family::C20, 0x20), Some(Model::C20));
         assert_eq!(Model::from_id(Family::C20, 0x30), Some(Model::Bld3h));
         assert_eq!(Model::from_id(Family::Bld, 0x40), None);
+        for model in Model::ALL {
+            assert_eq!(Model::from_id(model.family(), model.id()), Some(model));
+        }
         assert_eq!(Command::from_code(9), Some(Command::Brake));
         assert_eq!(Command::from_code(10), None);
         for (code, command) in (1..).zip(Command::ALL) {

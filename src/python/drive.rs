@@ -162,6 +162,16 @@ impl PyDriveCore {
         Ok(Model::from_id(family, id).map(Model::name))
     }
 
+    /// The model table: `(name, identification code, family)` of each model the manuals
+    /// name.
+    #[staticmethod]
+    fn models() -> Vec<(&'static str, u16, &'static str)> {
+        Model::ALL
+            .iter()
+            .map(|m| (m.name(), m.id(), m.family().name()))
+            .collect()
+    }
+
     /// The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown.
     fn model<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         Ok(match self.wire(py, |d| d.model())? {
