@@ -669,7 +669,8 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn model(&self) -> Result<std::result::Result<Model, u16>> {
-        let id = self.read(0x2103, 1)?.first().copied().unwrap_or_default();
+        let address = self.register("model_id")?.address;
+        let id = self.read(address, 1)?.first().copied().unwrap_or_default();
         Ok(Model::from_id(self.family, id).ok_or(id))
     }
 
@@ -717,10 +718,10 @@ impl Drive {
         let mut values = Vec::with_capacity(wanted.len());
         let mut hall = (None, None);
         for (register, &raw) in wanted.iter().zip(&words) {
-            match register.address {
-                0x3012 => {}
-                0x3013 => hall.0 = Some(u32::from(raw)),
-                0x3014 => hall.1 = Some(u32::from(raw)),
+            match register.name {
+                "reserved_3012" => {}
+                "hall_count_high" => hall.0 = Some(u32::from(raw)),
+                "hall_count_low" => hall.1 = Some(u32::from(raw)),
                 _ => values.push((register.name, register.decode(raw), register.unit)),
             }
         }
