@@ -114,7 +114,7 @@ pub struct TxOptions {
     /// Whether a write is answered. False for devices set to answer no write (a BLD drive
     /// with F08.06 = 1): the write is sent once and nothing is awaited. Reads are always
     /// answered.
-    pub write_reply: bool,
+    pub write_ack: bool,
 }
 
 impl Default for TxOptions {
@@ -126,7 +126,7 @@ impl Default for TxOptions {
             retries: None,
             meaning: exception_meaning,
             window_from_start: false,
-            write_reply: true,
+            write_ack: true,
         }
     }
 }
@@ -610,7 +610,7 @@ impl Bus {
         let paced = is_write && !opts.write_interval.is_zero();
         // Nothing comes back but the local echo on a Bus opened with `echo`: a garbled one
         // is sent again, as a corrupt reply would be.
-        let unanswered = is_write && !opts.write_reply;
+        let unanswered = is_write && !opts.write_ack;
         let timeout = opts.timeout.unwrap_or(self.config.timeout);
         let attempts = opts
             .retries

@@ -778,7 +778,7 @@ fn an_unanswered_write_with_a_garbled_echo_is_sent_again() {
     let (bus, t) = common::echo_bus(vec![], 2);
     t.0.lock().unwrap().garble_echo = 1;
     let opts = TxOptions {
-        write_reply: false,
+        write_ack: false,
         ..TxOptions::default()
     };
     bus.write_register(1, 1, 5, &opts).unwrap();
@@ -792,7 +792,7 @@ fn an_unanswered_write_whose_echo_stays_garbled_fails_after_its_attempts() {
     let (bus, t) = common::echo_bus(vec![], 2);
     t.0.lock().unwrap().garble_echo = 5;
     let opts = TxOptions {
-        write_reply: false,
+        write_ack: false,
         ..TxOptions::default()
     };
     let e = bus.write_register(1, 1, 5, &opts).unwrap_err();

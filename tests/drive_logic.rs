@@ -8,9 +8,9 @@ use benchbus::Error;
 use common::{bus, hex, sent, with_crc, Act, Scripted};
 use std::sync::Arc;
 
-fn drive(acts: Vec<Act>, family: Family, write_reply: bool) -> (Drive, Scripted) {
+fn drive(acts: Vec<Act>, family: Family, write_ack: bool) -> (Drive, Scripted) {
     let (bus, t) = bus(acts, 0);
-    (Drive::new(Arc::new(bus), 1, family, write_reply), t)
+    (Drive::new(Arc::new(bus), 1, family, write_ack), t)
 }
 
 fn echo(frame: &str) -> Act {

@@ -7,12 +7,15 @@ line, byte for byte, for the Python call that makes each of them.
 from __future__ import annotations
 
 import contextlib
+import re
 import time
 from collections.abc import Iterator
 
 import pytest
 
 import benchbus as bb
+from benchbus._core import DriveCore
+from benchbus._device import RegisterProperty
 from benchbus.sim import DriveDevice, SimException, Simulator
 from conftest import FakeClock
 
@@ -78,6 +81,43 @@ def test_manual_command_frames(any_family: Line) -> None:
     drive.speed_setpoint = 3000
     assert exchanged(sim, "01 06 20 01 0B B8 D4 88", "01 06 20 01 0B B8 D4 88")
     assert device.commands == [1, 2, 5, 7]
+
+
+def test_every_command_of_the_table_is_a_method_that_sends_its_code(bld: Line) -> None:
+    """The command codes are declared once, in the core's table; each is a Drive method."""
+    drive, _sim, device = bld
+    table = DriveCore.commands()
+    assert [code for _name, code in table] == list(range(1, 10))
+    for name, code in table:
+        method = getattr(drive, name)
+        assert f"(command {code})" in (method.__doc__ or "")
+        method()
+        assert device.commands[-1] == code
+    with pytest.raises(ValueError, match='no drive command "Forward"'):
+        drive.core.command("Forward")
+
+
+def test_property_docs_say_what_the_register_table_says(bld: Line) -> None:
+    """The address, range and "stopped only" in each property's docstring are the table's."""
+
+    def number(text: str) -> float:
+        return float(int(text, 16) if text.startswith("0x") else text)
+
+    drive, _sim, _device = bld
+    table = {row[0]: row for row in drive.registers()}
+    checked = 0
+    for attribute in vars(bb.Drive).values():
+        if not isinstance(attribute, RegisterProperty):
+            continue
+        _name, address, _scale, _unit, access, low, high = table[attribute.register]
+        doc = attribute.__doc__ or ""
+        assert f"(0x{address:04X}" in doc, doc
+        assert ("stopped only" in doc) == (access == "W/R*"), doc
+        span = re.search(r"(\S+)\.\.(\S+?)[ )]", doc)
+        if span is not None:
+            assert (number(span[1]), number(span[2])) == (low, high), doc
+        checked += 1
+    assert checked == 10
 
 
 def test_manual_parameter_frames(any_family: Line) -> None:
@@ -251,6 +291,21 @@ def test_model() -> None:
     ]:
         with Simulator(DriveDevice(model)) as sim, bb.Drive(sim.port, family=family) as drive:
             assert drive.model is expected
+
+
+def test_the_model_enum_is_the_cores_model_table(caplog: pytest.LogCaptureFixture) -> None:
+    """Each model is declared once, in the core: name, code, family; the enum follows it."""
+    table = DriveCore.models()
+    assert [name for name, _id, _family in table] == [m.value for m in bb.Model]
+    for name, code, family in table:
+        assert DriveCore.model_from_id(family, code) == name
+        with (
+            Simulator(DriveDevice(name)) as sim,
+            bb.Drive(sim.port, family=family) as drive,
+            caplog.at_level("WARNING", logger="benchbus.drive"),
+        ):
+            assert drive.model is bb.Model(name)
+    assert caplog.text == ""  # each model on its own family: nothing to report
 
 
 # ---- errors -----------------------------------------------------------------------------------

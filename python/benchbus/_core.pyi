@@ -427,14 +427,28 @@ class DriveCore:
         """Reads the register called ``name``: an int, or a float for a scaled register."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``."""
-    def command(self, code: int) -> None:
-        """Sends command ``code`` (1..9) to 0x2000."""
+    def command(self, name: str) -> None:
+        """Sends the command called ``name`` ("forward", see ``commands()``) to 0x2000."""
+    @staticmethod
+    def commands() -> list[tuple[str, int]]:
+        """The command table: ``(name, code)`` of every value the command register 0x2000
+        takes, in code order, the brake stop (BLD only) included."""
+    def read_setting(self, name: str) -> float:
+        """Reads the setting called ``name`` (a function-code parameter in engineering units,
+        "comm_loss_timeout" for F08.04)."""
+    def write_setting(self, name: str, value: float) -> None:
+        """Writes ``value`` (engineering units) to the setting called ``name``, enabling 0x200E
+        around it; the value and the family are checked before anything is sent."""
     def status(self) -> dict[str, int | bool | str | None]:
         """0x2100..0x2102 decoded."""
     @staticmethod
     def model_from_id(family: str, id: int) -> str | None:
         """The model an identification code (0x2103) names on a drive of ``family``: "BLD2",
         "BLD3H" or "C20", or None for a code the manuals do not list."""
+    @staticmethod
+    def models() -> list[tuple[str, int, str]]:
+        """The model table: ``(name, identification code, family)`` of each model the manuals
+        name."""
     def model(self) -> str | int:
         """The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown."""
     def telemetry(self) -> dict[str, Any]:

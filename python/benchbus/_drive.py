@@ -211,6 +211,10 @@ class DriveTelemetry:
         return dataclass_table(self, self.units)
 
 
+#: The family (manual) each model follows, from the core's model table.
+_MODEL_FAMILY = {Model(name): family for name, _id, family in DriveCore.models()}
+
+
 def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode | int:
     return as_enum(C20ControlMode if drive.family == "C20" else ControlMode, int(raw))
 
@@ -321,7 +325,7 @@ class Drive(MotorDevice):
         if not isinstance(name, str):
             return name
         model = Model(name)
-        if (model is Model.C20) != (self.family == "C20") and model is not Model.BLD2:
+        if _MODEL_FAMILY[model] != self.family:
             log.warning(
                 "unit %d identifies as %s but this Drive was made for family %s: status bit 4"
                 " (overload) is read with that family's polarity",
@@ -335,42 +339,42 @@ class Drive(MotorDevice):
 
     def forward(self) -> None:
         """Run forward at the speed setpoint (command 1)."""
-        self.core.command(1)
+        self.core.command("forward")
 
     def reverse(self) -> None:
         """Run in reverse at the speed setpoint (command 2)."""
-        self.core.command(2)
+        self.core.command("reverse")
 
     def jog_forward(self) -> None:
         """Jog forward (command 3)."""
-        self.core.command(3)
+        self.core.command("jog_forward")
         self._jogging = True
 
     def jog_reverse(self) -> None:
         """Jog in reverse (command 4)."""
-        self.core.command(4)
+        self.core.command("jog_reverse")
         self._jogging = True
 
     def stop(self) -> None:
         """Stop: decelerate, or as :attr:`stop_mode` says (command 5)."""
-        self.core.command(5)
+        self.core.command("stop")
 
     def coast(self) -> None:
         """Free stop (emergency stop): cut the output and let the motor coast (command 6)."""
-        self.core.command(6)
+        self.core.command("coast")
 
     def reset_fault(self) -> None:
         """Reset a fault (command 7)."""
-        self.core.command(7)
+        self.core.command("reset_fault")
 
     def jog_stop(self) -> None:
         """End a jog (command 8)."""
-        self.core.command(8)
+        self.core.command("jog_stop")
         self._jogging = False
 
     def brake(self) -> None:
         """Brake stop, BLD only (command 9); ValueError on a C20."""
-        self.core.command(9)
+        self.core.command("brake")
 
     # ---- status and measurements -----------------------------------------------------------
 
@@ -430,9 +434,10 @@ class Drive(MotorDevice):
         ):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise TypeError(f"{name} must be a number, got {type(value).__name__}")
+        top = next(row[6] for row in self.registers() if row[0] == "speed_setpoint")
         for name, value in (("rpm", rpm), ("tolerance", tolerance)):
-            if not 0 <= value <= 3000:
-                raise ValueError(f"{name} must be 0 to 3000 rpm, got {value}")
+            if not 0 <= value <= top:
+                raise ValueError(f"{name} must be 0 to {top:g} rpm, got {value}")
         if not 0 < timeout <= 3600:
             raise ValueError(f"timeout must be 0 < s <= 3600, got {timeout}")
         if not 0 < interval <= 10:
@@ -514,29 +519,11 @@ class Drive(MotorDevice):
         is W/R*: writing it while the motor turns is refused by the drive (exception 0x08).
         BLD family only: the ZBLD.C20 manual lists no F08.04, so a C20 raises ValueError.
         """
-        self._check_comm_loss_family()
-        return self.read_parameter("F08.04") / 10.0
+        return self.core.read_setting("comm_loss_timeout")
 
     @comm_loss_timeout.setter
     def comm_loss_timeout(self, seconds: float) -> None:
-        if isinstance(seconds, bool) or not isinstance(seconds, (int, float)):
-            raise TypeError(
-                f"comm_loss_timeout must be a number of seconds, got {type(seconds).__name__}"
-            )
-        # Written so that NaN, the infinities and ints too big for a float all fail it.
-        if not (seconds == 0 or 0.1 <= seconds <= 60.0):
-            raise ValueError(
-                f"comm_loss_timeout (F08.04) must be 0 (off) or 0.1 to 60.0 s, got {seconds!r}"
-            )
-        self._check_comm_loss_family()
-        self.write_parameter("F08.04", round(seconds * 10))
-
-    def _check_comm_loss_family(self) -> None:
-        if self.family == "C20":
-            raise ValueError(
-                "comm_loss_timeout: the ZBLD.C20 manual lists no F08.04 (communication-loss"
-                " timeout); it is a BLD2 / BLD3H parameter"
-            )
+        self.core.write_setting("comm_loss_timeout", seconds)
 
     def keepalive(self, interval: float = 0.5) -> KeepAlive:
         """Read the drive state every ``interval`` seconds (0.01..60) from a daemon thread.

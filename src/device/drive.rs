@@ -67,14 +67,52 @@ pub enum Command {
 }
 
 impl Command {
+    /// Every command, in code order.
+    pub const ALL: [Command; 9] = [
+        Command::Forward,
+        Command::Reverse,
+        Command::JogForward,
+        Command::JogReverse,
+        Command::Stop,
+        Command::Coast,
+        Command::ResetFault,
+        Command::JogStop,
+        Command::Brake,
+    ];
+
     /// The command of its register value.
     pub fn from_code(code: u16) -> Option<Command> {
-        use Command::*;
-        [
-            Forward, Reverse, JogForward, JogReverse, Stop, Coast, ResetFault, JogStop, Brake,
-        ]
-        .into_iter()
-        .find(|c| *c as u16 == code)
+        Command::ALL.into_iter().find(|c| *c as u16 == code)
+    }
+
+    /// The value written to 0x2000.
+    pub fn code(self) -> u16 {
+        self as u16
+    }
+
+    /// The name of the `Drive` method that sends it ("forward", "jog_stop"...).
+    pub fn name(self) -> &'static str {
+        match self {
+            Command::Forward => "forward",
+            Command::Reverse => "reverse",
+            Command::JogForward => "jog_forward",
+            Command::JogReverse => "jog_reverse",
+            Command::Stop => "stop",
+            Command::Coast => "coast",
+            Command::ResetFault => "reset_fault",
+            Command::JogStop => "jog_stop",
+            Command::Brake => "brake",
+        }
+    }
+
+    /// The command called `name` (see [`name`](Self::name)).
+    pub fn from_name(name: &str) -> Option<Command> {
+        Command::ALL.into_iter().find(|c| c.name() == name)
+    }
+
+    /// Whether the C20 manual lists it (all but the brake stop).
+    pub fn on_c20(self) -> bool {
+        self != Command::Brake
     }
 }
 
@@ -237,12 +275,35 @@ pub enum Model {
 }
 
 impl Model {
-    /// The model of an identification code, as `family` reads it.
+    /// Every model, in the order of the manuals.
+    pub const ALL: [Model; 3] = [Model::Bld2, Model::Bld3h, Model::C20];
+
+    /// Its identification code (0x2103).
+    pub fn id(self) -> u16 {
+        match self {
+            Model::Bld2 | Model::C20 => 0x0020,
+            Model::Bld3h => 0x0030,
+        }
+    }
+
+    /// The manual it follows.
+    pub fn family(self) -> Family {
+        match self {
+            Model::Bld2 | Model::Bld3h => Family::Bld,
+            Model::C20 => Family::C20,
+        }
+    }
+
+    /// The model of an identification code, as `family` reads it: the family's own model
+    /// with that code, else the one model of any family that has it (0x0030 is a BLD3H
+    /// whichever family the drive was opened as).
     pub fn from_id(family: Family, id: u16) -> Option<Model> {
-        match (family, id) {
-            (Family::Bld, 0x0020) => Some(Model::Bld2),
-            (Family::C20, 0x0020) => Some(Model::C20),
-            (_, 0x0030) => Some(Model::Bld3h),
+        let mut with_id = Model::ALL.into_iter().filter(|m| m.id() == id);
+        if let Some(own) = with_id.clone().find(|m| m.family() == family) {
+            return Some(own);
+        }
+        match (with_id.next(), with_id.next()) {
+            (Some(only), None) => Some(only),
             _ => None,
         }
     }
@@ -336,9 +397,124 @@ pub fn parameter_address(code: &str) -> Result<u16> {
     }
 }
 
-const BLOCK_UNKNOWN: u8 = 0;
-const BLOCK_YES: u8 = 1;
-const BLOCK_NO: u8 = 2;
+/// A function-code parameter read and written in engineering units, through
+/// [`Drive::read_setting`] and [`Drive::write_setting`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Setting {
+    /// Its name in the Python API (`comm_loss_timeout`).
+    pub name: &'static str,
+    /// The parameter, as the manual writes it ("F08.04").
+    pub code: &'static str,
+    /// What the manual calls it.
+    pub what: &'static str,
+    /// Engineering value = raw word x scale; a write is rounded to the nearest step.
+    pub scale: f64,
+    /// Unit of the engineering value.
+    pub unit: &'static str,
+    /// The values a write may carry besides 0 (off), inclusive.
+    pub range: (f64, f64),
+    /// Whether the C20 manual lists it.
+    pub on_c20: bool,
+}
+
+impl Setting {
+    /// Steps per unit of the engineering value (10 for tenths).
+    fn per_unit(&self) -> f64 {
+        (1.0 / self.scale).round()
+    }
+
+    /// The engineering value of a raw word.
+    pub fn decode(&self, raw: u16) -> f64 {
+        f64::from(raw) / self.per_unit()
+    }
+
+    /// The raw word for an engineering value: 0, or one in [`range`](Self::range) rounded
+    /// to the nearest step (half to even).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for anything else (NaN and the infinities included).
+    pub fn encode(&self, value: f64) -> Result<u16> {
+        let (lo, hi) = self.range;
+        if !(value == 0.0 || (lo..=hi).contains(&value)) {
+            return Err(Error::InvalidArgument(format!(
+                "{} ({}) must be 0 (off) or {lo:?} to {hi:?} {}, got {value:?}",
+                self.name, self.code, self.unit
+            )));
+        }
+        // In range, so it fits a register (checked against 16 bits in the tests).
+        Ok((value * self.per_unit()).round_ties_even() as u16)
+    }
+}
+
+/// F08.04, the communication-loss timeout: a drive that hears no request for that long
+/// trips and stops its motor; 0 = off (the default), else 0.1..60.0 s in tenths. The
+/// ZBLD.C20 manual lists no F08.04.
+pub const COMM_LOSS_TIMEOUT: Setting = Setting {
+    name: "comm_loss_timeout",
+    code: "F08.04",
+    what: "communication-loss timeout",
+    scale: 0.1,
+    unit: "s",
+    range: (0.1, 60.0),
+    on_c20: false,
+};
+
+/// Every [`Setting`] of the drive.
+pub const SETTINGS: &[Setting] = &[COMM_LOSS_TIMEOUT];
+
+fn find_setting(name: &str) -> Result<Setting> {
+    SETTINGS
+        .iter()
+        .find(|s| s.name == name)
+        .copied()
+        .ok_or_else(|| Error::InvalidArgument(format!("the drive has no setting {name:?}")))
+}
+
+/// Whether a drive does something the manuals leave open (block reads, the hall count
+/// registers): not tried yet, or learned from its first answer.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(u8)]
+pub enum Support {
+    /// Not tried yet.
+    Unknown = 0,
+    /// It does.
+    Yes = 1,
+    /// It does not.
+    No = 2,
+}
+
+impl Support {
+    /// True or false once learned, None while unknown.
+    pub fn known(self) -> Option<bool> {
+        match self {
+            Support::Unknown => None,
+            Support::Yes => Some(true),
+            Support::No => Some(false),
+        }
+    }
+}
+
+/// A [`Support`] that threads sharing a drive learn together.
+#[derive(Debug)]
+struct AtomicSupport(AtomicU8);
+
+impl AtomicSupport {
+    fn new(support: Support) -> AtomicSupport {
+        AtomicSupport(AtomicU8::new(support as u8))
+    }
+
+    fn get(&self) -> Support {
+        match self.0.load(Ordering::Relaxed) {
+            1 => Support::Yes,
+            2 => Support::No,
+            _ => Support::Unknown,
+        }
+    }
+
+    fn set(&self, support: Support) {
+        self.0.store(support as u8, Ordering::Relaxed);
+    }
+}
 
 /// A BLD2 / BLD3H / C20 drive on a bus.
 #[derive(Debug)]
@@ -347,29 +523,29 @@ pub struct Drive {
     unit: u8,
     family: Family,
     opts: TxOptions,
-    block_reads: AtomicU8,
+    block_reads: AtomicSupport,
     /// Whether the firmware has 0x3012..0x3014 ("software version dependent" in 000).
-    hall_registers: AtomicU8,
+    hall_registers: AtomicSupport,
 }
 
 impl Drive {
-    /// The drive at `unit` on `bus`. `write_reply` is false for a drive set to F08.06 = 1,
+    /// The drive at `unit` on `bus`. `write_ack` is false for a drive set to F08.06 = 1,
     /// which answers no write.
-    pub fn new(bus: Arc<Bus>, unit: u8, family: Family, write_reply: bool) -> Drive {
+    pub fn new(bus: Arc<Bus>, unit: u8, family: Family, write_ack: bool) -> Drive {
         Drive {
             bus,
             unit,
             family,
             opts: TxOptions {
                 meaning,
-                write_reply,
+                write_ack,
                 ..TxOptions::default()
             },
-            block_reads: AtomicU8::new(BLOCK_UNKNOWN),
-            hall_registers: AtomicU8::new(if family == Family::Bld {
-                BLOCK_UNKNOWN
+            block_reads: AtomicSupport::new(Support::Unknown),
+            hall_registers: AtomicSupport::new(if family == Family::Bld {
+                Support::Unknown
             } else {
-                BLOCK_NO
+                Support::No
             }),
         }
     }
@@ -408,17 +584,13 @@ impl Drive {
     }
 
     /// Whether writes are answered (false when set to F08.06 = 1).
-    pub fn write_reply(&self) -> bool {
-        self.opts.write_reply
+    pub fn write_ack(&self) -> bool {
+        self.opts.write_ack
     }
 
     /// Whether the drive answers multi-register reads: None until one was tried.
     pub fn block_reads(&self) -> Option<bool> {
-        match self.block_reads.load(Ordering::Relaxed) {
-            BLOCK_YES => Some(true),
-            BLOCK_NO => Some(false),
-            _ => None,
-        }
+        self.block_reads.get().known()
     }
 
     /// The register called `name`, as this drive's family has it.
@@ -472,12 +644,12 @@ impl Drive {
     /// # Errors
     /// Any [`Error`]; [`Error::InvalidArgument`] for the brake on a C20.
     pub fn command(&self, command: Command) -> Result<()> {
-        if command == Command::Brake && self.family == Family::C20 {
+        if !command.on_c20() && self.family == Family::C20 {
             return Err(Error::InvalidArgument(
                 "the brake stop (command 0x0009) exists on BLD drives only, not on the C20".into(),
             ));
         }
-        self.write(COMMAND, command as u16)
+        self.write(COMMAND, command.code())
     }
 
     /// Reads 0x2100..0x2102.
@@ -497,7 +669,8 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn model(&self) -> Result<std::result::Result<Model, u16>> {
-        let id = self.read(0x2103, 1)?.first().copied().unwrap_or_default();
+        let address = self.register("model_id")?.address;
+        let id = self.read(address, 1)?.first().copied().unwrap_or_default();
         Ok(Model::from_id(self.family, id).ok_or(id))
     }
 
@@ -508,7 +681,7 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn telemetry(&self) -> Result<Telemetry> {
-        let with_hall = self.hall_registers.load(Ordering::Relaxed) != BLOCK_NO;
+        let with_hall = self.hall_registers.get() != Support::No;
         let entries = |hall: bool| -> Vec<Register> {
             REGISTERS
                 .iter()
@@ -521,12 +694,12 @@ impl Drive {
         let words = match self.read(TELEMETRY, wanted.len() as u16) {
             Ok(words) => {
                 if with_hall {
-                    self.hall_registers.store(BLOCK_YES, Ordering::Relaxed);
+                    self.hall_registers.set(Support::Yes);
                 }
                 words
             }
             Err(Error::Exception { code: 0x02, .. })
-                if with_hall && self.hall_registers.load(Ordering::Relaxed) == BLOCK_UNKNOWN =>
+                if with_hall && self.hall_registers.get() == Support::Unknown =>
             {
                 wanted = entries(false);
                 let words = self.read(TELEMETRY, wanted.len() as u16)?;
@@ -534,7 +707,7 @@ impl Drive {
                     target: "benchbus::device",
                     "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit
                 );
-                self.hall_registers.store(BLOCK_NO, Ordering::Relaxed);
+                self.hall_registers.set(Support::No);
                 words
             }
             Err(e) => return Err(e),
@@ -545,10 +718,10 @@ impl Drive {
         let mut values = Vec::with_capacity(wanted.len());
         let mut hall = (None, None);
         for (register, &raw) in wanted.iter().zip(&words) {
-            match register.address {
-                0x3012 => {}
-                0x3013 => hall.0 = Some(u32::from(raw)),
-                0x3014 => hall.1 = Some(u32::from(raw)),
+            match register.name {
+                "reserved_3012" => {}
+                "hall_count_high" => hall.0 = Some(u32::from(raw)),
+                "hall_count_low" => hall.1 = Some(u32::from(raw)),
                 _ => values.push((register.name, register.decode(raw), register.unit)),
             }
         }
@@ -587,6 +760,42 @@ impl Drive {
                 self.family.name()
             ))),
         }
+    }
+
+    /// The [`Setting`] called `name`, if this drive's family has it.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if there is no such setting, or not on this family.
+    pub fn setting(&self, name: &str) -> Result<Setting> {
+        let setting = find_setting(name)?;
+        if self.family == Family::C20 && !setting.on_c20 {
+            return Err(Error::InvalidArgument(format!(
+                "{name}: the ZBLD.C20 manual lists no {} ({}); it is a BLD2 / BLD3H parameter",
+                setting.code, setting.what
+            )));
+        }
+        Ok(setting)
+    }
+
+    /// Reads the setting called `name`, in engineering units.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a setting this family lacks.
+    pub fn read_setting(&self, name: &str) -> Result<f64> {
+        let setting = self.setting(name)?;
+        Ok(setting.decode(self.read_parameter(setting.code)?))
+    }
+
+    /// Writes `value` (engineering units) to the setting called `name`, as
+    /// [`write_parameter`](Self::write_parameter) does; the value is checked before the
+    /// family, and both before anything is sent.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a bad value or a setting this family
+    /// lacks.
+    pub fn write_setting(&self, name: &str, value: f64) -> Result<()> {
+        let raw = find_setting(name)?.encode(value)?;
+        self.write_parameter(self.setting(name)?.code, raw)
     }
 
     /// Reads the raw value of function-code parameter `code` ("F00.10").
@@ -647,17 +856,15 @@ impl Drive {
     /// drive has refused a block read that it then answered register by register.
     fn read(&self, address: u16, count: u16) -> Result<Vec<u16>> {
         let bus = &self.bus;
-        if count > 1 && self.block_reads.load(Ordering::Relaxed) != BLOCK_NO {
+        if count > 1 && self.block_reads.get() != Support::No {
             match bus.read_holding_registers(self.unit, address, count, &self.opts) {
                 Ok(words) => {
-                    self.block_reads.store(BLOCK_YES, Ordering::Relaxed);
+                    self.block_reads.set(Support::Yes);
                     return Ok(words);
                 }
                 // A refusal: an exception reply, or a reply of the wrong shape (a drive that
                 // answers one register whatever the count). Not a timeout or a bad CRC.
-                Err(e)
-                    if self.block_reads.load(Ordering::Relaxed) == BLOCK_UNKNOWN
-                        && is_refusal(&e) => {}
+                Err(e) if self.block_reads.get() == Support::Unknown && is_refusal(&e) => {}
                 Err(e) => return Err(e),
             }
             let words = self.read_singly(address, count)?;
@@ -665,7 +872,7 @@ impl Drive {
                 target: "benchbus::device",
                 "unit {}: block reads refused, reading one register per request", self.unit
             );
-            self.block_reads.store(BLOCK_NO, Ordering::Relaxed);
+            self.block_reads.set(Support::No);
             return Ok(words);
         }
         self.read_singly(address, count)
@@ -758,6 +965,45 @@ mod tests {
     }
 
     #[test]
+    fn comm_loss_timeout_is_off_or_tenths_of_0_1_to_60_s() {
+        let s = COMM_LOSS_TIMEOUT;
+        for (seconds, raw) in [
+            (0.0, 0),
+            (0.1, 1),
+            (0.25, 2),
+            (0.35, 4),
+            (12.34, 123),
+            (60.0, 600),
+        ] {
+            assert_eq!(s.encode(seconds).ok(), Some(raw), "{seconds}");
+        }
+        for bad in [-0.1, 0.05, 60.1, f64::NAN, f64::INFINITY, f64::NEG_INFINITY] {
+            assert!(s.encode(bad).is_err(), "{bad}");
+        }
+        assert_eq!(s.decode(25), 2.5);
+        assert_eq!(parameter_address(s.code).ok(), Some(0x0804));
+        for setting in SETTINGS {
+            assert!(
+                setting.range.1 / setting.scale <= 65535.0,
+                "{}",
+                setting.name
+            );
+        }
+    }
+
+    #[test]
+    fn support_is_learned_once_per_state() {
+        let learned = AtomicSupport::new(Support::Unknown);
+        assert_eq!(learned.get().known(), None);
+        for support in [Support::Yes, Support::No, Support::Unknown] {
+            learned.set(support);
+            assert_eq!(learned.get(), support);
+        }
+        assert_eq!(Support::Yes.known(), Some(true));
+        assert_eq!(Support::No.known(), Some(false));
+    }
+
+    #[test]
     fn names_of_faults_models_and_commands() {
         assert_eq!(fault_name(0x0A), "undervoltage");
         assert_eq!(fault_name(0x1B), "unknown fault 0x1B");
@@ -765,8 +1011,16 @@ mod tests {
         assert_eq!(Model::from_id(Family::C20, 0x20), Some(Model::C20));
         assert_eq!(Model::from_id(Family::C20, 0x30), Some(Model::Bld3h));
         assert_eq!(Model::from_id(Family::Bld, 0x40), None);
+        for model in Model::ALL {
+            assert_eq!(Model::from_id(model.family(), model.id()), Some(model));
+        }
         assert_eq!(Command::from_code(9), Some(Command::Brake));
         assert_eq!(Command::from_code(10), None);
+        for (code, command) in (1..).zip(Command::ALL) {
+            assert_eq!(command.code(), code);
+            assert_eq!(Command::from_name(command.name()), Some(command));
+        }
+        assert_eq!(Command::from_name("Forward"), None);
         assert_eq!(meaning(8), "not changeable while running");
         assert_eq!(meaning(0x0B), exception_meaning(0x0B));
     }

@@ -79,7 +79,7 @@ impl PyDriveCore {
     /// Whether writes are answered (False for a drive set to F08.06 = 1).
     #[getter]
     fn write_ack(&self) -> bool {
-        self.drive.write_reply()
+        self.drive.write_ack()
     }
 
     /// Reply timeout of the drive's requests, in seconds (its own, or the Bus's).
@@ -119,12 +119,23 @@ impl PyDriveCore {
         self.wire(py, move |d| d.set(&name, value))
     }
 
-    /// Sends command `code` (1..9) to 0x2000.
-    fn command(&self, py: Python<'_>, code: &Bound<'_, PyAny>) -> PyResult<()> {
-        let code = int_in(code, "command", 1, 9)? as u16;
-        let command = Command::from_code(code)
-            .ok_or_else(|| PyValueError::new_err(format!("no drive command {code}")))?;
+    /// Sends the command called `name` ("forward", see `commands()`) to 0x2000.
+    fn command(&self, py: Python<'_>, name: &str) -> PyResult<()> {
+        let command = Command::from_name(name).ok_or_else(|| {
+            let names: Vec<_> = Command::ALL.iter().map(|c| c.name()).collect();
+            PyValueError::new_err(format!(
+                "no drive command {name:?}; the commands are {}",
+                names.join(", ")
+            ))
+        })?;
         self.wire(py, move |d| d.command(command))
+    }
+
+    /// The command table: `(name, code)` of every value the command register 0x2000 takes,
+    /// in code order, the brake stop (BLD only) included.
+    #[staticmethod]
+    fn commands() -> Vec<(&'static str, u16)> {
+        Command::ALL.iter().map(|c| (c.name(), c.code())).collect()
     }
 
     /// 0x2100..0x2102 decoded: a dict of state, bus_voltage_ready, overloaded,
@@ -149,6 +160,16 @@ impl PyDriveCore {
         let family = family_arg(family)?;
         let id = int_in(id, "id", 0, 0xFFFF)? as u16;
         Ok(Model::from_id(family, id).map(Model::name))
+    }
+
+    /// The model table: `(name, identification code, family)` of each model the manuals
+    /// name.
+    #[staticmethod]
+    fn models() -> Vec<(&'static str, u16, &'static str)> {
+        Model::ALL
+            .iter()
+            .map(|m| (m.name(), m.id(), m.family().name()))
+            .collect()
     }
 
     /// The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown.
@@ -213,6 +234,22 @@ impl PyDriveCore {
         self.wire(py, move |d| d.write_parameter(&code, value))
     }
 
+    /// Reads the setting called `name` (a function-code parameter in engineering units,
+    /// "comm_loss_timeout" for F08.04).
+    fn read_setting(&self, py: Python<'_>, name: &str) -> PyResult<f64> {
+        self.drive.setting(name).map_err(|e| to_pyerr(py, e))?;
+        let name = name.to_string();
+        self.wire(py, move |d| d.read_setting(&name))
+    }
+
+    /// Writes `value` (engineering units) to the setting called `name`, enabling 0x200E
+    /// around it; the value and the family are checked before anything is sent.
+    fn write_setting(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let value = number(value, name)?;
+        let name = name.to_string();
+        self.wire(py, move |d| d.write_setting(&name, value))
+    }
+
     /// The register table: `(name, address, scale, unit, access, low, high)` for each
     /// register of this family; access is "R", "W/R" or "W/R*".
     fn registers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
@@ -238,7 +275,7 @@ impl PyDriveCore {
             "DriveCore(unit={}, family='{}', write_ack={})",
             self.drive.unit(),
             self.drive.family().name(),
-            if self.drive.write_reply() {
+            if self.drive.write_ack() {
                 "True"
             } else {
                 "False"

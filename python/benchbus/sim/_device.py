@@ -77,8 +77,9 @@ class SimDevice:
 
     #: Whether this unit's replies to writes (0x06, 0x10) go on the line. When False the unit
     #: still acts on each write (and the request is logged) but its reply, normal or
-    #: exception, is dropped, as a BLD drive does with F08.06 = 1. Read once per request,
-    #: before the unit handles it, so a subclass may make it a property.
+    #: exception, is dropped, as a BLD drive does with F08.06 = 1 (the library's side of it
+    #: is ``Drive(write_ack=False)``). Read once per request, before the unit handles it, so
+    #: a subclass may make it a property.
     answers_writes: bool = True
 
     #: Seconds this unit holds each of its replies before it goes on the line (a BLD drive's
