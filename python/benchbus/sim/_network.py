@@ -1,8 +1,12 @@
-"""The simulated gateway: a TCP proxy in front of the pymodbus TCP server (no pymodbus here).
+"""The simulated gateway: :class:`NetworkProxy`, a TCP proxy in front of the pymodbus TCP server
+(no pymodbus here).
+
+Not to be mixed up with :class:`benchbus.Gateway`, the library's own gateway that serves a
+Bus over Modbus TCP: this one plays the part of a gateway for the library to talk to.
 
 ::
 
-    library --TCP--> Gateway (127.0.0.1:P) --TCP, one connection per client--> pymodbus server
+    library --TCP--> NetworkProxy (127.0.0.1:P) --TCP, one connection per client--> pymodbus server
 
 The library connects to the gateway's port, as it would to a Modbus TCP gateway (``tcp``:
 MBAP frames) or to a transparent serial-to-Ethernet converter (``rtu+tcp``: RTU frames, CRC
@@ -35,7 +39,7 @@ from benchbus.sim._router import NETWORKS, Router, framing
 from benchbus.sim._rtu import frame_gap
 from benchbus.sim._units import UnitHooks
 
-__all__ = ["NETWORKS", "Gateway", "NetworkState", "probe"]
+__all__ = ["NETWORKS", "NetworkProxy", "NetworkState", "probe"]
 
 log = logging.getLogger("benchbus.sim")
 
@@ -89,7 +93,7 @@ _LISTENER = "listener"
 _WAKE = "wake"
 
 
-class Gateway(StepLoop):
+class NetworkProxy(StepLoop):
     """The proxy thread between the library's TCP clients and the pymodbus TCP server."""
 
     def __init__(
