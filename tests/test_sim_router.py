@@ -40,7 +40,7 @@ def make_router(
         units=frozenset({1, 2}),
         broadcast=True,
         hooks=hooks,
-        gap=0.005,
+        end_of_frame_silence=0.005,
         cut_partial=network is None,
     )
     return router, state

@@ -25,7 +25,7 @@ import time
 from benchbus.sim._faults import FaultInjector, Faults, Injection
 from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import Router, framing
-from benchbus.sim._rtu import frame_gap
+from benchbus.sim._rtu import end_of_frame_silence
 from benchbus.sim._units import Job, UnitHooks
 
 __all__ = ["LOG_SIZE", "Forwarder", "LineState", "PtyPair"]
@@ -191,7 +191,7 @@ class Forwarder(StepLoop):
             units=units,
             broadcast=broadcast,
             hooks=hooks,
-            gap=frame_gap(baudrate),
+            end_of_frame_silence=end_of_frame_silence(baudrate),
             cut_partial=True,  # a serial line: a talker that stops has ended its frame
         )
         self._inject: collections.deque[tuple[bytes, threading.Event]] = collections.deque()

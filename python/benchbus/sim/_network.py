@@ -36,7 +36,7 @@ from typing import Any
 from benchbus.sim._line import LOG_SIZE, LineState
 from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import NETWORKS, Router, framing
-from benchbus.sim._rtu import frame_gap
+from benchbus.sim._rtu import end_of_frame_silence
 from benchbus.sim._units import UnitHooks
 
 __all__ = ["NETWORKS", "NetworkProxy", "NetworkState", "probe"]
@@ -124,7 +124,7 @@ class NetworkProxy(StepLoop):
         self._units = units
         self._broadcast = broadcast
         self._hooks = hooks
-        self._gap = frame_gap(baudrate)
+        self._end_of_frame_silence = end_of_frame_silence(baudrate)
         self._host = host
         self._conns: dict[int, _Conn] = {}
         self._numbers = 0
@@ -260,7 +260,7 @@ class NetworkProxy(StepLoop):
                 units=self._units,
                 broadcast=self._broadcast,
                 hooks=self._hooks,
-                gap=self._gap,
+                end_of_frame_silence=self._end_of_frame_silence,
                 cut_partial=False,  # over TCP the rest of a frame is on its way
             )
             conn = _Conn(self._numbers, client, up, router)

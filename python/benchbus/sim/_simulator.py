@@ -98,7 +98,7 @@ class Simulator(Generic[D]):
         Units are 1..255: Modbus reserves 248..255, but some instruments (the J2
         controllers) take station numbers up to 255. Unit 0 is the broadcast.
 
-        ``baudrate`` only sets the frame-gap timing (the pseudo-terminal carries bytes
+        ``baudrate`` only sets the end-of-frame silence (the pseudo-terminal carries bytes
         instantly). ``broadcast=False`` makes the units ignore unit 0 entirely. ``faults``
         makes the line noisy from the first reply on (see :attr:`faults`). ``echo=True``
         makes the library's adapter echo what it sends (see :attr:`echo`). ``network``
