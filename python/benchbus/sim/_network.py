@@ -33,7 +33,7 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from benchbus.sim._line import LOG_SIZE, LineState
+from benchbus.sim._line import LOG_SIZE, SimState
 from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import NETWORKS, Router, framing
 from benchbus.sim._rtu import end_of_frame_silence
@@ -48,8 +48,8 @@ _RECV_SIZE = 65536
 _MAX_OUTPUT = 1 << 20  # drop bytes toward a client that does not read past this
 
 
-class NetworkState(LineState):
-    """The line's faults and logs, plus those only a network has."""
+class NetworkState(SimState):
+    """The simulator's faults and logs, plus those only a network has."""
 
     def __init__(self, log_size: int = LOG_SIZE) -> None:
         """No fault; empty logs, each keeping the last ``log_size`` frames."""

@@ -32,7 +32,7 @@ from benchbus.sim._rtu import crc_ok, reply_length, request_length, with_crc
 from benchbus.sim._units import Job, UnitHooks, refusal
 
 if TYPE_CHECKING:
-    from benchbus.sim._line import LineState
+    from benchbus.sim._line import SimState
 
 __all__ = ["NETWORKS", "SERVER_REPLY_TIMEOUT", "Framer", "Framing", "Router", "framing"]
 
@@ -208,7 +208,7 @@ class Router:
 
     def __init__(
         self,
-        state: LineState,
+        state: SimState,
         f: Framing,
         *,
         units: frozenset[int],

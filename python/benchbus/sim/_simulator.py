@@ -12,7 +12,7 @@ from typing import Generic, TypeVar
 from benchbus import _mbap
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
-from benchbus.sim._line import LOG_SIZE, Forwarder, LineState, PtyPair
+from benchbus.sim._line import LOG_SIZE, Forwarder, PtyPair, SimState
 from benchbus.sim._network import NETWORKS, NetworkProxy, NetworkState, probe
 from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
 from benchbus.sim._rtu import with_crc
@@ -131,7 +131,7 @@ class Simulator(Generic[D]):
         #: exception 4), and failures of :meth:`SimDevice.shape_reply` (the reply then goes
         #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
-        self._state: LineState = LineState(log_size) if network is None else NetworkState(log_size)
+        self._state: SimState = SimState(log_size) if network is None else NetworkState(log_size)
         self._refusing = False
         self.echo = echo
         self._faults: Faults | None = None
