@@ -183,7 +183,7 @@ class Slave:
         return answered
 
 
-class Line:
+class EmulatedLine:
     """One emulated (or plain) line with its fake slave and what was measured on it."""
 
     def __init__(self, baud: int, bits: int, units: set[int], plain: bool) -> None:
@@ -285,7 +285,7 @@ class Line:
         return stats
 
 
-def serve(lines: list[Line], spin: bool) -> None:
+def serve(lines: list[EmulatedLine], spin: bool) -> None:
     """The event loop: forward, answer, and obey commands until told to quit. With ``spin``
     it never sleeps, so it never pays the time a CPU takes to wake from idle (tens of
     microseconds on a virtual machine): bytes leave on time, as from a UART."""
@@ -329,7 +329,7 @@ def main() -> None:
     parser.add_argument("--spin", action="store_true", help="poll without sleeping (one core)")
     args = parser.parse_args()
     units = {int(u) for u in args.units.split(",")}
-    lines = [Line(args.baud, args.bits, units, args.plain) for _ in range(args.lines)]
+    lines = [EmulatedLine(args.baud, args.bits, units, args.plain) for _ in range(args.lines)]
     print(json.dumps({"ports": [line.port for line in lines]}), flush=True)
     with fine_slack():
         serve(lines, args.spin)

@@ -790,7 +790,7 @@ impl Bus {
                     continue;
                 }
                 // The rest of another unit's frame follows within a frame's gaps.
-                Needed::More(n) if other.is_some() => (n, self.frame_over()),
+                Needed::More(n) if other.is_some() => (n, self.end_of_frame_silence()),
                 Needed::More(n) => {
                     let on_wire = match (serial, buf.is_empty()) {
                         (false, _) => Duration::ZERO,
@@ -802,7 +802,7 @@ impl Bus {
                 }
                 // Not a reply to this request: take what follows until the line is quiet, so
                 // the whole bad frame is reported and nothing of it is left for the next call.
-                Needed::Unknown => (chunk.len(), self.frame_over()),
+                Needed::Unknown => (chunk.len(), self.end_of_frame_silence()),
             };
             let want = want
                 .min(chunk.len())
@@ -892,7 +892,7 @@ impl Bus {
                 dropped += n;
                 st.silence.busy_until(Instant::now());
                 log::debug!(target: "benchbus::wire", "late reply dropped: {}", hex(&scratch[..n]));
-                n = self.read_within(transport, &mut scratch, self.frame_over())?;
+                n = self.read_within(transport, &mut scratch, self.end_of_frame_silence())?;
             }
             st.stats.stale_bytes += dropped as u64;
         }
@@ -956,7 +956,7 @@ impl Bus {
         deadline: Instant,
         echo_seen: bool,
     ) -> Result<()> {
-        let quiet = self.frame_over();
+        let quiet = self.end_of_frame_silence();
         let mut got = Vec::with_capacity(frame.len());
         let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
         loop {
@@ -1027,9 +1027,10 @@ impl Bus {
         transport.read(buf, wait).map_err(|e| self.io_error(e))
     }
 
-    /// How long the line must stay quiet for a frame that started to be over: t3.5, and
-    /// at least 2 ms for the scheduler's sake.
-    fn frame_over(&self) -> Duration {
+    /// The end-of-frame silence: how long the line must stay quiet for a frame that
+    /// started to be over: t3.5, and at least 2 ms for the scheduler's sake. (The
+    /// simulators' `end_of_frame_silence` is the same idea, with their own t3.5 and floor.)
+    fn end_of_frame_silence(&self) -> Duration {
         self.config.line.t3_5().max(Duration::from_millis(2))
     }
 

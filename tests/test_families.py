@@ -10,7 +10,7 @@ import benchbus as bb
 from benchbus import pytest_plugin
 from benchbus._core import DriveCore
 from benchbus._families import FAMILIES, command_families, family, mismatch
-from benchbus.cli import LINES, SIM_DEVICES, guess_model
+from benchbus.cli import BUS_OPTIONS, SIM_DEVICES, guess_model
 from benchbus.sim import (
     Atv31Device,
     DriveDevice,
@@ -48,8 +48,8 @@ def test_the_command_line_and_the_plugin_read_the_registry() -> None:
         "atv31": 19200,
     }
     for f in command_families():
-        line = LINES[f.key]
-        assert (line.baudrate, line.parity, line.timeout, line.retries) == (*f.line, 2)
+        options = BUS_OPTIONS[f.key]
+        assert (options.baudrate, options.parity, options.timeout, options.retries) == (*f.line, 2)
     assert pytest_plugin.KINDS == ("drive", "pbl", "j2", "instrument")
 
 

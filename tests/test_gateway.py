@@ -143,6 +143,36 @@ def test_device_identification_through_the_gateway(
     assert objects == IDENTITY
 
 
+def identification_objects(pdu: bytes) -> dict[int, bytes]:
+    """The objects of a 0x2B / 0x0E reply PDU, as the bytes it carries."""
+    objects, at = {}, 7
+    for _ in range(pdu[6]):
+        object_id, size = pdu[at], pdu[at + 1]
+        objects[object_id] = pdu[at + 2 : at + 2 + size]
+        at += 2 + size
+    return objects
+
+
+def test_identification_reads_the_same_through_the_bus_the_instrument_and_the_gateway(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        reply = ask(client, 1, bytes.fromhex("2B 0E 01 00"))
+    sent = sim.replies[-1][1:-2]  # the unit's own reply PDU, as it went on the line
+    # The gateway forwards the bytes the unit sent, not a re-encoding of them.
+    assert reply == sent
+    raw = identification_objects(sent)
+    assert any(byte >= 0x80 for value in raw.values() for byte in value)
+    # The Bus and Instrument.identify read them one way: a character per byte (Latin-1).
+    text = {object_id: value.decode("latin-1") for object_id, value in raw.items()}
+    assert gateway.bus.read_device_identification(1) == text
+    ident = bb.Instrument(gateway.bus, 1).identify()
+    assert ident.objects == text
+    # Nothing lost: the text gives back the bytes the device sent (UTF-8 from this one).
+    assert ident.vendor is not None
+    assert ident.vendor.encode("latin-1") == IDENTITY[0].encode("utf-8")
+
+
 @pytest.mark.parametrize(("conformity", "expected"), [(None, 0x02), (0x81, 0x81)])
 def test_identification_keeps_the_conformity_and_bytes_the_unit_sent(
     conformity: int | None, expected: int

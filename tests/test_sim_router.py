@@ -8,7 +8,7 @@ import time
 import pytest
 
 from benchbus import _mbap
-from benchbus.sim._line import LineState
+from benchbus.sim._line import SimState
 from benchbus.sim._network import NetworkState
 from benchbus.sim._router import SERVER_REPLY_TIMEOUT, Router, framing
 from benchbus.sim._rtu import with_crc
@@ -27,8 +27,8 @@ def wrap(network: str | None, unit: int, pdu: bytes, transaction: int = 0x1234) 
 
 def make_router(
     network: str | None, *, answers_writes: bool = True, answers_broadcast: bool = False
-) -> tuple[Router, LineState]:
-    state = LineState() if network is None else NetworkState()
+) -> tuple[Router, SimState]:
+    state = SimState() if network is None else NetworkState()
     hooks = UnitHooks(
         "test",
         answers_broadcast=lambda unit: answers_broadcast,
@@ -40,7 +40,7 @@ def make_router(
         units=frozenset({1, 2}),
         broadcast=True,
         hooks=hooks,
-        gap=0.005,
+        end_of_frame_silence=0.005,
         cut_partial=network is None,
     )
     return router, state

@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 
 import benchbus as bb
-from benchbus.sim._rtu import frame_gap, t3_5
+from benchbus.sim._rtu import end_of_frame_silence, t3_5
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "bench"))
 
@@ -63,6 +63,6 @@ def test_bench_t35_is_the_spec(baud: int, parity: str, stop: int, bits: int, exp
 def test_simulator_frame_gap_is_t35_of_the_longest_character_with_a_floor() -> None:
     # The simulator does not know the library's parity: it waits t3.5 of 11-bit characters,
     # and never less than 5 ms (a pseudo-terminal's writer may pause between pieces).
-    assert frame_gap(2400) == pytest.approx(3.5 * 11 / 2400)
-    assert frame_gap(9600) == pytest.approx(0.005)
-    assert frame_gap(115200) == pytest.approx(0.005)
+    assert end_of_frame_silence(2400) == pytest.approx(3.5 * 11 / 2400)
+    assert end_of_frame_silence(9600) == pytest.approx(0.005)
+    assert end_of_frame_silence(115200) == pytest.approx(0.005)

@@ -218,7 +218,8 @@ class Bus:
     def read_device_identification(
         self, unit: int, read_code: int = 1, object_id: int = 0
     ) -> dict[int, str]:
-        """Read device identification objects (0x2B / MEI 0x0E) as ``{object_id: text}``."""
+        """Read device identification objects (0x2B / MEI 0x0E) as ``{object_id: text}``,
+        one character per byte (Latin-1)."""
     def _device_identification(
         self, unit: int, read_code: int, object_id: int
     ) -> tuple[int, dict[int, bytes]]:

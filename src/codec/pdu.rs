@@ -186,8 +186,31 @@ pub struct DeviceIdentification {
     pub more_follows: bool,
     /// The object id to ask for next when `more_follows`.
     pub next_object: u8,
-    /// Object id to raw value.
+    /// Object id to raw value, the bytes as the device sent them.
     pub objects: BTreeMap<u8, Vec<u8>>,
+}
+
+impl DeviceIdentification {
+    /// The objects as text, each decoded by [`identification_text`].
+    pub fn texts(&self) -> BTreeMap<u8, String> {
+        self.objects
+            .iter()
+            .map(|(&id, raw)| (id, identification_text(raw)))
+            .collect()
+    }
+}
+
+/// An identification object's bytes as text: the one decoding of them in the library.
+///
+/// The spec (6.21) makes the objects ASCII strings, but a device may send any byte. Each
+/// byte is read as the character of the same number (Latin-1), which takes every byte
+/// string and loses nothing: ASCII reads as ASCII, and encoding the text as Latin-1 gives
+/// back the bytes the device sent (a device that sends UTF-8 can be read with
+/// `text.encode("latin-1").decode("utf-8")`). UTF-8 would turn bytes that are not UTF-8
+/// into U+FFFD, and a fallback from it would let two byte strings read as one text. The
+/// same rule reads text registers (`Instrument::read_string`).
+pub fn identification_text(raw: &[u8]) -> String {
+    raw.iter().map(|&b| char::from(b)).collect()
 }
 
 /// Whether exception `code` is a gateway's answer for a unit behind it (spec section 7:
@@ -209,5 +232,31 @@ pub fn exception_meaning(code: u8) -> &'static str {
         0x0A => "gateway path unavailable",
         0x0B => "gateway target device failed to respond",
         _ => "unknown exception code",
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn identification_text_reads_every_byte_and_gives_it_back() {
+        let raw: Vec<u8> = (0..=255).collect();
+        let text = identification_text(&raw);
+        assert_eq!(text.chars().count(), 256);
+        let back: Vec<u8> = text
+            .chars()
+            .map(|c| u8::try_from(u32::from(c)).unwrap())
+            .collect();
+        assert_eq!(back, raw);
+        assert_eq!(identification_text(b"ACME 25\xb5A"), "ACME 25\u{b5}A");
+        let id = DeviceIdentification {
+            objects: BTreeMap::from([(0, b"ACME".to_vec()), (1, vec![0xC3, 0xBC])]),
+            ..DeviceIdentification::default()
+        };
+        assert_eq!(
+            id.texts(),
+            BTreeMap::from([(0, "ACME".to_string()), (1, "\u{c3}\u{bc}".to_string())])
+        );
     }
 }

@@ -311,7 +311,7 @@ impl PyInstrumentCore {
         self.wire(py, move |i| i.write_string(address, &text, count))
     }
 
-    /// Read Device Identification: `(conformity level, {object id: text})`.
+    /// Read Device Identification: `(conformity level, {object id: text})` (Latin-1).
     #[pyo3(signature = (read_code=None))]
     fn identify(
         &self,
@@ -322,12 +322,7 @@ impl PyInstrumentCore {
             int_in(r, "read_code", 1, 3).map(|r| r as u8)
         })?;
         let id = self.wire(py, move |i| i.identify(read_code))?;
-        let objects = id
-            .objects
-            .into_iter()
-            .map(|(k, v)| (k, v.iter().map(|&b| char::from(b)).collect()))
-            .collect();
-        Ok((id.conformity, objects))
+        Ok((id.conformity, id.texts()))
     }
 
     fn __repr__(&self) -> String {

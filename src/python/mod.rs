@@ -568,7 +568,7 @@ impl PyBus {
     }
 
     /// Reads the device identification objects (function 0x2B, MEI 0x0E) as
-    /// `{object_id: text}`, following "more follows".
+    /// `{object_id: text}` (one character per byte, Latin-1), following "more follows".
     #[pyo3(
         signature = (unit, read_code=None, object_id=None),
         text_signature = "($self, unit, read_code=1, object_id=0)"
@@ -586,11 +586,7 @@ impl PyBus {
         let id = self.wire(py, |b| {
             b.read_device_identification(unit, read_code, object_id, &TxOptions::default())
         })?;
-        Ok(id
-            .objects
-            .into_iter()
-            .map(|(k, v)| (k, String::from_utf8_lossy(&v).into_owned()))
-            .collect())
+        Ok(id.texts())
     }
 
     /// The unit's identification as the gateway forwards it: `(conformity, {object_id:

@@ -70,19 +70,19 @@ from benchbus.cli._args import (
     parse_units,
 )
 from benchbus.cli._errors import CliError, UsageError, end_ctrl_c_line, interrupted, notes, one_line
-from benchbus.cli._line import LINES, Line, opt
+from benchbus.cli._line import BUS_OPTIONS, BusOptions, opt
 from benchbus.cli.scan import AUTO_FORMATS, guess_model
 from benchbus.cli.sim import SIM_DEVICES
 
 __all__ = [
     "AUTO_FORMATS",
+    "BUS_OPTIONS",
     "COMMANDS",
-    "LINES",
     "PORT_ENV",
     "PROG",
     "SIM_DEVICES",
+    "BusOptions",
     "CliError",
-    "Line",
     "UsageError",
     "build_parser",
     "guess_model",

@@ -1,4 +1,5 @@
-"""The line a command talks on: its family's defaults with the options given, the Bus, the unit."""
+"""The line a command talks on: the Bus options of its family's (or its own) defaults with the
+line options given (``--baudrate``, ``--timeout``, ...), the Bus, the unit."""
 
 from __future__ import annotations
 
@@ -15,8 +16,8 @@ from benchbus.cli._errors import CliError, UsageError
 
 
 @dataclasses.dataclass(frozen=True)
-class Line:
-    """A device family's line defaults."""
+class BusOptions:
+    """What a command opens its Bus with: line format, reply timeout, retries and unit."""
 
     baudrate: int
     parity: str
@@ -29,13 +30,13 @@ class Line:
         return f"{self.baudrate} 8{self.parity}{stopbits}"
 
 
-#: The line defaults of each command (the scan's timeout is per unit probed).
-LINES = {
-    "scan": Line(19200, "N", 0.05, 0),
-    "read": Line(19200, "N", 0.1, 2),
-    "write": Line(19200, "N", 0.1, 2),
-    "gateway": Line(19200, "N", 0.1, 2),
-    **{f.key: Line(*f.line, 2) for f in command_families()},
+#: The Bus options of each command (the scan's timeout is per unit probed).
+BUS_OPTIONS = {
+    "scan": BusOptions(19200, "N", 0.05, 0),
+    "read": BusOptions(19200, "N", 0.1, 2),
+    "write": BusOptions(19200, "N", 0.1, 2),
+    "gateway": BusOptions(19200, "N", 0.1, 2),
+    **{f.key: BusOptions(*f.line, 2) for f in command_families()},
 }
 
 
@@ -60,10 +61,10 @@ def port_of(args: argparse.Namespace) -> str:
     return str(port)
 
 
-def line_of(args: argparse.Namespace, family: str) -> Line:
-    """The family's line defaults with the options given on the command line."""
-    base = LINES[family]
-    return Line(
+def bus_options_of(args: argparse.Namespace, family: str) -> BusOptions:
+    """The family's Bus options with the line options given on the command line."""
+    base = BUS_OPTIONS[family]
+    return BusOptions(
         baudrate=opt(args, "baudrate", base.baudrate),
         parity=opt(args, "parity", base.parity),
         timeout=opt(args, "timeout", base.timeout),
@@ -74,14 +75,14 @@ def line_of(args: argparse.Namespace, family: str) -> Line:
 
 def open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) -> bb.Bus:
     """A Bus on the port at the ``family``'s line with the options given."""
-    line = line_of(args, family)
+    options = bus_options_of(args, family)
     return bb.Bus(
         port_of(args),
-        baudrate=line.baudrate,
-        parity=line.parity,
+        baudrate=options.baudrate,
+        parity=options.parity,
         stopbits=opt(args, "stopbits", 1),
-        timeout=line.timeout,
-        retries=line.retries,
+        timeout=options.timeout,
+        retries=options.retries,
         reconnect=reconnect,
         **rs485_options(args),
     )
@@ -89,7 +90,7 @@ def open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) 
 
 def unit_of(args: argparse.Namespace, family: str, *, broadcast: bool = False) -> int:
     """The unit to talk to (``--unit``, else the family's); 0 only for a ``broadcast``."""
-    unit = int(line_of(args, family).unit)
+    unit = int(bus_options_of(args, family).unit)
     if unit == 0 and not broadcast:
         raise UsageError("unit 0 is the broadcast address: give --unit 1 to 255")
     return unit

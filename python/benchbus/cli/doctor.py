@@ -6,7 +6,7 @@ import argparse
 
 import benchbus as bb
 from benchbus.cli._args import Parser
-from benchbus.cli._line import line_of, opt, port_of, unit_of
+from benchbus.cli._line import bus_options_of, opt, port_of, unit_of
 
 _S = argparse.SUPPRESS
 
@@ -15,14 +15,14 @@ __all__ = ["HELP", "add_arguments", "run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus doctor`` as ``args`` say; the exit status."""
-    line = line_of(args, "read")
+    options = bus_options_of(args, "read")
     findings = bb.doctor(
         port_of(args),
-        baudrate=line.baudrate,
-        parity=line.parity,
+        baudrate=options.baudrate,
+        parity=options.parity,
         stopbits=opt(args, "stopbits", 1),
         unit=unit_of(args, "read"),
-        timeout=line.timeout,
+        timeout=options.timeout,
         sysfs_root=args.sysfs_root,
         proc_root=args.proc_root,
     )

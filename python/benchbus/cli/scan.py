@@ -11,7 +11,7 @@ from benchbus._families import FAMILIES
 from benchbus._recognise import Probe
 from benchbus.cli._args import Parser, integer, units_type
 from benchbus.cli._errors import CliError, UsageError, interrupted
-from benchbus.cli._line import line_of, opt, port_of, rs485_options
+from benchbus.cli._line import bus_options_of, opt, port_of, rs485_options
 from benchbus.cli._output import print_table
 
 __all__ = ["AUTO_FORMATS", "HELP", "add_arguments", "guess_model", "run"]
@@ -94,9 +94,11 @@ def run(args: argparse.Namespace) -> int:
     given = [o for o in ("baudrate", "parity") if opt(args, o) is not None]
     if args.auto and given:
         raise UsageError(f"--auto tries every line format: leave out --{given[0]}")
-    line = line_of(args, "scan")
+    options = bus_options_of(args, "scan")
     stopbits = opt(args, "stopbits", 1)
-    formats = [(b, p) for b, p, _ in AUTO_FORMATS] if args.auto else [(line.baudrate, line.parity)]
+    formats = (
+        [(b, p) for b, p, _ in AUTO_FORMATS] if args.auto else [(options.baudrate, options.parity)]
+    )
     # Over Modbus TCP the server (or gateway) keeps the line: there is no line format to try,
     # and a request it left unanswered is its own doing, not a unit's.
     tcp = port.lower().startswith("tcp://")
@@ -119,7 +121,7 @@ def run(args: argparse.Namespace) -> int:
                 parity=parity,
                 stopbits=stopbits,
                 # Over the network the identification gets the scan's own time, once.
-                timeout=line.timeout if tcp else max(line.timeout, 0.1),
+                timeout=options.timeout if tcp else max(options.timeout, 0.1),
                 retries=0 if tcp else 1,
                 **rs485_options(args),
             ) as bus:
@@ -128,8 +130,8 @@ def run(args: argparse.Namespace) -> int:
                     if unit in found:
                         continue
                     progress.show(done, f"unit {unit} at {fmt}, {len(found)} found")
-                    for _ in range(line.retries + 1):
-                        if bus.scan([unit], timeout=line.timeout, address=args.address):
+                    for _ in range(options.retries + 1):
+                        if bus.scan([unit], timeout=options.timeout, address=args.address):
                             pending = (unit, fmt)
                             progress.show(done, f"unit {unit} at {fmt}: identifying")
                             name = None

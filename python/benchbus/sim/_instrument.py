@@ -51,7 +51,7 @@ class TaisongDevice(ClockedModel, RegisterDevice):
             ...
 
     **Line.** 9600 8N1 at the factory (2400..19200 can be set): :attr:`BAUDRATE`, for the
-    Simulator's frame-gap timing. Functions 0x03, 0x06 and 0x10; a read of more than
+    Simulator's end-of-frame silence. Functions 0x03, 0x06 and 0x10; a read of more than
     :attr:`MAX_READ` (37) registers or a write of more than :attr:`MAX_WRITE` (20)
     answers exception 3 (illegal data value: the manual gives the limits but not the code
     given for a request over them; 3 is its "value not allowed"), a block past 0xFFFF

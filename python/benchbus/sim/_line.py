@@ -7,8 +7,9 @@
 The forwarder moves the bytes; its router (``benchbus.sim._router``, the network gateway's
 too) cuts both byte streams into frames, logs them, applies the faults and routes each
 request: to the server (one at a time, as on a real half-duplex line), to several units (a
-broadcast), or to nobody. :class:`LineState` holds the faults and logs a test sets and reads
-(the network's extends it). Pure Python, no pymodbus.
+broadcast), or to nobody. :class:`SimState` holds the faults and logs a test sets and reads,
+whether the simulator serves a line or a network (the network's extends it). Pure Python, no
+pymodbus.
 """
 
 from __future__ import annotations
@@ -25,10 +26,10 @@ import time
 from benchbus.sim._faults import FaultInjector, Faults, Injection
 from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import Router, framing
-from benchbus.sim._rtu import frame_gap
+from benchbus.sim._rtu import end_of_frame_silence
 from benchbus.sim._units import Job, UnitHooks
 
-__all__ = ["LOG_SIZE", "Forwarder", "LineState", "PtyPair"]
+__all__ = ["LOG_SIZE", "Forwarder", "PtyPair", "SimState"]
 
 log = logging.getLogger("benchbus.sim")
 
@@ -71,8 +72,9 @@ class _ExceptionRule:
 LOG_SIZE = 10_000
 
 
-class LineState:
-    """Faults and frame logs, shared by the Simulator (any thread) and the forwarder thread."""
+class SimState:
+    """Faults and frame logs, shared by the Simulator (any thread) and the thread that
+    serves its port (the forwarder of a line, the proxy of a network)."""
 
     def __init__(self, log_size: int = LOG_SIZE) -> None:
         """No fault; empty logs, each keeping the last ``log_size`` frames."""
@@ -169,7 +171,7 @@ class Forwarder(StepLoop):
 
     def __init__(
         self,
-        state: LineState,
+        state: SimState,
         library: PtyPair,
         server: PtyPair,
         *,
@@ -191,7 +193,7 @@ class Forwarder(StepLoop):
             units=units,
             broadcast=broadcast,
             hooks=hooks,
-            gap=frame_gap(baudrate),
+            end_of_frame_silence=end_of_frame_silence(baudrate),
             cut_partial=True,  # a serial line: a talker that stops has ended its frame
         )
         self._inject: collections.deque[tuple[bytes, threading.Event]] = collections.deque()

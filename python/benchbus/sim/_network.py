@@ -1,8 +1,12 @@
-"""The simulated gateway: a TCP proxy in front of the pymodbus TCP server (no pymodbus here).
+"""The simulated gateway: :class:`NetworkProxy`, a TCP proxy in front of the pymodbus TCP server
+(no pymodbus here).
+
+Not to be mixed up with :class:`benchbus.Gateway`, the library's own gateway that serves a
+Bus over Modbus TCP: this one plays the part of a gateway for the library to talk to.
 
 ::
 
-    library --TCP--> Gateway (127.0.0.1:P) --TCP, one connection per client--> pymodbus server
+    library --TCP--> NetworkProxy (127.0.0.1:P) --TCP, one connection per client--> pymodbus server
 
 The library connects to the gateway's port, as it would to a Modbus TCP gateway (``tcp``:
 MBAP frames) or to a transparent serial-to-Ethernet converter (``rtu+tcp``: RTU frames, CRC
@@ -29,13 +33,13 @@ import time
 from collections.abc import Callable
 from typing import Any
 
-from benchbus.sim._line import LOG_SIZE, LineState
+from benchbus.sim._line import LOG_SIZE, SimState
 from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import NETWORKS, Router, framing
-from benchbus.sim._rtu import frame_gap
+from benchbus.sim._rtu import end_of_frame_silence
 from benchbus.sim._units import UnitHooks
 
-__all__ = ["NETWORKS", "Gateway", "NetworkState", "probe"]
+__all__ = ["NETWORKS", "NetworkProxy", "NetworkState", "probe"]
 
 log = logging.getLogger("benchbus.sim")
 
@@ -44,8 +48,8 @@ _RECV_SIZE = 65536
 _MAX_OUTPUT = 1 << 20  # drop bytes toward a client that does not read past this
 
 
-class NetworkState(LineState):
-    """The line's faults and logs, plus those only a network has."""
+class NetworkState(SimState):
+    """The simulator's faults and logs, plus those only a network has."""
 
     def __init__(self, log_size: int = LOG_SIZE) -> None:
         """No fault; empty logs, each keeping the last ``log_size`` frames."""
@@ -89,7 +93,7 @@ _LISTENER = "listener"
 _WAKE = "wake"
 
 
-class Gateway(StepLoop):
+class NetworkProxy(StepLoop):
     """The proxy thread between the library's TCP clients and the pymodbus TCP server."""
 
     def __init__(
@@ -120,7 +124,7 @@ class Gateway(StepLoop):
         self._units = units
         self._broadcast = broadcast
         self._hooks = hooks
-        self._gap = frame_gap(baudrate)
+        self._end_of_frame_silence = end_of_frame_silence(baudrate)
         self._host = host
         self._conns: dict[int, _Conn] = {}
         self._numbers = 0
@@ -256,7 +260,7 @@ class Gateway(StepLoop):
                 units=self._units,
                 broadcast=self._broadcast,
                 hooks=self._hooks,
-                gap=self._gap,
+                end_of_frame_silence=self._end_of_frame_silence,
                 cut_partial=False,  # over TCP the rest of a frame is on its way
             )
             conn = _Conn(self._numbers, client, up, router)

@@ -32,7 +32,7 @@ from benchbus.sim._rtu import crc_ok, reply_length, request_length, with_crc
 from benchbus.sim._units import Job, UnitHooks, refusal
 
 if TYPE_CHECKING:
-    from benchbus.sim._line import LineState
+    from benchbus.sim._line import SimState
 
 __all__ = ["NETWORKS", "SERVER_REPLY_TIMEOUT", "Framer", "Framing", "Router", "framing"]
 
@@ -50,23 +50,27 @@ RESET_GRACE = 0.02
 
 
 class Framer:
-    """Cuts a byte stream into frames by length, or by a silent gap when it is unknown.
+    """Cuts a byte stream into frames by length, or by the end-of-frame silence when it is unknown.
 
     ``length(buf)`` is the length of the frame at the start of ``buf``: 0 when more bytes
-    are needed to tell, None when it cannot be told (the gap ends the frame), below 0 when
+    are needed to tell, None when it cannot be told (the silence ends the frame), below 0 when
     ``buf`` holds no frame at all (then :attr:`invalid` is set and nothing more is cut).
-    With ``cut_partial`` the gap also ends a frame whose rest has not come (a serial line:
+    With ``cut_partial`` the silence also ends a frame whose rest has not come (a serial line:
     the talker stopped); without, the rest is awaited (a TCP stream).
     """
 
     def __init__(
-        self, length: Callable[[bytes], int | None], gap: float, *, cut_partial: bool
+        self,
+        length: Callable[[bytes], int | None],
+        end_of_frame_silence: float,
+        *,
+        cut_partial: bool,
     ) -> None:
         self.buf = b""
         self.last = 0.0
         self.invalid = False  # the stream holds something that is not a frame
         self._length = length
-        self._gap = gap
+        self._end_of_frame_silence = end_of_frame_silence
         self._cut_partial = cut_partial
 
     def feed(self, data: bytes, now: float) -> None:
@@ -82,7 +86,7 @@ class Framer:
             elif n and len(self.buf) >= n:
                 out.append(self.buf[:n])
                 self.buf = self.buf[n:]
-            elif (n is None or self._cut_partial) and now - self.last >= self._gap:
+            elif (n is None or self._cut_partial) and now - self.last >= self._end_of_frame_silence:
                 out.append(self.buf)
                 self.buf = b""
             else:
@@ -90,13 +94,13 @@ class Framer:
         return out
 
     def deadline(self) -> float | None:
-        """When the gap would end the frame now buffered; None if no gap can (nothing
+        """When the silence would end the frame now buffered; None if none can (nothing
         buffered, or a TCP stream whose frame length is known or still to be told)."""
         if not self.buf or self.invalid:
             return None
         if not self._cut_partial and self._length(self.buf) is not None:
             return None
-        return self.last + self._gap
+        return self.last + self._end_of_frame_silence
 
 
 # ---- framings ------------------------------------------------------------------------------
@@ -110,7 +114,7 @@ class Framing:
 
     def request_length(self, buf: bytes) -> int | None:
         """Length of the frame at the start of ``buf``: 0 more bytes needed, None unknown
-        (wait for a gap), -1 not a frame at all."""
+        (wait for the silence), -1 not a frame at all."""
         return request_length(buf)
 
     def reply_length(self, buf: bytes) -> int | None:
@@ -204,13 +208,13 @@ class Router:
 
     def __init__(
         self,
-        state: LineState,
+        state: SimState,
         f: Framing,
         *,
         units: frozenset[int],
         broadcast: bool,
         hooks: UnitHooks,
-        gap: float,
+        end_of_frame_silence: float,
         cut_partial: bool,
     ) -> None:
         """Route for the simulated ``units`` (``broadcast``: they take unit 0 too).
@@ -218,8 +222,8 @@ class Router:
         ``hooks`` are the units' callbacks: whether a unit answers writes and its reply
         delay are asked once per request, when it is handed to the server; its own form of a
         reply that is delivered (on RTU frames, whatever the framing), before the faults.
-        ``gap`` is the silence that ends a frame of unknown length, and with ``cut_partial``
-        also one whose rest has not come (see :class:`Framer`).
+        ``end_of_frame_silence`` is the silence that ends a frame of unknown length, and with
+        ``cut_partial`` also one whose rest has not come (see :class:`Framer`).
         """
         self._state = state
         self._f = f
@@ -228,8 +232,8 @@ class Router:
         self._hooks = hooks
         self._who = hooks.who
         #: The library's bytes and the server's, to be cut into frames.
-        self.rx_req = Framer(f.request_length, gap, cut_partial=cut_partial)
-        self.rx_rep = Framer(f.reply_length, gap, cut_partial=cut_partial)
+        self.rx_req = Framer(f.request_length, end_of_frame_silence, cut_partial=cut_partial)
+        self.rx_rep = Framer(f.reply_length, end_of_frame_silence, cut_partial=cut_partial)
         #: What goes to the library and to the server: the caller writes it out.
         self.to_library = bytearray()
         self.to_server = bytearray()
@@ -270,7 +274,7 @@ class Router:
         """
         for frame in self.rx_req.frames(now):
             # The last chunk read holds the frame's last byte (a frame cut by length is cut
-            # in the step that completes it; one cut by a gap has had nothing since).
+            # in the step that completes it; one cut by the silence has had nothing since).
             self._on_request(frame, self.rx_req.last)
         if self.rx_req.invalid:
             with self._state.lock:

@@ -10,8 +10,8 @@ from __future__ import annotations
 __all__ = [
     "crc16",
     "crc_ok",
+    "end_of_frame_silence",
     "exception_frame",
-    "frame_gap",
     "reply_length",
     "request_length",
     "t3_5",
@@ -66,7 +66,7 @@ def t3_5(baudrate: int, bits: int = 11) -> float:
     return 0.00175 if baudrate > 19200 else 3.5 * bits / baudrate
 
 
-def frame_gap(baudrate: int) -> float:
+def end_of_frame_silence(baudrate: int) -> float:
     """Silence (seconds) that ends a frame of unknown length: t3.5, but at least 5 ms.
 
     t3.5 is counted with 11-bit characters (the longest 8-bit format, 8E1 or 8N2): the
@@ -74,6 +74,9 @@ def frame_gap(baudrate: int) -> float:
 
     A pseudo-terminal carries bytes instantly, so the only silences are the writer's own;
     the floor keeps a frame written in pieces by a busy process from being cut in two.
+
+    The library's Bus has the same idea under the same name (``end_of_frame_silence`` in
+    ``src/bus.rs``), with its own t3.5 and a 2 ms floor.
     """
     return max(t3_5(baudrate, 11), 0.005)
 

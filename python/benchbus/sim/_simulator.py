@@ -12,8 +12,8 @@ from typing import Generic, TypeVar
 from benchbus import _mbap
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
-from benchbus.sim._line import LOG_SIZE, Forwarder, LineState, PtyPair
-from benchbus.sim._network import NETWORKS, Gateway, NetworkState, probe
+from benchbus.sim._line import LOG_SIZE, Forwarder, PtyPair, SimState
+from benchbus.sim._network import NETWORKS, NetworkProxy, NetworkState, probe
 from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
 from benchbus.sim._rtu import with_crc
 from benchbus.sim._units import UnitHooks
@@ -98,7 +98,7 @@ class Simulator(Generic[D]):
         Units are 1..255: Modbus reserves 248..255, but some instruments (the J2
         controllers) take station numbers up to 255. Unit 0 is the broadcast.
 
-        ``baudrate`` only sets the frame-gap timing (the pseudo-terminal carries bytes
+        ``baudrate`` only sets the end-of-frame silence (the pseudo-terminal carries bytes
         instantly). ``broadcast=False`` makes the units ignore unit 0 entirely. ``faults``
         makes the line noisy from the first reply on (see :attr:`faults`). ``echo=True``
         makes the library's adapter echo what it sends (see :attr:`echo`). ``network``
@@ -131,7 +131,7 @@ class Simulator(Generic[D]):
         #: exception 4), and failures of :meth:`SimDevice.shape_reply` (the reply then goes
         #: unchanged); a test can assert this stays empty.
         self.errors: list[BaseException] = []
-        self._state: LineState = LineState(log_size) if network is None else NetworkState(log_size)
+        self._state: SimState = SimState(log_size) if network is None else NetworkState(log_size)
         self._refusing = False
         self.echo = echo
         self._faults: Faults | None = None
@@ -139,7 +139,7 @@ class Simulator(Generic[D]):
         self._lifecycle = threading.Lock()
         self._pairs: list[PtyPair] = []
         self._forwarder: Forwarder | None = None
-        self._gateway: Gateway | None = None
+        self._proxy: NetworkProxy | None = None
         self._server: PymodbusServer | None = None
         self._port: str | None = None
 
@@ -247,7 +247,7 @@ class Simulator(Generic[D]):
         else:
             raise RuntimeError("the simulator's server does not answer")
         assert isinstance(self._state, NetworkState)
-        self._gateway = Gateway(
+        self._proxy = NetworkProxy(
             self._state,
             server.address,
             network=network,
@@ -257,8 +257,8 @@ class Simulator(Generic[D]):
             baudrate=self.baudrate,
             refuse=self._refusing,
         )
-        self._gateway.start()
-        host, port = self._gateway.address
+        self._proxy.start()
+        host, port = self._proxy.address
         self._port = f"{network}://{host}:{port}"
 
     def stop(self) -> None:
@@ -271,9 +271,9 @@ class Simulator(Generic[D]):
 
     def _stop(self) -> None:
         self._port = None
-        if self._gateway is not None:
-            self._gateway.stop(_STOP_TIMEOUT)
-            self._gateway = None
+        if self._proxy is not None:
+            self._proxy.stop(_STOP_TIMEOUT)
+            self._proxy = None
         if self._server is not None:
             self._server.stop(_STOP_TIMEOUT)
             self._server = None
@@ -400,8 +400,8 @@ class Simulator(Generic[D]):
         The bytes are not logged as a reply. On a network they go to every client
         connection open now (none: they are lost).
         """
-        if self._gateway is not None:
-            self._gateway.inject(bytes(data))
+        if self._proxy is not None:
+            self._proxy.inject(bytes(data))
             return
         if self._forwarder is None:
             raise RuntimeError("the simulator is not running: call start() first")
@@ -495,8 +495,8 @@ class Simulator(Generic[D]):
         self._network_state("refuse_connections")
         with self._lifecycle:
             self._refusing = bool(refuse)
-            if self._gateway is not None:
-                self._gateway.refuse(self._refusing)
+            if self._proxy is not None:
+                self._proxy.refuse(self._refusing)
 
     def drop_connections(self, reset: bool = False) -> None:
         """Close every client connection open now (network only); returns once done.
@@ -506,22 +506,22 @@ class Simulator(Generic[D]):
         """
         self._network_state("drop_connections")
         with self._lifecycle:
-            if self._gateway is not None:
-                self._gateway.drop(reset=reset)
+            if self._proxy is not None:
+                self._proxy.drop(reset=reset)
 
     @property
     def connections(self) -> int:
         """How many client connections are open now (network only; 0 when stopped)."""
         self._network_state("connections")
-        gateway = self._gateway
-        return 0 if gateway is None else gateway.connections
+        proxy = self._proxy
+        return 0 if proxy is None else proxy.connections
 
     @property
     def accepted(self) -> int:
         """How many client connections were accepted since :meth:`start` (network only)."""
         self._network_state("accepted")
-        gateway = self._gateway
-        return 0 if gateway is None else gateway.accepted
+        proxy = self._proxy
+        return 0 if proxy is None else proxy.accepted
 
     # ---- observation -----------------------------------------------------------------------
 
