@@ -1,18 +1,16 @@
 //! Bindings of [`crate::device::j2`]: the parameter-level core that `benchbus.J2Controller`
 //! (Python) wraps with enums and properties.
 
-use super::{number, on_wire, own_timing, to_pyerr, unit_arg, PyBus};
+use super::{number, to_pyerr, Attached, PyBus};
 use crate::device::j2::{by_name, Param, J2, PARAMETERS};
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyFloat, PyInt, PyList, PyString};
-use std::sync::Arc;
 
 /// The parameter-level core of a J2 controller (see `benchbus.J2Controller`).
 #[pyclass(frozen, module = "benchbus._core", name = "J2Core")]
 pub(super) struct PyJ2Core {
-    j2: Arc<J2>,
-    bus: Py<PyBus>,
+    dev: Attached<J2>,
 }
 
 impl PyJ2Core {
@@ -21,7 +19,7 @@ impl PyJ2Core {
         py: Python<'_>,
         f: impl FnOnce(&J2) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        on_wire(py, &self.j2, f)
+        self.dev.wire(py, f)
     }
 }
 
@@ -55,25 +53,20 @@ impl PyJ2Core {
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let unit = unit_arg(unit)?;
-        let (timeout, retries) = own_timing(timeout, retries)?;
-        let core = Arc::clone(&bus.get().bus);
-        Ok(PyJ2Core {
-            j2: Arc::new(J2::new(core, unit).with_timing(timeout, retries)),
-            bus: bus.unbind(),
-        })
+        let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(J2::new(b, u)))?;
+        Ok(PyJ2Core { dev })
     }
 
     /// The Bus the controller talks through.
     #[getter]
     fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
+        self.dev.bus(py)
     }
 
     /// The controller's unit address.
     #[getter]
     fn unit(&self) -> u8 {
-        self.j2.unit()
+        self.dev.unit()
     }
 
     /// Reads the parameter called `name`.
@@ -209,6 +202,6 @@ impl PyJ2Core {
     }
 
     fn __repr__(&self) -> String {
-        format!("J2Core(unit={})", self.j2.unit())
+        format!("J2Core(unit={})", self.dev.unit())
     }
 }

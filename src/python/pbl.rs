@@ -1,19 +1,17 @@
 //! Bindings of [`crate::device::pbl`]: the parameter-level core that `benchbus.PblDrive`
 //! (Python) wraps with enums and properties.
 
-use super::{int_in, number, on_wire, own_timing, to_pyerr, unit_arg, PyBus};
+use super::{int_in, number, to_pyerr, Attached, PyBus};
 use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS};
 use crate::device::Access;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyInt, PyList, PyString};
-use std::sync::Arc;
 
 /// The parameter-level core of a PBL-series drive (see `benchbus.PblDrive`).
 #[pyclass(frozen, module = "benchbus._core", name = "PblCore")]
 pub(super) struct PyPblCore {
-    pbl: Arc<Pbl>,
-    bus: Py<PyBus>,
+    dev: Attached<Pbl>,
 }
 
 impl PyPblCore {
@@ -22,7 +20,7 @@ impl PyPblCore {
         py: Python<'_>,
         f: impl FnOnce(&Pbl) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        on_wire(py, &self.pbl, f)
+        self.dev.wire(py, f)
     }
 }
 
@@ -53,25 +51,20 @@ impl PyPblCore {
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let unit = unit_arg(unit)?;
-        let (timeout, retries) = own_timing(timeout, retries)?;
-        let core = Arc::clone(&bus.get().bus);
-        Ok(PyPblCore {
-            pbl: Arc::new(Pbl::new(core, unit).with_timing(timeout, retries)),
-            bus: bus.unbind(),
-        })
+        let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(Pbl::new(b, u)))?;
+        Ok(PyPblCore { dev })
     }
 
     /// The Bus the drive talks through.
     #[getter]
     fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
+        self.dev.bus(py)
     }
 
     /// The drive's unit address.
     #[getter]
     fn unit(&self) -> u8 {
-        self.pbl.unit()
+        self.dev.unit()
     }
 
     /// Reads the parameter called `name` (an int).
@@ -189,6 +182,6 @@ impl PyPblCore {
     }
 
     fn __repr__(&self) -> String {
-        format!("PblCore(unit={})", self.pbl.unit())
+        format!("PblCore(unit={})", self.dev.unit())
     }
 }

@@ -1,0 +1,57 @@
+"""Every device family is built through one path: the same checks of the unit, the device's
+own timeout and retries, with the same messages, before anything is sent."""
+
+from __future__ import annotations
+
+import os
+import select
+
+import pytest
+
+import benchbus as bb
+from conftest import ScriptedSlave
+
+FAMILIES = {
+    "PblDrive": lambda bus, **kw: bb.PblDrive(bus, **kw),
+    "J2Controller": lambda bus, **kw: bb.J2Controller(bus, **kw),
+    "Instrument": lambda bus, **kw: bb.Instrument(bus, **kw),
+}
+
+
+def nothing_sent(slave: ScriptedSlave) -> bool:
+    """Whether the line carried no byte."""
+    return not select.select([slave.master], [], [], 0.05)[0] or not os.read(slave.master, 256)
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"unit": 256}, ValueError, r"^unit must be 1 to 255, got 256$"),
+        ({"unit": "1"}, TypeError, r"unit must be an int"),
+        ({"unit": 1, "timeout": -1}, ValueError, r"timeout"),
+        ({"unit": 1, "retries": 101}, ValueError, r"^retries must be 0 to 100, got 101$"),
+        ({"unit": 1, "retries": True}, TypeError, r"retries"),
+    ],
+)
+def test_bad_station_arguments_are_refused_alike(
+    slave: ScriptedSlave,
+    family: str,
+    kwargs: dict[str, object],
+    error: type[Exception],
+    message: str,
+) -> None:
+    with (
+        bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus,
+        pytest.raises(error, match=message),
+    ):
+        FAMILIES[family](bus, **kwargs)
+    assert nothing_sent(slave)
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+def test_every_family_stands_on_the_bus_and_unit_given(slave: ScriptedSlave, family: str) -> None:
+    with bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus:
+        device = FAMILIES[family](bus, unit=9, timeout=0.2, retries=0)
+        assert device.bus is bus
+        assert device.unit == 9
