@@ -394,6 +394,12 @@ EXPLICIT: list[Case] = [
     *calls("PblDrive", "read_parameters", ValueError, "parameters", A(200, 50)),
     *calls("PblDrive", "read_parameters", ValueError, "parameter", A("nope", 1), A(-1, 1)),
     *calls("PblDrive", "read_parameters", TypeError, "count", A(0, 1.0), A(0, "1")),
+    *calls("PblDrive", "get", ValueError, "nope", A("nope")),
+    *calls("PblDrive", "get", TypeError, "name", A(50), A(None)),
+    *calls("PblDrive", "set", ValueError, "speed", A("speed", 1)),  # read-only
+    *calls("PblDrive", "set", ValueError, "control_mode", A("control_mode", 3)),
+    *calls("PblDrive", "set", ValueError, "nope", A("nope", 1)),
+    *calls("PblDrive", "set", TypeError, "control_mode", A("control_mode", "1")),
     *calls("PblDrive", "record", ValueError, "duration", A(NAN, 0.1)),
     *calls("PblDrive", "record", ValueError, "nope", A(1, 0.1, columns=["nope"])),
     # -- J2Controller

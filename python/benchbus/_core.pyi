@@ -5,7 +5,7 @@ from collections.abc import Callable, Iterable, Sequence
 from types import TracebackType
 from typing import Any
 
-from typing_extensions import Self, final
+from typing_extensions import Self, disjoint_base, final
 
 __all__ = [
     "Bus",
@@ -451,9 +451,10 @@ class DriveCore:
     def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
         """``(name, address, scale, unit, access, low, high)`` of each register."""
 
-@final
+@disjoint_base
 class PblCore:
-    """The parameter-level core of a PBL-series drive; use ``benchbus.PblDrive``.
+    """The compiled base of ``benchbus.PblDrive`` (use that): the parameter table and every
+    call to the drive.
 
     Parameters are given by number (0..222) or by name from :meth:`table`; values are the
     raw words, checked against the table before anything is sent. Every call that touches
@@ -461,6 +462,8 @@ class PblCore:
     accepted, as these drives send it.
     """
 
+    #: The names :meth:`sample` gives: parameters 50..54.
+    SAMPLE_FIELDS: tuple[str, ...] | None
     def __new__(
         cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
     ) -> Self:
@@ -485,23 +488,32 @@ class PblCore:
         """Every documented parameter, ``{name: value}``, in four requests (61 a reply)."""
     def telemetry(self) -> dict[str, int]:
         """Parameters 0..99 but the reserved ones, ``{name: value}``, in two requests."""
+    def sample(self) -> dict[str, float]:
+        """Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
+        parameters 50..54, in one request."""
     def start(self) -> None:
-        """Sets the start bit of the control word, keeping the others."""
+        """Start: set bit 0 of the control word, keeping its other bits."""
     def stop(self) -> None:
-        """Clears the start bit of the control word, keeping the others."""
-    def set_reverse(self, reverse: bool) -> None:
-        """Sets the direction bit of the control word (True = reverse), keeping the others."""
-    def control(self) -> tuple[bool, bool]:
-        """The control word as ``(started, reverse)``."""
-    def status(self) -> tuple[bool, bool]:
-        """The status word as ``(running, reverse)``."""
-    def alarms(self) -> tuple[int, list[str]]:
-        """The 32-bit alarm word and the names of its set bits."""
-    def restore_defaults(self) -> None:
-        """Writes 1511 to parameter 214 (defaults restored at the next power-up)."""
+        """Stop: clear bit 0 of the control word, keeping its other bits."""
+    @property
+    def running(self) -> bool:
+        """Whether the motor is moving (status word bit 0)."""
+    @property
+    def alarm_word(self) -> int:
+        """The 32-bit alarm word (parameter 5 high, 4 low)."""
+    @property
+    def alarms(self) -> frozenset[str]:
+        """The active alarm bits by name ("alarm bit N": the manual names none)."""
+    def units(self) -> dict[str, str]:
+        """The unit of each parameter by name, from :meth:`table` (``""`` for none)."""
     @staticmethod
     def table() -> list[tuple[int, str, str, str, float, float]]:
         """``(number, name, unit, access, low, high)`` of each parameter; access "R" or "W/R"."""
+    # The subclass turns these into a Direction, a PblStatus and a warning.
+    def _set_reverse(self, reverse: bool) -> None: ...
+    def _control(self) -> tuple[bool, bool]: ...
+    def _status(self) -> tuple[bool, bool]: ...
+    def _restore_defaults(self) -> None: ...
 
 @final
 class J2Core:

@@ -27,6 +27,17 @@ pub const RESTORE_MAGIC: u16 = 1511;
 /// Parameters 0..=99 are status and measurements.
 pub const MEASUREMENTS: std::ops::RangeInclusive<u16> = 0..=99;
 
+/// The main measurements, parameters 50..=54 in order, read in one request by
+/// [`Pbl::sample`]: speed (rpm), bus voltage (V), analog speed input (mV), current (A) and
+/// power (W).
+pub const SAMPLE: [&str; 5] = [
+    "speed",
+    "bus_voltage",
+    "analog_speed_input",
+    "current",
+    "power",
+];
+
 /// Most parameters one read may ask for: the manual's frame holds 1..123 data bytes, so a
 /// reply carries at most 61 registers.
 pub const MAX_BLOCK: u16 = 61;
@@ -445,6 +456,16 @@ impl Pbl {
             .collect())
     }
 
+    /// The [`SAMPLE`] parameters, `(name, value)`, in one request.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn sample(&self) -> Result<Vec<(&'static str, u16)>> {
+        let first = by_name(SAMPLE[0])?.address;
+        let words = self.station.read(first, SAMPLE.len() as u16)?;
+        Ok(SAMPLE.iter().copied().zip(words).collect())
+    }
+
     /// Sets bit 0 of the control word (start), keeping the other bits.
     ///
     /// # Errors
@@ -574,6 +595,14 @@ mod tests {
         assert!(!check(215, 0.0) && check(215, 255.0));
         assert!(!check(212, 3300.0));
         assert!(!check(50, 1.0)); // measured: read-only
+    }
+
+    #[test]
+    fn the_sample_is_one_block_of_measurements() {
+        for (i, name) in SAMPLE.iter().enumerate() {
+            let p = by_name(name).ok().map(|p| (p.address, p.access));
+            assert_eq!(p, Some((50 + i as u16, Access::Read)), "{name}");
+        }
     }
 
     #[test]
