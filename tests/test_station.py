@@ -55,3 +55,31 @@ def test_every_family_stands_on_the_bus_and_unit_given(slave: ScriptedSlave, fam
         device = FAMILIES[family](bus, unit=9, timeout=0.2, retries=0)
         assert device.bus is bus
         assert device.unit == 9
+
+
+def test_the_pbl_drive_is_its_compiled_class_with_nothing_forwarded() -> None:
+    from benchbus._core import PblCore
+
+    assert issubclass(bb.PblDrive, PblCore)
+    for name in ("start", "stop", "read_parameter", "write_parameter", "read_parameters"):
+        assert name not in vars(bb.PblDrive), name
+    for name in ("parameters", "table", "sample", "units", "running", "alarms", "alarm_word"):
+        assert name not in vars(bb.PblDrive), name
+    # The sample block is the Rust table's, and what sample() reads.
+    assert bb.PblDrive.SAMPLE_FIELDS == (
+        "speed",
+        "bus_voltage",
+        "analog_speed_input",
+        "current",
+        "power",
+    )
+
+
+def test_a_pbl_drive_keeps_no_core_and_refuses_unknown_attributes(slave: ScriptedSlave) -> None:
+    with bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus:
+        pbl = bb.PblDrive(bus, unit=3)
+        assert "core" not in vars(pbl)
+        assert repr(pbl).startswith("<PblDrive unit=3 on ")
+        with pytest.raises(AttributeError, match="speed_setpoint"):
+            pbl.speed_setpoin = 5  # type: ignore[attr-defined]
+    assert nothing_sent(slave)
