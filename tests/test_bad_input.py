@@ -428,6 +428,12 @@ EXPLICIT: list[Case] = [
     *sets("J2Controller", "pid2", ValueError, "PID", (1, 2, 3, 4)),
     *sets("J2Controller", "pid2", TypeError, "PID", 5),
     *sets("J2Controller", "pid2", ValueError, r"\bD1\b", (1, 1, NAN)),
+    *calls("J2Controller", "get", TypeError, "named by a str", A(5), A(None)),
+    *calls("J2Controller", "get", ValueError, "parameter", A("NOPE")),
+    *calls("J2Controller", "set", ValueError, r"\bPV\b", A("PV", 10)),  # read-only
+    *calls("J2Controller", "set", ValueError, r"\bSV\b", A("SV", NAN)),
+    *calls("J2Controller", "set", TypeError, r"\bSV\b", A("SV", "x")),
+    *calls("J2Controller", "set", TypeError, "named by a str", A(5, 10)),
     *calls("J2Controller", "read", TypeError, "named by a str", A(5), A(None)),
     *calls("J2Controller", "read", ValueError, "parameter", A("NOPE"), A("")),
     *calls("J2Controller", "write", ValueError, "function", A("SV", 10, function=3)),

@@ -83,3 +83,16 @@ def test_a_pbl_drive_keeps_no_core_and_refuses_unknown_attributes(slave: Scripte
         with pytest.raises(AttributeError, match="speed_setpoint"):
             pbl.speed_setpoin = 5  # type: ignore[attr-defined]
     assert nothing_sent(slave)
+
+
+def test_the_j2_controller_is_its_compiled_class_with_the_groups_from_the_table() -> None:
+    from benchbus._core import J2Core
+
+    assert issubclass(bb.J2Controller, J2Core)
+    for name in ("read", "write", "read_many", "write_many", "parameters", "table", "units"):
+        assert name not in vars(bb.J2Controller), name
+    for name in ("sample", "set_output", "start_ramp", "stop_ramp"):
+        assert name not in vars(bb.J2Controller), name
+    assert bb.J2Controller.SAMPLE_FIELDS == ("pv", "sv", "mv")
+    assert J2Core._pid_names(False) == ["P", "I", "D"]
+    assert J2Core._pid_names(True) == ["P1", "I1", "D1"]

@@ -1,7 +1,7 @@
 """Type stubs for the compiled core (``benchbus._core``)."""
 
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from types import TracebackType
 from typing import Any
 
@@ -515,9 +515,10 @@ class PblCore:
     def _status(self) -> tuple[bool, bool]: ...
     def _restore_defaults(self) -> None: ...
 
-@final
+@disjoint_base
 class J2Core:
-    """The parameter-level core of a J2 controller (``benchbus.J2Controller`` wraps it).
+    """The compiled base of ``benchbus.J2Controller`` (use that): the parameter table, the
+    manual's rules and every call to the controller.
 
     Parameters are named as in the manual ("SV", "AL1", "RAPNF"; any case). Signed-table
     values are floats in engineering units (tenths on the wire), unsigned-table values ints.
@@ -526,6 +527,8 @@ class J2Core:
     RAPNF written 0 before RAP or RTM. Every call that touches the wire releases the GIL.
     """
 
+    #: The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``.
+    SAMPLE_FIELDS: tuple[str, ...] | None
     def __new__(
         cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
     ) -> Self:
@@ -541,28 +544,42 @@ class J2Core:
         """Reads the parameter called ``name``."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` to the parameter called ``name``, with the manual's rules."""
-    def write(self, name: str, value: float, multiple: bool = False) -> None:
-        """Writes ``value`` to ``name`` with 0x06, or 0x10 if ``multiple``, with the manual's
-        rules."""
-    def read_many(self, names: Sequence[str]) -> list[int | float]:
-        """Reads the parameters called ``names``, in as few requests as allowed."""
-    def write_many(self, pairs: Sequence[tuple[str, float]]) -> None:
-        """Writes ``(name, value)`` pairs in order; fixed ranges are checked before the first
-        is sent, the checks that need the controller write by write."""
+    def read(self, name: str) -> int | float:
+        """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
+        signed table, an int for the unsigned one."""
+    def write(self, name: str, value: float, *, function: int = 0x06) -> None:
+        """Write one parameter by name, with the manual's rules; ``function`` is 0x06 or
+        0x10 (the manual shows both for SV)."""
+    def read_many(self, names: Iterable[str]) -> list[int | float]:
+        """Several parameters by name, in as few requests as the 16-register limit allows."""
+    def write_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Write several parameters in order, each as :meth:`write` does; every value is
+        checked against its fixed range before the first is sent."""
     def parameters(self) -> dict[str, int | float]:
         """Every parameter, ``{name: value}``, in blocks of at most 16 registers."""
-    def set_output(self, percent: float, switch_to_manual: bool) -> None:
-        """Writes MV; in automatic mode refused, or AM written 0 first if
-        ``switch_to_manual``."""
-    def set_limits(self, low: float, high: float) -> None:
-        """Writes LSP and USP in the order that keeps LSP <= USP."""
+    def set_output(self, percent: float, switch_to_manual: bool = False) -> None:
+        """Set the output MV to ``percent`` (0..100); in automatic mode refused with
+        StateError, unless ``switch_to_manual`` (AM written 0 first)."""
+    def start_ramp(self) -> None:
+        """Start the setpoint ramp (RAPNF = 1)."""
+    def stop_ramp(self) -> None:
+        """End the setpoint ramp (RAPNF = 0)."""
+    def sample(self) -> dict[str, float]:
+        """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""
     @staticmethod
     def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
         """``(name, address, signed, writable, low, high, within_limits)`` of each
         parameter."""
     @staticmethod
     def units() -> dict[str, str]:
-        """The unit of each parameter by name (``""`` for none): ``{"MV": "%", "PV": "°C"}``."""
+        """The unit of each parameter by its manual name (``""`` for none)."""
+    # The subclass turns these into a J2Status, Pid and Limits named tuples.
+    def _status(self) -> list[int | float]: ...
+    def _pid(self, second: bool) -> list[int | float]: ...
+    @staticmethod
+    def _pid_names(second: bool) -> list[str]: ...
+    def _limits(self) -> list[int | float]: ...
+    def _set_limits(self, low: float, high: float) -> None: ...
 
 @final
 class InstrumentCore:

@@ -156,6 +156,18 @@ pub const TABLES: [(u16, u16); 2] = [(0x00, 0x3E), (0x80, 0x9C)];
 pub const AM: &str = "AM";
 /// RAPNF: reads 1 while a ramp runs; written 1 starts it, 0 ends it.
 pub const RAPNF: &str = "RAPNF";
+/// One status snapshot: process value, setpoint, output, alarm values, mode, ramp and
+/// autotune, read in two requests.
+pub const STATUS: [&str; 8] = ["PV", "SV", "MV", "AL1", "AL2", "AM", "RAPNF", "AT"];
+/// The main measurements, read in one request: process value, setpoint and output.
+pub const SAMPLE: [&str; 3] = ["PV", "SV", "MV"];
+/// The first PID set: proportional band, integral time, derivative time.
+pub const PID: [&str; 3] = ["P", "I", "D"];
+/// The second PID set.
+pub const PID2: [&str; 3] = ["P1", "I1", "D1"];
+/// The setpoint limits, low and high.
+pub const LIMITS: [&str; 2] = ["LSP", "USP"];
+
 /// The parameters the manual calls ramp parameters (RAPNF is written 0 before them).
 pub const RAMP_PARAMETERS: [&str; 2] = ["RAP", "RTM"];
 
@@ -405,7 +417,7 @@ impl J2 {
     /// # Errors
     /// Any [`Error`].
     pub fn limits(&self) -> Result<(f64, f64)> {
-        match self.read_many(&["LSP", "USP"])?[..] {
+        match self.read_many(&LIMITS)?[..] {
             [low, high] => Ok((low, high)),
             _ => Err(self.station.short_reply()),
         }
@@ -528,6 +540,21 @@ mod tests {
         assert!(!check("PV", 1.0) && !check("MV", 100.1) && !check("MV", f64::NAN));
         let msg = by_name("AL1").and_then(|p| p.encode(5000.0)).err();
         assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999 to 9999")));
+    }
+
+    #[test]
+    fn the_groups_name_parameters_of_the_table() {
+        let groups: [&[&str]; 5] = [&STATUS, &SAMPLE, &PID, &PID2, &LIMITS];
+        for name in groups.iter().flat_map(|g| g.iter()) {
+            assert!(by_name(name).is_ok(), "{name}");
+        }
+        // Each small group is one request: within 16 registers.
+        for group in [&SAMPLE[..], &PID, &PID2, &LIMITS] {
+            let addresses = group
+                .iter()
+                .filter_map(|n| by_name(n).ok().map(|p| p.address));
+            assert_eq!(blocks(addresses).len(), 1, "{group:?}");
+        }
     }
 
     #[test]
