@@ -161,6 +161,12 @@ class J2Controller(J2Core, BusDevice):
 
     pv = MeasuredProperty("PV", to_float, "Process value (PV), read-only.")
     sv = RegisterProperty("SV", to_float, "Setpoint (SV), within LSP..USP.")
+    mv = RegisterProperty(
+        "MV",
+        to_float,
+        "The output (MV), percent. Setting it needs manual mode: in automatic mode it raises "
+        ":class:`~benchbus.StateError` (see :meth:`set_output`).",
+    )
     alarm1 = RegisterProperty("AL1", to_float, "Alarm 1 value (AL1), -1999..3276.7.")
     alarm2 = RegisterProperty("AL2", to_float, "Alarm 2 value (AL2), -1999..3276.7.")
     pv_offset = RegisterProperty("PVOS", to_float, "Process value offset (PVOS), -50..50.")
@@ -221,16 +227,6 @@ class J2Controller(J2Core, BusDevice):
         )
 
     # ---- output and mode -----------------------------------------------------------------------
-
-    @property
-    def mv(self) -> float:
-        """The output (MV), percent. Setting it needs manual mode: in automatic mode it raises
-        :class:`~benchbus.StateError` (see :meth:`set_output`)."""
-        return float(self.get("MV"))
-
-    @mv.setter
-    def mv(self, percent: float) -> None:
-        self.set("MV", percent)
 
     @property
     def autotune(self) -> bool:
