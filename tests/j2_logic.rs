@@ -5,6 +5,7 @@ mod common;
 
 use benchbus::bus::TxOptions;
 use benchbus::device::j2::{blocks, J2, WRITE_INTERVAL};
+use benchbus::device::Device;
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::{mpsc, Arc};

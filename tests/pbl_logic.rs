@@ -4,6 +4,7 @@
 mod common;
 
 use benchbus::device::pbl::{Pbl, PARAMETERS};
+use benchbus::device::Device;
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::Arc;

@@ -394,6 +394,12 @@ EXPLICIT: list[Case] = [
     *calls("PblDrive", "read_parameters", ValueError, "parameters", A(200, 50)),
     *calls("PblDrive", "read_parameters", ValueError, "parameter", A("nope", 1), A(-1, 1)),
     *calls("PblDrive", "read_parameters", TypeError, "count", A(0, 1.0), A(0, "1")),
+    *calls("PblDrive", "get", ValueError, "nope", A("nope")),
+    *calls("PblDrive", "get", TypeError, "name", A(50), A(None)),
+    *calls("PblDrive", "set", ValueError, "speed", A("speed", 1)),  # read-only
+    *calls("PblDrive", "set", ValueError, "control_mode", A("control_mode", 3)),
+    *calls("PblDrive", "set", ValueError, "nope", A("nope", 1)),
+    *calls("PblDrive", "set", TypeError, "control_mode", A("control_mode", "1")),
     *calls("PblDrive", "record", ValueError, "duration", A(NAN, 0.1)),
     *calls("PblDrive", "record", ValueError, "nope", A(1, 0.1, columns=["nope"])),
     # -- J2Controller
@@ -422,6 +428,12 @@ EXPLICIT: list[Case] = [
     *sets("J2Controller", "pid2", ValueError, "PID", (1, 2, 3, 4)),
     *sets("J2Controller", "pid2", TypeError, "PID", 5),
     *sets("J2Controller", "pid2", ValueError, r"\bD1\b", (1, 1, NAN)),
+    *calls("J2Controller", "get", TypeError, "named by a str", A(5), A(None)),
+    *calls("J2Controller", "get", ValueError, "parameter", A("NOPE")),
+    *calls("J2Controller", "set", ValueError, r"\bPV\b", A("PV", 10)),  # read-only
+    *calls("J2Controller", "set", ValueError, r"\bSV\b", A("SV", NAN)),
+    *calls("J2Controller", "set", TypeError, r"\bSV\b", A("SV", "x")),
+    *calls("J2Controller", "set", TypeError, "named by a str", A(5, 10)),
     *calls("J2Controller", "read", TypeError, "named by a str", A(5), A(None)),
     *calls("J2Controller", "read", ValueError, "parameter", A("NOPE"), A("")),
     *calls("J2Controller", "write", ValueError, "function", A("SV", 10, function=3)),

@@ -1,11 +1,11 @@
 """Type stubs for the compiled core (``benchbus._core``)."""
 
 import os
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from types import TracebackType
 from typing import Any
 
-from typing_extensions import Self, final
+from typing_extensions import Self, disjoint_base, final
 
 __all__ = [
     "Bus",
@@ -466,9 +466,10 @@ class DriveCore:
     def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
         """``(name, address, scale, unit, access, low, high)`` of each register."""
 
-@final
+@disjoint_base
 class PblCore:
-    """The parameter-level core of a PBL-series drive; use ``benchbus.PblDrive``.
+    """The compiled base of ``benchbus.PblDrive`` (use that): the parameter table and every
+    call to the drive.
 
     Parameters are given by number (0..222) or by name from :meth:`table`; values are the
     raw words, checked against the table before anything is sent. Every call that touches
@@ -476,6 +477,8 @@ class PblCore:
     accepted, as these drives send it.
     """
 
+    #: The names :meth:`sample` gives: parameters 50..54.
+    SAMPLE_FIELDS: tuple[str, ...] | None
     def __new__(
         cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
     ) -> Self:
@@ -500,27 +503,37 @@ class PblCore:
         """Every documented parameter, ``{name: value}``, in four requests (61 a reply)."""
     def telemetry(self) -> dict[str, int]:
         """Parameters 0..99 but the reserved ones, ``{name: value}``, in two requests."""
+    def sample(self) -> dict[str, float]:
+        """Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
+        parameters 50..54, in one request."""
     def start(self) -> None:
-        """Sets the start bit of the control word, keeping the others."""
+        """Start: set bit 0 of the control word, keeping its other bits."""
     def stop(self) -> None:
-        """Clears the start bit of the control word, keeping the others."""
-    def set_reverse(self, reverse: bool) -> None:
-        """Sets the direction bit of the control word (True = reverse), keeping the others."""
-    def control(self) -> tuple[bool, bool]:
-        """The control word as ``(started, reverse)``."""
-    def status(self) -> tuple[bool, bool]:
-        """The status word as ``(running, reverse)``."""
-    def alarms(self) -> tuple[int, list[str]]:
-        """The 32-bit alarm word and the names of its set bits."""
-    def restore_defaults(self) -> None:
-        """Writes 1511 to parameter 214 (defaults restored at the next power-up)."""
+        """Stop: clear bit 0 of the control word, keeping its other bits."""
+    @property
+    def running(self) -> bool:
+        """Whether the motor is moving (status word bit 0)."""
+    @property
+    def alarm_word(self) -> int:
+        """The 32-bit alarm word (parameter 5 high, 4 low)."""
+    @property
+    def alarms(self) -> frozenset[str]:
+        """The active alarm bits by name ("alarm bit N": the manual names none)."""
+    def units(self) -> dict[str, str]:
+        """The unit of each parameter by name, from :meth:`table` (``""`` for none)."""
     @staticmethod
     def table() -> list[tuple[int, str, str, str, float, float]]:
         """``(number, name, unit, access, low, high)`` of each parameter; access "R" or "W/R"."""
+    # The subclass turns these into a Direction, a PblStatus and a warning.
+    def _set_reverse(self, reverse: bool) -> None: ...
+    def _control(self) -> tuple[bool, bool]: ...
+    def _status(self) -> tuple[bool, bool]: ...
+    def _restore_defaults(self) -> None: ...
 
-@final
+@disjoint_base
 class J2Core:
-    """The parameter-level core of a J2 controller (``benchbus.J2Controller`` wraps it).
+    """The compiled base of ``benchbus.J2Controller`` (use that): the parameter table, the
+    manual's rules and every call to the controller.
 
     Parameters are named as in the manual ("SV", "AL1", "RAPNF"; any case). Signed-table
     values are floats in engineering units (tenths on the wire), unsigned-table values ints.
@@ -529,6 +542,8 @@ class J2Core:
     RAPNF written 0 before RAP or RTM. Every call that touches the wire releases the GIL.
     """
 
+    #: The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``.
+    SAMPLE_FIELDS: tuple[str, ...] | None
     def __new__(
         cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
     ) -> Self:
@@ -544,28 +559,42 @@ class J2Core:
         """Reads the parameter called ``name``."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` to the parameter called ``name``, with the manual's rules."""
-    def write(self, name: str, value: float, multiple: bool = False) -> None:
-        """Writes ``value`` to ``name`` with 0x06, or 0x10 if ``multiple``, with the manual's
-        rules."""
-    def read_many(self, names: Sequence[str]) -> list[int | float]:
-        """Reads the parameters called ``names``, in as few requests as allowed."""
-    def write_many(self, pairs: Sequence[tuple[str, float]]) -> None:
-        """Writes ``(name, value)`` pairs in order; fixed ranges are checked before the first
-        is sent, the checks that need the controller write by write."""
+    def read(self, name: str) -> int | float:
+        """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
+        signed table, an int for the unsigned one."""
+    def write(self, name: str, value: float, *, function: int = 0x06) -> None:
+        """Write one parameter by name, with the manual's rules; ``function`` is 0x06 or
+        0x10 (the manual shows both for SV)."""
+    def read_many(self, names: Iterable[str]) -> list[int | float]:
+        """Several parameters by name, in as few requests as the 16-register limit allows."""
+    def write_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Write several parameters in order, each as :meth:`write` does; every value is
+        checked against its fixed range before the first is sent."""
     def parameters(self) -> dict[str, int | float]:
         """Every parameter, ``{name: value}``, in blocks of at most 16 registers."""
-    def set_output(self, percent: float, switch_to_manual: bool) -> None:
-        """Writes MV; in automatic mode refused, or AM written 0 first if
-        ``switch_to_manual``."""
-    def set_limits(self, low: float, high: float) -> None:
-        """Writes LSP and USP in the order that keeps LSP <= USP."""
+    def set_output(self, percent: float, switch_to_manual: bool = False) -> None:
+        """Set the output MV to ``percent`` (0..100); in automatic mode refused with
+        StateError, unless ``switch_to_manual`` (AM written 0 first)."""
+    def start_ramp(self) -> None:
+        """Start the setpoint ramp (RAPNF = 1)."""
+    def stop_ramp(self) -> None:
+        """End the setpoint ramp (RAPNF = 0)."""
+    def sample(self) -> dict[str, float]:
+        """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""
     @staticmethod
     def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
         """``(name, address, signed, writable, low, high, within_limits)`` of each
         parameter."""
     @staticmethod
     def units() -> dict[str, str]:
-        """The unit of each parameter by name (``""`` for none): ``{"MV": "%", "PV": "°C"}``."""
+        """The unit of each parameter by its manual name (``""`` for none)."""
+    # The subclass turns these into a J2Status, Pid and Limits named tuples.
+    def _status(self) -> list[int | float]: ...
+    def _pid(self, second: bool) -> list[int | float]: ...
+    @staticmethod
+    def _pid_names(second: bool) -> list[str]: ...
+    def _limits(self) -> list[int | float]: ...
+    def _set_limits(self, low: float, high: float) -> None: ...
 
 @final
 class InstrumentCore:

@@ -1,7 +1,8 @@
 """What the device classes share: printable enums and properties backed by a register table.
 
-Each device class keeps a compiled core (``DriveCore``, ``PblCore``) that knows its register
-table, scaling and limits, and reads or writes a register by name with ``get`` / ``set``.
+Each device class either keeps a compiled core (``DriveCore``) or has its compiled class as
+its base (``PblCore`` under ``PblDrive``); either knows the register table, scaling and
+limits, and reads or writes a register by name with ``get`` / ``set``.
 A :class:`RegisterProperty` turns one such register into a Python property, converting the
 raw value (an enum, an int, a float) on the way out.
 """
@@ -35,6 +36,7 @@ __all__ = [
     "add_note",
     "as_enum",
     "check_baudrate",
+    "on_line",
     "to_enum",
     "to_float",
     "to_int",
@@ -111,6 +113,13 @@ def as_enum(enum_type: type[E], raw: int) -> E | int:
         return raw
 
 
+def _registers(device: Device) -> Core:
+    """Where ``device`` reads and writes its registers by name: its ``core``, or the device
+    itself when the compiled class is its base (it then has no ``core``)."""
+    core: Core = vars(device).get("core", device)
+    return core
+
+
 class _Backed(Generic[D, T]):
     """A device attribute read from the register ``register`` of the device's core."""
 
@@ -128,7 +137,7 @@ class _Backed(Generic[D, T]):
         """The converted register value (the descriptor itself on the class)."""
         if device is None:
             return self
-        return self.convert(device, device.core.get(self.register))
+        return self.convert(device, _registers(device).get(self.register))
 
 
 class RegisterProperty(_Backed[D, T]):
@@ -136,7 +145,7 @@ class RegisterProperty(_Backed[D, T]):
 
     def __set__(self, device: D, value: float) -> None:
         """Write ``value`` (an enum member is an int) to the register."""
-        device.core.set(self.register, value)
+        _registers(device).set(self.register, value)
 
 
 class MeasuredProperty(_Backed[D, T]):
@@ -182,6 +191,41 @@ def check_baudrate(baudrate: object, allowed: tuple[int, ...]) -> None:
         *most, last = (str(b) for b in allowed)
         listed = f"{', '.join(most)} or {last}" if most else last
         raise ValueError(f"baudrate must be {listed}, got {baudrate}")
+
+
+M = TypeVar("M")
+
+
+def on_line(
+    port_or_bus: str | os.PathLike[str] | Bus,
+    make: Callable[[Bus, float | None, int | None], M],
+    *,
+    line: LineDefaults,
+    timeout: float | None,
+    retries: int | None,
+) -> tuple[M, bool]:
+    """``make(bus, timeout, retries)`` on a shared Bus, or ``make(bus, None, None)`` on a Bus
+    opened here at ``line``; returns what was made and whether the Bus was opened here.
+
+    ``timeout`` / ``retries`` set the Bus opened here, or on a shared Bus are given to
+    ``make`` for this device's requests only. A Bus opened here is closed again if ``make``
+    fails.
+    """
+    if isinstance(port_or_bus, Bus):
+        return make(port_or_bus, timeout, retries), False
+    bus = Bus(
+        port_or_bus,
+        baudrate=line.baudrate,
+        parity=line.parity,
+        stopbits=1,
+        timeout=line.timeout if timeout is None else timeout,
+        retries=2 if retries is None else retries,
+    )
+    try:
+        return make(bus, None, None), True
+    except BaseException:
+        bus.close()
+        raise
 
 
 class _DeviceType(type):
@@ -267,29 +311,15 @@ class BusDevice(metaclass=_DeviceType):
         retries: int | None,
         default_timeout: float,
     ) -> None:
-        """Set ``core`` on a shared Bus, or on one opened at the family's line defaults.
-
-        ``timeout`` / ``retries`` set the Bus the device opens, or on a shared Bus are given
-        to ``make_core(bus, timeout, retries)`` for this device's requests only. A Bus opened
-        here is closed again if the core cannot be made.
-        """
-        self._owns_bus = not isinstance(port_or_bus, Bus)
-        if isinstance(port_or_bus, Bus):
-            self.core = make_core(port_or_bus, timeout, retries)
-            return
-        bus = Bus(
+        """Set ``core`` on a shared Bus, or on one opened at the family's line defaults
+        (see :func:`on_line`)."""
+        self.core, self._owns_bus = on_line(
             port_or_bus,
-            baudrate=baudrate,
-            parity=parity,
-            stopbits=1,
-            timeout=default_timeout if timeout is None else timeout,
-            retries=2 if retries is None else retries,
+            make_core,
+            line=LineDefaults(baudrate, parity, default_timeout),
+            timeout=timeout,
+            retries=retries,
         )
-        try:
-            self.core = make_core(bus, None, None)
-        except BaseException:
-            bus.close()
-            raise
 
     @property
     def bus(self) -> Bus:

@@ -2,16 +2,18 @@
 
 The parameter table (names, addresses, signed tenths or unsigned integers, ranges) and the
 manual's rules (150 ms between writes, 16 registers a request, MV only in manual mode,
-RAPNF written 0 before a ramp parameter) live in the compiled core (``J2Core``); this module
-adds enums, properties and the context manager.
+RAPNF written 0 before a ramp parameter), the parameter groups (status, sample, PID sets,
+limits) and every call to the controller live in the compiled base class (``J2Core``); this
+module adds what belongs to Python: enums, named properties, the status object, named tuples,
+the reprs and the context manager.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Iterable, Mapping
-from typing import Any, NamedTuple, Union
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any, NamedTuple, Union
 
 from benchbus._core import Bus, J2Core
 from benchbus._device import (
@@ -22,11 +24,15 @@ from benchbus._device import (
     RegisterProperty,
     as_enum,
     check_baudrate,
+    on_line,
     to_enum,
     to_float,
     to_int,
 )
 from benchbus._display import dataclass_table
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 __all__ = ["InputType", "J2Controller", "J2Mode", "J2Status", "Limits", "Pid"]
 
@@ -84,7 +90,7 @@ def _listed(name: str, value: Any, what: str) -> list[Any]:
     return list(value)
 
 
-def _pid_values(names: tuple[str, str, str], value: Iterable[float]) -> list[tuple[str, float]]:
+def _pid_values(names: Sequence[str], value: Iterable[float]) -> list[tuple[str, float]]:
     values = _listed("a PID set", value, "three numbers (P, I, D)")
     if len(values) != 3:
         raise ValueError(f"a PID set is three numbers (P, I, D), got {len(values)}")
@@ -117,7 +123,7 @@ class J2Status:
         return dataclass_table(self, {"mv": "%"})
 
 
-class J2Controller(BusDevice):
+class J2Controller(J2Core, BusDevice):
     """A J2-series PID temperature/process controller (manual 003), 9600 or 19200 8N1.
 
     ::
@@ -150,19 +156,44 @@ class J2Controller(BusDevice):
     goes on controlling.
     """
 
-    core: J2Core
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(9600, "N", 0.3)
-    SAMPLE_FIELDS = ("pv", "sv", "mv")
 
     pv = MeasuredProperty("PV", to_float, "Process value (PV), read-only.")
     sv = RegisterProperty("SV", to_float, "Setpoint (SV), within LSP..USP.")
+    mv = RegisterProperty(
+        "MV",
+        to_float,
+        "The output (MV), percent. Setting it needs manual mode: in automatic mode it raises "
+        ":class:`~benchbus.StateError` (see :meth:`set_output`).",
+    )
     alarm1 = RegisterProperty("AL1", to_float, "Alarm 1 value (AL1), -1999..3276.7.")
     alarm2 = RegisterProperty("AL2", to_float, "Alarm 2 value (AL2), -1999..3276.7.")
     pv_offset = RegisterProperty("PVOS", to_float, "Process value offset (PVOS), -50..50.")
     mode = RegisterProperty("AM", to_enum(J2Mode), "Automatic or manual control (AM).")
     input_type = RegisterProperty("INP", to_enum(InputType), "Input type (INP).")
     decimal_point = RegisterProperty("DP", to_int, "Decimal places shown (DP), 0..3.")
+
+    def __new__(
+        cls,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        baudrate: int = 9600,
+        *,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> Self:
+        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
+        check_baudrate(baudrate, (9600, 19200))
+        controller, owns_bus = on_line(
+            port_or_bus,
+            lambda bus, t, r: super(J2Controller, cls).__new__(cls, bus, unit, t, r),
+            line=cls.LINE_DEFAULTS._replace(baudrate=baudrate),
+            timeout=timeout,
+            retries=retries,
+        )
+        controller._owns_bus = owns_bus
+        return controller
 
     def __init__(
         self,
@@ -173,84 +204,17 @@ class J2Controller(BusDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
-        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
-        check_baudrate(baudrate, (9600, 19200))
-        self._attach(
-            port_or_bus,
-            lambda bus, t, r: J2Core(bus, unit, t, r),
-            baudrate=baudrate,
-            parity=self.LINE_DEFAULTS.parity,
-            timeout=timeout,
-            retries=retries,
-            default_timeout=self.LINE_DEFAULTS.timeout,
-        )
-
-    # ---- parameters by name --------------------------------------------------------------------
-
-    def read(self, name: str) -> Value:
-        """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
-        signed table, an int for the unsigned one."""
-        return self.core.get(name)
-
-    def write(self, name: str, value: float, *, function: int = 0x06) -> None:
-        """Write one parameter by name, with the manual's rules (see the class).
-
-        ``function`` is 0x06 (write single register) or 0x10 (write multiple registers,
-        here one); the manual shows both for SV.
-        """
-        if isinstance(function, bool) or not isinstance(function, int):
-            raise TypeError(f"function must be an int, got {type(function).__name__}")
-        if function not in (0x06, 0x10):
-            raise ValueError(f"function must be 0x06 or 0x10, got {function!r}")
-        self.core.write(name, value, function == 0x10)
-
-    def read_many(self, names: Iterable[str]) -> list[Value]:
-        """Several parameters by name, in as few requests as the 16-register limit allows."""
-        if isinstance(names, str):
-            raise TypeError('names is a list of names (["SV", "PV"]), not one str')
-        return self.core.read_many(_listed("names", names, 'a list of names (["SV", "PV"])'))
-
-    def write_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
-        """Write several parameters in order, each as :meth:`write` does.
-
-        ``values`` is ``{name: value}`` or ``(name, value)`` pairs. Every value is checked
-        against its fixed range before the first is sent; the checks that need the
-        controller (SV within its limits, MV in manual mode) are made write by write, so a
-        refusal there leaves the earlier writes done.
-        """
-        what = "{name: value} or (name, value) pairs"
-        items = _listed("values", values.items() if isinstance(values, Mapping) else values, what)
-        pairs = [tuple(_listed("values", item, what)) for item in items]
-        for pair in pairs:
-            if len(pair) != 2:
-                raise ValueError(f"values must be {what}, got an item of {len(pair)}: {pair!r}")
-        self.core.write_many(pairs)
-
-    def parameters(self) -> dict[str, Value]:
-        """Every parameter of both tables by name, in six requests of at most 16 registers."""
-        return self.core.parameters()
-
-    @staticmethod
-    def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
-        """The parameter table: ``(name, address, signed, writable, low, high,
-        within_limits)``; ``within_limits`` means the manual's range is LSP..USP."""
-        return J2Core.table()
-
-    def units(self) -> dict[str, str]:
-        """The unit of each parameter by its manual name (``"PV"``), from the family's table
-        (``""`` for none; a linear input, INP = LN, reads in its own scale, not °C)."""
-        return J2Core.units()
+        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1 (made
+        by ``__new__``: the compiled base holds the Bus and the unit)."""
 
     def sample_units(self) -> dict[str, str]:
         """The unit of each field :meth:`sample` gives (``pv``, ``sv``: °C; ``mv``: %)."""
         units = self.units()
-        return {f: units.get(f.upper(), "") for f in self.SAMPLE_FIELDS}
+        return {f: units.get(f.upper(), "") for f in self.SAMPLE_FIELDS or ()}
 
     def status(self) -> J2Status:
         """PV, SV, MV, mode, autotune, ramp and alarm values, in two requests."""
-        pv, sv, mv, al1, al2, am, rapnf, at = self.core.read_many(
-            ["PV", "SV", "MV", "AL1", "AL2", "AM", "RAPNF", "AT"]
-        )
+        pv, sv, mv, al1, al2, am, rapnf, at = self._status()
         return J2Status(
             pv=float(pv),
             sv=float(sv),
@@ -262,40 +226,12 @@ class J2Controller(BusDevice):
             alarm2=float(al2),
         )
 
-    def sample(self) -> dict[str, float]:
-        """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""
-        pv, sv, mv = self.core.read_many(["PV", "SV", "MV"])
-        return {"pv": float(pv), "sv": float(sv), "mv": float(mv)}
-
     # ---- output and mode -----------------------------------------------------------------------
-
-    @property
-    def mv(self) -> float:
-        """The output (MV), percent. Setting it needs manual mode: in automatic mode it raises
-        :class:`~benchbus.StateError` (see :meth:`set_output`)."""
-        return float(self.core.get("MV"))
-
-    @mv.setter
-    def mv(self, percent: float) -> None:
-        self.core.set("MV", percent)
-
-    def set_output(self, percent: float, switch_to_manual: bool = False) -> None:
-        """Set the output MV to ``percent`` (0..100).
-
-        The manual allows MV only in manual mode: in automatic mode this raises
-        :class:`~benchbus.StateError`, unless ``switch_to_manual`` (then AM is written 0
-        first, and the controller stays in manual mode).
-        """
-        if not isinstance(switch_to_manual, bool):
-            raise TypeError(
-                f"switch_to_manual must be True or False, got {type(switch_to_manual).__name__}"
-            )
-        self.core.set_output(percent, switch_to_manual)
 
     @property
     def autotune(self) -> bool:
         """Whether autotuning runs (AT); set True to start it, False to stop it."""
-        return bool(self.core.get("AT"))
+        return bool(self.get("AT"))
 
     @autotune.setter
     def autotune(self, on: bool) -> None:
@@ -303,46 +239,38 @@ class J2Controller(BusDevice):
             raise TypeError(f"autotune is True or False, got {type(on).__name__}")
         if on not in (0, 1):
             raise ValueError(f"autotune is True or False, got {on!r}")
-        self.core.set("AT", int(on))
+        self.set("AT", int(on))
 
     @property
     def ramp_running(self) -> bool:
         """Whether a setpoint ramp runs (RAPNF reads 1)."""
-        return bool(self.core.get("RAPNF"))
-
-    def start_ramp(self) -> None:
-        """Start the setpoint ramp (RAPNF = 1)."""
-        self.core.set("RAPNF", 1)
-
-    def stop_ramp(self) -> None:
-        """End the setpoint ramp (RAPNF = 0)."""
-        self.core.set("RAPNF", 0)
+        return bool(self.get("RAPNF"))
 
     # ---- grouped parameters --------------------------------------------------------------------
 
     @property
     def pid(self) -> Pid:
         """The first PID set (P, I, D), read in one request; set it with a 3-tuple."""
-        return Pid(*map(float, self.core.read_many(["P", "I", "D"])))
+        return Pid(*map(float, self._pid(False)))
 
     @pid.setter
     def pid(self, value: Iterable[float]) -> None:
-        self.core.write_many(_pid_values(("P", "I", "D"), value))
+        self.write_many(_pid_values(self._pid_names(False), value))
 
     @property
     def pid2(self) -> Pid:
         """The second PID set (P1, I1, D1), read in one request; set it with a 3-tuple."""
-        return Pid(*map(float, self.core.read_many(["P1", "I1", "D1"])))
+        return Pid(*map(float, self._pid(True)))
 
     @pid2.setter
     def pid2(self, value: Iterable[float]) -> None:
-        self.core.write_many(_pid_values(("P1", "I1", "D1"), value))
+        self.write_many(_pid_values(self._pid_names(True), value))
 
     @property
     def limits(self) -> Limits:
         """The setpoint limits (LSP, USP), read in one request. Set them with a
         ``(low, high)`` pair: they are written in the order that keeps LSP <= USP."""
-        low, high = self.core.read_many(["LSP", "USP"])
+        low, high = self._limits()
         return Limits(float(low), float(high))
 
     @limits.setter
@@ -350,4 +278,4 @@ class J2Controller(BusDevice):
         pair = _listed("limits", value, "two numbers (low, high)")
         if len(pair) != 2:
             raise ValueError(f"limits are two numbers (low, high), got {len(pair)}")
-        self.core.set_limits(pair[0], pair[1])
+        self._set_limits(pair[0], pair[1])

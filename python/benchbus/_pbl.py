@@ -1,8 +1,9 @@
 """PBL-series BLDC drives (manual 002) as Python objects.
 
-The parameter table (0..222: names, units, read-only or writable, ranges) lives in the
-compiled core (``PblCore``); this module adds enums, properties, the status object and the
-context manager.
+The parameter table (0..222: names, units, read-only or writable, ranges), the sample block
+and every call to the drive live in the compiled base class (``PblCore``); this module adds
+what belongs to Python: enums, named properties, the status object, the reprs and the context
+manager.
 """
 
 from __future__ import annotations
@@ -10,6 +11,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import warnings
+from typing import TYPE_CHECKING
 
 from benchbus._core import Bus, PblCore
 from benchbus._device import (
@@ -18,10 +20,14 @@ from benchbus._device import (
     MotorDevice,
     PrintableIntEnum,
     RegisterProperty,
+    on_line,
     to_enum,
     to_int,
 )
 from benchbus._display import dataclass_table, field_table
+
+if TYPE_CHECKING:
+    from typing_extensions import Self
 
 __all__ = [
     "DecelMode",
@@ -95,7 +101,7 @@ class PblTelemetry(dict[str, int]):
         return field_table("PblTelemetry", ((k, v, units.get(k, "")) for k, v in self.items()))
 
 
-class PblDrive(MotorDevice):
+class PblDrive(PblCore, MotorDevice):
     """A PBL-series BLDC drive (manual 002): parameters 0..222, 115200 8E1 by default.
 
     ::
@@ -117,10 +123,8 @@ class PblDrive(MotorDevice):
     (``bus.broadcast_write_register``): the Bus waits for no reply and drops what comes.
     """
 
-    core: PblCore
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(115200, "E", 0.1)
-    SAMPLE_FIELDS = ("speed", "bus_voltage", "analog_speed_input", "current", "power")
     control_mode = RegisterProperty("control_mode", to_enum(PblControlMode), "Mode (100).")
     pole_pairs = RegisterProperty("pole_pairs", to_int, "Motor pole pairs (205).")
     acceleration = RegisterProperty("acceleration", to_int, "Acceleration, rpm/s (209).")
@@ -151,6 +155,25 @@ class PblDrive(MotorDevice):
     power = MeasuredProperty("power", to_int, "Motor power, W (54).")
     hall_state = MeasuredProperty("hall_state", to_int, "Hall sensor state (6).")
 
+    def __new__(
+        cls,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        *,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> Self:
+        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
+        drive, owns_bus = on_line(
+            port_or_bus,
+            lambda bus, t, r: super(PblDrive, cls).__new__(cls, bus, unit, t, r),
+            line=cls.LINE_DEFAULTS,
+            timeout=timeout,
+            retries=retries,
+        )
+        drive._owns_bus = owns_bus
+        return drive
+
     def __init__(
         self,
         port_or_bus: str | os.PathLike[str] | Bus,
@@ -159,32 +182,14 @@ class PblDrive(MotorDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
-        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
-        self._attach(
-            port_or_bus,
-            lambda bus, t, r: PblCore(bus, unit, t, r),
-            baudrate=self.LINE_DEFAULTS.baudrate,
-            parity=self.LINE_DEFAULTS.parity,
-            timeout=timeout,
-            retries=retries,
-            default_timeout=self.LINE_DEFAULTS.timeout,
-        )
-
-    # ---- control and status ------------------------------------------------------------------
-
-    def start(self) -> None:
-        """Start: set bit 0 of the control word, keeping its other bits."""
-        self.core.start()
-
-    def stop(self) -> None:
-        """Stop: clear bit 0 of the control word, keeping its other bits."""
-        self.core.stop()
+        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1 (made by
+        ``__new__``: the compiled base holds the Bus and the unit)."""
 
     @property
     def direction(self) -> Direction:
         """The direction asked for: bit 1 of the control word (see :meth:`status` for the
         direction the motor turns). Setting it keeps the control word's other bits."""
-        return Direction(int(self.core.control()[1]))
+        return Direction(int(self._control()[1]))
 
     @direction.setter
     def direction(self, direction: Direction) -> None:
@@ -192,73 +197,24 @@ class PblDrive(MotorDevice):
             raise TypeError(f"direction must be a Direction, got {type(direction).__name__}")
         if direction not in (Direction.FORWARD, Direction.REVERSE):
             raise ValueError(f"direction must be Direction.FORWARD or REVERSE, got {direction!r}")
-        self.core.set_reverse(direction == Direction.REVERSE)
-
-    @property
-    def running(self) -> bool:
-        """Whether the motor is moving (status word bit 0)."""
-        return self.core.status()[0]
+        self._set_reverse(direction == Direction.REVERSE)
 
     def status(self) -> PblStatus:
         """The status word: running, and the direction the motor turns."""
-        running, reverse = self.core.status()
+        running, reverse = self._status()
         return PblStatus(running, Direction(int(reverse)))
-
-    @property
-    def alarm_word(self) -> int:
-        """The 32-bit alarm word (parameter 5 high, 4 low)."""
-        return self.core.alarms()[0]
-
-    @property
-    def alarms(self) -> frozenset[str]:
-        """The active alarm bits by name ("alarm bit N": the manual names none)."""
-        return frozenset(self.core.alarms()[1])
 
     def telemetry(self) -> PblTelemetry:
         """Parameters 0..99 (status and measurements) by name, in two requests: a dict,
         shown as a table in notebooks."""
-        return PblTelemetry(self.core.telemetry())
-
-    def sample(self) -> dict[str, float]:
-        """Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
-        parameters 50..54, in one request."""
-        values = self.core.read_parameters(50, len(self.SAMPLE_FIELDS))
-        return {n: float(v) for n, v in zip(self.SAMPLE_FIELDS, values)}
-
-    # ---- parameters ----------------------------------------------------------------------------
-
-    def read_parameter(self, key: int | str) -> int:
-        """One parameter, by number (0..222) or name."""
-        return self.core.read_parameter(key)
-
-    def write_parameter(self, key: int | str, value: int) -> None:
-        """Write one parameter, by number or name; read-only ones and values out of the
-        manual's range raise ValueError before anything is sent."""
-        self.core.write_parameter(key, value)
-
-    def read_parameters(self, start: int | str, count: int) -> list[int]:
-        """``count`` parameters from ``start``, in as few requests as the protocol allows."""
-        return self.core.read_parameters(start, count)
-
-    def parameters(self) -> dict[str, int]:
-        """Every documented parameter by name, in four requests (61 registers a reply)."""
-        return self.core.parameters()
-
-    @staticmethod
-    def table() -> list[tuple[int, str, str, str, float, float]]:
-        """The parameter table: ``(number, name, unit, access, low, high)``."""
-        return PblCore.table()
-
-    def units(self) -> dict[str, str]:
-        """The unit of each parameter by name, from :meth:`table` (``""`` for none)."""
-        return {row[1]: row[2] for row in PblCore.table()}
+        return PblTelemetry(super().telemetry())
 
     def restore_defaults(self) -> None:
         """Ask for the factory defaults (1511 to parameter 214).
 
         The drive applies them only after a power cycle; a ``UserWarning`` says so.
         """
-        self.core.restore_defaults()
+        self._restore_defaults()
         warnings.warn(
             f"unit {self.unit}: defaults restored at the next power-up; power-cycle the drive",
             UserWarning,

@@ -3,9 +3,10 @@
 //! with decimals and sign, 32-bit integers and IEEE floats over two registers in either word
 //! order, strings, and Read Device Identification.
 
+use super::{Device, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
-use crate::codec::{DeviceIdentification, FrameError};
+use crate::codec::DeviceIdentification;
 use crate::error::{Error, Result};
 use std::sync::Arc;
 use std::time::Duration;
@@ -116,11 +117,19 @@ fn check_decimals(decimals: u8) -> Result<()> {
 /// A generic instrument on a bus, with its own request limits and write pacing.
 #[derive(Debug)]
 pub struct Instrument {
-    bus: Arc<Bus>,
-    unit: u8,
-    opts: TxOptions,
+    station: Station,
     max_read: u16,
     max_write: u16,
+}
+
+impl Device for Instrument {
+    fn station(&self) -> &Station {
+        &self.station
+    }
+
+    fn station_mut(&mut self) -> &mut Station {
+        &mut self.station
+    }
 }
 
 impl Instrument {
@@ -146,33 +155,15 @@ impl Instrument {
                 "max_write must be 1 to {MAX_WRITE_COUNT}, got {max_write}"
             )));
         }
+        let opts = TxOptions {
+            write_interval: min_write_interval,
+            ..TxOptions::default()
+        };
         Ok(Instrument {
-            bus,
-            unit,
-            opts: TxOptions {
-                write_interval: min_write_interval,
-                ..TxOptions::default()
-            },
+            station: Station::new(bus, unit, opts),
             max_read,
             max_write,
         })
-    }
-
-    /// The same instrument with its own reply timeout and retries instead of the Bus's.
-    pub fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> Instrument {
-        self.opts.timeout = timeout;
-        self.opts.retries = retries;
-        self
-    }
-
-    /// The bus the instrument is on.
-    pub fn bus(&self) -> &Arc<Bus> {
-        &self.bus
-    }
-
-    /// The instrument's unit address.
-    pub fn unit(&self) -> u8 {
-        self.unit
     }
 
     /// Most registers one read asks for.
@@ -187,7 +178,7 @@ impl Instrument {
 
     /// Least time between two writes.
     pub fn min_write_interval(&self) -> Duration {
-        self.opts.write_interval
+        self.station.opts().write_interval
     }
 
     /// `count` registers from `address`, in requests of at most `max_read`.
@@ -199,18 +190,7 @@ impl Instrument {
         check_span(address, count)?;
         let mut words = Vec::with_capacity(count);
         for (at, n) in chunks(address, count, self.max_read) {
-            let got = self
-                .bus
-                .read_holding_registers(self.unit, at, n, &self.opts)?;
-            if got.len() != usize::from(n) {
-                return Err(Error::Frame {
-                    unit: self.unit,
-                    function: 0x03,
-                    kind: FrameError::Length(format!("{} registers for {n}", got.len())),
-                    frame: Vec::new(),
-                });
-            }
-            words.extend(got);
+            words.extend(self.station.read(at, n)?);
         }
         Ok(words)
     }
@@ -224,8 +204,7 @@ impl Instrument {
         check_span(address, values.len())?;
         let mut start = address;
         for part in values.chunks(usize::from(self.max_write)) {
-            self.bus
-                .write_registers(self.unit, start, part, &self.opts)?;
+            self.station.write_many(start, part)?;
             start = start.wrapping_add(part.len() as u16);
         }
         Ok(())
@@ -238,7 +217,7 @@ impl Instrument {
     pub fn read_word(&self, address: u16) -> Result<u16> {
         match self.read_registers(address, 1)?[..] {
             [w] => Ok(w),
-            _ => Err(self.short(1)),
+            _ => Err(self.station.short_reply()),
         }
     }
 
@@ -248,11 +227,9 @@ impl Instrument {
     /// Any [`Error`].
     pub fn write_word(&self, address: u16, value: u16, multiple: bool) -> Result<()> {
         if multiple {
-            self.bus
-                .write_registers(self.unit, address, &[value], &self.opts)
+            self.station.write_many(address, &[value])
         } else {
-            self.bus
-                .write_register(self.unit, address, value, &self.opts)
+            self.station.write(address, value)
         }
     }
 
@@ -288,7 +265,7 @@ impl Instrument {
     pub fn read_u32(&self, address: u16, order: WordOrder) -> Result<u32> {
         match self.read_registers(address, usize::from(PAIR))?[..] {
             [a, b] => Ok(order.join([a, b])),
-            _ => Err(self.short(PAIR)),
+            _ => Err(self.station.short_reply()),
         }
     }
 
@@ -373,8 +350,8 @@ impl Instrument {
                 "read_code must be 1 (basic), 2 (regular) or 3 (extended), got {read_code}"
             )));
         }
-        self.bus
-            .read_device_identification(self.unit, read_code, 0, &self.opts)
+        self.bus()
+            .read_device_identification(self.unit(), read_code, 0, self.station.opts())
             .map_err(|e| match e {
                 Error::Exception {
                     unit,
@@ -394,15 +371,6 @@ impl Instrument {
                 },
                 other => other,
             })
-    }
-
-    fn short(&self, want: u16) -> Error {
-        Error::Frame {
-            unit: self.unit,
-            function: 0x03,
-            kind: FrameError::Length(format!("fewer than {want} registers")),
-            frame: Vec::new(),
-        }
     }
 }
 

@@ -14,9 +14,8 @@
 //! ramp rate that cannot be meant literally: those are checked against the widest range,
 //! -1999..=3276.7, and the controller itself refuses what it does not take.
 
-use super::{Access, Register};
+use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
-use crate::codec::FrameError;
 use crate::error::{Error, Result};
 use std::sync::Arc;
 use std::time::Duration;
@@ -157,6 +156,18 @@ pub const TABLES: [(u16, u16); 2] = [(0x00, 0x3E), (0x80, 0x9C)];
 pub const AM: &str = "AM";
 /// RAPNF: reads 1 while a ramp runs; written 1 starts it, 0 ends it.
 pub const RAPNF: &str = "RAPNF";
+/// One status snapshot: process value, setpoint, output, alarm values, mode, ramp and
+/// autotune, read in two requests.
+pub const STATUS: [&str; 8] = ["PV", "SV", "MV", "AL1", "AL2", "AM", "RAPNF", "AT"];
+/// The main measurements, read in one request: process value, setpoint and output.
+pub const SAMPLE: [&str; 3] = ["PV", "SV", "MV"];
+/// The first PID set: proportional band, integral time, derivative time.
+pub const PID: [&str; 3] = ["P", "I", "D"];
+/// The second PID set.
+pub const PID2: [&str; 3] = ["P1", "I1", "D1"];
+/// The setpoint limits, low and high.
+pub const LIMITS: [&str; 2] = ["LSP", "USP"];
+
 /// The parameters the manual calls ramp parameters (RAPNF is written 0 before them).
 pub const RAMP_PARAMETERS: [&str; 2] = ["RAP", "RTM"];
 
@@ -238,39 +249,29 @@ pub fn by_name(name: &str) -> Result<&'static Param> {
 /// A J2 controller on a bus.
 #[derive(Debug)]
 pub struct J2 {
-    bus: Arc<Bus>,
-    unit: u8,
-    opts: TxOptions,
+    station: Station,
+}
+
+impl Device for J2 {
+    fn station(&self) -> &Station {
+        &self.station
+    }
+
+    fn station_mut(&mut self) -> &mut Station {
+        &mut self.station
+    }
 }
 
 impl J2 {
     /// The controller at `unit` on `bus`.
     pub fn new(bus: Arc<Bus>, unit: u8) -> J2 {
+        let opts = TxOptions {
+            write_interval: WRITE_INTERVAL,
+            ..TxOptions::default()
+        };
         J2 {
-            bus,
-            unit,
-            opts: TxOptions {
-                write_interval: WRITE_INTERVAL,
-                ..TxOptions::default()
-            },
+            station: Station::new(bus, unit, opts),
         }
-    }
-
-    /// The same controller with its own reply timeout and retries instead of the Bus's.
-    pub fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> J2 {
-        self.opts.timeout = timeout;
-        self.opts.retries = retries;
-        self
-    }
-
-    /// The bus the controller is on.
-    pub fn bus(&self) -> &Arc<Bus> {
-        &self.bus
-    }
-
-    /// The controller's unit address.
-    pub fn unit(&self) -> u8 {
-        self.unit
     }
 
     /// Reads the parameter called `name`, in engineering units.
@@ -279,7 +280,7 @@ impl J2 {
     /// Any [`Error`].
     pub fn read(&self, name: &str) -> Result<f64> {
         let p = by_name(name)?;
-        let words = self.read_words(p.address, 1)?;
+        let words = self.station.read(p.address, 1)?;
         Ok(p.decode(words[0]))
     }
 
@@ -298,7 +299,7 @@ impl J2 {
             .iter()
             .map(|p| match words.get(&p.address) {
                 Some(&w) => Ok(p.decode(w)),
-                None => Err(short(self.unit)),
+                None => Err(self.station.short_reply()),
             })
             .collect()
     }
@@ -344,8 +345,7 @@ impl J2 {
                 self.write_word(rapnf, 0)?;
             }
             if multiple {
-                self.bus
-                    .write_registers(self.unit, p.address, &[raw], &self.opts)
+                self.station.write_many(p.address, &[raw])
             } else {
                 self.write_word(p.address, raw)
             }
@@ -417,9 +417,9 @@ impl J2 {
     /// # Errors
     /// Any [`Error`].
     pub fn limits(&self) -> Result<(f64, f64)> {
-        match self.read_many(&["LSP", "USP"])?[..] {
+        match self.read_many(&LIMITS)?[..] {
             [low, high] => Ok((low, high)),
-            _ => Err(short(self.unit)),
+            _ => Err(self.station.short_reply()),
         }
     }
 
@@ -430,7 +430,7 @@ impl J2 {
 
     fn mv_in_auto(&self) -> Error {
         Error::State {
-            unit: self.unit,
+            unit: self.unit(),
             message: "MV can be written only in manual mode (AM = 0), and the controller is \
                       in automatic mode; switch with mode = manual, or set_output(percent, \
                       switch_to_manual=True)"
@@ -470,33 +470,20 @@ impl J2 {
     ) -> Result<std::collections::BTreeMap<u16, u16>> {
         let mut words = std::collections::BTreeMap::new();
         for (first, count) in blocks(addresses) {
-            let read = self.read_words(first, count)?;
+            let read = self.station.read(first, count)?;
             words.extend((first..).zip(read));
         }
         Ok(words)
     }
 
-    /// Exactly `count` registers from `address` (a reply of another length is a frame
-    /// error).
-    fn read_words(&self, address: u16, count: u16) -> Result<Vec<u16>> {
-        let words = self
-            .bus
-            .read_holding_registers(self.unit, address, count, &self.opts)?;
-        if words.len() == usize::from(count) {
-            Ok(words)
-        } else {
-            Err(short(self.unit))
-        }
-    }
-
     fn write_word(&self, address: u16, raw: u16) -> Result<()> {
-        self.bus.write_register(self.unit, address, raw, &self.opts)
+        self.station.write(address, raw)
     }
 
     /// Runs a check-then-write (AM before MV, RAPNF before a ramp parameter, the limits
     /// before SV) as one sequence for this unit, whichever J2 object runs it.
     fn sequence<R>(&self, f: impl FnOnce() -> Result<R>) -> Result<R> {
-        self.bus.exclusive(self.unit, f)
+        self.station.exclusive(f)
     }
 }
 
@@ -513,15 +500,6 @@ pub fn blocks(addresses: impl Iterator<Item = u16>) -> Vec<(u16, u16)> {
         }
     }
     out
-}
-
-fn short(unit: u8) -> Error {
-    Error::Frame {
-        unit,
-        function: 0x03,
-        kind: FrameError::Length("reply shorter than the registers asked for".into()),
-        frame: Vec::new(),
-    }
 }
 
 #[cfg(test)]
@@ -562,6 +540,21 @@ mod tests {
         assert!(!check("PV", 1.0) && !check("MV", 100.1) && !check("MV", f64::NAN));
         let msg = by_name("AL1").and_then(|p| p.encode(5000.0)).err();
         assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999 to 9999")));
+    }
+
+    #[test]
+    fn the_groups_name_parameters_of_the_table() {
+        let groups: [&[&str]; 5] = [&STATUS, &SAMPLE, &PID, &PID2, &LIMITS];
+        for name in groups.iter().flat_map(|g| g.iter()) {
+            assert!(by_name(name).is_ok(), "{name}");
+        }
+        // Each small group is one request: within 16 registers.
+        for group in [&SAMPLE[..], &PID, &PID2, &LIMITS] {
+            let addresses = group
+                .iter()
+                .filter_map(|n| by_name(n).ok().map(|p| p.address));
+            assert_eq!(blocks(addresses).len(), 1, "{group:?}");
+        }
     }
 
     #[test]

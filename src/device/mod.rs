@@ -7,7 +7,134 @@ pub mod instrument;
 pub mod j2;
 pub mod pbl;
 
+use crate::bus::{Bus, TxOptions};
+use crate::codec::FrameError;
 use crate::error::{Error, Result};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Where a device is and how its requests go: the Bus, the unit address and the family's
+/// options (echo rule, write pacing, exception meanings, the device's own timeout and
+/// retries). Every device holds one and talks to the Bus only through it.
+#[derive(Debug)]
+pub struct Station {
+    bus: Arc<Bus>,
+    unit: u8,
+    opts: TxOptions,
+}
+
+impl Station {
+    /// The device at `unit` on `bus`, its requests sent with `opts`.
+    pub fn new(bus: Arc<Bus>, unit: u8, opts: TxOptions) -> Station {
+        Station { bus, unit, opts }
+    }
+
+    /// The bus the device is on.
+    pub fn bus(&self) -> &Arc<Bus> {
+        &self.bus
+    }
+
+    /// The device's unit address.
+    pub fn unit(&self) -> u8 {
+        self.unit
+    }
+
+    /// The options every request of the device is sent with.
+    pub fn opts(&self) -> &TxOptions {
+        &self.opts
+    }
+
+    /// The reply timeout of the device's requests: its own, or the Bus's.
+    pub fn timeout(&self) -> Duration {
+        self.opts.timeout.unwrap_or(self.bus.config().timeout)
+    }
+
+    /// The retries of the device's requests: its own, or the Bus's.
+    pub fn retries(&self) -> u32 {
+        self.opts.retries.unwrap_or(self.bus.config().retries)
+    }
+
+    /// Exactly `count` holding registers from `address` (a reply of another length is a
+    /// frame error).
+    ///
+    /// # Errors
+    /// Any [`Error`] of the request.
+    pub fn read(&self, address: u16, count: u16) -> Result<Vec<u16>> {
+        let words = self
+            .bus
+            .read_holding_registers(self.unit, address, count, &self.opts)?;
+        if words.len() == usize::from(count) {
+            Ok(words)
+        } else {
+            Err(self.short_reply())
+        }
+    }
+
+    /// Writes one register with function 0x06.
+    ///
+    /// # Errors
+    /// Any [`Error`] of the request.
+    pub fn write(&self, address: u16, value: u16) -> Result<()> {
+        self.bus
+            .write_register(self.unit, address, value, &self.opts)
+    }
+
+    /// Writes `values` from `address` with function 0x10.
+    ///
+    /// # Errors
+    /// Any [`Error`] of the request.
+    pub fn write_many(&self, address: u16, values: &[u16]) -> Result<()> {
+        self.bus
+            .write_registers(self.unit, address, values, &self.opts)
+    }
+
+    /// Runs `f` as one sequence for this unit (a check-then-write, a read-modify-write),
+    /// whichever device object on the Bus runs it.
+    pub fn exclusive<R>(&self, f: impl FnOnce() -> R) -> R {
+        self.bus.exclusive(self.unit, f)
+    }
+
+    /// The error of a read answered with fewer registers than asked.
+    pub fn short_reply(&self) -> Error {
+        Error::Frame {
+            unit: self.unit,
+            function: 0x03,
+            kind: FrameError::Length("the reply held fewer registers than asked".into()),
+            frame: Vec::new(),
+        }
+    }
+}
+
+/// What every device is: a [`Station`] plus its family's table and behaviours. The Bus, the
+/// unit and the per-device timing come from here, once for all families.
+pub trait Device: Send + Sync {
+    /// The device's station.
+    fn station(&self) -> &Station;
+
+    /// The device's station, to set it up before the device is shared.
+    fn station_mut(&mut self) -> &mut Station;
+
+    /// The same device with its own reply timeout and retries instead of the Bus's.
+    fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> Self
+    where
+        Self: Sized,
+    {
+        let opts = &mut self.station_mut().opts;
+        opts.timeout = timeout;
+        opts.retries = retries;
+        self
+    }
+
+    /// The bus the device is on.
+    fn bus(&self) -> &Arc<Bus> {
+        self.station().bus()
+    }
+
+    /// The device's unit address.
+    fn unit(&self) -> u8 {
+        self.station().unit()
+    }
+}
 
 /// Who may write a register, in the manuals' terms.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -8,12 +8,11 @@
 //! answer a 0x06 write with a register count of 1 instead of the echo, which is accepted for
 //! this family only; they also act on and answer a broadcast, which the Bus never waits for.
 
-use super::{Access, Register};
+use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
-use crate::codec::{Echo, FrameError};
+use crate::codec::Echo;
 use crate::error::{Error, Result};
 use std::sync::Arc;
-use std::time::Duration;
 
 /// Number of the control word (bit 0: 0 stop / 1 start; bit 1: 0 forward / 1 reverse).
 pub const CONTROL: u16 = 0;
@@ -27,6 +26,17 @@ pub const RESTORE_DEFAULTS: u16 = 214;
 pub const RESTORE_MAGIC: u16 = 1511;
 /// Parameters 0..=99 are status and measurements.
 pub const MEASUREMENTS: std::ops::RangeInclusive<u16> = 0..=99;
+
+/// The main measurements, parameters 50..=54 in order, read in one request by
+/// [`Pbl::sample`]: speed (rpm), bus voltage (V), analog speed input (mV), current (A) and
+/// power (W).
+pub const SAMPLE: [&str; 5] = [
+    "speed",
+    "bus_voltage",
+    "analog_speed_input",
+    "current",
+    "power",
+];
 
 /// Most parameters one read may ask for: the manual's frame holds 1..123 data bytes, so a
 /// reply carries at most 61 registers.
@@ -328,39 +338,29 @@ pub fn alarm_names(word: u32) -> Vec<String> {
 /// A PBL drive on a bus.
 #[derive(Debug)]
 pub struct Pbl {
-    bus: Arc<Bus>,
-    unit: u8,
-    opts: TxOptions,
+    station: Station,
+}
+
+impl Device for Pbl {
+    fn station(&self) -> &Station {
+        &self.station
+    }
+
+    fn station_mut(&mut self) -> &mut Station {
+        &mut self.station
+    }
 }
 
 impl Pbl {
     /// The drive at `unit` on `bus`.
     pub fn new(bus: Arc<Bus>, unit: u8) -> Pbl {
+        let opts = TxOptions {
+            echo: Echo::CountForSingleWrite,
+            ..TxOptions::default()
+        };
         Pbl {
-            bus,
-            unit,
-            opts: TxOptions {
-                echo: Echo::CountForSingleWrite,
-                ..TxOptions::default()
-            },
+            station: Station::new(bus, unit, opts),
         }
-    }
-
-    /// The same drive with its own reply timeout and retries instead of the Bus's.
-    pub fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> Pbl {
-        self.opts.timeout = timeout;
-        self.opts.retries = retries;
-        self
-    }
-
-    /// The bus the drive is on.
-    pub fn bus(&self) -> &Arc<Bus> {
-        &self.bus
-    }
-
-    /// The drive's unit address.
-    pub fn unit(&self) -> u8 {
-        self.unit
     }
 
     /// Reads the parameter called `name`.
@@ -388,8 +388,11 @@ impl Pbl {
     /// Any [`Error`].
     pub fn read_parameter(&self, number: u16) -> Result<u16> {
         by_number(number)?;
-        let words = self.read(number, 1)?;
-        words.first().copied().ok_or_else(|| short(self.unit))
+        let words = self.station.read(number, 1)?;
+        words
+            .first()
+            .copied()
+            .ok_or_else(|| self.station.short_reply())
     }
 
     /// Writes parameter `number`, checked against the table first.
@@ -416,7 +419,7 @@ impl Pbl {
         let mut at = start;
         while at < end {
             let n = (end - at).min(MAX_BLOCK);
-            words.extend(self.read(at, n)?);
+            words.extend(self.station.read(at, n)?);
             at += n;
         }
         Ok(words)
@@ -453,6 +456,16 @@ impl Pbl {
             .collect())
     }
 
+    /// The [`SAMPLE`] parameters, `(name, value)`, in one request.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn sample(&self) -> Result<Vec<(&'static str, u16)>> {
+        let first = by_name(SAMPLE[0])?.address;
+        let words = self.station.read(first, SAMPLE.len() as u16)?;
+        Ok(SAMPLE.iter().copied().zip(words).collect())
+    }
+
     /// Sets bit 0 of the control word (start), keeping the other bits.
     ///
     /// # Errors
@@ -467,13 +480,13 @@ impl Pbl {
     /// # Errors
     /// Any [`Error`] of the write.
     pub fn stop(&self) -> Result<()> {
-        self.bus.exclusive(self.unit, || {
+        self.station.exclusive(|| {
             let word = match self.read_parameter(CONTROL) {
                 Ok(word) => word & !START,
                 Err(e) => {
                     log::warn!(
                         target: "benchbus::device",
-                        "unit {}: control word unread ({e}): writing 0 to stop", self.unit
+                        "unit {}: control word unread ({e}): writing 0 to stop", self.unit()
                     );
                     0
                 }
@@ -513,9 +526,9 @@ impl Pbl {
     /// # Errors
     /// Any [`Error`].
     pub fn alarms(&self) -> Result<u32> {
-        match self.read(ALARMS, 2)?[..] {
+        match self.station.read(ALARMS, 2)?[..] {
             [low, high] => Ok(u32::from(high) << 16 | u32::from(low)),
-            _ => Err(short(self.unit)),
+            _ => Err(self.station.short_reply()),
         }
     }
 
@@ -530,7 +543,7 @@ impl Pbl {
     /// Read-modify-write of the control word, as one sequence per unit (whichever Pbl
     /// object runs it).
     fn update_control(&self, change: impl Fn(u16) -> u16) -> Result<()> {
-        self.bus.exclusive(self.unit, || {
+        self.station.exclusive(|| {
             let word = self.read_parameter(CONTROL)?;
             let new = change(word);
             if new == word {
@@ -540,23 +553,8 @@ impl Pbl {
         })
     }
 
-    fn read(&self, number: u16, count: u16) -> Result<Vec<u16>> {
-        self.bus
-            .read_holding_registers(self.unit, number, count, &self.opts)
-    }
-
     fn write(&self, number: u16, value: u16) -> Result<()> {
-        self.bus
-            .write_register(self.unit, number, value, &self.opts)
-    }
-}
-
-fn short(unit: u8) -> Error {
-    Error::Frame {
-        unit,
-        function: 0x03,
-        kind: FrameError::Length("the reply held fewer registers than asked".into()),
-        frame: Vec::new(),
+        self.station.write(number, value)
     }
 }
 
@@ -597,6 +595,14 @@ mod tests {
         assert!(!check(215, 0.0) && check(215, 255.0));
         assert!(!check(212, 3300.0));
         assert!(!check(50, 1.0)); // measured: read-only
+    }
+
+    #[test]
+    fn the_sample_is_one_block_of_measurements() {
+        for (i, name) in SAMPLE.iter().enumerate() {
+            let p = by_name(name).ok().map(|p| (p.address, p.access));
+            assert_eq!(p, Some((50 + i as u16, Access::Read)), "{name}");
+        }
     }
 
     #[test]

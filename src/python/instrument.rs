@@ -1,23 +1,18 @@
 //! Bindings of [`crate::device::instrument`]: the core that `benchbus.Instrument` (Python)
 //! wraps.
 
-use super::{
-    int_in, number, on_wire, opt, own_timing, register_list, seconds, to_pyerr, u16_arg, unit_arg,
-    PyBus,
-};
+use super::{int_in, number, opt, register_list, seconds, to_pyerr, u16_arg, Attached, PyBus};
 use crate::device::instrument::{Instrument, WordOrder};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyFloat, PyInt, PyString};
 use std::collections::BTreeMap;
-use std::sync::Arc;
 use std::time::Duration;
 
 /// The core of a generic instrument (see `benchbus.Instrument`).
 #[pyclass(frozen, module = "benchbus._core", name = "InstrumentCore")]
 pub(super) struct PyInstrumentCore {
-    inst: Arc<Instrument>,
-    bus: Py<PyBus>,
+    dev: Attached<Instrument>,
 }
 
 impl PyInstrumentCore {
@@ -26,7 +21,7 @@ impl PyInstrumentCore {
         py: Python<'_>,
         f: impl FnOnce(&Instrument) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        on_wire(py, &self.inst, f)
+        self.dev.wire(py, f)
     }
 }
 
@@ -86,49 +81,43 @@ impl PyInstrumentCore {
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let unit = unit_arg(unit)?;
         let max_read = int_in(max_read, "max_read", 1, 125)? as u16;
         let max_write = int_in(max_write, "max_write", 1, 123)? as u16;
         let interval: Duration = seconds(min_write_interval, "min_write_interval", true)?;
-        let (timeout, retries) = own_timing(timeout, retries)?;
-        let core = Arc::clone(&bus.get().bus);
-        let inst = Instrument::new(core, unit, max_read, max_write, interval)
-            .map_err(|e| to_pyerr(bus.py(), e))?
-            .with_timing(timeout, retries);
-        Ok(PyInstrumentCore {
-            inst: Arc::new(inst),
-            bus: bus.unbind(),
-        })
+        let dev = Attached::new(bus, unit, timeout, retries, |b, u| {
+            Instrument::new(b, u, max_read, max_write, interval)
+        })?;
+        Ok(PyInstrumentCore { dev })
     }
 
     /// The Bus the instrument talks through.
     #[getter]
     fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
+        self.dev.bus(py)
     }
 
     /// The instrument's unit address.
     #[getter]
     fn unit(&self) -> u8 {
-        self.inst.unit()
+        self.dev.unit()
     }
 
     /// Most registers one read asks for.
     #[getter]
     fn max_read(&self) -> u16 {
-        self.inst.max_read()
+        self.dev.device().max_read()
     }
 
     /// Most registers one write carries.
     #[getter]
     fn max_write(&self) -> u16 {
-        self.inst.max_write()
+        self.dev.device().max_write()
     }
 
     /// Least time between two writes, seconds.
     #[getter]
     fn min_write_interval(&self) -> f64 {
-        self.inst.min_write_interval().as_secs_f64()
+        self.dev.device().min_write_interval().as_secs_f64()
     }
 
     /// `count` registers from `address`, in requests of at most `max_read`.
@@ -326,6 +315,6 @@ impl PyInstrumentCore {
     }
 
     fn __repr__(&self) -> String {
-        format!("InstrumentCore(unit={})", self.inst.unit())
+        format!("InstrumentCore(unit={})", self.dev.unit())
     }
 }

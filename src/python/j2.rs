@@ -1,18 +1,17 @@
-//! Bindings of [`crate::device::j2`]: the parameter-level core that `benchbus.J2Controller`
-//! (Python) wraps with enums and properties.
+//! Bindings of [`crate::device::j2`]: the compiled base class of `benchbus.J2Controller`,
+//! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
-use super::{number, on_wire, own_timing, to_pyerr, unit_arg, PyBus};
-use crate::device::j2::{by_name, Param, J2, PARAMETERS};
-use pyo3::exceptions::PyTypeError;
+use super::{number, to_pyerr, Attached, PyBus};
+use crate::device::j2::{by_name, Param, J2, LIMITS, PARAMETERS, PID, PID2, RAPNF, SAMPLE, STATUS};
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyFloat, PyInt, PyList, PyString};
-use std::sync::Arc;
+use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyMapping, PyString, PyTuple};
 
-/// The parameter-level core of a J2 controller (see `benchbus.J2Controller`).
-#[pyclass(frozen, module = "benchbus._core", name = "J2Core")]
+/// The compiled base of `benchbus.J2Controller`: the parameter table, the manual's rules and
+/// every call to the controller.
+#[pyclass(subclass, frozen, module = "benchbus._core", name = "J2Core")]
 pub(super) struct PyJ2Core {
-    j2: Arc<J2>,
-    bus: Py<PyBus>,
+    dev: Attached<J2>,
 }
 
 impl PyJ2Core {
@@ -21,7 +20,35 @@ impl PyJ2Core {
         py: Python<'_>,
         f: impl FnOnce(&J2) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        on_wire(py, &self.j2, f)
+        self.dev.wire(py, f)
+    }
+
+    /// The parameters called `names`, as Python has them, in as few requests as allowed.
+    fn read_names<'py, N: std::borrow::Borrow<Bound<'py, PyAny>>>(
+        &self,
+        py: Python<'py>,
+        names: &[N],
+    ) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        let params = names
+            .iter()
+            .map(|n| param(py, n.borrow()))
+            .collect::<PyResult<Vec<_>>>()?;
+        let wanted: Vec<&'static str> = params.iter().map(|p| p.name).collect();
+        let values = self.wire(py, move |j| j.read_many(&wanted))?;
+        Ok(params
+            .iter()
+            .zip(values)
+            .map(|(p, v)| value(py, p, v))
+            .collect())
+    }
+
+    /// The parameters of `group` (a table of the core), as Python has them.
+    fn read_group<'py>(&self, py: Python<'py>, group: &[&str]) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        let names: Vec<Bound<'py, PyAny>> = group
+            .iter()
+            .map(|n| PyString::new(py, n).into_any())
+            .collect();
+        self.read_names(py, &names)
     }
 }
 
@@ -34,6 +61,37 @@ fn param(py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<&'static Param> {
         )));
     }
     by_name(&name.extract::<String>()?).map_err(|e| to_pyerr(py, e))
+}
+
+/// `obj` as a list of its items; TypeError naming `name` for a str, bytes or a non-iterable.
+fn listed<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    what: &str,
+) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    let refuse = || -> PyResult<PyErr> {
+        Ok(PyTypeError::new_err(format!(
+            "{name} must be {what}, got {}",
+            obj.get_type().name()?
+        )))
+    };
+    if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
+        return Err(refuse()?);
+    }
+    match obj.try_iter() {
+        Ok(items) => items.collect(),
+        Err(_) => Err(refuse()?),
+    }
+}
+
+/// `False`, the default of a flag that must be a bool when given.
+fn py_false() -> Py<PyAny> {
+    Python::attach(|py| PyBool::new(py, false).to_owned().into_any().unbind())
+}
+
+/// 6 (function 0x06), the default of `write`'s `function`.
+fn py_six() -> Py<PyAny> {
+    Python::attach(|py| PyInt::new(py, 0x06).into_any().unbind())
 }
 
 /// A value as Python has it: an int for the unsigned table, a float for the signed one.
@@ -55,25 +113,20 @@ impl PyJ2Core {
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let unit = unit_arg(unit)?;
-        let (timeout, retries) = own_timing(timeout, retries)?;
-        let core = Arc::clone(&bus.get().bus);
-        Ok(PyJ2Core {
-            j2: Arc::new(J2::new(core, unit).with_timing(timeout, retries)),
-            bus: bus.unbind(),
-        })
+        let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(J2::new(b, u)))?;
+        Ok(PyJ2Core { dev })
     }
 
     /// The Bus the controller talks through.
     #[getter]
     fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
+        self.dev.bus(py)
     }
 
     /// The controller's unit address.
     #[getter]
     fn unit(&self) -> u8 {
-        self.j2.unit()
+        self.dev.unit()
     }
 
     /// Reads the parameter called `name`.
@@ -83,16 +136,41 @@ impl PyJ2Core {
         Ok(value(py, p, v))
     }
 
-    /// Writes `value` to the parameter called `name` with function 0x06, or 0x10 if
-    /// `multiple`, with the manual's rules.
-    #[pyo3(signature = (name, value, multiple=false))]
+    /// One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
+    /// signed table, an int for the unsigned one.
+    fn read<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        self.get(py, name)
+    }
+
+    /// Write one parameter by name, with the manual's rules (see the class).
+    ///
+    /// ``function`` is 0x06 (write single register) or 0x10 (write multiple registers,
+    /// here one); the manual shows both for SV.
+    #[pyo3(signature = (name, value, *, function=py_six()), text_signature = "(self, name, value, *, function=6)")]
     fn write(
         &self,
         py: Python<'_>,
         name: &Bound<'_, PyAny>,
         value: &Bound<'_, PyAny>,
-        multiple: bool,
+        function: Py<PyAny>,
     ) -> PyResult<()> {
+        let f = function.bind(py);
+        if f.is_instance_of::<PyBool>() || !f.is_instance_of::<PyInt>() {
+            return Err(PyTypeError::new_err(format!(
+                "function must be an int, got {}",
+                f.get_type().name()?
+            )));
+        }
+        let multiple = match f.extract::<i64>() {
+            Ok(0x06) => false,
+            Ok(0x10) => true,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "function must be 0x06 or 0x10, got {}",
+                    f.repr()?
+                )))
+            }
+        };
         let p = param(py, name)?;
         let v = number(value, p.name)?;
         self.wire(py, move |j| j.write_as(p.name, v, multiple))
@@ -110,40 +188,47 @@ impl PyJ2Core {
         self.wire(py, move |j| j.write(p.name, v))
     }
 
-    /// Reads the parameters called `names`, in as few requests as allowed.
+    /// Several parameters by name, in as few requests as the 16-register limit allows.
     fn read_many<'py>(
         &self,
         py: Python<'py>,
-        names: Vec<Bound<'py, PyAny>>,
+        names: &Bound<'py, PyAny>,
     ) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        let params = names
-            .iter()
-            .map(|n| param(py, n))
-            .collect::<PyResult<Vec<_>>>()?;
-        let wanted: Vec<&'static str> = params.iter().map(|p| p.name).collect();
-        let values = self.wire(py, move |j| j.read_many(&wanted))?;
-        Ok(params
-            .iter()
-            .zip(values)
-            .map(|(p, v)| value(py, p, v))
-            .collect())
+        if names.is_instance_of::<PyString>() {
+            return Err(PyTypeError::new_err(
+                "names is a list of names ([\"SV\", \"PV\"]), not one str",
+            ));
+        }
+        let names = listed(names, "names", "a list of names ([\"SV\", \"PV\"])")?;
+        self.read_names(py, &names)
     }
 
-    /// Writes `(name, value)` pairs in order; fixed ranges are checked before the first is
-    /// sent, the checks that need the controller write by write.
-    fn write_many(
-        &self,
-        py: Python<'_>,
-        pairs: Vec<(Bound<'_, PyAny>, Bound<'_, PyAny>)>,
-    ) -> PyResult<()> {
-        let values = pairs
-            .iter()
-            .map(|(n, v)| {
-                let p = param(py, n)?;
-                Ok((p.name, number(v, p.name)?))
-            })
-            .collect::<PyResult<Vec<_>>>()?;
-        self.wire(py, move |j| j.write_many(&values))
+    /// Write several parameters in order, each as :meth:`write` does.
+    ///
+    /// ``values`` is ``{name: value}`` or ``(name, value)`` pairs. Every value is checked
+    /// against its fixed range before the first is sent; the checks that need the
+    /// controller (SV within its limits, MV in manual mode) are made write by write, so a
+    /// refusal there leaves the earlier writes done.
+    fn write_many(&self, py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<()> {
+        let what = "{name: value} or (name, value) pairs";
+        let items = match values.cast::<PyMapping>() {
+            Ok(mapping) => listed(mapping.items()?.as_any(), "values", what)?,
+            Err(_) => listed(values, "values", what)?,
+        };
+        let mut pairs = Vec::with_capacity(items.len());
+        for item in &items {
+            let pair = listed(item, "values", what)?;
+            if pair.len() != 2 {
+                return Err(PyValueError::new_err(format!(
+                    "values must be {what}, got an item of {}: {}",
+                    pair.len(),
+                    PyTuple::new(py, &pair)?.repr()?
+                )));
+            }
+            let p = param(py, &pair[0])?;
+            pairs.push((p.name, number(&pair[1], p.name)?));
+        }
+        self.wire(py, move |j| j.write_many(&pairs))
     }
 
     /// Every parameter, `{name: value}`, in six requests of at most 16 registers.
@@ -157,19 +242,32 @@ impl PyJ2Core {
         Ok(out)
     }
 
-    /// Writes MV; in automatic mode refused, or AM written 0 first if `switch_to_manual`.
+    /// Set the output MV to ``percent`` (0..100).
+    ///
+    /// The manual allows MV only in manual mode: in automatic mode this raises
+    /// :class:`~benchbus.StateError`, unless ``switch_to_manual`` (then AM is written 0
+    /// first, and the controller stays in manual mode).
+    #[pyo3(signature = (percent, switch_to_manual=py_false()), text_signature = "(self, percent, switch_to_manual=False)")]
     fn set_output(
         &self,
         py: Python<'_>,
         percent: &Bound<'_, PyAny>,
-        switch_to_manual: bool,
+        switch_to_manual: Py<PyAny>,
     ) -> PyResult<()> {
+        let switch_to_manual = switch_to_manual.bind(py);
+        if !switch_to_manual.is_instance_of::<PyBool>() {
+            return Err(PyTypeError::new_err(format!(
+                "switch_to_manual must be True or False, got {}",
+                switch_to_manual.get_type().name()?
+            )));
+        }
+        let switch_to_manual = switch_to_manual.extract::<bool>()?;
         let percent = number(percent, "MV")?;
         self.wire(py, move |j| j.set_output(percent, switch_to_manual))
     }
 
     /// Writes LSP and USP in the order that keeps LSP <= USP.
-    fn set_limits(
+    fn _set_limits(
         &self,
         py: Python<'_>,
         low: &Bound<'_, PyAny>,
@@ -177,6 +275,58 @@ impl PyJ2Core {
     ) -> PyResult<()> {
         let (low, high) = (number(low, "LSP")?, number(high, "USP")?);
         self.wire(py, move |j| j.set_limits(low, high))
+    }
+
+    /// Start the setpoint ramp (RAPNF = 1).
+    fn start_ramp(&self, py: Python<'_>) -> PyResult<()> {
+        self.wire(py, |j| j.write(RAPNF, 1.0))
+    }
+
+    /// End the setpoint ramp (RAPNF = 0).
+    fn stop_ramp(&self, py: Python<'_>) -> PyResult<()> {
+        self.wire(py, |j| j.write(RAPNF, 0.0))
+    }
+
+    /// The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``.
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn SAMPLE_FIELDS<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        PyTuple::new(py, SAMPLE.map(str::to_lowercase))
+    }
+
+    /// PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request.
+    fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let values = self.read_group(py, &SAMPLE)?;
+        let out = PyDict::new(py);
+        for (name, v) in SAMPLE.iter().zip(values) {
+            out.set_item(name.to_lowercase(), v.extract::<f64>()?)?;
+        }
+        Ok(out)
+    }
+
+    /// The status snapshot's values, in the order of the core's `STATUS` group.
+    fn _status<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        self.read_group(py, &STATUS)
+    }
+
+    /// A PID set's values, (P, I, D), or (P1, I1, D1) if `second`, in one request.
+    fn _pid<'py>(&self, py: Python<'py>, second: bool) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        self.read_group(py, if second { &PID2 } else { &PID })
+    }
+
+    /// The names of a PID set: (P, I, D), or (P1, I1, D1) if `second`.
+    #[staticmethod]
+    fn _pid_names(second: bool) -> [&'static str; 3] {
+        if second {
+            PID2
+        } else {
+            PID
+        }
+    }
+
+    /// LSP and USP, in one request.
+    fn _limits<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        self.read_group(py, &LIMITS)
     }
 
     /// The parameter table: `(name, address, signed, writable, low, high, within_limits)`.
@@ -198,7 +348,8 @@ impl PyJ2Core {
         Ok(out)
     }
 
-    /// The unit of each parameter by name ("" for none): `{"MV": "%", "PV": "°C", ...}`.
+    /// The unit of each parameter by its manual name (``"PV"``), from the family's table
+    /// (``""`` for none; a linear input, INP = LN, reads in its own scale, not °C).
     #[staticmethod]
     fn units<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
@@ -206,9 +357,5 @@ impl PyJ2Core {
             out.set_item(p.name, p.unit)?;
         }
         Ok(out)
-    }
-
-    fn __repr__(&self) -> String {
-        format!("J2Core(unit={})", self.j2.unit())
     }
 }

@@ -15,6 +15,7 @@ mod ticks;
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
 use crate::codec::{Echo, FrameError};
+use crate::device::Device;
 use crate::error::{hex, Error};
 use crate::timing::{LineFormat, Parity};
 use crate::transport::tuning::Rs485;
@@ -119,6 +120,60 @@ fn on_wire<D: Send + Sync, T: Send>(
         return Err(pending);
     }
     result.map_err(|e| to_pyerr(py, e))
+}
+
+/// A device core and the Bus object it is on: what every device binding holds, built by
+/// one constructor path.
+pub(super) struct Attached<D> {
+    device: Arc<D>,
+    bus: Py<PyBus>,
+}
+
+impl<D: Device + 'static> Attached<D> {
+    /// Converts the arguments every device takes (`unit`, its own `timeout` and `retries`),
+    /// builds the core with `build` on the Bus and the unit (which validates the family's
+    /// own arguments), then gives it its own timing.
+    fn new(
+        bus: Bound<'_, PyBus>,
+        unit: &Bound<'_, PyAny>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
+        build: impl FnOnce(Arc<bus::Bus>, u8) -> crate::Result<D>,
+    ) -> PyResult<Self> {
+        let unit = unit_arg(unit)?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
+        let device = build(Arc::clone(&bus.get().bus), unit)
+            .map_err(|e| to_pyerr(bus.py(), e))?
+            .with_timing(timeout, retries);
+        Ok(Attached {
+            device: Arc::new(device),
+            bus: bus.unbind(),
+        })
+    }
+
+    /// Runs `f` on the core with the GIL released; its error as the Python exception.
+    fn wire<T: Send>(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&D) -> crate::Result<T> + Send,
+    ) -> PyResult<T> {
+        on_wire(py, &self.device, f)
+    }
+
+    /// The Bus object the device talks through.
+    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
+        self.bus.clone_ref(py)
+    }
+
+    /// The device's unit address.
+    fn unit(&self) -> u8 {
+        self.device.unit()
+    }
+
+    /// The core, for what needs no wire.
+    fn device(&self) -> &D {
+        &self.device
+    }
 }
 
 /// A write's `write_interval` in seconds, 0..=60 (None: 0, no pacing).

@@ -1,19 +1,17 @@
-//! Bindings of [`crate::device::pbl`]: the parameter-level core that `benchbus.PblDrive`
-//! (Python) wraps with enums and properties.
+//! Bindings of [`crate::device::pbl`]: the compiled base class of `benchbus.PblDrive`, which
+//! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
-use super::{int_in, number, on_wire, own_timing, to_pyerr, unit_arg, PyBus};
-use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS};
+use super::{int_in, number, to_pyerr, Attached, PyBus};
+use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS, SAMPLE};
 use crate::device::Access;
 use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyDict, PyInt, PyList, PyString};
-use std::sync::Arc;
+use pyo3::types::{PyBool, PyDict, PyFrozenSet, PyInt, PyList, PyString, PyTuple};
 
-/// The parameter-level core of a PBL-series drive (see `benchbus.PblDrive`).
-#[pyclass(frozen, module = "benchbus._core", name = "PblCore")]
+/// The compiled base of `benchbus.PblDrive`: the parameter table and every call to the drive.
+#[pyclass(subclass, frozen, module = "benchbus._core", name = "PblCore")]
 pub(super) struct PyPblCore {
-    pbl: Arc<Pbl>,
-    bus: Py<PyBus>,
+    dev: Attached<Pbl>,
 }
 
 impl PyPblCore {
@@ -22,7 +20,7 @@ impl PyPblCore {
         py: Python<'_>,
         f: impl FnOnce(&Pbl) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        on_wire(py, &self.pbl, f)
+        self.dev.wire(py, f)
     }
 }
 
@@ -53,25 +51,20 @@ impl PyPblCore {
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let unit = unit_arg(unit)?;
-        let (timeout, retries) = own_timing(timeout, retries)?;
-        let core = Arc::clone(&bus.get().bus);
-        Ok(PyPblCore {
-            pbl: Arc::new(Pbl::new(core, unit).with_timing(timeout, retries)),
-            bus: bus.unbind(),
-        })
+        let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(Pbl::new(b, u)))?;
+        Ok(PyPblCore { dev })
     }
 
     /// The Bus the drive talks through.
     #[getter]
     fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
+        self.dev.bus(py)
     }
 
     /// The drive's unit address.
     #[getter]
     fn unit(&self) -> u8 {
-        self.pbl.unit()
+        self.dev.unit()
     }
 
     /// Reads the parameter called `name` (an int).
@@ -121,6 +114,24 @@ impl PyPblCore {
         self.wire(py, move |p| p.read_parameters(start, count))
     }
 
+    /// The names :meth:`sample` gives: parameters 50..54.
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn SAMPLE_FIELDS<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        PyTuple::new(py, SAMPLE)
+    }
+
+    /// Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
+    /// parameters 50..54, in one request.
+    fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let all = self.wire(py, |p| p.sample())?;
+        let out = PyDict::new(py);
+        for (name, value) in all {
+            out.set_item(name, f64::from(value))?;
+        }
+        Ok(out)
+    }
+
     /// Every documented parameter, `{name: value}`, in four requests (61 a reply).
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let all = self.wire(py, |p| p.parameters())?;
@@ -141,39 +152,52 @@ impl PyPblCore {
         Ok(out)
     }
 
-    /// Sets the start bit of the control word, keeping the others.
+    /// Start: set bit 0 of the control word, keeping its other bits.
     fn start(&self, py: Python<'_>) -> PyResult<()> {
         self.wire(py, |p| p.start())
     }
 
-    /// Clears the start bit of the control word, keeping the others.
+    /// Stop: clear bit 0 of the control word, keeping its other bits.
     fn stop(&self, py: Python<'_>) -> PyResult<()> {
         self.wire(py, |p| p.stop())
     }
 
     /// Sets the direction bit of the control word (True = reverse), keeping the others.
-    fn set_reverse(&self, py: Python<'_>, reverse: bool) -> PyResult<()> {
+    fn _set_reverse(&self, py: Python<'_>, reverse: bool) -> PyResult<()> {
         self.wire(py, move |p| p.set_reverse(reverse))
     }
 
     /// The control word as `(started, reverse)`.
-    fn control(&self, py: Python<'_>) -> PyResult<(bool, bool)> {
+    fn _control(&self, py: Python<'_>) -> PyResult<(bool, bool)> {
         self.wire(py, |p| p.control())
     }
 
     /// The status word as `(running, reverse)`.
-    fn status(&self, py: Python<'_>) -> PyResult<(bool, bool)> {
+    fn _status(&self, py: Python<'_>) -> PyResult<(bool, bool)> {
         self.wire(py, |p| p.status())
     }
 
-    /// The 32-bit alarm word and the names of its set bits.
-    fn alarms(&self, py: Python<'_>) -> PyResult<(u32, Vec<String>)> {
+    /// Whether the motor is moving (status word bit 0).
+    #[getter]
+    fn running(&self, py: Python<'_>) -> PyResult<bool> {
+        self.wire(py, |p| p.status()).map(|(running, _)| running)
+    }
+
+    /// The 32-bit alarm word (parameter 5 high, 4 low).
+    #[getter]
+    fn alarm_word(&self, py: Python<'_>) -> PyResult<u32> {
+        self.wire(py, |p| p.alarms())
+    }
+
+    /// The active alarm bits by name ("alarm bit N": the manual names none).
+    #[getter]
+    fn alarms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyFrozenSet>> {
         let word = self.wire(py, |p| p.alarms())?;
-        Ok((word, alarm_names(word)))
+        PyFrozenSet::new(py, alarm_names(word))
     }
 
     /// Writes 1511 to parameter 214 (defaults restored at the next power-up).
-    fn restore_defaults(&self, py: Python<'_>) -> PyResult<()> {
+    fn _restore_defaults(&self, py: Python<'_>) -> PyResult<()> {
         self.wire(py, |p| p.restore_defaults())
     }
 
@@ -188,7 +212,12 @@ impl PyPblCore {
         Ok(out)
     }
 
-    fn __repr__(&self) -> String {
-        format!("PblCore(unit={})", self.pbl.unit())
+    /// The unit of each parameter by name, from :meth:`table` (``""`` for none).
+    fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for p in &PARAMETERS {
+            out.set_item(p.name, p.unit)?;
+        }
+        Ok(out)
     }
 }

@@ -1,0 +1,69 @@
+//! The station every device stands on: one place for the Bus, the unit and the device's own
+//! timeout and retries, whichever family it is.
+
+mod common;
+
+use benchbus::device::instrument::Instrument;
+use benchbus::device::j2::J2;
+use benchbus::device::pbl::Pbl;
+use benchbus::device::Device;
+use benchbus::Error;
+use common::{bus, sent, words, Act};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Three silent requests then a reply: how many a device sends shows its own retries.
+fn silent_then_reply() -> Vec<Act> {
+    vec![Act::Silent, Act::Silent, Act::Silent, words(7, &[42])]
+}
+
+fn instrument(bus: Arc<benchbus::bus::Bus>) -> Instrument {
+    match Instrument::new(bus, 7, 37, 20, Duration::ZERO) {
+        Ok(inst) => inst,
+        Err(e) => panic!("valid limits: {e}"),
+    }
+}
+
+/// What the station of `device` says: its timeout, retries and unit.
+fn timing(device: &impl Device) -> (Duration, u32, u8) {
+    let station = device.station();
+    (station.timeout(), station.retries(), device.unit())
+}
+
+#[test]
+fn without_its_own_timing_a_device_uses_the_buss() {
+    let (b, _) = bus(vec![], 2);
+    let b = Arc::new(b);
+    let expected = (b.config().timeout, 2, 7);
+    assert_eq!(timing(&Pbl::new(Arc::clone(&b), 7)), expected);
+    assert_eq!(timing(&J2::new(Arc::clone(&b), 7)), expected);
+    assert_eq!(timing(&instrument(Arc::clone(&b))), expected);
+}
+
+#[test]
+fn a_devices_own_retries_replace_the_buss_in_every_family() {
+    // The Bus retries twice; each device asks for none: one silent request, then a timeout.
+    let timeout = Some(Duration::from_millis(5));
+    let (b, t) = bus(silent_then_reply(), 2);
+    let p = Pbl::new(Arc::new(b), 7).with_timing(timeout, Some(0));
+    assert_eq!(p.station().retries(), 0);
+    assert_eq!(p.station().timeout(), Duration::from_millis(5));
+    assert!(matches!(p.read_parameter(50), Err(Error::Timeout { .. })));
+    assert_eq!(sent(&t).len(), 1);
+
+    let (b, t) = bus(silent_then_reply(), 2);
+    let j = J2::new(Arc::new(b), 7).with_timing(timeout, Some(0));
+    assert!(matches!(j.read("PV"), Err(Error::Timeout { .. })));
+    assert_eq!(sent(&t).len(), 1);
+
+    let (b, t) = bus(silent_then_reply(), 2);
+    let i = instrument(Arc::new(b)).with_timing(timeout, Some(0));
+    assert!(matches!(i.read_word(0), Err(Error::Timeout { .. })));
+    assert_eq!(sent(&t).len(), 1);
+
+    // With three retries of its own (the Bus has two), the fourth request is answered.
+    let (b, t) = bus(silent_then_reply(), 2);
+    let i = instrument(Arc::new(b)).with_timing(timeout, Some(3));
+    assert_eq!(i.read_word(0).ok(), Some(42));
+    assert_eq!(sent(&t).len(), 4);
+}

@@ -1,0 +1,98 @@
+"""Every device family is built through one path: the same checks of the unit, the device's
+own timeout and retries, with the same messages, before anything is sent."""
+
+from __future__ import annotations
+
+import os
+import select
+
+import pytest
+
+import benchbus as bb
+from conftest import ScriptedSlave
+
+FAMILIES = {
+    "PblDrive": lambda bus, **kw: bb.PblDrive(bus, **kw),
+    "J2Controller": lambda bus, **kw: bb.J2Controller(bus, **kw),
+    "Instrument": lambda bus, **kw: bb.Instrument(bus, **kw),
+}
+
+
+def nothing_sent(slave: ScriptedSlave) -> bool:
+    """Whether the line carried no byte."""
+    return not select.select([slave.master], [], [], 0.05)[0] or not os.read(slave.master, 256)
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        ({"unit": 256}, ValueError, r"^unit must be 1 to 255, got 256$"),
+        ({"unit": "1"}, TypeError, r"unit must be an int"),
+        ({"unit": 1, "timeout": -1}, ValueError, r"timeout"),
+        ({"unit": 1, "retries": 101}, ValueError, r"^retries must be 0 to 100, got 101$"),
+        ({"unit": 1, "retries": True}, TypeError, r"retries"),
+    ],
+)
+def test_bad_station_arguments_are_refused_alike(
+    slave: ScriptedSlave,
+    family: str,
+    kwargs: dict[str, object],
+    error: type[Exception],
+    message: str,
+) -> None:
+    with (
+        bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus,
+        pytest.raises(error, match=message),
+    ):
+        FAMILIES[family](bus, **kwargs)
+    assert nothing_sent(slave)
+
+
+@pytest.mark.parametrize("family", sorted(FAMILIES))
+def test_every_family_stands_on_the_bus_and_unit_given(slave: ScriptedSlave, family: str) -> None:
+    with bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus:
+        device = FAMILIES[family](bus, unit=9, timeout=0.2, retries=0)
+        assert device.bus is bus
+        assert device.unit == 9
+
+
+def test_the_pbl_drive_is_its_compiled_class_with_nothing_forwarded() -> None:
+    from benchbus._core import PblCore
+
+    assert issubclass(bb.PblDrive, PblCore)
+    for name in ("start", "stop", "read_parameter", "write_parameter", "read_parameters"):
+        assert name not in vars(bb.PblDrive), name
+    for name in ("parameters", "table", "sample", "units", "running", "alarms", "alarm_word"):
+        assert name not in vars(bb.PblDrive), name
+    # The sample block is the Rust table's, and what sample() reads.
+    assert bb.PblDrive.SAMPLE_FIELDS == (
+        "speed",
+        "bus_voltage",
+        "analog_speed_input",
+        "current",
+        "power",
+    )
+
+
+def test_a_pbl_drive_keeps_no_core_and_refuses_unknown_attributes(slave: ScriptedSlave) -> None:
+    with bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus:
+        pbl = bb.PblDrive(bus, unit=3)
+        assert "core" not in vars(pbl)
+        assert repr(pbl).startswith("<PblDrive unit=3 on ")
+        with pytest.raises(AttributeError, match="speed_setpoint"):
+            pbl.speed_setpoin = 5  # type: ignore[attr-defined]
+    assert nothing_sent(slave)
+
+
+def test_the_j2_controller_is_its_compiled_class_with_the_groups_from_the_table() -> None:
+    from benchbus._core import J2Core
+
+    assert issubclass(bb.J2Controller, J2Core)
+    for name in ("read", "write", "read_many", "write_many", "parameters", "table", "units"):
+        assert name not in vars(bb.J2Controller), name
+    for name in ("sample", "set_output", "start_ramp", "stop_ramp"):
+        assert name not in vars(bb.J2Controller), name
+    assert bb.J2Controller.SAMPLE_FIELDS == ("pv", "sv", "mv")
+    assert J2Core._pid_names(False) == ["P", "I", "D"]
+    assert J2Core._pid_names(True) == ["P1", "I1", "D1"]
