@@ -24,11 +24,11 @@ def h(text: str) -> bytes:
     return bytes.fromhex(text)
 
 
-Line = tuple[bb.Drive, Simulator[DriveDevice], DriveDevice]
+Rig = tuple[bb.Drive, Simulator[DriveDevice], DriveDevice]
 
 
 @contextlib.contextmanager
-def open_drive(model: str = "BLD2", **options: object) -> Iterator[Line]:
+def open_drive(model: str = "BLD2", **options: object) -> Iterator[Rig]:
     """A simulated drive of ``model`` and a Drive on its line (family from the model)."""
     device = DriveDevice(model, **options)  # type: ignore[arg-type]
     family = "C20" if model == "C20" else "BLD"
@@ -37,20 +37,20 @@ def open_drive(model: str = "BLD2", **options: object) -> Iterator[Line]:
 
 
 @pytest.fixture(params=["BLD2", "C20"])
-def any_family(request: pytest.FixtureRequest) -> Iterator[Line]:
+def any_family(request: pytest.FixtureRequest) -> Iterator[Rig]:
     """Both families, on drives that take one register per read, as the manuals describe."""
     with open_drive(request.param, single_register_reads=True) as line:
         yield line
 
 
 @pytest.fixture
-def bld() -> Iterator[Line]:
+def bld() -> Iterator[Rig]:
     with open_drive("BLD2") as line:
         yield line
 
 
 @pytest.fixture
-def c20() -> Iterator[Line]:
+def c20() -> Iterator[Rig]:
     with open_drive("C20") as line:
         yield line
 
@@ -67,7 +67,7 @@ def exchanged(sim: Simulator[DriveDevice], request: str, reply: str) -> bool:
 # ---- the manuals' common commands, byte for byte ------------------------------------------
 
 
-def test_manual_command_frames(any_family: Line) -> None:
+def test_manual_command_frames(any_family: Rig) -> None:
     drive, sim, device = any_family
     drive.forward()
     assert exchanged(sim, "01 06 20 00 00 01 43 CA", "01 06 20 00 00 01 43 CA")
@@ -83,7 +83,7 @@ def test_manual_command_frames(any_family: Line) -> None:
     assert device.commands == [1, 2, 5, 7]
 
 
-def test_every_command_of_the_table_is_a_method_that_sends_its_code(bld: Line) -> None:
+def test_every_command_of_the_table_is_a_method_that_sends_its_code(bld: Rig) -> None:
     """The command codes are declared once, in the core's table; each is a Drive method."""
     drive, _sim, device = bld
     table = DriveCore.commands()
@@ -97,7 +97,7 @@ def test_every_command_of_the_table_is_a_method_that_sends_its_code(bld: Line) -
         drive.core.command("Forward")
 
 
-def test_property_docs_say_what_the_register_table_says(bld: Line) -> None:
+def test_property_docs_say_what_the_register_table_says(bld: Rig) -> None:
     """The address, range and "stopped only" in each property's docstring are the table's."""
 
     def number(text: str) -> float:
@@ -120,7 +120,7 @@ def test_property_docs_say_what_the_register_table_says(bld: Line) -> None:
     assert checked == 10
 
 
-def test_manual_parameter_frames(any_family: Line) -> None:
+def test_manual_parameter_frames(any_family: Rig) -> None:
     drive, sim, device = any_family
     # 读功能码: F00.10 reads 50.00 Hz (0x1388).
     assert drive.read_parameter("F00.10") == 0x1388
@@ -148,7 +148,7 @@ def test_manual_parameter_frames(any_family: Line) -> None:
     assert device.peek(0x200E) == 0  # put back after the refusal too
 
 
-def test_manual_status_frames(any_family: Line) -> None:
+def test_manual_status_frames(any_family: Rig) -> None:
     drive, sim, device = any_family
     # 读状态字 2, read singly by status(): 0x0041 is bus voltage up, communication control
     # and bit 4 clear, which is "not overloaded" on the BLD and "overloaded" by the C20's
@@ -180,7 +180,7 @@ def test_manual_status_frames(any_family: Line) -> None:
     assert drive.core.block_reads is False
 
 
-def test_bld_status_word_2_is_the_manuals_example(bld: Line) -> None:
+def test_bld_status_word_2_is_the_manuals_example(bld: Rig) -> None:
     drive, sim, _ = bld
     assert drive.get("status_word") == 0x41
     assert sim.requests[-1] == h("01 03 21 01 00 01 DF F6")
@@ -213,13 +213,13 @@ def round_trip(
         assert got == value and type(got) is type(value), name
 
 
-def test_c20_settings_round_trip(c20: Line) -> None:
+def test_c20_settings_round_trip(c20: Rig) -> None:
     drive, _, device = c20
     cases = [*BOTH, ("control_mode", bb.C20ControlMode.CLOSED_LOOP, 0x2005, 2)]
     round_trip(drive, device, cases)
 
 
-def test_settings_round_trip(bld: Line) -> None:
+def test_settings_round_trip(bld: Rig) -> None:
     drive, _, device = bld
     cases = [
         *BOTH,
@@ -232,7 +232,7 @@ def test_settings_round_trip(bld: Line) -> None:
     assert drive.accel_time == 0.1
 
 
-def test_c20_enums_and_ranges(c20: Line) -> None:
+def test_c20_enums_and_ranges(c20: Rig) -> None:
     drive, sim, device = c20
     drive.control_mode = bb.C20ControlMode.DIP_SWITCH
     assert drive.control_mode is bb.C20ControlMode.DIP_SWITCH
@@ -311,7 +311,7 @@ def test_the_model_enum_is_the_cores_model_table(caplog: pytest.LogCaptureFixtur
 # ---- errors -----------------------------------------------------------------------------------
 
 
-def test_errors_in_their_cases(bld: Line) -> None:
+def test_errors_in_their_cases(bld: Rig) -> None:
     drive, sim, device = bld
     sent = len(sim.requests)
     for name, value in [
@@ -356,7 +356,7 @@ def test_errors_in_their_cases(bld: Line) -> None:
 
 
 def test_parameter_write_refused_without_enable_on_the_raw_bus(
-    bld: Line,
+    bld: Rig,
 ) -> None:
     drive, _, device = bld
     with pytest.raises(bb.ModbusException) as e:

@@ -14,7 +14,7 @@ import benchbus as bb
 from benchbus.sim import Atv31Device, Simulator, TaisongDevice
 from conftest import FakeClock
 
-Line = tuple[bb.Bus, Simulator[TaisongDevice | Atv31Device], TaisongDevice, Atv31Device]
+Rig = tuple[bb.Bus, Simulator[TaisongDevice | Atv31Device], TaisongDevice, Atv31Device]
 
 
 def h(text: str) -> bytes:
@@ -27,7 +27,7 @@ def summary(frames: list[bytes]) -> list[tuple[int, int, int]]:
 
 
 @contextlib.contextmanager
-def open_line() -> Iterator[Line]:
+def open_line() -> Iterator[Rig]:
     """A Taisong meter at unit 1 and an ATV31 at unit 2 on one line, clocks standing still."""
     meter, atv = TaisongDevice(clock=FakeClock()), Atv31Device()
     devices: dict[int, TaisongDevice | Atv31Device] = {1: meter, 2: atv}
@@ -36,7 +36,7 @@ def open_line() -> Iterator[Line]:
 
 
 @pytest.fixture
-def line() -> Iterator[Line]:
+def line() -> Iterator[Rig]:
     with open_line() as opened:
         yield opened
 
@@ -56,7 +56,7 @@ def test_line_defaults() -> None:
 # ---- the manual's frames ------------------------------------------------------------------
 
 
-def test_taisong_frames(line: Line) -> None:
+def test_taisong_frames(line: Rig) -> None:
     bus, sim, meter, _ = line
     inst = bb.Instrument(bus, 1)
     meter.hold(1000)
@@ -85,7 +85,7 @@ def test_taisong_frame_at_unit_9() -> None:
         assert sim.replies[-1] == h("09 03 02 01 00 58 15")
 
 
-def test_atv31_frames(line: Line) -> None:
+def test_atv31_frames(line: Rig) -> None:
     bus, sim, _, atv = line
     inst = bb.Instrument(bus, 2, max_read=29, max_write=29)
     assert inst.read_registers(0x0C1E, 4) == [0x0028, 0x0258, 0x01F4, 0x0000]
@@ -99,7 +99,7 @@ def test_atv31_frames(line: Line) -> None:
     assert (atv.registers[0x2329], atv.registers[0x0FCB], atv.registers[0x0FCC]) == (13, 20, 30)
 
 
-def test_identification(line: Line) -> None:
+def test_identification(line: Rig) -> None:
     bus, sim, _, _ = line
     ident = bb.Instrument(bus, 2, max_read=29, max_write=29).identify()
     assert sim.requests[-1] == h("02 2B 0E 01 00 34 77")
@@ -124,7 +124,7 @@ def test_identification_follows_more_follows() -> None:
         inst.identify("everything")  # type: ignore[arg-type]
 
 
-def test_a_device_without_identification_raises_code_1(line: Line) -> None:
+def test_a_device_without_identification_raises_code_1(line: Rig) -> None:
     bus, sim, _, _ = line
     with pytest.raises(bb.ModbusException) as caught:
         bb.Instrument(bus, 1).identify()
@@ -145,7 +145,7 @@ def test_the_atv31_form_of_an_identification_error() -> None:
 # ---- limits ---------------------------------------------------------------------------------
 
 
-def test_long_reads_and_writes_are_split_at_the_limits(line: Line) -> None:
+def test_long_reads_and_writes_are_split_at_the_limits(line: Rig) -> None:
     bus, sim, meter, _ = line
     inst = bb.Instrument(bus, 1)
     meter.registers[0x100:0x164] = list(range(100))
@@ -204,7 +204,7 @@ def test_writes_keep_the_minimum_interval() -> None:
     ],
 )
 def test_registers_with_decimals_and_sign(
-    line: Line, value: float, decimals: int, signed: bool, raw: int
+    line: Rig, value: float, decimals: int, signed: bool, raw: int
 ) -> None:
     bus, _, meter, _ = line
     inst = bb.Instrument(bus, 1)
@@ -217,7 +217,7 @@ def test_registers_with_decimals_and_sign(
 
 
 @pytest.mark.parametrize("order", ["big", "little"])
-def test_32_bit_values_and_floats(line: Line, order: str) -> None:
+def test_32_bit_values_and_floats(line: Rig, order: str) -> None:
     bus, _, meter, _ = line
     inst = bb.Instrument(bus, 1)
     inst.write_long(0x30, 0x12345678, word_order=order)  # type: ignore[arg-type]
@@ -236,7 +236,7 @@ def test_32_bit_values_and_floats(line: Line, order: str) -> None:
     assert meter.registers[0x36:0x38] == ([high, low] if order == "big" else [low, high])
 
 
-def test_text(line: Line) -> None:
+def test_text(line: Rig) -> None:
     bus, _, meter, _ = line
     inst = bb.Instrument(bus, 1)
     inst.write_string(0x40, "bench 3", 4)
@@ -264,7 +264,7 @@ def test_the_measured_value_moves_and_sv_is_settable() -> None:
 # ---- errors ---------------------------------------------------------------------------------
 
 
-def test_bad_input_is_refused_before_anything_is_sent(line: Line) -> None:
+def test_bad_input_is_refused_before_anything_is_sent(line: Rig) -> None:
     bus, sim, _, _ = line
     inst = bb.Instrument(bus, 1)
     bad: list[tuple[type[Exception], object]] = [
@@ -311,7 +311,7 @@ def test_bad_input_is_refused_before_anything_is_sent(line: Line) -> None:
     assert sim.requests == []
 
 
-def test_line_errors_raise_the_right_class(line: Line) -> None:
+def test_line_errors_raise_the_right_class(line: Rig) -> None:
     bus, sim, _, _ = line
     inst = bb.Instrument(bus, 1, timeout=0.05, retries=1)
     sim.set_silent(1)

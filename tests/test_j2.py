@@ -13,7 +13,7 @@ import benchbus as bb
 from benchbus.sim import J2Device, Simulator
 from conftest import FakeClock
 
-Line = tuple[bb.J2Controller, Simulator[J2Device], J2Device]
+Rig = tuple[bb.J2Controller, Simulator[J2Device], J2Device]
 
 WRITE_INTERVAL = 0.150
 
@@ -23,7 +23,7 @@ def h(text: str) -> bytes:
 
 
 @contextlib.contextmanager
-def open_j2(unit: int = 1, **options: object) -> Iterator[Line]:
+def open_j2(unit: int = 1, **options: object) -> Iterator[Rig]:
     """A simulated J2 at ``unit`` (on a clock that stands still) and a controller on its line."""
     options.setdefault("clock", FakeClock())
     device = J2Device(**options)  # type: ignore[arg-type]
@@ -32,7 +32,7 @@ def open_j2(unit: int = 1, **options: object) -> Iterator[Line]:
 
 
 @pytest.fixture
-def line() -> Iterator[Line]:
+def line() -> Iterator[Rig]:
     with open_j2() as opened:
         yield opened
 
@@ -61,7 +61,7 @@ def test_line_defaults_are_9600_8n1_and_19200_on_request() -> None:
 # ---- the manual's three frames ------------------------------------------------------------
 
 
-def test_manual_read_frame(line: Line) -> None:
+def test_manual_read_frame(line: Rig) -> None:
     j2, sim, device = line
     device.set_value("SV", 100.0)
     assert j2.sv == 100.0
@@ -69,7 +69,7 @@ def test_manual_read_frame(line: Line) -> None:
     assert sim.replies[-1] == h("01 03 02 03 E8 B8 FA")
 
 
-def test_manual_write_frames(line: Line) -> None:
+def test_manual_write_frames(line: Rig) -> None:
     j2, sim, device = line
     device.set_value("SV", 50.0)
     j2.sv = 100.0
@@ -129,7 +129,7 @@ def test_pacing_is_per_controller_and_other_units_are_not_held_up() -> None:
         assert pv == two.value("PV") and two.value("AL1") == 3.0 and one.value("AL2") == 2.0
 
 
-def test_a_broadcast_counts_as_a_write_to_every_unit(line: Line) -> None:
+def test_a_broadcast_counts_as_a_write_to_every_unit(line: Rig) -> None:
     j2, sim, device = line
     j2.alarm1 = 1.0
     j2.bus.broadcast_write_register(0x0A, 20)  # AL2 = 2.0 on every controller
@@ -141,7 +141,7 @@ def test_a_broadcast_counts_as_a_write_to_every_unit(line: Line) -> None:
     assert (device.value("AL1"), device.value("AL2")) == (3.0, 2.0)
 
 
-def test_parameters_are_read_in_blocks_of_at_most_16(line: Line) -> None:
+def test_parameters_are_read_in_blocks_of_at_most_16(line: Rig) -> None:
     j2, sim, device = line
     device.set_value("AL2", -12.5)
     device.set_value("FST", 80)
@@ -162,7 +162,7 @@ def test_parameters_are_read_in_blocks_of_at_most_16(line: Line) -> None:
     assert values["AL2"] == -12.5 and values["FST"] == 80 and isinstance(values["FST"], int)
 
 
-def test_mv_needs_manual_mode(line: Line) -> None:
+def test_mv_needs_manual_mode(line: Rig) -> None:
     j2, sim, device = line
     assert j2.mode == bb.J2Mode.AUTO
     sim.clear_log()
@@ -179,7 +179,7 @@ def test_mv_needs_manual_mode(line: Line) -> None:
     assert j2.mv == 12.5
 
 
-def test_rapnf_is_written_0_before_ramp_parameters(line: Line) -> None:
+def test_rapnf_is_written_0_before_ramp_parameters(line: Rig) -> None:
     j2, sim, device = line
     j2.start_ramp()
     assert j2.ramp_running and device.value("RAPNF") == 1
@@ -191,7 +191,7 @@ def test_rapnf_is_written_0_before_ramp_parameters(line: Line) -> None:
     assert (device.value("RAP"), device.value("RTM")) == (5.0, 30.0)
 
 
-def test_values_within_lsp_usp_follow_the_controllers_limits(line: Line) -> None:
+def test_values_within_lsp_usp_follow_the_controllers_limits(line: Rig) -> None:
     j2, sim, device = line
     j2.limits = (-20.0, 150.0)
     assert j2.limits == bb.Limits(-20.0, 150.0)
@@ -212,7 +212,7 @@ def test_values_within_lsp_usp_follow_the_controllers_limits(line: Line) -> None
     assert writes(sim) == [(6, 0x16, 4000), (6, 0x14, 2000)]
 
 
-def test_negative_values_round_trip_exactly(line: Line) -> None:
+def test_negative_values_round_trip_exactly(line: Rig) -> None:
     j2, sim, device = line
     j2.alarm1 = -50.0
     assert sim.requests[-1][:6] == h("01 06 00 08 FE 0C")
@@ -226,7 +226,7 @@ def test_negative_values_round_trip_exactly(line: Line) -> None:
 # ---- properties ---------------------------------------------------------------------------
 
 
-def test_every_property_round_trips(line: Line) -> None:
+def test_every_property_round_trips(line: Rig) -> None:
     j2, _, device = line
     j2.alarm2 = 250.5
     j2.pid = (30.5, 120.0, 0.0)
@@ -285,7 +285,7 @@ def test_units_up_to_255() -> None:
 # ---- errors -------------------------------------------------------------------------------
 
 
-def test_bad_input_is_refused_before_anything_is_sent(line: Line) -> None:
+def test_bad_input_is_refused_before_anything_is_sent(line: Rig) -> None:
     j2, sim, _ = line
     sim.clear_log()
     bad: list[tuple[type[Exception], object]] = [
@@ -321,7 +321,7 @@ def test_bad_input_is_refused_before_anything_is_sent(line: Line) -> None:
         j2.alarm1 = 5000.0
 
 
-def test_device_errors_raise_the_right_class(line: Line) -> None:
+def test_device_errors_raise_the_right_class(line: Rig) -> None:
     j2, sim, _ = line
     sim.answer_exception(4)
     with pytest.raises(bb.ModbusException) as caught:
@@ -353,7 +353,7 @@ def test_the_library_and_the_simulator_share_one_table() -> None:
         assert name in J2Device.BETWEEN_LSP_USP or not within_limits, name
 
 
-def test_hysteresis_is_left_to_the_controller(line: Line) -> None:
+def test_hysteresis_is_left_to_the_controller(line: Rig) -> None:
     """HY1 is "LSP~USP" in the manual; the library checks only the widest range."""
     j2, sim, _ = line
     j2.limits = (100.0, 400.0)
@@ -374,7 +374,7 @@ def test_port_errors() -> None:
             _ = j2.sv
 
 
-def test_status_in_two_requests_and_as_a_table(line: Line) -> None:
+def test_status_in_two_requests_and_as_a_table(line: Rig) -> None:
     j2, sim, device = line
     device.set_value("AL1", -5.0)
     sim.clear_log()

@@ -18,14 +18,14 @@ import benchbus as bb
 from benchbus.sim import DriveDevice, Simulator
 from benchbus.sim._drive import COMM_LOSS_FAULT
 
-Line = tuple[bb.Drive, Simulator[DriveDevice], DriveDevice]
+Rig = tuple[bb.Drive, Simulator[DriveDevice], DriveDevice]
 F08_04 = 0x0804
 
 
 @contextlib.contextmanager
 def open_drive(
     model: str = "BLD2", timeout: float | None = None, retries: int | None = None
-) -> Iterator[Line]:
+) -> Iterator[Rig]:
     """A simulated drive and a Drive on its line, with the Drive's timeout and retries."""
     device = DriveDevice(model)
     family = "C20" if model == "C20" else "BLD"
@@ -37,12 +37,12 @@ def open_drive(
 
 
 @pytest.fixture
-def bld() -> Iterator[Line]:
+def bld() -> Iterator[Rig]:
     with open_drive() as line:
         yield line
 
 
-def running_with_watchdog(line: Line) -> None:
+def running_with_watchdog(line: Rig) -> None:
     """F08.04 = 0.5 s, then the motor forward at 1000 rpm."""
     drive, _sim, device = line
     drive.comm_loss_timeout = 0.5
@@ -59,7 +59,7 @@ def keepalive_threads() -> list[threading.Thread]:
 # ---- F08.04 through the property --------------------------------------------------------------
 
 
-def test_comm_loss_timeout_lands_in_f08_04(bld: Line) -> None:
+def test_comm_loss_timeout_lands_in_f08_04(bld: Rig) -> None:
     drive, _sim, device = bld
     assert drive.comm_loss_timeout == 0.0
     for seconds, raw in ((0.5, 5), (60, 600), (0.1, 1), (12.34, 123), (0, 0)):
@@ -85,7 +85,7 @@ def test_comm_loss_timeout_lands_in_f08_04(bld: Line) -> None:
         (True, TypeError),
     ],
 )
-def test_bad_comm_loss_timeout_sends_nothing(bld: Line, value: object, exc: type) -> None:
+def test_bad_comm_loss_timeout_sends_nothing(bld: Rig, value: object, exc: type) -> None:
     drive, sim, device = bld
     sent = len(sim.requests)
     with pytest.raises(exc, match="comm_loss_timeout"):
@@ -106,7 +106,7 @@ def test_c20_has_no_f08_04() -> None:
 # ---- the simulated drive trips ----------------------------------------------------------------
 
 
-def test_silence_trips_the_drive(bld: Line) -> None:
+def test_silence_trips_the_drive(bld: Rig) -> None:
     running_with_watchdog(bld)
     drive, _sim, device = bld
     time.sleep(1.0)
@@ -122,7 +122,7 @@ def test_silence_trips_the_drive(bld: Line) -> None:
     assert device.state == DriveDevice.STOPPED
 
 
-def test_no_trip_while_stopped_or_when_off(bld: Line) -> None:
+def test_no_trip_while_stopped_or_when_off(bld: Rig) -> None:
     drive, _sim, device = bld
     drive.comm_loss_timeout = 0.1
     device.advance(1.0)
@@ -133,7 +133,7 @@ def test_no_trip_while_stopped_or_when_off(bld: Line) -> None:
     assert device.state == DriveDevice.FORWARD  # F08.04 = 0: off
 
 
-def test_keepalive_keeps_the_drive_running_and_stop_lets_it_trip(bld: Line) -> None:
+def test_keepalive_keeps_the_drive_running_and_stop_lets_it_trip(bld: Rig) -> None:
     running_with_watchdog(bld)
     drive, _sim, device = bld
     with drive.keepalive(0.1) as keepalive:
@@ -149,7 +149,7 @@ def test_keepalive_keeps_the_drive_running_and_stop_lets_it_trip(bld: Line) -> N
     assert device.fault == COMM_LOSS_FAULT
 
 
-def test_one_keepalive_per_drive(bld: Line) -> None:
+def test_one_keepalive_per_drive(bld: Rig) -> None:
     drive, _sim, _device = bld
     first = drive.keepalive(0.2)
     with pytest.raises(RuntimeError, match="already running"):
@@ -203,7 +203,7 @@ def test_failed_reads_are_counted_and_the_thread_goes_on(
         (True, TypeError),
     ],
 )
-def test_bad_interval_starts_nothing(bld: Line, interval: object, exc: type) -> None:
+def test_bad_interval_starts_nothing(bld: Rig, interval: object, exc: type) -> None:
     drive, sim, _device = bld
     sent = len(sim.requests)
     with pytest.raises(exc, match="interval"):

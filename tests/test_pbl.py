@@ -12,7 +12,7 @@ import benchbus as bb
 from benchbus.sim import PblDevice, Simulator
 from conftest import FakeClock
 
-Line = tuple[bb.PblDrive, Simulator[PblDevice], PblDevice]
+Rig = tuple[bb.PblDrive, Simulator[PblDevice], PblDevice]
 
 
 def h(text: str) -> bytes:
@@ -20,7 +20,7 @@ def h(text: str) -> bytes:
 
 
 @contextlib.contextmanager
-def open_pbl(unit: int = 0x11, **options: object) -> Iterator[Line]:
+def open_pbl(unit: int = 0x11, **options: object) -> Iterator[Rig]:
     """A simulated PBL drive at ``unit`` and a PblDrive on its line."""
     device = PblDevice(**options)  # type: ignore[arg-type]
     with Simulator({unit: device}) as sim, bb.PblDrive(sim.port, unit=unit) as pbl:
@@ -28,7 +28,7 @@ def open_pbl(unit: int = 0x11, **options: object) -> Iterator[Line]:
 
 
 @pytest.fixture
-def line() -> Iterator[Line]:
+def line() -> Iterator[Rig]:
     with open_pbl() as opened:
         yield opened
 
@@ -44,7 +44,7 @@ def test_line_defaults_are_115200_8e1() -> None:
 # ---- the manual's three frames ------------------------------------------------------------
 
 
-def test_manual_read_frame(line: Line) -> None:
+def test_manual_read_frame(line: Rig) -> None:
     pbl, sim, device = line
     for number, value in ((107, 0x006B), (108, 0x0013), (109, 0x0000)):
         device.set_param(number, value)
@@ -53,7 +53,7 @@ def test_manual_read_frame(line: Line) -> None:
     assert sim.replies[-1] == h("11 03 06 00 6B 00 13 00 00 38 B9")
 
 
-def test_manual_single_write_frame_and_its_count_reply(line: Line) -> None:
+def test_manual_single_write_frame_and_its_count_reply(line: Rig) -> None:
     pbl, sim, device = line
     pbl.write_parameter(1, 3)  # INDEX.md: the value 3 the text names, whose CRC is 9A 9B
     assert sim.requests[-1] == h("11 06 00 01 00 03 9A 9B")
@@ -65,7 +65,7 @@ def test_manual_single_write_frame_and_its_count_reply(line: Line) -> None:
     assert device.peek(1) == 4  # the drive did act; the reply is what was refused
 
 
-def test_manual_multiple_write_frame(line: Line) -> None:
+def test_manual_multiple_write_frame(line: Rig) -> None:
     pbl, sim, _ = line
     pbl.bus.write_registers(0x11, 1, [0x000A, 0x0102])
     assert sim.requests[-1] == h("11 10 00 01 00 02 04 00 0A 01 02 C6 F0")
@@ -81,7 +81,7 @@ def test_a_drive_that_echoes_is_fine_too() -> None:
 # ---- properties -----------------------------------------------------------------------------
 
 
-def test_settings_round_trip(line: Line) -> None:
+def test_settings_round_trip(line: Rig) -> None:
     pbl, _, device = line
     cases: list[tuple[str, object, int]] = [
         ("control_mode", bb.PblControlMode.TORQUE, 100),
@@ -105,7 +105,7 @@ def test_settings_round_trip(line: Line) -> None:
         assert pbl.read_parameter(name if name != "speed_setpoint" else 201) == value
 
 
-def test_measurements_are_read_only(line: Line) -> None:
+def test_measurements_are_read_only(line: Rig) -> None:
     pbl, sim, _ = line
     sent = len(sim.requests)
     with pytest.raises(AttributeError):
@@ -145,7 +145,7 @@ def test_start_ramps_and_stop() -> None:
         assert not pbl.running and pbl.speed == 0
 
 
-def test_alarms(line: Line) -> None:
+def test_alarms(line: Rig) -> None:
     pbl, _, device = line
     assert pbl.alarm_word == 0 and pbl.alarms == frozenset()
     device.inject_alarm(0)
@@ -157,7 +157,7 @@ def test_alarms(line: Line) -> None:
     assert pbl.alarms == frozenset()
 
 
-def test_parameters_in_blocks_the_manual_allows(line: Line) -> None:
+def test_parameters_in_blocks_the_manual_allows(line: Rig) -> None:
     pbl, sim, _ = line
     sim.clear_log()
     values = pbl.parameters()
@@ -170,7 +170,7 @@ def test_parameters_in_blocks_the_manual_allows(line: Line) -> None:
     assert set(values) == {row[1] for row in table if not row[1].startswith("reserved_")}
 
 
-def test_restore_defaults_needs_a_power_cycle(line: Line) -> None:
+def test_restore_defaults_needs_a_power_cycle(line: Rig) -> None:
     pbl, _, device = line
     pbl.acceleration = 3000
     with pytest.warns(UserWarning, match="power"):
@@ -181,7 +181,7 @@ def test_restore_defaults_needs_a_power_cycle(line: Line) -> None:
     assert pbl.acceleration == 1000
 
 
-def test_errors_before_sending(line: Line) -> None:
+def test_errors_before_sending(line: Rig) -> None:
     pbl, sim, _ = line
     sent = len(sim.requests)
     for key, value in [(50, 1), (100, 3), (204, 3), (215, 0), ("drive_address", 256)]:
@@ -245,7 +245,7 @@ def test_shared_bus_timeout() -> None:
         assert not bus.closed
 
 
-def test_the_simulator_and_the_table_agree_on_ranges(line: Line) -> None:
+def test_the_simulator_and_the_table_agree_on_ranges(line: Rig) -> None:
     """Each writable setting's range in PblDrive.table() is what the simulated drive takes."""
     pbl, _, device = line
     for number, _, _, access, low, high in bb.PblDrive.table():
@@ -261,7 +261,7 @@ def test_the_simulator_and_the_table_agree_on_ranges(line: Line) -> None:
     assert pbl.read_parameter("low_duty_threshold") == 0xFFFF
 
 
-def test_telemetry_is_a_dict_shown_as_a_table(line: Line) -> None:
+def test_telemetry_is_a_dict_shown_as_a_table(line: Rig) -> None:
     pbl, _, _ = line
     telemetry = pbl.telemetry()
     assert isinstance(telemetry, dict) and isinstance(telemetry, bb.PblTelemetry)

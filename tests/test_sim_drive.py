@@ -25,7 +25,7 @@ F00_00, F00_10, F08_03, F08_06 = 0x0000, 0x000A, 0x0803, 0x0806
 FORWARD, REVERSE, JOG_FORWARD, JOG_REVERSE, STOP, COAST, RESET, JOG_STOP, BRAKE = range(1, 10)
 
 
-class Line:
+class Rig:
     """One simulated drive at unit 1 and a raw client that sends it 0x03, 0x06 and 0x10."""
 
     def __init__(self, sim: Simulator[DriveDevice], client: Client, drive: DriveDevice) -> None:
@@ -73,7 +73,7 @@ class Line:
 
 
 @contextmanager
-def open_line(model: str = "BLD2", **options: Any) -> Iterator[Line]:
+def open_line(model: str = "BLD2", **options: Any) -> Iterator[Rig]:
     options.setdefault("clock", lambda: 0.0)  # time moves only by advance()
     # Block reads, to check many registers at once; the default refusal has its own test.
     options.setdefault("single_register_reads", False)
@@ -81,26 +81,26 @@ def open_line(model: str = "BLD2", **options: Any) -> Iterator[Line]:
     with Simulator(drive) as sim:
         client = Client(sim.port)
         try:
-            yield Line(sim, client, drive)
+            yield Rig(sim, client, drive)
             assert sim.errors == []
         finally:
             client.close()
 
 
 @pytest.fixture
-def bld() -> Iterator[Line]:
+def bld() -> Iterator[Rig]:
     with open_line("BLD2") as line:
         yield line
 
 
 @pytest.fixture
-def c20() -> Iterator[Line]:
+def c20() -> Iterator[Rig]:
     with open_line("C20") as line:
         yield line
 
 
 @pytest.fixture(params=DriveDevice.MODELS)
-def any_model(request: pytest.FixtureRequest) -> Iterator[Line]:
+def any_model(request: pytest.FixtureRequest) -> Iterator[Rig]:
     with open_line(request.param) as line:
         yield line
 
@@ -115,7 +115,7 @@ def manual(request: str, reply: str) -> tuple[bytes, bytes]:
     return pair
 
 
-def test_common_commands_table(any_model: Line) -> None:
+def test_common_commands_table(any_model: Rig) -> None:
     line, drive = any_model, any_model.drive
     client = line.client
 
@@ -157,7 +157,7 @@ def test_common_commands_table(any_model: Line) -> None:
     assert drive.params[F00_00] == 0
 
 
-def test_function_format_examples(bld: Line) -> None:
+def test_function_format_examples(bld: Rig) -> None:
     # The 0x06 and 0x03 format examples (0x2001 = 1, read back), and the 0x10 example
     # writing 0x2000 and 0x2001 together.
     bld.write(SETPOINT, 1)
@@ -170,7 +170,7 @@ def test_function_format_examples(bld: Line) -> None:
 # ---- exception codes ----------------------------------------------------------------------------
 
 
-def test_unknown_addresses_answer_2(bld: Line) -> None:
+def test_unknown_addresses_answer_2(bld: Rig) -> None:
     for address in (0x200C, 0x200D, 0x2013, 0x2104, 0x3015, 0x0032, 0x0003, 0x0807, 0xFFFF):
         assert bld.read_fails(address) == 0x02
         assert bld.write_fails(address, 0) == 0x02
@@ -179,13 +179,13 @@ def test_unknown_addresses_answer_2(bld: Line) -> None:
     assert bld.drive.peek(0x200B) == 0  # all or nothing
 
 
-def test_read_only_registers_answer_7(bld: Line) -> None:
+def test_read_only_registers_answer_7(bld: Rig) -> None:
     for address in (STATE, STATUS2, FAULT_CODE, MODEL_ID, 0x3000, 0x3006, 0x3014):
         assert bld.write_fails(address, 0) == 0x07
     assert bld.write_many_fails(0x2102, [0, 0]) == 0x07
 
 
-def test_out_of_range_values_answer_3(bld: Line) -> None:
+def test_out_of_range_values_answer_3(bld: Rig) -> None:
     bld.enable_parameter_writes()
     for address, value in [
         (COMMAND, 0),
@@ -216,7 +216,7 @@ def test_out_of_range_values_answer_3(bld: Line) -> None:
     assert bld.read(SETPOINT, 4) == [1000, 4, 30, 50]
 
 
-def test_parameter_writes_need_0x200e_and_answer_4(bld: Line) -> None:
+def test_parameter_writes_need_0x200e_and_answer_4(bld: Rig) -> None:
     drive = bld.drive
     assert bld.read(F00_10) == [5000]  # always readable
     assert bld.write_fails(F00_10, 2500) == 0x04
@@ -231,7 +231,7 @@ def test_parameter_writes_need_0x200e_and_answer_4(bld: Line) -> None:
     assert bld.read(0x2008, 2) == [9, 3]
 
 
-def test_not_while_running_answers_8(bld: Line) -> None:
+def test_not_while_running_answers_8(bld: Rig) -> None:
     drive = bld.drive
     bld.enable_parameter_writes()
     bld.write(SETPOINT, 1000)
@@ -264,7 +264,7 @@ def test_not_while_running_answers_8(bld: Line) -> None:
     bld.write(POLE_PAIRS, 4)  # stopped: fine
 
 
-def test_run_commands_in_fault_or_off_answer_1(bld: Line) -> None:
+def test_run_commands_in_fault_or_off_answer_1(bld: Rig) -> None:
     drive = bld.drive
     bld.write(SETPOINT, 1000)
     bld.write(COMMAND, FORWARD)
@@ -295,7 +295,7 @@ def test_run_commands_in_fault_or_off_answer_1(bld: Line) -> None:
 # ---- block reads ---------------------------------------------------------------------------------
 
 
-def test_block_reads(bld: Line) -> None:
+def test_block_reads(bld: Rig) -> None:
     assert bld.read(COMMAND, 12) == [0, 0, 2, 50, 50, 2, 2, 3, 1, 4, 0, 0]
     assert bld.read(WRITE_ENABLE, 5) == [0, 0, 0, 0, 0]
     assert bld.read(STATE, 4) == [3, 0x41, 0, 0x20]
@@ -318,7 +318,7 @@ def test_single_register_reads() -> None:
 # ---- the motor -----------------------------------------------------------------------------------
 
 
-def test_ramp_up_retarget_and_stop(bld: Line) -> None:
+def test_ramp_up_retarget_and_stop(bld: Rig) -> None:
     drive = bld.drive
     bld.write_many(SETPOINT, [3000, 2, 20, 40])  # accel 2.0 s, decel 4.0 s per 3000 rpm
     bld.write(COMMAND, FORWARD)
@@ -345,7 +345,7 @@ def test_ramp_up_retarget_and_stop(bld: Line) -> None:
     assert bld.read(0x3001, 6) == [0, 0, 0, 0, 2250, 0]
 
 
-def test_reversing_ramps_through_zero(bld: Line) -> None:
+def test_reversing_ramps_through_zero(bld: Rig) -> None:
     drive = bld.drive
     bld.write_many(SETPOINT, [3000, 2, 20, 40])
     bld.write(COMMAND, FORWARD)
@@ -362,7 +362,7 @@ def test_reversing_ramps_through_zero(bld: Line) -> None:
     assert drive.speed == -3000 and bld.read(STATE) == [2]
 
 
-def test_jog(bld: Line) -> None:
+def test_jog(bld: Rig) -> None:
     drive = bld.drive
     bld.write_many(ACCEL, [20, 40])
     bld.write(COMMAND, JOG_FORWARD)
@@ -390,7 +390,7 @@ def test_jog(bld: Line) -> None:
     assert drive.speed == 600 and drive.state == DriveDevice.FORWARD
 
 
-def test_coast_brake_and_stop_mode(bld: Line) -> None:
+def test_coast_brake_and_stop_mode(bld: Rig) -> None:
     drive = bld.drive
     bld.write_many(SETPOINT, [3000, 2, 20, 40])
     bld.write(COMMAND, FORWARD)
@@ -437,7 +437,7 @@ def test_model_ids() -> None:
         DriveDevice("BLD4")
 
 
-def test_c20_lacks_the_bld_extras(c20: Line, bld: Line) -> None:
+def test_c20_lacks_the_bld_extras(c20: Rig, bld: Rig) -> None:
     for line in (bld, c20):
         line.write(SETPOINT, 1000)
         line.write(COMMAND, FORWARD)
@@ -456,7 +456,7 @@ def test_c20_lacks_the_bld_extras(c20: Line, bld: Line) -> None:
     assert bld.read(0x2010, 3) == [0, 0, 0]
 
 
-def test_status_word_2(c20: Line, bld: Line) -> None:
+def test_status_word_2(c20: Rig, bld: Rig) -> None:
     # Bit 0 bus voltage, bit 4 overload (BLD 1 = overloaded, C20 0 = overloaded), bits 5-6
     # the command source, bit 7 keypad (BLD only).
     assert bld.read(STATUS2) == [0x41]
@@ -474,7 +474,7 @@ def test_status_word_2(c20: Line, bld: Line) -> None:
     assert bld.read(STATUS2) == [0x80 | 0x40]
 
 
-def test_model_ranges(c20: Line, bld: Line) -> None:
+def test_model_ranges(c20: Rig, bld: Rig) -> None:
     for address, value in ((0x2005, 5), (0x2007, 8), (0x2009, 7)):
         bld.write(address, value)
         assert c20.write_fails(address, value) == 0x03
@@ -487,7 +487,7 @@ def test_model_ranges(c20: Line, bld: Line) -> None:
 # ---- line behaviour from F08.06 and F08.03 ---------------------------------------------------
 
 
-def test_f08_06_writes_get_no_reply_but_are_applied(bld: Line) -> None:
+def test_f08_06_writes_get_no_reply_but_are_applied(bld: Rig) -> None:
     drive, client = bld.drive, bld.client
     bld.enable_parameter_writes()
     bld.write(F08_06, 1)  # this write's own reply still comes
@@ -510,7 +510,7 @@ def test_f08_06_writes_get_no_reply_but_are_applied(bld: Line) -> None:
     assert not drive.answers_writes
 
 
-def test_f08_03_reply_delay(bld: Line) -> None:
+def test_f08_03_reply_delay(bld: Rig) -> None:
     drive, client = bld.drive, bld.client
     assert drive.reply_delay == 0.005  # the default, 5 ms
     request = frame("01 03 21 00 00 01")
@@ -533,7 +533,7 @@ def test_f08_03_reply_delay(bld: Line) -> None:
     assert time.monotonic() - start < 0.15
 
 
-def test_restore_defaults(bld: Line) -> None:
+def test_restore_defaults(bld: Rig) -> None:
     drive = bld.drive
     bld.enable_parameter_writes()
     bld.write(F00_10, 2500)
@@ -565,7 +565,7 @@ def test_restore_defaults(bld: Line) -> None:
 # ---- telemetry -----------------------------------------------------------------------------------
 
 
-def test_telemetry_is_consistent(bld: Line) -> None:
+def test_telemetry_is_consistent(bld: Rig) -> None:
     drive = bld.drive
     bld.write_many(SETPOINT, [1234, 4, 1])
     bld.write_many(0x200A, [0x1A5, 0x0C])
@@ -606,7 +606,7 @@ def test_temperature_is_signed() -> None:
     assert drive.peek(0x300C) == 1199
 
 
-def test_hall_value_steps_through_six_states(bld: Line) -> None:
+def test_hall_value_steps_through_six_states(bld: Rig) -> None:
     drive = bld.drive
     bld.write(ACCEL, 1)
     bld.write(COMMAND, JOG_FORWARD)  # 300 rpm x 2 pole pairs x 6 = 60 hall edges a second
@@ -629,7 +629,7 @@ def test_hall_value_steps_through_six_states(bld: Line) -> None:
     assert backward[::-1][:6] in [seen[i : i + 6] for i in range(7)]
 
 
-def test_hall_count(bld: Line) -> None:
+def test_hall_count(bld: Rig) -> None:
     drive = bld.drive
     bld.write_many(SETPOINT, [3000, 2, 10])  # 0 -> 3000 rpm in 1.0 s
     bld.write(COMMAND, FORWARD)

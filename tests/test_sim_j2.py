@@ -40,7 +40,7 @@ def x10(value: float) -> int:
     return round(value * 10) & 0xFFFF
 
 
-class Line:
+class Rig:
     """One simulated J2 controller and a raw client that sends it 0x03, 0x06 and 0x10."""
 
     def __init__(self, sim: Simulator[J2Device], client: Client, j2: J2Device) -> None:
@@ -92,21 +92,21 @@ class Line:
 
 
 @contextmanager
-def open_line(unit: int = UNIT, baudrate: int = 9600, **options: Any) -> Iterator[Line]:
+def open_line(unit: int = UNIT, baudrate: int = 9600, **options: Any) -> Iterator[Rig]:
     options.setdefault("clock", lambda: 0.0)  # time moves only by advance()
     options.setdefault("write_interval", 0.0)
     j2 = J2Device(**options)
     with Simulator({unit: j2}, baudrate=baudrate) as sim:
         client = Client(sim.port)
         try:
-            yield Line(sim, client, j2)
+            yield Rig(sim, client, j2)
             assert sim.errors == []
         finally:
             client.close()
 
 
 @pytest.fixture
-def j2() -> Iterator[Line]:
+def j2() -> Iterator[Rig]:
     with open_line() as line:
         yield line
 
@@ -121,7 +121,7 @@ def manual(request: str, reply: str) -> tuple[bytes, bytes]:
 # ---- the manual's three examples, byte for byte -------------------------------------------------
 
 
-def test_manual_read_example(j2: Line) -> None:
+def test_manual_read_example(j2: Rig) -> None:
     # 0x03: SV = 100.0 (the default) reads 03 E8.
     sent, expected = manual("01 03 00 06 00 01 64 0B", "01 03 02 03 E8 B8 FA")
     assert j2.client.transact(sent, len(expected)) == expected
@@ -150,7 +150,7 @@ def test_manual_write_examples_at_the_manual_pace() -> None:
 # ---- values and ranges --------------------------------------------------------------------------
 
 
-def test_negative_values_round_trip(j2: Line) -> None:
+def test_negative_values_round_trip(j2: Rig) -> None:
     # AL1 = -50.0 is -500, FE 0C in two's complement.
     sent = bytes.fromhex("01 06 00 08 FE 0C") + frame("01 06 00 08 FE 0C")[-2:]
     assert j2.client.transact(sent, 8) == sent
@@ -214,7 +214,7 @@ def test_negative_values_round_trip(j2: Line) -> None:
         (FST, 0xFFFF, 50),  # unsigned: 65535, not -1
     ],
 )
-def test_out_of_range_answers_3(j2: Line, address: int, bad: int, good: int) -> None:
+def test_out_of_range_answers_3(j2: Rig, address: int, bad: int, good: int) -> None:
     before = j2.read(address)
     assert j2.write_fails(address, bad) == 3
     assert j2.write_many_fails(address, [bad]) == 3
@@ -223,7 +223,7 @@ def test_out_of_range_answers_3(j2: Line, address: int, bad: int, good: int) -> 
     assert j2.read(address) == [good]
 
 
-def test_lsp_and_usp_bound_each_other_and_the_setpoints(j2: Line) -> None:
+def test_lsp_and_usp_bound_each_other_and_the_setpoints(j2: Rig) -> None:
     assert j2.write_fails(LSP, x10(400.1)) == 3  # above USP = 400
     j2.write(LSP, x10(400.0))  # LSP = USP is allowed
     j2.write(SV, x10(400.0))
@@ -241,7 +241,7 @@ def test_lsp_and_usp_bound_each_other_and_the_setpoints(j2: Line) -> None:
 # ---- addresses and counts -----------------------------------------------------------------------
 
 
-def test_unimplemented_addresses_read_0(j2: Line) -> None:
+def test_unimplemented_addresses_read_0(j2: Rig) -> None:
     assert j2.read(0, 16) == [0, 0, 250, 0, 0, 0, 1000, 0, 0, 0, 0, 0, 0, 0, 400, 0]
     assert j2.read(16, 16) == [1200, 0, 0, 0, 0, 0, 4000, 0, 0, 0, 0, 0, 0, 0, 0, 0]
     assert j2.read(32, 16) == [0, 0, 1000, 0, 0, 0, 100, 0, 0, 0, 400, 0, 1200, 0, 0, 0]
@@ -256,7 +256,7 @@ def test_unimplemented_addresses_read_0(j2: Line) -> None:
     assert j2.read(0xFFFF) == [0]
 
 
-def test_the_16_register_limit(j2: Line) -> None:
+def test_the_16_register_limit(j2: Rig) -> None:
     assert len(j2.read(0, 16)) == 16
     assert j2.read_fails(0, 17) == 3
     assert j2.read_fails(0x80, 125) == 3
@@ -265,20 +265,20 @@ def test_the_16_register_limit(j2: Line) -> None:
     assert j2.read(SV) == [1000]
 
 
-def test_past_0xffff_answers_2(j2: Line) -> None:
+def test_past_0xffff_answers_2(j2: Rig) -> None:
     assert j2.read_fails(0xFFFF, 2) == 2
     assert j2.read_fails(0xFFF1, 16) == 2
     assert j2.write_many_fails(0xFFFF, [0, 0]) == 2
 
 
-def test_writes_to_no_parameter_answer_2(j2: Line) -> None:
+def test_writes_to_no_parameter_answer_2(j2: Rig) -> None:
     for address in (PV, *NC, 7, 63, 64, 127, 158, 0x1000, 0xFFFF):
         assert j2.write_fails(address, 0) == 2, address
         assert j2.write_many_fails(address, [0]) == 2, address
     assert j2.read(0, 16) == [0, 0, 250, 0, 0, 0, 1000, 0, 0, 0, 0, 0, 0, 0, 400, 0]
 
 
-def test_a_write_of_several_registers_meets_an_odd_address(j2: Line) -> None:
+def test_a_write_of_several_registers_meets_an_odd_address(j2: Rig) -> None:
     # Parameters sit at even addresses only: a block of two covers an address with none.
     assert j2.write_many_fails(SV, [x10(50.0), 0]) == 2
     assert j2.write_many_fails(PROP, [x10(10.0), 0, x10(60.0)]) == 2
@@ -292,7 +292,7 @@ def test_a_write_of_several_registers_meets_an_odd_address(j2: Line) -> None:
 # ---- the manual's rules: answered with exception 4 ----------------------------------------------
 
 
-def test_mv_is_written_in_manual_mode_only(j2: Line) -> None:
+def test_mv_is_written_in_manual_mode_only(j2: Rig) -> None:
     device = j2.j2
     device.advance(30.0)
     auto_mv = j2.read(MV)[0]
@@ -317,7 +317,7 @@ def test_mv_is_written_in_manual_mode_only(j2: Line) -> None:
     assert abs(device.pv - 100.0) < 0.2
 
 
-def test_switching_near_the_setpoint_is_bumpless(j2: Line) -> None:
+def test_switching_near_the_setpoint_is_bumpless(j2: Rig) -> None:
     device = j2.j2
     device.advance(2000.0)
     settled = device.mv
@@ -335,7 +335,7 @@ def test_switching_near_the_setpoint_is_bumpless(j2: Line) -> None:
     assert abs(device.pv - 100.0) < 0.2
 
 
-def test_ramp_parameters_are_locked_while_a_ramp_runs(j2: Line) -> None:
+def test_ramp_parameters_are_locked_while_a_ramp_runs(j2: Rig) -> None:
     j2.write(RAP, x10(10.0))
     j2.write(RTM, x10(5.0))
     j2.write(RAPNF, 1)
@@ -351,7 +351,7 @@ def test_ramp_parameters_are_locked_while_a_ramp_runs(j2: Line) -> None:
     assert j2.read(RAP, 3) == [200, 0, 60]
 
 
-def test_autotune_in_manual_mode_takes_the_output_and_gives_it_back(j2: Line) -> None:
+def test_autotune_in_manual_mode_takes_the_output_and_gives_it_back(j2: Rig) -> None:
     device = j2.j2
     j2.write(AT, 0)  # stopping a tune that does not run is harmless
     j2.write(AM, 0)
@@ -472,7 +472,7 @@ def test_the_clock_times_speedup_is_process_time() -> None:
     assert fast.temperature == slow.temperature
 
 
-def test_a_setpoint_change_is_followed(j2: Line) -> None:
+def test_a_setpoint_change_is_followed(j2: Rig) -> None:
     device = j2.j2
     device.advance(1000.0)
     assert abs(device.pv - 100.0) < 0.2
@@ -484,7 +484,7 @@ def test_a_setpoint_change_is_followed(j2: Line) -> None:
     assert abs(device.mv - 25.0 / 400.0 * 100.0) < 0.2
 
 
-def test_output_limits(j2: Line) -> None:
+def test_output_limits(j2: Rig) -> None:
     device = j2.j2
     j2.write(OUH, x10(10.0))  # 10 % holds 25 + 40 = 65 degrees at most
     for _ in range(10):
@@ -500,7 +500,7 @@ def test_output_limits(j2: Line) -> None:
     assert j2.read(MV) == [300] and abs(device.pv - 145.0) < 0.2
 
 
-def test_pvos_offsets_the_pv(j2: Line) -> None:
+def test_pvos_offsets_the_pv(j2: Rig) -> None:
     device = j2.j2
     device.hold_temperature(80.0)
     assert j2.read(PV) == [800]
@@ -516,7 +516,7 @@ def test_pvos_offsets_the_pv(j2: Line) -> None:
     assert abs(device.pv - 100.0) < 0.2 and abs(device.temperature - 95.0) < 0.2
 
 
-def test_pv_register_limits(j2: Line) -> None:
+def test_pv_register_limits(j2: Rig) -> None:
     device = j2.j2
     device.hold_temperature(5000.0)
     assert j2.read(PV) == [0x7FFF] and device.pv == 3276.7
@@ -528,7 +528,7 @@ def test_pv_register_limits(j2: Line) -> None:
     assert device.temperature == -12.34  # held
 
 
-def test_holding_a_temperature_does_not_kick_the_derivative(j2: Line) -> None:
+def test_holding_a_temperature_does_not_kick_the_derivative(j2: Rig) -> None:
     device = j2.j2
     j2.write(DERIV, x10(30.0))
     device.hold_temperature(60.0)  # a jump of 35 degrees, at once
@@ -539,7 +539,7 @@ def test_holding_a_temperature_does_not_kick_the_derivative(j2: Line) -> None:
     assert abs(device.mv - 25.0) < 0.5  # 10 degrees below: a quarter of the band
 
 
-def test_a_held_temperature_does_not_wind_the_integral_up(j2: Line) -> None:
+def test_a_held_temperature_does_not_wind_the_integral_up(j2: Rig) -> None:
     device = j2.j2
     device.hold_temperature(90.0)  # below SV for an hour: the output saturates
     device.advance(3600.0)
@@ -555,7 +555,7 @@ def test_a_held_temperature_does_not_wind_the_integral_up(j2: Line) -> None:
 # ---- the ramp -----------------------------------------------------------------------------------
 
 
-def test_ramp_from_pv_to_sv(j2: Line) -> None:
+def test_ramp_from_pv_to_sv(j2: Rig) -> None:
     device = j2.j2
     j2.write(RAP, x10(10.0))  # degrees per minute
     assert device.setpoint == 100.0 and j2.read(RAPNF) == [0]
@@ -579,7 +579,7 @@ def test_ramp_from_pv_to_sv(j2: Line) -> None:
     assert device.setpoint == 140.0 and j2.read(RAPNF) == [0]
 
 
-def test_ending_a_ramp_and_a_rate_of_zero(j2: Line) -> None:
+def test_ending_a_ramp_and_a_rate_of_zero(j2: Rig) -> None:
     device = j2.j2
     j2.write(RAP, x10(1.0))
     j2.write(RAPNF, 1)
@@ -603,7 +603,7 @@ def test_ending_a_ramp_and_a_rate_of_zero(j2: Line) -> None:
 # ---- autotune -----------------------------------------------------------------------------------
 
 
-def test_autotune_runs_a_minute_then_sets_pid(j2: Line) -> None:
+def test_autotune_runs_a_minute_then_sets_pid(j2: Rig) -> None:
     device = j2.j2
     assert j2.read(PROP, 5) == [400, 0, 1200, 0, 0]
     j2.write(AT, 1)
@@ -624,7 +624,7 @@ def test_autotune_runs_a_minute_then_sets_pid(j2: Line) -> None:
     assert abs(device.pv - 100.0) < 0.2
 
 
-def test_autotune_is_aborted_by_at_0(j2: Line) -> None:
+def test_autotune_is_aborted_by_at_0(j2: Rig) -> None:
     device = j2.j2
     j2.write(AT, 1)
     device.advance(30.0)

@@ -28,7 +28,7 @@ ACCEL, DECEL, RESTORE, ADDRESS = 209, 210, 214, 215
 START, REVERSE = 0x1, 0x2
 
 
-class Line:
+class Rig:
     """One simulated PBL drive and a raw client that sends it 0x03, 0x06 and 0x10."""
 
     def __init__(self, sim: Simulator[PblDevice], client: Client, drive: PblDevice) -> None:
@@ -83,20 +83,20 @@ class Line:
 
 
 @contextmanager
-def open_line(**options: Any) -> Iterator[Line]:
+def open_line(**options: Any) -> Iterator[Rig]:
     options.setdefault("clock", lambda: 0.0)  # time moves only by advance()
     drive = PblDevice(**options)
     with Simulator({UNIT: drive}, baudrate=115200) as sim:
         client = Client(sim.port)
         try:
-            yield Line(sim, client, drive)
+            yield Rig(sim, client, drive)
             assert sim.errors == []
         finally:
             client.close()
 
 
 @pytest.fixture
-def pbl() -> Iterator[Line]:
+def pbl() -> Iterator[Rig]:
     with open_line() as line:
         yield line
 
@@ -111,7 +111,7 @@ def manual(request: str, reply: str) -> tuple[bytes, bytes]:
 # ---- the manual's three examples, byte for byte -------------------------------------------------
 
 
-def test_manual_read_example(pbl: Line) -> None:
+def test_manual_read_example(pbl: Rig) -> None:
     # 0x03: parameters 006B..006D of unit 11H read 0x006B, 0x0013, 0x0000.
     pbl.drive.set_param(107, 0x6B)
     pbl.drive.set_param(108, 0x13)
@@ -120,7 +120,7 @@ def test_manual_read_example(pbl: Line) -> None:
     assert pbl.client.transact(sent, len(expected)) == expected
 
 
-def test_manual_write_single_example(pbl: Line) -> None:
+def test_manual_write_single_example(pbl: Rig) -> None:
     # 0x06: parameter 0001H = 0003H. The request is printed with the value 00 01 but the
     # CRC of 00 03 (the value the text names); as printed, its CRC is wrong: no reply.
     printed = bytes.fromhex("11 06 00 01 00 01 9A 9B")
@@ -143,7 +143,7 @@ def test_echo_writes_gives_the_standard_echo() -> None:
         assert line.client.transact(sent, 8) == bytes.fromhex("11 06 00 01 00 01 1B 5A")
 
 
-def test_manual_write_multiple_example(pbl: Line) -> None:
+def test_manual_write_multiple_example(pbl: Rig) -> None:
     # 0x10: 0001H = 000AH and 0002H = 0102H. Parameter 2 is the motor status: the write is
     # answered, and the status stays what the motor says.
     sent, expected = manual("11 10 00 01 00 02 04 00 0A 01 02 C6 F0", "11 10 00 01 00 02 12 98")
@@ -154,7 +154,7 @@ def test_manual_write_multiple_example(pbl: Line) -> None:
 # ---- exceptions ---------------------------------------------------------------------------------
 
 
-def test_past_222_answers_2(pbl: Line) -> None:
+def test_past_222_answers_2(pbl: Rig) -> None:
     assert pbl.read(222) == [100]
     assert len(pbl.read(162, 61)) == 61  # up to 222, in the most one read may ask for
     for address in (223, 224, 0x1000, 0xFFFF):
@@ -196,7 +196,7 @@ def test_past_222_answers_2(pbl: Line) -> None:
         (222, 3300, 3299),
     ],
 )
-def test_out_of_range_answers_3(pbl: Line, address: int, bad: int, good: int) -> None:
+def test_out_of_range_answers_3(pbl: Rig, address: int, bad: int, good: int) -> None:
     before = pbl.drive.params[address]
     assert pbl.write_fails(address, bad) == 0x03
     assert pbl.drive.params[address] == before
@@ -204,14 +204,14 @@ def test_out_of_range_answers_3(pbl: Line, address: int, bad: int, good: int) ->
     assert pbl.read(address) == [good]
 
 
-def test_wide_settings_take_any_value(pbl: Line) -> None:
+def test_wide_settings_take_any_value(pbl: Rig) -> None:
     for address in (102, 122, MAX_SPEED, 171, INTERNAL_SPEED, ACCEL, RESTORE, 218):
         pbl.write(address, 0xFFFF)
         pbl.write(address, 0)
     pbl.write_many(CONTROL, [0xFFFF, 0xFFFF])  # the control word too
 
 
-def test_a_write_of_several_is_all_or_nothing(pbl: Line) -> None:
+def test_a_write_of_several_is_all_or_nothing(pbl: Rig) -> None:
     assert pbl.write_many_fails(INTERNAL_SPEED, [1500, 0, 0, 5]) == 0x03  # 204 = 5
     assert pbl.read(INTERNAL_SPEED, 4) == [0, 0, 0, 2]
     pbl.write_many(INTERNAL_SPEED, [1500, 1, 1, 2])
@@ -221,7 +221,7 @@ def test_a_write_of_several_is_all_or_nothing(pbl: Line) -> None:
     assert pbl.read(CONTROL) == [0] and not pbl.drive.running
 
 
-def test_status_writes_are_answered_and_ignored(pbl: Line) -> None:
+def test_status_writes_are_answered_and_ignored(pbl: Rig) -> None:
     pbl.write(POLE_PAIRS, 4)
     pbl.write(INTERNAL_SPEED, 1000)
     pbl.write(CONTROL, START)
@@ -238,7 +238,7 @@ def test_status_writes_are_answered_and_ignored(pbl: Line) -> None:
 # ---- the motor ----------------------------------------------------------------------------------
 
 
-def test_ramp_retarget_and_stop(pbl: Line) -> None:
+def test_ramp_retarget_and_stop(pbl: Rig) -> None:
     drive = pbl.drive
     pbl.write(INTERNAL_SPEED, 3000)
     assert not drive.running and pbl.read(STATUS) == [0]
@@ -266,7 +266,7 @@ def test_ramp_retarget_and_stop(pbl: Line) -> None:
     assert drive.speed == 0 and not drive.running and pbl.read(STATUS) == [0]
 
 
-def test_max_speed_caps_the_target(pbl: Line) -> None:
+def test_max_speed_caps_the_target(pbl: Rig) -> None:
     pbl.write(MAX_SPEED, 1200)
     pbl.write_many(INTERNAL_SPEED, [5000])
     pbl.write(CONTROL, START)
@@ -277,7 +277,7 @@ def test_max_speed_caps_the_target(pbl: Line) -> None:
     assert pbl.drive.speed == 3000
 
 
-def test_brake_deceleration_is_four_times_faster(pbl: Line) -> None:
+def test_brake_deceleration_is_four_times_faster(pbl: Rig) -> None:
     drive = pbl.drive
     pbl.write(INTERNAL_SPEED, 2000)
     pbl.write(CONTROL, START)
@@ -296,7 +296,7 @@ def test_brake_deceleration_is_four_times_faster(pbl: Line) -> None:
     assert drive.speed == 1500
 
 
-def test_direction_and_its_inversion(pbl: Line) -> None:
+def test_direction_and_its_inversion(pbl: Rig) -> None:
     drive = pbl.drive
     pbl.write(INTERNAL_SPEED, 1000)
     pbl.write(CONTROL, START | REVERSE)
@@ -321,7 +321,7 @@ def test_direction_and_its_inversion(pbl: Line) -> None:
     assert drive.speed == 0 and pbl.read(STATUS) == [0b00]
 
 
-def test_only_communication_control_starts_the_motor(pbl: Line) -> None:
+def test_only_communication_control_starts_the_motor(pbl: Rig) -> None:
     drive = pbl.drive
     pbl.write(INTERNAL_SPEED, 1000)
     for source in (0, 1):  # keys, external IO
@@ -341,7 +341,7 @@ def test_only_communication_control_starts_the_motor(pbl: Line) -> None:
     assert drive.speed == 0 and not drive.running
 
 
-def test_alarms_stop_the_motor(pbl: Line) -> None:
+def test_alarms_stop_the_motor(pbl: Rig) -> None:
     drive = pbl.drive
     pbl.write(INTERNAL_SPEED, 1500)
     pbl.write(CONTROL, START)
@@ -366,7 +366,7 @@ def test_alarms_stop_the_motor(pbl: Line) -> None:
 # ---- power and defaults -------------------------------------------------------------------------
 
 
-def test_defaults(pbl: Line) -> None:
+def test_defaults(pbl: Rig) -> None:
     drive = pbl.drive
     assert pbl.read(ACCEL, 4) == [1000, 1000, 3000, 100]
     assert pbl.read(INTERNAL_SPEED, 5) == [0, 0, 0, 2, 2]
@@ -376,7 +376,7 @@ def test_defaults(pbl: Line) -> None:
     assert sorted(drive.params) == list(range(100, 223))
 
 
-def test_restore_defaults_at_the_next_power_up(pbl: Line) -> None:
+def test_restore_defaults_at_the_next_power_up(pbl: Rig) -> None:
     drive = pbl.drive
     pbl.write_many(INTERNAL_SPEED, [1500, 1, 1])
     pbl.write(ACCEL, 200)
@@ -448,7 +448,7 @@ def test_answers_broadcast_false_acts_silently() -> None:
 # ---- measurements -------------------------------------------------------------------------------
 
 
-def test_measurements_follow_the_motor(pbl: Line) -> None:
+def test_measurements_follow_the_motor(pbl: Rig) -> None:
     drive = pbl.drive
     idle = pbl.read(STATUS, 98)
 
@@ -492,7 +492,7 @@ def test_measurements_follow_the_motor(pbl: Line) -> None:
     assert pbl.read(BUS_VOLTAGE) == [36] and pbl.read(51) == [36]
 
 
-def test_hall_state_and_position(pbl: Line) -> None:
+def test_hall_state_and_position(pbl: Rig) -> None:
     drive = pbl.drive
     pbl.write_many(ACCEL, [0, 0])  # no ramps: the speed changes at once
     pbl.write(INTERNAL_SPEED, 300)  # 300 rpm x 2 pole pairs x 6 = 60 hall steps a second
