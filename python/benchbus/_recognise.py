@@ -66,17 +66,22 @@ _DRIVE_STATES = {s.value for s in DriveState}
 
 
 def drive_model(probe: Probe) -> str | None:
-    """``Drive BLD2`` (the model) if 0x2100 holds a drive state (1..6) and 0x2103 a model
-    code, else None. A code both drive families use (0x20: BLD2 or C20) is told apart by
-    the BLD-only 0x2012: a drive that answers it is a BLD."""
-    state = probe.read(0x2100)
+    """``Drive BLD2`` (the model) if the drive's ``state`` register (0x2100) holds a drive
+    state (1..6) and ``model_id`` (0x2103) a model code, else None. A code both drive
+    families use (0x20: BLD2 or C20) is told apart by the BLD-only ``stop_mode`` (0x2012): a
+    drive that answers it is a BLD. The addresses come from the drive's register table."""
+    try:
+        address = {row[0]: row[1] for row in Drive(probe.bus, probe.unit).registers()}
+    except ValueError:  # a unit no drive can have (above 247)
+        return None
+    state = probe.read(address["state"])
     if not isinstance(state, list) or not state or state[0] not in _DRIVE_STATES:
         return None
-    code = probe.read(0x2103)
+    code = probe.read(address["model_id"])
     if not isinstance(code, list) or not code:
         return None
     bld, c20 = (DriveCore.model_from_id(f, code[0]) for f in ("BLD", "C20"))
-    name = bld if bld == c20 or probe.answers(0x2012) else c20
+    name = bld if bld == c20 or probe.answers(address["stop_mode"]) else c20
     return None if name is None else f"Drive {Model(name)}"
 
 
