@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 from test_cli import one_line_error, run
-from test_ports import _ftdi
+from test_ports import _board_uart, _ftdi
 
 import benchbus as bb
 from benchbus.sim import RegisterDevice, Simulator
@@ -167,12 +167,7 @@ def test_an_ftdi_at_1_ms_is_ok(tmp_path: Path, pty: str) -> None:
 
 def test_a_board_uart_is_no_usb_adapter_and_has_no_latency_timer(tmp_path: Path, pty: str) -> None:
     root = tmp_path / "sys"
-    uart = root / "devices/platform/fe201000.serial"
-    uart.mkdir(parents=True)
-    (root / "bus/amba/drivers/uart-pl011").mkdir(parents=True)
-    (uart / "driver").symlink_to(root / "bus/amba/drivers/uart-pl011")
-    (root / "class/tty/ttyAMA0").mkdir(parents=True)
-    (root / "class/tty/ttyAMA0/device").symlink_to(uart)
+    _board_uart(root)
     port = tmp_path / "ttyAMA0"
     port.symlink_to(pty)
     found = by_name(bb.doctor(port, sysfs_root=root))

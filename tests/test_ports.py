@@ -41,17 +41,22 @@ def _ftdi(root: Path) -> None:
     )
 
 
-@pytest.fixture
-def sysfs(tmp_path: Path) -> Path:
-    root = tmp_path / "sys"
-    _ftdi(root)
-    _usb(root, "ttyUSB1", "1-2", ("1a86", "7523"), "ch341-uart", product="USB Serial")
+def _board_uart(root: Path) -> None:
+    """A board's own UART (a PL011, as on a Raspberry Pi) holding ``ttyAMA0``."""
     uart = root / "devices/platform/fe201000.serial"
     uart.mkdir(parents=True)
     (root / "bus/amba/drivers/uart-pl011").mkdir(parents=True)
     (uart / "driver").symlink_to(root / "bus/amba/drivers/uart-pl011")
     (root / "class/tty/ttyAMA0").mkdir(parents=True)
     (root / "class/tty/ttyAMA0/device").symlink_to(uart)
+
+
+@pytest.fixture
+def sysfs(tmp_path: Path) -> Path:
+    root = tmp_path / "sys"
+    _ftdi(root)
+    _usb(root, "ttyUSB1", "1-2", ("1a86", "7523"), "ch341-uart", product="USB Serial")
+    _board_uart(root)
     (root / "class/tty/tty0").mkdir()  # a virtual console: not a serial port
     return root
 
