@@ -7,6 +7,8 @@ from typing import Any
 
 from typing_extensions import Self, disjoint_base, final
 
+from benchbus._pbl import PblStatus
+
 __all__ = [
     "Bus",
     "DriveCore",
@@ -524,10 +526,11 @@ class PblCore:
     @staticmethod
     def table() -> list[tuple[int, str, str, str, float, float]]:
         """``(number, name, unit, access, low, high)`` of each parameter; access "R" or "W/R"."""
-    # The subclass turns these into a Direction, a PblStatus and a warning.
+    # The subclass turns these into a Direction and a warning.
     def _set_reverse(self, reverse: bool) -> None: ...
     def _control(self) -> tuple[bool, bool]: ...
-    def _status(self) -> tuple[bool, bool]: ...
+    def status(self) -> PblStatus:
+        """The status word: running, and the direction the motor turns."""
     def _restore_defaults(self) -> None: ...
 
 @disjoint_base

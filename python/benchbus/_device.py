@@ -321,6 +321,30 @@ class BusDevice(metaclass=_DeviceType):
             retries=retries,
         )
 
+    @classmethod
+    def _on_line(
+        cls,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        *args: Any,
+        timeout: float | None,
+        retries: int | None,
+        line: LineDefaults | None = None,
+    ) -> Self:
+        """A device of this class made by its compiled base from ``(bus, *args, timeout,
+        retries)`` on a shared Bus, or on a Bus opened at ``line`` (the class's
+        ``LINE_DEFAULTS`` by default; see :func:`on_line`): what the ``__new__`` of a class
+        whose base is compiled calls."""
+        base: Any = next(k for k in cls.__mro__ if k.__module__ == "benchbus._core")
+        device, owns_bus = on_line(
+            port_or_bus,
+            lambda bus, t, r: base.__new__(cls, bus, *args, t, r),
+            line=cls.LINE_DEFAULTS if line is None else line,
+            timeout=timeout,
+            retries=retries,
+        )
+        device._owns_bus = owns_bus
+        return device  # type: ignore[no-any-return]
+
     @property
     def bus(self) -> Bus:
         """The Bus the device talks through."""

@@ -24,7 +24,6 @@ from benchbus._device import (
     RegisterProperty,
     as_enum,
     check_baudrate,
-    on_line,
     to_enum,
     to_float,
     to_int,
@@ -185,15 +184,8 @@ class J2Controller(J2Core, BusDevice):
     ) -> Self:
         """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
         check_baudrate(baudrate, (9600, 19200))
-        controller, owns_bus = on_line(
-            port_or_bus,
-            lambda bus, t, r: super(J2Controller, cls).__new__(cls, bus, unit, t, r),
-            line=cls.LINE_DEFAULTS._replace(baudrate=baudrate),
-            timeout=timeout,
-            retries=retries,
-        )
-        controller._owns_bus = owns_bus
-        return controller
+        line = cls.LINE_DEFAULTS._replace(baudrate=baudrate)
+        return cls._on_line(port_or_bus, unit, timeout=timeout, retries=retries, line=line)
 
     def __init__(
         self,

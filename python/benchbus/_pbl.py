@@ -20,7 +20,6 @@ from benchbus._device import (
     MotorDevice,
     PrintableIntEnum,
     RegisterProperty,
-    on_line,
     to_enum,
     to_int,
 )
@@ -164,15 +163,7 @@ class PblDrive(PblCore, MotorDevice):
         retries: int | None = None,
     ) -> Self:
         """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
-        drive, owns_bus = on_line(
-            port_or_bus,
-            lambda bus, t, r: super(PblDrive, cls).__new__(cls, bus, unit, t, r),
-            line=cls.LINE_DEFAULTS,
-            timeout=timeout,
-            retries=retries,
-        )
-        drive._owns_bus = owns_bus
-        return drive
+        return cls._on_line(port_or_bus, unit, timeout=timeout, retries=retries)
 
     def __init__(
         self,
@@ -198,11 +189,6 @@ class PblDrive(PblCore, MotorDevice):
         if direction not in (Direction.FORWARD, Direction.REVERSE):
             raise ValueError(f"direction must be Direction.FORWARD or REVERSE, got {direction!r}")
         self._set_reverse(direction == Direction.REVERSE)
-
-    def status(self) -> PblStatus:
-        """The status word: running, and the direction the motor turns."""
-        running, reverse = self._status()
-        return PblStatus(running, Direction(int(reverse)))
 
     def telemetry(self) -> PblTelemetry:
         """Parameters 0..99 (status and measurements) by name, in two requests: a dict,

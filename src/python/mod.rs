@@ -105,6 +105,22 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
     build().unwrap_or_else(|e| e)
 }
 
+/// An instance of the public Python type `module.name` (a dataclass, an enum) made from
+/// `args` and `kwargs`: how a binding returns a result typed as users see it, without a
+/// Python method in between. The module is imported on first use (it is already loaded
+/// whenever a device exists).
+fn public<'py>(
+    py: Python<'py>,
+    module: &str,
+    name: &str,
+    args: impl pyo3::call::PyCallArgs<'py>,
+    kwargs: Option<&Bound<'py, PyDict>>,
+) -> PyResult<Bound<'py, PyAny>> {
+    PyModule::import(py, module)?
+        .getattr(name)?
+        .call(args, kwargs)
+}
+
 /// Runs `f` on a device core with the GIL released; its error as the Python exception.
 fn on_wire<D: Send + Sync, T: Send>(
     py: Python<'_>,

@@ -1,7 +1,10 @@
 //! Bindings of [`crate::device::pbl`]: the compiled base class of `benchbus.PblDrive`, which
 //! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
-use super::{int_in, number, to_pyerr, Attached, PyBus};
+use super::{int_in, number, public, to_pyerr, Attached, PyBus};
+
+/// The Python module of the family's public types.
+const PY: &str = "benchbus._pbl";
 use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS, SAMPLE};
 use crate::device::Access;
 use pyo3::exceptions::PyTypeError;
@@ -172,9 +175,11 @@ impl PyPblCore {
         self.wire(py, |p| p.control())
     }
 
-    /// The status word as `(running, reverse)`.
-    fn _status(&self, py: Python<'_>) -> PyResult<(bool, bool)> {
-        self.wire(py, |p| p.status())
+    /// The status word: running, and the direction the motor turns.
+    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let (running, reverse) = self.wire(py, |p| p.status())?;
+        let direction = public(py, PY, "Direction", (u8::from(reverse),), None)?;
+        public(py, PY, "PblStatus", (running, direction), None)
     }
 
     /// Whether the motor is moving (status word bit 0).
