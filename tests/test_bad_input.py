@@ -15,11 +15,13 @@ what Python raises for that). The rest are written out below, and
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import inspect
 import math
 import re
 from collections.abc import Iterator, Mapping
+from pathlib import Path
 from typing import Any
 
 import pytest
@@ -559,6 +561,24 @@ EXPLICIT: list[Case] = [
 # ---- the cases made from the classes -----------------------------------------------------------
 
 
+def _compiled_setters() -> set[tuple[str, str]]:
+    """``(class, property)`` of each compiled property that takes a value, as the stubs of
+    the compiled module declare them (a compiled descriptor does not say it has a setter)."""
+    stubs = ast.parse((Path(bb.__file__).parent / "_core.pyi").read_text(encoding="utf-8"))
+    return {
+        (klass.name, item.name)
+        for klass in stubs.body
+        if isinstance(klass, ast.ClassDef)
+        for item in klass.body
+        if isinstance(item, ast.FunctionDef)
+        for decorator in item.decorator_list
+        if isinstance(decorator, ast.Attribute) and decorator.attr == "setter"
+    }
+
+
+COMPILED_SETTERS = _compiled_setters()
+
+
 def kind(cls: type, name: str) -> str:
     """What the public attribute ``name`` of ``cls`` is, for the cases made from it."""
     attr = inspect.getattr_static(cls, name)
@@ -568,8 +588,8 @@ def kind(cls: type, name: str) -> str:
         return "read-only"
     if isinstance(attr, property):
         return "read-only" if attr.fset is None else "setter"
-    if type(attr).__name__ == "getset_descriptor":  # a compiled getter
-        return "read-only"
+    if type(attr).__name__ == "getset_descriptor":  # a compiled property
+        return "setter" if (attr.__objclass__.__name__, name) in COMPILED_SETTERS else "read-only"
     if callable(attr) or isinstance(attr, staticmethod):
         parameters = inspect.signature(getattr(cls, name)).parameters
         return "method" if [p for p in parameters if p != "self"] else "no-arguments"

@@ -93,6 +93,24 @@ def test_the_j2_controller_is_its_compiled_class_with_the_groups_from_the_table(
         assert name not in vars(bb.J2Controller), name
     for name in ("sample", "set_output", "start_ramp", "stop_ramp"):
         assert name not in vars(bb.J2Controller), name
+    # The groups' results come typed from the compiled class itself.
+    for name in ("status", "pid", "pid2", "limits"):
+        assert name not in vars(bb.J2Controller), name
+        assert name in vars(J2Core), name
     assert bb.J2Controller.SAMPLE_FIELDS == ("pv", "sv", "mv")
-    assert J2Core._pid_names(False) == ["P", "I", "D"]
-    assert J2Core._pid_names(True) == ["P1", "I1", "D1"]
+
+
+def test_the_tables_rows_are_named_tuples_that_still_unpack() -> None:
+    pbl = bb.PblDrive.table()
+    assert all(isinstance(row, bb.PblParameter) for row in pbl)
+    number, name, unit, access, low, high = pbl[50]
+    assert (
+        (pbl[50].number, pbl[50].name, pbl[50].unit) == (number, name, unit) == (50, "speed", "rpm")
+    )
+    assert (pbl[50].access, pbl[50].low, pbl[50].high) == (access, low, high)
+    j2 = {row.name: row for row in bb.J2Controller.table()}
+    assert all(isinstance(row, bb.J2Parameter) for row in j2.values())
+    sv = j2["SV"]
+    assert sv.within_limits and sv.signed and sv.writable
+    assert sv == (sv.name, sv.address, sv.signed, sv.writable, sv.low, sv.high, True)
+    assert not j2["PV"].writable

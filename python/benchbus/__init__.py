@@ -39,7 +39,7 @@ from benchbus._drive import (
 )
 from benchbus._gateway import Gateway, GatewayStats
 from benchbus._instrument import Identification, Instrument
-from benchbus._j2 import InputType, J2Controller, J2Mode, J2Status, Limits, Pid
+from benchbus._j2 import InputType, J2Controller, J2Mode, J2Parameter, J2Status, Limits, Pid
 from benchbus._keepalive import KeepAlive
 from benchbus._pbl import (
     DecelMode,
@@ -47,6 +47,7 @@ from benchbus._pbl import (
     DirectionSetting,
     PblControlMode,
     PblDrive,
+    PblParameter,
     PblStatus,
     PblTelemetry,
     StartStopSource,
@@ -89,6 +90,7 @@ __all__ = [
     "Instrument",
     "J2Controller",
     "J2Mode",
+    "J2Parameter",
     "J2Status",
     "KeepAlive",
     "Limits",
@@ -96,6 +98,7 @@ __all__ = [
     "Model",
     "PblControlMode",
     "PblDrive",
+    "PblParameter",
     "PblStatus",
     "PblTelemetry",
     "Pid",

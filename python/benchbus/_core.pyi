@@ -7,7 +7,8 @@ from typing import Any
 
 from typing_extensions import Self, disjoint_base, final
 
-from benchbus._pbl import PblStatus
+from benchbus._j2 import J2Parameter, J2Status, Limits, Pid
+from benchbus._pbl import Direction, PblParameter, PblStatus, PblTelemetry
 
 __all__ = [
     "Bus",
@@ -503,8 +504,9 @@ class PblCore:
         """Reads ``count`` parameters from ``start`` (in as few requests as allowed)."""
     def parameters(self) -> dict[str, int]:
         """Every documented parameter, ``{name: value}``, in four requests (61 a reply)."""
-    def telemetry(self) -> dict[str, int]:
-        """Parameters 0..99 but the reserved ones, ``{name: value}``, in two requests."""
+    def telemetry(self) -> PblTelemetry:
+        """Parameters 0..99 (status and measurements) by name, in two requests: a dict, shown
+        as a table in notebooks."""
     def sample(self) -> dict[str, float]:
         """Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
         parameters 50..54, in one request."""
@@ -524,11 +526,16 @@ class PblCore:
     def units(self) -> dict[str, str]:
         """The unit of each parameter by name, from :meth:`table` (``""`` for none)."""
     @staticmethod
-    def table() -> list[tuple[int, str, str, str, float, float]]:
-        """``(number, name, unit, access, low, high)`` of each parameter; access "R" or "W/R"."""
-    # The subclass turns these into a Direction and a warning.
-    def _set_reverse(self, reverse: bool) -> None: ...
-    def _control(self) -> tuple[bool, bool]: ...
+    def table() -> list[PblParameter]:
+        """The parameter table: a :class:`~benchbus.PblParameter` (number, name, unit, access,
+        low, high) for each parameter; access "R" or "W/R"."""
+    @property
+    def direction(self) -> Direction:
+        """The direction asked for: bit 1 of the control word (see :meth:`status` for the
+        direction the motor turns). Setting it keeps the control word's other bits."""
+    @direction.setter
+    def direction(self, direction: Direction) -> None: ...
+    # The subclass adds the warning.
     def status(self) -> PblStatus:
         """The status word: running, and the direction the motor turns."""
     def _restore_defaults(self) -> None: ...
@@ -585,19 +592,30 @@ class J2Core:
     def sample(self) -> dict[str, float]:
         """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""
     @staticmethod
-    def table() -> list[tuple[str, int, bool, bool, float, float, bool]]:
-        """``(name, address, signed, writable, low, high, within_limits)`` of each
-        parameter."""
+    def table() -> list[J2Parameter]:
+        """The parameter table: a :class:`~benchbus.J2Parameter` (name, address, signed,
+        writable, low, high, within_limits) for each parameter."""
     @staticmethod
     def units() -> dict[str, str]:
         """The unit of each parameter by its manual name (``""`` for none)."""
-    # The subclass turns these into a J2Status, Pid and Limits named tuples.
-    def _status(self) -> list[int | float]: ...
-    def _pid(self, second: bool) -> list[int | float]: ...
-    @staticmethod
-    def _pid_names(second: bool) -> list[str]: ...
-    def _limits(self) -> list[int | float]: ...
-    def _set_limits(self, low: float, high: float) -> None: ...
+    def status(self) -> J2Status:
+        """PV, SV, MV, mode, autotune, ramp and alarm values, in two requests."""
+    @property
+    def pid(self) -> Pid:
+        """The first PID set (P, I, D), read in one request; set it with a 3-tuple."""
+    @pid.setter
+    def pid(self, value: Iterable[float]) -> None: ...
+    @property
+    def pid2(self) -> Pid:
+        """The second PID set (P1, I1, D1), read in one request; set it with a 3-tuple."""
+    @pid2.setter
+    def pid2(self, value: Iterable[float]) -> None: ...
+    @property
+    def limits(self) -> Limits:
+        """The setpoint limits (LSP, USP), read in one request. Set them with a
+        ``(low, high)`` pair: they are written in the order that keeps LSP <= USP."""
+    @limits.setter
+    def limits(self, value: Iterable[float]) -> None: ...
 
 @final
 class InstrumentCore:

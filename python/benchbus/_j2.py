@@ -12,8 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from collections.abc import Iterable, Sequence
-from typing import TYPE_CHECKING, Any, NamedTuple, Union
+from typing import TYPE_CHECKING, NamedTuple, Union
 
 from benchbus._core import Bus, J2Core
 from benchbus._device import (
@@ -22,7 +21,6 @@ from benchbus._device import (
     MeasuredProperty,
     PrintableIntEnum,
     RegisterProperty,
-    as_enum,
     check_baudrate,
     to_enum,
     to_float,
@@ -33,7 +31,7 @@ from benchbus._display import dataclass_table
 if TYPE_CHECKING:
     from typing_extensions import Self
 
-__all__ = ["InputType", "J2Controller", "J2Mode", "J2Status", "Limits", "Pid"]
+__all__ = ["InputType", "J2Controller", "J2Mode", "J2Parameter", "J2Status", "Limits", "Pid"]
 
 #: A parameter value: a float for the signed table, an int for the unsigned one.
 Value = Union[float, int]
@@ -62,6 +60,25 @@ class InputType(PrintableIntEnum):
     LN = 9
 
 
+class J2Parameter(NamedTuple):
+    """One row of :meth:`J2Controller.table`: a parameter of manual 003."""
+
+    #: The manual's name ("SV").
+    name: str
+    #: Its register address.
+    address: int
+    #: Signed tenths (read as a float) or an unsigned int.
+    signed: bool
+    #: Whether it may be written.
+    writable: bool
+    #: The lowest value a write takes.
+    low: float
+    #: The highest value a write takes.
+    high: float
+    #: Whether a write must also lie within the limits LSP..USP the controller holds.
+    within_limits: bool
+
+
 class Pid(NamedTuple):
     """A PID parameter set: proportional band P, integral time I, derivative time D."""
 
@@ -80,20 +97,6 @@ class Limits(NamedTuple):
     low: float
     #: Highest setpoint (USP).
     high: float
-
-
-def _listed(name: str, value: Any, what: str) -> list[Any]:
-    """``value`` as a list; TypeError naming ``name`` if it is a str or not iterable."""
-    if isinstance(value, (str, bytes)) or not isinstance(value, Iterable):
-        raise TypeError(f"{name} must be {what}, got {type(value).__name__}")
-    return list(value)
-
-
-def _pid_values(names: Sequence[str], value: Iterable[float]) -> list[tuple[str, float]]:
-    values = _listed("a PID set", value, "three numbers (P, I, D)")
-    if len(values) != 3:
-        raise ValueError(f"a PID set is three numbers (P, I, D), got {len(values)}")
-    return list(zip(names, values))
 
 
 @dataclasses.dataclass(frozen=True)
@@ -204,20 +207,6 @@ class J2Controller(J2Core, BusDevice):
         units = self.units()
         return {f: units.get(f.upper(), "") for f in self.SAMPLE_FIELDS or ()}
 
-    def status(self) -> J2Status:
-        """PV, SV, MV, mode, autotune, ramp and alarm values, in two requests."""
-        pv, sv, mv, al1, al2, am, rapnf, at = self._status()
-        return J2Status(
-            pv=float(pv),
-            sv=float(sv),
-            mv=float(mv),
-            mode=as_enum(J2Mode, int(am)),
-            autotune=bool(at),
-            ramp_running=bool(rapnf),
-            alarm1=float(al1),
-            alarm2=float(al2),
-        )
-
     # ---- output and mode -----------------------------------------------------------------------
 
     @property
@@ -237,37 +226,3 @@ class J2Controller(J2Core, BusDevice):
     def ramp_running(self) -> bool:
         """Whether a setpoint ramp runs (RAPNF reads 1)."""
         return bool(self.get("RAPNF"))
-
-    # ---- grouped parameters --------------------------------------------------------------------
-
-    @property
-    def pid(self) -> Pid:
-        """The first PID set (P, I, D), read in one request; set it with a 3-tuple."""
-        return Pid(*map(float, self._pid(False)))
-
-    @pid.setter
-    def pid(self, value: Iterable[float]) -> None:
-        self.write_many(_pid_values(self._pid_names(False), value))
-
-    @property
-    def pid2(self) -> Pid:
-        """The second PID set (P1, I1, D1), read in one request; set it with a 3-tuple."""
-        return Pid(*map(float, self._pid(True)))
-
-    @pid2.setter
-    def pid2(self, value: Iterable[float]) -> None:
-        self.write_many(_pid_values(self._pid_names(True), value))
-
-    @property
-    def limits(self) -> Limits:
-        """The setpoint limits (LSP, USP), read in one request. Set them with a
-        ``(low, high)`` pair: they are written in the order that keeps LSP <= USP."""
-        low, high = self._limits()
-        return Limits(float(low), float(high))
-
-    @limits.setter
-    def limits(self, value: Iterable[float]) -> None:
-        pair = _listed("limits", value, "two numbers (low, high)")
-        if len(pair) != 2:
-            raise ValueError(f"limits are two numbers (low, high), got {len(pair)}")
-        self._set_limits(pair[0], pair[1])

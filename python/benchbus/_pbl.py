@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import warnings
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, NamedTuple
 
 from benchbus._core import Bus, PblCore
 from benchbus._device import (
@@ -34,6 +34,7 @@ __all__ = [
     "DirectionSetting",
     "PblControlMode",
     "PblDrive",
+    "PblParameter",
     "PblStatus",
     "PblTelemetry",
     "StartStopSource",
@@ -77,6 +78,23 @@ class DecelMode(PrintableIntEnum):
     BRAKING = 1
 
 
+class PblParameter(NamedTuple):
+    """One row of :meth:`PblDrive.table`: a parameter of manual 002."""
+
+    #: The parameter's number, 0..222 (its register address).
+    number: int
+    #: Its name (``get``, ``set``, ``read_parameter`` take it).
+    name: str
+    #: Its unit ("rpm", "V"...; ``""`` for none).
+    unit: str
+    #: "R" (read-only) or "W/R".
+    access: str
+    #: The lowest value a write takes.
+    low: float
+    #: The highest value a write takes.
+    high: float
+
+
 @dataclasses.dataclass(frozen=True)
 class PblStatus:
     """The status word (parameter 2) as the drive reports it."""
@@ -96,7 +114,7 @@ class PblTelemetry(dict[str, int]):
 
     def _repr_html_(self) -> str:
         """A parameter / value / unit table, for notebooks."""
-        units = {row[1]: row[2] for row in PblCore.table()}
+        units = {row.name: row.unit for row in PblCore.table()}
         return field_table("PblTelemetry", ((k, v, units.get(k, "")) for k, v in self.items()))
 
 
@@ -175,25 +193,6 @@ class PblDrive(PblCore, MotorDevice):
     ) -> None:
         """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1 (made by
         ``__new__``: the compiled base holds the Bus and the unit)."""
-
-    @property
-    def direction(self) -> Direction:
-        """The direction asked for: bit 1 of the control word (see :meth:`status` for the
-        direction the motor turns). Setting it keeps the control word's other bits."""
-        return Direction(int(self._control()[1]))
-
-    @direction.setter
-    def direction(self, direction: Direction) -> None:
-        if isinstance(direction, bool) or not isinstance(direction, int):
-            raise TypeError(f"direction must be a Direction, got {type(direction).__name__}")
-        if direction not in (Direction.FORWARD, Direction.REVERSE):
-            raise ValueError(f"direction must be Direction.FORWARD or REVERSE, got {direction!r}")
-        self._set_reverse(direction == Direction.REVERSE)
-
-    def telemetry(self) -> PblTelemetry:
-        """Parameters 0..99 (status and measurements) by name, in two requests: a dict,
-        shown as a table in notebooks."""
-        return PblTelemetry(super().telemetry())
 
     def restore_defaults(self) -> None:
         """Ask for the factory defaults (1511 to parameter 214).

@@ -156,9 +156,9 @@ pub const TABLES: [(u16, u16); 2] = [(0x00, 0x3E), (0x80, 0x9C)];
 pub const AM: &str = "AM";
 /// RAPNF: reads 1 while a ramp runs; written 1 starts it, 0 ends it.
 pub const RAPNF: &str = "RAPNF";
-/// One status snapshot: process value, setpoint, output, alarm values, mode, ramp and
-/// autotune, read in two requests.
-pub const STATUS: [&str; 8] = ["PV", "SV", "MV", "AL1", "AL2", "AM", "RAPNF", "AT"];
+/// One status snapshot, read in two requests, in the order of its fields: process value,
+/// setpoint, output, mode, autotune, ramp, alarm values.
+pub const STATUS: [&str; 8] = ["PV", "SV", "MV", "AM", "AT", "RAPNF", "AL1", "AL2"];
 /// The main measurements, read in one request: process value, setpoint and output.
 pub const SAMPLE: [&str; 3] = ["PV", "SV", "MV"];
 /// The first PID set: proportional band, integral time, derivative time.

@@ -1,7 +1,10 @@
 //! Bindings of [`crate::device::j2`]: the compiled base class of `benchbus.J2Controller`,
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
-use super::{number, to_pyerr, Attached, PyBus};
+use super::{member, number, public, to_pyerr, Attached, PyBus};
+
+/// The Python module of the family's public types.
+const PY: &str = "benchbus._j2";
 use crate::device::j2::{by_name, Param, J2, LIMITS, PARAMETERS, PID, PID2, RAPNF, SAMPLE, STATUS};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -40,6 +43,25 @@ impl PyJ2Core {
             .zip(values)
             .map(|(p, v)| value(py, p, v))
             .collect())
+    }
+
+    /// Writes `value`, a sequence of as many numbers as `group` has names, to the group's
+    /// parameters, as `write_many` does.
+    fn write_group<const N: usize>(
+        &self,
+        py: Python<'_>,
+        group: &[&'static str; N],
+        value: &Bound<'_, PyAny>,
+        name: &str,
+        what: &str,
+    ) -> PyResult<()> {
+        let values: [Bound<'_, PyAny>; N] = sized(value, name, what)?;
+        let pairs = group
+            .iter()
+            .zip(&values)
+            .map(|(p, v)| Ok((*p, number(v, p)?)))
+            .collect::<PyResult<Vec<_>>>()?;
+        self.wire(py, move |j| j.write_many(&pairs))
     }
 
     /// The parameters of `group` (a table of the core), as Python has them.
@@ -82,6 +104,21 @@ fn listed<'py>(
         Ok(items) => items.collect(),
         Err(_) => Err(refuse()?),
     }
+}
+
+/// `obj` as exactly `N` items: TypeError as [`listed`] says, ValueError for another count
+/// ("limits are two numbers (low, high), got 3").
+fn sized<'py, const N: usize>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    what: &str,
+) -> PyResult<[Bound<'py, PyAny>; N]> {
+    let items = listed(obj, name, what)?;
+    let count = items.len();
+    items.try_into().map_err(|_| {
+        let verb = if name.starts_with("a ") { "is" } else { "are" };
+        PyValueError::new_err(format!("{name} {verb} {what}, got {count}"))
+    })
 }
 
 /// `False`, the default of a flag that must be a bool when given.
@@ -304,38 +341,79 @@ impl PyJ2Core {
         Ok(out)
     }
 
-    /// The status snapshot's values, in the order of the core's `STATUS` group.
-    fn _status<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        self.read_group(py, &STATUS)
-    }
-
-    /// A PID set's values, (P, I, D), or (P1, I1, D1) if `second`, in one request.
-    fn _pid<'py>(&self, py: Python<'py>, second: bool) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        self.read_group(py, if second { &PID2 } else { &PID })
-    }
-
-    /// The names of a PID set: (P, I, D), or (P1, I1, D1) if `second`.
-    #[staticmethod]
-    fn _pid_names(second: bool) -> [&'static str; 3] {
-        if second {
-            PID2
-        } else {
-            PID
+    /// PV, SV, MV, mode, autotune, ramp and alarm values, in two requests.
+    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let mut fields = self.read_group(py, &STATUS)?;
+        // STATUS is in the status object's field order: mode, then the two flags.
+        fields[3] = member(py, PY, "J2Mode", fields[3].extract()?)?;
+        for flag in &mut fields[4..6] {
+            *flag = PyBool::new(py, flag.is_truthy()?).to_owned().into_any();
         }
+        public(py, PY, "J2Status", PyTuple::new(py, fields)?, None)
     }
 
-    /// LSP and USP, in one request.
-    fn _limits<'py>(&self, py: Python<'py>) -> PyResult<Vec<Bound<'py, PyAny>>> {
-        self.read_group(py, &LIMITS)
+    /// The first PID set (P, I, D), read in one request; set it with a 3-tuple.
+    #[getter]
+    fn pid<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        public(
+            py,
+            PY,
+            "Pid",
+            PyTuple::new(py, self.read_group(py, &PID)?)?,
+            None,
+        )
     }
 
-    /// The parameter table: `(name, address, signed, writable, low, high, within_limits)`.
+    #[setter]
+    fn set_pid(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.write_group(py, &PID, value, "a PID set", "three numbers (P, I, D)")
+    }
+
+    /// The second PID set (P1, I1, D1), read in one request; set it with a 3-tuple.
+    #[getter]
+    fn pid2<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        public(
+            py,
+            PY,
+            "Pid",
+            PyTuple::new(py, self.read_group(py, &PID2)?)?,
+            None,
+        )
+    }
+
+    #[setter]
+    fn set_pid2(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        self.write_group(py, &PID2, value, "a PID set", "three numbers (P, I, D)")
+    }
+
+    /// The setpoint limits (LSP, USP), read in one request. Set them with a ``(low, high)``
+    /// pair: they are written in the order that keeps LSP <= USP.
+    #[getter]
+    fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        public(
+            py,
+            PY,
+            "Limits",
+            PyTuple::new(py, self.read_group(py, &LIMITS)?)?,
+            None,
+        )
+    }
+
+    #[setter]
+    fn set_limits(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let [low, high] = sized(value, "limits", "two numbers (low, high)")?;
+        let (low, high) = (number(&low, "LSP")?, number(&high, "USP")?);
+        self.wire(py, move |j| j.set_limits(low, high))
+    }
+
+    /// The parameter table: a :class:`~benchbus.J2Parameter` (name, address, signed,
+    /// writable, low, high, within_limits) for each parameter.
     #[staticmethod]
     fn table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let out = PyList::empty(py);
         for p in &PARAMETERS {
             let (lo, hi) = p.register().range;
-            out.append((
+            let row = (
                 p.name,
                 p.address,
                 p.signed,
@@ -343,7 +421,8 @@ impl PyJ2Core {
                 lo,
                 hi,
                 p.within_limits,
-            ))?;
+            );
+            out.append(public(py, PY, "J2Parameter", row, None)?)?;
         }
         Ok(out)
     }

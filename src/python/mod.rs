@@ -121,6 +121,20 @@ fn public<'py>(
         .call(args, kwargs)
 }
 
+/// The member of the public enum `module.name` whose value is `value`, or `value` itself
+/// (an int) when the enum has none: a device may report a code its manual does not list.
+fn member<'py>(
+    py: Python<'py>,
+    module: &str,
+    name: &str,
+    value: i64,
+) -> PyResult<Bound<'py, PyAny>> {
+    match public(py, module, name, (value,), None) {
+        Err(e) if e.is_instance_of::<PyValueError>(py) => Ok(PyInt::new(py, value).into_any()),
+        made => made,
+    }
+}
+
 /// Runs `f` on a device core with the GIL released; its error as the Python exception.
 fn on_wire<D: Send + Sync, T: Send>(
     py: Python<'_>,

@@ -7,7 +7,7 @@ use super::{int_in, number, public, to_pyerr, Attached, PyBus};
 const PY: &str = "benchbus._pbl";
 use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS, SAMPLE};
 use crate::device::Access;
-use pyo3::exceptions::PyTypeError;
+use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFrozenSet, PyInt, PyList, PyString, PyTuple};
 
@@ -145,14 +145,15 @@ impl PyPblCore {
         Ok(out)
     }
 
-    /// Parameters 0..=99 but the reserved ones, `{name: value}`, in two requests.
-    fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    /// Parameters 0..99 (status and measurements) by name, in two requests: a dict, shown
+    /// as a table in notebooks.
+    fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let all = self.wire(py, |p| p.telemetry())?;
         let out = PyDict::new(py);
         for (name, value, _) in all {
             out.set_item(name, value)?;
         }
-        Ok(out)
+        public(py, PY, "PblTelemetry", (out,), None)
     }
 
     /// Start: set bit 0 of the control word, keeping its other bits.
@@ -165,14 +166,33 @@ impl PyPblCore {
         self.wire(py, |p| p.stop())
     }
 
-    /// Sets the direction bit of the control word (True = reverse), keeping the others.
-    fn _set_reverse(&self, py: Python<'_>, reverse: bool) -> PyResult<()> {
-        self.wire(py, move |p| p.set_reverse(reverse))
+    /// The direction asked for: bit 1 of the control word (see :meth:`status` for the
+    /// direction the motor turns). Setting it keeps the control word's other bits.
+    #[getter]
+    fn direction<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let (_, reverse) = self.wire(py, |p| p.control())?;
+        public(py, PY, "Direction", (u8::from(reverse),), None)
     }
 
-    /// The control word as `(started, reverse)`.
-    fn _control(&self, py: Python<'_>) -> PyResult<(bool, bool)> {
-        self.wire(py, |p| p.control())
+    #[setter]
+    fn set_direction(&self, py: Python<'_>, direction: &Bound<'_, PyAny>) -> PyResult<()> {
+        if direction.is_instance_of::<PyBool>() || !direction.is_instance_of::<PyInt>() {
+            return Err(PyTypeError::new_err(format!(
+                "direction must be a Direction, got {}",
+                direction.get_type().name()?
+            )));
+        }
+        let reverse = match direction.extract::<i64>() {
+            Ok(0) => false,
+            Ok(1) => true,
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "direction must be Direction.FORWARD or REVERSE, got {}",
+                    direction.repr()?
+                )))
+            }
+        };
+        self.wire(py, move |p| p.set_reverse(reverse))
     }
 
     /// The status word: running, and the direction the motor turns.
@@ -206,13 +226,15 @@ impl PyPblCore {
         self.wire(py, |p| p.restore_defaults())
     }
 
-    /// The parameter table: `(number, name, unit, access, low, high)`; access "R" or "W/R".
+    /// The parameter table: a :class:`~benchbus.PblParameter` (number, name, unit, access,
+    /// low, high) for each parameter; access "R" or "W/R".
     #[staticmethod]
     fn table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let out = PyList::empty(py);
         for p in &PARAMETERS {
             let access = if p.access == Access::Read { "R" } else { "W/R" };
-            out.append((p.address, p.name, p.unit, access, p.range.0, p.range.1))?;
+            let row = (p.address, p.name, p.unit, access, p.range.0, p.range.1);
+            out.append(public(py, PY, "PblParameter", row, None)?)?;
         }
         Ok(out)
     }
