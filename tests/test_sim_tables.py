@@ -199,3 +199,21 @@ def test_instrument_request_limits_are_the_same() -> None:
     device = TaisongDevice()
     with Simulator({1: device}) as sim, bb.Instrument(sim.port) as inst:
         assert (inst.max_read, inst.max_write) == (device.max_read, device.max_write) == (37, 20)
+
+
+def _largest_read(sim: Simulator, unit: int) -> int:
+    """The most registers one 0x03 request to ``unit`` the simulator heard asked for."""
+    return max(int.from_bytes(r[4:6], "big") for r in sim.requests if r[:2] == bytes([unit, 3]))
+
+
+def test_pbl_and_j2_request_limits_are_the_same() -> None:
+    # The library's block reads (its request limits, in the Rust tables) fill each request up
+    # to the simulator's limit (its reading of the manual), and no further.
+    pbl, j2 = PblDevice(), J2Device()
+    with Simulator({0x11: pbl, 1: j2}) as sim, bb.Bus(sim.port, timeout=0.5) as bus:
+        bb.PblDrive(bus, unit=0x11).parameters()
+        bb.J2Controller(bus, unit=1).parameters()
+        assert _largest_read(sim, 0x11) == pbl.max_read == 61
+        # J2 parameters sit on even addresses and a block ends on one: 15 of the 16 allowed.
+        assert j2.max_read == 16
+        assert _largest_read(sim, 1) == j2.max_read - 1
