@@ -19,9 +19,8 @@
 //! the Bus does that itself, once per call, before the call's request goes out.
 
 use crate::codec::{
-    check_echo, decode_reply, encode_request, exception_meaning, is_gateway_exception,
-    reply_needed, DeviceIdentification, Echo, FrameError, Needed, Reply, Request, Response,
-    BROADCAST,
+    check_echo, exception_meaning, is_gateway_exception, DeviceIdentification, Echo, FrameError,
+    Framing, Needed, Reply, Request, Response, BROADCAST,
 };
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard, WritePacing};
@@ -187,6 +186,9 @@ struct State {
 /// A Modbus RTU master on one line. Thread-safe: a second caller waits its turn.
 pub struct Bus {
     config: BusConfig,
+    /// The framing of the port's transport: what the Bus builds requests and reads replies
+    /// in.
+    framing: Framing,
     state: Mutex<State>,
     /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]).
     sequences: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
@@ -230,11 +232,13 @@ impl Bus {
     }
 
     fn build(config: BusConfig, transport: Box<dyn Transport>, opener: Option<Opener>) -> Bus {
-        let link = Link::Open(Framed::new(transport, &config.port));
+        let framed = Framed::new(transport, &config.port);
+        let framing = framed.framing();
         Bus {
             config,
+            framing,
             state: Mutex::new(State {
-                link,
+                link: Link::Open(framed),
                 opener,
                 frames_out: 0,
                 silence: SilenceGuard::new(),
@@ -515,7 +519,7 @@ impl Bus {
             )));
         }
         request.validate()?;
-        let frame = encode_request(BROADCAST, request);
+        let frame = self.framing.encode_request(BROADCAST, request);
         let mut st = self.lock_when(|st| st.pacing.broadcast_ready());
         self.on_port(&mut st, |st| {
             let sent = self.send(st, &frame, request, self.config.timeout);
@@ -583,7 +587,7 @@ impl Bus {
             )));
         }
         request.validate()?;
-        let frame = encode_request(unit, request);
+        let frame = self.framing.encode_request(unit, request);
         let paced = is_write(request) && !opts.write_interval.is_zero();
         let mut guard = if paced {
             self.lock_paced(unit, opts.write_interval)
@@ -769,13 +773,17 @@ impl Bus {
             // whole and valid, it is dropped, and the wait for this reply goes on.
             let other = late_reply_of(late, unit, &buf);
             let needed = match other {
-                Some(l) => reply_needed(&l.request, &buf),
-                None => reply_needed(request, &buf),
+                Some(l) => self.framing.reply_needed(&l.request, &buf),
+                None => self.framing.reply_needed(request, &buf),
             };
             let (want, wait) = match needed {
                 Needed::Complete(n) => {
                     let Some(l) = other else { break };
-                    if decode_reply(l.unit, &l.request, &buf[..n]).is_err() {
+                    if self
+                        .framing
+                        .decode_reply(l.unit, &l.request, &buf[..n])
+                        .is_err()
+                    {
                         break;
                     }
                     log::debug!(target: "benchbus::wire", "late reply of unit {} dropped: {}", l.unit, hex(&buf[..n]));
@@ -839,7 +847,7 @@ impl Bus {
         let shown = transport.on_the_wire(&buf, false);
         log::debug!(target: "benchbus::wire", "<- {}", hex(shown.as_deref().unwrap_or(&buf)));
         let at = last_byte.unwrap_or_else(Instant::now);
-        match decode_reply(unit, request, &buf) {
+        match self.framing.decode_reply(unit, request, &buf) {
             Ok(reply) => {
                 // The addressed unit answered this request in full: it has stopped talking.
                 silence.reply_ended(at);
@@ -978,8 +986,8 @@ impl Bus {
         }
         log::debug!(target: "benchbus::wire", "<- not the local echo: {}", hex(&got));
         let unit = frame.first().copied().unwrap_or_default();
-        let reply_instead = match reply_needed(request, &got) {
-            Needed::Complete(n) => decode_reply(unit, request, &got[..n]).is_ok(),
+        let reply_instead = match self.framing.reply_needed(request, &got) {
+            Needed::Complete(n) => self.framing.decode_reply(unit, request, &got[..n]).is_ok(),
             _ => false,
         };
         if !echo_seen && (got.is_empty() || reply_instead) {

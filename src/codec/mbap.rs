@@ -1,18 +1,16 @@
 //! The Modbus TCP application data unit: `MBAP header | PDU`, and a sans-IO session that
-//! carries the Bus's RTU frames over it.
+//! carries the Bus's requests and replies over it.
 //!
 //! MODBUS Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3 (MBAP header: transaction
 //! id, protocol id 0, length = the bytes that follow it, unit id; 7 bytes).
 //!
-//! The Bus builds requests and reads replies as RTU frames (`unit | PDU | CRC`) whatever
-//! the line, so one reply decoder serves both. A [`Session`] is what sits between those RTU
-//! frames and the bytes of a Modbus TCP connection: a request's CRC is checked and dropped
-//! and an MBAP header put in its place (the next transaction id); received bytes are cut
+//! The Bus builds requests and reads replies as `unit | PDU` plus the framing's trailer
+//! ([`super::Framing`]): over Modbus TCP there is no trailer, TCP checks the bytes. A
+//! [`Session`] is what sits between those and the bytes of a Modbus TCP connection: a
+//! request gets an MBAP header (the next transaction id) in front; received bytes are cut
 //! into whole MBAP frames, only the reply to the awaited transaction is kept, and it is
-//! handed back as the RTU frame the decoder reads (its CRC computed here, since TCP carries
-//! none). Like the rest of the codec it touches no port and no clock.
+//! handed back as `unit | PDU`. Like the rest of the codec it touches no port and no clock.
 
-use super::rtu::crc16;
 use std::collections::VecDeque;
 use std::ops::RangeInclusive;
 
@@ -84,17 +82,6 @@ pub fn decode(frame: &[u8]) -> Option<Frame<'_>> {
     })
 }
 
-/// Why an RTU frame cannot be sent over Modbus TCP.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum NotRtu {
-    /// Too short to hold a CRC.
-    Short,
-    /// Its unit + PDU is outside [`LENGTH`].
-    Length,
-    /// Its CRC does not match its bytes.
-    Crc,
-}
-
 /// A frame a [`Session`] dropped, and why.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Dropped {
@@ -127,7 +114,7 @@ pub struct Session {
     awaited: Option<u16>,
     /// Bytes received that do not yet make a whole MBAP frame.
     raw: Vec<u8>,
-    /// The awaited reply in RTU form, as much of it as has not been read yet.
+    /// The awaited reply's unit + PDU, as much of it as has not been read yet.
     ready: VecDeque<u8>,
     /// Bytes of frames dropped (late replies, other protocols) since last asked.
     dropped: u64,
@@ -151,32 +138,23 @@ impl Session {
         }
     }
 
-    /// The MBAP frame for the RTU frame `frame` (CRC checked and dropped); the next
-    /// transaction id is used up and awaited. A broadcast (unit 0) goes like any request.
-    ///
-    /// # Errors
-    /// Why `frame` is not an RTU frame that fits an MBAP frame; nothing is used up.
-    pub fn request(&mut self, frame: &[u8]) -> Result<Vec<u8>, NotRtu> {
-        let Some((adu, crc)) = frame.split_last_chunk::<2>() else {
-            return Err(NotRtu::Short);
-        };
+    /// The MBAP frame for `unit | PDU` (`adu`); the next transaction id is used up and
+    /// awaited. A broadcast (unit 0) goes like any request. None, and nothing used up, for an
+    /// `adu` whose length is outside [`LENGTH`].
+    pub fn request(&mut self, adu: &[u8]) -> Option<Vec<u8>> {
         if !LENGTH.contains(&adu.len()) {
-            return Err(NotRtu::Length);
-        }
-        if crc16(adu).to_le_bytes() != *crc {
-            return Err(NotRtu::Crc);
+            return None;
         }
         let tid = self.next_tid;
         self.next_tid = tid.wrapping_add(1);
         self.awaited = Some(tid);
-        Ok(encode(tid, adu))
+        Some(encode(tid, adu))
     }
 
-    /// The MBAP frame that carries the RTU frame `frame` (its CRC dropped unchecked): as a
-    /// request (`sent`) it takes the next transaction id, as a reply the last request's.
-    /// None for bytes too short to be a frame.
-    pub fn shown(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
-        let (adu, _crc) = frame.split_last_chunk::<2>()?;
+    /// The MBAP frame that carries `unit | PDU` (`adu`): as a request (`sent`) it takes the
+    /// next transaction id, as a reply the last request's. None for a length outside
+    /// [`LENGTH`].
+    pub fn shown(&self, adu: &[u8], sent: bool) -> Option<Vec<u8>> {
         if !LENGTH.contains(&adu.len()) {
             return None;
         }
@@ -193,8 +171,8 @@ impl Session {
         self.raw.extend_from_slice(bytes);
     }
 
-    /// Cuts what was received into whole frames: the awaited reply is kept for
-    /// [`Session::read`] in RTU form; anything else is dropped and returned, for the log.
+    /// Cuts what was received into whole frames: the awaited reply's unit + PDU is kept for
+    /// [`Session::read`]; anything else is dropped and returned, for the log.
     ///
     /// # Errors
     /// The out-of-range length of a header ([`frame_len`]): the stream is out of step, and
@@ -207,7 +185,7 @@ impl Session {
         Ok(dropped)
     }
 
-    /// Copies the awaited reply's next bytes (RTU form) into `buf`: how many (0 if none are
+    /// Copies the awaited reply's next bytes (unit + PDU) into `buf`: how many (0 if none are
     /// ready).
     pub fn read(&mut self, buf: &mut [u8]) -> usize {
         let n = buf.len().min(self.ready.len());
@@ -260,7 +238,7 @@ impl Session {
         Ok(Some(std::mem::replace(&mut self.raw, rest)))
     }
 
-    /// Takes a whole MBAP frame: the awaited reply goes to `ready` in RTU form; anything
+    /// Takes a whole MBAP frame: the awaited reply's unit + PDU goes to `ready`; anything
     /// else is dropped (and returned).
     fn accept(&mut self, frame: &[u8]) -> Option<Dropped> {
         let header = decode(frame)?;
@@ -281,7 +259,6 @@ impl Session {
         }
         self.awaited = None;
         self.ready.extend(header.adu);
-        self.ready.extend(crc16(header.adu).to_le_bytes());
         None
     }
 }
@@ -290,8 +267,8 @@ impl Session {
 mod tests {
     use super::*;
 
-    /// Read holding registers of unit 1, 0x0000, 1 register, as an RTU frame.
-    const RTU_READ: [u8; 8] = [0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x84, 0x0A];
+    /// Read holding registers of unit 1, 0x0000, 1 register: unit + PDU.
+    const READ: [u8; 6] = [0x01, 0x03, 0x00, 0x00, 0x00, 0x01];
 
     /// The same request over Modbus TCP, transaction 1:
     /// tid 00 01 | protocol 00 00 | length 00 06 | unit 01 | PDU 03 00 00 00 01.
@@ -312,7 +289,7 @@ mod tests {
 
     #[test]
     fn encode_is_golden() {
-        assert_eq!(encode(1, &RTU_READ[..6]), MBAP_READ);
+        assert_eq!(encode(1, &READ[..6]), MBAP_READ);
         assert_eq!(
             encode(0xBEEF, &[0x00, 0x06, 0x00, 0x01, 0x00, 0x02]),
             [0xBE, 0xEF, 0, 0, 0, 6, 0x00, 0x06, 0x00, 0x01, 0x00, 0x02]
@@ -343,35 +320,34 @@ mod tests {
     }
 
     #[test]
-    fn requests_drop_the_crc_and_count_transaction_ids_up() {
+    fn requests_get_a_header_and_count_transaction_ids_up() {
         let mut s = Session::new();
-        assert_eq!(s.shown(&RTU_READ, true).as_deref(), Some(&MBAP_READ[..]));
-        assert_eq!(s.request(&RTU_READ).as_deref(), Ok(&MBAP_READ[..]));
+        assert_eq!(s.shown(&READ, true).as_deref(), Some(&MBAP_READ[..]));
+        assert_eq!(s.request(&READ).as_deref(), Some(&MBAP_READ[..]));
         // As a reply, the shown frame takes the last request's id.
-        assert_eq!(s.shown(&RTU_READ, false).as_deref(), Some(&MBAP_READ[..]));
-        let second = s.request(&RTU_READ).unwrap();
+        assert_eq!(s.shown(&READ, false).as_deref(), Some(&MBAP_READ[..]));
+        let second = s.request(&READ).unwrap();
         assert_eq!(&second[..2], &[0x00, 0x02]);
-        let mut bad = RTU_READ;
-        bad[7] ^= 1;
-        assert_eq!(s.request(&bad), Err(NotRtu::Crc));
-        assert_eq!(s.request(&[0x01, 0x03]), Err(NotRtu::Length));
-        assert_eq!(s.request(&[0x01]), Err(NotRtu::Short));
+        // Unit + function code at least, unit + the longest PDU at most.
+        assert_eq!(s.request(&[0x01]), None);
+        assert_eq!(s.request(&[0x01; 255]), None);
+        assert!(s.shown(&[0x01; 255], true).is_none());
         // Refused frames use no id up.
-        assert_eq!(&s.request(&RTU_READ).unwrap()[..2], &[0x00, 0x03]);
+        assert_eq!(&s.request(&READ).unwrap()[..2], &[0x00, 0x03]);
     }
 
     #[test]
     fn transaction_ids_wrap() {
         let mut s = Session::new();
         s.next_tid = u16::MAX;
-        assert_eq!(&s.request(&RTU_READ).unwrap()[..2], &[0xFF, 0xFF]);
-        assert_eq!(&s.request(&RTU_READ).unwrap()[..2], &[0x00, 0x00]);
+        assert_eq!(&s.request(&READ).unwrap()[..2], &[0xFF, 0xFF]);
+        assert_eq!(&s.request(&READ).unwrap()[..2], &[0x00, 0x00]);
     }
 
     #[test]
-    fn the_awaited_reply_comes_back_in_rtu_form_in_pieces() {
+    fn the_awaited_reply_comes_back_as_unit_and_pdu_in_pieces() {
         let mut s = Session::new();
-        s.request(&RTU_READ).unwrap();
+        s.request(&READ).unwrap();
         s.receive(&MBAP_REPLY[..4]);
         assert_eq!(s.take_frames(), Ok(vec![]));
         assert_eq!(read_all(&mut s), Vec::<u8>::new());
@@ -380,16 +356,16 @@ mod tests {
         let mut two = [0u8; 2];
         assert_eq!(s.read(&mut two), 2);
         assert_eq!(two, [0x01, 0x03]);
-        // unit 01 | 03 02 12 34 | CRC 0xB533 low byte first.
-        assert_eq!(read_all(&mut s), [0x02, 0x12, 0x34, 0xB5, 0x33]);
+        // unit 01 | 03 02 12 34, and no CRC: TCP carries none.
+        assert_eq!(read_all(&mut s), [0x02, 0x12, 0x34]);
         assert_eq!(s.take_dropped(), 0);
     }
 
     #[test]
     fn late_replies_and_other_protocols_are_dropped_and_counted() {
         let mut s = Session::new();
-        s.request(&RTU_READ).unwrap();
-        s.request(&RTU_READ).unwrap();
+        s.request(&READ).unwrap();
+        s.request(&READ).unwrap();
         let mut foreign = MBAP_REPLY;
         foreign[1] = 2;
         foreign[3] = 7;
@@ -422,13 +398,13 @@ mod tests {
         );
         assert_eq!(s.take_dropped(), 33);
         assert_eq!(s.take_dropped(), 0);
-        assert_eq!(read_all(&mut s), [0x01, 0x03, 0x02, 0x12, 0x34, 0xB5, 0x33]);
+        assert_eq!(read_all(&mut s), [0x01, 0x03, 0x02, 0x12, 0x34]);
     }
 
     #[test]
     fn out_of_step_stream_is_an_error_and_drops_the_buffer() {
         let mut s = Session::new();
-        s.request(&RTU_READ).unwrap();
+        s.request(&READ).unwrap();
         s.receive(&[0x01, 0x03, 0x02, 0x12, 0x34, 0xB5, 0x33]);
         assert_eq!(
             s.take_frames(),
@@ -440,7 +416,7 @@ mod tests {
     #[test]
     fn discard_returns_whole_frames_keeps_a_beginning_and_awaits_nothing() {
         let mut s = Session::new();
-        s.request(&RTU_READ).unwrap();
+        s.request(&READ).unwrap();
         s.receive(&MBAP_REPLY);
         s.take_frames().unwrap();
         let mut one = [0u8; 1];
@@ -448,7 +424,7 @@ mod tests {
         let mut received = MBAP_REPLY.to_vec();
         received.extend_from_slice(&MBAP_REPLY[..3]);
         let stale = s.discard(&received).unwrap();
-        let mut want = vec![0x03, 0x02, 0x12, 0x34, 0xB5, 0x33];
+        let mut want = vec![0x03, 0x02, 0x12, 0x34];
         want.extend_from_slice(&MBAP_REPLY);
         assert_eq!(stale, want);
         // The beginning's rest completes a frame, which answers nothing awaited.

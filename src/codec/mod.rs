@@ -17,11 +17,128 @@ pub use rtu::{
     Needed, Reply, BROADCAST,
 };
 
-/// What frames cross a connection.
+/// What frames cross a connection. The Bus builds and reads `unit | PDU` and the framing's
+/// trailer: RTU frames go to the wire as they are, and over Modbus TCP the [`mbap`] session
+/// puts the MBAP header in place of the unit (no CRC: TCP checks the bytes).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Framing {
     /// RTU frames (unit, PDU, CRC), byte for byte: a serial line, or RTU over TCP.
     Rtu,
     /// Modbus TCP: MBAP header + PDU ([`mbap`]).
     Mbap,
+}
+
+impl Framing {
+    /// The bytes after `unit | PDU`: the CRC's 2 in RTU, none over Modbus TCP.
+    pub const fn trailer(self) -> usize {
+        match self {
+            Framing::Rtu => rtu::CRC_LEN,
+            Framing::Mbap => 0,
+        }
+    }
+
+    /// `request` to `unit` as the Bus hands it to the transport: an RTU frame, or
+    /// `unit | PDU` for the Modbus TCP session.
+    pub fn encode_request(self, unit: u8, request: &Request) -> Vec<u8> {
+        rtu::encode_in(self, unit, request)
+    }
+
+    /// [`reply_needed`] for a reply in this framing.
+    pub fn reply_needed(self, request: &Request, buf: &[u8]) -> Needed {
+        rtu::needed_in(self, request, buf)
+    }
+
+    /// [`decode_reply`] for a reply in this framing.
+    ///
+    /// # Errors
+    /// [`FrameError`] saying what is wrong with the frame.
+    pub fn decode_reply(
+        self,
+        unit: u8,
+        request: &Request,
+        frame: &[u8],
+    ) -> Result<Reply, FrameError> {
+        rtu::decode_in(self, unit, request, frame)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const READ_ONE: Request = Request::ReadHoldingRegisters {
+        address: 0,
+        count: 1,
+    };
+
+    #[test]
+    fn over_modbus_tcp_requests_and_replies_are_unit_and_pdu_without_a_crc() {
+        assert_eq!(
+            Framing::Mbap.encode_request(1, &READ_ONE),
+            [0x01, 0x03, 0x00, 0x00, 0x00, 0x01]
+        );
+        assert_eq!(
+            Framing::Rtu.encode_request(1, &READ_ONE),
+            [0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x84, 0x0A]
+        );
+        let reply = [0x01, 0x03, 0x02, 0x12, 0x34];
+        assert_eq!(
+            Framing::Mbap.reply_needed(&READ_ONE, &reply[..3]),
+            Needed::More(2)
+        );
+        assert_eq!(
+            Framing::Mbap.reply_needed(&READ_ONE, &reply),
+            Needed::Complete(5)
+        );
+        assert_eq!(
+            Framing::Rtu.reply_needed(&READ_ONE, &reply),
+            Needed::More(2)
+        );
+        assert_eq!(
+            Framing::Mbap.decode_reply(1, &READ_ONE, &reply),
+            Ok(Reply::Normal(Response::Registers(vec![0x1234])))
+        );
+        // The same bytes as an RTU frame end in a CRC that is not there.
+        assert!(matches!(
+            Framing::Rtu.decode_reply(1, &READ_ONE, &reply),
+            Err(FrameError::Crc { .. })
+        ));
+    }
+
+    #[test]
+    fn over_modbus_tcp_an_exception_is_three_bytes_and_the_longest_pdu_holds() {
+        let exception = [0x01, 0x83, 0x02];
+        assert_eq!(
+            Framing::Mbap.reply_needed(&READ_ONE, &exception[..2]),
+            Needed::More(1)
+        );
+        assert_eq!(
+            Framing::Mbap.reply_needed(&READ_ONE, &exception),
+            Needed::Complete(3)
+        );
+        assert_eq!(
+            Framing::Mbap.decode_reply(1, &READ_ONE, &exception),
+            Ok(Reply::Exception {
+                function: 0x03,
+                code: 0x02
+            })
+        );
+        assert_eq!(
+            Framing::Mbap.decode_reply(1, &READ_ONE, &exception[..2]),
+            Err(FrameError::TooShort(2))
+        );
+        // 125 registers: unit, function, count, 250 bytes = 253, within an MBAP length.
+        let most = Request::ReadHoldingRegisters {
+            address: 0,
+            count: 125,
+        };
+        assert_eq!(
+            Framing::Mbap.reply_needed(&most, &[0x01, 0x03, 250]),
+            Needed::More(250)
+        );
+        assert_eq!(
+            Framing::Rtu.reply_needed(&most, &[0x01, 0x03, 250]),
+            Needed::More(252)
+        );
+    }
 }

@@ -5,10 +5,16 @@
 //! polynomial 0xA001 reflected, initial value 0xFFFF, low byte sent first).
 
 use super::pdu::{DeviceIdentification, Request, Response, MEI_READ_DEVICE_ID};
+use super::Framing;
 use crc::{Crc, CRC_16_MODBUS};
 
 /// Longest RTU frame (serial line spec 2.5.1).
 pub const MAX_ADU: usize = 256;
+/// Length of the CRC that ends an RTU frame.
+pub const CRC_LEN: usize = 2;
+/// Longest unit + PDU: the longest RTU frame but its CRC, also the most an MBAP header's
+/// length counts.
+pub const MAX_UNIT_PDU: usize = MAX_ADU - CRC_LEN;
 /// Length of an exception reply: unit, function | 0x80, code, CRC (2).
 pub const EXCEPTION_LEN: usize = 5;
 /// Unit address that every device accepts and none answers (serial line spec 2.2).
@@ -23,11 +29,18 @@ pub fn crc16(data: &[u8]) -> u16 {
 
 /// The whole RTU frame for `request` to `unit`, CRC appended low byte first.
 pub fn encode_request(unit: u8, request: &Request) -> Vec<u8> {
+    encode_in(Framing::Rtu, unit, request)
+}
+
+/// `unit | PDU` of `request`, then the framing's trailer (the CRC in RTU).
+pub(super) fn encode_in(framing: Framing, unit: u8, request: &Request) -> Vec<u8> {
     let mut out = Vec::with_capacity(16);
     out.push(unit);
     request.encode(&mut out);
-    let crc = crc16(&out);
-    out.extend_from_slice(&crc.to_le_bytes());
+    if framing == Framing::Rtu {
+        let crc = crc16(&out);
+        out.extend_from_slice(&crc.to_le_bytes());
+    }
     out
 }
 
@@ -51,19 +64,27 @@ pub enum Needed {
 /// (its byte count); 0x06 and 0x10 replies are 8 bytes; a Read Device Identification reply
 /// is walked object by object.
 pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
+    needed_in(Framing::Rtu, request, buf)
+}
+
+/// [`reply_needed`] for a reply in `framing`: `unit | PDU` and the framing's trailer.
+pub(super) fn needed_in(framing: Framing, request: &Request, buf: &[u8]) -> Needed {
+    let trailer = framing.trailer();
+    // unit, function | 0x80, code.
+    let exception = 3 + trailer;
     if buf.len() < 2 {
-        return Needed::More(EXCEPTION_LEN - buf.len());
+        return Needed::More(exception - buf.len());
     }
     let function = request.function();
-    let total = if buf[1] == function | 0x80 {
+    let unit_pdu = if buf[1] == function | 0x80 {
         if !matches!(request, Request::ReadDeviceIdentification { .. }) {
-            EXCEPTION_LEN
+            3
         } else {
             match buf.get(2) {
-                None => return Needed::More(EXCEPTION_LEN - buf.len()),
-                // ATV31 style: unit, 0xAB, MEI type 0x0E, error code, CRC.
-                Some(&MEI_READ_DEVICE_ID) => EXCEPTION_LEN + 1,
-                Some(_) => EXCEPTION_LEN,
+                None => return Needed::More(exception - buf.len()),
+                // ATV31 style: unit, 0xAB, MEI type 0x0E, error code.
+                Some(&MEI_READ_DEVICE_ID) => 4,
+                Some(_) => 3,
             }
         }
     } else if buf[1] != function {
@@ -71,20 +92,21 @@ pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
     } else {
         match request {
             Request::ReadHoldingRegisters { count, .. } => match buf.get(2) {
-                None => return Needed::More(EXCEPTION_LEN - buf.len()),
+                None => return Needed::More(exception - buf.len()),
                 // Not the length this request's reply has: see `check_header`.
                 Some(&n) if usize::from(n) != 2 * usize::from(*count) => return Needed::Unknown,
-                Some(&n) => 5 + usize::from(n),
+                Some(&n) => 3 + usize::from(n),
             },
-            Request::WriteSingleRegister { .. } | Request::WriteMultipleRegisters { .. } => 8,
+            Request::WriteSingleRegister { .. } | Request::WriteMultipleRegisters { .. } => 6,
             Request::ReadDeviceIdentification { .. } => match device_id_len(buf) {
-                Ok(total) => total,
+                Ok(unit_pdu) => unit_pdu,
                 Err(Some(more)) => return Needed::More(more),
                 Err(None) => return Needed::Unknown,
             },
         }
     };
-    if total > MAX_ADU {
+    let total = unit_pdu + trailer;
+    if unit_pdu > MAX_UNIT_PDU {
         Needed::Unknown
     } else if buf.len() >= total {
         Needed::Complete(total)
@@ -93,8 +115,8 @@ pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
     }
 }
 
-/// Total length of a Read Device Identification reply, or how many more bytes are needed
-/// to know it (`Err(Some(n))`), or `Err(None)` if the header is not MEI 0x0E.
+/// Length of a Read Device Identification reply's unit + PDU, or how many more bytes are
+/// needed to know it (`Err(Some(n))`), or `Err(None)` if the header is not MEI 0x0E.
 fn device_id_len(buf: &[u8]) -> Result<usize, Option<usize>> {
     // unit, 0x2B, 0x0E, read code, conformity, more follows, next object, object count
     const HEADER: usize = 8;
@@ -112,11 +134,11 @@ fn device_id_len(buf: &[u8]) -> Result<usize, Option<usize>> {
             None => return Err(Some(pos + 2 - buf.len())),
             Some(&len) => pos += 2 + usize::from(len),
         }
-        if pos > MAX_ADU {
+        if pos > MAX_UNIT_PDU {
             return Err(None);
         }
     }
-    Ok(pos + 2)
+    Ok(pos)
 }
 
 /// A decoded reply: a normal response, or the device's exception response (which is data,
@@ -241,16 +263,33 @@ pub fn check_header(unit: u8, request: &Request, buf: &[u8]) -> Result<(), Frame
 /// # Errors
 /// [`FrameError`] saying what is wrong with the frame.
 pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, FrameError> {
-    if frame.len() < EXCEPTION_LEN {
+    decode_in(Framing::Rtu, unit, request, frame)
+}
+
+/// [`decode_reply`] for a reply in `framing` (over Modbus TCP `unit | PDU`, no CRC: TCP
+/// checks the bytes).
+pub(super) fn decode_in(
+    framing: Framing,
+    unit: u8,
+    request: &Request,
+    frame: &[u8],
+) -> Result<Reply, FrameError> {
+    if frame.len() < 3 + framing.trailer() {
         return Err(FrameError::TooShort(frame.len()));
     }
     check_header(unit, request, frame)?;
-    let (body, crc) = frame.split_at(frame.len() - 2);
-    let received = u16::from_le_bytes([crc[0], crc[1]]);
-    let computed = crc16(body);
-    if computed != received {
-        return Err(FrameError::Crc { computed, received });
-    }
+    let body = match framing {
+        Framing::Rtu => {
+            let (body, crc) = frame.split_at(frame.len() - CRC_LEN);
+            let received = u16::from_le_bytes([crc[0], crc[1]]);
+            let computed = crc16(body);
+            if computed != received {
+                return Err(FrameError::Crc { computed, received });
+            }
+            body
+        }
+        Framing::Mbap => frame,
+    };
     if body[0] != unit {
         return Err(FrameError::WrongUnit {
             expected: unit,

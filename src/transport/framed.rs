@@ -1,9 +1,9 @@
-//! A byte pipe and the framing its endpoint speaks: what the Bus writes its RTU frames to
-//! and reads its replies from. RTU framing passes the bytes through; Modbus TCP puts the
-//! codec's MBAP [`Session`] between them and the pipe.
+//! A byte pipe and the framing its endpoint speaks: what the Bus writes its requests to and
+//! reads its replies from. RTU framing passes the bytes through; Modbus TCP puts the codec's
+//! MBAP [`Session`] between them (`unit | PDU`) and the pipe.
 
 use super::{parse_endpoint, port_lost, Transport};
-use crate::codec::mbap::{Dropped, NotRtu, Session};
+use crate::codec::mbap::{Dropped, Session};
 use crate::codec::Framing;
 use crate::error::hex;
 use std::io;
@@ -33,26 +33,34 @@ impl Framed {
         Framed { pipe, mbap }
     }
 
-    /// Writes the RTU frame `frame` (over Modbus TCP: as an MBAP frame, the next transaction).
+    /// Writes `frame`, the Bus's request in this framing ([`Framed::framing`]): an RTU frame
+    /// as it is, or `unit | PDU` as an MBAP frame (the next transaction).
     pub(crate) fn write_all(&mut self, frame: &[u8]) -> io::Result<()> {
         let Some((session, _)) = &mut self.mbap else {
             return self.pipe.write_all(frame);
         };
-        let out = session.request(frame).map_err(|why| {
-            let why = match why {
-                NotRtu::Short => "not an RTU frame",
-                NotRtu::Length => "not an RTU frame (length)",
-                NotRtu::Crc => "its CRC is wrong",
-            };
+        let out = session.request(frame).ok_or_else(|| {
             io::Error::new(
                 io::ErrorKind::InvalidInput,
-                format!("cannot send {} over Modbus TCP: {why}", hex(frame)),
+                format!(
+                    "cannot send {} over Modbus TCP: unit + PDU must be 2 to 254 bytes",
+                    hex(frame)
+                ),
             )
         })?;
         self.pipe.write_all(&out)
     }
 
-    /// Reads at most `buf.len()` bytes of the reply (in RTU form), waiting at most `timeout`
+    /// The framing the Bus's frames take on this transport.
+    pub(crate) fn framing(&self) -> Framing {
+        if self.mbap.is_some() {
+            Framing::Mbap
+        } else {
+            Framing::Rtu
+        }
+    }
+
+    /// Reads at most `buf.len()` bytes of the reply (in this framing), waiting at most `timeout`
     /// for the first; Ok(0) when nothing came. Over Modbus TCP whole MBAP frames are taken
     /// and only the awaited reply's bytes are handed out; frames that keep coming but are
     /// all dropped do not hold the read past its deadline.
@@ -111,10 +119,10 @@ impl Framed {
             .map_or(0, |(session, _)| session.take_dropped())
     }
 
-    /// The bytes that cross the wire for the RTU frame `frame` the Bus writes (`sent`: the
+    /// The bytes that cross the wire for the frame `frame` the Bus writes (`sent`: the
     /// request about to go) or read (the reply to the last request), where they differ from
     /// it: over Modbus TCP the MBAP frame. The wire log and the errors' frames show these,
-    /// so they match a capture. None: the RTU frame itself.
+    /// so they match a capture. None: the frame itself.
     pub(crate) fn on_the_wire(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
         self.mbap.as_ref()?.0.shown(frame, sent)
     }

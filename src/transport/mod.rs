@@ -3,9 +3,10 @@
 //!
 //! What goes where: the frames' bytes are the codec's ([`crate::codec::rtu`] for RTU,
 //! [`crate::codec::mbap`] for Modbus TCP's MBAP header and transaction ids); which framing
-//! an endpoint speaks is [`Endpoint::framing`]; the Bus writes and reads RTU frames through
-//! a transport and its framing together (`framed`, which passes RTU frames through and
-//! runs a Modbus TCP session for `tcp://`); timing, checks and retries are the Bus's.
+//! an endpoint speaks is [`Endpoint::framing`]; the Bus writes and reads frames in that
+//! framing through a transport and its framing together (`framed`, which passes RTU frames
+//! through and runs a Modbus TCP session on `unit | PDU` for `tcp://`); timing, checks and
+//! retries are the Bus's.
 //!
 //! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]), and
 //! opened by [`open`].
