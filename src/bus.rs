@@ -25,7 +25,7 @@ use crate::codec::{
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard, WritePacing};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
-use crate::transport::{is_lost, open, parse_endpoint, Endpoint, Framed, Transport};
+use crate::transport::{check_line_options, is_lost, open, Framed, Transport};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
@@ -1195,20 +1195,8 @@ fn is_write(request: &Request) -> bool {
 }
 
 fn check_config(config: &BusConfig) -> Result<()> {
-    if config.echo && matches!(parse_endpoint(&config.port), Ok(Endpoint::ModbusTcp { .. })) {
-        return Err(Error::InvalidArgument(
-            "echo=True is for a serial line (or rtu+tcp://): over tcp:// the gateway keeps \
-             the line, and no echo reaches the Bus"
-                .into(),
-        ));
-    }
-    if config.rs485.is_some() && !matches!(parse_endpoint(&config.port), Ok(Endpoint::Serial(_))) {
-        return Err(Error::InvalidArgument(
-            "rs485=True is for a local serial port: over the network the gateway or device \
-             server drives the line"
-                .into(),
-        ));
-    }
+    check_line_options(&config.port, config.echo, config.rs485.is_some())
+        .map_err(Error::InvalidArgument)?;
     check_rs485_platform(config.rs485.as_ref()).map_err(Error::InvalidArgument)?;
     let line = &config.line;
     if line.baudrate == 0 {

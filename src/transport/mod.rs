@@ -110,6 +110,32 @@ pub enum Endpoint {
     },
 }
 
+/// Refuses line options the endpoint of the port string `port` has no line for: a local
+/// echo (`echo`) over Modbus TCP, where the gateway keeps the line; the kernel RS485 mode
+/// (`rs485`) anywhere but a local serial port. A port string that does not parse is left
+/// to [`open`] to refuse.
+///
+/// # Errors
+/// The message saying why.
+pub fn check_line_options(port: &str, echo: bool, rs485: bool) -> Result<(), String> {
+    let endpoint = parse_endpoint(port);
+    if echo && matches!(endpoint, Ok(Endpoint::ModbusTcp { .. })) {
+        return Err(
+            "echo=True is for a serial line (or rtu+tcp://): over tcp:// the gateway \
+                    keeps the line, and no echo reaches the Bus"
+                .into(),
+        );
+    }
+    if rs485 && !matches!(endpoint, Ok(Endpoint::Serial(_))) {
+        return Err(
+            "rs485=True is for a local serial port: over the network the gateway or \
+                    device server drives the line"
+                .into(),
+        );
+    }
+    Ok(())
+}
+
 impl Endpoint {
     /// The frames that cross it: Modbus TCP's MBAP frames for `tcp://`, RTU frames for a
     /// serial port and `rtu+tcp://`.
