@@ -18,6 +18,7 @@ __all__ = [
     "PblCore",
     "Poll",
     "Stats",
+    "_Station",
     "_Ticks",
     "__version__",
     "_panic_on_wire",
@@ -470,7 +471,19 @@ class DriveCore:
         """``(name, address, scale, unit, access, low, high)`` of each register."""
 
 @disjoint_base
-class PblCore:
+class _Station:
+    """The base of every compiled device class: the Bus the device talks through and its
+    unit."""
+
+    @property
+    def bus(self) -> Bus:
+        """The Bus the device talks through."""
+    @property
+    def unit(self) -> int:
+        """The device's unit address."""
+
+@disjoint_base
+class PblCore(_Station):
     """The compiled base of ``benchbus.PblDrive`` (use that): the parameter table and every
     call to the drive.
 
@@ -486,12 +499,6 @@ class PblCore:
         cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
     ) -> Self:
         """The drive at ``unit`` on ``bus``; ``timeout`` / ``retries`` replace the Bus's."""
-    @property
-    def bus(self) -> Bus:
-        """The Bus the drive talks through."""
-    @property
-    def unit(self) -> int:
-        """The drive's unit address."""
     def get(self, name: str) -> int:
         """Reads the parameter called ``name``."""
     def set(self, name: str, value: float) -> None:
@@ -541,7 +548,7 @@ class PblCore:
     def _restore_defaults(self) -> None: ...
 
 @disjoint_base
-class J2Core:
+class J2Core(_Station):
     """The compiled base of ``benchbus.J2Controller`` (use that): the parameter table, the
     manual's rules and every call to the controller.
 
@@ -559,12 +566,6 @@ class J2Core:
     ) -> Self:
         """The controller at ``unit`` (1..255) on ``bus``; ``timeout`` / ``retries`` replace
         the Bus's."""
-    @property
-    def bus(self) -> Bus:
-        """The Bus the controller talks through."""
-    @property
-    def unit(self) -> int:
-        """The controller's unit address."""
     def get(self, name: str) -> int | float:
         """Reads the parameter called ``name``."""
     def set(self, name: str, value: float) -> None:

@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::j2`]: the compiled base class of `benchbus.J2Controller`,
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
-use super::{member, number, public, to_pyerr, Attached, PyBus};
+use super::{member, number, public, to_pyerr, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._j2";
@@ -12,7 +12,7 @@ use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyMapping, Py
 
 /// The compiled base of `benchbus.J2Controller`: the parameter table, the manual's rules and
 /// every call to the controller.
-#[pyclass(subclass, frozen, module = "benchbus._core", name = "J2Core")]
+#[pyclass(extends = PyStation, subclass, frozen, module = "benchbus._core", name = "J2Core")]
 pub(super) struct PyJ2Core {
     dev: Attached<J2>,
 }
@@ -149,21 +149,10 @@ impl PyJ2Core {
         unit: &Bound<'_, PyAny>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let py = bus.py();
         let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(J2::new(b, u)))?;
-        Ok(PyJ2Core { dev })
-    }
-
-    /// The Bus the controller talks through.
-    #[getter]
-    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.dev.bus(py)
-    }
-
-    /// The controller's unit address.
-    #[getter]
-    fn unit(&self) -> u8 {
-        self.dev.unit()
+        Ok(dev.into_class(py, |dev| PyJ2Core { dev }))
     }
 
     /// Reads the parameter called `name`.

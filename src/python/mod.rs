@@ -204,6 +204,43 @@ impl<D: Device + 'static> Attached<D> {
     fn device(&self) -> &D {
         &self.device
     }
+
+    /// The compiled device class `T` that `wrap` makes of this, on its [`PyStation`] base:
+    /// what a device binding's `#[new]` returns.
+    fn into_class<T: pyo3::PyClass<BaseType = PyStation>>(
+        self,
+        py: Python<'_>,
+        wrap: impl FnOnce(Self) -> T,
+    ) -> PyClassInitializer<T> {
+        let station = PyStation {
+            bus: self.bus.clone_ref(py),
+            unit: self.device.unit(),
+        };
+        PyClassInitializer::from(station).add_subclass(wrap(self))
+    }
+}
+
+/// The base of every compiled device class: the Bus the device talks through and its unit,
+/// once for all families.
+#[pyclass(subclass, frozen, module = "benchbus._core", name = "_Station")]
+pub(super) struct PyStation {
+    bus: Py<PyBus>,
+    unit: u8,
+}
+
+#[pymethods]
+impl PyStation {
+    /// The Bus the device talks through.
+    #[getter]
+    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
+        self.bus.clone_ref(py)
+    }
+
+    /// The device's unit address.
+    #[getter]
+    fn unit(&self) -> u8 {
+        self.unit
+    }
 }
 
 /// A write's `write_interval` in seconds, 0..=60 (None: 0, no pacing).
@@ -944,6 +981,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     }
     m.add_class::<PyBus>()?;
     m.add_class::<PyStats>()?;
+    m.add_class::<PyStation>()?;
     m.add_class::<drive::PyDriveCore>()?;
     m.add_class::<instrument::PyInstrumentCore>()?;
     m.add_class::<j2::PyJ2Core>()?;

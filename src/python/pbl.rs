@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::pbl`]: the compiled base class of `benchbus.PblDrive`, which
 //! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
-use super::{int_in, number, public, to_pyerr, Attached, PyBus};
+use super::{int_in, number, public, to_pyerr, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._pbl";
@@ -12,7 +12,7 @@ use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFrozenSet, PyInt, PyList, PyString, PyTuple};
 
 /// The compiled base of `benchbus.PblDrive`: the parameter table and every call to the drive.
-#[pyclass(subclass, frozen, module = "benchbus._core", name = "PblCore")]
+#[pyclass(extends = PyStation, subclass, frozen, module = "benchbus._core", name = "PblCore")]
 pub(super) struct PyPblCore {
     dev: Attached<Pbl>,
 }
@@ -53,21 +53,10 @@ impl PyPblCore {
         unit: &Bound<'_, PyAny>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let py = bus.py();
         let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(Pbl::new(b, u)))?;
-        Ok(PyPblCore { dev })
-    }
-
-    /// The Bus the drive talks through.
-    #[getter]
-    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.dev.bus(py)
-    }
-
-    /// The drive's unit address.
-    #[getter]
-    fn unit(&self) -> u8 {
-        self.dev.unit()
+        Ok(dev.into_class(py, |dev| PyPblCore { dev }))
     }
 
     /// Reads the parameter called `name` (an int).
