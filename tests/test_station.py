@@ -86,19 +86,6 @@ def test_a_pbl_drive_keeps_no_core_and_refuses_unknown_attributes(slave: Scripte
     assert nothing_sent(slave)
 
 
-def test_the_j2_controller_is_its_compiled_class_with_the_groups_from_the_table() -> None:
-    from benchbus._core import J2Core
-
-    assert issubclass(bb.J2Controller, J2Core)
-    for name in ("read", "write", "read_many", "write_many", "parameters", "table", "units"):
-        assert name not in vars(bb.J2Controller), name
-    for name in ("sample", "set_output", "start_ramp", "stop_ramp"):
-        assert name not in vars(bb.J2Controller), name
-    assert bb.J2Controller.SAMPLE_FIELDS == ("pv", "sv", "mv")
-    assert J2Core._pid_names(False) == ["P", "I", "D"]
-    assert J2Core._pid_names(True) == ["P1", "I1", "D1"]
-
-
 def test_the_instrument_is_its_compiled_class_with_nothing_forwarded() -> None:
     from benchbus._core import InstrumentCore
 
@@ -129,3 +116,16 @@ def test_an_instrument_keeps_no_core_and_identifies_typed() -> None:
         assert sim.requests[-1][:5] == bytes.fromhex("02 2B 0E 02 00")
         with pytest.raises(AttributeError, match="max_read"):
             meter.max_reed = 5  # type: ignore[attr-defined]
+
+
+def test_the_j2_controller_is_its_compiled_class_with_the_groups_from_the_table() -> None:
+    from benchbus._core import J2Core
+
+    assert issubclass(bb.J2Controller, J2Core)
+    for name in ("read", "write", "read_many", "write_many", "parameters", "table", "units"):
+        assert name not in vars(bb.J2Controller), name
+    for name in ("sample", "set_output", "start_ramp", "stop_ramp"):
+        assert name not in vars(bb.J2Controller), name
+    assert bb.J2Controller.SAMPLE_FIELDS == ("pv", "sv", "mv")
+    assert J2Core._pid_names(False) == ["P", "I", "D"]
+    assert J2Core._pid_names(True) == ["P1", "I1", "D1"]
