@@ -137,6 +137,36 @@ fn bad_spans_and_limits_send_nothing() {
     ));
     assert!(matches!(i.identify(4), Err(Error::InvalidArgument(_))));
     assert!(sent(&t).is_empty());
+}
+
+/// The core's refusals name the argument, as the Python error does: the binding passes
+/// them on and checks nothing twice.
+#[test]
+fn refused_values_name_the_argument_and_send_nothing() {
+    let (i, t) = taisong(vec![], 1);
+    let message = |r: Result<(), Error>| match r {
+        Err(Error::InvalidArgument(m)) => m,
+        other => panic!("not refused: {other:?}"),
+    };
+    for value in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
+        let m = message(i.write_f32(0, value, WordOrder::HighFirst));
+        assert!(m.starts_with("value must be a finite number"), "{m}");
+    }
+    let m = message(i.write_value(0, 65536.0, 0, false, false));
+    assert!(
+        m.starts_with("value 65536 with 0 decimals does not fit"),
+        "{m}"
+    );
+    let m = message(i.write_value(0, 1.25, 1, false, true));
+    assert_eq!(m, "value 1.25 has more than 1 decimals");
+    for text in ["abcde", "Ω"] {
+        let m = message(i.write_string(0, text, 2));
+        assert_eq!(
+            m,
+            format!("text must be Latin-1 and at most 4 characters for 2 registers, got {text:?}")
+        );
+    }
+    assert!(sent(&t).is_empty());
     let (bus, _) = bus(vec![], 0);
     let bus = Arc::new(bus);
     for (r, w) in [(0, 20), (126, 20), (37, 0), (37, 124)] {

@@ -3,6 +3,7 @@ own timeout and retries, with the same messages, before anything is sent."""
 
 from __future__ import annotations
 
+import inspect
 import os
 import select
 
@@ -83,6 +84,38 @@ def test_a_pbl_drive_keeps_no_core_and_refuses_unknown_attributes(slave: Scripte
         with pytest.raises(AttributeError, match="speed_setpoint"):
             pbl.speed_setpoin = 5  # type: ignore[attr-defined]
     assert nothing_sent(slave)
+
+
+def test_the_instrument_is_its_compiled_class_with_nothing_forwarded() -> None:
+    from benchbus._core import InstrumentCore
+
+    assert issubclass(bb.Instrument, InstrumentCore)
+    for name in ("read_register", "write_register", "read_registers", "write_registers"):
+        assert name not in vars(bb.Instrument), name
+    for name in ("read_long", "write_long", "read_float", "write_float", "read_string"):
+        assert name not in vars(bb.Instrument), name
+    for name in ("write_string", "identify", "max_read", "max_write", "min_write_interval"):
+        assert name not in vars(bb.Instrument), name
+    # The compiled methods keep the defaults users see.
+    assert "word_order='big'" in str(inspect.signature(bb.Instrument.read_long))
+    assert "*, function=6" in str(inspect.signature(bb.Instrument.write_register))
+    assert "level='basic'" in str(inspect.signature(bb.Instrument.identify))
+
+
+def test_an_instrument_keeps_no_core_and_identifies_typed() -> None:
+    from benchbus.sim import Atv31Device, Simulator
+
+    with Simulator({2: Atv31Device()}) as sim, bb.Bus(sim.port) as bus:
+        meter = bb.Instrument(bus, unit=2, max_read=29)
+        assert "core" not in vars(meter)
+        assert repr(meter).startswith("<Instrument unit=2 on ")
+        assert (meter.max_read, meter.max_write) == (29, 20)
+        ident = meter.identify("regular")
+        assert type(ident) is bb.Identification
+        assert ident.vendor == "TELEMECANIQUE" and ident.objects[1] == "ATV31HU09M3S232"
+        assert sim.requests[-1][:5] == bytes.fromhex("02 2B 0E 02 00")
+        with pytest.raises(AttributeError, match="max_read"):
+            meter.max_reed = 5  # type: ignore[attr-defined]
 
 
 def test_the_j2_controller_is_its_compiled_class_with_the_groups_from_the_table() -> None:

@@ -3,12 +3,17 @@
 import os
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from types import TracebackType
-from typing import Any
+from typing import Any, Literal
 
 from typing_extensions import Self, disjoint_base, final
 
+from benchbus._instrument import Identification
 from benchbus._j2 import J2Parameter, J2Status, Limits, Pid
 from benchbus._pbl import Direction, PblParameter, PblStatus, PblTelemetry
+
+#: Which register of a 32-bit value comes first: "big" the high word (the Modbus
+#: convention), "little" the low word.
+_WordOrder = Literal["big", "little"]
 
 __all__ = [
     "Bus",
@@ -618,13 +623,15 @@ class J2Core(_Station):
     @limits.setter
     def limits(self, value: Iterable[float]) -> None: ...
 
-@final
-class InstrumentCore:
-    """The core of a generic instrument (``benchbus.Instrument`` wraps it).
+@disjoint_base
+class InstrumentCore(_Station):
+    """The compiled base of ``benchbus.Instrument`` (use that): the request limits, the
+    value conversions and every call to the instrument.
 
     Reads and writes of any length are split into requests of at most ``max_read`` /
     ``max_write`` registers; writes are paced ``min_write_interval`` seconds apart. Every
-    call that touches the wire releases the GIL.
+    argument is checked before anything is sent, and every call that touches the wire
+    releases the GIL.
     """
 
     def __new__(
@@ -637,13 +644,8 @@ class InstrumentCore:
         timeout: float | None = None,
         retries: int | None = None,
     ) -> Self:
-        """The instrument at ``unit`` on ``bus`` with its request limits."""
-    @property
-    def bus(self) -> Bus:
-        """The Bus the instrument talks through."""
-    @property
-    def unit(self) -> int:
-        """The instrument's unit address."""
+        """The instrument at ``unit`` on ``bus`` with its request limits; ``timeout`` /
+        ``retries`` replace the Bus's."""
     @property
     def max_read(self) -> int:
         """Most registers one read asks for."""
@@ -653,36 +655,47 @@ class InstrumentCore:
     @property
     def min_write_interval(self) -> float:
         """Least time between two writes, seconds."""
-    def read_registers(self, address: int, count: int) -> list[int]:
-        """``count`` registers from ``address``, in requests of at most ``max_read``."""
-    def write_registers(self, address: int, values: Iterable[int]) -> None:
-        """Writes ``values`` from ``address``, in requests of at most ``max_write``."""
-    def read_register(
-        self, address: int, decimals: int | None = None, signed: bool = False
-    ) -> int | float:
-        """One register as a value: an int without decimals, a float with."""
+    def read_register(self, address: int, decimals: int = 0, signed: bool = False) -> int | float:
+        """One register as a value: ``raw / 10**decimals`` (an int when ``decimals`` is 0),
+        two's complement if ``signed``."""
     def write_register(
         self,
         address: int,
         value: float,
-        decimals: int | None = None,
+        decimals: int = 0,
         signed: bool = False,
-        function: int | None = None,
+        *,
+        function: int = 6,
     ) -> None:
-        """Writes one register's value (with 0x06, or 0x10 if ``function`` is 16)."""
-    def read_long(self, address: int, signed: bool = False, word_order: str | None = None) -> int:
-        """A 32-bit integer over two registers."""
+        """Write ``value * 10**decimals`` to one register with 0x06 (or 0x10 if ``function``
+        is 16). A value that does not fit or has more decimals raises ValueError before
+        anything is sent."""
+    def read_registers(self, address: int, count: int) -> list[int]:
+        """``count`` raw registers from ``address``, in requests of at most ``max_read``."""
+    def write_registers(self, address: int, values: Iterable[int]) -> None:
+        """Write raw ``values`` from ``address`` with 0x10, in requests of at most
+        ``max_write``."""
+    def read_long(self, address: int, signed: bool = False, word_order: _WordOrder = "big") -> int:
+        """A 32-bit integer over the registers ``address`` and ``address + 1``."""
     def write_long(
-        self, address: int, value: int, signed: bool = False, word_order: str | None = None
+        self, address: int, value: int, signed: bool = False, word_order: _WordOrder = "big"
     ) -> None:
-        """Writes a 32-bit integer over two registers."""
-    def read_float(self, address: int, word_order: str | None = None) -> float:
-        """An IEEE 754 single over two registers."""
-    def write_float(self, address: int, value: float, word_order: str | None = None) -> None:
-        """Writes an IEEE 754 single over two registers (finite values only)."""
+        """Write a 32-bit integer over two registers, in one request (two if ``max_write`` is
+        1)."""
+    def read_float(self, address: int, word_order: _WordOrder = "big") -> float:
+        """An IEEE 754 single-precision float over two registers."""
+    def write_float(self, address: int, value: float, word_order: _WordOrder = "big") -> None:
+        """Write an IEEE 754 single over two registers (NaN and infinities are refused)."""
     def read_string(self, address: int, count: int) -> str:
-        """``count`` registers as Latin-1 text, trailing NULs dropped."""
+        """``count`` registers as text, two Latin-1 characters a register (high byte
+        first), without the NULs that pad it."""
     def write_string(self, address: int, text: str, count: int) -> None:
-        """Writes ``text`` into ``count`` registers, padded with NULs."""
-    def identify(self, read_code: int | None = None) -> tuple[int, dict[int, str]]:
-        """Read Device Identification: ``(conformity level, {object id: text})``."""
+        """Write ``text`` into ``count`` registers, two characters a register, padded with
+        NULs (longer text or characters outside Latin-1 raise ValueError)."""
+    def identify(self, level: Literal["basic", "regular", "extended"] = "basic") -> Identification:
+        """Read Device Identification (0x2B / MEI 0x0E) from object 0, following "more
+        follows" until the device has sent them all.
+
+        A device without the function raises :class:`~benchbus.ModbusException` with code 1
+        (its ``meaning`` says so).
+        """

@@ -14,6 +14,9 @@ use std::time::Duration;
 /// Registers a 32-bit value or float takes.
 const PAIR: u16 = 2;
 
+/// The most decimals a register's value may be given with.
+pub const MAX_DECIMALS: u8 = 9;
+
 /// Which register of a 32-bit value comes first.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum WordOrder {
@@ -82,7 +85,7 @@ fn scaled(value: f64, decimals: u8, lo: f64, hi: f64) -> Result<f64> {
     let whole = steps.round();
     if !value.is_finite() || whole < lo || whole > hi {
         return Err(Error::InvalidArgument(format!(
-            "{value} with {decimals} decimals does not fit the register ({} to {})",
+            "value {value} with {decimals} decimals does not fit the register ({} to {})",
             lo / factor,
             hi / factor
         )));
@@ -90,7 +93,7 @@ fn scaled(value: f64, decimals: u8, lo: f64, hi: f64) -> Result<f64> {
     // A few units in the last place: 0.1 + 0.2 with one decimal is 3 steps, 30000.02 is not.
     if (steps - whole).abs() > 4.0 * f64::EPSILON * steps.abs().max(1.0) {
         return Err(Error::InvalidArgument(format!(
-            "{value} has more than {decimals} decimals"
+            "value {value} has more than {decimals} decimals"
         )));
     }
     Ok(whole)
@@ -106,9 +109,9 @@ fn unscaled(v: f64, decimals: u8) -> f64 {
 }
 
 fn check_decimals(decimals: u8) -> Result<()> {
-    if decimals > 9 {
+    if decimals > MAX_DECIMALS {
         return Err(Error::InvalidArgument(format!(
-            "decimals must be 0 to 9, got {decimals}"
+            "decimals must be 0 to {MAX_DECIMALS}, got {decimals}"
         )));
     }
     Ok(())
@@ -289,8 +292,13 @@ impl Instrument {
     /// Writes an IEEE 754 single over two registers.
     ///
     /// # Errors
-    /// Any [`Error`].
+    /// [`Error::InvalidArgument`] for NaN or an infinity (nothing sent); any [`Error`].
     pub fn write_f32(&self, address: u16, value: f32, order: WordOrder) -> Result<()> {
+        if !value.is_finite() {
+            return Err(Error::InvalidArgument(format!(
+                "value must be a finite number within a 32-bit float's range, got {value}"
+            )));
+        }
         self.write_u32(address, value.to_bits(), order)
     }
 
@@ -315,21 +323,20 @@ impl Instrument {
     /// outside Latin-1 (nothing sent); any [`Error`].
     pub fn write_string(&self, address: u16, text: &str, count: usize) -> Result<()> {
         check_span(address, count)?;
-        let mut bytes = text
+        let bytes: Option<Vec<u8>> = text
             .chars()
-            .map(|c| {
-                u8::try_from(u32::from(c)).map_err(|_| {
-                    Error::InvalidArgument(format!("{c:?} is not a Latin-1 character"))
-                })
-            })
-            .collect::<Result<Vec<u8>>>()?;
-        if bytes.len() > 2 * count {
-            return Err(Error::InvalidArgument(format!(
-                "{} characters do not fit {count} registers ({} at most)",
-                bytes.len(),
-                2 * count
-            )));
-        }
+            .map(|c| u8::try_from(u32::from(c)).ok())
+            .collect();
+        let mut bytes = match bytes {
+            Some(bytes) if bytes.len() <= 2 * count => bytes,
+            _ => {
+                return Err(Error::InvalidArgument(format!(
+                    "text must be Latin-1 and at most {} characters for {count} registers, \
+                     got {text:?}",
+                    2 * count
+                )))
+            }
+        };
         bytes.resize(2 * count, 0);
         let words: Vec<u16> = bytes
             .chunks_exact(2)

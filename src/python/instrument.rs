@@ -1,16 +1,26 @@
-//! Bindings of [`crate::device::instrument`]: the core that `benchbus.Instrument` (Python)
-//! wraps.
+//! Bindings of [`crate::device::instrument`]: the compiled base class of
+//! `benchbus.Instrument`, which adds only what belongs to Python (its defaults, the
+//! identification record, the repr, the context manager).
 
-use super::{int_in, number, opt, register_list, seconds, to_pyerr, u16_arg, Attached, PyBus};
-use crate::device::instrument::{Instrument, WordOrder};
+use super::{
+    int_in, number, opt, public, register_list, seconds, u16_arg, Attached, PyBus, PyStation,
+};
+use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
+use crate::device::instrument::{Instrument, WordOrder, MAX_DECIMALS};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyFloat, PyInt, PyString};
-use std::collections::BTreeMap;
+use pyo3::types::{PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString};
 use std::time::Duration;
 
-/// The core of a generic instrument (see `benchbus.Instrument`).
-#[pyclass(frozen, module = "benchbus._core", name = "InstrumentCore")]
+/// The Python module of the family's public types.
+const PY: &str = "benchbus._instrument";
+
+/// The levels of Read Device Identification by name, with their read codes.
+const LEVELS: [(&str, u8); 3] = [("basic", 1), ("regular", 2), ("extended", 3)];
+
+/// The compiled base of `benchbus.Instrument`: the request limits, the value conversions and
+/// every call to the instrument.
+#[pyclass(extends = PyStation, subclass, frozen, module = "benchbus._core", name = "InstrumentCore")]
 pub(super) struct PyInstrumentCore {
     dev: Attached<Instrument>,
 }
@@ -42,8 +52,15 @@ fn word_order(obj: &Bound<'_, PyAny>) -> PyResult<WordOrder> {
     }
 }
 
+/// A `word_order` argument; absent or None: "big".
+fn order_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<WordOrder> {
+    opt(obj, WordOrder::HighFirst, word_order)
+}
+
 fn decimals_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<u8> {
-    opt(obj, 0, |d| int_in(d, "decimals", 0, 9).map(|d| d as u8))
+    opt(obj, 0, |d| {
+        int_in(d, "decimals", 0, MAX_DECIMALS.into()).map(|d| d as u8)
+    })
 }
 
 /// A count of registers from `address`: 1 up to what fits below 0x10000.
@@ -68,6 +85,51 @@ fn function_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<bool> {
     })
 }
 
+/// The values of a write: any iterable of ints but text, bytes and bytearray (refused
+/// before the address is looked at).
+fn values_kind(values: &Bound<'_, PyAny>) -> PyResult<()> {
+    if values.is_instance_of::<PyString>()
+        || values.is_instance_of::<PyBytes>()
+        || values.is_instance_of::<PyByteArray>()
+    {
+        return Err(PyTypeError::new_err(
+            "values must be a sequence of ints, not str or bytes",
+        ));
+    }
+    if values.try_iter().is_err() {
+        return Err(PyTypeError::new_err(format!(
+            "values must be a sequence of ints, got {}",
+            values.get_type().name()?
+        )));
+    }
+    Ok(())
+}
+
+/// The read code of an identification `level`: "basic", "regular" or "extended".
+fn level_arg(level: &Bound<'_, PyAny>) -> PyResult<u8> {
+    let expected = "level must be 'basic', 'regular' or 'extended'";
+    if !level.is_instance_of::<PyString>() {
+        return Err(PyTypeError::new_err(format!(
+            "{expected}, got {}",
+            level.get_type().name()?
+        )));
+    }
+    let name: String = level.extract()?;
+    LEVELS
+        .iter()
+        .find(|(known, _)| *known == name)
+        .map(|&(_, code)| code)
+        .ok_or_else(|| match level.repr() {
+            Ok(shown) => PyValueError::new_err(format!("{expected}, got {shown}")),
+            Err(e) => e,
+        })
+}
+
+/// "basic", the default identification level (still checked when given).
+fn py_basic() -> Py<PyAny> {
+    Python::attach(|py| PyString::new(py, "basic").into_any().unbind())
+}
+
 #[pymethods]
 impl PyInstrumentCore {
     #[new]
@@ -80,26 +142,15 @@ impl PyInstrumentCore {
         min_write_interval: &Bound<'_, PyAny>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let max_read = int_in(max_read, "max_read", 1, 125)? as u16;
-        let max_write = int_in(max_write, "max_write", 1, 123)? as u16;
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let py = bus.py();
+        let max_read = int_in(max_read, "max_read", 1, MAX_READ_COUNT.into())? as u16;
+        let max_write = int_in(max_write, "max_write", 1, MAX_WRITE_COUNT.into())? as u16;
         let interval: Duration = seconds(min_write_interval, "min_write_interval", true)?;
         let dev = Attached::new(bus, unit, timeout, retries, |b, u| {
             Instrument::new(b, u, max_read, max_write, interval)
         })?;
-        Ok(PyInstrumentCore { dev })
-    }
-
-    /// The Bus the instrument talks through.
-    #[getter]
-    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.dev.bus(py)
-    }
-
-    /// The instrument's unit address.
-    #[getter]
-    fn unit(&self) -> u8 {
-        self.dev.unit()
+        Ok(dev.into_class(py, |dev| PyInstrumentCore { dev }))
     }
 
     /// Most registers one read asks for.
@@ -120,32 +171,9 @@ impl PyInstrumentCore {
         self.dev.device().min_write_interval().as_secs_f64()
     }
 
-    /// `count` registers from `address`, in requests of at most `max_read`.
-    fn read_registers(
-        &self,
-        py: Python<'_>,
-        address: &Bound<'_, PyAny>,
-        count: &Bound<'_, PyAny>,
-    ) -> PyResult<Vec<u16>> {
-        let address = u16_arg(address, "address")?;
-        let count = count_arg(count, address)?;
-        self.wire(py, move |i| i.read_registers(address, count))
-    }
-
-    /// Writes `values` from `address`, in requests of at most `max_write`.
-    fn write_registers(
-        &self,
-        py: Python<'_>,
-        address: &Bound<'_, PyAny>,
-        values: &Bound<'_, PyAny>,
-    ) -> PyResult<()> {
-        let address = u16_arg(address, "address")?;
-        let values = register_list(values, 0x1_0000 - usize::from(address))?;
-        self.wire(py, move |i| i.write_registers(address, &values))
-    }
-
-    /// One register as a value: an int without decimals, a float with.
-    #[pyo3(signature = (address, decimals=None, signed=false))]
+    /// One register as a value: ``raw / 10**decimals`` (an int when ``decimals`` is 0),
+    /// two's complement if ``signed``.
+    #[pyo3(signature = (address, decimals=None, signed=false), text_signature = "(self, address, decimals=0, signed=False)")]
     fn read_register<'py>(
         &self,
         py: Python<'py>,
@@ -163,8 +191,13 @@ impl PyInstrumentCore {
         })
     }
 
-    /// Writes one register's value (with 0x06, or 0x10 if `function` is 16).
-    #[pyo3(signature = (address, value, decimals=None, signed=false, function=None))]
+    /// Write ``value * 10**decimals`` to one register with 0x06 (or 0x10 if ``function``
+    /// is 16). A value that does not fit or has more decimals raises ValueError before
+    /// anything is sent.
+    #[pyo3(
+        signature = (address, value, decimals=None, signed=false, *, function=None),
+        text_signature = "(self, address, value, decimals=0, signed=False, *, function=6)"
+    )]
     fn write_register(
         &self,
         py: Python<'_>,
@@ -178,17 +211,39 @@ impl PyInstrumentCore {
         let value = number(value, "value")?;
         let decimals = decimals_arg(decimals)?;
         let multiple = function_arg(function)?;
-        // The core's message says what does not fit; the argument it is about is `value`.
-        let raw =
-            crate::device::instrument::to_raw(value, decimals, signed).map_err(|e| match e {
-                crate::Error::InvalidArgument(m) => PyValueError::new_err(format!("value {m}")),
-                e => to_pyerr(py, e),
-            })?;
-        self.wire(py, move |i| i.write_word(address, raw, multiple))
+        self.wire(py, move |i| {
+            i.write_value(address, value, decimals, signed, multiple)
+        })
     }
 
-    /// A 32-bit integer over two registers.
-    #[pyo3(signature = (address, signed=false, word_order=None))]
+    /// ``count`` raw registers from ``address``, in requests of at most ``max_read``.
+    fn read_registers(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<u16>> {
+        let address = u16_arg(address, "address")?;
+        let count = count_arg(count, address)?;
+        self.wire(py, move |i| i.read_registers(address, count))
+    }
+
+    /// Write raw ``values`` from ``address`` with 0x10, in requests of at most
+    /// ``max_write``.
+    fn write_registers(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        values_kind(values)?;
+        let address = u16_arg(address, "address")?;
+        let values = register_list(values, 0x1_0000 - usize::from(address))?;
+        self.wire(py, move |i| i.write_registers(address, &values))
+    }
+
+    /// A 32-bit integer over the registers ``address`` and ``address + 1``.
+    #[pyo3(signature = (address, signed=false, word_order=None), text_signature = "(self, address, signed=False, word_order='big')")]
     fn read_long(
         &self,
         py: Python<'_>,
@@ -197,7 +252,7 @@ impl PyInstrumentCore {
         word_order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<i64> {
         let address = pair_address(address)?;
-        let order = opt(word_order, WordOrder::HighFirst, self::word_order)?;
+        let order = order_arg(word_order)?;
         let v = self.wire(py, move |i| i.read_u32(address, order))?;
         Ok(if signed {
             i64::from(v as i32)
@@ -206,8 +261,9 @@ impl PyInstrumentCore {
         })
     }
 
-    /// Writes a 32-bit integer over two registers.
-    #[pyo3(signature = (address, value, signed=false, word_order=None))]
+    /// Write a 32-bit integer over two registers, in one request (two if ``max_write`` is
+    /// 1).
+    #[pyo3(signature = (address, value, signed=false, word_order=None), text_signature = "(self, address, value, signed=False, word_order='big')")]
     fn write_long(
         &self,
         py: Python<'_>,
@@ -222,12 +278,12 @@ impl PyInstrumentCore {
         } else {
             int_in(value, "value", 0, i64::from(u32::MAX))? as u32
         };
-        let order = opt(word_order, WordOrder::HighFirst, self::word_order)?;
+        let order = order_arg(word_order)?;
         self.wire(py, move |i| i.write_u32(address, value, order))
     }
 
-    /// An IEEE 754 single over two registers.
-    #[pyo3(signature = (address, word_order=None))]
+    /// An IEEE 754 single-precision float over two registers.
+    #[pyo3(signature = (address, word_order=None), text_signature = "(self, address, word_order='big')")]
     fn read_float(
         &self,
         py: Python<'_>,
@@ -235,13 +291,13 @@ impl PyInstrumentCore {
         word_order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<f64> {
         let address = pair_address(address)?;
-        let order = opt(word_order, WordOrder::HighFirst, self::word_order)?;
+        let order = order_arg(word_order)?;
         self.wire(py, move |i| i.read_f32(address, order))
             .map(f64::from)
     }
 
-    /// Writes an IEEE 754 single over two registers (finite values only).
-    #[pyo3(signature = (address, value, word_order=None))]
+    /// Write an IEEE 754 single over two registers (NaN and infinities are refused).
+    #[pyo3(signature = (address, value, word_order=None), text_signature = "(self, address, value, word_order='big')")]
     fn write_float(
         &self,
         py: Python<'_>,
@@ -252,16 +308,18 @@ impl PyInstrumentCore {
         let address = pair_address(address)?;
         let value = number(value, "value")?;
         let single = value as f32;
-        if !value.is_finite() || !single.is_finite() {
+        // A finite number beyond a single's range: the core sees only the infinity.
+        if value.is_finite() && !single.is_finite() {
             return Err(PyValueError::new_err(format!(
                 "value must be a finite number within a 32-bit float's range, got {value}"
             )));
         }
-        let order = opt(word_order, WordOrder::HighFirst, self::word_order)?;
+        let order = order_arg(word_order)?;
         self.wire(py, move |i| i.write_f32(address, single, order))
     }
 
-    /// `count` registers as Latin-1 text, trailing NULs dropped.
+    /// ``count`` registers as text, two Latin-1 characters a register (high byte first),
+    /// without the NULs that pad it.
     fn read_string(
         &self,
         py: Python<'_>,
@@ -273,7 +331,8 @@ impl PyInstrumentCore {
         self.wire(py, move |i| i.read_string(address, count))
     }
 
-    /// Writes `text` into `count` registers, padded with NULs.
+    /// Write ``text`` into ``count`` registers, two characters a register, padded with
+    /// NULs (longer text or characters outside Latin-1 raise ValueError).
     fn write_string(
         &self,
         py: Python<'_>,
@@ -290,31 +349,25 @@ impl PyInstrumentCore {
         }
         let text: String = text.extract()?;
         let count = count_arg(count, address)?;
-        // Checked here so a bad text sends nothing.
-        if text.chars().any(|c| u32::from(c) > 0xFF) || text.chars().count() > 2 * count {
-            return Err(PyValueError::new_err(format!(
-                "text must be Latin-1 and at most {} characters for {count} registers, got {text:?}",
-                2 * count
-            )));
-        }
         self.wire(py, move |i| i.write_string(address, &text, count))
     }
 
-    /// Read Device Identification: `(conformity level, {object id: text})` (Latin-1).
-    #[pyo3(signature = (read_code=None))]
-    fn identify(
-        &self,
-        py: Python<'_>,
-        read_code: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<(u8, BTreeMap<u8, String>)> {
-        let read_code = opt(read_code, 1, |r| {
-            int_in(r, "read_code", 1, 3).map(|r| r as u8)
-        })?;
+    /// Read Device Identification (0x2B / MEI 0x0E) from object 0, following "more
+    /// follows" until the device has sent them all.
+    ///
+    /// A device without the function raises :class:`~benchbus.ModbusException` with code 1
+    /// (its ``meaning`` says so).
+    #[pyo3(signature = (level=py_basic()), text_signature = "(self, level='basic')")]
+    fn identify<'py>(&self, py: Python<'py>, level: Py<PyAny>) -> PyResult<Bound<'py, PyAny>> {
+        let read_code = level_arg(level.bind(py))?;
         let id = self.wire(py, move |i| i.identify(read_code))?;
-        Ok((id.conformity, id.texts()))
-    }
-
-    fn __repr__(&self) -> String {
-        format!("InstrumentCore(unit={})", self.dev.unit())
+        let objects = id.texts();
+        let fields = PyDict::new(py);
+        fields.set_item("vendor", objects.get(&0))?;
+        fields.set_item("product_code", objects.get(&1))?;
+        fields.set_item("revision", objects.get(&2))?;
+        fields.set_item("objects", &objects)?;
+        fields.set_item("conformity", id.conformity)?;
+        public(py, PY, "Identification", (), Some(&fields))
     }
 }

@@ -190,16 +190,6 @@ impl<D: Device + 'static> Attached<D> {
         on_wire(py, &self.device, f)
     }
 
-    /// The Bus object the device talks through.
-    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
-    }
-
-    /// The device's unit address.
-    fn unit(&self) -> u8 {
-        self.device.unit()
-    }
-
     /// The core, for what needs no wire.
     fn device(&self) -> &D {
         &self.device
