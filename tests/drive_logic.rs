@@ -4,6 +4,7 @@
 mod common;
 
 use benchbus::device::drive::{Command, Drive, Family};
+use benchbus::device::Device;
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, Act, Scripted};
 use std::sync::Arc;
@@ -233,4 +234,32 @@ fn baud_rates_by_family() {
     assert!(c20.set_baud_rate(115_200).is_err());
     assert_eq!(c20.baud_rate().ok(), Some(Some(9600)));
     assert_eq!(sent(&t).len(), 1);
+}
+
+#[test]
+fn leaving_ends_a_jog_this_object_started_then_stops() {
+    // Jog forward, then the exit sequence: jog stop (8), stop (5).
+    let frames = [
+        "01 06 20 00 00 03 C2 0B",
+        "01 06 20 00 00 08 83 CC",
+        "01 06 20 00 00 05 42 09",
+        "01 06 20 00 00 05 42 09",
+    ];
+    let (d, t) = drive(frames.iter().map(|f| echo(f)).collect(), Family::Bld, true);
+    assert!(!d.jogging());
+    d.command(Command::JogForward).expect("jog");
+    assert!(d.jogging());
+    d.stop_on_exit().expect("exit");
+    assert!(!d.jogging());
+    // Without a jog on, only the stop goes out.
+    d.stop_on_exit().expect("exit");
+    assert_eq!(sent(&t), frames.map(hex).to_vec());
+}
+
+#[test]
+fn a_refused_jog_is_not_counted_as_started() {
+    let refusal = Act::Reply(with_crc(&[1, 0x86, 0x01]));
+    let (d, _t) = drive(vec![refusal], Family::Bld, true);
+    assert!(d.command(Command::JogReverse).is_err());
+    assert!(!d.jogging());
 }

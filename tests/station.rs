@@ -3,6 +3,7 @@
 
 mod common;
 
+use benchbus::device::drive::{Drive, Family};
 use benchbus::device::instrument::Instrument;
 use benchbus::device::j2::J2;
 use benchbus::device::pbl::Pbl;
@@ -66,4 +67,22 @@ fn a_devices_own_retries_replace_the_buss_in_every_family() {
     let i = instrument(Arc::new(b)).with_timing(timeout, Some(3));
     assert_eq!(i.read_word(0).ok(), Some(42));
     assert_eq!(sent(&t).len(), 4);
+}
+
+#[test]
+fn the_drive_stands_on_the_station_too() {
+    let (b, _) = bus(vec![], 2);
+    let b = Arc::new(b);
+    let drive = Drive::new(Arc::clone(&b), 7, Family::Bld, true);
+    assert_eq!(timing(&drive), (b.config().timeout, 2, 7));
+    assert!(Arc::ptr_eq(drive.bus(), &b));
+
+    // Its own retries replace the Bus's: one silent request, then a timeout.
+    let timeout = Some(Duration::from_millis(5));
+    let (b, t) = bus(silent_then_reply(), 2);
+    let d = Drive::new(Arc::new(b), 7, Family::C20, false).with_timing(timeout, Some(0));
+    assert_eq!(d.station().timeout(), Duration::from_millis(5));
+    assert!(!d.station().opts().write_ack && !d.write_ack());
+    assert!(matches!(d.get("speed"), Err(Error::Timeout { .. })));
+    assert_eq!(sent(&t).len(), 1);
 }

@@ -372,6 +372,23 @@ EXPLICIT: list[Case] = [
     *calls("Drive", "keepalive", ValueError, "interval", *(A(i) for i in (0, -1, NAN, INF, HUGE))),
     *calls("Drive", "keepalive", ValueError, "interval", A(0.001), A(61)),
     *calls("Drive", "keepalive", TypeError, "interval", A("1"), A(None), A(True)),
+    *calls("Drive", "read_setting", ValueError, "setting", A("nope"), A("")),
+    *calls("Drive", "read_setting", TypeError, "name", A(5), A(None)),
+    *calls("C20", "read_setting", ValueError, "F08.04", A("comm_loss_timeout")),  # BLD only
+    *calls("Drive", "write_setting", ValueError, "nope", A("nope", 1)),
+    *calls(
+        "Drive",
+        "write_setting",
+        ValueError,
+        "comm_loss_timeout",
+        *(A("comm_loss_timeout", v) for v in (-1, 0.05, 60.1, NAN, INF, HUGE)),
+    ),
+    *calls("Drive", "write_setting", TypeError, "comm_loss_timeout", A("comm_loss_timeout", "1")),
+    *calls("Drive", "write_setting", TypeError, "name", A(5, 1)),
+    *calls("Drive", "model_from_id", ValueError, "family", A("ABC", 0x20), A("", 0x20)),
+    *calls("Drive", "model_from_id", TypeError, "family", A(5, 0x20)),
+    *calls("Drive", "model_from_id", ValueError, "id", A("BLD", 0x10000), A("BLD", -1)),
+    *calls("Drive", "model_from_id", TypeError, "id", A("BLD", "0x20"), A("BLD", 1.0)),
     # -- PblDrive
     *calls("PblDrive", "__init__", ValueError, "unit", *(A(BUS, u) for u in (-1, 0, 256, HUGE))),
     *calls("PblDrive", "__init__", TypeError, "unit", A(BUS, "1"), A(BUS, 17.0)),

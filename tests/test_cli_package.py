@@ -6,6 +6,8 @@ import argparse
 import subprocess
 import sys
 
+import pytest
+
 from benchbus import cli
 
 
@@ -54,3 +56,25 @@ def test_the_entry_points_are_the_package_main() -> None:
         check=False,
     )
     assert done.returncode == 0 and done.stdout.startswith("benchbus ")
+
+
+def test_the_drive_speeds_are_bounded_by_the_register_table(
+    capsys: pytest.CaptureFixture[str],
+) -> None:
+    """``benchbus drive`` takes the speeds the speed setpoint's row allows, on both families."""
+    from benchbus._core import DriveCore
+
+    rows = [
+        next(r for r in DriveCore._table(family) if r.name == "speed_setpoint")
+        for family in ("BLD", "C20")
+    ]
+    assert rows[0] == rows[1] and (rows[0].low, rows[0].high) == (0.0, 3000.0)
+    top = int(rows[0].high)
+    actions = _subcommands(_subcommands(cli.build_parser())["drive"])
+    set_speed, start = actions["set-speed"], actions["start"]
+    assert set_speed.parse_args([str(top)]).rpm == top
+    assert start.parse_args(["--speed", str(top)]).speed == top
+    for parser, args in ((set_speed, [str(top + 1)]), (start, ["--speed", "-1"])):
+        with pytest.raises(SystemExit):
+            parser.parse_args(args)
+        assert f"must be 0 to {top}, got" in capsys.readouterr().err

@@ -7,6 +7,7 @@ line, byte for byte, for the Python call that makes each of them.
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import re
 import time
 from collections.abc import Iterator
@@ -93,8 +94,12 @@ def test_every_command_of_the_table_is_a_method_that_sends_its_code(bld: Rig) ->
         assert f"(command {code})" in (method.__doc__ or "")
         method()
         assert device.commands[-1] == code
-    with pytest.raises(ValueError, match='no drive command "Forward"'):
-        drive.core.command("Forward")
+    # Each is a method of the compiled base, made from its row, with nothing in Python
+    # between; a name that is not a row is no command at all.
+    for name, _code in table:
+        assert name in vars(DriveCore) and name not in vars(bb.Drive), name
+    with pytest.raises(AttributeError, match="Forward"):
+        drive.Forward  # type: ignore[attr-defined]  # noqa: B018
 
 
 def test_property_docs_say_what_the_register_table_says(bld: Rig) -> None:
@@ -177,7 +182,7 @@ def test_manual_status_frames(any_family: Rig) -> None:
     assert drive.state == bb.DriveState.OFF
     assert sim.requests[-1] == h("01 03 21 00 00 01 8E 36")
     assert sim.replies[-1] == h("01 03 02 00 05 78 47")
-    assert drive.core.block_reads is False
+    assert drive.block_reads is False
 
 
 def test_bld_status_word_2_is_the_manuals_example(bld: Rig) -> None:
@@ -373,7 +378,7 @@ def test_block_reads_are_used_when_allowed() -> None:
         sim.clear_log()
         snapshot = drive.telemetry()
         assert len(sim.requests) == 1 and sim.requests[0][:6] == h("01 03 30 00 00 15")
-        assert drive.core.block_reads is True
+        assert drive.block_reads is True
         assert isinstance(snapshot.hall_count, int)
 
 
@@ -382,7 +387,7 @@ def test_the_default_simulated_drive_reads_one_register_a_request() -> None:
         sim.clear_log()
         drive.telemetry()
         assert sim.replies[0][:3] == h("01 83 03")  # the block read refused: exception 3
-        assert drive.core.block_reads is False
+        assert drive.block_reads is False
 
 
 def test_single_register_drive_falls_back_once() -> None:
@@ -506,7 +511,7 @@ def test_a_drive_on_a_shared_bus_can_wait_longer_than_the_bus() -> None:
         with pytest.raises(bb.ResponseTimeout):
             bus.read_holding_registers(1, 0x3006, 1)
         patient = bb.Drive(bus, timeout=0.3)
-        assert (patient.core.timeout, patient.core.retries) == (0.3, 0)
+        assert (patient.timeout, patient.retries) == (0.3, 0)
         assert patient.speed == 0
         assert bus.timeout == 0.1  # the Bus keeps its own
 
@@ -553,3 +558,69 @@ def test_a_model_of_the_other_family_is_reported(caplog: pytest.LogCaptureFixtur
         with caplog.at_level("WARNING", logger="benchbus.drive"):
             assert drive.model is bb.Model.BLD3H
         assert "family C20" in caplog.text
+
+
+# ---- the compiled base and the table ------------------------------------------------------------
+
+
+def test_the_telemetry_fields_are_the_cores_measurement_rows(bld: Rig) -> None:
+    """DriveTelemetry is written out for its docs and types; its fields are the table's."""
+    drive, _sim, _device = bld
+    fields = tuple(f.name for f in dataclasses.fields(bb.DriveTelemetry) if f.name != "units")
+    assert fields == DriveCore.SAMPLE_FIELDS == bb.Drive.SAMPLE_FIELDS
+    assert "SAMPLE_FIELDS" not in vars(bb.Drive)
+    table = {row.name: row for row in drive.registers()}
+    for field in dataclasses.fields(bb.DriveTelemetry):
+        if field.name in table:
+            assert field.type in ("int", "float")
+            assert (field.type == "int") == (table[field.name].scale == 1.0), field.name
+    assert list(drive.sample()) == list(fields)
+
+
+class OddStatus(DriveDevice):
+    """Reports a state and a control source the manuals do not list."""
+
+    def read_holding(self, address: int, count: int) -> list[int]:
+        words = super().read_holding(address, count)
+        return [{0x2100: 9, 0x2101: 0x61}.get(address + i, w) for i, w in enumerate(words)]
+
+
+def test_status_comes_typed_from_the_compiled_base() -> None:
+    assert "status" not in vars(bb.Drive) and "telemetry" not in vars(bb.Drive)
+    with open_drive("BLD2") as (drive, _sim, device):
+        status = drive.status()
+        assert type(status) is bb.DriveStatus
+        assert type(status.state) is bb.DriveState
+        assert type(status.control_source) is bb.CommandSource
+        assert status.fault is None
+        device.inject_fault(0x1B)
+        assert drive.status().fault == bb.Fault(0x1B, "unknown fault 0x1B")
+        assert type(drive.telemetry()) is bb.DriveTelemetry
+    with Simulator(OddStatus()) as sim, bb.Drive(sim.port) as drive:
+        status = drive.status()
+        assert (status.state, status.control_source) == (9, 3)
+        assert type(status.state) is int and type(status.control_source) is bb.CommandSource
+        assert drive.state == 9
+
+
+def test_registers_are_named_rows_that_still_unpack(any_family: Rig) -> None:
+    drive, _sim, _device = any_family
+    rows = drive.registers()
+    assert all(type(row) is bb.DriveRegister for row in rows)
+    speed = next(row for row in rows if row.name == "speed_setpoint")
+    name, address, scale, unit, access, low, high = speed
+    assert (name, address, unit, access, low, high) == (
+        "speed_setpoint",
+        0x2001,
+        "rpm",
+        "W/R",
+        0,
+        3000,
+    )
+    assert scale == 1.0 and speed.high == speed[6]
+    assert " ".join(speed._fields) == "name address scale unit access low high"
+    station = next(row for row in rows if row.name == "station_address")
+    assert station.high == (247.0 if drive.family == "C20" else 127.0)
+    assert ("stop_mode" in {row.name for row in rows}) == (drive.family == "BLD")
+    assert rows == DriveCore._table(drive.family)
+    assert drive.units() == {row.name: row.unit for row in rows}

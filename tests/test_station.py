@@ -147,3 +147,53 @@ def test_the_tables_rows_are_named_tuples_that_still_unpack() -> None:
     assert sv.within_limits and sv.signed and sv.writable
     assert sv == (sv.name, sv.address, sv.signed, sv.writable, sv.low, sv.high, True)
     assert not j2["PV"].writable
+
+
+def test_the_drive_is_its_compiled_class_with_nothing_forwarded() -> None:
+    from benchbus._core import DriveCore
+
+    assert issubclass(bb.Drive, DriveCore)
+    commands = [name for name, _code in DriveCore.commands()]
+    for name in (*commands, "get", "set", "registers", "read_parameter", "write_parameter"):
+        assert name not in vars(bb.Drive), name
+    for name in ("status", "telemetry", "sample", "units", "baud_rate", "set_baud_rate"):
+        assert name not in vars(bb.Drive), name
+    assert bb.Drive.SAMPLE_FIELDS is not None and bb.Drive.SAMPLE_FIELDS[-1] == "hall_count"
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "error", "message"),
+    [
+        # A drive's units are the standard 1..247, not the 1..255 of the other families.
+        ({"unit": 248}, ValueError, r"^unit must be 1 to 247, got 248$"),
+        ({"unit": 0}, ValueError, r"^unit must be 1 to 247, got 0$"),
+        ({"unit": "1"}, TypeError, r"unit must be an int"),
+        ({"unit": 1, "timeout": -1}, ValueError, r"timeout"),
+        ({"unit": 1, "retries": 101}, ValueError, r"^retries must be 0 to 100, got 101$"),
+        ({"unit": 1, "family": "XYZ"}, ValueError, r"^family must be \"BLD\""),
+    ],
+)
+def test_bad_drive_arguments_are_refused_before_anything_is_sent(
+    slave: ScriptedSlave, kwargs: dict[str, object], error: type[Exception], message: str
+) -> None:
+    with (
+        bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus,
+        pytest.raises(error, match=message),
+    ):
+        bb.Drive(bus, **kwargs)  # type: ignore[arg-type]
+    assert nothing_sent(slave)
+
+
+def test_a_drive_keeps_no_core_and_stands_on_the_bus_and_unit_given(slave: ScriptedSlave) -> None:
+    with bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus:
+        drive = bb.Drive(bus, unit=247, family="C20", timeout=0.2, retries=0)
+        assert "core" not in vars(drive)
+        assert (drive.bus, drive.unit, drive.family) == (bus, 247, "C20")
+        assert (drive.timeout, drive.retries, drive.write_ack) == (0.2, 0, True)
+        assert drive.block_reads is None
+        assert repr(drive).startswith("<Drive unit=247 family=C20 on ")
+        with pytest.raises(AttributeError, match="speed_setpoint"):
+            drive.speed_setpoin = 5  # type: ignore[attr-defined]
+        shared = bb.Drive(bus, 3)
+        assert (shared.timeout, shared.retries) == (0.05, bus.retries)
+    assert nothing_sent(slave)

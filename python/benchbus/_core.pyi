@@ -7,6 +7,7 @@ from typing import Any, Literal
 
 from typing_extensions import Self, disjoint_base, final
 
+from benchbus._drive import DriveRegister, DriveStatus, DriveTelemetry, Model
 from benchbus._instrument import Identification
 from benchbus._j2 import J2Parameter, J2Status, Limits, Pid
 from benchbus._pbl import Direction, PblParameter, PblStatus, PblTelemetry
@@ -391,14 +392,29 @@ class _Ticks:
     def __next__(self) -> tuple[int, float, int]:
         """Wait for the next deadline not yet past; ``(n, deadline, missed)``."""
 
-@final
-class DriveCore:
-    """The register-level core of a BLD2 / BLD3H / ZBLD.C20 drive; use ``benchbus.Drive``.
+@disjoint_base
+class _Station:
+    """The base of every compiled device class: the Bus the device talks through and its
+    unit."""
+
+    @property
+    def bus(self) -> Bus:
+        """The Bus the device talks through."""
+    @property
+    def unit(self) -> int:
+        """The device's unit address."""
+
+@disjoint_base
+class DriveCore(_Station):
+    """The compiled base of ``benchbus.Drive`` (use that): the register and command tables
+    and every call to the drive.
 
     Every call that touches the wire releases the GIL. Values are in engineering units
     (scaled registers are floats); ranges are checked before anything is sent.
     """
 
+    #: The names :meth:`sample` gives: the fields of :meth:`telemetry`.
+    SAMPLE_FIELDS: tuple[str, ...] | None
     def __new__(
         cls,
         bus: Bus,
@@ -408,19 +424,11 @@ class DriveCore:
         timeout: float | None = None,
         retries: int | None = None,
     ) -> Self:
-        """The drive at ``unit`` on ``bus``; ``family`` is "BLD" (BLD2, BLD3H) or "C20".
-
-        ``timeout`` and ``retries`` replace the Bus's for this drive's requests.
-        """
-    @property
-    def bus(self) -> Bus:
-        """The Bus the drive talks through."""
-    @property
-    def unit(self) -> int:
-        """The drive's unit address."""
+        """The drive at ``unit`` (1..247) on ``bus``; ``family`` is "BLD" (BLD2, BLD3H) or
+        "C20"; ``timeout`` / ``retries`` replace the Bus's for this drive's requests."""
     @property
     def family(self) -> str:
-        """ "BLD" or "C20"."""
+        """ "BLD" (BLD2, BLD3H) or "C20"."""
     @property
     def write_ack(self) -> bool:
         """Whether writes are answered (False for a drive set to F08.06 = 1)."""
@@ -434,23 +442,39 @@ class DriveCore:
     def block_reads(self) -> bool | None:
         """Whether the drive answers multi-register reads; None until one was tried."""
     def get(self, name: str) -> int | float:
-        """Reads the register called ``name``: an int, or a float for a scaled register."""
+        """Read any register of the drive's table by name (see :meth:`registers`): an int, or
+        a float for a scaled register."""
     def set(self, name: str, value: float) -> None:
-        """Writes ``value`` (engineering units) to the register called ``name``."""
-    def command(self, name: str) -> None:
-        """Sends the command called ``name`` ("forward", see ``commands()``) to 0x2000."""
+        """Write any writable register of the drive's table by name, in engineering units."""
+    def forward(self) -> None:
+        """Run forward at the speed setpoint (command 1)."""
+    def reverse(self) -> None:
+        """Run in reverse at the speed setpoint (command 2)."""
+    def jog_forward(self) -> None:
+        """Jog forward (command 3)."""
+    def jog_reverse(self) -> None:
+        """Jog in reverse (command 4)."""
+    def stop(self) -> None:
+        """Stop: decelerate, or as :attr:`stop_mode` says (command 5)."""
+    def coast(self) -> None:
+        """Free stop (emergency stop): cut the output and let the motor coast (command 6)."""
+    def reset_fault(self) -> None:
+        """Reset a fault (command 7)."""
+    def jog_stop(self) -> None:
+        """End a jog (command 8)."""
+    def brake(self) -> None:
+        """Brake stop, BLD only; ValueError on a C20 (command 9)."""
     @staticmethod
     def commands() -> list[tuple[str, int]]:
         """The command table: ``(name, code)`` of every value the command register 0x2000
-        takes, in code order, the brake stop (BLD only) included."""
-    def read_setting(self, name: str) -> float:
-        """Reads the setting called ``name`` (a function-code parameter in engineering units,
-        "comm_loss_timeout" for F08.04)."""
-    def write_setting(self, name: str, value: float) -> None:
-        """Writes ``value`` (engineering units) to the setting called ``name``, enabling 0x200E
-        around it; the value and the family are checked before anything is sent."""
-    def status(self) -> dict[str, int | bool | str | None]:
-        """0x2100..0x2102 decoded."""
+        takes, in code order, the brake stop (BLD only) included; each is a method."""
+    def status(self) -> DriveStatus:
+        """Status words 1 and 2 and the fault code, read in one request where allowed."""
+    def telemetry(self) -> DriveTelemetry:
+        """All measurement registers in one snapshot (one request where the drive allows)."""
+    def sample(self) -> dict[str, float]:
+        """The numeric fields of :meth:`telemetry` as floats (one request where the drive
+        allows); ``hall_count`` only where the drive has it."""
     @staticmethod
     def model_from_id(family: str, id: int) -> str | None:
         """The model an identification code (0x2103) names on a drive of ``family``: "BLD2",
@@ -459,33 +483,45 @@ class DriveCore:
     def models() -> list[tuple[str, int, str]]:
         """The model table: ``(name, identification code, family)`` of each model the manuals
         name."""
-    def model(self) -> str | int:
-        """The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown."""
-    def telemetry(self) -> dict[str, Any]:
-        """One snapshot of 0x3000..: ``{name: value}`` in engineering units, ``hall_count``
-        (None on the C20) and ``units`` (``{name: unit}``)."""
-    def baud_rate(self) -> int | None:
-        """The line speed stored in 0x2009, in bits per second (None for an unlisted code)."""
+    @property
+    def baud_rate(self) -> int:
+        """The line speed the drive has stored (0x2009), in bits per second (the raw code if
+        the manuals do not list it)."""
     def set_baud_rate(self, bps: int) -> None:
-        """Stores a new line speed in 0x2009, in bits per second."""
+        """Store a new line speed (0x2009; stopped only): 1200..115200 (C20 up to 57600).
+
+        The drive talks at the new speed from then on: open a new Bus at it.
+        """
     def read_parameter(self, code: str) -> int:
-        """The raw value of function-code parameter ``code`` ("F00.10")."""
+        """The raw value of function-code parameter ``code``, e.g. ``"F00.10"``.
+
+        Fgg.nn lives at ``gg << 8 | nn``; a parameter the drive lacks raises
+        :class:`benchbus.ModbusException` (code 2).
+        """
     def write_parameter(self, code: str, value: int) -> None:
-        """Writes the raw ``value`` to parameter ``code``, enabling 0x200E around it."""
-    def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
-        """``(name, address, scale, unit, access, low, high)`` of each register."""
+        """Write the raw ``value`` (0..0xFFFF) to function-code parameter ``code``.
 
-@disjoint_base
-class _Station:
-    """The base of every compiled device class: the Bus the device talks through and its
-    unit."""
-
-    @property
-    def bus(self) -> Bus:
-        """The Bus the device talks through."""
-    @property
-    def unit(self) -> int:
-        """The device's unit address."""
+        Sets the write enable 0x200E to 1 first when it is not, and puts it back afterwards,
+        also when the write fails; a refusal raises :class:`benchbus.ModbusException` naming
+        the parameter (0x03 out of range, 0x08 not while running...).
+        """
+    def read_setting(self, name: str) -> float:
+        """Reads the setting called ``name`` (a function-code parameter in engineering units,
+        "comm_loss_timeout" for F08.04)."""
+    def write_setting(self, name: str, value: float) -> None:
+        """Writes ``value`` (engineering units) to the setting called ``name``, enabling 0x200E
+        around it; the value and the family are checked before anything is sent."""
+    def registers(self) -> list[DriveRegister]:
+        """The register table of this drive's family: a ``DriveRegister`` ``(name, address,
+        scale, unit, access, low, high)`` for each register; access is "R", "W/R" or "W/R*"."""
+    def units(self) -> dict[str, str]:
+        """The unit of each register by name, from :meth:`registers` (``""`` for none)."""
+    # The subclass turns this into a warning on another family's model; the command line
+    # reads the table without a drive; leaving a ``with`` block ends a jog, then stops.
+    def _model(self) -> Model | int: ...
+    @staticmethod
+    def _table(family: str) -> list[DriveRegister]: ...
+    def _stop_on_exit(self) -> None: ...
 
 @disjoint_base
 class PblCore(_Station):

@@ -1,8 +1,9 @@
 """BLD2 / BLD3H / ZBLD.C20 brushless DC drives as Python objects.
 
-The register table, scaling and checks live in the compiled core (``DriveCore``); this
-module adds what belongs to Python: enums, snapshot dataclasses, properties, the context
-manager and waiting for a speed.
+The register table, the command table, scaling, checks and every call to the drive live in
+the compiled base class (``DriveCore``); this module adds what belongs to Python: enums,
+snapshot dataclasses, named properties, the keepalive, the context manager and waiting for a
+speed.
 """
 
 from __future__ import annotations
@@ -13,11 +14,12 @@ import logging
 import os
 import threading
 import time
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 from benchbus._core import Bus, DriveCore
 from benchbus._device import (
     LineDefaults,
+    MeasuredProperty,
     MotorDevice,
     PrintableIntEnum,
     RegisterProperty,
@@ -30,13 +32,14 @@ from benchbus._display import dataclass_table
 from benchbus._keepalive import KeepAlive, check_interval
 
 if TYPE_CHECKING:
-    pass
+    from typing_extensions import Self
 
 __all__ = [
     "C20ControlMode",
     "CommandSource",
     "ControlMode",
     "Drive",
+    "DriveRegister",
     "DriveState",
     "DriveStatus",
     "DriveTelemetry",
@@ -211,6 +214,25 @@ class DriveTelemetry:
         return dataclass_table(self, self.units)
 
 
+class DriveRegister(NamedTuple):
+    """One row of a drive's register table (:meth:`Drive.registers`), as its family has it."""
+
+    #: The name ``get`` / ``set`` take (``"speed_setpoint"``).
+    name: str
+    #: Register address.
+    address: int
+    #: Engineering value = raw word x scale (0.1 for tenths).
+    scale: float
+    #: Unit of the engineering value (``"rpm"``, ``"s"``; ``""`` for none).
+    unit: str
+    #: ``"R"`` read-only, ``"W/R"`` writable, ``"W/R*"`` writable while stopped only.
+    access: str
+    #: Lowest value a write may carry (0.0 for a read-only register).
+    low: float
+    #: Highest value a write may carry.
+    high: float
+
+
 #: The family (manual) each model follows, from the core's model table.
 _MODEL_FAMILY = {Model(name): family for name, _id, family in DriveCore.models()}
 
@@ -219,7 +241,7 @@ def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode | int:
     return as_enum(C20ControlMode if drive.family == "C20" else ControlMode, int(raw))
 
 
-class Drive(MotorDevice):
+class Drive(DriveCore, MotorDevice):
     """A BLD2 / BLD3H or ZBLD.C20 brushless DC drive (manuals 000 and 001).
 
     ::
@@ -243,12 +265,13 @@ class Drive(MotorDevice):
     (0x08 "not changeable while running", 0x07 read-only...); values out of range raise
     ``ValueError`` before anything is sent. If the drive refuses a multi-register read, the
     reads fall back to one register per request, and the drive remembers it.
+
+    The actions (:meth:`forward`, :meth:`stop`, :meth:`jog_forward`...) are the rows of the
+    drive's command table (:meth:`commands`), each a method of the compiled base.
     """
 
-    core: DriveCore
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(19200, "N", 0.25)
-    SAMPLE_FIELDS = tuple(f.name for f in dataclasses.fields(DriveTelemetry) if f.name != "units")
     speed_setpoint = RegisterProperty(
         "speed_setpoint", to_int, "Speed setpoint, rpm 0..3000 (0x2001)."
     )
@@ -281,6 +304,25 @@ class Drive(MotorDevice):
     stop_mode = RegisterProperty(
         "stop_mode", to_enum(StopMode), "What stop() does, BLD only (0x2012): StopMode."
     )
+    speed = MeasuredProperty(
+        "speed", to_int, "Measured motor speed, rpm (0x3006); a magnitude in both directions."
+    )
+    state = MeasuredProperty("state", to_enum(DriveState), "Status word 1 (0x2100).")
+
+    def __new__(
+        cls,
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        *args: Any,
+        family: str = "BLD",
+        write_ack: bool = True,
+        timeout: float | None = None,
+        retries: int | None = None,
+        **kwargs: Any,
+    ) -> Self:
+        """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1. Further
+        arguments are left to ``__init__`` (a subclass's own; the Drive's refuses them)."""
+        return cls._on_line(port_or_bus, unit, family, write_ack, timeout=timeout, retries=retries)
 
     def __init__(
         self,
@@ -292,40 +334,23 @@ class Drive(MotorDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
-        """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1.
+        """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1 (made by
+        ``__new__``: the compiled base holds the Bus, the unit and the family).
 
         ``timeout`` and ``retries`` are the drive's own: on a port it opens, they set the Bus
         (0.25 s and 2 by default); on a shared Bus, they replace the Bus's for this drive's
         requests only (None: the Bus's).
         """
-        self._jogging = False
         self._keepalive: KeepAlive | None = None
         self._keepalive_lock = threading.Lock()
-        self._attach(
-            port_or_bus,
-            lambda bus, t, r: DriveCore(bus, unit, family, write_ack, t, r),
-            baudrate=self.LINE_DEFAULTS.baudrate,
-            parity=self.LINE_DEFAULTS.parity,
-            timeout=timeout,
-            retries=retries,
-            default_timeout=self.LINE_DEFAULTS.timeout,
-        )
 
     # ---- identity ------------------------------------------------------------------------
 
     @property
-    def family(self) -> str:
-        """ "BLD" (BLD2, BLD3H) or "C20"."""
-        return self.core.family
-
-    @property
     def model(self) -> Model | int:
         """The model from its identification code (0x2103), or the raw code if unknown."""
-        name = self.core.model()
-        if not isinstance(name, str):
-            return name
-        model = Model(name)
-        if _MODEL_FAMILY[model] != self.family:
+        model = self._model()
+        if isinstance(model, Model) and _MODEL_FAMILY[model] != self.family:
             log.warning(
                 "unit %d identifies as %s but this Drive was made for family %s: status bit 4"
                 " (overload) is read with that family's polarity",
@@ -335,86 +360,12 @@ class Drive(MotorDevice):
             )
         return model
 
-    # ---- actions -------------------------------------------------------------------------
-
-    def forward(self) -> None:
-        """Run forward at the speed setpoint (command 1)."""
-        self.core.command("forward")
-
-    def reverse(self) -> None:
-        """Run in reverse at the speed setpoint (command 2)."""
-        self.core.command("reverse")
-
-    def jog_forward(self) -> None:
-        """Jog forward (command 3)."""
-        self.core.command("jog_forward")
-        self._jogging = True
-
-    def jog_reverse(self) -> None:
-        """Jog in reverse (command 4)."""
-        self.core.command("jog_reverse")
-        self._jogging = True
-
-    def stop(self) -> None:
-        """Stop: decelerate, or as :attr:`stop_mode` says (command 5)."""
-        self.core.command("stop")
-
-    def coast(self) -> None:
-        """Free stop (emergency stop): cut the output and let the motor coast (command 6)."""
-        self.core.command("coast")
-
-    def reset_fault(self) -> None:
-        """Reset a fault (command 7)."""
-        self.core.command("reset_fault")
-
-    def jog_stop(self) -> None:
-        """End a jog (command 8)."""
-        self.core.command("jog_stop")
-        self._jogging = False
-
-    def brake(self) -> None:
-        """Brake stop, BLD only (command 9); ValueError on a C20."""
-        self.core.command("brake")
-
     # ---- status and measurements -----------------------------------------------------------
-
-    @property
-    def speed(self) -> int:
-        """Measured motor speed, rpm (0x3006); a magnitude in both directions."""
-        return int(self.core.get("speed"))
-
-    @property
-    def state(self) -> DriveState | int:
-        """Status word 1 (0x2100)."""
-        return as_enum(DriveState, int(self.core.get("state")))
 
     @property
     def fault(self) -> Fault | None:
         """The active fault (0x2102), or None."""
         return self.status().fault
-
-    def status(self) -> DriveStatus:
-        """Status words 1 and 2 and the fault code, read in one request where allowed."""
-        s = self.core.status()
-        code = int(s["fault_code"] or 0)
-        keypad = s["keypad_connected"]
-        return DriveStatus(
-            state=as_enum(DriveState, int(s["state"] or 0)),
-            bus_voltage_ready=bool(s["bus_voltage_ready"]),
-            overloaded=bool(s["overloaded"]),
-            control_source=as_enum(CommandSource, int(s["control_source"] or 0)),
-            keypad_connected=None if keypad is None else bool(keypad),
-            fault=Fault(code, str(s["fault_name"])) if code else None,
-        )
-
-    def telemetry(self) -> DriveTelemetry:
-        """All measurement registers in one snapshot (one request where the drive allows)."""
-        return DriveTelemetry(**self.core.telemetry())
-
-    def sample(self) -> dict[str, float]:
-        """The numeric fields of :meth:`telemetry` (one request where the drive allows)."""
-        fields = dataclasses.asdict(self.telemetry())
-        return {k: float(v) for k, v in fields.items() if isinstance(v, (int, float))}
 
     def wait_for_speed(
         self, rpm: float, tolerance: float = 10.0, timeout: float = 10.0, interval: float = 0.05
@@ -434,7 +385,7 @@ class Drive(MotorDevice):
         ):
             if isinstance(value, bool) or not isinstance(value, (int, float)):
                 raise TypeError(f"{name} must be a number, got {type(value).__name__}")
-        top = next(row[6] for row in self.registers() if row[0] == "speed_setpoint")
+        top = next(row.high for row in self.registers() if row.name == "speed_setpoint")
         for name, value in (("rpm", rpm), ("tolerance", tolerance)):
             if not 0 <= value <= top:
                 raise ValueError(f"{name} must be 0 to {top:g} rpm, got {value}")
@@ -460,53 +411,22 @@ class Drive(MotorDevice):
     @property
     def station_address(self) -> int:
         """The station address the drive has stored (0x2008)."""
-        return int(self.core.get("station_address"))
+        return int(self.get("station_address"))
 
     def set_station_address(self, address: int) -> None:
         """Store a new station address (0x2008; stopped only; BLD 1..127, C20 1..247).
 
         The drive answers at the new address from then on: open a new Drive with it.
         """
-        self.core.set("station_address", address)
-
-    @property
-    def baud_rate(self) -> int:
-        """The line speed the drive has stored (0x2009), in bits per second (the raw code if
-        the manuals do not list it)."""
-        bps = self.core.baud_rate()
-        return int(self.core.get("baud_code")) if bps is None else bps
-
-    def set_baud_rate(self, bps: int) -> None:
-        """Store a new line speed (0x2009; stopped only): 1200..115200 (C20 up to 57600).
-
-        The drive talks at the new speed from then on: open a new Bus at it.
-        """
-        self.core.set_baud_rate(bps)
+        self.set("station_address", address)
 
     def restore_defaults(self) -> None:
         """Restore every function-code parameter to its factory value (0x200F; stopped only)."""
-        self.core.set("restore_defaults", 1)
+        self.set("restore_defaults", 1)
 
     def clear_hall_count(self) -> None:
         """Set the 32-bit hall count to 0 (0x2011, BLD only)."""
-        self.core.set("hall_count_clear", 1)
-
-    def read_parameter(self, code: str) -> int:
-        """The raw value of function-code parameter ``code``, e.g. ``"F00.10"``.
-
-        Fgg.nn lives at ``gg << 8 | nn``; a parameter the drive lacks raises
-        :class:`benchbus.ModbusException` (code 2).
-        """
-        return self.core.read_parameter(code)
-
-    def write_parameter(self, code: str, value: int) -> None:
-        """Write the raw ``value`` (0..0xFFFF) to function-code parameter ``code``.
-
-        Sets the write enable 0x200E to 1 first when it is not, and puts it back afterwards,
-        also when the write fails; a refusal raises :class:`benchbus.ModbusException` naming
-        the parameter (0x03 out of range, 0x08 not while running...).
-        """
-        self.core.write_parameter(code, value)
+        self.set("hall_count_clear", 1)
 
     @property
     def comm_loss_timeout(self) -> float:
@@ -519,11 +439,11 @@ class Drive(MotorDevice):
         is W/R*: writing it while the motor turns is refused by the drive (exception 0x08).
         BLD family only: the ZBLD.C20 manual lists no F08.04, so a C20 raises ValueError.
         """
-        return self.core.read_setting("comm_loss_timeout")
+        return self.read_setting("comm_loss_timeout")
 
     @comm_loss_timeout.setter
     def comm_loss_timeout(self, seconds: float) -> None:
-        self.core.write_setting("comm_loss_timeout", seconds)
+        self.write_setting("comm_loss_timeout", seconds)
 
     def keepalive(self, interval: float = 0.5) -> KeepAlive:
         """Read the drive state every ``interval`` seconds (0.01..60) from a daemon thread.
@@ -554,25 +474,9 @@ class Drive(MotorDevice):
                     f" {self._keepalive.interval} s); stop() it first"
                 )
             self._keepalive = KeepAlive(
-                lambda: self.core.get("state"), period, f"benchbus keepalive unit {self.unit}"
+                lambda: self.get("state"), period, f"benchbus keepalive unit {self.unit}"
             )
             return self._keepalive
-
-    def get(self, name: str) -> int | float:
-        """Read any register of the drive's table by name (see :meth:`registers`)."""
-        return self.core.get(name)
-
-    def set(self, name: str, value: float) -> None:
-        """Write any writable register of the drive's table by name, in engineering units."""
-        self.core.set(name, value)
-
-    def registers(self) -> list[tuple[str, int, float, str, str, float, float]]:
-        """The register table: ``(name, address, scale, unit, access, low, high)``."""
-        return self.core.registers()
-
-    def units(self) -> dict[str, str]:
-        """The unit of each register by name, from :meth:`registers` (``""`` for none)."""
-        return {row[0]: row[3] for row in self.registers()}
 
     # ---- lifecycle -------------------------------------------------------------------------
 
@@ -584,12 +488,6 @@ class Drive(MotorDevice):
         if keepalive is not None:
             keepalive.stop()
         super().close()
-
-    def _stop_on_exit(self) -> None:
-        """End a jog this object started (jog stop), then send the stop."""
-        if self._jogging:
-            self.jog_stop()
-        self.stop()
 
     def __repr__(self) -> str:
         """Unit, family and bus."""

@@ -6,13 +6,12 @@
 //! table: C20 lacks the brake command and 0x2010..0x2012 / 0x3012..0x3014, has other ranges
 //! for some enumerations, and reads status word 2 bit 4 with the opposite polarity.
 
-use super::{Access, Register};
+use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::{exception_meaning, FrameError};
 use crate::error::{Error, Result};
-use std::sync::atomic::{AtomicU8, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
 use std::sync::Arc;
-use std::time::Duration;
 
 /// Which manual the drive follows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -42,67 +41,77 @@ impl Family {
     }
 }
 
-/// A value written to the command register 0x2000.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[repr(u16)]
-pub enum Command {
-    /// 0001H forward run.
-    Forward = 1,
-    /// 0002H reverse run.
-    Reverse = 2,
-    /// 0003H jog forward.
-    JogForward = 3,
-    /// 0004H jog reverse.
-    JogReverse = 4,
-    /// 0005H stop (decelerate, or as 0x2012 says).
-    Stop = 5,
-    /// 0006H free stop (emergency stop): the motor coasts.
-    Coast = 6,
-    /// 0007H fault reset.
-    ResetFault = 7,
-    /// 0008H jog stop.
-    JogStop = 8,
-    /// 0009H brake stop (BLD only).
-    Brake = 9,
+/// The command table, declared once: each row is the [`Command`] variant, its code (the
+/// value written to the command register 0x2000), the name of the method that sends it and
+/// what it does. `drive_commands!(then! { args })` expands to `then! { { args } rows... }`,
+/// so that the enum here and the methods of the Python binding come from the same rows.
+macro_rules! drive_commands {
+    ($then:ident ! { $($pass:tt)* }) => {
+        $then! {
+            { $($pass)* }
+            Forward = 1, forward, "Run forward at the speed setpoint";
+            Reverse = 2, reverse, "Run in reverse at the speed setpoint";
+            JogForward = 3, jog_forward, "Jog forward";
+            JogReverse = 4, jog_reverse, "Jog in reverse";
+            Stop = 5, stop, "Stop: decelerate, or as :attr:`stop_mode` says";
+            Coast = 6, coast, "Free stop (emergency stop): cut the output and let the motor coast";
+            ResetFault = 7, reset_fault, "Reset a fault";
+            JogStop = 8, jog_stop, "End a jog";
+            Brake = 9, brake, "Brake stop, BLD only; ValueError on a C20";
+        }
+    };
+}
+#[allow(unused_imports)] // used by the Python binding only
+pub(crate) use drive_commands;
+
+/// The docstring of a command from its row: what it does and its code ("Jog forward
+/// (command 3).").
+macro_rules! command_doc {
+    ($doc:literal, $code:literal) => {
+        concat!($doc, " (command ", stringify!($code), ").")
+    };
+}
+#[allow(unused_imports)] // used by the Python binding only
+pub(crate) use command_doc;
+
+/// The `Command` enum and its `ALL` / `name` from the rows of [`drive_commands`].
+macro_rules! command_enum {
+    ({} $($variant:ident = $code:literal, $method:ident, $doc:literal;)*) => {
+        /// A value written to the command register 0x2000.
+        #[derive(Debug, Clone, Copy, PartialEq, Eq)]
+        #[repr(u16)]
+        pub enum Command {
+            $(
+                #[doc = command_doc!($doc, $code)]
+                $variant = $code,
+            )*
+        }
+
+        impl Command {
+            /// Every command, in code order.
+            pub const ALL: [Command; [$($code),*].len()] = [$(Command::$variant),*];
+
+            /// The name of the method that sends it ("forward", "jog_stop"...).
+            pub fn name(self) -> &'static str {
+                match self {
+                    $(Command::$variant => stringify!($method),)*
+                }
+            }
+        }
+    };
 }
 
-impl Command {
-    /// Every command, in code order.
-    pub const ALL: [Command; 9] = [
-        Command::Forward,
-        Command::Reverse,
-        Command::JogForward,
-        Command::JogReverse,
-        Command::Stop,
-        Command::Coast,
-        Command::ResetFault,
-        Command::JogStop,
-        Command::Brake,
-    ];
+drive_commands!(command_enum! {});
 
+impl Command {
     /// The command of its register value.
     pub fn from_code(code: u16) -> Option<Command> {
         Command::ALL.into_iter().find(|c| *c as u16 == code)
     }
 
-    /// The value written to 0x2000.
+    /// The value written to the command register.
     pub fn code(self) -> u16 {
         self as u16
-    }
-
-    /// The name of the `Drive` method that sends it ("forward", "jog_stop"...).
-    pub fn name(self) -> &'static str {
-        match self {
-            Command::Forward => "forward",
-            Command::Reverse => "reverse",
-            Command::JogForward => "jog_forward",
-            Command::JogReverse => "jog_reverse",
-            Command::Stop => "stop",
-            Command::Coast => "coast",
-            Command::ResetFault => "reset_fault",
-            Command::JogStop => "jog_stop",
-            Command::Brake => "brake",
-        }
     }
 
     /// The command called `name` (see [`name`](Self::name)).
@@ -114,19 +123,28 @@ impl Command {
     pub fn on_c20(self) -> bool {
         self != Command::Brake
     }
+
+    /// Whether it starts a jog (that a jog stop ends).
+    pub fn starts_jog(self) -> bool {
+        matches!(self, Command::JogForward | Command::JogReverse)
+    }
 }
+
+/// Address of the command register, where every [`Command`] is written (the register just
+/// before the table's first row, which [`REGISTERS`] leaves out).
+pub const COMMAND: u16 = 0x2000;
 
 /// Line speeds by the code of 0x2009 / F08.01 (the C20 stops at 57600).
 pub const BAUD_RATES: [u32; 8] = [1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200];
 
-/// Address of the command register.
-pub const COMMAND: u16 = 0x2000;
-/// Address of the function-code write enable (0 = parameters not writable, 1 = writable).
-pub const PARAMETER_WRITE_ENABLE: u16 = 0x200E;
-/// First status register (0x2100 state, 0x2101 status word 2, 0x2102 fault code).
-pub const STATUS: u16 = 0x2100;
-/// First measurement register.
-pub const TELEMETRY: u16 = 0x3000;
+/// Address of the function-code write enable (0 = parameters not writable, 1 = writable):
+/// its row of [`REGISTERS`].
+pub const PARAMETER_WRITE_ENABLE: u16 = WRITE_ENABLE_ROW.register.address;
+/// First status register (0x2100 state, 0x2101 status word 2, 0x2102 fault code): the row
+/// of `state` in [`REGISTERS`].
+pub const STATUS: u16 = STATE_ROW.register.address;
+/// First measurement register: the row of `set_frequency` in [`REGISTERS`].
+pub const TELEMETRY: u16 = FIRST_MEASUREMENT_ROW.register.address;
 
 /// How a register exists on the C20.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -146,6 +164,22 @@ pub struct DriveRegister {
     pub register: Register,
     /// What the C20 manual says of it.
     pub c20: OnC20,
+}
+
+impl DriveRegister {
+    /// The register as a drive of `family` has it (the C20's own range), or None where
+    /// that family's manual lists none.
+    pub fn on(&self, family: Family) -> Option<Register> {
+        let mut register = self.register;
+        if family == Family::C20 {
+            match self.c20 {
+                OnC20::Same => {}
+                OnC20::Range(lo, hi) => register.range = (lo, hi),
+                OnC20::Absent => return None,
+            }
+        }
+        Some(register)
+    }
 }
 
 const fn reg(
@@ -190,6 +224,13 @@ const fn signed(mut entry: DriveRegister) -> DriveRegister {
 use Access::{ReadWrite as RW, WriteWhenStopped as RWS};
 use OnC20::{Absent, Range, Same};
 
+// The rows the code names, declared here and listed in their place in REGISTERS.
+#[rustfmt::skip]
+const WRITE_ENABLE_ROW: DriveRegister =
+    reg("parameter_write_enable", 0x200E, 1.0, "", RW, (0.0, 1.0), Same);
+const STATE_ROW: DriveRegister = measured("state", 0x2100, 1.0, "", Same);
+const FIRST_MEASUREMENT_ROW: DriveRegister = measured("set_frequency", 0x3000, 0.01, "Hz", Same);
+
 /// Every register of the list but the command register, in address order.
 #[rustfmt::skip]
 pub const REGISTERS: &[DriveRegister] = &[
@@ -208,16 +249,16 @@ pub const REGISTERS: &[DriveRegister] = &[
     reg("baud_code", 0x2009, 1.0, "", RWS, (0.0, 7.0), Range(0.0, 6.0)),
     reg("virtual_inputs", 0x200A, 1.0, "", RW, (0.0, 511.0), Same),
     reg("virtual_outputs", 0x200B, 1.0, "", RW, (0.0, 15.0), Same),
-    reg("parameter_write_enable", 0x200E, 1.0, "", RW, (0.0, 1.0), Same),
+    WRITE_ENABLE_ROW,
     reg("restore_defaults", 0x200F, 1.0, "", RWS, (0.0, 1.0), Same),
     reg("position_reference", 0x2010, 1.0, "", RW, (0.0, 65535.0), Absent),
     reg("hall_count_clear", 0x2011, 1.0, "", RW, (0.0, 1.0), Absent),
     reg("stop_mode", 0x2012, 1.0, "", RW, (0.0, 1.0), Absent),
-    measured("state", 0x2100, 1.0, "", Same),
+    STATE_ROW,
     measured("status_word", 0x2101, 1.0, "", Same),
     measured("fault_code", 0x2102, 1.0, "", Same),
     measured("model_id", 0x2103, 1.0, "", Same),
-    measured("set_frequency", 0x3000, 0.01, "Hz", Same),
+    FIRST_MEASUREMENT_ROW,
     measured("output_frequency", 0x3001, 0.01, "Hz", Same),
     measured("ramp_frequency", 0x3002, 0.01, "Hz", Same),
     measured("output_voltage", 0x3003, 0.1, "V", Same),
@@ -364,6 +405,19 @@ pub struct Telemetry {
     pub values: Vec<(&'static str, f64, &'static str)>,
     /// The 32-bit hall count (BLD only).
     pub hall_count: Option<u32>,
+}
+
+impl Telemetry {
+    /// The names a snapshot holds, in order: each value of 0x3000..0x3011, then
+    /// `hall_count` (the registers 0x3012..0x3014 are read but not values of their own).
+    pub fn fields() -> Vec<&'static str> {
+        REGISTERS
+            .iter()
+            .filter(|r| r.register.address >= TELEMETRY && r.c20 != OnC20::Absent)
+            .map(|r| r.register.name)
+            .chain(["hall_count"])
+            .collect()
+    }
 }
 
 /// Parses a function-code parameter name, "F00.10" (group 00..10, index 00..99, two digits
@@ -519,63 +573,46 @@ impl AtomicSupport {
 /// A BLD2 / BLD3H / C20 drive on a bus.
 #[derive(Debug)]
 pub struct Drive {
-    bus: Arc<Bus>,
-    unit: u8,
+    station: Station,
     family: Family,
-    opts: TxOptions,
     block_reads: AtomicSupport,
     /// Whether the firmware has 0x3012..0x3014 ("software version dependent" in 000).
     hall_registers: AtomicSupport,
+    /// Whether this object started a jog that no jog stop has ended yet.
+    jogging: AtomicBool,
+}
+
+impl Device for Drive {
+    fn station(&self) -> &Station {
+        &self.station
+    }
+
+    fn station_mut(&mut self) -> &mut Station {
+        &mut self.station
+    }
 }
 
 impl Drive {
     /// The drive at `unit` on `bus`. `write_ack` is false for a drive set to F08.06 = 1,
-    /// which answers no write.
+    /// which answers no write. Its own reply timeout and retries (for a reply delay F08.03
+    /// longer than the Bus allows) come from [`Device::with_timing`].
     pub fn new(bus: Arc<Bus>, unit: u8, family: Family, write_ack: bool) -> Drive {
+        let opts = TxOptions {
+            meaning,
+            write_ack,
+            ..TxOptions::default()
+        };
         Drive {
-            bus,
-            unit,
+            station: Station::new(bus, unit, opts),
             family,
-            opts: TxOptions {
-                meaning,
-                write_ack,
-                ..TxOptions::default()
-            },
             block_reads: AtomicSupport::new(Support::Unknown),
             hall_registers: AtomicSupport::new(if family == Family::Bld {
                 Support::Unknown
             } else {
                 Support::No
             }),
+            jogging: AtomicBool::new(false),
         }
-    }
-
-    /// The same drive with its own reply timeout and retries, instead of the Bus's (for a
-    /// reply delay F08.03 longer than the Bus allows).
-    pub fn with_timing(mut self, timeout: Option<Duration>, retries: Option<u32>) -> Drive {
-        self.opts.timeout = timeout;
-        self.opts.retries = retries;
-        self
-    }
-
-    /// The reply timeout of this drive's requests: its own, or the Bus's.
-    pub fn timeout(&self) -> Duration {
-        self.opts.timeout.unwrap_or(self.bus.config().timeout)
-    }
-
-    /// The retries of this drive's requests: its own, or the Bus's.
-    pub fn retries(&self) -> u32 {
-        self.opts.retries.unwrap_or(self.bus.config().retries)
-    }
-
-    /// The bus the drive is on.
-    pub fn bus(&self) -> &Arc<Bus> {
-        &self.bus
-    }
-
-    /// The drive's unit address.
-    pub fn unit(&self) -> u8 {
-        self.unit
     }
 
     /// Which manual the drive follows.
@@ -585,7 +622,12 @@ impl Drive {
 
     /// Whether writes are answered (false when set to F08.06 = 1).
     pub fn write_ack(&self) -> bool {
-        self.opts.write_ack
+        self.station.opts().write_ack
+    }
+
+    /// Whether a jog this object started is still on (no jog stop sent since).
+    pub fn jogging(&self) -> bool {
+        self.jogging.load(Ordering::Relaxed)
     }
 
     /// Whether the drive answers multi-register reads: None until one was tried.
@@ -602,20 +644,12 @@ impl Drive {
             .iter()
             .find(|r| r.register.name == name)
             .ok_or_else(|| Error::InvalidArgument(format!("the drive has no register {name:?}")))?;
-        let mut register = entry.register;
-        if self.family == Family::C20 {
-            match entry.c20 {
-                OnC20::Same => {}
-                OnC20::Range(lo, hi) => register.range = (lo, hi),
-                OnC20::Absent => {
-                    return Err(Error::InvalidArgument(format!(
-                        "{name} ({:#06x}) exists on BLD drives only, not on the C20",
-                        register.address
-                    )))
-                }
-            }
-        }
-        Ok(register)
+        entry.on(self.family).ok_or_else(|| {
+            Error::InvalidArgument(format!(
+                "{name} ({:#06x}) exists on BLD drives only, not on the C20",
+                entry.register.address
+            ))
+        })
     }
 
     /// Reads the register called `name`, in engineering units.
@@ -649,7 +683,25 @@ impl Drive {
                 "the brake stop (command 0x0009) exists on BLD drives only, not on the C20".into(),
             ));
         }
-        self.write(COMMAND, command.code())
+        self.write(COMMAND, command.code())?;
+        if command.starts_jog() {
+            self.jogging.store(true, Ordering::Relaxed);
+        } else if command == Command::JogStop {
+            self.jogging.store(false, Ordering::Relaxed);
+        }
+        Ok(())
+    }
+
+    /// What leaving a `with` block sends: a jog stop if this object started a jog, then the
+    /// stop.
+    ///
+    /// # Errors
+    /// Any [`Error`] of either command.
+    pub fn stop_on_exit(&self) -> Result<()> {
+        if self.jogging() {
+            self.command(Command::JogStop)?;
+        }
+        self.command(Command::Stop)
     }
 
     /// Reads 0x2100..0x2102.
@@ -660,7 +712,7 @@ impl Drive {
         let words = self.read(STATUS, 3)?;
         match words[..] {
             [state, word, fault] => Ok(Status::decode(self.family, state, word, fault)),
-            _ => Err(short_read(self.unit, 3, words.len())),
+            _ => Err(self.station.short_reply()),
         }
     }
 
@@ -705,7 +757,7 @@ impl Drive {
                 let words = self.read(TELEMETRY, wanted.len() as u16)?;
                 log::debug!(
                     target: "benchbus::device",
-                    "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit
+                    "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit()
                 );
                 self.hall_registers.set(Support::No);
                 words
@@ -713,7 +765,7 @@ impl Drive {
             Err(e) => return Err(e),
         };
         if words.len() != wanted.len() {
-            return Err(short_read(self.unit, wanted.len(), words.len()));
+            return Err(self.station.short_reply());
         }
         let mut values = Vec::with_capacity(wanted.len());
         let mut hall = (None, None);
@@ -815,8 +867,8 @@ impl Drive {
     pub fn write_parameter(&self, code: &str, value: u16) -> Result<()> {
         let address = parameter_address(code)?;
         // One sequence per unit, whichever Drive object runs it.
-        self.bus
-            .exclusive(self.unit, || self.write_enabled(code, address, value))
+        self.station
+            .exclusive(|| self.write_enabled(code, address, value))
     }
 
     fn write_enabled(&self, code: &str, address: u16, value: u16) -> Result<()> {
@@ -855,9 +907,8 @@ impl Drive {
     /// Reads `count` registers from `address`: one request, or one per register when the
     /// drive has refused a block read that it then answered register by register.
     fn read(&self, address: u16, count: u16) -> Result<Vec<u16>> {
-        let bus = &self.bus;
         if count > 1 && self.block_reads.get() != Support::No {
-            match bus.read_holding_registers(self.unit, address, count, &self.opts) {
+            match self.station.read(address, count) {
                 Ok(words) => {
                     self.block_reads.set(Support::Yes);
                     return Ok(words);
@@ -870,7 +921,7 @@ impl Drive {
             let words = self.read_singly(address, count)?;
             log::debug!(
                 target: "benchbus::device",
-                "unit {}: block reads refused, reading one register per request", self.unit
+                "unit {}: block reads refused, reading one register per request", self.unit()
             );
             self.block_reads.set(Support::No);
             return Ok(words);
@@ -881,17 +932,13 @@ impl Drive {
     fn read_singly(&self, address: u16, count: u16) -> Result<Vec<u16>> {
         let mut words = Vec::with_capacity(count.into());
         for offset in 0..count {
-            let word =
-                self.bus
-                    .read_holding_registers(self.unit, address + offset, 1, &self.opts)?;
-            words.extend(word);
+            words.extend(self.station.read(address + offset, 1)?);
         }
         Ok(words)
     }
 
     fn write(&self, address: u16, value: u16) -> Result<()> {
-        self.bus
-            .write_register(self.unit, address, value, &self.opts)
+        self.station.write(address, value)
     }
 }
 
@@ -905,15 +952,6 @@ fn is_refusal(e: &Error) -> bool {
             FrameError::Crc { .. } | FrameError::LocalEcho { .. } | FrameError::UnexpectedEcho
         ),
         _ => false,
-    }
-}
-
-fn short_read(unit: u8, wanted: usize, got: usize) -> Error {
-    Error::Frame {
-        unit,
-        function: 0x03,
-        kind: FrameError::Length(format!("expected {wanted} registers, got {got}")),
-        frame: Vec::new(),
     }
 }
 
@@ -1004,6 +1042,40 @@ mod tests {
     }
 
     #[test]
+    fn addresses_come_from_the_table_rows() {
+        let address = |name: &str| {
+            REGISTERS
+                .iter()
+                .find(|r| r.register.name == name)
+                .map(|r| r.register.address)
+        };
+        assert_eq!(address("parameter_write_enable"), Some(0x200E));
+        assert_eq!(
+            address("parameter_write_enable"),
+            Some(PARAMETER_WRITE_ENABLE)
+        );
+        assert_eq!(address("state"), Some(STATUS));
+        assert_eq!(STATUS, 0x2100);
+        assert_eq!(address("set_frequency"), Some(TELEMETRY));
+        assert_eq!(TELEMETRY, 0x3000);
+        // The command register sits just before the table's first row.
+        assert_eq!(REGISTERS[0].register.address, COMMAND + 1);
+        assert!(address("command").is_none());
+    }
+
+    #[test]
+    fn telemetry_fields_are_the_measurement_rows_and_the_hall_count() {
+        let fields = Telemetry::fields();
+        assert_eq!(fields.len(), 19);
+        assert_eq!(fields[0], "set_frequency");
+        assert_eq!(fields[17], "ai3_voltage");
+        assert_eq!(fields[18], "hall_count");
+        assert!(!fields
+            .iter()
+            .any(|f| f.starts_with("hall_count_") || f.starts_with("reserved")));
+    }
+
+    #[test]
     fn names_of_faults_models_and_commands() {
         assert_eq!(fault_name(0x0A), "undervoltage");
         assert_eq!(fault_name(0x1B), "unknown fault 0x1B");
@@ -1021,6 +1093,9 @@ mod tests {
             assert_eq!(Command::from_name(command.name()), Some(command));
         }
         assert_eq!(Command::from_name("Forward"), None);
+        assert_eq!(Command::Brake.name(), "brake");
+        assert_eq!(Command::JogStop.name(), "jog_stop");
+        assert!(Command::JogForward.starts_jog() && !Command::JogStop.starts_jog());
         assert_eq!(meaning(8), "not changeable while running");
         assert_eq!(meaning(0x0B), exception_meaning(0x0B));
     }

@@ -1,18 +1,22 @@
-//! Bindings of [`crate::device::drive`]: the register-level core that `benchbus.Drive`
-//! (Python) wraps with enums, dataclasses and the context manager.
+//! Bindings of [`crate::device::drive`]: the compiled base class of `benchbus.Drive`, which
+//! adds only what belongs to Python (enums, the keepalive, reprs, the context manager).
 
-use super::{int_in, number, on_wire, own_timing, standard_unit_arg, to_pyerr, PyBus};
-use crate::device::drive::{fault_name, Command, Drive, Family, Model, REGISTERS};
+use super::{int_in, number, public, standard_unit_arg, Attached, PyBus, PyStation};
+use crate::device::drive::{
+    command_doc, drive_commands, fault_name, Command, Drive, Family, Model, Telemetry, REGISTERS,
+};
+use crate::device::{Access, Device, Register};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyFloat, PyInt, PyList};
-use std::sync::Arc;
+use pyo3::types::{PyDict, PyFloat, PyInt, PyList, PyTuple};
 
-/// The register-level core of a BLD2 / BLD3H / ZBLD.C20 drive (see `benchbus.Drive`).
-#[pyclass(frozen, module = "benchbus._core", name = "DriveCore")]
+/// The Python module of the family's public types.
+const PY: &str = "benchbus._drive";
+
+/// The compiled base of `benchbus.Drive`: the register table and every call to the drive.
+#[pyclass(extends = PyStation, subclass, frozen, module = "benchbus._core", name = "DriveCore")]
 pub(super) struct PyDriveCore {
-    drive: Arc<Drive>,
-    bus: Py<PyBus>,
+    dev: Attached<Drive>,
 }
 
 impl PyDriveCore {
@@ -21,7 +25,7 @@ impl PyDriveCore {
         py: Python<'_>,
         f: impl FnOnce(&Drive) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        on_wire(py, &self.drive, f)
+        self.dev.wire(py, f)
     }
 }
 
@@ -34,9 +38,60 @@ fn family_arg(name: &str) -> PyResult<Family> {
     })
 }
 
-/// A number argument (int or float, not bool or str) as f64.
-#[pymethods]
-impl PyDriveCore {
+/// `name(value)` of the family's enums, or the int itself for a value the enum lacks.
+fn member<'py>(py: Python<'py>, name: &str, value: u16) -> PyResult<Bound<'py, PyAny>> {
+    match public(py, PY, name, (value,), None) {
+        Err(e) if e.is_instance_of::<PyValueError>(py) => Ok(PyInt::new(py, value).into_any()),
+        other => other,
+    }
+}
+
+/// A value of `register` as Python shows it: an int for a whole-number register, else a
+/// float.
+fn shown<'py>(py: Python<'py>, register: &Register, value: f64) -> Bound<'py, PyAny> {
+    if register.is_integer() {
+        PyInt::new(py, value as i64).into_any()
+    } else {
+        PyFloat::new(py, value).into_any()
+    }
+}
+
+/// The register table of `family` as `DriveRegister` rows.
+fn table<'py>(py: Python<'py>, family: Family) -> PyResult<Bound<'py, PyList>> {
+    let out = PyList::empty(py);
+    for r in REGISTERS.iter().filter_map(|e| e.on(family)) {
+        let access = match r.access {
+            Access::Read => "R",
+            Access::ReadWrite => "W/R",
+            Access::WriteWhenStopped => "W/R*",
+        };
+        let row = (
+            r.name, r.address, r.scale, r.unit, access, r.range.0, r.range.1,
+        );
+        out.append(public(py, PY, "DriveRegister", row, None)?)?;
+    }
+    Ok(out)
+}
+
+/// `#[pymethods] impl PyDriveCore` with the methods given, plus one method per row of the
+/// command table (`forward`, `stop`...) that sends its command.
+macro_rules! with_command_methods {
+    ({ $($methods:tt)* } $($variant:ident = $code:literal, $method:ident, $doc:literal;)*) => {
+        #[pymethods]
+        impl PyDriveCore {
+            $($methods)*
+
+            $(
+                #[doc = command_doc!($doc, $code)]
+                fn $method(&self, py: Python<'_>) -> PyResult<()> {
+                    self.wire(py, |d| d.command(Command::$variant))
+                }
+            )*
+        }
+    };
+}
+
+drive_commands!(with_command_methods! {
     #[new]
     #[pyo3(signature = (bus, unit, family, write_ack, timeout=None, retries=None))]
     fn new(
@@ -46,114 +101,93 @@ impl PyDriveCore {
         write_ack: bool,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<Self> {
-        let unit = standard_unit_arg(unit)?;
+    ) -> PyResult<PyClassInitializer<Self>> {
+        let py = bus.py();
         let family = family_arg(family)?;
-        let (timeout, retries) = own_timing(timeout, retries)?;
-        let core = Arc::clone(&bus.get().bus);
-        let drive = Drive::new(core, unit, family, write_ack).with_timing(timeout, retries);
-        Ok(PyDriveCore {
-            drive: Arc::new(drive),
-            bus: bus.unbind(),
-        })
+        let dev = Attached::with_units(bus, unit, standard_unit_arg, timeout, retries, |b, u| {
+            Ok(Drive::new(b, u, family, write_ack))
+        })?;
+        Ok(dev.into_class(py, |dev| PyDriveCore { dev }))
     }
 
-    /// The Bus the drive talks through.
-    #[getter]
-    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
-    }
-
-    /// The drive's unit address.
-    #[getter]
-    fn unit(&self) -> u8 {
-        self.drive.unit()
-    }
-
-    /// "BLD" or "C20".
+    /// "BLD" (BLD2, BLD3H) or "C20".
     #[getter]
     fn family(&self) -> &'static str {
-        self.drive.family().name()
+        self.dev.device().family().name()
     }
 
     /// Whether writes are answered (False for a drive set to F08.06 = 1).
     #[getter]
     fn write_ack(&self) -> bool {
-        self.drive.write_ack()
+        self.dev.device().write_ack()
     }
 
     /// Reply timeout of the drive's requests, in seconds (its own, or the Bus's).
     #[getter]
     fn timeout(&self) -> f64 {
-        self.drive.timeout().as_secs_f64()
+        self.dev.device().station().timeout().as_secs_f64()
     }
 
     /// Retries of the drive's requests (its own, or the Bus's).
     #[getter]
     fn retries(&self) -> u32 {
-        self.drive.retries()
+        self.dev.device().station().retries()
     }
 
     /// Whether the drive answers multi-register reads; None until one was tried.
     #[getter]
     fn block_reads(&self) -> Option<bool> {
-        self.drive.block_reads()
+        self.dev.device().block_reads()
     }
 
-    /// Reads the register called `name`: an int, or a float for a scaled register.
+    /// Read any register of the drive's table by name (see :meth:`registers`): an int, or a
+    /// float for a scaled register.
     fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-        let register = self.drive.register(name).map_err(|e| to_pyerr(py, e))?;
         let name = name.to_string();
-        let value = self.wire(py, move |d| d.get(&name))?;
-        if register.is_integer() {
-            Ok(PyInt::new(py, value as i64).into_any())
-        } else {
-            Ok(PyFloat::new(py, value).into_any())
-        }
+        let (register, raw) = self.wire(py, move |d| Ok((d.register(&name)?, d.get(&name)?)))?;
+        Ok(shown(py, &register, raw))
     }
 
-    /// Writes `value` (engineering units) to the register called `name`.
+    /// Write any writable register of the drive's table by name, in engineering units.
     fn set(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let value = number(value, name)?;
         let name = name.to_string();
         self.wire(py, move |d| d.set(&name, value))
     }
 
-    /// Sends the command called `name` ("forward", see `commands()`) to 0x2000.
-    fn command(&self, py: Python<'_>, name: &str) -> PyResult<()> {
-        let command = Command::from_name(name).ok_or_else(|| {
-            let names: Vec<_> = Command::ALL.iter().map(|c| c.name()).collect();
-            PyValueError::new_err(format!(
-                "no drive command {name:?}; the commands are {}",
-                names.join(", ")
-            ))
-        })?;
-        self.wire(py, move |d| d.command(command))
+    /// What leaving a ``with`` block sends: a jog stop if this object started a jog, then
+    /// the stop.
+    fn _stop_on_exit(&self, py: Python<'_>) -> PyResult<()> {
+        self.wire(py, |d| d.stop_on_exit())
     }
 
-    /// The command table: `(name, code)` of every value the command register 0x2000 takes,
-    /// in code order, the brake stop (BLD only) included.
+    /// The command table: ``(name, code)`` of every value the command register 0x2000
+    /// takes, in code order, the brake stop (BLD only) included; each is a method.
     #[staticmethod]
     fn commands() -> Vec<(&'static str, u16)> {
         Command::ALL.iter().map(|c| (c.name(), c.code())).collect()
     }
 
-    /// 0x2100..0x2102 decoded: a dict of state, bus_voltage_ready, overloaded,
-    /// control_source, keypad_connected, fault_code and fault_name.
-    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    /// Status words 1 and 2 and the fault code, read in one request where allowed.
+    fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let s = self.wire(py, |d| d.status())?;
-        let out = PyDict::new(py);
-        out.set_item("state", s.state)?;
-        out.set_item("bus_voltage_ready", s.bus_voltage_ready)?;
-        out.set_item("overloaded", s.overloaded)?;
-        out.set_item("control_source", s.control_source)?;
-        out.set_item("keypad_connected", s.keypad_connected)?;
-        out.set_item("fault_code", s.fault_code)?;
-        out.set_item("fault_name", fault_name(s.fault_code))?;
-        Ok(out)
+        let fault = if s.fault_code == 0 {
+            py.None().into_bound(py)
+        } else {
+            public(py, PY, "Fault", (s.fault_code, fault_name(s.fault_code)), None)?
+        };
+        let args = (
+            member(py, "DriveState", s.state)?,
+            s.bus_voltage_ready,
+            s.overloaded,
+            member(py, "CommandSource", s.control_source)?,
+            s.keypad_connected,
+            fault,
+        );
+        public(py, PY, "DriveStatus", args, None)
     }
 
-    /// The model an identification code (0x2103) names on a drive of `family`: "BLD2",
+    /// The model an identification code (0x2103) names on a drive of ``family``: "BLD2",
     /// "BLD3H" or "C20", or None for a code the manuals do not list.
     #[staticmethod]
     fn model_from_id(family: &str, id: &Bound<'_, PyAny>) -> PyResult<Option<&'static str>> {
@@ -162,7 +196,7 @@ impl PyDriveCore {
         Ok(Model::from_id(family, id).map(Model::name))
     }
 
-    /// The model table: `(name, identification code, family)` of each model the manuals
+    /// The model table: ``(name, identification code, family)`` of each model the manuals
     /// name.
     #[staticmethod]
     fn models() -> Vec<(&'static str, u16, &'static str)> {
@@ -172,56 +206,84 @@ impl PyDriveCore {
             .collect()
     }
 
-    /// The model name from 0x2103 ("BLD2", "BLD3H", "C20"), or the raw code if unknown.
-    fn model<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        Ok(match self.wire(py, |d| d.model())? {
-            Ok(model) => model.name().into_pyobject(py)?.into_any(),
-            Err(id) => id.into_pyobject(py)?.into_any(),
-        })
+    /// The model from 0x2103 (a ``Model``), or the raw code if unknown.
+    fn _model<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        match self.wire(py, |d| d.model())? {
+            Ok(model) => public(py, PY, "Model", (model.name(),), None),
+            Err(id) => Ok(PyInt::new(py, id).into_any()),
+        }
     }
 
-    /// One snapshot of 0x3000..: `{name: value}` in engineering units, plus `hall_count`
-    /// (None on the C20).
-    fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+    /// The names :meth:`sample` gives: the fields of :meth:`telemetry`.
+    #[classattr]
+    #[allow(non_snake_case)]
+    fn SAMPLE_FIELDS<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        PyTuple::new(py, Telemetry::fields())
+    }
+
+    /// All measurement registers in one snapshot (one request where the drive allows).
+    fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let t = self.wire(py, |d| d.telemetry())?;
-        let out = PyDict::new(py);
+        let fields = PyDict::new(py);
         let units = PyDict::new(py);
-        for (name, value, _) in &t.values {
-            let integer = REGISTERS
-                .iter()
-                .any(|r| r.register.name == *name && r.register.is_integer());
-            if integer {
-                out.set_item(*name, *value as i64)?;
-            } else {
-                out.set_item(*name, *value)?;
+        for (name, raw, unit) in &t.values {
+            match REGISTERS.iter().find(|r| r.register.name == *name) {
+                Some(r) => fields.set_item(*name, shown(py, &r.register, *raw))?,
+                None => fields.set_item(*name, *raw)?,
             }
-        }
-        for (name, _, unit) in &t.values {
             units.set_item(*name, *unit)?;
         }
-        out.set_item("hall_count", t.hall_count)?;
-        out.set_item("units", units)?;
+        fields.set_item("hall_count", t.hall_count)?;
+        fields.set_item("units", units)?;
+        public(py, PY, "DriveTelemetry", (), Some(&fields))
+    }
+
+    /// The numeric fields of :meth:`telemetry` as floats (one request where the drive
+    /// allows); ``hall_count`` only where the drive has it.
+    fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let t = self.wire(py, |d| d.telemetry())?;
+        let out = PyDict::new(py);
+        for (name, raw, _) in &t.values {
+            out.set_item(*name, *raw)?;
+        }
+        if let Some(count) = t.hall_count {
+            out.set_item("hall_count", f64::from(count))?;
+        }
         Ok(out)
     }
 
-    /// The line speed stored in 0x2009, in bits per second (None for an unlisted code).
-    fn baud_rate(&self, py: Python<'_>) -> PyResult<Option<u32>> {
-        self.wire(py, |d| d.baud_rate())
+    /// The line speed the drive has stored (0x2009), in bits per second (the raw code if
+    /// the manuals do not list it).
+    #[getter]
+    fn baud_rate(&self, py: Python<'_>) -> PyResult<u32> {
+        self.wire(py, |d| match d.baud_rate()? {
+            Some(bps) => Ok(bps),
+            None => Ok(d.get("baud_code")? as u32),
+        })
     }
 
-    /// Stores a new line speed in 0x2009, in bits per second.
+    /// Store a new line speed (0x2009; stopped only): 1200..115200 (C20 up to 57600).
+    ///
+    /// The drive talks at the new speed from then on: open a new Bus at it.
     fn set_baud_rate(&self, py: Python<'_>, bps: &Bound<'_, PyAny>) -> PyResult<()> {
         let bps = int_in(bps, "baud rate", 0, i64::from(u32::MAX))? as u32;
         self.wire(py, move |d| d.set_baud_rate(bps))
     }
 
-    /// The raw value of function-code parameter `code` ("F00.10").
+    /// The raw value of function-code parameter ``code``, e.g. ``"F00.10"``.
+    ///
+    /// Fgg.nn lives at ``gg << 8 | nn``; a parameter the drive lacks raises
+    /// :class:`benchbus.ModbusException` (code 2).
     fn read_parameter(&self, py: Python<'_>, code: &str) -> PyResult<u16> {
         let code = code.to_string();
         self.wire(py, move |d| d.read_parameter(&code))
     }
 
-    /// Writes the raw `value` to function-code parameter `code`, enabling 0x200E around it.
+    /// Write the raw ``value`` (0..0xFFFF) to function-code parameter ``code``.
+    ///
+    /// Sets the write enable 0x200E to 1 first when it is not, and puts it back afterwards,
+    /// also when the write fails; a refusal raises :class:`benchbus.ModbusException` naming
+    /// the parameter (0x03 out of range, 0x08 not while running...).
     fn write_parameter(
         &self,
         py: Python<'_>,
@@ -229,20 +291,18 @@ impl PyDriveCore {
         value: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let value = int_in(value, "value", 0, 0xFFFF)? as u16;
-        crate::device::drive::parameter_address(code).map_err(|e| to_pyerr(py, e))?;
         let code = code.to_string();
         self.wire(py, move |d| d.write_parameter(&code, value))
     }
 
-    /// Reads the setting called `name` (a function-code parameter in engineering units,
+    /// Reads the setting called ``name`` (a function-code parameter in engineering units,
     /// "comm_loss_timeout" for F08.04).
     fn read_setting(&self, py: Python<'_>, name: &str) -> PyResult<f64> {
-        self.drive.setting(name).map_err(|e| to_pyerr(py, e))?;
         let name = name.to_string();
         self.wire(py, move |d| d.read_setting(&name))
     }
 
-    /// Writes `value` (engineering units) to the setting called `name`, enabling 0x200E
+    /// Writes ``value`` (engineering units) to the setting called ``name``, enabling 0x200E
     /// around it; the value and the family are checked before anything is sent.
     fn write_setting(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let value = number(value, name)?;
@@ -250,36 +310,26 @@ impl PyDriveCore {
         self.wire(py, move |d| d.write_setting(&name, value))
     }
 
-    /// The register table: `(name, address, scale, unit, access, low, high)` for each
-    /// register of this family; access is "R", "W/R" or "W/R*".
+    /// The register table of this drive's family: a ``DriveRegister`` ``(name, address,
+    /// scale, unit, access, low, high)`` for each register; access is "R", "W/R" or "W/R*".
     fn registers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        let out = PyList::empty(py);
-        for entry in REGISTERS {
-            let Ok(r) = self.drive.register(entry.register.name) else {
-                continue;
-            };
-            let access = match r.access {
-                crate::device::Access::Read => "R",
-                crate::device::Access::ReadWrite => "W/R",
-                crate::device::Access::WriteWhenStopped => "W/R*",
-            };
-            out.append((
-                r.name, r.address, r.scale, r.unit, access, r.range.0, r.range.1,
-            ))?;
+        table(py, self.dev.device().family())
+    }
+
+    /// The register table of ``family`` ("BLD" or "C20"), as :meth:`registers` gives it,
+    /// without a drive (for the command line's argument ranges).
+    #[staticmethod]
+    fn _table<'py>(py: Python<'py>, family: &str) -> PyResult<Bound<'py, PyList>> {
+        table(py, family_arg(family)?)
+    }
+
+    /// The unit of each register by name, from :meth:`registers` (``""`` for none).
+    fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        let family = self.dev.device().family();
+        for r in REGISTERS.iter().filter_map(|e| e.on(family)) {
+            out.set_item(r.name, r.unit)?;
         }
         Ok(out)
     }
-
-    fn __repr__(&self) -> String {
-        format!(
-            "DriveCore(unit={}, family='{}', write_ack={})",
-            self.drive.unit(),
-            self.drive.family().name(),
-            if self.drive.write_ack() {
-                "True"
-            } else {
-                "False"
-            }
-        )
-    }
-}
+});

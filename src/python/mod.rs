@@ -170,7 +170,20 @@ impl<D: Device + 'static> Attached<D> {
         retries: Option<&Bound<'_, PyAny>>,
         build: impl FnOnce(Arc<bus::Bus>, u8) -> crate::Result<D>,
     ) -> PyResult<Self> {
-        let unit = unit_arg(unit)?;
+        Self::with_units(bus, unit, unit_arg, timeout, retries, build)
+    }
+
+    /// As [`new`](Self::new), for a family whose units are checked by `units` (such as
+    /// [`standard_unit_arg`]) rather than 1..=255.
+    fn with_units(
+        bus: Bound<'_, PyBus>,
+        unit: &Bound<'_, PyAny>,
+        units: fn(&Bound<'_, PyAny>) -> PyResult<u8>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
+        build: impl FnOnce(Arc<bus::Bus>, u8) -> crate::Result<D>,
+    ) -> PyResult<Self> {
+        let unit = units(unit)?;
         let (timeout, retries) = own_timing(timeout, retries)?;
         let device = build(Arc::clone(&bus.get().bus), unit)
             .map_err(|e| to_pyerr(bus.py(), e))?

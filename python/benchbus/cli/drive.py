@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 
+from benchbus._core import DriveCore
 from benchbus.cli._args import Parser, add_command, integer
 from benchbus.cli._line import check_family, open_bus, open_drive
 from benchbus.cli._output import enum_name, measured, print_table
@@ -60,17 +61,23 @@ LINE_OPTIONS = {"unit": True}
 FAMILY_OPTION = True
 
 
+#: The speed setpoint's register (0x2001), from the drive's table: its range bounds the
+#: command line's speeds (the same on both families).
+_SPEED = next(row for row in DriveCore._table("BLD") if row.name == "speed_setpoint")
+
+
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus drive`` (``parents``: its option groups, for its actions)."""
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    low, high = int(_SPEED.low), int(_SPEED.high)
 
     add_command(actions, "status", "state, fault, speeds and measurements", parents)
     for name, what in (("start", "run forward"), ("reverse", "run in reverse")):
         p = add_command(actions, name, f"{what} at the speed setpoint", parents)
         p.add_argument(
-            "--speed", type=integer(0, 3000, "rpm"), metavar="RPM", help="set the setpoint first"
+            "--speed", type=integer(low, high, "rpm"), metavar="RPM", help="set the setpoint first"
         )
     add_command(actions, "stop", "stop (decelerate, or as the stop mode says)", parents)
     p = add_command(actions, "set-speed", "set the speed setpoint (0x2001)", parents)
-    p.add_argument("rpm", type=integer(0, 3000, "RPM"), metavar="RPM")
+    p.add_argument("rpm", type=integer(low, high, "RPM"), metavar="RPM")
     add_command(actions, "reset-fault", "reset a fault (command 7)", parents)
