@@ -197,3 +197,44 @@ def test_a_drive_keeps_no_core_and_stands_on_the_bus_and_unit_given(slave: Scrip
         shared = bb.Drive(bus, 3)
         assert (shared.timeout, shared.retries) == (0.05, bus.retries)
     assert nothing_sent(slave)
+
+
+class _OnUnit5:
+    """A user's subclass whose ``__init__`` takes its own arguments: the unit is its own."""
+
+    def __init__(self, bus: bb.Bus, label: str) -> None:
+        super().__init__(bus, 5)  # type: ignore[call-arg]
+        self.label = label
+
+
+@pytest.mark.parametrize("family", [bb.Drive, bb.PblDrive, bb.J2Controller, bb.Instrument])
+def test_a_subclass_with_its_own_init_arguments_is_attached_by_its_init(
+    slave: ScriptedSlave, family: type[bb.Instrument]
+) -> None:
+    # The compiled base is made empty and attached by __init__, as any Python class is built,
+    # so a subclass's __init__ decides the arguments (here the unit: 5, not the default 1).
+    mine = type(f"My{family.__name__}", (_OnUnit5, family), {})
+    with bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus:
+        device = mine(bus, "left")
+        assert (device.unit, device.bus, device.label) == (5, bus, "left")
+    assert nothing_sent(slave)
+
+
+@pytest.mark.parametrize("family", [bb.Drive, bb.PblDrive, bb.J2Controller, bb.Instrument])
+def test_a_device_whose_init_did_not_run_says_so_and_is_attached_once(
+    slave: ScriptedSlave, family: type[bb.Instrument]
+) -> None:
+    empty = family.__new__(family, "/dev/not-opened", 3)
+    with pytest.raises(RuntimeError, match=r"not attached to a Bus: its class's __init__"):
+        _ = empty.unit
+    with pytest.raises(RuntimeError, match="not attached to a Bus"):
+        _ = empty.bus
+    if family is not bb.Instrument:  # a call to the device, as well as its identity
+        with pytest.raises(RuntimeError, match="not attached to a Bus"):
+            empty.sample()
+    with bb.Bus(slave.port, baudrate=19200, timeout=0.05) as bus:
+        device = family(bus, 3)
+        with pytest.raises(RuntimeError, match="attached to a Bus already"):
+            device.__init__(bus, 4)  # type: ignore[misc]
+        assert device.unit == 3
+    assert nothing_sent(slave)

@@ -415,17 +415,20 @@ class DriveCore(_Station):
 
     #: The names :meth:`sample` gives: the fields of :meth:`telemetry`.
     SAMPLE_FIELDS: tuple[str, ...] | None
-    def __new__(
-        cls,
+    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
+        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
+        ``__init__`` may take its own arguments)."""
+    def _attach(
+        self,
         bus: Bus,
         unit: int,
         family: str,
         write_ack: bool,
         timeout: float | None = None,
         retries: int | None = None,
-    ) -> Self:
-        """The drive at ``unit`` (1..247) on ``bus``; ``family`` is "BLD" (BLD2, BLD3H) or
-        "C20"; ``timeout`` / ``retries`` replace the Bus's for this drive's requests."""
+    ) -> None:
+        """Attaches the drive at ``unit`` (1..247) of ``family`` ("BLD" or "C20") to ``bus``
+        (what ``Drive.__init__`` does); ``timeout`` / ``retries`` replace the Bus's."""
     @property
     def family(self) -> str:
         """ "BLD" (BLD2, BLD3H) or "C20"."""
@@ -536,10 +539,14 @@ class PblCore(_Station):
 
     #: The names :meth:`sample` gives: parameters 50..54.
     SAMPLE_FIELDS: tuple[str, ...] | None
-    def __new__(
-        cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
-    ) -> Self:
-        """The drive at ``unit`` on ``bus``; ``timeout`` / ``retries`` replace the Bus's."""
+    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
+        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
+        ``__init__`` may take its own arguments)."""
+    def _attach(
+        self, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
+    ) -> None:
+        """Attaches the drive at ``unit`` to ``bus`` (what ``PblDrive.__init__`` does);
+        ``timeout`` / ``retries`` replace the Bus's."""
     def get(self, name: str) -> int:
         """Reads the parameter called ``name``."""
     def set(self, name: str, value: float) -> None:
@@ -602,11 +609,14 @@ class J2Core(_Station):
 
     #: The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``.
     SAMPLE_FIELDS: tuple[str, ...] | None
-    def __new__(
-        cls, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
-    ) -> Self:
-        """The controller at ``unit`` (1..255) on ``bus``; ``timeout`` / ``retries`` replace
-        the Bus's."""
+    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
+        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
+        ``__init__`` may take its own arguments)."""
+    def _attach(
+        self, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
+    ) -> None:
+        """Attaches the controller at ``unit`` (1..255) to ``bus`` (what
+        ``J2Controller.__init__`` does); ``timeout`` / ``retries`` replace the Bus's."""
     def get(self, name: str) -> int | float:
         """Reads the parameter called ``name``."""
     def set(self, name: str, value: float) -> None:
@@ -670,8 +680,11 @@ class InstrumentCore(_Station):
     releases the GIL.
     """
 
-    def __new__(
-        cls,
+    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
+        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
+        ``__init__`` may take its own arguments)."""
+    def _attach(
+        self,
         bus: Bus,
         unit: int,
         max_read: int,
@@ -679,9 +692,9 @@ class InstrumentCore(_Station):
         min_write_interval: float,
         timeout: float | None = None,
         retries: int | None = None,
-    ) -> Self:
-        """The instrument at ``unit`` on ``bus`` with its request limits; ``timeout`` /
-        ``retries`` replace the Bus's."""
+    ) -> None:
+        """Attaches the instrument at ``unit`` to ``bus`` with its request limits (what
+        ``Instrument.__init__`` does); ``timeout`` / ``retries`` replace the Bus's."""
     @property
     def max_read(self) -> int:
         """Most registers one read asks for."""

@@ -1,10 +1,10 @@
 """What the device classes share: printable enums and properties backed by a register table.
 
-Each device class either keeps a compiled core (``DriveCore``) or has its compiled class as
-its base (``PblCore`` under ``PblDrive``); either knows the register table, scaling and
-limits, and reads or writes a register by name with ``get`` / ``set``.
-A :class:`RegisterProperty` turns one such register into a Python property, converting the
-raw value (an enum, an int, a float) on the way out.
+Each device class has its compiled class as its base (``DriveCore`` under ``Drive``,
+``PblCore`` under ``PblDrive``...), which knows the register table, scaling and limits, and
+reads or writes a register by name with ``get`` / ``set``. A :class:`RegisterProperty` turns
+one such register into a Python property, converting the raw value (an enum, an int, a
+float) on the way out.
 """
 
 from __future__ import annotations
@@ -17,7 +17,17 @@ import os
 import time
 from collections.abc import Callable, Iterable
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, Generic, NamedTuple, NoReturn, Protocol, TypeVar, overload
+from typing import (
+    TYPE_CHECKING,
+    Any,
+    Generic,
+    NamedTuple,
+    NoReturn,
+    Protocol,
+    TypeVar,
+    cast,
+    overload,
+)
 
 from benchbus._core import Bus
 from benchbus._record import Recording, record
@@ -69,18 +79,8 @@ class PrintableIntEnum(enum.IntEnum):
 log = logging.getLogger("benchbus.device")
 
 
-class Core(Protocol):
-    """A compiled device core: reads and writes its registers by name."""
-
-    @property
-    def bus(self) -> Bus:
-        """The Bus the device talks through."""
-        ...
-
-    @property
-    def unit(self) -> int:
-        """The device's unit address."""
-        ...
+class Registers(Protocol):
+    """A device that reads and writes its registers by name (its compiled base does)."""
 
     def get(self, name: str) -> int | float:
         """The register called ``name``, in engineering units."""
@@ -91,18 +91,9 @@ class Core(Protocol):
         ...
 
 
-class Device(Protocol):
-    """A device object: it has a core."""
-
-    @property
-    def core(self) -> Core:
-        """The compiled core."""
-        ...
-
-
 E = TypeVar("E", bound=enum.IntEnum)
 T = TypeVar("T")
-D = TypeVar("D", bound=Device)
+D = TypeVar("D", bound=Registers)
 
 
 def as_enum(enum_type: type[E], raw: int) -> E | int:
@@ -113,15 +104,8 @@ def as_enum(enum_type: type[E], raw: int) -> E | int:
         return raw
 
 
-def _registers(device: Device) -> Core:
-    """Where ``device`` reads and writes its registers by name: its ``core``, or the device
-    itself when the compiled class is its base (it then has no ``core``)."""
-    core: Core = vars(device).get("core", device)
-    return core
-
-
 class _Backed(Generic[D, T]):
-    """A device attribute read from the register ``register`` of the device's core."""
+    """A device attribute read from the register ``register`` of the device."""
 
     def __init__(self, register: str, convert: Callable[[D, Any], T], doc: str) -> None:
         """Read through ``convert(device, raw value)``; ``doc`` is the property's docstring."""
@@ -137,15 +121,15 @@ class _Backed(Generic[D, T]):
         """The converted register value (the descriptor itself on the class)."""
         if device is None:
             return self
-        return self.convert(device, _registers(device).get(self.register))
+        return self.convert(device, device.get(self.register))
 
 
 class RegisterProperty(_Backed[D, T]):
-    """A read/write device property backed by one register of the device's core."""
+    """A read/write device property backed by one register of the device."""
 
     def __set__(self, device: D, value: float) -> None:
         """Write ``value`` (an enum member is an int) to the register."""
-        _registers(device).set(self.register, value)
+        device.set(self.register, value)
 
 
 class MeasuredProperty(_Backed[D, T]):
@@ -228,6 +212,15 @@ def on_line(
         raise
 
 
+class _Attachable(Protocol):
+    """A device whose compiled base is attached to a Bus by ``_attach`` (see
+    ``src/python/mod.rs``, ``Attached``)."""
+
+    def _attach(self, bus: Bus, *args: Any) -> None:
+        """Attach to ``bus`` with the family's arguments, then ``timeout`` and ``retries``."""
+        ...
+
+
 class _DeviceType(type):
     """The type of device classes: an instance takes new attributes only while it is made."""
 
@@ -272,8 +265,9 @@ def _unknown_attribute(device: object, name: str) -> AttributeError:
 class BusDevice(metaclass=_DeviceType):
     """A device on a Bus: its identity, and a context manager that closes what it opened.
 
-    Subclasses set ``core`` and ``_owns_bus`` (whether :meth:`close` closes the Bus), the
-    latter through :meth:`_attach`.
+    A subclass has a compiled device class as its first base (``class Drive(DriveCore,
+    MotorDevice)``), which holds the Bus and the unit; its ``__init__`` attaches it with
+    :meth:`_on_line`, which also records whether :meth:`close` closes the Bus.
 
     Once made, a device takes no new attribute: setting a name that is not one of its
     properties, nor defined or annotated on its class, nor set while ``__init__`` ran,
@@ -283,7 +277,6 @@ class BusDevice(metaclass=_DeviceType):
     set it later.
     """
 
-    core: Any
     _owns_bus: bool
     #: The family's line defaults (a subclass sets its own).
     LINE_DEFAULTS = LineDefaults(19200, "N", 0.1)
@@ -300,61 +293,37 @@ class BusDevice(metaclass=_DeviceType):
                 raise _unknown_attribute(self, name)
             super().__setattr__(name, value)
 
-    def _attach(
-        self,
-        port_or_bus: str | os.PathLike[str] | Bus,
-        make_core: Callable[[Bus, float | None, int | None], Any],
-        *,
-        baudrate: int,
-        parity: str,
-        timeout: float | None,
-        retries: int | None,
-        default_timeout: float,
-    ) -> None:
-        """Set ``core`` on a shared Bus, or on one opened at the family's line defaults
-        (see :func:`on_line`)."""
-        self.core, self._owns_bus = on_line(
-            port_or_bus,
-            make_core,
-            line=LineDefaults(baudrate, parity, default_timeout),
-            timeout=timeout,
-            retries=retries,
-        )
-
-    @classmethod
     def _on_line(
-        cls,
+        self,
         port_or_bus: str | os.PathLike[str] | Bus,
         *args: Any,
         timeout: float | None,
         retries: int | None,
         line: LineDefaults | None = None,
-    ) -> Self:
-        """A device of this class made by its compiled base from ``(bus, *args, timeout,
-        retries)`` on a shared Bus, or on a Bus opened at ``line`` (the class's
-        ``LINE_DEFAULTS`` by default; see :func:`on_line`): what the ``__new__`` of a class
-        whose base is compiled calls."""
-        base: Any = next(k for k in cls.__mro__ if k.__module__ == "benchbus._core")
-        device, owns_bus = on_line(
+    ) -> None:
+        """Attach the compiled base to a shared Bus, with ``(bus, *args, timeout, retries)``,
+        or to a Bus opened at ``line`` (the class's ``LINE_DEFAULTS`` by default; see
+        :func:`on_line`): what the ``__init__`` of a class whose base is compiled calls."""
+        attachable = cast("_Attachable", self)
+        _, self._owns_bus = on_line(
             port_or_bus,
-            lambda bus, t, r: base.__new__(cls, bus, *args, t, r),
-            line=cls.LINE_DEFAULTS if line is None else line,
+            lambda bus, t, r: attachable._attach(bus, *args, t, r),
+            line=self.LINE_DEFAULTS if line is None else line,
             timeout=timeout,
             retries=retries,
         )
-        device._owns_bus = owns_bus
-        return device  # type: ignore[no-any-return]
 
-    @property
-    def bus(self) -> Bus:
-        """The Bus the device talks through."""
-        bus: Bus = self.core.bus
-        return bus
+    if TYPE_CHECKING:  # the compiled base (``_core._Station``) has them
 
-    @property
-    def unit(self) -> int:
-        """The device's unit address."""
-        return int(self.core.unit)
+        @property
+        def bus(self) -> Bus:
+            """The Bus the device talks through."""
+            ...
+
+        @property
+        def unit(self) -> int:
+            """The device's unit address."""
+            ...
 
     #: The names :meth:`sample` gives (None: not known in advance), so that a bad
     #: ``record(columns=...)`` is refused before anything is sent.

@@ -32,7 +32,7 @@ from benchbus._display import dataclass_table
 from benchbus._keepalive import KeepAlive, check_interval
 
 if TYPE_CHECKING:
-    from typing_extensions import Self
+    pass
 
 __all__ = [
     "C20ControlMode",
@@ -309,21 +309,6 @@ class Drive(DriveCore, MotorDevice):
     )
     state = MeasuredProperty("state", to_enum(DriveState), "Status word 1 (0x2100).")
 
-    def __new__(
-        cls,
-        port_or_bus: str | os.PathLike[str] | Bus,
-        unit: int = 1,
-        *args: Any,
-        family: str = "BLD",
-        write_ack: bool = True,
-        timeout: float | None = None,
-        retries: int | None = None,
-        **kwargs: Any,
-    ) -> Self:
-        """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1. Further
-        arguments are left to ``__init__`` (a subclass's own; the Drive's refuses them)."""
-        return cls._on_line(port_or_bus, unit, family, write_ack, timeout=timeout, retries=retries)
-
     def __init__(
         self,
         port_or_bus: str | os.PathLike[str] | Bus,
@@ -334,8 +319,7 @@ class Drive(DriveCore, MotorDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
-        """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1 (made by
-        ``__new__``: the compiled base holds the Bus, the unit and the family).
+        """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1.
 
         ``timeout`` and ``retries`` are the drive's own: on a port it opens, they set the Bus
         (0.25 s and 2 by default); on a shared Bus, they replace the Bus's for this drive's
@@ -343,6 +327,7 @@ class Drive(DriveCore, MotorDevice):
         """
         self._keepalive: KeepAlive | None = None
         self._keepalive_lock = threading.Lock()
+        self._on_line(port_or_bus, unit, family, write_ack, timeout=timeout, retries=retries)
 
     # ---- identity ------------------------------------------------------------------------
 

@@ -17,7 +17,7 @@ from benchbus._device import BusDevice, LineDefaults, check_baudrate
 from benchbus._display import field_table
 
 if TYPE_CHECKING:
-    from typing_extensions import Self
+    pass
 
 __all__ = ["Identification", "Instrument"]
 
@@ -105,32 +105,6 @@ class Instrument(InstrumentCore, BusDevice):
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(9600, "N", 0.1)
 
-    def __new__(
-        cls,
-        port_or_bus: str | os.PathLike[str] | Bus,
-        unit: int = 1,
-        max_read: int = TAISONG_MAX_READ,
-        max_write: int = TAISONG_MAX_WRITE,
-        min_write_interval: float = 0.0,
-        baudrate: int = 9600,
-        *,
-        timeout: float | None = None,
-        retries: int | None = None,
-    ) -> Self:
-        """The instrument at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
-        check_baudrate(baudrate, (2400, 4800, 9600, 19200))
-        line = cls.LINE_DEFAULTS._replace(baudrate=baudrate)
-        return cls._on_line(
-            port_or_bus,
-            unit,
-            max_read,
-            max_write,
-            min_write_interval,
-            timeout=timeout,
-            retries=retries,
-            line=line,
-        )
-
     def __init__(
         self,
         port_or_bus: str | os.PathLike[str] | Bus,
@@ -143,5 +117,16 @@ class Instrument(InstrumentCore, BusDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
-        """The instrument at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1 (made
-        by ``__new__``: the compiled base holds the Bus, the unit and the limits)."""
+        """The instrument at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
+        check_baudrate(baudrate, (2400, 4800, 9600, 19200))
+        line = self.LINE_DEFAULTS._replace(baudrate=baudrate)
+        self._on_line(
+            port_or_bus,
+            unit,
+            max_read,
+            max_write,
+            min_write_interval,
+            timeout=timeout,
+            retries=retries,
+            line=line,
+        )

@@ -29,7 +29,7 @@ from benchbus._device import (
 from benchbus._display import dataclass_table
 
 if TYPE_CHECKING:
-    from typing_extensions import Self
+    pass
 
 __all__ = ["InputType", "J2Controller", "J2Mode", "J2Parameter", "J2Status", "Limits", "Pid"]
 
@@ -176,20 +176,6 @@ class J2Controller(J2Core, BusDevice):
     input_type = RegisterProperty("INP", to_enum(InputType), "Input type (INP).")
     decimal_point = RegisterProperty("DP", to_int, "Decimal places shown (DP), 0..3.")
 
-    def __new__(
-        cls,
-        port_or_bus: str | os.PathLike[str] | Bus,
-        unit: int = 1,
-        baudrate: int = 9600,
-        *,
-        timeout: float | None = None,
-        retries: int | None = None,
-    ) -> Self:
-        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
-        check_baudrate(baudrate, (9600, 19200))
-        line = cls.LINE_DEFAULTS._replace(baudrate=baudrate)
-        return cls._on_line(port_or_bus, unit, timeout=timeout, retries=retries, line=line)
-
     def __init__(
         self,
         port_or_bus: str | os.PathLike[str] | Bus,
@@ -199,8 +185,10 @@ class J2Controller(J2Core, BusDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
-        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1 (made
-        by ``__new__``: the compiled base holds the Bus and the unit)."""
+        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
+        check_baudrate(baudrate, (9600, 19200))
+        line = self.LINE_DEFAULTS._replace(baudrate=baudrate)
+        self._on_line(port_or_bus, unit, timeout=timeout, retries=retries, line=line)
 
     def sample_units(self) -> dict[str, str]:
         """The unit of each field :meth:`sample` gives (``pv``, ``sv``: °C; ``mv``: %)."""

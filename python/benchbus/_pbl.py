@@ -26,7 +26,7 @@ from benchbus._device import (
 from benchbus._display import dataclass_table, field_table
 
 if TYPE_CHECKING:
-    from typing_extensions import Self
+    pass
 
 __all__ = [
     "DecelMode",
@@ -172,17 +172,6 @@ class PblDrive(PblCore, MotorDevice):
     power = MeasuredProperty("power", to_int, "Motor power, W (54).")
     hall_state = MeasuredProperty("hall_state", to_int, "Hall sensor state (6).")
 
-    def __new__(
-        cls,
-        port_or_bus: str | os.PathLike[str] | Bus,
-        unit: int = 1,
-        *,
-        timeout: float | None = None,
-        retries: int | None = None,
-    ) -> Self:
-        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
-        return cls._on_line(port_or_bus, unit, timeout=timeout, retries=retries)
-
     def __init__(
         self,
         port_or_bus: str | os.PathLike[str] | Bus,
@@ -191,8 +180,8 @@ class PblDrive(PblCore, MotorDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
-        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1 (made by
-        ``__new__``: the compiled base holds the Bus and the unit)."""
+        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
+        self._on_line(port_or_bus, unit, timeout=timeout, retries=retries)
 
     def restore_defaults(self) -> None:
         """Ask for the factory defaults (1511 to parameter 214).

@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::drive`]: the compiled base class of `benchbus.Drive`, which
 //! adds only what belongs to Python (enums, the keepalive, reprs, the context manager).
 
-use super::{int_in, number, public, standard_unit_arg, Attached, PyBus, PyStation};
+use super::{int_in, member, number, public, standard_unit_arg, Attached, PyBus, PyStation};
 use crate::device::drive::{
     command_doc, drive_commands, fault_name, Command, Drive, Family, Model, Telemetry, REGISTERS,
 };
@@ -36,14 +36,6 @@ fn family_arg(name: &str) -> PyResult<Family> {
             "family must be \"BLD\" (BLD2, BLD3H) or \"C20\", got {name:?}"
         ))
     })
-}
-
-/// `name(value)` of the family's enums, or the int itself for a value the enum lacks.
-fn member<'py>(py: Python<'py>, name: &str, value: u16) -> PyResult<Bound<'py, PyAny>> {
-    match public(py, PY, name, (value,), None) {
-        Err(e) if e.is_instance_of::<PyValueError>(py) => Ok(PyInt::new(py, value).into_any()),
-        other => other,
-    }
 }
 
 /// A value of `register` as Python shows it: an int for a whole-number register, else a
@@ -93,51 +85,67 @@ macro_rules! with_command_methods {
 
 drive_commands!(with_command_methods! {
     #[new]
-    #[pyo3(signature = (bus, unit, family, write_ack, timeout=None, retries=None))]
+    #[pyo3(signature = (*_args, **_kwargs))]
     fn new(
+        _args: &Bound<'_, PyTuple>,
+        _kwargs: Option<&Bound<'_, PyDict>>,
+    ) -> PyClassInitializer<Self> {
+        Attached::class(|dev| PyDriveCore { dev })
+    }
+
+    /// Attaches the drive at `unit` (1..247) of `family` ("BLD" or "C20") to `bus` (what
+    /// `Drive.__init__` does); `timeout` / `retries` replace the Bus's.
+    #[pyo3(signature = (bus, unit, family, write_ack, timeout=None, retries=None))]
+    fn _attach(
+        slf: &Bound<'_, Self>,
         bus: Bound<'_, PyBus>,
         unit: &Bound<'_, PyAny>,
         family: &str,
         write_ack: bool,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let py = bus.py();
+    ) -> PyResult<()> {
         let family = family_arg(family)?;
-        let dev = Attached::with_units(bus, unit, standard_unit_arg, timeout, retries, |b, u| {
-            Ok(Drive::new(b, u, family, write_ack))
-        })?;
-        Ok(dev.into_class(py, |dev| PyDriveCore { dev }))
+        let station = slf.as_super().get();
+        slf.get().dev.attach(
+            station,
+            bus,
+            unit,
+            standard_unit_arg,
+            timeout,
+            retries,
+            |b, u| Ok(Drive::new(b, u, family, write_ack)),
+        )
     }
 
     /// "BLD" (BLD2, BLD3H) or "C20".
     #[getter]
-    fn family(&self) -> &'static str {
-        self.dev.device().family().name()
+    fn family(&self) -> PyResult<&'static str> {
+        Ok(self.dev.device()?.family().name())
     }
 
     /// Whether writes are answered (False for a drive set to F08.06 = 1).
     #[getter]
-    fn write_ack(&self) -> bool {
-        self.dev.device().write_ack()
+    fn write_ack(&self) -> PyResult<bool> {
+        Ok(self.dev.device()?.write_ack())
     }
 
     /// Reply timeout of the drive's requests, in seconds (its own, or the Bus's).
     #[getter]
-    fn timeout(&self) -> f64 {
-        self.dev.device().station().timeout().as_secs_f64()
+    fn timeout(&self) -> PyResult<f64> {
+        Ok(self.dev.device()?.station().timeout().as_secs_f64())
     }
 
     /// Retries of the drive's requests (its own, or the Bus's).
     #[getter]
-    fn retries(&self) -> u32 {
-        self.dev.device().station().retries()
+    fn retries(&self) -> PyResult<u32> {
+        Ok(self.dev.device()?.station().retries())
     }
 
     /// Whether the drive answers multi-register reads; None until one was tried.
     #[getter]
-    fn block_reads(&self) -> Option<bool> {
-        self.dev.device().block_reads()
+    fn block_reads(&self) -> PyResult<Option<bool>> {
+        Ok(self.dev.device()?.block_reads())
     }
 
     /// Read any register of the drive's table by name (see :meth:`registers`): an int, or a
@@ -177,10 +185,10 @@ drive_commands!(with_command_methods! {
             public(py, PY, "Fault", (s.fault_code, fault_name(s.fault_code)), None)?
         };
         let args = (
-            member(py, "DriveState", s.state)?,
+            member(py, PY, "DriveState", s.state.into())?,
             s.bus_voltage_ready,
             s.overloaded,
-            member(py, "CommandSource", s.control_source)?,
+            member(py, PY, "CommandSource", s.control_source.into())?,
             s.keypad_connected,
             fault,
         );
@@ -313,7 +321,7 @@ drive_commands!(with_command_methods! {
     /// The register table of this drive's family: a ``DriveRegister`` ``(name, address,
     /// scale, unit, access, low, high)`` for each register; access is "R", "W/R" or "W/R*".
     fn registers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
-        table(py, self.dev.device().family())
+        table(py, self.dev.device()?.family())
     }
 
     /// The register table of ``family`` ("BLD" or "C20"), as :meth:`registers` gives it,
@@ -326,7 +334,7 @@ drive_commands!(with_command_methods! {
     /// The unit of each register by name, from :meth:`registers` (``""`` for none).
     fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
-        let family = self.dev.device().family();
+        let family = self.dev.device()?.family();
         for r in REGISTERS.iter().filter_map(|e| e.on(family)) {
             out.set_item(r.name, r.unit)?;
         }

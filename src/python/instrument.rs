@@ -3,13 +3,14 @@
 //! identification record, the repr, the context manager).
 
 use super::{
-    int_in, number, opt, public, register_list, seconds, u16_arg, Attached, PyBus, PyStation,
+    int_in, number, opt, public, register_list, seconds, u16_arg, unit_arg, Attached, PyBus,
+    PyStation,
 };
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
 use crate::device::instrument::{Instrument, WordOrder, MAX_DECIMALS};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString};
+use pyo3::types::{PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString, PyTuple};
 use std::time::Duration;
 
 /// The Python module of the family's public types.
@@ -133,8 +134,20 @@ fn py_basic() -> Py<PyAny> {
 #[pymethods]
 impl PyInstrumentCore {
     #[new]
-    #[pyo3(signature = (bus, unit, max_read, max_write, min_write_interval, timeout=None, retries=None))]
+    #[pyo3(signature = (*_args, **_kwargs))]
     fn new(
+        _args: &Bound<'_, PyTuple>,
+        _kwargs: Option<&Bound<'_, PyDict>>,
+    ) -> PyClassInitializer<Self> {
+        Attached::class(|dev| PyInstrumentCore { dev })
+    }
+
+    /// Attaches the instrument at `unit` to `bus` with its request limits (what
+    /// `Instrument.__init__` does); `timeout` / `retries` replace the Bus's.
+    #[pyo3(signature = (bus, unit, max_read, max_write, min_write_interval, timeout=None, retries=None))]
+    #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
+    fn _attach(
+        slf: &Bound<'_, Self>,
         bus: Bound<'_, PyBus>,
         unit: &Bound<'_, PyAny>,
         max_read: &Bound<'_, PyAny>,
@@ -142,33 +155,34 @@ impl PyInstrumentCore {
         min_write_interval: &Bound<'_, PyAny>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let py = bus.py();
+    ) -> PyResult<()> {
         let max_read = int_in(max_read, "max_read", 1, MAX_READ_COUNT.into())? as u16;
         let max_write = int_in(max_write, "max_write", 1, MAX_WRITE_COUNT.into())? as u16;
         let interval: Duration = seconds(min_write_interval, "min_write_interval", true)?;
-        let dev = Attached::new(bus, unit, timeout, retries, |b, u| {
-            Instrument::new(b, u, max_read, max_write, interval)
-        })?;
-        Ok(dev.into_class(py, |dev| PyInstrumentCore { dev }))
+        let station = slf.as_super().get();
+        slf.get()
+            .dev
+            .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
+                Instrument::new(b, u, max_read, max_write, interval)
+            })
     }
 
     /// Most registers one read asks for.
     #[getter]
-    fn max_read(&self) -> u16 {
-        self.dev.device().max_read()
+    fn max_read(&self) -> PyResult<u16> {
+        Ok(self.dev.device()?.max_read())
     }
 
     /// Most registers one write carries.
     #[getter]
-    fn max_write(&self) -> u16 {
-        self.dev.device().max_write()
+    fn max_write(&self) -> PyResult<u16> {
+        Ok(self.dev.device()?.max_write())
     }
 
     /// Least time between two writes, seconds.
     #[getter]
-    fn min_write_interval(&self) -> f64 {
-        self.dev.device().min_write_interval().as_secs_f64()
+    fn min_write_interval(&self) -> PyResult<f64> {
+        Ok(self.dev.device()?.min_write_interval().as_secs_f64())
     }
 
     /// One register as a value: ``raw / 10**decimals`` (an int when ``decimals`` is 0),

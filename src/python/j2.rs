@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::j2`]: the compiled base class of `benchbus.J2Controller`,
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
-use super::{member, number, public, to_pyerr, Attached, PyBus, PyStation};
+use super::{member, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._j2";
@@ -143,16 +143,30 @@ fn value<'py>(py: Python<'py>, p: &Param, v: f64) -> Bound<'py, PyAny> {
 #[pymethods]
 impl PyJ2Core {
     #[new]
-    #[pyo3(signature = (bus, unit, timeout=None, retries=None))]
+    #[pyo3(signature = (*_args, **_kwargs))]
     fn new(
+        _args: &Bound<'_, PyTuple>,
+        _kwargs: Option<&Bound<'_, PyDict>>,
+    ) -> PyClassInitializer<Self> {
+        Attached::class(|dev| PyJ2Core { dev })
+    }
+
+    /// Attaches the controller at `unit` to `bus` (what `J2Controller.__init__` does);
+    /// `timeout` / `retries` replace the Bus's.
+    #[pyo3(signature = (bus, unit, timeout=None, retries=None))]
+    fn _attach(
+        slf: &Bound<'_, Self>,
         bus: Bound<'_, PyBus>,
         unit: &Bound<'_, PyAny>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let py = bus.py();
-        let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(J2::new(b, u)))?;
-        Ok(dev.into_class(py, |dev| PyJ2Core { dev }))
+    ) -> PyResult<()> {
+        let station = slf.as_super().get();
+        slf.get()
+            .dev
+            .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
+                Ok(J2::new(b, u))
+            })
     }
 
     /// Reads the parameter called `name`.

@@ -19,7 +19,7 @@ use crate::device::Device;
 use crate::error::{hex, Error};
 use crate::timing::{LineFormat, Parity};
 use crate::transport::tuning::Rs485;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyModule, PyString};
@@ -152,46 +152,64 @@ fn on_wire<D: Send + Sync, T: Send>(
     result.map_err(|e| to_pyerr(py, e))
 }
 
-/// A device core and the Bus object it is on: what every device binding holds, built by
-/// one constructor path.
+/// A device core, once its Python object is attached to a Bus: what every device binding
+/// holds. The object is made empty (`__new__` takes any arguments, so that a subclass's
+/// `__init__` may have its own) and attached by its class's `__init__`, through the one
+/// path every family shares, [`Attached::attach`].
 pub(super) struct Attached<D> {
-    device: Arc<D>,
-    bus: Py<PyBus>,
+    device: OnceLock<Arc<D>>,
 }
 
 impl<D: Device + 'static> Attached<D> {
-    /// Converts the arguments every device takes (`unit`, its own `timeout` and `retries`),
-    /// builds the core with `build` on the Bus and the unit (which validates the family's
-    /// own arguments), then gives it its own timing.
-    fn new(
-        bus: Bound<'_, PyBus>,
-        unit: &Bound<'_, PyAny>,
-        timeout: Option<&Bound<'_, PyAny>>,
-        retries: Option<&Bound<'_, PyAny>>,
-        build: impl FnOnce(Arc<bus::Bus>, u8) -> crate::Result<D>,
-    ) -> PyResult<Self> {
-        Self::with_units(bus, unit, unit_arg, timeout, retries, build)
+    /// The empty device class `T` that `wrap` makes, on an empty [`PyStation`]: what a
+    /// device binding's `#[new]` returns.
+    fn class<T: pyo3::PyClass<BaseType = PyStation>>(
+        wrap: impl FnOnce(Self) -> T,
+    ) -> PyClassInitializer<T> {
+        let station = PyStation {
+            at: OnceLock::new(),
+        };
+        let empty = Attached {
+            device: OnceLock::new(),
+        };
+        PyClassInitializer::from(station).add_subclass(wrap(empty))
     }
 
-    /// As [`new`](Self::new), for a family whose units are checked by `units` (such as
-    /// [`standard_unit_arg`]) rather than 1..=255.
-    fn with_units(
+    /// Converts the arguments every device takes (`unit`, checked by the family's `units`:
+    /// [`unit_arg`] or [`standard_unit_arg`]; its own `timeout` and `retries`), builds the
+    /// core with `build` on the Bus and the unit (which validates the family's own
+    /// arguments), gives it its own timing, and attaches it here and the Bus and unit to
+    /// `station`. Once only: a device attached already raises RuntimeError.
+    #[allow(clippy::too_many_arguments)]
+    fn attach(
+        &self,
+        station: &PyStation,
         bus: Bound<'_, PyBus>,
         unit: &Bound<'_, PyAny>,
         units: fn(&Bound<'_, PyAny>) -> PyResult<u8>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
         build: impl FnOnce(Arc<bus::Bus>, u8) -> crate::Result<D>,
-    ) -> PyResult<Self> {
+    ) -> PyResult<()> {
+        let already = || PyRuntimeError::new_err("the device is attached to a Bus already");
+        if station.at.get().is_some() {
+            return Err(already());
+        }
         let unit = units(unit)?;
         let (timeout, retries) = own_timing(timeout, retries)?;
         let device = build(Arc::clone(&bus.get().bus), unit)
             .map_err(|e| to_pyerr(bus.py(), e))?
             .with_timing(timeout, retries);
-        Ok(Attached {
-            device: Arc::new(device),
-            bus: bus.unbind(),
-        })
+        station
+            .at
+            .set((bus.unbind(), unit))
+            .map_err(|_| already())?;
+        self.device.set(Arc::new(device)).map_err(|_| already())
+    }
+
+    /// The core, for what needs no wire; RuntimeError before the device is attached.
+    fn device(&self) -> PyResult<&Arc<D>> {
+        self.device.get().ok_or_else(unattached)
     }
 
     /// Runs `f` on the core with the GIL released; its error as the Python exception.
@@ -200,49 +218,39 @@ impl<D: Device + 'static> Attached<D> {
         py: Python<'_>,
         f: impl FnOnce(&D) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
-        on_wire(py, &self.device, f)
-    }
-
-    /// The core, for what needs no wire.
-    fn device(&self) -> &D {
-        &self.device
-    }
-
-    /// The compiled device class `T` that `wrap` makes of this, on its [`PyStation`] base:
-    /// what a device binding's `#[new]` returns.
-    fn into_class<T: pyo3::PyClass<BaseType = PyStation>>(
-        self,
-        py: Python<'_>,
-        wrap: impl FnOnce(Self) -> T,
-    ) -> PyClassInitializer<T> {
-        let station = PyStation {
-            bus: self.bus.clone_ref(py),
-            unit: self.device.unit(),
-        };
-        PyClassInitializer::from(station).add_subclass(wrap(self))
+        on_wire(py, self.device()?, f)
     }
 }
 
+/// The error of a device used before its `__init__` attached it to a Bus.
+fn unattached() -> PyErr {
+    PyRuntimeError::new_err(
+        "the device is not attached to a Bus: its class's __init__ did not run (a subclass's \
+         __init__ must call super().__init__(...))",
+    )
+}
+
 /// The base of every compiled device class: the Bus the device talks through and its unit,
-/// once for all families.
+/// once for all families (set when the device is attached: see [`Attached::attach`]).
 #[pyclass(subclass, frozen, module = "benchbus._core", name = "_Station")]
 pub(super) struct PyStation {
-    bus: Py<PyBus>,
-    unit: u8,
+    at: OnceLock<(Py<PyBus>, u8)>,
 }
 
 #[pymethods]
 impl PyStation {
     /// The Bus the device talks through.
     #[getter]
-    fn bus(&self, py: Python<'_>) -> Py<PyBus> {
-        self.bus.clone_ref(py)
+    fn bus(&self, py: Python<'_>) -> PyResult<Py<PyBus>> {
+        let (bus, _) = self.at.get().ok_or_else(unattached)?;
+        Ok(bus.clone_ref(py))
     }
 
     /// The device's unit address.
     #[getter]
-    fn unit(&self) -> u8 {
-        self.unit
+    fn unit(&self) -> PyResult<u8> {
+        let (_, unit) = self.at.get().ok_or_else(unattached)?;
+        Ok(*unit)
     }
 }
 

@@ -1,7 +1,7 @@
 //! Bindings of [`crate::device::pbl`]: the compiled base class of `benchbus.PblDrive`, which
 //! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
-use super::{int_in, number, public, to_pyerr, Attached, PyBus, PyStation};
+use super::{int_in, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._pbl";
@@ -47,16 +47,30 @@ fn parameter_number(py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
 #[pymethods]
 impl PyPblCore {
     #[new]
-    #[pyo3(signature = (bus, unit, timeout=None, retries=None))]
+    #[pyo3(signature = (*_args, **_kwargs))]
     fn new(
+        _args: &Bound<'_, PyTuple>,
+        _kwargs: Option<&Bound<'_, PyDict>>,
+    ) -> PyClassInitializer<Self> {
+        Attached::class(|dev| PyPblCore { dev })
+    }
+
+    /// Attaches the drive at `unit` to `bus` (what `PblDrive.__init__` does); `timeout` /
+    /// `retries` replace the Bus's.
+    #[pyo3(signature = (bus, unit, timeout=None, retries=None))]
+    fn _attach(
+        slf: &Bound<'_, Self>,
         bus: Bound<'_, PyBus>,
         unit: &Bound<'_, PyAny>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<PyClassInitializer<Self>> {
-        let py = bus.py();
-        let dev = Attached::new(bus, unit, timeout, retries, |b, u| Ok(Pbl::new(b, u)))?;
-        Ok(dev.into_class(py, |dev| PyPblCore { dev }))
+    ) -> PyResult<()> {
+        let station = slf.as_super().get();
+        slf.get()
+            .dev
+            .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
+                Ok(Pbl::new(b, u))
+            })
     }
 
     /// Reads the parameter called `name` (an int).
