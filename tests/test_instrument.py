@@ -27,7 +27,7 @@ def summary(frames: list[bytes]) -> list[tuple[int, int, int]]:
 
 
 @contextlib.contextmanager
-def open_line() -> Iterator[Rig]:
+def open_rig() -> Iterator[Rig]:
     """A Taisong meter at unit 1 and an ATV31 at unit 2 on one line, clocks standing still."""
     meter, atv = TaisongDevice(clock=FakeClock()), Atv31Device()
     devices: dict[int, TaisongDevice | Atv31Device] = {1: meter, 2: atv}
@@ -36,8 +36,8 @@ def open_line() -> Iterator[Rig]:
 
 
 @pytest.fixture
-def line() -> Iterator[Rig]:
-    with open_line() as opened:
+def rig() -> Iterator[Rig]:
+    with open_rig() as opened:
         yield opened
 
 
@@ -56,8 +56,8 @@ def test_line_defaults() -> None:
 # ---- the manual's frames ------------------------------------------------------------------
 
 
-def test_taisong_frames(line: Rig) -> None:
-    bus, sim, meter, _ = line
+def test_taisong_frames(rig: Rig) -> None:
+    bus, sim, meter, _ = rig
     inst = bb.Instrument(bus, 1)
     meter.hold(1000)
     assert inst.read_register(0x0000) == 1000
@@ -85,8 +85,8 @@ def test_taisong_frame_at_unit_9() -> None:
         assert sim.replies[-1] == h("09 03 02 01 00 58 15")
 
 
-def test_atv31_frames(line: Rig) -> None:
-    bus, sim, _, atv = line
+def test_atv31_frames(rig: Rig) -> None:
+    bus, sim, _, atv = rig
     inst = bb.Instrument(bus, 2, max_read=29, max_write=29)
     assert inst.read_registers(0x0C1E, 4) == [0x0028, 0x0258, 0x01F4, 0x0000]
     assert sim.requests[-1] == h("02 03 0C 1E 00 04 27 6C")
@@ -99,8 +99,8 @@ def test_atv31_frames(line: Rig) -> None:
     assert (atv.registers[0x2329], atv.registers[0x0FCB], atv.registers[0x0FCC]) == (13, 20, 30)
 
 
-def test_identification(line: Rig) -> None:
-    bus, sim, _, _ = line
+def test_identification(rig: Rig) -> None:
+    bus, sim, _, _ = rig
     ident = bb.Instrument(bus, 2, max_read=29, max_write=29).identify()
     assert sim.requests[-1] == h("02 2B 0E 01 00 34 77")
     assert ident.vendor == "TELEMECANIQUE" and ident["vendor"] == "TELEMECANIQUE"
@@ -124,8 +124,8 @@ def test_identification_follows_more_follows() -> None:
         inst.identify("everything")  # type: ignore[arg-type]
 
 
-def test_a_device_without_identification_raises_code_1(line: Rig) -> None:
-    bus, sim, _, _ = line
+def test_a_device_without_identification_raises_code_1(rig: Rig) -> None:
+    bus, sim, _, _ = rig
     with pytest.raises(bb.ModbusException) as caught:
         bb.Instrument(bus, 1).identify()
     assert (caught.value.code, caught.value.function, caught.value.unit) == (1, 0x2B, 1)
@@ -145,8 +145,8 @@ def test_the_atv31_form_of_an_identification_error() -> None:
 # ---- limits ---------------------------------------------------------------------------------
 
 
-def test_long_reads_and_writes_are_split_at_the_limits(line: Rig) -> None:
-    bus, sim, meter, _ = line
+def test_long_reads_and_writes_are_split_at_the_limits(rig: Rig) -> None:
+    bus, sim, meter, _ = rig
     inst = bb.Instrument(bus, 1)
     meter.registers[0x100:0x164] = list(range(100))
     assert inst.read_registers(0x100, 100) == list(range(100))
@@ -204,9 +204,9 @@ def test_writes_keep_the_minimum_interval() -> None:
     ],
 )
 def test_registers_with_decimals_and_sign(
-    line: Rig, value: float, decimals: int, signed: bool, raw: int
+    rig: Rig, value: float, decimals: int, signed: bool, raw: int
 ) -> None:
-    bus, _, meter, _ = line
+    bus, _, meter, _ = rig
     inst = bb.Instrument(bus, 1)
     inst.write_register(0x20, value, decimals, signed)
     assert meter.registers[0x20] == raw
@@ -217,8 +217,8 @@ def test_registers_with_decimals_and_sign(
 
 
 @pytest.mark.parametrize("order", ["big", "little"])
-def test_32_bit_values_and_floats(line: Rig, order: str) -> None:
-    bus, _, meter, _ = line
+def test_32_bit_values_and_floats(rig: Rig, order: str) -> None:
+    bus, _, meter, _ = rig
     inst = bb.Instrument(bus, 1)
     inst.write_long(0x30, 0x12345678, word_order=order)  # type: ignore[arg-type]
     words = [0x1234, 0x5678] if order == "big" else [0x5678, 0x1234]
@@ -236,8 +236,8 @@ def test_32_bit_values_and_floats(line: Rig, order: str) -> None:
     assert meter.registers[0x36:0x38] == ([high, low] if order == "big" else [low, high])
 
 
-def test_text(line: Rig) -> None:
-    bus, _, meter, _ = line
+def test_text(rig: Rig) -> None:
+    bus, _, meter, _ = rig
     inst = bb.Instrument(bus, 1)
     inst.write_string(0x40, "bench 3", 4)
     assert meter.registers[0x40:0x44] == [0x6265, 0x6E63, 0x6820, 0x3300]
@@ -264,8 +264,8 @@ def test_the_measured_value_moves_and_sv_is_settable() -> None:
 # ---- errors ---------------------------------------------------------------------------------
 
 
-def test_bad_input_is_refused_before_anything_is_sent(line: Rig) -> None:
-    bus, sim, _, _ = line
+def test_bad_input_is_refused_before_anything_is_sent(rig: Rig) -> None:
+    bus, sim, _, _ = rig
     inst = bb.Instrument(bus, 1)
     bad: list[tuple[type[Exception], object]] = [
         (ValueError, lambda: inst.read_registers(0, 0)),
@@ -311,8 +311,8 @@ def test_bad_input_is_refused_before_anything_is_sent(line: Rig) -> None:
     assert sim.requests == []
 
 
-def test_line_errors_raise_the_right_class(line: Rig) -> None:
-    bus, sim, _, _ = line
+def test_line_errors_raise_the_right_class(rig: Rig) -> None:
+    bus, sim, _, _ = rig
     inst = bb.Instrument(bus, 1, timeout=0.05, retries=1)
     sim.set_silent(1)
     with pytest.raises(bb.ResponseTimeout):

@@ -32,7 +32,7 @@ def open_j2(unit: int = 1, **options: object) -> Iterator[Rig]:
 
 
 @pytest.fixture
-def line() -> Iterator[Rig]:
+def rig() -> Iterator[Rig]:
     with open_j2() as opened:
         yield opened
 
@@ -61,16 +61,16 @@ def test_line_defaults_are_9600_8n1_and_19200_on_request() -> None:
 # ---- the manual's three frames ------------------------------------------------------------
 
 
-def test_manual_read_frame(line: Rig) -> None:
-    j2, sim, device = line
+def test_manual_read_frame(rig: Rig) -> None:
+    j2, sim, device = rig
     device.set_value("SV", 100.0)
     assert j2.sv == 100.0
     assert sim.requests[-1] == h("01 03 00 06 00 01 64 0B")
     assert sim.replies[-1] == h("01 03 02 03 E8 B8 FA")
 
 
-def test_manual_write_frames(line: Rig) -> None:
-    j2, sim, device = line
+def test_manual_write_frames(rig: Rig) -> None:
+    j2, sim, device = rig
     device.set_value("SV", 50.0)
     j2.sv = 100.0
     assert sim.requests[-1] == h("01 06 00 06 03 E8 69 75")
@@ -129,8 +129,8 @@ def test_pacing_is_per_controller_and_other_units_are_not_held_up() -> None:
         assert pv == two.value("PV") and two.value("AL1") == 3.0 and one.value("AL2") == 2.0
 
 
-def test_a_broadcast_counts_as_a_write_to_every_unit(line: Rig) -> None:
-    j2, sim, device = line
+def test_a_broadcast_counts_as_a_write_to_every_unit(rig: Rig) -> None:
+    j2, sim, device = rig
     j2.alarm1 = 1.0
     j2.bus.broadcast_write_register(0x0A, 20)  # AL2 = 2.0 on every controller
     j2.alarm1 = 3.0
@@ -141,8 +141,8 @@ def test_a_broadcast_counts_as_a_write_to_every_unit(line: Rig) -> None:
     assert (device.value("AL1"), device.value("AL2")) == (3.0, 2.0)
 
 
-def test_parameters_are_read_in_blocks_of_at_most_16(line: Rig) -> None:
-    j2, sim, device = line
+def test_parameters_are_read_in_blocks_of_at_most_16(rig: Rig) -> None:
+    j2, sim, device = rig
     device.set_value("AL2", -12.5)
     device.set_value("FST", 80)
     sim.clear_log()
@@ -162,8 +162,8 @@ def test_parameters_are_read_in_blocks_of_at_most_16(line: Rig) -> None:
     assert values["AL2"] == -12.5 and values["FST"] == 80 and isinstance(values["FST"], int)
 
 
-def test_mv_needs_manual_mode(line: Rig) -> None:
-    j2, sim, device = line
+def test_mv_needs_manual_mode(rig: Rig) -> None:
+    j2, sim, device = rig
     assert j2.mode == bb.J2Mode.AUTO
     sim.clear_log()
     with pytest.raises(bb.StateError, match="manual mode") as caught:
@@ -179,8 +179,8 @@ def test_mv_needs_manual_mode(line: Rig) -> None:
     assert j2.mv == 12.5
 
 
-def test_rapnf_is_written_0_before_ramp_parameters(line: Rig) -> None:
-    j2, sim, device = line
+def test_rapnf_is_written_0_before_ramp_parameters(rig: Rig) -> None:
+    j2, sim, device = rig
     j2.start_ramp()
     assert j2.ramp_running and device.value("RAPNF") == 1
     sim.clear_log()
@@ -191,8 +191,8 @@ def test_rapnf_is_written_0_before_ramp_parameters(line: Rig) -> None:
     assert (device.value("RAP"), device.value("RTM")) == (5.0, 30.0)
 
 
-def test_values_within_lsp_usp_follow_the_controllers_limits(line: Rig) -> None:
-    j2, sim, device = line
+def test_values_within_lsp_usp_follow_the_controllers_limits(rig: Rig) -> None:
+    j2, sim, device = rig
     j2.limits = (-20.0, 150.0)
     assert j2.limits == bb.Limits(-20.0, 150.0)
     assert (device.value("LSP"), device.value("USP")) == (-20.0, 150.0)
@@ -212,8 +212,8 @@ def test_values_within_lsp_usp_follow_the_controllers_limits(line: Rig) -> None:
     assert writes(sim) == [(6, 0x16, 4000), (6, 0x14, 2000)]
 
 
-def test_negative_values_round_trip_exactly(line: Rig) -> None:
-    j2, sim, device = line
+def test_negative_values_round_trip_exactly(rig: Rig) -> None:
+    j2, sim, device = rig
     j2.alarm1 = -50.0
     assert sim.requests[-1][:6] == h("01 06 00 08 FE 0C")
     j2.pv_offset = -5.0
@@ -226,8 +226,8 @@ def test_negative_values_round_trip_exactly(line: Rig) -> None:
 # ---- properties ---------------------------------------------------------------------------
 
 
-def test_every_property_round_trips(line: Rig) -> None:
-    j2, _, device = line
+def test_every_property_round_trips(rig: Rig) -> None:
+    j2, _, device = rig
     j2.alarm2 = 250.5
     j2.pid = (30.5, 120.0, 0.0)
     j2.pid2 = bb.Pid(10.0, 0.0, 5.5)
@@ -285,8 +285,8 @@ def test_units_up_to_255() -> None:
 # ---- errors -------------------------------------------------------------------------------
 
 
-def test_bad_input_is_refused_before_anything_is_sent(line: Rig) -> None:
-    j2, sim, _ = line
+def test_bad_input_is_refused_before_anything_is_sent(rig: Rig) -> None:
+    j2, sim, _ = rig
     sim.clear_log()
     bad: list[tuple[type[Exception], object]] = [
         (ValueError, lambda: j2.read("XYZ")),
@@ -321,8 +321,8 @@ def test_bad_input_is_refused_before_anything_is_sent(line: Rig) -> None:
         j2.alarm1 = 5000.0
 
 
-def test_device_errors_raise_the_right_class(line: Rig) -> None:
-    j2, sim, _ = line
+def test_device_errors_raise_the_right_class(rig: Rig) -> None:
+    j2, sim, _ = rig
     sim.answer_exception(4)
     with pytest.raises(bb.ModbusException) as caught:
         _ = j2.sv
@@ -353,9 +353,9 @@ def test_the_library_and_the_simulator_share_one_table() -> None:
         assert name in J2Device.BETWEEN_LSP_USP or not within_limits, name
 
 
-def test_hysteresis_is_left_to_the_controller(line: Rig) -> None:
+def test_hysteresis_is_left_to_the_controller(rig: Rig) -> None:
     """HY1 is "LSP~USP" in the manual; the library checks only the widest range."""
-    j2, sim, _ = line
+    j2, sim, _ = rig
     j2.limits = (100.0, 400.0)
     with pytest.raises(bb.ModbusException) as caught:
         j2.write("HY1", 1.0)  # the simulated controller reads the manual literally
@@ -374,8 +374,8 @@ def test_port_errors() -> None:
             _ = j2.sv
 
 
-def test_status_in_two_requests_and_as_a_table(line: Rig) -> None:
-    j2, sim, device = line
+def test_status_in_two_requests_and_as_a_table(rig: Rig) -> None:
+    j2, sim, device = rig
     device.set_value("AL1", -5.0)
     sim.clear_log()
     status = j2.status()

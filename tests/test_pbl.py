@@ -28,7 +28,7 @@ def open_pbl(unit: int = 0x11, **options: object) -> Iterator[Rig]:
 
 
 @pytest.fixture
-def line() -> Iterator[Rig]:
+def rig() -> Iterator[Rig]:
     with open_pbl() as opened:
         yield opened
 
@@ -44,8 +44,8 @@ def test_line_defaults_are_115200_8e1() -> None:
 # ---- the manual's three frames ------------------------------------------------------------
 
 
-def test_manual_read_frame(line: Rig) -> None:
-    pbl, sim, device = line
+def test_manual_read_frame(rig: Rig) -> None:
+    pbl, sim, device = rig
     for number, value in ((107, 0x006B), (108, 0x0013), (109, 0x0000)):
         device.set_param(number, value)
     assert pbl.read_parameters(0x6B, 3) == [0x006B, 0x0013, 0x0000]
@@ -53,8 +53,8 @@ def test_manual_read_frame(line: Rig) -> None:
     assert sim.replies[-1] == h("11 03 06 00 6B 00 13 00 00 38 B9")
 
 
-def test_manual_single_write_frame_and_its_count_reply(line: Rig) -> None:
-    pbl, sim, device = line
+def test_manual_single_write_frame_and_its_count_reply(rig: Rig) -> None:
+    pbl, sim, device = rig
     pbl.write_parameter(1, 3)  # INDEX.md: the value 3 the text names, whose CRC is 9A 9B
     assert sim.requests[-1] == h("11 06 00 01 00 03 9A 9B")
     assert sim.replies[-1] == h("11 06 00 01 00 01 1B 5A")
@@ -65,8 +65,8 @@ def test_manual_single_write_frame_and_its_count_reply(line: Rig) -> None:
     assert device.peek(1) == 4  # the drive did act; the reply is what was refused
 
 
-def test_manual_multiple_write_frame(line: Rig) -> None:
-    pbl, sim, _ = line
+def test_manual_multiple_write_frame(rig: Rig) -> None:
+    pbl, sim, _ = rig
     pbl.bus.write_registers(0x11, 1, [0x000A, 0x0102])
     assert sim.requests[-1] == h("11 10 00 01 00 02 04 00 0A 01 02 C6 F0")
     assert sim.replies[-1] == h("11 10 00 01 00 02 12 98")
@@ -81,8 +81,8 @@ def test_a_drive_that_echoes_is_fine_too() -> None:
 # ---- properties -----------------------------------------------------------------------------
 
 
-def test_settings_round_trip(line: Rig) -> None:
-    pbl, _, device = line
+def test_settings_round_trip(rig: Rig) -> None:
+    pbl, _, device = rig
     cases: list[tuple[str, object, int]] = [
         ("control_mode", bb.PblControlMode.TORQUE, 100),
         ("pole_pairs", 4, 205),
@@ -105,8 +105,8 @@ def test_settings_round_trip(line: Rig) -> None:
         assert pbl.read_parameter(name if name != "speed_setpoint" else 201) == value
 
 
-def test_measurements_are_read_only(line: Rig) -> None:
-    pbl, sim, _ = line
+def test_measurements_are_read_only(rig: Rig) -> None:
+    pbl, sim, _ = rig
     sent = len(sim.requests)
     with pytest.raises(AttributeError):
         pbl.speed = 5  # type: ignore[misc]
@@ -145,8 +145,8 @@ def test_start_ramps_and_stop() -> None:
         assert not pbl.running and pbl.speed == 0
 
 
-def test_alarms(line: Rig) -> None:
-    pbl, _, device = line
+def test_alarms(rig: Rig) -> None:
+    pbl, _, device = rig
     assert pbl.alarm_word == 0 and pbl.alarms == frozenset()
     device.inject_alarm(0)
     device.inject_alarm(17)
@@ -157,8 +157,8 @@ def test_alarms(line: Rig) -> None:
     assert pbl.alarms == frozenset()
 
 
-def test_parameters_in_blocks_the_manual_allows(line: Rig) -> None:
-    pbl, sim, _ = line
+def test_parameters_in_blocks_the_manual_allows(rig: Rig) -> None:
+    pbl, sim, _ = rig
     sim.clear_log()
     values = pbl.parameters()
     assert len(sim.requests) == 4  # 61 registers a reply at most (1..123 data bytes)
@@ -170,8 +170,8 @@ def test_parameters_in_blocks_the_manual_allows(line: Rig) -> None:
     assert set(values) == {row[1] for row in table if not row[1].startswith("reserved_")}
 
 
-def test_restore_defaults_needs_a_power_cycle(line: Rig) -> None:
-    pbl, _, device = line
+def test_restore_defaults_needs_a_power_cycle(rig: Rig) -> None:
+    pbl, _, device = rig
     pbl.acceleration = 3000
     with pytest.warns(UserWarning, match="power"):
         pbl.restore_defaults()
@@ -181,8 +181,8 @@ def test_restore_defaults_needs_a_power_cycle(line: Rig) -> None:
     assert pbl.acceleration == 1000
 
 
-def test_errors_before_sending(line: Rig) -> None:
-    pbl, sim, _ = line
+def test_errors_before_sending(rig: Rig) -> None:
+    pbl, sim, _ = rig
     sent = len(sim.requests)
     for key, value in [(50, 1), (100, 3), (204, 3), (215, 0), ("drive_address", 256)]:
         with pytest.raises(ValueError):
@@ -245,9 +245,9 @@ def test_shared_bus_timeout() -> None:
         assert not bus.closed
 
 
-def test_the_simulator_and_the_table_agree_on_ranges(line: Rig) -> None:
+def test_the_simulator_and_the_table_agree_on_ranges(rig: Rig) -> None:
     """Each writable setting's range in PblDrive.table() is what the simulated drive takes."""
-    pbl, _, device = line
+    pbl, _, device = rig
     for number, _, _, access, low, high in bb.PblDrive.table():
         if access != "W/R" or number < 100 or number == 214:
             continue
@@ -261,8 +261,8 @@ def test_the_simulator_and_the_table_agree_on_ranges(line: Rig) -> None:
     assert pbl.read_parameter("low_duty_threshold") == 0xFFFF
 
 
-def test_telemetry_is_a_dict_shown_as_a_table(line: Rig) -> None:
-    pbl, _, _ = line
+def test_telemetry_is_a_dict_shown_as_a_table(rig: Rig) -> None:
+    pbl, _, _ = rig
     telemetry = pbl.telemetry()
     assert isinstance(telemetry, dict) and isinstance(telemetry, bb.PblTelemetry)
     html = telemetry._repr_html_()

@@ -34,7 +34,7 @@ def _plugins_autoload(monkeypatch: pytest.MonkeyPatch) -> None:
 
 
 @pytest.fixture
-def line() -> Iterator[tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device]]:
+def rig() -> Iterator[tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device]]:
     """A real line for --benchbus-port: a BLD2 drive at unit 1, a J2 controller at unit 2."""
     drive, j2 = DriveDevice("BLD2"), J2Device(speedup=100)
     devices: dict[int, DriveDevice | J2Device] = {1: drive, 2: j2}
@@ -247,9 +247,9 @@ def test_hardware_tests_are_skipped_without_a_port(pytester: pytest.Pytester) ->
 
 def test_hardware_tests_run_on_the_port(
     pytester: pytest.Pytester,
-    line: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
+    rig: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
 ) -> None:
-    sim, drive, j2 = line
+    sim, drive, j2 = rig
     pytester.makepyfile(test_inner_hardware=HARDWARE_TESTS)
     args = ("--benchbus-port", sim.port, "--benchbus-unit", "j2=2", "--benchbus-baudrate", "19200")
     result = pytester.runpytest_inprocess("-p", "no:cacheprovider", "--strict-markers", *args)
@@ -269,9 +269,9 @@ def test_hardware_tests_run_on_the_port(
 
 def test_devices_on_one_line_need_one_line_format(
     pytester: pytest.Pytester,
-    line: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
+    rig: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
 ) -> None:
-    sim, drive, _ = line
+    sim, drive, _ = rig
     pytester.makepyfile(
         """
         def test_two(bench_drive, bench_j2):
@@ -307,7 +307,7 @@ def test_bad_options_are_usage_errors(pytester: pytest.Pytester, option: str, me
 
 def test_the_example_bench_passes_simulated_and_on_a_line(
     pytester: pytest.Pytester,
-    line: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
+    rig: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
 ) -> None:
     shutil.copy(EXAMPLE, pytester.path)
     # In a fresh process, as a user runs it: the plugin comes from its entry point.
@@ -315,7 +315,7 @@ def test_the_example_bench_passes_simulated_and_on_a_line(
     result.assert_outcomes(passed=6, skipped=2)
     result.stdout.fnmatch_lines([SIMULATED_HEADER])
 
-    sim, drive, j2 = line
+    sim, drive, j2 = rig
     args = ("--benchbus-port", sim.port, "--benchbus-unit", "j2=2", "--benchbus-baudrate", "19200")
     result = pytester.runpytest_inprocess("-p", "no:cacheprovider", *args)
     result.assert_outcomes(passed=8)

@@ -55,7 +55,7 @@ class Client:
 
 
 @pytest.fixture
-def line() -> Iterator[tuple[Simulator[RegisterDevice], Client]]:
+def rig() -> Iterator[tuple[Simulator[RegisterDevice], Client]]:
     devices = {
         1: RegisterDevice({0x3006: 1450, 0x3007: 0xFFFF, 0x0005: 250}, max_read=20, max_write=4),
         2: RegisterDevice(
@@ -85,8 +85,8 @@ def wait_for(condition: object, timeout: float = 2.0) -> bool:
 # ---- RegisterDevice through the line: exact frames -------------------------------------------
 
 
-def test_read_holding_exact_frames(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_read_holding_exact_frames(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     request = frame("01 03 30 06 00 02")
     reply = client.transact(request, 9)
     assert reply == frame("01 03 04 05 AA FF FF")
@@ -94,8 +94,8 @@ def test_read_holding_exact_frames(line: tuple[Simulator[RegisterDevice], Client
     assert sim.replies == [reply]
 
 
-def test_write_single_echo_and_store(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_write_single_echo_and_store(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     # The temperature controller manual's own frame: write SV (0x0005) = 100.
     request = bytes.fromhex("01 06 00 05 00 64 98 20")
     assert client.transact(request, 8) == request
@@ -103,15 +103,15 @@ def test_write_single_echo_and_store(line: tuple[Simulator[RegisterDevice], Clie
     assert client.transact(frame("01 03 00 05 00 01"), 7) == frame("01 03 02 00 64")
 
 
-def test_write_multiple_reply_and_store(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_write_multiple_reply_and_store(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     request = frame("01 10 20 00 00 03 06 00 01 0B B8 FF FF")
     assert client.transact(request, 8) == frame("01 10 20 00 00 03")
     assert sim.devices[1].registers[0x2000:0x2003] == [1, 3000, 0xFFFF]
 
 
-def test_count_limits_answer_exception_3(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_count_limits_answer_exception_3(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     assert client.transact(frame("01 03 00 00 00 14"), 45)[:3] == bytes.fromhex("01 03 28")
     assert client.transact(frame("01 03 00 00 00 15"), 5) == frame("01 83 03")
     # A count the protocol forbids outright is answered too, not dropped.
@@ -123,17 +123,17 @@ def test_count_limits_answer_exception_3(line: tuple[Simulator[RegisterDevice], 
 
 
 def test_past_the_last_address_answers_exception_2(
-    line: tuple[Simulator[RegisterDevice], Client],
+    rig: tuple[Simulator[RegisterDevice], Client],
 ) -> None:
-    sim, client = line
+    sim, client = rig
     assert client.transact(frame("01 03 FF FF 00 02"), 5) == frame("01 83 02")
     assert client.transact(frame("01 03 FF FF 00 01"), 7) == frame("01 03 02 00 00")
     assert client.transact(frame("01 10 FF FF 00 02 04 00 07 00 08"), 5) == frame("01 90 02")
     assert sim.devices[1].registers[0xFFFF] == 0
 
 
-def test_readonly_write_is_all_or_nothing(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_readonly_write_is_all_or_nothing(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     assert client.transact(frame("02 10 00 01 00 03 06 00 0A 00 0B 00 0C"), 5) == frame("02 90 02")
     assert sim.devices[2].registers[1:4] == [0, 0, 0]
     assert client.transact(frame("02 06 00 02 00 09"), 5) == frame("02 86 02")
@@ -229,9 +229,9 @@ def test_base_device_has_no_registers() -> None:
 
 @pytest.mark.parametrize("function", [0x01, 0x04, 0x05, 0x0F, 0x08])
 def test_other_functions_answer_illegal_function(
-    line: tuple[Simulator[RegisterDevice], Client], function: int
+    rig: tuple[Simulator[RegisterDevice], Client], function: int
 ) -> None:
-    _, client = line
+    _, client = rig
     request = {
         0x0F: frame("01 0F 00 00 00 08 01 FF"),
     }.get(function, frame(f"01 {function:02X} 00 00 00 01"))
@@ -253,8 +253,8 @@ def decode_identification(reply: bytes) -> dict[int, str]:
     return objects
 
 
-def test_identification_is_per_unit(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    _, client = line
+def test_identification_is_per_unit(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    _, client = rig
     client.send(frame("02 2B 0E 01 00"))
     reply = client.recv(64, 1.0)
     assert reply[:4] == bytes.fromhex("02 2B 0E 01")
@@ -269,9 +269,9 @@ def test_identification_is_per_unit(line: tuple[Simulator[RegisterDevice], Clien
 
 
 def test_identity_can_change_while_running(
-    line: tuple[Simulator[RegisterDevice], Client],
+    rig: tuple[Simulator[RegisterDevice], Client],
 ) -> None:
-    sim, client = line
+    sim, client = rig
     sim.devices[1].identity = {0: "OTHER", 1: "X", 2: "2"}
     client.send(frame("01 2B 0E 01 00"))
     assert decode_identification(client.recv(64, 1.0)) == {0: "OTHER", 1: "X", 2: "2"}
@@ -281,9 +281,9 @@ def test_identity_can_change_while_running(
 
 
 def test_unknown_unit_and_bad_crc_get_no_reply(
-    line: tuple[Simulator[RegisterDevice], Client],
+    rig: tuple[Simulator[RegisterDevice], Client],
 ) -> None:
-    sim, client = line
+    sim, client = rig
     to_nobody = frame("07 03 00 00 00 01")
     client.send(to_nobody)
     client.assert_quiet()
@@ -299,9 +299,9 @@ def test_unknown_unit_and_bad_crc_get_no_reply(
 
 
 def test_broadcast_reaches_every_unit_and_is_not_answered(
-    line: tuple[Simulator[RegisterDevice], Client],
+    rig: tuple[Simulator[RegisterDevice], Client],
 ) -> None:
-    sim, client = line
+    sim, client = rig
     client.send(frame("00 06 00 09 00 2A"))
     client.assert_quiet()
     assert wait_for(lambda: [d.registers[9] for d in sim.devices.values()] == [42, 42])
@@ -342,8 +342,8 @@ def test_a_unit_that_answers_broadcasts_uses_its_own_address() -> None:
 # ---- faults -----------------------------------------------------------------------------------
 
 
-def test_silent_units(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_silent_units(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     read1, read2 = frame("01 03 00 05 00 01"), frame("02 03 00 10 00 01")
     sim.set_silent(1)
     client.send(read1)
@@ -368,8 +368,8 @@ def test_silent_units(line: tuple[Simulator[RegisterDevice], Client]) -> None:
     assert len(sim.requests) == 8  # silent requests are still logged
 
 
-def test_corrupt_next_flips_the_crc_only(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_corrupt_next_flips_the_crc_only(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     request, good = frame("01 03 30 06 00 01"), frame("01 03 02 05 AA")
     sim.corrupt_next(2)
     for _ in range(2):
@@ -383,9 +383,9 @@ def test_corrupt_next_flips_the_crc_only(line: tuple[Simulator[RegisterDevice], 
 
 
 def test_answer_exception_preempts_the_device(
-    line: tuple[Simulator[RegisterDevice], Client],
+    rig: tuple[Simulator[RegisterDevice], Client],
 ) -> None:
-    sim, client = line
+    sim, client = rig
     sim.answer_exception(6, n=2, unit=1)
     write = frame("01 06 00 05 00 01")
     assert client.transact(frame("02 03 00 10 00 01"), 7) == frame("02 03 02 22 22")
@@ -405,8 +405,8 @@ def test_answer_exception_preempts_the_device(
             sim.answer_exception(**bad)
 
 
-def test_reply_delay(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_reply_delay(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     request = frame("01 03 30 06 00 01")
     sim.reply_delay = 0.25
     assert sim.reply_delay == 0.25
@@ -679,16 +679,16 @@ def test_a_failing_shape_reply_keeps_the_servers_reply(
 
 
 def test_inject_raw_is_not_logged_as_a_reply(
-    line: tuple[Simulator[RegisterDevice], Client],
+    rig: tuple[Simulator[RegisterDevice], Client],
 ) -> None:
-    sim, client = line
+    sim, client = rig
     sim.inject_raw(b"\x01\x03\x99")
     assert client.recv(3) == b"\x01\x03\x99"
     assert sim.replies == [] and sim.requests == []
 
 
-def test_clear_log_and_clear_faults(line: tuple[Simulator[RegisterDevice], Client]) -> None:
-    sim, client = line
+def test_clear_log_and_clear_faults(rig: tuple[Simulator[RegisterDevice], Client]) -> None:
+    sim, client = rig
     request = frame("01 03 30 06 00 01")
     assert client.transact(request, 7) == frame("01 03 02 05 AA")
     sim.clear_log()
@@ -705,9 +705,9 @@ def test_clear_log_and_clear_faults(line: tuple[Simulator[RegisterDevice], Clien
 
 
 def test_a_device_can_be_replaced_while_running(
-    line: tuple[Simulator[RegisterDevice], Client],
+    rig: tuple[Simulator[RegisterDevice], Client],
 ) -> None:
-    sim, client = line
+    sim, client = rig
     sim.devices[1] = RegisterDevice({0x3006: 7})
     assert client.transact(frame("01 03 30 06 00 01"), 7) == frame("01 03 02 00 07")
 

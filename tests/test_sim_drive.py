@@ -73,7 +73,7 @@ class Rig:
 
 
 @contextmanager
-def open_line(model: str = "BLD2", **options: Any) -> Iterator[Rig]:
+def open_rig(model: str = "BLD2", **options: Any) -> Iterator[Rig]:
     options.setdefault("clock", lambda: 0.0)  # time moves only by advance()
     # Block reads, to check many registers at once; the default refusal has its own test.
     options.setdefault("single_register_reads", False)
@@ -89,20 +89,20 @@ def open_line(model: str = "BLD2", **options: Any) -> Iterator[Rig]:
 
 @pytest.fixture
 def bld() -> Iterator[Rig]:
-    with open_line("BLD2") as line:
-        yield line
+    with open_rig("BLD2") as rig:
+        yield rig
 
 
 @pytest.fixture
 def c20() -> Iterator[Rig]:
-    with open_line("C20") as line:
-        yield line
+    with open_rig("C20") as rig:
+        yield rig
 
 
 @pytest.fixture(params=DriveDevice.MODELS)
 def any_model(request: pytest.FixtureRequest) -> Iterator[Rig]:
-    with open_line(request.param) as line:
-        yield line
+    with open_rig(request.param) as rig:
+        yield rig
 
 
 # ---- the manuals' "common commands" table, byte for byte ------------------------------------
@@ -116,8 +116,8 @@ def manual(request: str, reply: str) -> tuple[bytes, bytes]:
 
 
 def test_common_commands_table(any_model: Rig) -> None:
-    line, drive = any_model, any_model.drive
-    client = line.client
+    rig, drive = any_model, any_model.drive
+    client = rig.client
 
     def check(request: str, reply: str) -> None:
         sent, expected = manual(request, reply)
@@ -138,9 +138,9 @@ def test_common_commands_table(any_model: Rig) -> None:
     # so parameter writes stay disabled.
     check("01 06 20 0E 00 00 E3 C9", "01 06 20 0E 00 00 E3 C9")
     assert drive.peek(WRITE_ENABLE) == 0
-    assert line.write_fails(F00_10, 0x09C4) == 0x04
+    assert rig.write_fails(F00_10, 0x09C4) == 0x04
     check("01 03 00 0A 00 01 A4 08", "01 03 02 13 88 B5 12")  # F00.10 = 50.00 Hz
-    line.enable_parameter_writes()
+    rig.enable_parameter_writes()
     check("01 06 00 0A 09 C4 AE 0B", "01 06 00 0A 09 C4 AE 0B")  # F00.10 = 25.00 Hz
     assert drive.params[F00_10] == 2500
 
@@ -307,12 +307,12 @@ def test_block_reads(bld: Rig) -> None:
 def test_single_register_reads() -> None:
     # The default: the manuals' 0x03 format reads one register ("count 0x0001").
     assert DriveDevice().single_register_reads and DriveDevice("C20").max_read == 1
-    with open_line(single_register_reads=DriveDevice().single_register_reads) as line:
-        assert line.read(MODEL_ID) == [0x20]
-        assert line.read_fails(COMMAND, 2) == 0x03
-        assert line.read_fails(0x3000, 0x12) == 0x03
-        line.write_many(SETPOINT, [100, 3])  # writes of several registers still work
-        assert line.read(POLE_PAIRS) == [3]
+    with open_rig(single_register_reads=DriveDevice().single_register_reads) as rig:
+        assert rig.read(MODEL_ID) == [0x20]
+        assert rig.read_fails(COMMAND, 2) == 0x03
+        assert rig.read_fails(0x3000, 0x12) == 0x03
+        rig.write_many(SETPOINT, [100, 3])  # writes of several registers still work
+        assert rig.read(POLE_PAIRS) == [3]
 
 
 # ---- the motor -----------------------------------------------------------------------------------
@@ -417,14 +417,14 @@ def test_coast_brake_and_stop_mode(bld: Rig) -> None:
 
 def test_a_real_clock_is_followed() -> None:
     now = [100.0]
-    with open_line(clock=lambda: now[0]) as line:
-        line.write_many(SETPOINT, [3000, 2, 10])
-        line.write(COMMAND, FORWARD)
+    with open_rig(clock=lambda: now[0]) as rig:
+        rig.write_many(SETPOINT, [3000, 2, 10])
+        rig.write(COMMAND, FORWARD)
         now[0] += 0.5
-        assert line.read(0x3006) == [1500]
-        line.drive.advance(0.25)
+        assert rig.read(0x3006) == [1500]
+        rig.drive.advance(0.25)
         now[0] += 0.25
-        assert line.read(0x3006) == [3000]
+        assert rig.read(0x3006) == [3000]
 
 
 # ---- C20 against BLD -----------------------------------------------------------------------------
@@ -438,10 +438,10 @@ def test_model_ids() -> None:
 
 
 def test_c20_lacks_the_bld_extras(c20: Rig, bld: Rig) -> None:
-    for line in (bld, c20):
-        line.write(SETPOINT, 1000)
-        line.write(COMMAND, FORWARD)
-        line.drive.advance(1)
+    for rig in (bld, c20):
+        rig.write(SETPOINT, 1000)
+        rig.write(COMMAND, FORWARD)
+        rig.drive.advance(1)
     assert c20.write_fails(COMMAND, BRAKE) == 0x03
     bld.write(COMMAND, BRAKE)
     for address in (0x2010, 0x2011, 0x2012):
@@ -461,9 +461,9 @@ def test_status_word_2(c20: Rig, bld: Rig) -> None:
     # the command source, bit 7 keypad (BLD only).
     assert bld.read(STATUS2) == [0x41]
     assert c20.read(STATUS2) == [0x51]
-    for line in (bld, c20):
-        line.drive.overloaded = True
-        line.drive.keypad_connected = True
+    for rig in (bld, c20):
+        rig.drive.overloaded = True
+        rig.drive.keypad_connected = True
     assert bld.read(STATUS2) == [0xD1]
     assert c20.read(STATUS2) == [0x41]
     bld.drive.overloaded = False

@@ -92,7 +92,7 @@ class Rig:
 
 
 @contextmanager
-def open_line(unit: int = UNIT, baudrate: int = 9600, **options: Any) -> Iterator[Rig]:
+def open_rig(unit: int = UNIT, baudrate: int = 9600, **options: Any) -> Iterator[Rig]:
     options.setdefault("clock", lambda: 0.0)  # time moves only by advance()
     options.setdefault("write_interval", 0.0)
     j2 = J2Device(**options)
@@ -107,8 +107,8 @@ def open_line(unit: int = UNIT, baudrate: int = 9600, **options: Any) -> Iterato
 
 @pytest.fixture
 def j2() -> Iterator[Rig]:
-    with open_line() as line:
-        yield line
+    with open_rig() as rig:
+        yield rig
 
 
 def manual(request: str, reply: str) -> tuple[bytes, bytes]:
@@ -128,22 +128,22 @@ def test_manual_read_example(j2: Rig) -> None:
 
 
 def test_manual_write_examples_at_the_manual_pace() -> None:
-    with open_line(write_interval=0.150) as line:
-        j2 = line.j2
+    with open_rig(write_interval=0.150) as rig:
+        j2 = rig.j2
         j2.set_value("SV", 50.0)
         # 0x06: SV = 100.0, answered with the echo.
         sent, expected = manual("01 06 00 06 03 E8 69 75", "01 06 00 06 03 E8 69 75")
-        assert line.client.transact(sent, len(expected)) == expected
+        assert rig.client.transact(sent, len(expected)) == expected
         assert j2.value("SV") == 100.0
         j2.set_value("SV", 50.0)  # the keys: no pacing
         time.sleep(PACE)
         # 0x10: SV = 100.0, answered with the address and the count.
         sent, expected = manual("01 10 00 06 00 01 02 03 E8 A6 88", "01 10 00 06 00 01 E1 C8")
-        assert line.client.transact(sent, len(expected)) == expected
-        assert j2.value("SV") == 100.0 and line.read(SV) == [1000]
+        assert rig.client.transact(sent, len(expected)) == expected
+        assert j2.value("SV") == 100.0 and rig.read(SV) == [1000]
         assert j2.write_violations == [] and len(j2.write_times) == 2
         assert j2.write_times[1] - j2.write_times[0] >= 0.150
-        writes = [t for f, t in zip(line.sim.requests, line.sim.request_times) if f[1] != 3]
+        writes = [t for f, t in zip(rig.sim.requests, rig.sim.request_times) if f[1] != 3]
         assert len(writes) == 2 and writes[1] - writes[0] >= 0.150
 
 
@@ -376,44 +376,44 @@ def test_autotune_in_manual_mode_takes_the_output_and_gives_it_back(j2: Rig) -> 
 def test_writes_closer_than_the_interval_answer_6() -> None:
     # A long interval (the manual's is 150 ms), so a loaded machine cannot stretch the quick
     # exchanges below past it.
-    with open_line(write_interval=SLOW) as line:
-        j2 = line.j2
-        line.write(SV, x10(80.0))
+    with open_rig(write_interval=SLOW) as rig:
+        j2 = rig.j2
+        rig.write(SV, x10(80.0))
         # Straight after it (exchange does not wait for stray bytes after the reply).
-        assert line.exchange(frame("01 06 00 06 02 BC"), 5) == frame("01 86 06")
-        assert line.exchange(frame("01 10 00 06 00 01 02 02 BC"), 5) == frame("01 90 06")
-        assert line.exchange(frame("01 06 00 08 00 01"), 5) == frame("01 86 06")
-        assert line.read(SV) == [800] and line.read(AL1) == [0]  # reads are not paced
+        assert rig.exchange(frame("01 06 00 06 02 BC"), 5) == frame("01 86 06")
+        assert rig.exchange(frame("01 10 00 06 00 01 02 02 BC"), 5) == frame("01 90 06")
+        assert rig.exchange(frame("01 06 00 08 00 01"), 5) == frame("01 86 06")
+        assert rig.read(SV) == [800] and rig.read(AL1) == [0]  # reads are not paced
         assert len(j2.write_times) == 4 and len(j2.write_violations) == 3
         gaps = [b - a for a, b in zip(j2.write_times, j2.write_times[1:])]
         assert j2.write_violations == gaps  # each measured from the request before it
         assert all(0 < gap < SLOW for gap in gaps)
         time.sleep(SLOW + 0.02)
-        line.write(SV, x10(70.0))  # after the pause: accepted
+        rig.write(SV, x10(70.0))  # after the pause: accepted
         assert j2.value("SV") == 70.0 and len(j2.write_violations) == 3
         assert j2.write_times[-1] - j2.write_times[-2] >= SLOW
         # A refused request counts too: a quick retry after it is refused again.
-        assert line.write_fails(SV, x10(60.0)) == 6
+        assert rig.write_fails(SV, x10(60.0)) == 6
         time.sleep(0.05)
-        assert line.write_fails(SV, x10(60.0)) == 6
+        assert rig.write_fails(SV, x10(60.0)) == 6
         assert len(j2.write_violations) == 5 and j2.value("SV") == 70.0
         # The line's own times show the same spacing, a little earlier.
-        writes = [t for f, t in zip(line.sim.requests, line.sim.request_times) if f[1] != 3]
+        writes = [t for f, t in zip(rig.sim.requests, rig.sim.request_times) if f[1] != 3]
         assert len(writes) == len(j2.write_times) == 7
         assert all(a <= b for a, b in zip(writes, j2.write_times))
         j2.write_interval = 0.0  # a plain attribute
-        line.write(SV, x10(60.0))
-        line.write(SV, x10(65.0))
+        rig.write(SV, x10(60.0))
+        rig.write(SV, x10(65.0))
         assert j2.value("SV") == 65.0 and len(j2.write_violations) == 5
 
 
 def test_pacing_uses_real_time_not_the_process_clock() -> None:
     now = [0.0]
-    with open_line(write_interval=0.150, speedup=1000.0, clock=lambda: now[0]) as line:
-        line.write(SV, x10(90.0))
+    with open_rig(write_interval=0.150, speedup=1000.0, clock=lambda: now[0]) as rig:
+        rig.write(SV, x10(90.0))
         now[0] += 10.0  # ten seconds on the process clock (10000 process seconds)
-        assert line.write_fails(SV, x10(80.0)) == 6
-        assert line.j2.value("SV") == 90.0
+        assert rig.write_fails(SV, x10(80.0)) == 6
+        assert rig.j2.value("SV") == 90.0
 
 
 def test_set_value_is_not_paced() -> None:
@@ -429,19 +429,19 @@ def test_set_value_is_not_paced() -> None:
 
 def test_pv_approaches_sv_in_auto_with_a_fast_clock() -> None:
     now = [1000.0]
-    with open_line(speedup=100.0, clock=lambda: now[0]) as line:
-        assert line.read(PV, 5) == [250, 0, 0, 0, 1000]  # PV 25.0, SV 100.0
+    with open_rig(speedup=100.0, clock=lambda: now[0]) as rig:
+        assert rig.read(PV, 5) == [250, 0, 0, 0, 1000]  # PV 25.0, SV 100.0
         seen = []
         for _ in range(30):  # three seconds of real time, 300 s of process time
             now[0] += 0.1
-            seen.append(line.read_x10(PV))
-        assert seen[0] > 25.0 and line.read(MV) != [0]
+            seen.append(rig.read_x10(PV))
+        assert seen[0] > 25.0 and rig.read(MV) != [0]
         assert all(a <= b for a, b in zip(seen[:8], seen[1:9]))  # heating
         assert max(seen) < 105.0  # a modest overshoot
         assert abs(seen[-1] - 100.0) < 3.0
         now[0] += 20.0
-        assert abs(line.read_x10(PV) - 100.0) < 0.2
-        mv = line.read_x10(MV)  # what holds 75 degrees over ambient: 75 / 400
+        assert abs(rig.read_x10(PV) - 100.0) < 0.2
+        mv = rig.read_x10(MV)  # what holds 75 degrees over ambient: 75 / 400
         assert abs(mv - 18.75) < 0.2
 
 
@@ -647,21 +647,21 @@ def test_autotune_is_aborted_by_at_0(j2: Rig) -> None:
 
 
 def test_station_255() -> None:
-    with open_line(unit=255) as line:
+    with open_rig(unit=255) as rig:
         request = frame("FF 03 00 06 00 01")
-        assert line.client.transact(request, 7) == frame("FF 03 02 03 E8")
+        assert rig.client.transact(request, 7) == frame("FF 03 02 03 E8")
         write = frame("FF 06 00 06 01 F4")
-        assert line.client.transact(write, 8) == write
-        assert line.j2.value("SV") == 50.0
-        line.client.send(frame("01 03 00 06 00 01"))  # nobody at 1
-        line.client.assert_quiet()
+        assert rig.client.transact(write, 8) == write
+        assert rig.j2.value("SV") == 50.0
+        rig.client.send(frame("01 03 00 06 00 01"))  # nobody at 1
+        rig.client.assert_quiet()
 
 
 def test_request_times_are_when_the_last_byte_came() -> None:
     # At 50 baud a silence of 700 ms ends a frame of unknown length: far longer than any
     # scheduling delay between the steps below.
-    with open_line(baudrate=50) as line:
-        sim, client = line.sim, line.client
+    with open_rig(baudrate=50) as rig:
+        sim, client = rig.sim, rig.client
         request = frame("01 03 00 06 00 01")
         start = time.monotonic()
         client.send(request[:3])  # a request in two pieces
@@ -680,7 +680,7 @@ def test_request_times_are_when_the_last_byte_came() -> None:
         assert answered <= fragment < sent + 0.35  # its last byte, not the silence's end
         sim.clear_log()
         assert sim.request_times == [] and sim.requests == []
-        line.write(SV, x10(90.0))
+        rig.write(SV, x10(90.0))
         assert len(sim.request_times) == 1 and sim.request_times[0] > sent
 
 

@@ -47,7 +47,7 @@ CASES = {
 
 
 @pytest.fixture(params=list(CASES))
-def line(request: pytest.FixtureRequest) -> Iterator[tuple[Limits, SimDevice, bb.Bus]]:
+def rig(request: pytest.FixtureRequest) -> Iterator[tuple[Limits, SimDevice, bb.Bus]]:
     case = CASES[request.param]
     device = case.make()
     with Simulator({1: device}) as sim, bb.Bus(sim.port, timeout=0.5, retries=0) as bus:
@@ -60,16 +60,16 @@ def refused(call: Callable[[], object]) -> int:
     return caught.value.code
 
 
-def test_limits_are_declared(line: tuple[Limits, SimDevice, bb.Bus]) -> None:
-    case, device, _ = line
+def test_limits_are_declared(rig: tuple[Limits, SimDevice, bb.Bus]) -> None:
+    case, device, _ = rig
     assert (device.max_read, device.max_write) == (case.max_read, case.max_write)
     assert device.too_many_code == 3  # illegal data value
 
 
 def test_a_read_at_the_limit_is_answered_and_one_over_refused(
-    line: tuple[Limits, SimDevice, bb.Bus],
+    rig: tuple[Limits, SimDevice, bb.Bus],
 ) -> None:
-    case, _, bus = line
+    case, _, bus = rig
     assert len(bus.read_holding_registers(1, case.read_at, case.max_read)) == case.max_read
     assert refused(lambda: bus.read_holding_registers(1, case.read_at, case.max_read + 1)) == 3
 

@@ -83,7 +83,7 @@ class Rig:
 
 
 @contextmanager
-def open_line(**options: Any) -> Iterator[Rig]:
+def open_rig(**options: Any) -> Iterator[Rig]:
     options.setdefault("clock", lambda: 0.0)  # time moves only by advance()
     drive = PblDevice(**options)
     with Simulator({UNIT: drive}, baudrate=115200) as sim:
@@ -97,8 +97,8 @@ def open_line(**options: Any) -> Iterator[Rig]:
 
 @pytest.fixture
 def pbl() -> Iterator[Rig]:
-    with open_line() as line:
-        yield line
+    with open_rig() as rig:
+        yield rig
 
 
 def manual(request: str, reply: str) -> tuple[bytes, bytes]:
@@ -135,12 +135,12 @@ def test_manual_write_single_example(pbl: Rig) -> None:
 
 
 def test_echo_writes_gives_the_standard_echo() -> None:
-    with open_line(echo_writes=True) as line:
+    with open_rig(echo_writes=True) as rig:
         sent = bytes.fromhex("11 06 00 01 00 03 9A 9B")
-        assert line.client.transact(sent, 8) == sent
-        assert line.drive.peek(CONTROL_HIGH) == 3
-        line.drive.echo_writes = False  # a plain attribute, read at each reply
-        assert line.client.transact(sent, 8) == bytes.fromhex("11 06 00 01 00 01 1B 5A")
+        assert rig.client.transact(sent, 8) == sent
+        assert rig.drive.peek(CONTROL_HIGH) == 3
+        rig.drive.echo_writes = False  # a plain attribute, read at each reply
+        assert rig.client.transact(sent, 8) == bytes.fromhex("11 06 00 01 00 01 1B 5A")
 
 
 def test_manual_write_multiple_example(pbl: Rig) -> None:
@@ -517,14 +517,14 @@ def test_hall_state_and_position(pbl: Rig) -> None:
 
 def test_a_real_clock_is_followed() -> None:
     now = [100.0]
-    with open_line(clock=lambda: now[0]) as line:
-        line.write(INTERNAL_SPEED, 3000)
-        line.write(CONTROL, START)
+    with open_rig(clock=lambda: now[0]) as rig:
+        rig.write(INTERNAL_SPEED, 3000)
+        rig.write(CONTROL, START)
         now[0] += 0.5
-        assert line.read(SPEED) == [500]
-        line.drive.advance(0.25)
+        assert rig.read(SPEED) == [500]
+        rig.drive.advance(0.25)
         now[0] += 0.25
-        assert line.read(SPEED) == [1000]
+        assert rig.read(SPEED) == [1000]
 
 
 # ---- the Python side ----------------------------------------------------------------------------
