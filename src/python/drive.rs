@@ -19,16 +19,6 @@ pub(super) struct PyDriveCore {
     dev: Attached<Drive>,
 }
 
-impl PyDriveCore {
-    fn wire<T: Send>(
-        &self,
-        py: Python<'_>,
-        f: impl FnOnce(&Drive) -> crate::Result<T> + Send,
-    ) -> PyResult<T> {
-        self.dev.wire(py, f)
-    }
-}
-
 /// The drive family called `name`, or a ValueError naming the two.
 fn family_arg(name: &str) -> PyResult<Family> {
     Family::from_name(name).ok_or_else(|| {
@@ -76,7 +66,7 @@ macro_rules! with_command_methods {
             $(
                 #[doc = command_doc!($doc, $code)]
                 fn $method(&self, py: Python<'_>) -> PyResult<()> {
-                    self.wire(py, |d| d.command(Command::$variant))
+                    self.dev.wire(py, |d| d.command(Command::$variant))
                 }
             )*
         }
@@ -152,7 +142,7 @@ drive_commands!(with_command_methods! {
     /// float for a scaled register.
     fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
         let name = name.to_string();
-        let (register, raw) = self.wire(py, move |d| Ok((d.register(&name)?, d.get(&name)?)))?;
+        let (register, raw) = self.dev.wire(py, move |d| Ok((d.register(&name)?, d.get(&name)?)))?;
         Ok(shown(py, &register, raw))
     }
 
@@ -160,13 +150,13 @@ drive_commands!(with_command_methods! {
     fn set(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let value = number(value, name)?;
         let name = name.to_string();
-        self.wire(py, move |d| d.set(&name, value))
+        self.dev.wire(py, move |d| d.set(&name, value))
     }
 
     /// What leaving a ``with`` block sends: a jog stop if this object started a jog, then
     /// the stop.
     fn _stop_on_exit(&self, py: Python<'_>) -> PyResult<()> {
-        self.wire(py, |d| d.stop_on_exit())
+        self.dev.wire(py, |d| d.stop_on_exit())
     }
 
     /// The command table: ``(name, code)`` of every value the command register 0x2000
@@ -178,7 +168,7 @@ drive_commands!(with_command_methods! {
 
     /// Status words 1 and 2 and the fault code, read in one request where allowed.
     fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let s = self.wire(py, |d| d.status())?;
+        let s = self.dev.wire(py, |d| d.status())?;
         let fault = if s.fault_code == 0 {
             py.None().into_bound(py)
         } else {
@@ -216,7 +206,7 @@ drive_commands!(with_command_methods! {
 
     /// The model from 0x2103 (a ``Model``), or the raw code if unknown.
     fn _model<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        match self.wire(py, |d| d.model())? {
+        match self.dev.wire(py, |d| d.model())? {
             Ok(model) => public(py, PY, "Model", (model.name(),), None),
             Err(id) => Ok(PyInt::new(py, id).into_any()),
         }
@@ -231,7 +221,7 @@ drive_commands!(with_command_methods! {
 
     /// All measurement registers in one snapshot (one request where the drive allows).
     fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let t = self.wire(py, |d| d.telemetry())?;
+        let t = self.dev.wire(py, |d| d.telemetry())?;
         let fields = PyDict::new(py);
         let units = PyDict::new(py);
         for (name, raw, unit) in &t.values {
@@ -249,7 +239,7 @@ drive_commands!(with_command_methods! {
     /// The numeric fields of :meth:`telemetry` as floats (one request where the drive
     /// allows); ``hall_count`` only where the drive has it.
     fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let t = self.wire(py, |d| d.telemetry())?;
+        let t = self.dev.wire(py, |d| d.telemetry())?;
         let out = PyDict::new(py);
         for (name, raw, _) in &t.values {
             out.set_item(*name, *raw)?;
@@ -264,7 +254,7 @@ drive_commands!(with_command_methods! {
     /// the manuals do not list it).
     #[getter]
     fn baud_rate(&self, py: Python<'_>) -> PyResult<u32> {
-        self.wire(py, |d| match d.baud_rate()? {
+        self.dev.wire(py, |d| match d.baud_rate()? {
             Some(bps) => Ok(bps),
             None => Ok(d.get("baud_code")? as u32),
         })
@@ -275,7 +265,7 @@ drive_commands!(with_command_methods! {
     /// The drive talks at the new speed from then on: open a new Bus at it.
     fn set_baud_rate(&self, py: Python<'_>, bps: &Bound<'_, PyAny>) -> PyResult<()> {
         let bps = int_in(bps, "baud rate", 0, i64::from(u32::MAX))? as u32;
-        self.wire(py, move |d| d.set_baud_rate(bps))
+        self.dev.wire(py, move |d| d.set_baud_rate(bps))
     }
 
     /// The raw value of function-code parameter ``code``, e.g. ``"F00.10"``.
@@ -284,7 +274,7 @@ drive_commands!(with_command_methods! {
     /// :class:`benchbus.ModbusException` (code 2).
     fn read_parameter(&self, py: Python<'_>, code: &str) -> PyResult<u16> {
         let code = code.to_string();
-        self.wire(py, move |d| d.read_parameter(&code))
+        self.dev.wire(py, move |d| d.read_parameter(&code))
     }
 
     /// Write the raw ``value`` (0..0xFFFF) to function-code parameter ``code``.
@@ -300,14 +290,14 @@ drive_commands!(with_command_methods! {
     ) -> PyResult<()> {
         let value = int_in(value, "value", 0, 0xFFFF)? as u16;
         let code = code.to_string();
-        self.wire(py, move |d| d.write_parameter(&code, value))
+        self.dev.wire(py, move |d| d.write_parameter(&code, value))
     }
 
     /// Reads the setting called ``name`` (a function-code parameter in engineering units,
     /// "comm_loss_timeout" for F08.04).
     fn read_setting(&self, py: Python<'_>, name: &str) -> PyResult<f64> {
         let name = name.to_string();
-        self.wire(py, move |d| d.read_setting(&name))
+        self.dev.wire(py, move |d| d.read_setting(&name))
     }
 
     /// Writes ``value`` (engineering units) to the setting called ``name``, enabling 0x200E
@@ -315,7 +305,7 @@ drive_commands!(with_command_methods! {
     fn write_setting(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let value = number(value, name)?;
         let name = name.to_string();
-        self.wire(py, move |d| d.write_setting(&name, value))
+        self.dev.wire(py, move |d| d.write_setting(&name, value))
     }
 
     /// The register table of this drive's family: a ``DriveRegister`` ``(name, address,

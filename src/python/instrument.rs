@@ -26,16 +26,6 @@ pub(super) struct PyInstrumentCore {
     dev: Attached<Instrument>,
 }
 
-impl PyInstrumentCore {
-    fn wire<T: Send>(
-        &self,
-        py: Python<'_>,
-        f: impl FnOnce(&Instrument) -> crate::Result<T> + Send,
-    ) -> PyResult<T> {
-        self.dev.wire(py, f)
-    }
-}
-
 fn word_order(obj: &Bound<'_, PyAny>) -> PyResult<WordOrder> {
     if !obj.is_instance_of::<PyString>() {
         return Err(PyTypeError::new_err(format!(
@@ -197,7 +187,9 @@ impl PyInstrumentCore {
     ) -> PyResult<Bound<'py, PyAny>> {
         let address = u16_arg(address, "address")?;
         let decimals = decimals_arg(decimals)?;
-        let v = self.wire(py, move |i| i.read_value(address, decimals, signed))?;
+        let v = self
+            .dev
+            .wire(py, move |i| i.read_value(address, decimals, signed))?;
         Ok(if decimals == 0 {
             PyInt::new(py, v as i64).into_any()
         } else {
@@ -225,7 +217,7 @@ impl PyInstrumentCore {
         let value = number(value, "value")?;
         let decimals = decimals_arg(decimals)?;
         let multiple = function_arg(function)?;
-        self.wire(py, move |i| {
+        self.dev.wire(py, move |i| {
             i.write_value(address, value, decimals, signed, multiple)
         })
     }
@@ -239,7 +231,7 @@ impl PyInstrumentCore {
     ) -> PyResult<Vec<u16>> {
         let address = u16_arg(address, "address")?;
         let count = count_arg(count, address)?;
-        self.wire(py, move |i| i.read_registers(address, count))
+        self.dev.wire(py, move |i| i.read_registers(address, count))
     }
 
     /// Write raw ``values`` from ``address`` with 0x10, in requests of at most
@@ -253,7 +245,8 @@ impl PyInstrumentCore {
         values_kind(values)?;
         let address = u16_arg(address, "address")?;
         let values = register_list(values, 0x1_0000 - usize::from(address))?;
-        self.wire(py, move |i| i.write_registers(address, &values))
+        self.dev
+            .wire(py, move |i| i.write_registers(address, &values))
     }
 
     /// A 32-bit integer over the registers ``address`` and ``address + 1``.
@@ -267,7 +260,7 @@ impl PyInstrumentCore {
     ) -> PyResult<i64> {
         let address = pair_address(address)?;
         let order = order_arg(word_order)?;
-        let v = self.wire(py, move |i| i.read_u32(address, order))?;
+        let v = self.dev.wire(py, move |i| i.read_u32(address, order))?;
         Ok(if signed {
             i64::from(v as i32)
         } else {
@@ -293,7 +286,8 @@ impl PyInstrumentCore {
             int_in(value, "value", 0, i64::from(u32::MAX))? as u32
         };
         let order = order_arg(word_order)?;
-        self.wire(py, move |i| i.write_u32(address, value, order))
+        self.dev
+            .wire(py, move |i| i.write_u32(address, value, order))
     }
 
     /// An IEEE 754 single-precision float over two registers.
@@ -306,7 +300,8 @@ impl PyInstrumentCore {
     ) -> PyResult<f64> {
         let address = pair_address(address)?;
         let order = order_arg(word_order)?;
-        self.wire(py, move |i| i.read_f32(address, order))
+        self.dev
+            .wire(py, move |i| i.read_f32(address, order))
             .map(f64::from)
     }
 
@@ -329,7 +324,8 @@ impl PyInstrumentCore {
             )));
         }
         let order = order_arg(word_order)?;
-        self.wire(py, move |i| i.write_f32(address, single, order))
+        self.dev
+            .wire(py, move |i| i.write_f32(address, single, order))
     }
 
     /// ``count`` registers as text, two Latin-1 characters a register (high byte first),
@@ -342,7 +338,7 @@ impl PyInstrumentCore {
     ) -> PyResult<String> {
         let address = u16_arg(address, "address")?;
         let count = count_arg(count, address)?;
-        self.wire(py, move |i| i.read_string(address, count))
+        self.dev.wire(py, move |i| i.read_string(address, count))
     }
 
     /// Write ``text`` into ``count`` registers, two characters a register, padded with
@@ -363,7 +359,8 @@ impl PyInstrumentCore {
         }
         let text: String = text.extract()?;
         let count = count_arg(count, address)?;
-        self.wire(py, move |i| i.write_string(address, &text, count))
+        self.dev
+            .wire(py, move |i| i.write_string(address, &text, count))
     }
 
     /// Read Device Identification (0x2B / MEI 0x0E) from object 0, following "more
@@ -374,7 +371,7 @@ impl PyInstrumentCore {
     #[pyo3(signature = (level=py_basic()), text_signature = "(self, level='basic')")]
     fn identify<'py>(&self, py: Python<'py>, level: Py<PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let read_code = level_arg(level.bind(py))?;
-        let id = self.wire(py, move |i| i.identify(read_code))?;
+        let id = self.dev.wire(py, move |i| i.identify(read_code))?;
         let objects = id.texts();
         let fields = PyDict::new(py);
         fields.set_item("vendor", objects.get(&0))?;

@@ -18,14 +18,6 @@ pub(super) struct PyJ2Core {
 }
 
 impl PyJ2Core {
-    fn wire<T: Send>(
-        &self,
-        py: Python<'_>,
-        f: impl FnOnce(&J2) -> crate::Result<T> + Send,
-    ) -> PyResult<T> {
-        self.dev.wire(py, f)
-    }
-
     /// The parameters called `names`, as Python has them, in as few requests as allowed.
     fn read_names<'py, N: std::borrow::Borrow<Bound<'py, PyAny>>>(
         &self,
@@ -37,7 +29,7 @@ impl PyJ2Core {
             .map(|n| param(py, n.borrow()))
             .collect::<PyResult<Vec<_>>>()?;
         let wanted: Vec<&'static str> = params.iter().map(|p| p.name).collect();
-        let values = self.wire(py, move |j| j.read_many(&wanted))?;
+        let values = self.dev.wire(py, move |j| j.read_many(&wanted))?;
         Ok(params
             .iter()
             .zip(values)
@@ -61,7 +53,7 @@ impl PyJ2Core {
             .zip(&values)
             .map(|(p, v)| Ok((*p, number(v, p)?)))
             .collect::<PyResult<Vec<_>>>()?;
-        self.wire(py, move |j| j.write_many(&pairs))
+        self.dev.wire(py, move |j| j.write_many(&pairs))
     }
 
     /// The parameters of `group` (a table of the core), as Python has them.
@@ -172,7 +164,7 @@ impl PyJ2Core {
     /// Reads the parameter called `name`.
     fn get<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let p = param(py, name)?;
-        let v = self.wire(py, move |j| j.read(p.name))?;
+        let v = self.dev.wire(py, move |j| j.read(p.name))?;
         Ok(value(py, p, v))
     }
 
@@ -213,7 +205,7 @@ impl PyJ2Core {
         };
         let p = param(py, name)?;
         let v = number(value, p.name)?;
-        self.wire(py, move |j| j.write_as(p.name, v, multiple))
+        self.dev.wire(py, move |j| j.write_as(p.name, v, multiple))
     }
 
     /// Writes `value` to the parameter called `name`, with the manual's rules.
@@ -225,7 +217,7 @@ impl PyJ2Core {
     ) -> PyResult<()> {
         let p = param(py, name)?;
         let v = number(value, p.name)?;
-        self.wire(py, move |j| j.write(p.name, v))
+        self.dev.wire(py, move |j| j.write(p.name, v))
     }
 
     /// Several parameters by name, in as few requests as the 16-register limit allows.
@@ -268,12 +260,12 @@ impl PyJ2Core {
             let p = param(py, &pair[0])?;
             pairs.push((p.name, number(&pair[1], p.name)?));
         }
-        self.wire(py, move |j| j.write_many(&pairs))
+        self.dev.wire(py, move |j| j.write_many(&pairs))
     }
 
     /// Every parameter, `{name: value}`, in six requests of at most 16 registers.
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let all = self.wire(py, |j| j.parameters())?;
+        let all = self.dev.wire(py, |j| j.parameters())?;
         let out = PyDict::new(py);
         for (name, v) in all {
             let p = by_name(name).map_err(|e| to_pyerr(py, e))?;
@@ -303,7 +295,8 @@ impl PyJ2Core {
         }
         let switch_to_manual = switch_to_manual.extract::<bool>()?;
         let percent = number(percent, "MV")?;
-        self.wire(py, move |j| j.set_output(percent, switch_to_manual))
+        self.dev
+            .wire(py, move |j| j.set_output(percent, switch_to_manual))
     }
 
     /// Writes LSP and USP in the order that keeps LSP <= USP.
@@ -314,17 +307,17 @@ impl PyJ2Core {
         high: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let (low, high) = (number(low, "LSP")?, number(high, "USP")?);
-        self.wire(py, move |j| j.set_limits(low, high))
+        self.dev.wire(py, move |j| j.set_limits(low, high))
     }
 
     /// Start the setpoint ramp (RAPNF = 1).
     fn start_ramp(&self, py: Python<'_>) -> PyResult<()> {
-        self.wire(py, |j| j.write(RAPNF, 1.0))
+        self.dev.wire(py, |j| j.write(RAPNF, 1.0))
     }
 
     /// End the setpoint ramp (RAPNF = 0).
     fn stop_ramp(&self, py: Python<'_>) -> PyResult<()> {
-        self.wire(py, |j| j.write(RAPNF, 0.0))
+        self.dev.wire(py, |j| j.write(RAPNF, 0.0))
     }
 
     /// The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``.
@@ -406,7 +399,7 @@ impl PyJ2Core {
     fn set_limits(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let [low, high] = sized(value, "limits", "two numbers (low, high)")?;
         let (low, high) = (number(&low, "LSP")?, number(&high, "USP")?);
-        self.wire(py, move |j| j.set_limits(low, high))
+        self.dev.wire(py, move |j| j.set_limits(low, high))
     }
 
     /// The parameter table: a :class:`~benchbus.J2Parameter` (name, address, signed,

@@ -17,16 +17,6 @@ pub(super) struct PyPblCore {
     dev: Attached<Pbl>,
 }
 
-impl PyPblCore {
-    fn wire<T: Send>(
-        &self,
-        py: Python<'_>,
-        f: impl FnOnce(&Pbl) -> crate::Result<T> + Send,
-    ) -> PyResult<T> {
-        self.dev.wire(py, f)
-    }
-}
-
 /// A parameter given by number (0..=222) or by name, as its number.
 fn parameter_number(py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
     if key.is_instance_of::<PyString>() {
@@ -77,20 +67,20 @@ impl PyPblCore {
     fn get(&self, py: Python<'_>, name: &str) -> PyResult<i64> {
         by_name(name).map_err(|e| to_pyerr(py, e))?;
         let name = name.to_string();
-        self.wire(py, move |p| p.get(&name)).map(|v| v as i64)
+        self.dev.wire(py, move |p| p.get(&name)).map(|v| v as i64)
     }
 
     /// Writes `value` to the parameter called `name`.
     fn set(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let value = number(value, name)?;
         let name = name.to_string();
-        self.wire(py, move |p| p.set(&name, value))
+        self.dev.wire(py, move |p| p.set(&name, value))
     }
 
     /// Reads one parameter, by number or name.
     fn read_parameter(&self, py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
         let n = parameter_number(py, key)?;
-        self.wire(py, move |p| p.read_parameter(n))
+        self.dev.wire(py, move |p| p.read_parameter(n))
     }
 
     /// Writes one parameter, by number or name, checked against the table first.
@@ -105,7 +95,7 @@ impl PyPblCore {
         by_number(n)
             .and_then(|p| p.encode(f64::from(value)))
             .map_err(|e| to_pyerr(py, e))?;
-        self.wire(py, move |p| p.write_parameter(n, value))
+        self.dev.wire(py, move |p| p.write_parameter(n, value))
     }
 
     /// Reads `count` parameters from `start` (in as few requests as allowed).
@@ -117,7 +107,7 @@ impl PyPblCore {
     ) -> PyResult<Vec<u16>> {
         let start = parameter_number(py, start)?;
         let count = int_in(count, "count", 1, PARAMETERS.len() as i64)? as u16;
-        self.wire(py, move |p| p.read_parameters(start, count))
+        self.dev.wire(py, move |p| p.read_parameters(start, count))
     }
 
     /// The names :meth:`sample` gives: parameters 50..54.
@@ -130,7 +120,7 @@ impl PyPblCore {
     /// Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
     /// parameters 50..54, in one request.
     fn sample<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let all = self.wire(py, |p| p.sample())?;
+        let all = self.dev.wire(py, |p| p.sample())?;
         let out = PyDict::new(py);
         for (name, value) in all {
             out.set_item(name, f64::from(value))?;
@@ -140,7 +130,7 @@ impl PyPblCore {
 
     /// Every documented parameter, `{name: value}`, in four requests (61 a reply).
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let all = self.wire(py, |p| p.parameters())?;
+        let all = self.dev.wire(py, |p| p.parameters())?;
         let out = PyDict::new(py);
         for (name, value) in all {
             out.set_item(name, value)?;
@@ -151,7 +141,7 @@ impl PyPblCore {
     /// Parameters 0..99 (status and measurements) by name, in two requests: a dict, shown
     /// as a table in notebooks.
     fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let all = self.wire(py, |p| p.telemetry())?;
+        let all = self.dev.wire(py, |p| p.telemetry())?;
         let out = PyDict::new(py);
         for (name, value, _) in all {
             out.set_item(name, value)?;
@@ -161,19 +151,19 @@ impl PyPblCore {
 
     /// Start: set bit 0 of the control word, keeping its other bits.
     fn start(&self, py: Python<'_>) -> PyResult<()> {
-        self.wire(py, |p| p.start())
+        self.dev.wire(py, |p| p.start())
     }
 
     /// Stop: clear bit 0 of the control word, keeping its other bits.
     fn stop(&self, py: Python<'_>) -> PyResult<()> {
-        self.wire(py, |p| p.stop())
+        self.dev.wire(py, |p| p.stop())
     }
 
     /// The direction asked for: bit 1 of the control word (see :meth:`status` for the
     /// direction the motor turns). Setting it keeps the control word's other bits.
     #[getter]
     fn direction<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let (_, reverse) = self.wire(py, |p| p.control())?;
+        let (_, reverse) = self.dev.wire(py, |p| p.control())?;
         public(py, PY, "Direction", (u8::from(reverse),), None)
     }
 
@@ -195,12 +185,12 @@ impl PyPblCore {
                 )))
             }
         };
-        self.wire(py, move |p| p.set_reverse(reverse))
+        self.dev.wire(py, move |p| p.set_reverse(reverse))
     }
 
     /// The status word: running, and the direction the motor turns.
     fn status<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let (running, reverse) = self.wire(py, |p| p.status())?;
+        let (running, reverse) = self.dev.wire(py, |p| p.status())?;
         let direction = public(py, PY, "Direction", (u8::from(reverse),), None)?;
         public(py, PY, "PblStatus", (running, direction), None)
     }
@@ -208,25 +198,27 @@ impl PyPblCore {
     /// Whether the motor is moving (status word bit 0).
     #[getter]
     fn running(&self, py: Python<'_>) -> PyResult<bool> {
-        self.wire(py, |p| p.status()).map(|(running, _)| running)
+        self.dev
+            .wire(py, |p| p.status())
+            .map(|(running, _)| running)
     }
 
     /// The 32-bit alarm word (parameter 5 high, 4 low).
     #[getter]
     fn alarm_word(&self, py: Python<'_>) -> PyResult<u32> {
-        self.wire(py, |p| p.alarms())
+        self.dev.wire(py, |p| p.alarms())
     }
 
     /// The active alarm bits by name ("alarm bit N": the manual names none).
     #[getter]
     fn alarms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyFrozenSet>> {
-        let word = self.wire(py, |p| p.alarms())?;
+        let word = self.dev.wire(py, |p| p.alarms())?;
         PyFrozenSet::new(py, alarm_names(word))
     }
 
     /// Writes 1511 to parameter 214 (defaults restored at the next power-up).
     fn _restore_defaults(&self, py: Python<'_>) -> PyResult<()> {
-        self.wire(py, |p| p.restore_defaults())
+        self.dev.wire(py, |p| p.restore_defaults())
     }
 
     /// The parameter table: a :class:`~benchbus.PblParameter` (number, name, unit, access,
