@@ -6,6 +6,7 @@ pub mod drive;
 pub mod instrument;
 pub mod j2;
 pub mod pbl;
+pub mod value;
 
 use crate::bus::{Bus, TxOptions};
 use crate::codec::FrameError;
