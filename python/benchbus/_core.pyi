@@ -30,14 +30,35 @@ __all__ = [
     "_panic_on_wire",
     "crc16",
     "diagnose",
+    "from_registers",
     "list_ports",
     "refresh_logging",
+    "to_registers",
 ]
 
 __version__: str
 
 def crc16(data: bytes) -> int:
     """CRC-16/MODBUS of ``data`` (sent low byte first on the wire)."""
+
+#: What one value over registers is: its width and kind.
+_Type = Literal["u16", "i16", "u32", "i32", "u64", "i64", "f32", "f64"]
+#: How a value lies over registers: where its bytes A (most significant) to D land.
+_Layout = Literal["ABCD", "CDAB", "BADC", "DCBA"]
+
+def from_registers(
+    registers: Iterable[int], type: _Type = "u16", order: _Layout = "ABCD"
+) -> list[int | float]:
+    """The values ``registers`` hold, each of ``type`` ("u16" unless given: "i16", "u32",
+    "i32", "u64", "i64", "f32", "f64") over as many registers as it takes, laid out as
+    ``order`` ("ABCD" unless given: "CDAB", "BADC", "DCBA"; see ``Instrument.read_long``)."""
+
+def to_registers(
+    values: float | Iterable[float], type: _Type = "u16", order: _Layout = "ABCD"
+) -> list[int]:
+    """The registers that hold ``values`` (one number, or a sequence of them), each of
+    ``type`` laid out as ``order`` (as :func:`from_registers` reads them); a value that does
+    not fit its type raises ValueError."""
 
 def list_ports(
     sysfs_root: str | os.PathLike[str] | None = None,

@@ -138,6 +138,179 @@ impl Layout {
     }
 }
 
+/// A number a register value stands for: an integer (of any width up to 64 bits, signed or
+/// not) or a float.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Number {
+    /// An integer.
+    Int(i128),
+    /// A float.
+    Float(f64),
+}
+
+/// What one value over registers is: its width and kind, as the trade names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// One register, 0..65535.
+    U16,
+    /// One register, two's complement.
+    I16,
+    /// Two registers, unsigned.
+    U32,
+    /// Two registers, two's complement.
+    I32,
+    /// Four registers, unsigned.
+    U64,
+    /// Four registers, two's complement.
+    I64,
+    /// Two registers, IEEE 754 single.
+    F32,
+    /// Four registers, IEEE 754 double.
+    F64,
+}
+
+impl Kind {
+    /// Every kind, in the order of their names' table.
+    pub const ALL: [Kind; 8] = [
+        Kind::U16,
+        Kind::I16,
+        Kind::U32,
+        Kind::I32,
+        Kind::U64,
+        Kind::I64,
+        Kind::F32,
+        Kind::F64,
+    ];
+
+    /// Its name: "u16", "i16", "u32", "i32", "u64", "i64", "f32" or "f64".
+    pub const fn name(self) -> &'static str {
+        match self {
+            Kind::U16 => "u16",
+            Kind::I16 => "i16",
+            Kind::U32 => "u32",
+            Kind::I32 => "i32",
+            Kind::U64 => "u64",
+            Kind::I64 => "i64",
+            Kind::F32 => "f32",
+            Kind::F64 => "f64",
+        }
+    }
+
+    /// The kind called `name` (any case), or None.
+    pub fn from_name(name: &str) -> Option<Kind> {
+        Kind::ALL
+            .into_iter()
+            .find(|k| k.name().eq_ignore_ascii_case(name))
+    }
+
+    /// How many registers a value takes.
+    pub const fn registers(self) -> usize {
+        match self {
+            Kind::U16 | Kind::I16 => 1,
+            Kind::U32 | Kind::I32 | Kind::F32 => 2,
+            Kind::U64 | Kind::I64 | Kind::F64 => 4,
+        }
+    }
+
+    const fn bits(self) -> u32 {
+        16 * self.registers() as u32
+    }
+
+    const fn signed(self) -> bool {
+        matches!(self, Kind::I16 | Kind::I32 | Kind::I64)
+    }
+
+    const fn float(self) -> bool {
+        matches!(self, Kind::F32 | Kind::F64)
+    }
+
+    /// The values `registers` hold, one per [`registers`](Self::registers) of them, laid out
+    /// as `layout` (a one-register value takes only the byte order).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when `registers` is not a whole number of values.
+    pub fn decode(self, registers: &[u16], layout: Layout) -> Result<Vec<Number>> {
+        let width = self.registers();
+        if registers.is_empty() || registers.len() % width != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "{} registers do not make whole {} values ({width} registers each)",
+                registers.len(),
+                self.name()
+            )));
+        }
+        Ok(registers
+            .chunks(width)
+            .map(|one| self.number(layout.from_registers(one)))
+            .collect())
+    }
+
+    /// The value of its bytes, most significant first.
+    fn number(self, bytes: Vec<u8>) -> Number {
+        let raw = bytes.iter().fold(0u64, |v, b| v << 8 | u64::from(*b));
+        match self {
+            Kind::F32 => Number::Float(f64::from(f32::from_bits(raw as u32))),
+            Kind::F64 => Number::Float(f64::from_bits(raw)),
+            _ if self.signed() => {
+                let shift = 64 - self.bits();
+                Number::Int(i128::from(((raw << shift) as i64) >> shift))
+            }
+            _ => Number::Int(i128::from(raw)),
+        }
+    }
+
+    /// The registers that hold `value` laid out as `layout`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for an integer that does not fit the kind, a float given
+    /// for an integer kind, or a float that is not finite (or, for f32, beyond a single's
+    /// range).
+    pub fn encode(self, value: Number, layout: Layout) -> Result<Vec<u16>> {
+        let bits = self.bits();
+        let raw: u64 = match (value, self.float()) {
+            (Number::Int(v), false) => {
+                let (lo, hi) = if self.signed() {
+                    (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1)
+                } else {
+                    (0, (1i128 << bits) - 1)
+                };
+                if !(lo..=hi).contains(&v) {
+                    return Err(Error::InvalidArgument(format!(
+                        "a {} value must be {lo} to {hi}, got {v}",
+                        self.name()
+                    )));
+                }
+                (v as u64) & (u64::MAX >> (64 - bits))
+            }
+            (Number::Float(v), false) => {
+                return Err(Error::InvalidArgument(format!(
+                    "a {} value must be an integer, got {v}",
+                    self.name()
+                )))
+            }
+            (value, true) => {
+                let v = match value {
+                    Number::Int(i) => i as f64,
+                    Number::Float(f) => f,
+                };
+                let single = v as f32;
+                match self {
+                    Kind::F32 if single.is_finite() => u64::from(single.to_bits()),
+                    Kind::F64 if v.is_finite() => v.to_bits(),
+                    _ => {
+                        return Err(Error::InvalidArgument(format!(
+                            "a {} value must be a finite number within its range, got {v}",
+                            self.name()
+                        )))
+                    }
+                }
+            }
+        };
+        let bytes = raw.to_be_bytes();
+        let ours = bytes.get(8 - 2 * self.registers()..).unwrap_or(&bytes);
+        Ok(layout.to_registers(ours))
+    }
+}
+
 /// How many bits a multi-register integer or float has: 32 (two registers) or 64 (four).
 ///
 /// # Errors
@@ -180,6 +353,58 @@ mod tests {
         for layout in Layout::ALL {
             assert_eq!(layout.join64(layout.split64(v)), v);
         }
+    }
+
+    #[test]
+    fn kinds_decode_and_encode_in_every_layout() {
+        let cases: [(Kind, Number, &[u16]); 8] = [
+            (Kind::U16, Number::Int(0xFFFE), &[0xFFFE]),
+            (Kind::I16, Number::Int(-2), &[0xFFFE]),
+            (Kind::U32, Number::Int(0x0102_0304), &[0x0102, 0x0304]),
+            (Kind::I32, Number::Int(-2), &[0xFFFF, 0xFFFE]),
+            (Kind::U64, Number::Int(u64::MAX.into()), &[0xFFFF; 4]),
+            (Kind::I64, Number::Int(i64::MIN.into()), &[0x8000, 0, 0, 0]),
+            (Kind::F32, Number::Float(21.5), &[0x41AC, 0x0000]),
+            (Kind::F64, Number::Float(1.0), &[0x3FF0, 0, 0, 0]),
+        ];
+        for (kind, value, abcd) in cases {
+            assert_eq!(kind.encode(value, Layout::Abcd).ok().as_deref(), Some(abcd));
+            assert_eq!(kind.decode(abcd, Layout::Abcd).ok(), Some(vec![value]));
+            for layout in Layout::ALL {
+                let registers = kind.encode(value, layout).unwrap_or_default();
+                assert_eq!(kind.decode(&registers, layout).ok(), Some(vec![value]));
+            }
+        }
+        // One register: only the byte order applies.
+        assert_eq!(
+            Kind::U16.encode(Number::Int(0x0102), Layout::Cdab).ok(),
+            Some(vec![0x0102])
+        );
+        assert_eq!(
+            Kind::U16.encode(Number::Int(0x0102), Layout::Badc).ok(),
+            Some(vec![0x0201])
+        );
+        // Several values at once.
+        let two = Kind::I16
+            .decode(&[1, 0xFFFF], Layout::Abcd)
+            .unwrap_or_default();
+        assert_eq!(two, vec![Number::Int(1), Number::Int(-1)]);
+    }
+
+    #[test]
+    fn kinds_refuse_what_does_not_fit() {
+        let refused = |kind: Kind, value: Number| kind.encode(value, Layout::Abcd).is_err();
+        assert!(refused(Kind::U16, Number::Int(65536)));
+        assert!(refused(Kind::U16, Number::Int(-1)));
+        assert!(refused(Kind::I16, Number::Int(32768)));
+        assert!(refused(Kind::I64, Number::Int(i128::from(i64::MAX) + 1)));
+        assert!(refused(Kind::U32, Number::Float(1.0)));
+        assert!(refused(Kind::F32, Number::Float(1e39)));
+        assert!(refused(Kind::F64, Number::Float(f64::NAN)));
+        assert!(Kind::U32.decode(&[1, 2, 3], Layout::Abcd).is_err());
+        assert!(Kind::U32.decode(&[], Layout::Abcd).is_err());
+        assert_eq!(Kind::from_name("F32"), Some(Kind::F32));
+        assert_eq!(Kind::from_name("u8"), None);
     }
 
     #[test]

@@ -11,6 +11,7 @@ mod pbl;
 mod poll;
 mod ports;
 mod ticks;
+mod values;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
@@ -1000,6 +1001,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<poll::PyPoll>()?;
     m.add_class::<ticks::PyTicks>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
+    m.add_function(wrap_pyfunction!(values::from_registers, m)?)?;
+    m.add_function(wrap_pyfunction!(values::to_registers, m)?)?;
     m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
     m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
