@@ -10,8 +10,9 @@
 //! no trailer; this module puts the hex text around them:
 //!
 //! - [`encode`] / [`encode_request`]: a whole frame to send;
-//! - [`seen`]: where the first frame in received characters begins and ends (the rules
-//!   above, with no state: what a reader that keeps every character needs);
+//! - [`seen`] and [`complete`]: where the first frame in received characters begins and
+//!   ends (the rules above, with no state: what a reader that keeps every character needs),
+//!   and its `unit | PDU` once it has ended;
 //! - [`reply_needed`], [`decode_reply`], [`unit_of`]: a reply read from such a buffer, the
 //!   way [`Framing::reply_needed`] and [`Framing::decode_reply`] read RTU;
 //! - [`Receiver`]: an incremental receiver that is fed characters and hands out each
@@ -33,10 +34,10 @@ pub const MAX_UNIT_PDU: usize = (MAX_FRAME - 1 - END.len()) / 2 - 1;
 const MIN_UNIT_PDU: usize = 2;
 const _: () = assert!(MAX_UNIT_PDU == super::rtu::MAX_UNIT_PDU);
 
-/// The longest gap the serial line spec allows between two characters of an ASCII frame
-/// (2.5.2.1: "intervals of up to one second can elapse between characters"). Unlike RTU,
-/// where a gap of t1.5 ends a frame, an ASCII frame ends only at its CR LF; a reader may give
-/// up on a frame begun when no character came for this long (see [`Receiver::abandon`]).
+/// The longest gap between two characters of an ASCII frame (serial line spec 2.5.2.1
+/// allows up to one second). Unlike RTU, where a gap of t1.5 ends a frame, an ASCII frame
+/// ends only at its CR LF; a reader may give up on a frame begun when no character came for
+/// this long (see [`Receiver::abandon`]).
 pub const INTER_CHAR_TIMEOUT: Duration = Duration::from_secs(1);
 
 /// Data bits of the line in ASCII mode (serial line spec 2.5.2: 7; the default line format
@@ -217,6 +218,18 @@ pub fn seen(buf: &[u8]) -> Seen {
     Seen::Begun { start }
 }
 
+/// Whether `buf`, characters as received, holds a whole frame: once the first frame has
+/// ended ([`seen`]), the index just past its LF and its `unit | PDU` ([`decode`]), or why it
+/// was rejected; once it is too long, the index past its 513th character and
+/// [`AsciiError::TooLong`]. None while no frame has ended.
+pub fn complete(buf: &[u8]) -> Option<(usize, Result<Vec<u8>, AsciiError>)> {
+    match seen(buf) {
+        Seen::Ended { start, end } => Some((end, decode(&buf[start..end]))),
+        Seen::TooLong { start } => Some((start + MAX_FRAME, Err(AsciiError::TooLong(MAX_FRAME)))),
+        Seen::Nothing | Seen::Begun { .. } => None,
+    }
+}
+
 /// The unit address of the frame begun in `buf` (its first two hex digits after the `:`),
 /// once they have come: for a request frame, the unit it goes to; for a reply begun, the
 /// unit it comes from.
@@ -287,11 +300,10 @@ pub fn decode_reply<E>(unit: u8, request: &Request, buf: &[u8]) -> Result<Reply,
 where
     E: From<AsciiError> + From<FrameError>,
 {
-    let unit_pdu = match seen(buf) {
-        Seen::Ended { start, end } => decode(&buf[start..end])?,
-        Seen::TooLong { start } => return Err(AsciiError::TooLong(buf.len() - start).into()),
-        Seen::Nothing | Seen::Begun { .. } => return Err(AsciiError::Incomplete(buf.len()).into()),
+    let Some((_, unit_pdu)) = complete(buf) else {
+        return Err(AsciiError::Incomplete(buf.len()).into());
     };
+    let unit_pdu = unit_pdu?;
     Ok(Framing::Mbap.decode_reply(unit, request, &unit_pdu)?)
 }
 
@@ -526,6 +538,26 @@ mod tests {
         );
         // A `:` between CR and LF, too.
         assert_eq!(seen(b":11\r:22\r\n"), Seen::Ended { start: 4, end: 9 });
+    }
+
+    #[test]
+    fn complete_once_the_first_frame_has_ended() {
+        assert_eq!(complete(b""), None);
+        assert_eq!(complete(b"xx:1103006B"), None);
+        let mut two = b"x".to_vec();
+        two.extend_from_slice(READ);
+        two.extend_from_slice(REPLY);
+        assert_eq!(complete(&two), Some((1 + READ.len(), decode(READ))));
+        assert_eq!(
+            complete(b"::1183\r\n"),
+            Some((8, Err(AsciiError::TooShort(2))))
+        );
+        let mut long = b"~:".to_vec();
+        long.extend(std::iter::repeat_n(b'0', MAX_FRAME));
+        assert_eq!(
+            complete(&long),
+            Some((1 + MAX_FRAME, Err(AsciiError::TooLong(MAX_FRAME))))
+        );
     }
 
     #[test]
