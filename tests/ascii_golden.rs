@@ -182,7 +182,7 @@ fn every_ascii_vector_frames_and_decodes_both_ways() {
                     );
                     None
                 }
-                Needed::Unknown => panic!("{id}: unknown at {i}"),
+                other => panic!("{id}: {other:?} at {i}"),
             });
         assert_eq!(
             complete_at,
