@@ -409,3 +409,70 @@ fn bad_input_is_refused_before_anything_is_sent() {
     assert!(bus.read_coils(1, 0xFFFF - 1999, 2000, &OPTS).is_err());
     assert_eq!(sent(&t).len(), 2, "both went out (and timed out)");
 }
+
+#[test]
+fn a_local_echo_is_read_back_and_a_garbled_one_retried_for_every_function() {
+    let (bus, t) = common::echo_bus(
+        vec![
+            reply("01 01 01 05"),
+            reply("01 01 01 05"),
+            reply("01 42 07 08"),
+        ],
+        1,
+    );
+    // The echo of the first attempt comes back garbled: sent again, as a corrupt reply is.
+    t.0.lock().unwrap().garble_echo = 1;
+    assert_eq!(bus.read_coils(1, 0, 3, &OPTS).unwrap(), [true, false, true]);
+    assert_eq!((bus.stats().frame_errors, bus.stats().retries), (1, 1));
+    // A raw reply read by silence after the echo: the echo is not part of it.
+    assert_eq!(bus.request(1, 0x42, &[], None, &OPTS).unwrap(), [7, 8]);
+    assert_eq!(sent(&t).len(), 3);
+}
+
+#[test]
+fn reconnect_reopens_a_lost_port_for_every_function() {
+    let (bus, t) = common::reopenable_bus(vec![reply("01 04 02 00 0A")], 0, true);
+    t.0.lock().unwrap().lost = true;
+    assert_eq!(bus.read_input_registers(1, 8, 1, &OPTS).unwrap(), [10]);
+    assert_eq!(bus.stats().reopens, 1);
+    assert_eq!(sent(&t), [frame("01 04 00 08 00 01")]);
+}
+
+#[test]
+fn writes_of_coils_and_masks_are_paced_as_writes_and_unanswered_when_the_device_says_so() {
+    let paced = TxOptions {
+        write_interval: Duration::from_millis(30),
+        ..OPTS
+    };
+    let (bus, t) = common::bus(
+        vec![reply("01 05 00 AC FF 00"), reply("01 16 00 04 00 F2 00 25")],
+        0,
+    );
+    bus.write_coil(1, 172, true, &paced).unwrap();
+    bus.mask_write_register(1, 4, 0xF2, 0x25, &paced).unwrap();
+    let at = common::sent_at(&t);
+    assert!(
+        at[1] - at[0] >= Duration::from_millis(30),
+        "{:?}",
+        at[1] - at[0]
+    );
+    // A device set to answer no write: a coil write is sent once and not awaited.
+    let silent = TxOptions {
+        write_ack: false,
+        ..OPTS
+    };
+    let (bus, t) = common::bus(vec![Act::Silent], 2);
+    bus.write_coils(1, 19, &[true; 10], &silent).unwrap();
+    assert_eq!(sent(&t).len(), 1);
+    assert_eq!(bus.stats().timeouts, 0);
+    // Reads are never paced: no wait after a write.
+    let (bus, t) = common::bus(vec![reply("01 05 00 AC FF 00"), reply("01 01 01 01")], 0);
+    bus.write_coil(1, 172, true, &paced).unwrap();
+    bus.read_coils(1, 172, 1, &paced).unwrap();
+    let at = common::sent_at(&t);
+    assert!(
+        at[1] - at[0] < Duration::from_millis(30),
+        "{:?}",
+        at[1] - at[0]
+    );
+}

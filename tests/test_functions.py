@@ -146,6 +146,7 @@ def test_silence_reads_a_reply_delivered_in_bursts_whole(slave: ScriptedSlave) -
     reply = rtu("01 41 0A 0B 0C 0D 0E 0F")
     with bb.Bus(slave.port, timeout=0.5, retries=0, silence=0.1) as bus:
         assert bus.silence == 0.1
+        assert repr(bus).endswith(", retries=0, silence=0.1)")
         serve(slave, 4, reply[:4], reply[4:], gap=0.03)
         start = time.monotonic()
         assert bus.request(1, 0x41, b"") == bytes.fromhex("0A 0B 0C 0D 0E 0F")
@@ -159,6 +160,7 @@ def test_without_silence_a_reply_in_bursts_is_cut_at_the_gap(slave: ScriptedSlav
     reply = rtu("01 41 0A 0B 0C 0D 0E 0F")
     with bb.Bus(slave.port, timeout=0.5, retries=0) as bus:
         assert bus.silence == 0.0
+        assert "silence" not in repr(bus)
         serve(slave, 4, reply[:4], reply[4:], gap=0.05)
         with pytest.raises(bb.FrameError) as e:
             bus.request(1, 0x41, b"")

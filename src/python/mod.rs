@@ -1218,7 +1218,7 @@ impl PyBus {
     fn __repr__(&self) -> String {
         let c = self.bus.config();
         format!(
-            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{})",
+            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{}{})",
             c.port.replace('\\', "\\\\").replace('\'', "\\'"),
             c.line.baudrate,
             c.line.parity.letter(),
@@ -1231,6 +1231,11 @@ impl PyBus {
                 ", rs485=True"
             } else {
                 ""
+            },
+            if c.silence.is_zero() {
+                String::new()
+            } else {
+                format!(", silence={}", c.silence.as_secs_f64())
             },
             if self.bus.is_closed() {
                 ", closed"
