@@ -305,7 +305,7 @@ EXPLICIT: list[Case] = [
     *calls("Bus", "diagnostics", ValueError, "unit", A(0, 0), A(256, 0)),
     *calls("Bus", "diagnostics", ValueError, "sub_function", A(1, -1), A(1, 0x10000)),
     *calls("Bus", "diagnostics", TypeError, "sub_function", A(1, "0"), A(1, None)),
-    *calls("Bus", "diagnostics", TypeError, "data", A(1, 0, "AB"), A(1, 0, [0, 0]), A(1, 0, 5)),
+    *calls("Bus", "diagnostics", TypeError, "data", *(A(1, 0, d) for d in ("AB", [0, 0], 5, None))),
     *calls("Bus", "diagnostics", ValueError, "data", A(1, 0, bytes(251))),
     *calls("Bus", "request", ValueError, "unit", A(0, 0x41, b""), A(HUGE, 0x41, b"")),
     # 0 and 0x80 up are not requests' function codes (0x80 | f is an exception reply).

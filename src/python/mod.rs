@@ -531,6 +531,11 @@ fn coil_block(address: &Bound<'_, PyAny>, values: &Bound<'_, PyAny>) -> PyResult
     Ok((address, values))
 }
 
+/// `b"\0\0"`, the default data of `diagnostics` (a bytes argument when given, never None).
+fn two_zero_bytes() -> Py<PyAny> {
+    Python::attach(|py| PyBytes::new(py, &[0, 0]).into_any().unbind())
+}
+
 /// A bytes argument (bytes or bytearray) of at most `max` bytes.
 fn bytes_arg(obj: &Bound<'_, PyAny>, name: &str, max: usize) -> PyResult<Vec<u8>> {
     let data = if let Ok(b) = obj.cast::<PyBytes>() {
@@ -843,7 +848,7 @@ impl PyBus {
     /// Runs diagnostics sub-function `sub_function` with `data` (function 0x08): the
     /// reply's data after its sub-function, as bytes.
     #[pyo3(
-        signature = (unit, sub_function, data=None),
+        signature = (unit, sub_function, data=two_zero_bytes()),
         text_signature = "($self, unit, sub_function, data=b'\\x00\\x00')"
     )]
     fn diagnostics<'py>(
@@ -851,14 +856,11 @@ impl PyBus {
         py: Python<'py>,
         unit: &Bound<'py, PyAny>,
         sub_function: &Bound<'py, PyAny>,
-        data: Option<&Bound<'py, PyAny>>,
+        data: Py<PyAny>,
     ) -> PyResult<Bound<'py, PyBytes>> {
         let unit = unit_arg(unit)?;
         let sub_function = u16_arg(sub_function, "sub_function")?;
-        let data = match data {
-            Some(d) => bytes_arg(d, "data", MAX_PDU_DATA - 2)?,
-            None => vec![0, 0],
-        };
+        let data = bytes_arg(data.bind(py), "data", MAX_PDU_DATA - 2)?;
         let reply = self.wire(py, |b| {
             b.diagnostics(unit, sub_function, &data, &TxOptions::default())
         })?;
