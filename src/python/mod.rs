@@ -895,7 +895,17 @@ impl PyBus {
         reply_length: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyBytes>> {
         let unit = unit_arg(unit)?;
-        let function = u8_in(function, "function", 0, 255)?;
+        // 0 is no function, and 0x80 | f is f's exception reply.
+        let function = int_in(function, "function", 1, 0x7F).map_err(|e| {
+            if e.is_instance_of::<PyValueError>(py) {
+                PyValueError::new_err(format!(
+                    "{} (0x80 and up are exception replies)",
+                    e.value(py)
+                ))
+            } else {
+                e
+            }
+        })? as u8;
         let data = bytes_arg(data, "data", MAX_PDU_DATA)?;
         let reply_length = opt(reply_length, None, |r| {
             int_in(r, "reply_length", 0, MAX_PDU_DATA as i64).map(|n| Some(n as usize))
