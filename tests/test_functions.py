@@ -298,3 +298,35 @@ def test_a_gateway_that_does_not_forward_answers_exception_1(refusing_gateway: s
                 call()
             assert (e.value.function, e.value.code) == (function, 1)
         assert bus.stats.exceptions == 5
+
+
+def test_the_gil_is_released_while_a_new_function_waits(slave: ScriptedSlave) -> None:
+    """A Python thread runs on while read_coils waits for a silent unit and request() for
+    the line's silence."""
+    ticks = 0
+    stop = threading.Event()
+
+    def count() -> None:
+        nonlocal ticks
+        while not stop.is_set():
+            ticks += 1
+            time.sleep(0.001)
+
+    counter = threading.Thread(target=count)
+    with bb.Bus(slave.port, timeout=0.3, retries=0, silence=0.2) as bus:
+        counter.start()
+        try:
+            slave.expect(8, None)
+            with pytest.raises(bb.ResponseTimeout):
+                bus.read_coils(1, 0, 8)
+            slave.join()
+            during_read = ticks
+            slave.expect(4, rtu("01 41 01"))
+            assert bus.request(1, 0x41, b"") == b"\x01"
+            slave.join()
+        finally:
+            stop.set()
+            counter.join()
+    # About 300 and 200 ticks of 1 ms: the GIL held would give none.
+    assert during_read > 50
+    assert ticks - during_read > 30
