@@ -321,8 +321,9 @@ def test_the_gil_is_released_while_a_new_function_waits(slave: ScriptedSlave) ->
                 bus.read_coils(1, 0, 8)
             slave.join()
             during_read = ticks
-            slave.expect(4, rtu("01 41 01"))
-            assert bus.request(1, 0x41, b"") == b"\x01"
+            # Another unit: the silent one's late reply is not waited for first.
+            slave.expect(4, rtu("02 41 01"))
+            assert bus.request(2, 0x41, b"") == b"\x01"
             slave.join()
         finally:
             stop.set()
