@@ -74,6 +74,11 @@ pub struct BusConfig {
     /// The kernel RS485 mode to set on a board UART when the port opens (Linux; see
     /// [`crate::transport::tuning`]); None leaves the port's mode as it is.
     pub rs485: Option<Rs485>,
+    /// The quiet gap that ends a reply whose length is not known in advance (a raw
+    /// [`Bus::request`] without a reply length): the longer of this and t3.5. Raise it for
+    /// an adapter that delivers a reply in bursts (an FTDI chip's latency timer splits
+    /// replies into chunks 16 ms apart unless set lower).
+    pub silence: Duration,
 }
 
 impl BusConfig {
@@ -89,6 +94,7 @@ impl BusConfig {
             echo: false,
             interrupted: None,
             rs485: None,
+            silence: Duration::ZERO,
         }
     }
 }
@@ -399,14 +405,12 @@ impl Bus {
         count: u16,
         opts: &TxOptions,
     ) -> Result<Vec<u16>> {
-        match self.transact(
+        self.ask(
             unit,
             &Request::ReadHoldingRegisters { address, count },
             opts,
-        )? {
-            Response::Registers(values) => Ok(values),
-            other => Err(unexpected(unit, 0x03, &other)),
-        }
+            registers,
+        )
     }
 
     /// Writes one register (0x06).
@@ -442,6 +446,223 @@ impl Bus {
         self.transact(unit, &request, opts).map(|_| ())
     }
 
+    /// One request by [`Bus::transact`], its response taken apart by `pick` (which hands
+    /// back a response of another kind, one the codec never gives for the request).
+    fn ask<T>(
+        &self,
+        unit: u8,
+        request: &Request,
+        opts: &TxOptions,
+        pick: impl FnOnce(Response) -> std::result::Result<T, Response>,
+    ) -> Result<T> {
+        pick(self.transact(unit, request, opts)?).map_err(|other| Error::Frame {
+            unit,
+            function: request.function(),
+            kind: FrameError::Length(format!("unexpected response {other:?}")),
+            frame: Vec::new(),
+        })
+    }
+
+    /// Reads `count` (1..=2000) coils from `address` (0x01).
+    ///
+    /// # Errors
+    /// Any [`Error`]: bad arguments, port, timeout, frame or exception.
+    pub fn read_coils(
+        &self,
+        unit: u8,
+        address: u16,
+        count: u16,
+        opts: &TxOptions,
+    ) -> Result<Vec<bool>> {
+        self.ask(unit, &Request::ReadCoils { address, count }, opts, bits)
+    }
+
+    /// Reads `count` (1..=2000) discrete inputs from `address` (0x02).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_discrete_inputs(
+        &self,
+        unit: u8,
+        address: u16,
+        count: u16,
+        opts: &TxOptions,
+    ) -> Result<Vec<bool>> {
+        self.ask(
+            unit,
+            &Request::ReadDiscreteInputs { address, count },
+            opts,
+            bits,
+        )
+    }
+
+    /// Reads `count` (1..=125) input registers from `address` (0x04).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_input_registers(
+        &self,
+        unit: u8,
+        address: u16,
+        count: u16,
+        opts: &TxOptions,
+    ) -> Result<Vec<u16>> {
+        self.ask(
+            unit,
+            &Request::ReadInputRegisters { address, count },
+            opts,
+            registers,
+        )
+    }
+
+    /// Sets one coil on or off (0x05); the reply must echo it (0xFF00 / 0x0000).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_coil(&self, unit: u8, address: u16, value: bool, opts: &TxOptions) -> Result<()> {
+        self.transact(unit, &Request::WriteSingleCoil { address, value }, opts)
+            .map(|_| ())
+    }
+
+    /// Sets 1..=1968 consecutive coils from `address` (0x0F).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_coils(
+        &self,
+        unit: u8,
+        address: u16,
+        values: &[bool],
+        opts: &TxOptions,
+    ) -> Result<()> {
+        let request = Request::WriteMultipleCoils {
+            address,
+            values: values.to_vec(),
+        };
+        self.transact(unit, &request, opts).map(|_| ())
+    }
+
+    /// Changes bits of one register (0x16): the register becomes (its value AND `and_mask`)
+    /// OR (`or_mask` AND NOT `and_mask`); the reply must echo the request.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn mask_write_register(
+        &self,
+        unit: u8,
+        address: u16,
+        and_mask: u16,
+        or_mask: u16,
+        opts: &TxOptions,
+    ) -> Result<()> {
+        let request = Request::MaskWriteRegister {
+            address,
+            and_mask,
+            or_mask,
+        };
+        self.transact(unit, &request, opts).map(|_| ())
+    }
+
+    /// Writes `values` (1..=121) from `write_address`, then reads `read_count` (1..=125)
+    /// registers from `read_address`, in one transaction (0x17; the device writes first).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_write_registers(
+        &self,
+        unit: u8,
+        read_address: u16,
+        read_count: u16,
+        write_address: u16,
+        values: &[u16],
+        opts: &TxOptions,
+    ) -> Result<Vec<u16>> {
+        let request = Request::ReadWriteRegisters {
+            read_address,
+            read_count,
+            write_address,
+            values: values.to_vec(),
+        };
+        self.ask(unit, &request, opts, registers)
+    }
+
+    /// Reads the eight exception status outputs (0x07, a serial line function: over Modbus
+    /// TCP it goes to the unit behind the gateway like any other).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_exception_status(&self, unit: u8, opts: &TxOptions) -> Result<u8> {
+        self.ask(unit, &Request::ReadExceptionStatus, opts, |r| match r {
+            Response::ExceptionStatus(status) => Ok(status),
+            other => Err(other),
+        })
+    }
+
+    /// Runs diagnostics sub-function `sub_function` with `data` (0x08) and returns the
+    /// data of the reply after its sub-function. The reply must carry the same
+    /// sub-function, and for 0x00 (return query data, a line test) the same data.
+    /// Sub-function 0x04 (force listen only) is sent once and not awaited (no device
+    /// answers it): the result is then empty.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn diagnostics(
+        &self,
+        unit: u8,
+        sub_function: u16,
+        data: &[u8],
+        opts: &TxOptions,
+    ) -> Result<Vec<u8>> {
+        let request = Request::Diagnostics {
+            sub_function,
+            data: data.to_vec(),
+        };
+        self.ask(unit, &request, opts, |r| match r {
+            Response::Diagnostics { data, .. } => Ok(data),
+            other => Err(other),
+        })
+    }
+
+    /// The data field of a Report Server ID reply (0x11), after its byte count, as the
+    /// device sent it (its layout is the device's).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn report_server_id(&self, unit: u8, opts: &TxOptions) -> Result<Vec<u8>> {
+        self.ask(unit, &Request::ReportServerId, opts, |r| match r {
+            Response::ServerId(data) => Ok(data),
+            other => Err(other),
+        })
+    }
+
+    /// Sends function `function` (1..=127) with `data` (the PDU after the function code)
+    /// and returns the reply's bytes after its function code. With `reply_length` the
+    /// reply is read by that length; without, it ends when the line has been quiet for
+    /// the longer of t3.5 and [`BusConfig::silence`] (the one reply read by silence). An
+    /// exception reply is known at 5 bytes, as for every function.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a reserved function code or data
+    /// longer than a PDU holds, before anything is sent.
+    pub fn request(
+        &self,
+        unit: u8,
+        function: u8,
+        data: &[u8],
+        reply_length: Option<usize>,
+        opts: &TxOptions,
+    ) -> Result<Vec<u8>> {
+        let request = Request::Raw {
+            function,
+            data: data.to_vec(),
+            reply_length,
+        };
+        self.ask(unit, &request, opts, |r| match r {
+            Response::Raw(data) => Ok(data),
+            other => Err(other),
+        })
+    }
+
     /// Reads device identification objects (0x2B / 0x0E) from `object_id` on, following
     /// "more follows" until the device has sent them all.
     ///
@@ -466,10 +687,10 @@ impl Bus {
             if page > 0 && self.interrupted() {
                 return Err(interrupted(unit, &request, page));
             }
-            let page = match self.transact(unit, &request, opts)? {
-                Response::DeviceIdentification(page) => page,
-                other => return Err(unexpected(unit, 0x2B, &other)),
-            };
+            let page = self.ask(unit, &request, opts, |r| match r {
+                Response::DeviceIdentification(page) => Ok(page),
+                other => Err(other),
+            })?;
             let advanced = page.next_object > next || page.objects.keys().any(|&k| k >= next);
             all.read_code = page.read_code;
             all.conformity = page.conformity;
@@ -501,6 +722,25 @@ impl Bus {
         })
     }
 
+    /// Sets one coil on every unit (unit 0): [`Bus::broadcast`] of a 0x05.
+    ///
+    /// # Errors
+    /// As [`Bus::broadcast`].
+    pub fn broadcast_write_coil(&self, address: u16, value: bool) -> Result<()> {
+        self.broadcast(&Request::WriteSingleCoil { address, value })
+    }
+
+    /// Sets consecutive coils on every unit (unit 0): [`Bus::broadcast`] of a 0x0F.
+    ///
+    /// # Errors
+    /// As [`Bus::broadcast`].
+    pub fn broadcast_write_coils(&self, address: u16, values: &[bool]) -> Result<()> {
+        self.broadcast(&Request::WriteMultipleCoils {
+            address,
+            values: values.to_vec(),
+        })
+    }
+
     /// Sends a write `request` to every unit (unit 0). Waits for no reply, then keeps the
     /// line quiet for the turnaround delay; any answer a device sends anyway is dropped. A
     /// broadcast is a write to every unit: it waits out each unit's write interval, and the
@@ -512,9 +752,10 @@ impl Bus {
     /// [`Error::Frame`] if the local echo was garbled (not repeated: whether the units got
     /// the write is not known; the turnaround is kept all the same).
     pub fn broadcast(&self, request: &Request) -> Result<()> {
-        if !is_write(request) {
+        if !request.is_echoed_write() {
             return Err(Error::InvalidArgument(format!(
-                "only a write can be broadcast, not function {:#04x}",
+                "only a write (0x05, 0x06, 0x0F, 0x10, 0x16) can be broadcast, not function \
+                 {:#04x}",
                 request.function()
             )));
         }
@@ -613,13 +854,17 @@ impl Bus {
         let is_write = is_write(request);
         let paced = is_write && !opts.write_interval.is_zero();
         // Nothing comes back but the local echo on a Bus opened with `echo`: a garbled one
-        // is sent again, as a corrupt reply would be.
-        let unanswered = is_write && !opts.write_ack;
+        // is sent again, as a corrupt reply would be. A request no device answers (force
+        // listen only) is sent once.
+        let unanswered = !request.is_answered() || (request.is_echoed_write() && !opts.write_ack);
         let timeout = opts.timeout.unwrap_or(self.config.timeout);
-        let attempts = opts
-            .retries
-            .unwrap_or(self.config.retries)
-            .saturating_add(1);
+        let attempts = if request.is_answered() {
+            opts.retries
+                .unwrap_or(self.config.retries)
+                .saturating_add(1)
+        } else {
+            1
+        };
         let mut last_error = None;
         let mut timed_out = false;
         let result = 'attempts: {
@@ -636,7 +881,7 @@ impl Bus {
                 }
                 let outcome = if unanswered {
                     self.send(st, frame, request, timeout)
-                        .map(|_| (Reply::Normal(unanswered_write(request)), Vec::new()))
+                        .map(|_| (Reply::Normal(request.assumed_reply()), Vec::new()))
                 } else {
                     self.attempt(st, unit, request, frame, timeout, opts.window_from_start)
                 };
@@ -811,13 +1056,19 @@ impl Bus {
                 // Not a reply to this request: take what follows until the line is quiet, so
                 // the whole bad frame is reported and nothing of it is left for the next call.
                 Needed::Unknown => (chunk.len(), self.end_of_frame_silence()),
+                // A reply of no known length: it is over once the line has been quiet for
+                // the silence gap.
+                Needed::Silence => (chunk.len(), self.reply_silence()),
             };
             let want = want
                 .min(chunk.len())
                 .min(crate::codec::rtu::MAX_ADU.saturating_sub(buf.len()));
             let n = self.read_within(transport, &mut chunk[..want], wait)?;
             if n == 0 {
-                if matches!(needed, Needed::Unknown) || other.is_some() || want == 0 {
+                if matches!(needed, Needed::Unknown | Needed::Silence)
+                    || other.is_some()
+                    || want == 0
+                {
                     break;
                 }
                 // Nothing came since `last_byte` (or since the request ended): the line has
@@ -1042,6 +1293,12 @@ impl Bus {
         self.config.line.t3_5().max(Duration::from_millis(2))
     }
 
+    /// The quiet gap that ends a reply of no known length: the end-of-frame silence, or
+    /// [`BusConfig::silence`] if longer.
+    fn reply_silence(&self) -> Duration {
+        self.end_of_frame_silence().max(self.config.silence)
+    }
+
     /// Whether `received`, a complete reply to `frame` by its length that failed to decode,
     /// is the request's own echo (in full, or as far as a reply's length took it): an
     /// adapter that echoes on a Bus not opened with `echo`. Never for a Bus that reads the
@@ -1186,12 +1443,9 @@ fn late_reply_of<'a>(late: &'a [Late], unit: u8, buf: &[u8]) -> Option<&'a Late>
     late.iter().find(|l| l.unit == first && l.unit != unit)
 }
 
-/// Whether `request` writes (reads are always answered; writes are paced).
+/// Whether `request` may write (reads are always answered; writes are paced).
 fn is_write(request: &Request) -> bool {
-    !matches!(
-        request,
-        Request::ReadHoldingRegisters { .. } | Request::ReadDeviceIdentification { .. }
-    )
+    !request.is_read()
 }
 
 fn check_config(config: &BusConfig) -> Result<()> {
@@ -1228,27 +1482,18 @@ fn frame_error(unit: u8, function: u8, kind: FrameError, frame: Vec<u8>) -> Erro
     }
 }
 
-/// What an unanswered write is taken to have done: exactly what was asked.
-fn unanswered_write(request: &Request) -> Response {
-    match request {
-        Request::WriteSingleRegister { address, value } => Response::WriteSingleRegister {
-            address: *address,
-            value: *value,
-        },
-        Request::WriteMultipleRegisters { address, values } => Response::WriteMultipleRegisters {
-            address: *address,
-            count: values.len() as u16,
-        },
-        // Reads are always answered; only writes come here.
-        _ => Response::Registers(Vec::new()),
+/// The registers of a read's response ([`Bus::ask`]).
+fn registers(response: Response) -> std::result::Result<Vec<u16>, Response> {
+    match response {
+        Response::Registers(values) => Ok(values),
+        other => Err(other),
     }
 }
 
-fn unexpected(unit: u8, function: u8, response: &Response) -> Error {
-    Error::Frame {
-        unit,
-        function,
-        kind: FrameError::Length(format!("unexpected response {response:?}")),
-        frame: Vec::new(),
+/// The bits of a coil or input read's response ([`Bus::ask`]).
+fn bits(response: Response) -> std::result::Result<Vec<bool>, Response> {
+    match response {
+        Response::Bits(values) => Ok(values),
+        other => Err(other),
     }
 }

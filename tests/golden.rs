@@ -1,4 +1,5 @@
-//! Every example frame of the five manuals (tests/vectors/rtu.json) through the codec.
+//! Every example frame of the five manuals and of the Modbus application protocol
+//! specification (tests/vectors/rtu.json) through the codec.
 
 use benchbus::codec::{
     check_echo, decode_reply, encode_request, reply_needed, Echo, FrameError, Needed, Reply,
@@ -27,6 +28,21 @@ fn registers(v: &Value) -> Vec<u16> {
         .collect()
 }
 
+fn bits(v: &Value) -> Vec<bool> {
+    v["values"]
+        .as_array()
+        .unwrap_or_else(|| panic!("values missing in {v}"))
+        .iter()
+        .map(|x| x.as_bool().expect("bool value"))
+        .collect()
+}
+
+fn bytes_of(v: &Value, key: &str) -> Vec<u8> {
+    hex(v[key]
+        .as_str()
+        .unwrap_or_else(|| panic!("{key} missing in {v}")))
+}
+
 fn request(r: &Value) -> Request {
     match r["function"].as_str().expect("function") {
         "read_holding_registers" => Request::ReadHoldingRegisters {
@@ -45,6 +61,42 @@ fn request(r: &Value) -> Request {
             read_code: num(r, "read_code") as u8,
             object_id: num(r, "object_id") as u8,
         },
+        "read_coils" => Request::ReadCoils {
+            address: num(r, "address") as u16,
+            count: num(r, "count") as u16,
+        },
+        "read_discrete_inputs" => Request::ReadDiscreteInputs {
+            address: num(r, "address") as u16,
+            count: num(r, "count") as u16,
+        },
+        "read_input_registers" => Request::ReadInputRegisters {
+            address: num(r, "address") as u16,
+            count: num(r, "count") as u16,
+        },
+        "write_coil" => Request::WriteSingleCoil {
+            address: num(r, "address") as u16,
+            value: r["value"].as_bool().expect("coil value"),
+        },
+        "write_coils" => Request::WriteMultipleCoils {
+            address: num(r, "address") as u16,
+            values: bits(r),
+        },
+        "mask_write_register" => Request::MaskWriteRegister {
+            address: num(r, "address") as u16,
+            and_mask: num(r, "and_mask") as u16,
+            or_mask: num(r, "or_mask") as u16,
+        },
+        "read_write_registers" => Request::ReadWriteRegisters {
+            read_address: num(r, "read_address") as u16,
+            read_count: num(r, "read_count") as u16,
+            write_address: num(r, "write_address") as u16,
+            values: registers(r),
+        },
+        "read_exception_status" => Request::ReadExceptionStatus,
+        "diagnostics" => Request::Diagnostics {
+            sub_function: num(r, "sub_function") as u16,
+            data: bytes_of(r, "data"),
+        },
         other => panic!("unknown function {other}"),
     }
 }
@@ -59,6 +111,20 @@ fn every_vector_encodes_and_decodes_as_the_manual_says() {
     let doc: Value = serde_json::from_str(&text).expect("json");
     let vectors = doc["vectors"].as_array().expect("vectors");
     assert!(vectors.len() >= 40, "only {} vectors", vectors.len());
+    // The specification's examples: one for each function it gives an example of.
+    let spec: std::collections::BTreeSet<u8> = vectors
+        .iter()
+        .filter(|v| {
+            v["source"]
+                .as_str()
+                .is_some_and(|s| s.starts_with("Modbus Application"))
+        })
+        .map(|v| request(&v["request"]).function())
+        .collect();
+    assert_eq!(
+        spec.into_iter().collect::<Vec<_>>(),
+        [0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x16, 0x17]
+    );
     for v in vectors {
         let id = v["id"].as_str().expect("id");
         let unit = num(v, "unit") as u8;
@@ -123,6 +189,25 @@ fn every_vector_encodes_and_decodes_as_the_manual_says() {
                         }
                         resp.clone()
                     }
+                    "bits" => Response::Bits(bits(result)),
+                    "write_coil" => Response::WriteSingleCoil {
+                        address: num(result, "address") as u16,
+                        value: num(result, "value") as u16,
+                    },
+                    "write_coils" => Response::WriteMultipleCoils {
+                        address: num(result, "address") as u16,
+                        count: num(result, "count") as u16,
+                    },
+                    "mask_write" => Response::MaskWriteRegister {
+                        address: num(result, "address") as u16,
+                        and_mask: num(result, "and_mask") as u16,
+                        or_mask: num(result, "or_mask") as u16,
+                    },
+                    "exception_status" => Response::ExceptionStatus(num(result, "status") as u8),
+                    "diagnostics" => Response::Diagnostics {
+                        sub_function: num(result, "sub_function") as u16,
+                        data: bytes_of(result, "data"),
+                    },
                     other => panic!("{id}: unknown kind {other}"),
                 };
                 assert_eq!(resp, expected, "{id}");

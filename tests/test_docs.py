@@ -1,4 +1,5 @@
-"""The README's examples and examples/*.py run as written, on simulated devices."""
+"""The README's examples and examples/*.py run as written, on simulated devices (and one
+on a third-party server)."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from pymodbus_peer import pymodbus_server
 
 import benchbus as bb
 from benchbus.sim import DriveDevice, RegisterDevice, Simulator
@@ -34,6 +36,7 @@ PICKED_BY = (
     "TaisongDevice(",
     "bus.poll(",
     "tcp://192.168.1.50:502",
+    "bus.read_coils(",
     "bb.from_registers(",
 )
 
@@ -69,6 +72,22 @@ def test_readme_networks_example(capsys: pytest.CaptureFixture[str]) -> None:
         assert sim.requests, "it went through the simulated gateway"
     assert capsys.readouterr().out.splitlines() == ["1500"]
     assert drive.peek(0x2001) == 1500
+
+
+def test_readme_functions_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """Every table's example, on a third-party server (pymodbus's, over RTU frames) in place
+    of the device on /dev/ttyUSB1."""
+    (block,) = [b for b in readme_blocks() if "bus.read_coils(" in b]
+    with pymodbus_server(rtu=True) as url:
+        exec(block.replace('"/dev/ttyUSB1", baudrate=9600', f'"{url}"'), {})
+    assert capsys.readouterr().out.splitlines() == [
+        "[True, False, True, True]",
+        "[True, True, True, True, True, True]",
+        "[False, True, False, True]",
+        "[1000, 1001]",
+        "0x17",
+        "02 03 e8",
+    ]
 
 
 def test_readme_simulator_example() -> None:

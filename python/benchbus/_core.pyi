@@ -175,6 +175,7 @@ class Bus:
         echo: bool = False,
         rs485: bool = False,
         rts_delay: Sequence[float] | None = None,
+        silence: float = 0.0,
     ) -> Self:
         """Open ``port`` (``/dev/ttyUSB0``, ``tcp://HOST[:PORT]`` or ``rtu+tcp://HOST:PORT``)
         at the given line format (the serial line's; unused by ``tcp://``).
@@ -221,9 +222,79 @@ class Bus:
         On Linux every serial port is also asked for its driver's low-latency mode (an FTDI
         adapter then uses a 1 ms latency timer); a port without it opens as before
         (:func:`benchbus.doctor` reports which).
+
+        ``silence`` (seconds, default 0: t3.5) is the quiet gap that ends the reply of a raw
+        :meth:`request` without ``reply_length``, when longer than t3.5: raise it for an
+        adapter that delivers replies in bursts (an FTDI chip's 16 ms latency timer splits a
+        reply into chunks). Every other reply is read by its length and never waits for it.
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""
+    def read_coils(self, unit: int, address: int, count: int) -> list[bool]:
+        """Read ``count`` (1..2000) coils from ``address`` (function 0x01)."""
+    def read_discrete_inputs(self, unit: int, address: int, count: int) -> list[bool]:
+        """Read ``count`` (1..2000) discrete inputs from ``address`` (function 0x02)."""
+    def read_input_registers(self, unit: int, address: int, count: int) -> list[int]:
+        """Read ``count`` (1..125) input registers from ``address`` (function 0x04)."""
+    def write_coil(self, unit: int, address: int, value: bool) -> None:
+        """Set one coil on (True) or off (False) (function 0x05). The reply must echo the
+        request (0xFF00 / 0x0000), else FrameError. ``value`` must be a bool (TypeError)."""
+    def write_coils(self, unit: int, address: int, values: Iterable[bool]) -> None:
+        """Set 1..1968 consecutive coils from ``address`` (function 0x0F), each a bool."""
+    def mask_write_register(self, unit: int, address: int, and_mask: int, or_mask: int) -> None:
+        """Change bits of one register (function 0x16): it becomes ``(value & and_mask) |
+        (or_mask & ~and_mask)``. The reply must echo the request, else FrameError."""
+    def read_write_registers(
+        self,
+        unit: int,
+        read_address: int,
+        read_count: int,
+        write_address: int,
+        values: Iterable[int],
+    ) -> list[int]:
+        """Write ``values`` (1..121) from ``write_address``, then read ``read_count``
+        (1..125) registers from ``read_address``, in one transaction (function 0x17; the
+        device writes first)."""
+    def read_exception_status(self, unit: int) -> int:
+        """The unit's eight exception status outputs (function 0x07), as an int 0..255.
+
+        A serial line function in the specification: over ``tcp://`` it goes to the unit
+        behind the gateway like any other; a gateway that does not forward it answers
+        exception 1 (ModbusException). The same holds for :meth:`diagnostics` and
+        :meth:`report_server_id`."""
+    def diagnostics(
+        self, unit: int, sub_function: int, data: bytes | bytearray = b"\x00\x00"
+    ) -> bytes:
+        """Run diagnostics sub-function ``sub_function`` with ``data`` (function 0x08) and
+        return the reply's data after its sub-function.
+
+        The reply must carry the same sub-function and, like every sub-function's, as many
+        data bytes as the request; sub-function 0x00 (return query data) is a line test:
+        the reply must echo the data exactly (else FrameError). Sub-function 0x04 (force
+        listen only) gets no reply: it is sent once, not awaited, not retried, and returns
+        ``b""``; the unit then answers nothing until restarted (sub-function 0x01)."""
+    def report_server_id(self, unit: int) -> bytes:
+        """The data field of the unit's Report Server ID reply (function 0x11), after its
+        byte count, as the device sent it (its layout is the device's: typically an id, a
+        run indicator 0x00 / 0xFF, then free text)."""
+    def request(
+        self,
+        unit: int,
+        function: int,
+        data: bytes | bytearray,
+        *,
+        reply_length: int | None = None,
+    ) -> bytes:
+        """Send a raw PDU: function ``function`` (1..127) and ``data`` (at most 252 bytes),
+        and return the reply's bytes after its function code.
+
+        With ``reply_length`` (the reply's bytes after the function code) the reply is read
+        by that length, as every other function's is. Without it the reply ends when the
+        line has been quiet for t3.5, or the Bus's ``silence`` if longer: the one slower
+        path, for replies whose length is not known in advance. An exception reply
+        (function | 0x80) is known at 5 bytes and raises ModbusException. Retries, stats,
+        the wire log and errors are as for any function. ValueError for function 0 or 0x80
+        and up (exception replies), or data too long, before anything is sent."""
     def write_register(
         self,
         unit: int,
@@ -259,6 +330,11 @@ class Bus:
         :meth:`read_device_identification`."""
     def broadcast_write_register(self, address: int, value: int) -> None:
         """Write one register on every unit (unit 0); waits no reply."""
+    def broadcast_write_coil(self, address: int, value: bool) -> None:
+        """Set one coil on every unit (unit 0, function 0x05); waits no reply."""
+    def broadcast_write_coils(self, address: int, values: Iterable[bool]) -> None:
+        """Set 1..1968 consecutive coils from ``address`` on every unit (unit 0, function
+        0x0F); waits no reply."""
     def broadcast_write_registers(self, address: int, values: Iterable[int]) -> None:
         """Write 1..123 consecutive registers from ``address`` on every unit (unit 0,
         function 0x10); waits no reply."""
@@ -361,6 +437,10 @@ class Bus:
     @property
     def turnaround(self) -> float:
         """Quiet time after a broadcast, in seconds."""
+    @property
+    def silence(self) -> float:
+        """The quiet gap, in seconds, that ends a raw :meth:`request`'s reply read without
+        ``reply_length`` (see ``silence=``; t3.5 when that is longer)."""
     @property
     def char_time(self) -> float:
         """Time one character takes on the wire, in seconds."""

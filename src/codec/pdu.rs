@@ -1,13 +1,36 @@
 //! Protocol data units: the requests a master sends and the replies it gets back.
 //!
 //! Function codes and limits are those of the Modbus Application Protocol Specification
-//! V1.1b3 (section 6.3 read holding registers, 6.6 write single register, 6.12 write multiple
-//! registers, 6.21 read device identification, section 7 exception responses).
+//! V1.1b3, section 6: 6.1 read coils, 6.2 read discrete inputs, 6.3 read holding registers,
+//! 6.4 read input registers, 6.5 write single coil, 6.6 write single register, 6.7 read
+//! exception status, 6.8 diagnostics, 6.11 write multiple coils, 6.12 write multiple
+//! registers, 6.13 report server id, 6.16 mask write register, 6.17 read/write multiple
+//! registers, 6.21 read device identification; section 7 exception responses.
 
 use std::collections::BTreeMap;
 
+/// Function 0x01, Read Coils (spec 6.1).
+pub const READ_COILS: u8 = 0x01;
+/// Function 0x02, Read Discrete Inputs (spec 6.2).
+pub const READ_DISCRETE_INPUTS: u8 = 0x02;
 /// Function 0x03, Read Holding Registers (spec 6.3).
 pub const READ_HOLDING_REGISTERS: u8 = 0x03;
+/// Function 0x04, Read Input Registers (spec 6.4).
+pub const READ_INPUT_REGISTERS: u8 = 0x04;
+/// Function 0x05, Write Single Coil (spec 6.5).
+pub const WRITE_SINGLE_COIL: u8 = 0x05;
+/// Function 0x07, Read Exception Status (spec 6.7, serial line only).
+pub const READ_EXCEPTION_STATUS: u8 = 0x07;
+/// Function 0x08, Diagnostics (spec 6.8, serial line only).
+pub const DIAGNOSTICS: u8 = 0x08;
+/// Function 0x0F, Write Multiple Coils (spec 6.11).
+pub const WRITE_MULTIPLE_COILS: u8 = 0x0F;
+/// Function 0x11, Report Server ID (spec 6.13, serial line only).
+pub const REPORT_SERVER_ID: u8 = 0x11;
+/// Function 0x16, Mask Write Register (spec 6.16).
+pub const MASK_WRITE_REGISTER: u8 = 0x16;
+/// Function 0x17, Read/Write Multiple Registers (spec 6.17).
+pub const READ_WRITE_REGISTERS: u8 = 0x17;
 /// Function 0x06, Write Single Register (spec 6.6).
 pub const WRITE_SINGLE_REGISTER: u8 = 0x06;
 /// Function 0x10, Write Multiple Registers (spec 6.12).
@@ -21,6 +44,22 @@ pub const MEI_READ_DEVICE_ID: u8 = 0x0E;
 pub const MAX_READ_COUNT: u16 = 125;
 /// Most registers one 0x10 request may write (spec 6.12: 1 to 123).
 pub const MAX_WRITE_COUNT: u16 = 123;
+/// Most coils or discrete inputs one 0x01 / 0x02 request may read (spec 6.1, 6.2: 1 to 2000).
+pub const MAX_READ_BITS: u16 = 2000;
+/// Most coils one 0x0F request may write (spec 6.11: 1 to 1968).
+pub const MAX_WRITE_BITS: u16 = 1968;
+/// Most registers one 0x17 request may write (spec 6.17: 1 to 121; it reads 1 to 125).
+pub const MAX_READ_WRITE_COUNT: u16 = 121;
+/// Diagnostics sub-function 0x00, Return Query Data: the reply echoes the request (a line
+/// test).
+pub const DIAG_RETURN_QUERY_DATA: u16 = 0x0000;
+/// Diagnostics sub-function 0x04, Force Listen Only Mode: the device answers nothing, to
+/// this or any later request, until a restart (sub-function 0x01).
+pub const DIAG_FORCE_LISTEN_ONLY: u16 = 0x0004;
+/// Most bytes a PDU holds (spec 4.1: 253, the longest RTU frame but unit and CRC).
+pub const MAX_PDU: usize = 253;
+/// Most data bytes after the function code, in a request or a reply.
+pub const MAX_PDU_DATA: usize = MAX_PDU - 1;
 
 /// A request PDU, validated when built by [`Request::validate`].
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -53,6 +92,85 @@ pub enum Request {
         /// First object to read.
         object_id: u8,
     },
+    /// 0x01: read `count` coils from `address`.
+    ReadCoils {
+        /// First coil address.
+        address: u16,
+        /// Number of coils, 1..=2000.
+        count: u16,
+    },
+    /// 0x02: read `count` discrete inputs from `address`.
+    ReadDiscreteInputs {
+        /// First input address.
+        address: u16,
+        /// Number of inputs, 1..=2000.
+        count: u16,
+    },
+    /// 0x04: read `count` input registers from `address`.
+    ReadInputRegisters {
+        /// First register address.
+        address: u16,
+        /// Number of registers, 1..=125.
+        count: u16,
+    },
+    /// 0x05: set one coil on (sent as 0xFF00) or off (0x0000).
+    WriteSingleCoil {
+        /// Coil address.
+        address: u16,
+        /// On or off.
+        value: bool,
+    },
+    /// 0x0F: set consecutive coils.
+    WriteMultipleCoils {
+        /// First coil address.
+        address: u16,
+        /// Values, 1..=1968 of them.
+        values: Vec<bool>,
+    },
+    /// 0x16: register = (register AND `and_mask`) OR (`or_mask` AND NOT `and_mask`).
+    MaskWriteRegister {
+        /// Register address.
+        address: u16,
+        /// The bits kept.
+        and_mask: u16,
+        /// The bits set among those not kept.
+        or_mask: u16,
+    },
+    /// 0x17: write `values` from `write_address`, then read `read_count` registers from
+    /// `read_address`, in one transaction.
+    ReadWriteRegisters {
+        /// First register read.
+        read_address: u16,
+        /// Number of registers read, 1..=125.
+        read_count: u16,
+        /// First register written.
+        write_address: u16,
+        /// Values written, 1..=121 of them.
+        values: Vec<u16>,
+    },
+    /// 0x07: read the device's eight exception status outputs.
+    ReadExceptionStatus,
+    /// 0x08: a diagnostics sub-function and its data. The reply has the request's length
+    /// (spec 6.8: every sub-function answers its sub-function code and as many data bytes);
+    /// sub-function 0x04 (force listen only) is not answered.
+    Diagnostics {
+        /// Sub-function code.
+        sub_function: u16,
+        /// Data after the sub-function, at most 250 bytes.
+        data: Vec<u8>,
+    },
+    /// 0x11: report server id.
+    ReportServerId,
+    /// Any function code 1..=127 with its data as given: vendor functions, file records.
+    Raw {
+        /// Function code, 1..=127.
+        function: u8,
+        /// Bytes after the function code, at most 252.
+        data: Vec<u8>,
+        /// Bytes the reply carries after its function code, if known; None: the reply
+        /// ends when the line falls quiet ([`super::Needed::Silence`]).
+        reply_length: Option<usize>,
+    },
 }
 
 /// Why a request cannot be built; raised before anything is sent.
@@ -77,6 +195,21 @@ pub enum RequestError {
     /// A Read Device ID code other than 1..=4.
     #[error("read device id code must be 1 to 4, got {0}")]
     ReadCode(u8),
+    /// A function code that is not a request's: 0, or 0x80 and up (an exception reply's).
+    #[error(
+        "function must be 1 to 127 (0x01 to 0x7F; 0x80 and up are exception replies), got {0}"
+    )]
+    Function(u8),
+    /// More data than a PDU holds.
+    #[error("{what} must be at most {max} bytes, got {len}")]
+    DataLength {
+        /// Which bytes: the request's data, or the reply's.
+        what: &'static str,
+        /// Their length.
+        len: usize,
+        /// The most the PDU holds.
+        max: usize,
+    },
 }
 
 impl Request {
@@ -87,6 +220,113 @@ impl Request {
             Request::WriteSingleRegister { .. } => WRITE_SINGLE_REGISTER,
             Request::WriteMultipleRegisters { .. } => WRITE_MULTIPLE_REGISTERS,
             Request::ReadDeviceIdentification { .. } => ENCAPSULATED_INTERFACE,
+            Request::ReadCoils { .. } => READ_COILS,
+            Request::ReadDiscreteInputs { .. } => READ_DISCRETE_INPUTS,
+            Request::ReadInputRegisters { .. } => READ_INPUT_REGISTERS,
+            Request::WriteSingleCoil { .. } => WRITE_SINGLE_COIL,
+            Request::WriteMultipleCoils { .. } => WRITE_MULTIPLE_COILS,
+            Request::MaskWriteRegister { .. } => MASK_WRITE_REGISTER,
+            Request::ReadWriteRegisters { .. } => READ_WRITE_REGISTERS,
+            Request::ReadExceptionStatus => READ_EXCEPTION_STATUS,
+            Request::Diagnostics { .. } => DIAGNOSTICS,
+            Request::ReportServerId => REPORT_SERVER_ID,
+            Request::Raw { function, .. } => *function,
+        }
+    }
+
+    /// Whether the device answers this request: all but diagnostics sub-function 0x04
+    /// (force listen only), which is sent once and not awaited.
+    pub fn is_answered(&self) -> bool {
+        !matches!(
+            self,
+            Request::Diagnostics {
+                sub_function: DIAG_FORCE_LISTEN_ONLY,
+                ..
+            }
+        )
+    }
+
+    /// Whether this request only reads (nothing in the device changes): reads are never
+    /// paced as writes. A raw request may write, so it is not one.
+    pub fn is_read(&self) -> bool {
+        matches!(
+            self,
+            Request::ReadHoldingRegisters { .. }
+                | Request::ReadDeviceIdentification { .. }
+                | Request::ReadCoils { .. }
+                | Request::ReadDiscreteInputs { .. }
+                | Request::ReadInputRegisters { .. }
+                | Request::ReadExceptionStatus
+                | Request::ReportServerId
+                | Request::Diagnostics { .. }
+        )
+    }
+
+    /// Whether this is a write whose reply only echoes it (0x05, 0x06, 0x0F, 0x10, 0x16):
+    /// what may be broadcast, and what a device set to answer no write leaves unanswered.
+    pub fn is_echoed_write(&self) -> bool {
+        matches!(
+            self,
+            Request::WriteSingleRegister { .. }
+                | Request::WriteMultipleRegisters { .. }
+                | Request::WriteSingleCoil { .. }
+                | Request::WriteMultipleCoils { .. }
+                | Request::MaskWriteRegister { .. }
+        )
+    }
+
+    /// The byte count a read reply must carry (0x01, 0x02, 0x03, 0x04, 0x17), known from
+    /// the request.
+    pub fn reply_byte_count(&self) -> Option<usize> {
+        match self {
+            Request::ReadHoldingRegisters { count, .. }
+            | Request::ReadInputRegisters { count, .. }
+            | Request::ReadWriteRegisters {
+                read_count: count, ..
+            } => Some(2 * usize::from(*count)),
+            Request::ReadCoils { count, .. } | Request::ReadDiscreteInputs { count, .. } => {
+                Some(usize::from(*count).div_ceil(8))
+            }
+            _ => None,
+        }
+    }
+
+    /// The reply that a write taken as done without an answer is deemed to have got (a
+    /// device set to answer no write, force listen only): its echo.
+    pub fn assumed_reply(&self) -> Response {
+        match self {
+            Request::WriteSingleRegister { address, value } => Response::WriteSingleRegister {
+                address: *address,
+                value: *value,
+            },
+            Request::WriteMultipleRegisters { address, values } => {
+                Response::WriteMultipleRegisters {
+                    address: *address,
+                    count: count_of(values.len()),
+                }
+            }
+            Request::WriteSingleCoil { address, value } => Response::WriteSingleCoil {
+                address: *address,
+                value: coil_word(*value),
+            },
+            Request::WriteMultipleCoils { address, values } => Response::WriteMultipleCoils {
+                address: *address,
+                count: count_of(values.len()),
+            },
+            Request::MaskWriteRegister {
+                address,
+                and_mask,
+                or_mask,
+            } => Response::MaskWriteRegister {
+                address: *address,
+                and_mask: *and_mask,
+                or_mask: *or_mask,
+            },
+            Request::Diagnostics { sub_function, .. } => Response::Diagnostics {
+                sub_function: *sub_function,
+                data: Vec::new(),
+            },
+            _ => Response::Raw(Vec::new()),
         }
     }
 
@@ -116,6 +356,43 @@ impl Request {
                 1..=4 => Ok(()),
                 _ => Err(RequestError::ReadCode(*read_code)),
             },
+            Request::ReadCoils { address, count }
+            | Request::ReadDiscreteInputs { address, count } => {
+                span(*address, usize::from(*count), MAX_READ_BITS)
+            }
+            Request::ReadInputRegisters { address, count } => {
+                span(*address, usize::from(*count), MAX_READ_COUNT)
+            }
+            Request::WriteSingleCoil { .. }
+            | Request::MaskWriteRegister { .. }
+            | Request::ReadExceptionStatus
+            | Request::ReportServerId => Ok(()),
+            Request::WriteMultipleCoils { address, values } => {
+                span(*address, values.len(), MAX_WRITE_BITS)
+            }
+            Request::ReadWriteRegisters {
+                read_address,
+                read_count,
+                write_address,
+                values,
+            } => {
+                span(*read_address, usize::from(*read_count), MAX_READ_COUNT)?;
+                span(*write_address, values.len(), MAX_READ_WRITE_COUNT)
+            }
+            Request::Diagnostics { data, .. } => {
+                data_within("diagnostics data", data.len(), MAX_PDU_DATA - 2)
+            }
+            Request::Raw {
+                function,
+                data,
+                reply_length,
+            } => {
+                if !(1..0x80).contains(function) {
+                    return Err(RequestError::Function(*function));
+                }
+                data_within("data", data.len(), MAX_PDU_DATA)?;
+                data_within("reply_length", reply_length.unwrap_or(0), MAX_PDU_DATA)
+            }
         }
     }
 
@@ -148,8 +425,96 @@ impl Request {
             } => {
                 out.extend_from_slice(&[MEI_READ_DEVICE_ID, *read_code, *object_id]);
             }
+            Request::ReadCoils { address, count }
+            | Request::ReadDiscreteInputs { address, count }
+            | Request::ReadInputRegisters { address, count } => {
+                words(out, &[*address, *count]);
+            }
+            Request::WriteSingleCoil { address, value } => {
+                words(out, &[*address, coil_word(*value)]);
+            }
+            Request::WriteMultipleCoils { address, values } => {
+                // validate() bounds the count to 1968, so the byte count fits a byte.
+                let values = &values[..values.len().min(usize::from(MAX_WRITE_BITS))];
+                words(out, &[*address, count_of(values.len())]);
+                let packed = pack_bits(values);
+                out.push(packed.len() as u8);
+                out.extend_from_slice(&packed);
+            }
+            Request::MaskWriteRegister {
+                address,
+                and_mask,
+                or_mask,
+            } => words(out, &[*address, *and_mask, *or_mask]),
+            Request::ReadWriteRegisters {
+                read_address,
+                read_count,
+                write_address,
+                values,
+            } => {
+                // validate() bounds the count to 121, so the byte count fits a byte.
+                let values = &values[..values.len().min(usize::from(MAX_READ_WRITE_COUNT))];
+                let count = count_of(values.len());
+                words(out, &[*read_address, *read_count, *write_address, count]);
+                out.push((count * 2) as u8);
+                words(out, values);
+            }
+            Request::ReadExceptionStatus | Request::ReportServerId => {}
+            Request::Diagnostics { sub_function, data } => {
+                words(out, &[*sub_function]);
+                out.extend_from_slice(data);
+            }
+            Request::Raw { data, .. } => out.extend_from_slice(data),
         }
     }
+}
+
+/// Appends `values` big-endian, as every Modbus field of two bytes goes.
+fn words(out: &mut Vec<u8>, values: &[u16]) {
+    for v in values {
+        out.extend_from_slice(&v.to_be_bytes());
+    }
+}
+
+/// A length already bounded by validate() as a u16 count.
+fn count_of(len: usize) -> u16 {
+    u16::try_from(len).unwrap_or(u16::MAX)
+}
+
+/// The value field of a 0x05 request: 0xFF00 on, 0x0000 off (spec 6.5).
+pub fn coil_word(on: bool) -> u16 {
+    if on {
+        0xFF00
+    } else {
+        0x0000
+    }
+}
+
+/// Bits packed eight to a byte, the first in the lowest bit of the first byte, the last
+/// byte padded with zeros (spec 6.1, 6.11).
+pub fn pack_bits(bits: &[bool]) -> Vec<u8> {
+    bits.chunks(8)
+        .map(|c| {
+            c.iter()
+                .enumerate()
+                .fold(0u8, |byte, (i, &on)| byte | (u8::from(on) << i))
+        })
+        .collect()
+}
+
+/// The first `count` bits of `bytes`, unpacked as [`pack_bits`] packs them.
+pub fn unpack_bits(bytes: &[u8], count: usize) -> Vec<bool> {
+    (0..count)
+        .map(|i| bytes.get(i / 8).is_some_and(|b| b >> (i % 8) & 1 == 1))
+        .collect()
+}
+
+/// `len` bytes of `what`, refused past `max`.
+fn data_within(what: &'static str, len: usize, max: usize) -> Result<(), RequestError> {
+    if len > max {
+        return Err(RequestError::DataLength { what, len, max });
+    }
+    Ok(())
 }
 
 /// A normal (non-exception) reply, decoded.
@@ -173,6 +538,45 @@ pub enum Response {
     },
     /// 0x2B / 0x0E: one page of device identification objects.
     DeviceIdentification(DeviceIdentification),
+    /// 0x01 / 0x02: the coils or inputs read, as many as the request asked for.
+    Bits(Vec<bool>),
+    /// 0x05: the address and value field the device sent back (0xFF00 on, 0x0000 off).
+    WriteSingleCoil {
+        /// Address carried in the reply.
+        address: u16,
+        /// Value field carried in the reply.
+        value: u16,
+    },
+    /// 0x0F: the address and count the device sent back.
+    WriteMultipleCoils {
+        /// Address carried in the reply.
+        address: u16,
+        /// Count carried in the reply.
+        count: u16,
+    },
+    /// 0x16: the address and masks the device sent back.
+    MaskWriteRegister {
+        /// Address carried in the reply.
+        address: u16,
+        /// AND mask carried in the reply.
+        and_mask: u16,
+        /// OR mask carried in the reply.
+        or_mask: u16,
+    },
+    /// 0x07: the eight exception status outputs.
+    ExceptionStatus(u8),
+    /// 0x08: the sub-function and data the device sent back.
+    Diagnostics {
+        /// Sub-function carried in the reply.
+        sub_function: u16,
+        /// Data after the sub-function.
+        data: Vec<u8>,
+    },
+    /// 0x11: the data field after the byte count, as the device sent it (server id, run
+    /// indicator and whatever else the device puts there).
+    ServerId(Vec<u8>),
+    /// A raw request's reply: the bytes after the function code.
+    Raw(Vec<u8>),
 }
 
 /// One reply to Read Device Identification (spec 6.21).

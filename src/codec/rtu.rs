@@ -4,8 +4,12 @@
 //! Modbus over Serial Line V1.02, 2.5.1 (RTU frame: at most 256 bytes) and 6.2.2 (CRC-16,
 //! polynomial 0xA001 reflected, initial value 0xFFFF, low byte sent first).
 
-use super::pdu::{DeviceIdentification, Request, Response, MEI_READ_DEVICE_ID};
+use super::pdu::{
+    coil_word, unpack_bits, DeviceIdentification, Request, Response, DIAG_RETURN_QUERY_DATA,
+    MEI_READ_DEVICE_ID,
+};
 use super::Framing;
+use crate::error::hex;
 use crc::{Crc, CRC_16_MODBUS};
 
 /// Longest RTU frame (serial line spec 2.5.1).
@@ -56,13 +60,20 @@ pub enum Needed {
     /// the request does not call for, or a length past the longest RTU frame): the length is
     /// unknown; read until the line is silent.
     Unknown,
+    /// A reply whose length its bytes do not tell (a raw request's, without a reply
+    /// length): it ends when the line has been quiet for the silence gap, and is then
+    /// decoded.
+    Silence,
 }
 
 /// How many more bytes a reply to `request` needs, given the bytes `buf` received so far.
 ///
-/// An exception reply is known after two bytes (5 bytes long); a 0x03 reply after three
-/// (its byte count); 0x06 and 0x10 replies are 8 bytes; a Read Device Identification reply
-/// is walked object by object.
+/// An exception reply is known after two bytes (5 bytes long), for every function; a read
+/// reply (0x01..0x04, 0x17) after three (its byte count, which must be the request's), as a
+/// Report Server ID reply (0x11, any byte count); 0x05, 0x06, 0x0F and 0x10 replies are 8
+/// bytes, 0x16 10, 0x07 5, a Diagnostics reply (0x08) the request's length; a Read Device
+/// Identification reply is walked object by object; a raw request's reply is its
+/// `reply_length` after the function code, or read until the line is silent.
 pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
     needed_in(Framing::Rtu, request, buf)
 }
@@ -91,13 +102,37 @@ pub(super) fn needed_in(framing: Framing, request: &Request, buf: &[u8]) -> Need
         return Needed::Unknown;
     } else {
         match request {
-            Request::ReadHoldingRegisters { count, .. } => match buf.get(2) {
+            Request::ReadHoldingRegisters { .. }
+            | Request::ReadInputRegisters { .. }
+            | Request::ReadCoils { .. }
+            | Request::ReadDiscreteInputs { .. }
+            | Request::ReadWriteRegisters { .. }
+            | Request::ReportServerId => match buf.get(2) {
                 None => return Needed::More(exception - buf.len()),
                 // Not the length this request's reply has: see `check_header`.
-                Some(&n) if usize::from(n) != 2 * usize::from(*count) => return Needed::Unknown,
+                Some(&n)
+                    if request
+                        .reply_byte_count()
+                        .is_some_and(|b| b != usize::from(n)) =>
+                {
+                    return Needed::Unknown
+                }
                 Some(&n) => 3 + usize::from(n),
             },
-            Request::WriteSingleRegister { .. } | Request::WriteMultipleRegisters { .. } => 6,
+            Request::WriteSingleRegister { .. }
+            | Request::WriteMultipleRegisters { .. }
+            | Request::WriteSingleCoil { .. }
+            | Request::WriteMultipleCoils { .. } => 6,
+            Request::MaskWriteRegister { .. } => 8,
+            Request::ReadExceptionStatus => 3,
+            Request::Diagnostics { data, .. } => 4 + data.len(),
+            Request::Raw {
+                reply_length: Some(n),
+                ..
+            } => 2 + n,
+            Request::Raw {
+                reply_length: None, ..
+            } => return Needed::Silence,
             Request::ReadDeviceIdentification { .. } => match device_id_len(buf) {
                 Ok(unit_pdu) => unit_pdu,
                 Err(Some(more)) => return Needed::More(more),
@@ -237,18 +272,14 @@ pub enum FrameError {
 /// # Errors
 /// [`FrameError::ByteCount`] naming both counts.
 pub fn check_header(unit: u8, request: &Request, buf: &[u8]) -> Result<(), FrameError> {
-    match (request, buf) {
-        (Request::ReadHoldingRegisters { count, .. }, &[u, f, n, ..])
-            if u == unit && f == request.function() =>
+    match (request.reply_byte_count(), buf) {
+        (Some(expected), &[u, f, n, ..])
+            if u == unit && f == request.function() && usize::from(n) != expected =>
         {
-            let expected = 2 * usize::from(*count);
-            if usize::from(n) != expected {
-                return Err(FrameError::ByteCount {
-                    expected,
-                    received: n,
-                });
-            }
-            Ok(())
+            Err(FrameError::ByteCount {
+                expected,
+                received: n,
+            })
         }
         _ => Ok(()),
     }
@@ -327,48 +358,104 @@ pub(super) fn decode_in(
         });
     }
     let data = &body[2..];
-    let word = |i: usize| u16::from_be_bytes([data[i], data[i + 1]]);
     let response = match request {
-        Request::ReadHoldingRegisters { count, .. } => {
-            let want = 2 * usize::from(*count);
-            if data.len() != 1 + want {
-                return Err(FrameError::Length(format!(
-                    "byte count {} with {} data bytes",
-                    data[0],
-                    data.len() - 1
-                )));
-            }
-            Response::Registers(
-                data[1..]
-                    .chunks_exact(2)
-                    .map(|c| u16::from_be_bytes([c[0], c[1]]))
-                    .collect(),
-            )
+        Request::ReadHoldingRegisters { .. }
+        | Request::ReadInputRegisters { .. }
+        | Request::ReadWriteRegisters { .. } => {
+            Response::Registers(counted(data, request.reply_byte_count())?.collect_words())
         }
-        Request::WriteSingleRegister { .. } | Request::WriteMultipleRegisters { .. } => {
-            if data.len() != 4 {
-                return Err(FrameError::Length(format!(
-                    "{} data bytes, expected 4",
-                    data.len()
-                )));
-            }
-            if matches!(request, Request::WriteSingleRegister { .. }) {
-                Response::WriteSingleRegister {
-                    address: word(0),
-                    value: word(2),
-                }
-            } else {
-                Response::WriteMultipleRegisters {
-                    address: word(0),
-                    count: word(2),
-                }
+        Request::ReadCoils { count, .. } | Request::ReadDiscreteInputs { count, .. } => {
+            let bytes = counted(data, request.reply_byte_count())?;
+            Response::Bits(unpack_bits(bytes.0, usize::from(*count)))
+        }
+        Request::ReportServerId => Response::ServerId(counted(data, None)?.0.to_vec()),
+        Request::WriteSingleRegister { .. } => {
+            let [address, value] = fixed_words(data)?;
+            Response::WriteSingleRegister { address, value }
+        }
+        Request::WriteMultipleRegisters { .. } => {
+            let [address, count] = fixed_words(data)?;
+            Response::WriteMultipleRegisters { address, count }
+        }
+        Request::WriteSingleCoil { .. } => {
+            let [address, value] = fixed_words(data)?;
+            Response::WriteSingleCoil { address, value }
+        }
+        Request::WriteMultipleCoils { .. } => {
+            let [address, count] = fixed_words(data)?;
+            Response::WriteMultipleCoils { address, count }
+        }
+        Request::MaskWriteRegister { .. } => {
+            let [address, and_mask, or_mask] = fixed_words(data)?;
+            Response::MaskWriteRegister {
+                address,
+                and_mask,
+                or_mask,
             }
         }
+        Request::ReadExceptionStatus => match data {
+            &[status] => Response::ExceptionStatus(status),
+            _ => return Err(data_length(data.len(), 1)),
+        },
+        Request::Diagnostics { data: sent, .. } => match data {
+            [hi, lo, rest @ ..] if rest.len() == sent.len() => Response::Diagnostics {
+                sub_function: u16::from_be_bytes([*hi, *lo]),
+                data: rest.to_vec(),
+            },
+            _ => return Err(data_length(data.len(), 2 + sent.len())),
+        },
+        Request::Raw { reply_length, .. } => match reply_length {
+            Some(n) if data.len() != *n => return Err(data_length(data.len(), *n)),
+            _ => Response::Raw(data.to_vec()),
+        },
         Request::ReadDeviceIdentification { .. } => {
             Response::DeviceIdentification(decode_device_id(data)?)
         }
     };
     Ok(Reply::Normal(response))
+}
+
+/// The data bytes of a reply that begins with a byte count: after it, exactly that many
+/// (and as many as `expected`, when the request fixes it).
+struct Counted<'a>(&'a [u8]);
+
+impl Counted<'_> {
+    /// The bytes as big-endian registers.
+    fn collect_words(&self) -> Vec<u16> {
+        self.0
+            .chunks_exact(2)
+            .map(|c| u16::from_be_bytes([c[0], c[1]]))
+            .collect()
+    }
+}
+
+fn counted(data: &[u8], expected: Option<usize>) -> Result<Counted<'_>, FrameError> {
+    match data.split_first() {
+        Some((&n, rest))
+            if rest.len() == usize::from(n) && expected.is_none_or(|e| e == rest.len()) =>
+        {
+            Ok(Counted(rest))
+        }
+        _ => Err(FrameError::Length(format!(
+            "byte count {} with {} data bytes",
+            data.first().copied().unwrap_or_default(),
+            data.len().saturating_sub(1)
+        ))),
+    }
+}
+
+/// The data of a reply made of `N` two-byte fields (an echo of a write).
+fn fixed_words<const N: usize>(data: &[u8]) -> Result<[u16; N], FrameError> {
+    if data.len() != 2 * N {
+        return Err(data_length(data.len(), 2 * N));
+    }
+    Ok(std::array::from_fn(|i| {
+        u16::from_be_bytes([data[2 * i], data[2 * i + 1]])
+    }))
+}
+
+fn data_length(got: usize, expected: usize) -> FrameError {
+    FrameError::Length(format!("{got} data bytes, expected {expected}"))
 }
 
 /// Parses the data of a Read Device Identification reply (after the function code).
@@ -411,6 +498,18 @@ pub enum Echo {
     CountForSingleWrite,
 }
 
+/// Checks the echo of a multiple write: the address and count `sent`, as `received`.
+fn count_echo(sent: (u16, usize), received: (u16, u16)) -> Result<(), FrameError> {
+    let ((address, count), (a, c)) = (sent, received);
+    if a != address || usize::from(c) != count {
+        return Err(FrameError::Echo {
+            sent: format!("address {address:#06x} count {count}"),
+            received: format!("address {a:#06x} count {c}"),
+        });
+    }
+    Ok(())
+}
+
 /// Checks that a write reply echoes its request.
 ///
 /// # Errors
@@ -440,11 +539,63 @@ pub fn check_echo(request: &Request, response: &Response, echo: Echo) -> Result<
                 address: a,
                 count: c,
             },
+        ) => count_echo((*address, values.len()), (*a, *c)),
+        (
+            Request::WriteMultipleCoils { address, values },
+            Response::WriteMultipleCoils {
+                address: a,
+                count: c,
+            },
+        ) => count_echo((*address, values.len()), (*a, *c)),
+        (
+            Request::WriteSingleCoil { address, value },
+            Response::WriteSingleCoil {
+                address: a,
+                value: v,
+            },
         ) => {
-            if a != address || usize::from(*c) != values.len() {
+            let sent = coil_word(*value);
+            if a != address || *v != sent {
                 return mismatch(
-                    format!("address {address:#06x} count {}", values.len()),
-                    format!("address {a:#06x} count {c}"),
+                    format!("address {address:#06x} value {sent:#06x}"),
+                    format!("address {a:#06x} value {v:#06x}"),
+                );
+            }
+            Ok(())
+        }
+        (
+            Request::MaskWriteRegister {
+                address,
+                and_mask,
+                or_mask,
+            },
+            Response::MaskWriteRegister {
+                address: a,
+                and_mask: and,
+                or_mask: or,
+            },
+        ) => {
+            if (a, and, or) != (address, and_mask, or_mask) {
+                return mismatch(
+                    format!("address {address:#06x} and {and_mask:#06x} or {or_mask:#06x}"),
+                    format!("address {a:#06x} and {and:#06x} or {or:#06x}"),
+                );
+            }
+            Ok(())
+        }
+        (
+            Request::Diagnostics { sub_function, data },
+            Response::Diagnostics {
+                sub_function: s,
+                data: d,
+            },
+        ) => {
+            // Every sub-function answers its own code; Return Query Data also its data.
+            let data_ok = *sub_function != DIAG_RETURN_QUERY_DATA || d == data;
+            if s != sub_function || !data_ok {
+                return mismatch(
+                    format!("sub-function {sub_function:#06x} data {}", hex(data)),
+                    format!("sub-function {s:#06x} data {}", hex(d)),
                 );
             }
             Ok(())

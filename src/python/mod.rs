@@ -14,7 +14,10 @@ mod ticks;
 mod values;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
-use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
+use crate::codec::pdu::{
+    MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT, MAX_WRITE_BITS,
+    MAX_WRITE_COUNT,
+};
 use crate::codec::{Echo, FrameError};
 use crate::device::Device;
 use crate::error::{hex, Error};
@@ -23,7 +26,7 @@ use crate::transport::tuning::Rs485;
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyModule, PyString};
+use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyModule, PyString};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -489,6 +492,72 @@ fn register_list(obj: &Bound<'_, PyAny>, max: usize) -> PyResult<Vec<u16>> {
     Ok(values)
 }
 
+/// The `unit`, `address` and `count` (1..=`max`) of a read, checked: the block stays within
+/// the address map.
+fn read_args(
+    unit: &Bound<'_, PyAny>,
+    address: &Bound<'_, PyAny>,
+    count: &Bound<'_, PyAny>,
+    max: u16,
+) -> PyResult<(u8, u16, u16)> {
+    let unit = unit_arg(unit)?;
+    let address = u16_arg(address, "address")?;
+    let count = int_in(count, "count", 1, max.into())? as u16;
+    within_map(address, count.into())?;
+    Ok((unit, address, count))
+}
+
+/// The `address` and `values` of a 0x0F write, checked: a start address, 1..=1968 coil
+/// values (each True or False) and a block that stays within the address map.
+fn coil_block(address: &Bound<'_, PyAny>, values: &Bound<'_, PyAny>) -> PyResult<(u16, Vec<bool>)> {
+    let address = u16_arg(address, "address")?;
+    if values.is_instance_of::<PyString>() || values.is_instance_of::<PyBytes>() {
+        return Err(PyTypeError::new_err(
+            "values must be a sequence of bools, not str or bytes",
+        ));
+    }
+    let values = values
+        .try_iter()
+        .map_err(|_| PyTypeError::new_err("values must be a sequence of bools"))?
+        .map(|item| bool_arg(&item?, "each value"))
+        .collect::<PyResult<Vec<bool>>>()?;
+    let max = usize::from(MAX_WRITE_BITS);
+    if values.is_empty() || values.len() > max {
+        return Err(PyValueError::new_err(format!(
+            "values must hold 1 to {max} coils, got {}",
+            values.len()
+        )));
+    }
+    within_map(address, values.len())?;
+    Ok((address, values))
+}
+
+/// `b"\0\0"`, the default data of `diagnostics` (a bytes argument when given, never None).
+fn two_zero_bytes() -> Py<PyAny> {
+    Python::attach(|py| PyBytes::new(py, &[0, 0]).into_any().unbind())
+}
+
+/// A bytes argument (bytes or bytearray) of at most `max` bytes.
+fn bytes_arg(obj: &Bound<'_, PyAny>, name: &str, max: usize) -> PyResult<Vec<u8>> {
+    let data = if let Ok(b) = obj.cast::<PyBytes>() {
+        b.as_bytes().to_vec()
+    } else if let Ok(b) = obj.cast::<PyByteArray>() {
+        b.to_vec()
+    } else {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be bytes, got {}",
+            obj.get_type().name()?
+        )));
+    };
+    if data.len() > max {
+        return Err(PyValueError::new_err(format!(
+            "{name} must be at most {max} bytes, got {}",
+            data.len()
+        )));
+    }
+    Ok(data)
+}
+
 /// Counters of what happened on a Bus since it was opened.
 #[pyclass(frozen, get_all, module = "benchbus._core", name = "Stats")]
 #[derive(Clone)]
@@ -585,8 +654,8 @@ impl PyBus {
 impl PyBus {
     #[new]
     #[pyo3(
-        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None, echo=None, rs485=None, rts_delay=None),
-        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False, echo=False, rs485=False, rts_delay=None)"
+        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None, echo=None, rs485=None, rts_delay=None, silence=None),
+        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False, echo=False, rs485=False, rts_delay=None, silence=0.0)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -602,6 +671,7 @@ impl PyBus {
         echo: Option<&Bound<'_, PyAny>>,
         rs485: Option<&Bound<'_, PyAny>>,
         rts_delay: Option<&Bound<'_, PyAny>>,
+        silence: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let port: std::path::PathBuf = port
             .extract()
@@ -622,6 +692,7 @@ impl PyBus {
         config.reconnect = opt(reconnect, false, |r| bool_arg(r, "reconnect"))?;
         config.echo = opt(echo, false, |e| bool_arg(e, "echo"))?;
         config.rs485 = rs485_arg(rs485, rts_delay)?;
+        config.silence = opt(silence, Duration::ZERO, |t| seconds(t, "silence", true))?;
         config.interrupted = Some(signal_raised);
         // Logging levels are read when a bus opens (pyo3-log caches them).
         if let Some(handle) = LOG_RESET.get() {
@@ -641,13 +712,209 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         count: &Bound<'_, PyAny>,
     ) -> PyResult<Vec<u16>> {
-        let unit = unit_arg(unit)?;
-        let address = u16_arg(address, "address")?;
-        let count = int_in(count, "count", 1, MAX_READ_COUNT.into())? as u16;
-        within_map(address, count.into())?;
+        let (unit, address, count) = read_args(unit, address, count, MAX_READ_COUNT)?;
         self.wire(py, |b| {
             b.read_holding_registers(unit, address, count, &TxOptions::default())
         })
+    }
+
+    /// Reads `count` (1..=2000) coils from `address` (function 0x01).
+    fn read_coils(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<bool>> {
+        let (unit, address, count) = read_args(unit, address, count, MAX_READ_BITS)?;
+        self.wire(py, |b| {
+            b.read_coils(unit, address, count, &TxOptions::default())
+        })
+    }
+
+    /// Reads `count` (1..=2000) discrete inputs from `address` (function 0x02).
+    fn read_discrete_inputs(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<bool>> {
+        let (unit, address, count) = read_args(unit, address, count, MAX_READ_BITS)?;
+        self.wire(py, |b| {
+            b.read_discrete_inputs(unit, address, count, &TxOptions::default())
+        })
+    }
+
+    /// Reads `count` (1..=125) input registers from `address` (function 0x04).
+    fn read_input_registers(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<u16>> {
+        let (unit, address, count) = read_args(unit, address, count, MAX_READ_COUNT)?;
+        self.wire(py, |b| {
+            b.read_input_registers(unit, address, count, &TxOptions::default())
+        })
+    }
+
+    /// Sets one coil on (True) or off (False) (function 0x05); the reply must echo it.
+    fn write_coil(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let unit = unit_arg(unit)?;
+        let address = u16_arg(address, "address")?;
+        let value = bool_arg(value, "value")?;
+        self.wire(py, |b| {
+            b.write_coil(unit, address, value, &TxOptions::default())
+        })
+    }
+
+    /// Sets 1..=1968 consecutive coils from `address` (function 0x0F).
+    fn write_coils(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let unit = unit_arg(unit)?;
+        let (address, values) = coil_block(address, values)?;
+        self.wire(py, |b| {
+            b.write_coils(unit, address, &values, &TxOptions::default())
+        })
+    }
+
+    /// Changes bits of one register (function 0x16): it becomes (value AND `and_mask`) OR
+    /// (`or_mask` AND NOT `and_mask`); the reply must echo the request.
+    fn mask_write_register(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+        and_mask: &Bound<'_, PyAny>,
+        or_mask: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let unit = unit_arg(unit)?;
+        let address = u16_arg(address, "address")?;
+        let and_mask = u16_arg(and_mask, "and_mask")?;
+        let or_mask = u16_arg(or_mask, "or_mask")?;
+        self.wire(py, |b| {
+            b.mask_write_register(unit, address, and_mask, or_mask, &TxOptions::default())
+        })
+    }
+
+    /// Writes `values` (1..=121) from `write_address`, then reads `read_count` (1..=125)
+    /// registers from `read_address`, in one transaction (function 0x17).
+    fn read_write_registers(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        read_address: &Bound<'_, PyAny>,
+        read_count: &Bound<'_, PyAny>,
+        write_address: &Bound<'_, PyAny>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<u16>> {
+        let unit = unit_arg(unit)?;
+        let read_address = u16_arg(read_address, "read_address")?;
+        let read_count = int_in(read_count, "read_count", 1, MAX_READ_COUNT.into())? as u16;
+        within_map(read_address, read_count.into())?;
+        let write_address = u16_arg(write_address, "write_address")?;
+        let values = register_list(values, usize::from(MAX_READ_WRITE_COUNT))?;
+        within_map(write_address, values.len())?;
+        self.wire(py, |b| {
+            b.read_write_registers(
+                unit,
+                read_address,
+                read_count,
+                write_address,
+                &values,
+                &TxOptions::default(),
+            )
+        })
+    }
+
+    /// Reads the eight exception status outputs (function 0x07) as an int.
+    fn read_exception_status(&self, py: Python<'_>, unit: &Bound<'_, PyAny>) -> PyResult<u8> {
+        let unit = unit_arg(unit)?;
+        self.wire(py, |b| b.read_exception_status(unit, &TxOptions::default()))
+    }
+
+    /// Runs diagnostics sub-function `sub_function` with `data` (function 0x08): the
+    /// reply's data after its sub-function, as bytes.
+    #[pyo3(
+        signature = (unit, sub_function, data=two_zero_bytes()),
+        text_signature = "($self, unit, sub_function, data=b'\\x00\\x00')"
+    )]
+    fn diagnostics<'py>(
+        &self,
+        py: Python<'py>,
+        unit: &Bound<'py, PyAny>,
+        sub_function: &Bound<'py, PyAny>,
+        data: Py<PyAny>,
+    ) -> PyResult<Bound<'py, PyBytes>> {
+        let unit = unit_arg(unit)?;
+        let sub_function = u16_arg(sub_function, "sub_function")?;
+        let data = bytes_arg(data.bind(py), "data", MAX_PDU_DATA - 2)?;
+        let reply = self.wire(py, |b| {
+            b.diagnostics(unit, sub_function, &data, &TxOptions::default())
+        })?;
+        Ok(PyBytes::new(py, &reply))
+    }
+
+    /// The data field of the unit's Report Server ID reply (function 0x11), after its byte
+    /// count, as the device sent it.
+    fn report_server_id<'py>(
+        &self,
+        py: Python<'py>,
+        unit: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyBytes>> {
+        let unit = unit_arg(unit)?;
+        let reply = self.wire(py, |b| b.report_server_id(unit, &TxOptions::default()))?;
+        Ok(PyBytes::new(py, &reply))
+    }
+
+    /// Sends function `function` (1..=127) with `data`, the PDU after the function code,
+    /// and returns the reply's bytes after its function code: read by `reply_length`, or
+    /// without it until the line is quiet (the Bus's `silence`, at least t3.5).
+    #[pyo3(
+        signature = (unit, function, data, *, reply_length=None),
+        text_signature = "($self, unit, function, data, *, reply_length=None)"
+    )]
+    fn request<'py>(
+        &self,
+        py: Python<'py>,
+        unit: &Bound<'py, PyAny>,
+        function: &Bound<'py, PyAny>,
+        data: &Bound<'py, PyAny>,
+        reply_length: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyBytes>> {
+        let unit = unit_arg(unit)?;
+        // 0 is no function, and 0x80 | f is f's exception reply.
+        let function = int_in(function, "function", 1, 0x7F).map_err(|e| {
+            if e.is_instance_of::<PyValueError>(py) {
+                PyValueError::new_err(format!(
+                    "{} (0x80 and up are exception replies)",
+                    e.value(py)
+                ))
+            } else {
+                e
+            }
+        })? as u8;
+        let data = bytes_arg(data, "data", MAX_PDU_DATA)?;
+        let reply_length = opt(reply_length, None, |r| {
+            int_in(r, "reply_length", 0, MAX_PDU_DATA as i64).map(|n| Some(n as usize))
+        })?;
+        let reply = self.wire(py, |b| {
+            b.request(unit, function, &data, reply_length, &TxOptions::default())
+        })?;
+        Ok(PyBytes::new(py, &reply))
     }
 
     /// Writes one register (function 0x06).
@@ -766,6 +1033,30 @@ impl PyBus {
     ) -> PyResult<()> {
         let (address, values) = register_block(address, values)?;
         self.wire(py, |b| b.broadcast_write_registers(address, &values))
+    }
+
+    /// Sets one coil on every unit (unit 0, function 0x05); waits no reply.
+    fn broadcast_write_coil(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let address = u16_arg(address, "address")?;
+        let value = bool_arg(value, "value")?;
+        self.wire(py, |b| b.broadcast_write_coil(address, value))
+    }
+
+    /// Sets 1..=1968 consecutive coils from `address` on every unit (unit 0, function
+    /// 0x0F); waits no reply.
+    fn broadcast_write_coils(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let (address, values) = coil_block(address, values)?;
+        self.wire(py, |b| b.broadcast_write_coils(address, &values))
     }
 
     /// The units among `units` that answer a read of register `address` within `timeout`
@@ -912,6 +1203,13 @@ impl PyBus {
         self.bus.config().retries
     }
 
+    /// The quiet gap, in seconds, that ends a raw request's reply read without a
+    /// `reply_length` (t3.5 when longer; 0.0: t3.5).
+    #[getter]
+    fn silence(&self) -> f64 {
+        self.bus.config().silence.as_secs_f64()
+    }
+
     /// Quiet time after a broadcast, in seconds.
     #[getter]
     fn turnaround(&self) -> f64 {
@@ -933,7 +1231,7 @@ impl PyBus {
     fn __repr__(&self) -> String {
         let c = self.bus.config();
         format!(
-            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{})",
+            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{}{})",
             c.port.replace('\\', "\\\\").replace('\'', "\\'"),
             c.line.baudrate,
             c.line.parity.letter(),
@@ -946,6 +1244,11 @@ impl PyBus {
                 ", rs485=True"
             } else {
                 ""
+            },
+            if c.silence.is_zero() {
+                String::new()
+            } else {
+                format!(", silence={}", c.silence.as_secs_f64())
             },
             if self.bus.is_closed() {
                 ", closed"
