@@ -10,9 +10,10 @@ the other in each direction, so the master sees a reply arrive byte by byte and 
 one would. ``--plain`` skips the forwarder: the fake slave answers on pair A at once (the pure
 software cost of a master).
 
-The fake slave finds the end of a request by its length (0x03 / 0x06: 8 bytes, 0x10: 9 + byte
-count) and answers at once: a read of register ``a`` returns ``value(unit, a)``; reads at
-``0x8000`` and above get exception 2; units not in ``--units`` stay silent.
+The fake slave finds the end of a request by its length (0x01 to 0x06: 8 bytes, 0x10: 9 +
+byte count) and answers at once: a read of register ``a`` (0x03, 0x04) returns
+``value(unit, a)``, a read of coil or discrete input ``a`` (0x01, 0x02) its lowest bit;
+reads at ``0x8000`` and above get exception 2; units not in ``--units`` stay silent.
 
 It prints one JSON line ``{"ports": [...]}`` and then answers commands on stdin, one per line:
 ``stats`` prints (and clears) what it measured since the last ``stats``: per line the time the
@@ -65,7 +66,7 @@ def request_length(buf: bytes | bytearray) -> int | None:
     if len(buf) < 2:
         return None
     function = buf[1]
-    if function in (0x03, 0x04, 0x06):
+    if function in (0x01, 0x02, 0x03, 0x04, 0x06):
         return 8
     if function == 0x10:
         return 9 + buf[6] if len(buf) >= 7 else None
@@ -87,6 +88,15 @@ def answer(request: bytes, units: set[int]) -> bytes | None:
         else:
             words = b"".join(value(unit, address + i).to_bytes(2, "big") for i in range(count))
             pdu = bytes((unit, function, 2 * count)) + words
+    elif function in (0x01, 0x02):
+        address = int.from_bytes(request[2:4], "big")
+        count = int.from_bytes(request[4:6], "big")
+        if address >= EXCEPTION_ADDRESS or not 1 <= count <= 2000:
+            pdu = bytes((unit, function | 0x80, 0x02))
+        else:
+            bits = sum((value(unit, address + i) & 1) << i for i in range(count))
+            packed = bits.to_bytes((count + 7) // 8, "little")
+            pdu = bytes((unit, function, len(packed))) + packed
     elif function in (0x06, 0x10):
         pdu = request[:6]  # the echo of a write
     else:

@@ -10,7 +10,7 @@
 //! ```
 //!
 //! Stale bytes in the input buffer are dropped (and counted) before each request; the reply
-//! is read by its expected length ([`reply_needed`]), never by waiting for a timeout; only a
+//! is read by its expected length ([`Framing::reply_needed`]), never by waiting for a timeout; only a
 //! timeout or a corrupt frame is retried, never an exception reply.
 //!
 //! A port that is lost (unplugged, hung up: [`crate::transport::is_lost`]) fails the call at

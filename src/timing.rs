@@ -67,6 +67,35 @@ impl LineFormat {
         }
     }
 
+    /// The line format of Modbus ASCII (serial line spec 2.5.2): 7 data bits, and with
+    /// `parity` 1 stop bit, without it 2 (7N1 is not allowed). The spec's default is 7E1,
+    /// `LineFormat::ascii(baudrate, Parity::Even)`.
+    pub fn ascii(baudrate: u32, parity: Parity) -> LineFormat {
+        LineFormat {
+            baudrate,
+            data_bits: crate::codec::ascii::DATA_BITS,
+            parity,
+            stop_bits: if parity == Parity::None { 2 } else { 1 },
+        }
+    }
+
+    /// Whether this line format may carry Modbus ASCII: 7 or 8 data bits, and 7 bits
+    /// without parity need 2 stop bits (serial line spec 2.5.2: 7N1 is not allowed).
+    ///
+    /// # Errors
+    /// What is wrong, in words for the user.
+    pub fn check_ascii(&self) -> Result<(), String> {
+        match (self.data_bits, self.parity, self.stop_bits) {
+            (7, Parity::None, 1) => Err(
+                "Modbus ASCII with 7 data bits and no parity needs 2 stop bits (7N2; 7N1 is \
+                 not allowed)"
+                    .into(),
+            ),
+            (7 | 8, _, _) => Ok(()),
+            (bits, _, _) => Err(format!("Modbus ASCII takes 7 or 8 data bits, not {bits}")),
+        }
+    }
+
     /// Bits on the wire per character: start + data + parity + stop.
     pub fn bits_per_char(&self) -> u32 {
         let parity = u32::from(self.parity != Parity::None);
@@ -454,6 +483,31 @@ mod tests {
         assert!((us(e81.char_time()) - 95.486).abs() < 0.01);
         let n82 = LineFormat::new(9600, Parity::None, 2);
         assert_eq!(n82.bits_per_char(), 11);
+    }
+
+    #[test]
+    fn ascii_line_is_7e1_by_default_and_7n2_without_parity() {
+        let e71 = LineFormat::ascii(9600, Parity::Even);
+        assert_eq!((e71.data_bits, e71.stop_bits), (7, 1));
+        assert_eq!(e71.to_string(), "9600 7E1");
+        assert_eq!(e71.bits_per_char(), 10);
+        assert!((us(e71.char_time()) - 1041.667).abs() < 0.01);
+        let n72 = LineFormat::ascii(9600, Parity::None);
+        assert_eq!(n72.to_string(), "9600 7N2");
+        assert_eq!(n72.bits_per_char(), 10);
+        assert_eq!(e71.check_ascii(), Ok(()));
+        assert_eq!(n72.check_ascii(), Ok(()));
+        assert_eq!(LineFormat::new(9600, Parity::None, 1).check_ascii(), Ok(()));
+        let n71 = LineFormat {
+            stop_bits: 1,
+            ..n72
+        };
+        assert!(n71.check_ascii().is_err_and(|e| e.contains("7N2")));
+        let six = LineFormat {
+            data_bits: 6,
+            ..e71
+        };
+        assert!(six.check_ascii().is_err_and(|e| e.contains("not 6")));
     }
 
     #[test]

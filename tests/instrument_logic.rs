@@ -4,7 +4,8 @@
 mod common;
 
 use benchbus::bus::{Bus, BusConfig};
-use benchbus::device::instrument::{Instrument, WordOrder};
+use benchbus::device::instrument::Instrument;
+use benchbus::device::value::Layout;
 use benchbus::timing::{LineFormat, Parity};
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
@@ -148,10 +149,21 @@ fn refused_values_name_the_argument_and_send_nothing() {
         Err(Error::InvalidArgument(m)) => m,
         other => panic!("not refused: {other:?}"),
     };
-    for value in [f32::NAN, f32::INFINITY, f32::NEG_INFINITY] {
-        let m = message(i.write_f32(0, value, WordOrder::HighFirst));
-        assert!(m.starts_with("value must be a finite number"), "{m}");
+    for value in [f64::NAN, f64::INFINITY, f64::NEG_INFINITY, 1e39] {
+        for bits in [32, 64] {
+            if bits == 64 && value.is_finite() {
+                continue; // a double holds it
+            }
+            let m = message(i.write_float(0, value, bits, Layout::Abcd));
+            assert!(m.starts_with("value must be a finite number"), "{m}");
+        }
     }
+    let m = message(i.write_uint(0, 1 << 32, 32, Layout::Abcd));
+    assert_eq!(m, "value must fit 32 bits, got 4294967296");
+    let m = message(i.write_uint(0, 1, 16, Layout::Abcd));
+    assert_eq!(m, "bits must be 32 or 64, got 16");
+    let m = message(i.write_uint(0xFFFE, 1, 64, Layout::Abcd));
+    assert!(m.contains("0xFFFF"), "{m}");
     let m = message(i.write_value(0, 65536.0, 0, false, false));
     assert!(
         m.starts_with("value 65536 with 0 decimals does not fit"),
@@ -185,16 +197,13 @@ fn thirty_two_bit_values_in_both_word_orders() {
         words(1, &[0x0000, 0x41AC]),
     ];
     let (i, t) = taisong(acts, 1);
-    i.write_u32(0x10, 0x1234_5678, WordOrder::HighFirst)
+    i.write_uint(0x10, 0x1234_5678, 32, Layout::Abcd)
         .expect("write");
-    assert_eq!(
-        i.read_u32(0x10, WordOrder::LowFirst).ok(),
-        Some(0x5678_1234)
-    );
-    i.write_u32(0x10, 0x1234_5678, WordOrder::LowFirst)
+    assert_eq!(i.read_uint(0x10, 32, Layout::Cdab).ok(), Some(0x5678_1234));
+    i.write_uint(0x10, 0x1234_5678, 32, Layout::Cdab)
         .expect("write");
-    i.write_f32(0x20, 21.5, WordOrder::LowFirst).expect("float");
-    assert_eq!(i.read_f32(0x20, WordOrder::LowFirst).ok(), Some(21.5));
+    i.write_float(0x20, 21.5, 32, Layout::Cdab).expect("float");
+    assert_eq!(i.read_float(0x20, 32, Layout::Cdab).ok(), Some(21.5));
     let frames = sent(&t);
     assert_eq!(frames[0][7..11], [0x12, 0x34, 0x56, 0x78]);
     assert_eq!(frames[2][7..11], [0x56, 0x78, 0x12, 0x34]);

@@ -651,6 +651,15 @@ EXPLICIT: list[Case] = [
     *calls("Instrument", "read_long", TypeError, "word_order", A(0, word_order=5)),
     *calls("Instrument", "read_long", ValueError, "address", A(0xFFFF), A(-1)),
     *calls("Instrument", "read_long", TypeError, "signed", A(0, "x")),
+    *calls("Instrument", "read_long", ValueError, "byte_order", A(0, byte_order="middle")),
+    *calls("Instrument", "read_long", TypeError, "byte_order", A(0, byte_order=5)),
+    *calls("Instrument", "read_long", ValueError, "bits", A(0, bits=16), A(0, bits=HUGE)),
+    *calls("Instrument", "read_long", TypeError, "bits", A(0, bits="64"), A(0, bits=64.0)),
+    *calls("Instrument", "read_long", ValueError, "address", A(0xFFFD, bits=64)),
+    *calls("Instrument", "write_long", ValueError, "value", A(0, 2**64, bits=64)),
+    *calls("Instrument", "write_long", ValueError, "value", A(0, 2**63, True, bits=64)),
+    *calls("Instrument", "write_float", ValueError, "value", A(0, NAN, bits=64)),
+    *calls("Instrument", "read_float", TypeError, "bits", A(0, bits=32.5)),
     *calls("Instrument", "write_long", ValueError, "value", A(0, 2**32), A(0, -1), A(0, HUGE)),
     *calls(
         "Instrument", "write_long", ValueError, "value", A(0, 2**31, True), A(0, -(2**31) - 1, True)

@@ -402,6 +402,42 @@ def test_read_prints_registers_raw_hex_signed_and_scaled() -> None:
         assert [(f[1], f[4] << 8 | f[5]) for f in sim.requests] == [(3, 125), (3, 5)]
 
 
+def test_read_and_write_typed_values_in_each_layout() -> None:
+    device = RegisterDevice()
+    with Simulator({7: device}) as sim:
+        port = ["--port", sim.port, "--unit", "7"]
+        # Two floats, low word first (CDAB): 21.5 is 0x41AC0000, -0.5 is 0xBF000000.
+        device.registers[0x10:0x14] = [0x0000, 0x41AC, 0x0000, 0xBF00]
+        lines = ok(run("read", *port, "0x10", "2", "--type", "f32", "--order", "cdab"))
+        assert lines == ["0x0010  16  21.5", "0x0012  18  -0.5"]
+        assert [(f[1], f[4] << 8 | f[5]) for f in sim.requests] == [(3, 4)]
+        # Written as it is read: a 64-bit integer over four registers, byte-swapped.
+        done = ok(run("write", *port, "0x20", "-2", "--type", "i64", "--order", "BADC"))
+        assert done == ["unit 7: wrote 65535 65535 65535 65279 at 0x0020 (0x10)"]
+        assert sim.peek(7, 0x20, 4) == [0xFFFF, 0xFFFF, 0xFFFF, 0xFEFF]
+        back = ok(run("read", *port, "0x20", "--type", "i64", "--order", "BADC"))
+        assert back == ["0x0020  32  -2"]
+        # One u16 still goes as 0x06; a hex integer is taken for an integer type.
+        ok(run("write", *port, "0x30", "0x1234", "--type", "u16"))
+        assert sim.requests[-1][1] == 0x06 and sim.peek(7, 0x30) == [0x1234]
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["read", "0", "--order", "CDAB"], "give --type with it"),
+        (["read", "0", "--type", "f32", "--hex"], "leave out --hex"),
+        (["read", "0xFFFF", "--type", "u32"], "2 registers from 0xffff run past 0xFFFF"),
+        (["write", "0", "1.5", "--type", "i32"], "'1.5' is not a whole number"),
+        (["write", "0", "x", "--type", "f32"], "'x' is not a number"),
+        (["write", "0", "70000", "--type", "u16"], "u16 value must be 0 to 65535"),
+        (["write", "0", "1", "--type", "f32", "--decimals", "1"], "leave out --decimals"),
+    ],
+)
+def test_typed_values_refused_before_the_port_opens(args: list[str], message: str) -> None:
+    assert message in one_line_error(run(*args, "--port", "/dev/null"), 2)
+
+
 def test_write_uses_0x06_for_one_value_and_0x10_for_several(
     drive: tuple[Simulator[DriveDevice], DriveDevice],
 ) -> None:

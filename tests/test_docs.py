@@ -6,6 +6,7 @@ from __future__ import annotations
 import re
 import subprocess
 import sys
+import textwrap
 from pathlib import Path
 
 import pytest
@@ -36,6 +37,7 @@ PICKED_BY = (
     "bus.poll(",
     "tcp://192.168.1.50:502",
     "bus.read_coils(",
+    "bb.from_registers(",
 )
 
 
@@ -141,6 +143,17 @@ def test_readme_instrument_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert out[2].startswith(
         "Identification(vendor='TELEMECANIQUE', product_code='ATV31HU09M3S232'"
     )
+
+
+def test_readme_values_example(capsys: pytest.CaptureFixture[str]) -> None:
+    (block,) = [b for b in readme_blocks() if "bb.from_registers(" in b]
+    device = RegisterDevice()
+    # 21.5 (0x41AC0000) and -0.5 (0xBF000000) as two floats, low word first.
+    device.registers[0x0100:0x0104] = [0x0000, 0x41AC, 0x0000, 0xBF00]
+    with Simulator({1: device}) as sim, bb.Bus(sim.port) as bus:
+        exec(textwrap.dedent(block), {"bb": bb, "bus": bus})
+        assert sim.peek(1, 0x0200, 2) == [0xFFFF, 0xFFFB]
+    assert capsys.readouterr().out == "[21.5, -0.5]\n"
 
 
 def test_readme_pytest_example(pytester: pytest.Pytester) -> None:

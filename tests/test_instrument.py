@@ -236,6 +236,67 @@ def test_32_bit_values_and_floats(rig: Rig, order: str) -> None:
     assert meter.registers[0x36:0x38] == ([high, low] if order == "big" else [low, high])
 
 
+#: 0x01020304 and 0x0102030405060708 in the four layouts, as (word order, byte order).
+LAYOUTS = {
+    ("big", "big"): ([0x0102, 0x0304], [0x0102, 0x0304, 0x0506, 0x0708]),
+    ("little", "big"): ([0x0304, 0x0102], [0x0708, 0x0506, 0x0304, 0x0102]),
+    ("big", "little"): ([0x0201, 0x0403], [0x0201, 0x0403, 0x0605, 0x0807]),
+    ("little", "little"): ([0x0403, 0x0201], [0x0807, 0x0605, 0x0403, 0x0201]),
+}
+
+
+@pytest.mark.parametrize(("words", "order"), list(LAYOUTS))
+def test_32_and_64_bit_values_in_all_four_layouts(rig: Rig, words: str, order: str) -> None:
+    bus, _, meter, _ = rig
+    inst = bb.Instrument(bus, 1)
+    layout = {"word_order": words, "byte_order": order}
+    two, four = LAYOUTS[(words, order)]
+    inst.write_long(0x30, 0x01020304, **layout)  # type: ignore[arg-type]
+    assert meter.registers[0x30:0x32] == two
+    assert inst.read_long(0x30, **layout) == 0x01020304  # type: ignore[arg-type]
+    inst.write_long(0x40, 0x0102030405060708, bits=64, **layout)  # type: ignore[arg-type]
+    assert meter.registers[0x40:0x44] == four
+    assert inst.read_long(0x40, bits=64, **layout) == 0x0102030405060708  # type: ignore[arg-type]
+    inst.write_long(0x40, -2, True, bits=64, **layout)  # type: ignore[arg-type]
+    assert inst.read_long(0x40, True, bits=64, **layout) == -2  # type: ignore[arg-type]
+    assert inst.read_long(0x40, bits=64, **layout) == 2**64 - 2  # type: ignore[arg-type]
+    inst.write_long(0x40, 2**64 - 1, bits=64, **layout)  # type: ignore[arg-type]
+    assert meter.registers[0x40:0x44] == [0xFFFF] * 4
+    # A double: 1.0 is 0x3FF0000000000000, laid out the same way as an integer.
+    inst.write_float(0x50, 1.0, bits=64, **layout)  # type: ignore[arg-type]
+    expected = [0x3FF0, 0, 0, 0]
+    if order == "little":
+        expected = [0xF03F, 0, 0, 0]
+    if words == "little":
+        expected.reverse()
+    assert meter.registers[0x50:0x54] == expected
+    for value in (1.0, -2.5e-300, 1.7976931348623157e308, math.pi):
+        inst.write_float(0x50, value, bits=64, **layout)  # type: ignore[arg-type]
+        assert inst.read_float(0x50, bits=64, **layout) == value  # type: ignore[arg-type]
+
+
+def test_64_bit_values_refused_before_anything_is_sent(rig: Rig) -> None:
+    bus, sim, _, _ = rig
+    inst = bb.Instrument(bus, 1)
+    sent = len(sim.requests)
+    for error, call in (
+        (ValueError, lambda: inst.write_long(0, 2**64, bits=64)),
+        (ValueError, lambda: inst.write_long(0, -1, bits=64)),
+        (ValueError, lambda: inst.write_long(0, 2**63, True, bits=64)),
+        (ValueError, lambda: inst.read_long(0xFFFD, bits=64)),
+        (ValueError, lambda: inst.read_long(0, bits=16)),  # type: ignore[arg-type]
+        (TypeError, lambda: inst.read_long(0, bits="64")),  # type: ignore[arg-type]
+        (ValueError, lambda: inst.read_float(0, byte_order="middle")),  # type: ignore[arg-type]
+        (TypeError, lambda: inst.read_float(0, byte_order=0)),  # type: ignore[arg-type]
+        (ValueError, lambda: inst.write_float(0, math.inf, bits=64)),
+        (ValueError, lambda: inst.write_float(0, math.nan, bits=64)),
+    ):
+        with pytest.raises(error):
+            call()
+    assert inst.read_long(0xFFFC, bits=64) == 0  # the last four registers are within reach
+    assert len(sim.requests) == sent + 1
+
+
 def test_text(rig: Rig) -> None:
     bus, _, meter, _ = rig
     inst = bb.Instrument(bus, 1)

@@ -22,7 +22,17 @@ Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 
 from __future__ import annotations
 
-from benchbus._core import Bus, Poll, Stats, __version__, crc16, list_ports, refresh_logging
+from benchbus._core import (
+    Bus,
+    Poll,
+    Stats,
+    __version__,
+    crc16,
+    from_registers,
+    list_ports,
+    refresh_logging,
+    to_registers,
+)
 from benchbus._doctor import Finding, doctor
 from benchbus._drive import (
     C20ControlMode,
@@ -117,6 +127,8 @@ __all__ = [
     "crc16",
     "doctor",
     "enable_wire_log",
+    "from_registers",
     "list_ports",
     "refresh_logging",
+    "to_registers",
 ]

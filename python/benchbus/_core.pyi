@@ -12,9 +12,9 @@ from benchbus._instrument import Identification
 from benchbus._j2 import J2Parameter, J2Status, Limits, Pid
 from benchbus._pbl import Direction, PblParameter, PblStatus, PblTelemetry
 
-#: Which register of a 32-bit value comes first: "big" the high word (the Modbus
-#: convention), "little" the low word.
-_WordOrder = Literal["big", "little"]
+#: Which register (word order) or which byte of a register (byte order) of a multi-register
+#: value comes first: "big" the most significant (the Modbus convention), "little" the least.
+_Order = Literal["big", "little"]
 
 __all__ = [
     "Bus",
@@ -30,14 +30,35 @@ __all__ = [
     "_panic_on_wire",
     "crc16",
     "diagnose",
+    "from_registers",
     "list_ports",
     "refresh_logging",
+    "to_registers",
 ]
 
 __version__: str
 
 def crc16(data: bytes) -> int:
     """CRC-16/MODBUS of ``data`` (sent low byte first on the wire)."""
+
+#: What one value over registers is: its width and kind.
+_Type = Literal["u16", "i16", "u32", "i32", "u64", "i64", "f32", "f64"]
+#: How a value lies over registers: where its bytes A (most significant) to D land.
+_Layout = Literal["ABCD", "CDAB", "BADC", "DCBA"]
+
+def from_registers(
+    registers: Iterable[int], type: _Type = "u16", order: _Layout = "ABCD"
+) -> list[int | float]:
+    """The values ``registers`` hold, each of ``type`` ("u16" unless given: "i16", "u32",
+    "i32", "u64", "i64", "f32", "f64") over as many registers as it takes, laid out as
+    ``order`` ("ABCD" unless given: "CDAB", "BADC", "DCBA"; see ``Instrument.read_long``)."""
+
+def to_registers(
+    values: float | Iterable[float], type: _Type = "u16", order: _Layout = "ABCD"
+) -> list[int]:
+    """The registers that hold ``values`` (one number, or a sequence of them), each of
+    ``type`` laid out as ``order`` (as :func:`from_registers` reads them); a value that does
+    not fit its type raises ValueError."""
 
 def list_ports(
     sysfs_root: str | os.PathLike[str] | None = None,
@@ -804,17 +825,55 @@ class InstrumentCore(_Station):
     def write_registers(self, address: int, values: Iterable[int]) -> None:
         """Write raw ``values`` from ``address`` with 0x10, in requests of at most
         ``max_write``."""
-    def read_long(self, address: int, signed: bool = False, word_order: _WordOrder = "big") -> int:
-        """A 32-bit integer over the registers ``address`` and ``address + 1``."""
+    def read_long(
+        self,
+        address: int,
+        signed: bool = False,
+        word_order: _Order = "big",
+        *,
+        byte_order: _Order = "big",
+        bits: Literal[32, 64] = 32,
+    ) -> int:
+        """An integer of ``bits`` (32 or 64) over the 2 or 4 registers from ``address``,
+        signed or not, laid out by ``word_order`` (which register first) and ``byte_order``
+        (which byte of each register first), each "big" (most significant first) or "little".
+
+        For 0x01020304: big/big ``[0x0102, 0x0304]`` (ABCD), little/big ``[0x0304, 0x0102]``
+        (CDAB), big/little ``[0x0201, 0x0403]`` (BADC), little/little ``[0x0403, 0x0201]``
+        (DCBA); a 64-bit value lies the same way over four registers."""
     def write_long(
-        self, address: int, value: int, signed: bool = False, word_order: _WordOrder = "big"
+        self,
+        address: int,
+        value: int,
+        signed: bool = False,
+        word_order: _Order = "big",
+        *,
+        byte_order: _Order = "big",
+        bits: Literal[32, 64] = 32,
     ) -> None:
-        """Write a 32-bit integer over two registers, in one request (two if ``max_write`` is
-        1)."""
-    def read_float(self, address: int, word_order: _WordOrder = "big") -> float:
-        """An IEEE 754 single-precision float over two registers."""
-    def write_float(self, address: int, value: float, word_order: _WordOrder = "big") -> None:
-        """Write an IEEE 754 single over two registers (NaN and infinities are refused)."""
+        """Write an integer of ``bits`` (32 or 64) over 2 or 4 registers, laid out as
+        :meth:`read_long` reads it, in one request (more if ``max_write`` is smaller)."""
+    def read_float(
+        self,
+        address: int,
+        word_order: _Order = "big",
+        *,
+        byte_order: _Order = "big",
+        bits: Literal[32, 64] = 32,
+    ) -> float:
+        """An IEEE 754 float of ``bits`` (32: single, 64: double) over 2 or 4 registers,
+        laid out as :meth:`read_long` reads an integer."""
+    def write_float(
+        self,
+        address: int,
+        value: float,
+        word_order: _Order = "big",
+        *,
+        byte_order: _Order = "big",
+        bits: Literal[32, 64] = 32,
+    ) -> None:
+        """Write an IEEE 754 float of ``bits`` (32 or 64) over 2 or 4 registers (NaN,
+        infinities and, in 32 bits, numbers beyond a single's range are refused)."""
     def read_string(self, address: int, count: int) -> str:
         """``count`` registers as text, two Latin-1 characters a register (high byte
         first), without the NULs that pad it."""

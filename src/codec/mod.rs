@@ -5,6 +5,7 @@
 //! framing (MBAP header, transaction ids) and the session that carries RTU frames over it.
 //! Which framing an endpoint speaks is [`Framing`].
 
+pub mod ascii;
 pub mod mbap;
 pub mod pdu;
 pub mod rtu;

@@ -1,8 +1,9 @@
 //! Generic Modbus RTU instruments (the Taisong v2.1 panel meters of manual 004 and anything
 //! else with holding registers): per-device request limits applied for the caller, values
-//! with decimals and sign, 32-bit integers and IEEE floats over two registers in either word
-//! order, strings, and Read Device Identification.
+//! with decimals and sign, 32- and 64-bit integers and IEEE floats over two or four registers
+//! in any of the four layouts ([`Layout`]), strings, and Read Device Identification.
 
+use super::value::{registers_for_bits, Layout};
 use super::{Device, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
@@ -11,41 +12,8 @@ use crate::error::{Error, Result};
 use std::sync::Arc;
 use std::time::Duration;
 
-/// Registers a 32-bit value or float takes.
-const PAIR: u16 = 2;
-
 /// The most decimals a register's value may be given with.
 pub const MAX_DECIMALS: u8 = 9;
-
-/// Which register of a 32-bit value comes first.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum WordOrder {
-    /// High word at the lower address (the Modbus convention, "ABCD").
-    HighFirst,
-    /// Low word at the lower address ("CDAB").
-    LowFirst,
-}
-
-impl WordOrder {
-    /// The two registers of `v`, in this order.
-    pub fn split(self, v: u32) -> [u16; 2] {
-        let (high, low) = ((v >> 16) as u16, v as u16);
-        match self {
-            WordOrder::HighFirst => [high, low],
-            WordOrder::LowFirst => [low, high],
-        }
-    }
-
-    /// The 32-bit value of two registers in this order.
-    pub fn join(self, words: [u16; 2]) -> u32 {
-        let [a, b] = words;
-        let (high, low) = match self {
-            WordOrder::HighFirst => (a, b),
-            WordOrder::LowFirst => (b, a),
-        };
-        u32::from(high) << 16 | u32::from(low)
-    }
-}
 
 /// A register's raw word for `value` with `decimals` (value x 10^decimals, rounded to a
 /// whole number that must be the value to within rounding error), signed or not.
@@ -261,45 +229,81 @@ impl Instrument {
         self.write_word(address, raw, multiple)
     }
 
-    /// A 32-bit integer over two registers.
+    /// An unsigned integer of `bits` (32 or 64) over the 2 or 4 registers from `address`,
+    /// laid out as `layout` (its two's complement bits, for a signed value).
     ///
     /// # Errors
-    /// Any [`Error`].
-    pub fn read_u32(&self, address: u16, order: WordOrder) -> Result<u32> {
-        match self.read_registers(address, usize::from(PAIR))?[..] {
-            [a, b] => Ok(order.join([a, b])),
-            _ => Err(self.station.short_reply()),
+    /// [`Error::InvalidArgument`] for other `bits` or registers past 0xFFFF (nothing sent);
+    /// any other [`Error`].
+    pub fn read_uint(&self, address: u16, bits: u32, layout: Layout) -> Result<u64> {
+        let count = registers_for_bits(bits)?;
+        check_span(address, count)?;
+        let registers = self.read_registers(address, count)?;
+        if registers.len() != count {
+            return Err(self.station.short_reply());
         }
+        let bytes = layout.from_registers(&registers);
+        Ok(bytes.iter().fold(0, |v, b| v << 8 | u64::from(*b)))
     }
 
-    /// Writes a 32-bit integer over two registers (one 0x10 request, two if `max_write` is
-    /// 1).
+    /// Writes an unsigned integer of `bits` (32 or 64; a signed value as its two's
+    /// complement bits) over 2 or 4 registers from `address`, laid out as `layout`, in one
+    /// request (more if `max_write` is smaller).
     ///
     /// # Errors
-    /// Any [`Error`].
-    pub fn write_u32(&self, address: u16, value: u32, order: WordOrder) -> Result<()> {
-        self.write_registers(address, &order.split(value))
-    }
-
-    /// An IEEE 754 single over two registers.
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn read_f32(&self, address: u16, order: WordOrder) -> Result<f32> {
-        Ok(f32::from_bits(self.read_u32(address, order)?))
-    }
-
-    /// Writes an IEEE 754 single over two registers.
-    ///
-    /// # Errors
-    /// [`Error::InvalidArgument`] for NaN or an infinity (nothing sent); any [`Error`].
-    pub fn write_f32(&self, address: u16, value: f32, order: WordOrder) -> Result<()> {
-        if !value.is_finite() {
+    /// [`Error::InvalidArgument`] for other `bits`, a value that does not fit them or
+    /// registers past 0xFFFF (nothing sent); any other [`Error`].
+    pub fn write_uint(&self, address: u16, value: u64, bits: u32, layout: Layout) -> Result<()> {
+        let count = registers_for_bits(bits)?;
+        check_span(address, count)?;
+        if bits < 64 && value >> bits != 0 {
             return Err(Error::InvalidArgument(format!(
-                "value must be a finite number within a 32-bit float's range, got {value}"
+                "value must fit {bits} bits, got {value}"
             )));
         }
-        self.write_u32(address, value.to_bits(), order)
+        let bytes = value.to_be_bytes();
+        let ours = bytes.get(8 - 2 * count..).unwrap_or(&bytes);
+        self.write_registers(address, &layout.to_registers(ours))
+    }
+
+    /// An IEEE 754 float of `bits` (32: single, 64: double) over 2 or 4 registers from
+    /// `address`, laid out as `layout`.
+    ///
+    /// # Errors
+    /// As [`read_uint`](Self::read_uint).
+    pub fn read_float(&self, address: u16, bits: u32, layout: Layout) -> Result<f64> {
+        let raw = self.read_uint(address, bits, layout)?;
+        Ok(if bits == 32 {
+            f64::from(f32::from_bits(raw as u32))
+        } else {
+            f64::from_bits(raw)
+        })
+    }
+
+    /// Writes an IEEE 754 float of `bits` (32 or 64) over 2 or 4 registers from `address`,
+    /// laid out as `layout`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for NaN, an infinity or, in 32 bits, a number beyond a
+    /// single's range (nothing sent); otherwise as [`write_uint`](Self::write_uint).
+    pub fn write_float(&self, address: u16, value: f64, bits: u32, layout: Layout) -> Result<()> {
+        registers_for_bits(bits)?;
+        let single = value as f32;
+        let raw = match bits {
+            32 if single.is_finite() => u64::from(single.to_bits()),
+            32 => {
+                return Err(Error::InvalidArgument(format!(
+                    "value must be a finite number within a 32-bit float's range, got {value}"
+                )))
+            }
+            _ if value.is_finite() => value.to_bits(),
+            _ => {
+                return Err(Error::InvalidArgument(format!(
+                    "value must be a finite number, got {value}"
+                )))
+            }
+        };
+        self.write_uint(address, raw, bits, layout)
     }
 
     /// `count` registers as text, two characters a register (high byte first), without
@@ -440,15 +444,6 @@ mod tests {
             (6553.496, 1, false),
         ] {
             assert!(to_raw(v, d, s).is_err(), "{v} {d} {s}");
-        }
-    }
-
-    #[test]
-    fn word_orders() {
-        assert_eq!(WordOrder::HighFirst.split(0x1234_5678), [0x1234, 0x5678]);
-        assert_eq!(WordOrder::LowFirst.split(0x1234_5678), [0x5678, 0x1234]);
-        for order in [WordOrder::HighFirst, WordOrder::LowFirst] {
-            assert_eq!(order.join(order.split(0xDEAD_BEEF)), 0xDEAD_BEEF);
         }
     }
 }

@@ -1,4 +1,4 @@
-//! Typed device APIs over the [`Bus`](crate::bus::Bus). A device is a table of registers
+//! Typed device APIs over the [`Bus`]. A device is a table of registers
 //! (address, scale, signedness, unit, access, range) plus the few behaviours its manual adds;
 //! it holds no I/O of its own.
 
@@ -6,6 +6,7 @@ pub mod drive;
 pub mod instrument;
 pub mod j2;
 pub mod pbl;
+pub mod value;
 
 use crate::bus::{Bus, TxOptions};
 use crate::codec::FrameError;

@@ -7,10 +7,11 @@ use super::{
     PyStation,
 };
 use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
-use crate::device::instrument::{Instrument, WordOrder, MAX_DECIMALS};
+use crate::device::instrument::{Instrument, MAX_DECIMALS};
+use crate::device::value::Layout;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString, PyTuple};
+use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString, PyTuple};
 use std::time::Duration;
 
 /// The Python module of the family's public types.
@@ -26,26 +27,86 @@ pub(super) struct PyInstrumentCore {
     dev: Attached<Instrument>,
 }
 
-fn word_order(obj: &Bound<'_, PyAny>) -> PyResult<WordOrder> {
-    if !obj.is_instance_of::<PyString>() {
+/// A `word_order` or `byte_order` argument ("big": most significant first, or "little");
+/// absent or None: "big".
+fn big_arg(obj: Option<&Bound<'_, PyAny>>, name: &str, what: &str) -> PyResult<bool> {
+    opt(obj, true, |o| {
+        if !o.is_instance_of::<PyString>() {
+            return Err(PyTypeError::new_err(format!(
+                "{name} must be \"big\" or \"little\", got {}",
+                o.get_type().name()?
+            )));
+        }
+        match o.extract::<String>()?.as_str() {
+            "big" => Ok(true),
+            "little" => Ok(false),
+            other => Err(PyValueError::new_err(format!(
+                "{name} must be \"big\" (high {what} first) or \"little\" (low {what} first), \
+                 got {other:?}"
+            ))),
+        }
+    })
+}
+
+/// The layout of a multi-register value from its `word_order` and `byte_order` arguments.
+fn layout_arg(
+    word_order: Option<&Bound<'_, PyAny>>,
+    byte_order: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Layout> {
+    let words = big_arg(word_order, "word_order", "word")?;
+    let bytes = big_arg(byte_order, "byte_order", "byte")?;
+    Ok(Layout::new(words, bytes))
+}
+
+/// A `bits` argument: 32 (absent or None) or 64.
+fn bits_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<u32> {
+    opt(obj, 32, |b| match int_in(b, "bits", 0, 128)? {
+        bits @ (32 | 64) => Ok(bits as u32),
+        other => Err(PyValueError::new_err(format!(
+            "bits must be 32 or 64, got {other}"
+        ))),
+    })
+}
+
+/// The first register address of a value of `bits` (the last one must be 0xFFFF at most).
+fn value_address(obj: &Bound<'_, PyAny>, bits: u32) -> PyResult<u16> {
+    let last = 0x1_0000 - i64::from(bits / 16);
+    int_in(obj, "address", 0, last).map(|a| a as u16)
+}
+
+/// An int `value` that fits `bits`, signed or not, as its two's complement bits.
+fn int_bits(value: &Bound<'_, PyAny>, bits: u32, signed: bool) -> PyResult<u64> {
+    if value.is_instance_of::<PyBool>() || !value.is_instance_of::<PyInt>() {
         return Err(PyTypeError::new_err(format!(
-            "word_order must be \"big\" or \"little\", got {}",
-            obj.get_type().name()?
+            "value must be an int, got {}",
+            value.get_type().name()?
         )));
     }
-    match obj.extract::<String>()?.as_str() {
-        "big" => Ok(WordOrder::HighFirst),
-        "little" => Ok(WordOrder::LowFirst),
-        other => Err(PyValueError::new_err(format!(
-            "word_order must be \"big\" (high word first) or \"little\" (low word first), \
-             got {other:?}"
+    let (lo, hi): (i128, i128) = match (signed, bits) {
+        (true, 32) => (i32::MIN.into(), i32::MAX.into()),
+        (true, _) => (i64::MIN.into(), i64::MAX.into()),
+        (false, 32) => (0, u32::MAX.into()),
+        (false, _) => (0, u64::MAX.into()),
+    };
+    let got = value
+        .extract::<i64>()
+        .map(i128::from)
+        .or_else(|_| value.extract::<u64>().map(i128::from));
+    match got {
+        Ok(v) if (lo..=hi).contains(&v) => Ok(v as u64 & mask(bits)),
+        _ => Err(PyValueError::new_err(format!(
+            "value must be {lo} to {hi}, got {value}"
         ))),
     }
 }
 
-/// A `word_order` argument; absent or None: "big".
-fn order_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<WordOrder> {
-    opt(obj, WordOrder::HighFirst, word_order)
+/// The low `bits` bits set.
+fn mask(bits: u32) -> u64 {
+    if bits >= 64 {
+        u64::MAX
+    } else {
+        (1 << bits) - 1
+    }
 }
 
 fn decimals_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<u8> {
@@ -58,11 +119,6 @@ fn decimals_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<u8> {
 fn count_arg(obj: &Bound<'_, PyAny>, address: u16) -> PyResult<usize> {
     let most = 0x1_0000 - i64::from(address);
     int_in(obj, "count", 1, most).map(|n| n as usize)
-}
-
-/// The first register of a 32-bit value: 0..=0xFFFE, so that the second one exists too.
-fn pair_address(obj: &Bound<'_, PyAny>) -> PyResult<u16> {
-    int_in(obj, "address", 0, 0xFFFE).map(|a| a as u16)
 }
 
 /// The function a single-register write uses: 0x06, or 0x10 (true).
@@ -249,28 +305,42 @@ impl PyInstrumentCore {
             .wire(py, move |i| i.write_registers(address, &values))
     }
 
-    /// A 32-bit integer over the registers ``address`` and ``address + 1``.
-    #[pyo3(signature = (address, signed=false, word_order=None), text_signature = "(self, address, signed=False, word_order='big')")]
-    fn read_long(
+    /// An integer of ``bits`` (32 or 64) over the 2 or 4 registers from ``address``,
+    /// signed or not, laid out by ``word_order`` (which register first) and ``byte_order``
+    /// (which byte of each register first), each "big" (most significant first) or "little".
+    #[pyo3(
+        signature = (address, signed=false, word_order=None, *, byte_order=None, bits=None),
+        text_signature = "(self, address, signed=False, word_order='big', *, byte_order='big', bits=32)"
+    )]
+    fn read_long<'py>(
         &self,
-        py: Python<'_>,
-        address: &Bound<'_, PyAny>,
+        py: Python<'py>,
+        address: &Bound<'py, PyAny>,
         signed: bool,
-        word_order: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<i64> {
-        let address = pair_address(address)?;
-        let order = order_arg(word_order)?;
-        let v = self.dev.wire(py, move |i| i.read_u32(address, order))?;
-        Ok(if signed {
-            i64::from(v as i32)
-        } else {
-            i64::from(v)
+        word_order: Option<&Bound<'py, PyAny>>,
+        byte_order: Option<&Bound<'py, PyAny>>,
+        bits: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let bits = bits_arg(bits)?;
+        let address = value_address(address, bits)?;
+        let layout = layout_arg(word_order, byte_order)?;
+        let v = self
+            .dev
+            .wire(py, move |i| i.read_uint(address, bits, layout))?;
+        Ok(match (signed, bits) {
+            (true, 32) => (v as u32 as i32).into_pyobject(py)?.into_any(),
+            (true, _) => (v as i64).into_pyobject(py)?.into_any(),
+            (false, _) => v.into_pyobject(py)?.into_any(),
         })
     }
 
-    /// Write a 32-bit integer over two registers, in one request (two if ``max_write`` is
-    /// 1).
-    #[pyo3(signature = (address, value, signed=false, word_order=None), text_signature = "(self, address, value, signed=False, word_order='big')")]
+    /// Write an integer of ``bits`` (32 or 64) over 2 or 4 registers, laid out as
+    /// :meth:`read_long` reads it, in one request (more if ``max_write`` is smaller).
+    #[pyo3(
+        signature = (address, value, signed=false, word_order=None, *, byte_order=None, bits=None),
+        text_signature = "(self, address, value, signed=False, word_order='big', *, byte_order='big', bits=32)"
+    )]
+    #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn write_long(
         &self,
         py: Python<'_>,
@@ -278,54 +348,59 @@ impl PyInstrumentCore {
         value: &Bound<'_, PyAny>,
         signed: bool,
         word_order: Option<&Bound<'_, PyAny>>,
+        byte_order: Option<&Bound<'_, PyAny>>,
+        bits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let address = pair_address(address)?;
-        let value = if signed {
-            int_in(value, "value", i64::from(i32::MIN), i64::from(i32::MAX))? as i32 as u32
-        } else {
-            int_in(value, "value", 0, i64::from(u32::MAX))? as u32
-        };
-        let order = order_arg(word_order)?;
+        let bits = bits_arg(bits)?;
+        let address = value_address(address, bits)?;
+        let value = int_bits(value, bits, signed)?;
+        let layout = layout_arg(word_order, byte_order)?;
         self.dev
-            .wire(py, move |i| i.write_u32(address, value, order))
+            .wire(py, move |i| i.write_uint(address, value, bits, layout))
     }
 
-    /// An IEEE 754 single-precision float over two registers.
-    #[pyo3(signature = (address, word_order=None), text_signature = "(self, address, word_order='big')")]
+    /// An IEEE 754 float of ``bits`` (32: single, 64: double) over 2 or 4 registers, laid
+    /// out as :meth:`read_long` reads an integer.
+    #[pyo3(
+        signature = (address, word_order=None, *, byte_order=None, bits=None),
+        text_signature = "(self, address, word_order='big', *, byte_order='big', bits=32)"
+    )]
     fn read_float(
         &self,
         py: Python<'_>,
         address: &Bound<'_, PyAny>,
         word_order: Option<&Bound<'_, PyAny>>,
+        byte_order: Option<&Bound<'_, PyAny>>,
+        bits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<f64> {
-        let address = pair_address(address)?;
-        let order = order_arg(word_order)?;
+        let bits = bits_arg(bits)?;
+        let address = value_address(address, bits)?;
+        let layout = layout_arg(word_order, byte_order)?;
         self.dev
-            .wire(py, move |i| i.read_f32(address, order))
-            .map(f64::from)
+            .wire(py, move |i| i.read_float(address, bits, layout))
     }
 
-    /// Write an IEEE 754 single over two registers (NaN and infinities are refused).
-    #[pyo3(signature = (address, value, word_order=None), text_signature = "(self, address, value, word_order='big')")]
+    /// Write an IEEE 754 float of ``bits`` (32 or 64) over 2 or 4 registers (NaN,
+    /// infinities and, in 32 bits, numbers beyond a single's range are refused).
+    #[pyo3(
+        signature = (address, value, word_order=None, *, byte_order=None, bits=None),
+        text_signature = "(self, address, value, word_order='big', *, byte_order='big', bits=32)"
+    )]
     fn write_float(
         &self,
         py: Python<'_>,
         address: &Bound<'_, PyAny>,
         value: &Bound<'_, PyAny>,
         word_order: Option<&Bound<'_, PyAny>>,
+        byte_order: Option<&Bound<'_, PyAny>>,
+        bits: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
-        let address = pair_address(address)?;
+        let bits = bits_arg(bits)?;
+        let address = value_address(address, bits)?;
         let value = number(value, "value")?;
-        let single = value as f32;
-        // A finite number beyond a single's range: the core sees only the infinity.
-        if value.is_finite() && !single.is_finite() {
-            return Err(PyValueError::new_err(format!(
-                "value must be a finite number within a 32-bit float's range, got {value}"
-            )));
-        }
-        let order = order_arg(word_order)?;
+        let layout = layout_arg(word_order, byte_order)?;
         self.dev
-            .wire(py, move |i| i.write_f32(address, single, order))
+            .wire(py, move |i| i.write_float(address, value, bits, layout))
     }
 
     /// ``count`` registers as text, two Latin-1 characters a register (high byte first),

@@ -11,6 +11,7 @@ mod pbl;
 mod poll;
 mod ports;
 mod ticks;
+mod values;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::pdu::{
@@ -1303,6 +1304,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<poll::PyPoll>()?;
     m.add_class::<ticks::PyTicks>()?;
     m.add_function(wrap_pyfunction!(crc16, m)?)?;
+    m.add_function(wrap_pyfunction!(values::from_registers, m)?)?;
+    m.add_function(wrap_pyfunction!(values::to_registers, m)?)?;
     m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
     m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;

@@ -47,6 +47,30 @@ def integer(low: int, high: int, what: str) -> Callable[[str], int]:
     return convert
 
 
+#: The value types ``--type`` takes, and how many registers each lies over.
+VALUE_TYPES = {"u16": 1, "i16": 1, "u32": 2, "i32": 2, "u64": 4, "i64": 4, "f32": 2, "f64": 4}
+#: The layouts ``--order`` takes (see :func:`benchbus.from_registers`).
+ORDERS = ("ABCD", "CDAB", "BADC", "DCBA")
+
+
+def add_value_options(parser: argparse.ArgumentParser, verb: str) -> None:
+    """``--type`` and ``--order``: values of several registers, as ``verb`` ("read") them."""
+    parser.add_argument(
+        "--type",
+        choices=tuple(VALUE_TYPES),
+        metavar="TYPE",
+        help=f"{verb} values of TYPE ({', '.join(VALUE_TYPES)}), each over 1, 2 or 4 registers",
+    )
+    parser.add_argument(
+        "--order",
+        type=str.upper,
+        choices=ORDERS,
+        metavar="ORDER",
+        help="how a --type value lies over its registers: ABCD (default), CDAB (word swap), "
+        "BADC (byte swap) or DCBA",
+    )
+
+
 def parse_units(text: str, low: int = 1, high: int = 255) -> list[int]:
     """Unit addresses from a list of numbers and ranges: ``1-10,17,0x20-0x22``."""
     units: set[int] = set()

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from decimal import Decimal
 
-from benchbus.cli._args import Parser, integer
+import benchbus as bb
+from benchbus.cli._args import VALUE_TYPES, Parser, add_value_options, integer
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import open_bus, unit_of
 
@@ -20,14 +21,26 @@ def run(args: argparse.Namespace) -> int:
     """Run ``benchbus read`` as ``args`` say; the exit status."""
     if args.hex and (args.signed or args.decimals):
         raise UsageError("--hex prints the raw words: leave out --signed and --decimals")
-    if args.address + args.count > 0x10000:
-        raise UsageError(f"{args.count} registers from {args.address:#06x} run past 0xFFFF")
+    if args.order and not args.type:
+        raise UsageError("--order says how a --type value lies: give --type with it")
+    if args.type and (args.hex or args.signed or args.decimals):
+        raise UsageError("--type prints typed values: leave out --hex, --signed and --decimals")
+    width = VALUE_TYPES[args.type] if args.type else 1
+    total = args.count * width
+    if args.address + total > 0x10000:
+        raise UsageError(f"{total} registers from {args.address:#06x} run past 0xFFFF")
     unit = unit_of(args, "read")
     words: list[int] = []
     with open_bus(args, "read") as bus:
-        for start in range(args.address, args.address + args.count, 125):
-            count = min(125, args.address + args.count - start)
+        for start in range(args.address, args.address + total, 125):
+            count = min(125, args.address + total - start)
             words += bus.read_holding_registers(unit, start, count)
+    if args.type:
+        values = bb.from_registers(words, args.type, args.order or "ABCD")
+        for index, typed in enumerate(values):
+            address = args.address + index * width
+            print(f"0x{address:04X}  {address}  {typed}")
+        return 0
     for offset, word in enumerate(words):
         address = args.address + offset
         if args.hex:
@@ -42,7 +55,10 @@ def run(args: argparse.Namespace) -> int:
 #: What ``benchbus read`` does, as ``--help`` says.
 HELP = "read holding registers (function 0x03)"
 #: The rest of its ``--help``.
-EPILOG = "Prints one line per register: the address in hex, in decimal, and the value."
+EPILOG = (
+    "Prints one line per register (per value with --type): the address in hex, in decimal, "
+    "and the value."
+)
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
 LINE_OPTIONS = {"unit": True}
 
@@ -56,7 +72,8 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         nargs="?",
         default=1,
         metavar="COUNT",
-        help="registers to read (default 1; more than 125 go in several requests)",
+        help="registers (or --type values) to read (default 1; more than 125 registers go in "
+        "several requests)",
     )
     parser.add_argument("--hex", action="store_true", help="print the values in hex")
     parser.add_argument("--signed", action="store_true", help="values are 16-bit two's complement")
@@ -67,3 +84,4 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         metavar="N",
         help="divide the values by 10**N",
     )
+    add_value_options(parser, "read")

@@ -5,7 +5,8 @@ from __future__ import annotations
 import argparse
 from decimal import Decimal, InvalidOperation
 
-from benchbus.cli._args import Parser, integer, parse_int
+import benchbus as bb
+from benchbus.cli._args import VALUE_TYPES, Parser, add_value_options, integer, parse_int
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import open_bus, unit_of
 
@@ -37,9 +38,32 @@ def _word(text: str, decimals: int) -> int:
     return value & 0xFFFF
 
 
+def _typed_words(texts: list[str], kind: str, order: str) -> list[int]:
+    """The registers of values of ``kind`` as written on the command line, laid out as
+    ``order``."""
+    values: list[float] = []
+    for text in texts:
+        try:
+            values.append(float(text) if kind.startswith("f") else parse_int(text))
+        except ValueError as exc:
+            what = "a number" if kind.startswith("f") else "a whole number (decimal or hex)"
+            raise UsageError(f"{text!r} is not {what}") from exc
+    try:
+        return bb.to_registers(values, kind, order)  # type: ignore[arg-type]
+    except (TypeError, ValueError) as exc:
+        raise UsageError(str(exc)) from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus write`` as ``args`` say; the exit status."""
-    words = [_word(v, args.decimals) for v in args.values]
+    if args.order and not args.type:
+        raise UsageError("--order says how a --type value lies: give --type with it")
+    if args.type and args.decimals:
+        raise UsageError("--type writes typed values: leave out --decimals")
+    if args.type:
+        words = _typed_words(args.values, args.type, args.order or "ABCD")
+    else:
+        words = [_word(v, args.decimals) for v in args.values]
     if args.address + len(words) > 0x10000:
         raise UsageError(f"{len(words)} registers from {args.address:#06x} run past 0xFFFF")
     unit = unit_of(args, "write", broadcast=True)
@@ -49,7 +73,7 @@ def run(args: argparse.Namespace) -> int:
         if unit == 0:
             bus.broadcast_write_register(args.address, words[0])
             how = "broadcast"
-        elif len(words) == 1 and not args.multiple:
+        elif len(words) == 1 and not args.multiple and VALUE_TYPES.get(args.type, 1) == 1:
             bus.write_register(
                 unit, args.address, words[0], accept_count_echo=args.accept_count_echo
             )
@@ -68,8 +92,9 @@ HELP = "write holding registers (0x06 for one value, 0x10 for several)"
 #: The rest of its ``--help``.
 EPILOG = (
     "Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
-    "with --decimals N, decimal numbers written as value x 10**N. --unit 0 broadcasts "
-    "one value and waits for no reply."
+    "with --decimals N, decimal numbers written as value x 10**N; with --type, values of "
+    "that type over as many registers as it takes (0x10). --unit 0 broadcasts one value "
+    "and waits for no reply."
 )
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
 LINE_OPTIONS = {"unit": True}
@@ -92,3 +117,4 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         action="store_true",
         help="accept a 0x06 reply that carries a count of 1 instead of the value (PBL)",
     )
+    add_value_options(parser, "write")

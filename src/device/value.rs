@@ -1,0 +1,422 @@
+//! How a value wider than one register lies in consecutive registers: which register comes
+//! first (word order) and which byte of each register (byte order). Modbus itself says only
+//! that a register is sent high byte first; devices disagree on the rest, so the four
+//! layouts are named as the trade names them, by where the value's bytes A (most
+//! significant) to D land. For 0x01020304 in two registers:
+//!
+//! | layout | word order | byte order | registers |
+//! |---|---|---|---|
+//! | ABCD | big | big | `[0x0102, 0x0304]` |
+//! | CDAB | little | big | `[0x0304, 0x0102]` |
+//! | BADC | big | little | `[0x0201, 0x0403]` |
+//! | DCBA | little | little | `[0x0403, 0x0201]` |
+//!
+//! A 64-bit value lies the same way over four registers (CDAB: `[GH, EF, CD, AB]`).
+
+use crate::error::{Error, Result};
+
+/// The layout of a value over consecutive registers (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Layout {
+    /// Most significant register first, high byte first in each: the Modbus convention.
+    #[default]
+    Abcd,
+    /// Least significant register first, high byte first in each ("word swap").
+    Cdab,
+    /// Most significant register first, low byte first in each ("byte swap").
+    Badc,
+    /// Least significant register first, low byte first in each.
+    Dcba,
+}
+
+impl Layout {
+    /// Every layout, ABCD first.
+    pub const ALL: [Layout; 4] = [Layout::Abcd, Layout::Cdab, Layout::Badc, Layout::Dcba];
+
+    /// The layout of a word order and a byte order, each big (most significant first) or
+    /// not.
+    pub const fn new(words_big: bool, bytes_big: bool) -> Layout {
+        match (words_big, bytes_big) {
+            (true, true) => Layout::Abcd,
+            (false, true) => Layout::Cdab,
+            (true, false) => Layout::Badc,
+            (false, false) => Layout::Dcba,
+        }
+    }
+
+    /// The layout called `name` ("ABCD", "CDAB", "BADC", "DCBA"; any case), or None.
+    pub fn from_name(name: &str) -> Option<Layout> {
+        Layout::ALL
+            .into_iter()
+            .find(|l| l.name().eq_ignore_ascii_case(name))
+    }
+
+    /// Its name: "ABCD", "CDAB", "BADC" or "DCBA".
+    pub const fn name(self) -> &'static str {
+        match self {
+            Layout::Abcd => "ABCD",
+            Layout::Cdab => "CDAB",
+            Layout::Badc => "BADC",
+            Layout::Dcba => "DCBA",
+        }
+    }
+
+    /// Whether the most significant register comes first.
+    pub const fn words_big(self) -> bool {
+        matches!(self, Layout::Abcd | Layout::Badc)
+    }
+
+    /// Whether each register holds its high byte first.
+    pub const fn bytes_big(self) -> bool {
+        matches!(self, Layout::Abcd | Layout::Cdab)
+    }
+
+    /// The registers that hold `value`, given as its bytes most significant first (an even
+    /// number of them), in this layout.
+    pub fn to_registers(self, value: &[u8]) -> Vec<u16> {
+        let mut words: Vec<u16> = value
+            .chunks(2)
+            .map(|pair| match pair {
+                [hi, lo] if self.bytes_big() => u16::from_be_bytes([*hi, *lo]),
+                [hi, lo] => u16::from_le_bytes([*hi, *lo]),
+                [only] => u16::from(*only),
+                _ => 0,
+            })
+            .collect();
+        if !self.words_big() {
+            words.reverse();
+        }
+        words
+    }
+
+    /// The value's bytes, most significant first, that `registers` hold in this layout.
+    pub fn from_registers(self, registers: &[u16]) -> Vec<u8> {
+        let mut words = registers.to_vec();
+        if !self.words_big() {
+            words.reverse();
+        }
+        words
+            .into_iter()
+            .flat_map(|w| {
+                if self.bytes_big() {
+                    w.to_be_bytes()
+                } else {
+                    w.to_le_bytes()
+                }
+            })
+            .collect()
+    }
+
+    /// The registers of a 32-bit value.
+    pub fn split32(self, value: u32) -> [u16; 2] {
+        match self.to_registers(&value.to_be_bytes())[..] {
+            [a, b] => [a, b],
+            _ => [0, 0],
+        }
+    }
+
+    /// The 32-bit value of two registers.
+    pub fn join32(self, registers: [u16; 2]) -> u32 {
+        let mut bytes = [0u8; 4];
+        bytes.copy_from_slice(&self.from_registers(&registers));
+        u32::from_be_bytes(bytes)
+    }
+
+    /// The registers of a 64-bit value.
+    pub fn split64(self, value: u64) -> [u16; 4] {
+        match self.to_registers(&value.to_be_bytes())[..] {
+            [a, b, c, d] => [a, b, c, d],
+            _ => [0; 4],
+        }
+    }
+
+    /// The 64-bit value of four registers.
+    pub fn join64(self, registers: [u16; 4]) -> u64 {
+        let mut bytes = [0u8; 8];
+        bytes.copy_from_slice(&self.from_registers(&registers));
+        u64::from_be_bytes(bytes)
+    }
+}
+
+/// A number a register value stands for: an integer (of any width up to 64 bits, signed or
+/// not) or a float.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Number {
+    /// An integer.
+    Int(i128),
+    /// A float.
+    Float(f64),
+}
+
+/// What one value over registers is: its width and kind, as the trade names them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    /// One register, 0..65535.
+    U16,
+    /// One register, two's complement.
+    I16,
+    /// Two registers, unsigned.
+    U32,
+    /// Two registers, two's complement.
+    I32,
+    /// Four registers, unsigned.
+    U64,
+    /// Four registers, two's complement.
+    I64,
+    /// Two registers, IEEE 754 single.
+    F32,
+    /// Four registers, IEEE 754 double.
+    F64,
+}
+
+impl Kind {
+    /// Every kind, in the order of their names' table.
+    pub const ALL: [Kind; 8] = [
+        Kind::U16,
+        Kind::I16,
+        Kind::U32,
+        Kind::I32,
+        Kind::U64,
+        Kind::I64,
+        Kind::F32,
+        Kind::F64,
+    ];
+
+    /// Its name: "u16", "i16", "u32", "i32", "u64", "i64", "f32" or "f64".
+    pub const fn name(self) -> &'static str {
+        match self {
+            Kind::U16 => "u16",
+            Kind::I16 => "i16",
+            Kind::U32 => "u32",
+            Kind::I32 => "i32",
+            Kind::U64 => "u64",
+            Kind::I64 => "i64",
+            Kind::F32 => "f32",
+            Kind::F64 => "f64",
+        }
+    }
+
+    /// The kind called `name` (any case), or None.
+    pub fn from_name(name: &str) -> Option<Kind> {
+        Kind::ALL
+            .into_iter()
+            .find(|k| k.name().eq_ignore_ascii_case(name))
+    }
+
+    /// How many registers a value takes.
+    pub const fn registers(self) -> usize {
+        match self {
+            Kind::U16 | Kind::I16 => 1,
+            Kind::U32 | Kind::I32 | Kind::F32 => 2,
+            Kind::U64 | Kind::I64 | Kind::F64 => 4,
+        }
+    }
+
+    const fn bits(self) -> u32 {
+        16 * self.registers() as u32
+    }
+
+    const fn signed(self) -> bool {
+        matches!(self, Kind::I16 | Kind::I32 | Kind::I64)
+    }
+
+    const fn float(self) -> bool {
+        matches!(self, Kind::F32 | Kind::F64)
+    }
+
+    /// The values `registers` hold, one per [`registers`](Self::registers) of them, laid out
+    /// as `layout` (a one-register value takes only the byte order).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when `registers` is not a whole number of values.
+    pub fn decode(self, registers: &[u16], layout: Layout) -> Result<Vec<Number>> {
+        let width = self.registers();
+        if registers.is_empty() || registers.len() % width != 0 {
+            return Err(Error::InvalidArgument(format!(
+                "{} registers do not make whole {} values ({width} registers each)",
+                registers.len(),
+                self.name()
+            )));
+        }
+        Ok(registers
+            .chunks(width)
+            .map(|one| self.number(layout.from_registers(one)))
+            .collect())
+    }
+
+    /// The value of its bytes, most significant first.
+    fn number(self, bytes: Vec<u8>) -> Number {
+        let raw = bytes.iter().fold(0u64, |v, b| v << 8 | u64::from(*b));
+        match self {
+            Kind::F32 => Number::Float(f64::from(f32::from_bits(raw as u32))),
+            Kind::F64 => Number::Float(f64::from_bits(raw)),
+            _ if self.signed() => {
+                let shift = 64 - self.bits();
+                Number::Int(i128::from(((raw << shift) as i64) >> shift))
+            }
+            _ => Number::Int(i128::from(raw)),
+        }
+    }
+
+    /// The registers that hold `value` laid out as `layout`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for an integer that does not fit the kind, a float given
+    /// for an integer kind, or a float that is not finite (or, for f32, beyond a single's
+    /// range).
+    pub fn encode(self, value: Number, layout: Layout) -> Result<Vec<u16>> {
+        let bits = self.bits();
+        let raw: u64 = match (value, self.float()) {
+            (Number::Int(v), false) => {
+                let (lo, hi) = if self.signed() {
+                    (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1)
+                } else {
+                    (0, (1i128 << bits) - 1)
+                };
+                if !(lo..=hi).contains(&v) {
+                    return Err(Error::InvalidArgument(format!(
+                        "a {} value must be {lo} to {hi}, got {v}",
+                        self.name()
+                    )));
+                }
+                (v as u64) & (u64::MAX >> (64 - bits))
+            }
+            (Number::Float(v), false) => {
+                return Err(Error::InvalidArgument(format!(
+                    "a {} value must be an integer, got {v}",
+                    self.name()
+                )))
+            }
+            (value, true) => {
+                let v = match value {
+                    Number::Int(i) => i as f64,
+                    Number::Float(f) => f,
+                };
+                let single = v as f32;
+                match self {
+                    Kind::F32 if single.is_finite() => u64::from(single.to_bits()),
+                    Kind::F64 if v.is_finite() => v.to_bits(),
+                    _ => {
+                        return Err(Error::InvalidArgument(format!(
+                            "a {} value must be a finite number within its range, got {v}",
+                            self.name()
+                        )))
+                    }
+                }
+            }
+        };
+        let bytes = raw.to_be_bytes();
+        let ours = bytes.get(8 - 2 * self.registers()..).unwrap_or(&bytes);
+        Ok(layout.to_registers(ours))
+    }
+}
+
+/// How many bits a multi-register integer or float has: 32 (two registers) or 64 (four).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for anything else.
+pub fn registers_for_bits(bits: u32) -> Result<usize> {
+    match bits {
+        32 => Ok(2),
+        64 => Ok(4),
+        _ => Err(Error::InvalidArgument(format!(
+            "bits must be 32 or 64, got {bits}"
+        ))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_four_layouts_of_0x01020304() {
+        let cases = [
+            (Layout::Abcd, [0x0102, 0x0304]),
+            (Layout::Cdab, [0x0304, 0x0102]),
+            (Layout::Badc, [0x0201, 0x0403]),
+            (Layout::Dcba, [0x0403, 0x0201]),
+        ];
+        for (layout, registers) in cases {
+            assert_eq!(layout.split32(0x0102_0304), registers, "{}", layout.name());
+            assert_eq!(layout.join32(registers), 0x0102_0304, "{}", layout.name());
+        }
+    }
+
+    #[test]
+    fn a_64_bit_value_lies_the_same_way_over_four_registers() {
+        let v = 0x0102_0304_0506_0708;
+        assert_eq!(Layout::Abcd.split64(v), [0x0102, 0x0304, 0x0506, 0x0708]);
+        assert_eq!(Layout::Cdab.split64(v), [0x0708, 0x0506, 0x0304, 0x0102]);
+        assert_eq!(Layout::Badc.split64(v), [0x0201, 0x0403, 0x0605, 0x0807]);
+        assert_eq!(Layout::Dcba.split64(v), [0x0807, 0x0605, 0x0403, 0x0201]);
+        for layout in Layout::ALL {
+            assert_eq!(layout.join64(layout.split64(v)), v);
+        }
+    }
+
+    #[test]
+    fn kinds_decode_and_encode_in_every_layout() {
+        let cases: [(Kind, Number, &[u16]); 8] = [
+            (Kind::U16, Number::Int(0xFFFE), &[0xFFFE]),
+            (Kind::I16, Number::Int(-2), &[0xFFFE]),
+            (Kind::U32, Number::Int(0x0102_0304), &[0x0102, 0x0304]),
+            (Kind::I32, Number::Int(-2), &[0xFFFF, 0xFFFE]),
+            (Kind::U64, Number::Int(u64::MAX.into()), &[0xFFFF; 4]),
+            (Kind::I64, Number::Int(i64::MIN.into()), &[0x8000, 0, 0, 0]),
+            (Kind::F32, Number::Float(21.5), &[0x41AC, 0x0000]),
+            (Kind::F64, Number::Float(1.0), &[0x3FF0, 0, 0, 0]),
+        ];
+        for (kind, value, abcd) in cases {
+            assert_eq!(kind.encode(value, Layout::Abcd).ok().as_deref(), Some(abcd));
+            assert_eq!(kind.decode(abcd, Layout::Abcd).ok(), Some(vec![value]));
+            for layout in Layout::ALL {
+                let registers = kind.encode(value, layout).unwrap_or_default();
+                assert_eq!(kind.decode(&registers, layout).ok(), Some(vec![value]));
+            }
+        }
+        // One register: only the byte order applies.
+        assert_eq!(
+            Kind::U16.encode(Number::Int(0x0102), Layout::Cdab).ok(),
+            Some(vec![0x0102])
+        );
+        assert_eq!(
+            Kind::U16.encode(Number::Int(0x0102), Layout::Badc).ok(),
+            Some(vec![0x0201])
+        );
+        // Several values at once.
+        let two = Kind::I16
+            .decode(&[1, 0xFFFF], Layout::Abcd)
+            .unwrap_or_default();
+        assert_eq!(two, vec![Number::Int(1), Number::Int(-1)]);
+    }
+
+    #[test]
+    fn kinds_refuse_what_does_not_fit() {
+        let refused = |kind: Kind, value: Number| kind.encode(value, Layout::Abcd).is_err();
+        assert!(refused(Kind::U16, Number::Int(65536)));
+        assert!(refused(Kind::U16, Number::Int(-1)));
+        assert!(refused(Kind::I16, Number::Int(32768)));
+        assert!(refused(Kind::I64, Number::Int(i128::from(i64::MAX) + 1)));
+        assert!(refused(Kind::U32, Number::Float(1.0)));
+        assert!(refused(Kind::F32, Number::Float(1e39)));
+        assert!(refused(Kind::F64, Number::Float(f64::NAN)));
+        assert!(Kind::U32.decode(&[1, 2, 3], Layout::Abcd).is_err());
+        assert!(Kind::U32.decode(&[], Layout::Abcd).is_err());
+        assert_eq!(Kind::from_name("F32"), Some(Kind::F32));
+        assert_eq!(Kind::from_name("u8"), None);
+    }
+
+    #[test]
+    fn names_and_orders() {
+        for layout in Layout::ALL {
+            assert_eq!(Layout::from_name(layout.name()), Some(layout));
+            assert_eq!(Layout::new(layout.words_big(), layout.bytes_big()), layout);
+        }
+        assert_eq!(Layout::from_name("cdab"), Some(Layout::Cdab));
+        assert_eq!(Layout::from_name("ACBD"), None);
+        assert_eq!(Layout::default(), Layout::Abcd);
+        assert_eq!(registers_for_bits(64).ok(), Some(4));
+        assert!(registers_for_bits(16).is_err());
+    }
+}
