@@ -101,7 +101,8 @@ class Instrument(InstrumentCore, BusDevice):
     ``max_read`` / ``max_write`` registers, and of ``max_read_bits`` / ``max_write_bits``
     coils or inputs (the protocol's 2000 / 1968 unless the device takes fewer); writes go
     at least ``min_write_interval`` seconds apart. Register reads take ``function=4`` for
-    input registers (3, holding registers, by default). A split write that fails part-way leaves the requests before it written.
+    input registers (3, holding registers, by default). A split write that fails part-way
+    leaves the requests before it written.
     The timeout counts from the start of the request (a request longer than half of it on
     the wire still leaves the device half of it after its end); a long reply's own time on
     the wire comes on top.
