@@ -6,6 +6,10 @@ mod common;
 use benchbus::bus::{Bus, BusConfig};
 use benchbus::device::instrument::Instrument;
 use benchbus::device::value::Layout;
+use benchbus::device::Table;
+
+/// The table the instrument tests read: holding registers.
+const H: Table = Table::Holding;
 use benchbus::timing::{LineFormat, Parity};
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
@@ -38,17 +42,17 @@ fn the_taisong_frames() {
         words(1, &[1000, 7]),
     ];
     let (i, t) = taisong(acts, 1);
-    assert_eq!(i.read_value(0, 0, false).ok(), Some(1000.0));
+    assert_eq!(i.read_value(H, 0, 0, false).ok(), Some(1000.0));
     i.write_value(5, 100.0, 0, false, false).expect("SV");
     i.write_registers(8, &[100, 200]).expect("0x10");
-    assert_eq!(i.read_registers(0, 2).ok(), Some(vec![1000, 7]));
+    assert_eq!(i.read_registers(H, 0, 2).ok(), Some(vec![1000, 7]));
     let frames = sent(&t);
     assert_eq!(frames[0], hex("01 03 00 00 00 01 84 0A"));
     assert_eq!(frames[1], hex("01 06 00 05 00 64 98 20"));
     assert_eq!(frames[2], hex("01 10 00 08 00 02 04 00 64 00 C8 B2 40"));
     assert_eq!(frames[3], hex("01 03 00 00 00 02 C4 0B"));
     let (i, t) = taisong(vec![Act::Reply(hex("09 03 02 01 00 58 15"))], 9);
-    assert_eq!(i.read_word(0).ok(), Some(256));
+    assert_eq!(i.read_word(H, 0).ok(), Some(256));
     assert_eq!(sent(&t)[0], hex("09 03 00 00 00 01 85 42"));
 }
 
@@ -61,7 +65,7 @@ fn the_atv31_frames() {
     ];
     let (i, t) = inst(acts, 2, 29, 29);
     assert_eq!(
-        i.read_registers(0x0C1E, 4).ok(),
+        i.read_registers(H, 0x0C1E, 4).ok(),
         Some(vec![0x28, 0x258, 0x1F4, 0])
     );
     i.write_word(0x2329, 13, false).expect("W9001");
@@ -83,7 +87,7 @@ fn long_reads_and_writes_are_split_at_the_limits() {
         written(1, 40, 5),
     ];
     let (i, t) = taisong(acts, 1);
-    let got = i.read_registers(0, 100).expect("three reads");
+    let got = i.read_registers(H, 0, 100).expect("three reads");
     assert_eq!(got.len(), 100);
     assert_eq!((got[0], got[37], got[99]), (1, 2, 3));
     let values: Vec<u16> = (0..45).collect();
@@ -117,11 +121,11 @@ fn long_reads_and_writes_are_split_at_the_limits() {
 fn bad_spans_and_limits_send_nothing() {
     let (i, t) = taisong(vec![], 1);
     assert!(matches!(
-        i.read_registers(0, 0),
+        i.read_registers(H, 0, 0),
         Err(Error::InvalidArgument(_))
     ));
     assert!(matches!(
-        i.read_registers(0xFFFF, 2),
+        i.read_registers(H, 0xFFFF, 2),
         Err(Error::InvalidArgument(_))
     ));
     assert!(matches!(
@@ -199,11 +203,14 @@ fn thirty_two_bit_values_in_both_word_orders() {
     let (i, t) = taisong(acts, 1);
     i.write_uint(0x10, 0x1234_5678, 32, Layout::Abcd)
         .expect("write");
-    assert_eq!(i.read_uint(0x10, 32, Layout::Cdab).ok(), Some(0x5678_1234));
+    assert_eq!(
+        i.read_uint(H, 0x10, 32, Layout::Cdab).ok(),
+        Some(0x5678_1234)
+    );
     i.write_uint(0x10, 0x1234_5678, 32, Layout::Cdab)
         .expect("write");
     i.write_float(0x20, 21.5, 32, Layout::Cdab).expect("float");
-    assert_eq!(i.read_float(0x20, 32, Layout::Cdab).ok(), Some(21.5));
+    assert_eq!(i.read_float(H, 0x20, 32, Layout::Cdab).ok(), Some(21.5));
     let frames = sent(&t);
     assert_eq!(frames[0][7..11], [0x12, 0x34, 0x56, 0x78]);
     assert_eq!(frames[2][7..11], [0x56, 0x78, 0x12, 0x34]);
@@ -216,7 +223,7 @@ fn text_two_characters_a_register() {
     let (i, t) = taisong(acts, 1);
     i.write_string(0x40, "ABC", 3).expect("write");
     assert_eq!(sent(&t)[0][7..13], *b"ABC\0\0\0");
-    assert_eq!(i.read_string(0x40, 3).ok().as_deref(), Some("ABC"));
+    assert_eq!(i.read_string(H, 0x40, 3).ok().as_deref(), Some("ABC"));
 }
 
 fn id_page(more: bool, next: u8, objects: &[(u8, &str)]) -> Act {
@@ -298,6 +305,6 @@ fn a_long_reply_at_a_low_baud_rate_gets_its_wire_time() {
     let bus = Bus::with_transport(cfg, Box::new(t.clone()));
     let i = Instrument::new(Arc::new(bus), 1, 37, 20, Duration::ZERO).expect("valid");
     let start = Instant::now();
-    assert_eq!(i.read_registers(0, 37).ok(), Some(vec![7; 37]));
+    assert_eq!(i.read_registers(H, 0, 37).ok(), Some(vec![7; 37]));
     assert!(start.elapsed() >= Duration::from_millis(300));
 }

@@ -7,7 +7,7 @@ use benchbus::device::drive::{Drive, Family};
 use benchbus::device::instrument::Instrument;
 use benchbus::device::j2::J2;
 use benchbus::device::pbl::Pbl;
-use benchbus::device::Device;
+use benchbus::device::{Device, Table};
 use benchbus::Error;
 use common::{bus, sent, words, Act};
 use std::sync::Arc;
@@ -59,13 +59,16 @@ fn a_devices_own_retries_replace_the_buss_in_every_family() {
 
     let (b, t) = bus(silent_then_reply(), 2);
     let i = instrument(Arc::new(b)).with_timing(timeout, Some(0));
-    assert!(matches!(i.read_word(0), Err(Error::Timeout { .. })));
+    assert!(matches!(
+        i.read_word(Table::Holding, 0),
+        Err(Error::Timeout { .. })
+    ));
     assert_eq!(sent(&t).len(), 1);
 
     // With three retries of its own (the Bus has two), the fourth request is answered.
     let (b, t) = bus(silent_then_reply(), 2);
     let i = instrument(Arc::new(b)).with_timing(timeout, Some(3));
-    assert_eq!(i.read_word(0).ok(), Some(42));
+    assert_eq!(i.read_word(Table::Holding, 0).ok(), Some(42));
     assert_eq!(sent(&t).len(), 4);
 }
 

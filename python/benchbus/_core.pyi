@@ -15,6 +15,8 @@ from benchbus._pbl import Direction, PblParameter, PblStatus, PblTelemetry
 #: Which register (word order) or which byte of a register (byte order) of a multi-register
 #: value comes first: "big" the most significant (the Modbus convention), "little" the least.
 _Order = Literal["big", "little"]
+#: The function a register read uses: 3 (holding registers) or 4 (input registers).
+_Read = Literal[3, 4]
 
 __all__ = [
     "Bus",
@@ -791,6 +793,8 @@ class InstrumentCore(_Station):
         max_read: int,
         max_write: int,
         min_write_interval: float,
+        max_read_bits: int,
+        max_write_bits: int,
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
@@ -803,11 +807,20 @@ class InstrumentCore(_Station):
     def max_write(self) -> int:
         """Most registers one write carries."""
     @property
+    def max_read_bits(self) -> int:
+        """Most coils or discrete inputs one read asks for."""
+    @property
+    def max_write_bits(self) -> int:
+        """Most coils one write carries."""
+    @property
     def min_write_interval(self) -> float:
         """Least time between two writes, seconds."""
-    def read_register(self, address: int, decimals: int = 0, signed: bool = False) -> int | float:
+    def read_register(
+        self, address: int, decimals: int = 0, signed: bool = False, *, function: _Read = 3
+    ) -> int | float:
         """One register as a value: ``raw / 10**decimals`` (an int when ``decimals`` is 0),
-        two's complement if ``signed``."""
+        two's complement if ``signed``; ``function=4`` reads an input register instead of a
+        holding register (3)."""
     def write_register(
         self,
         address: int,
@@ -820,8 +833,23 @@ class InstrumentCore(_Station):
         """Write ``value * 10**decimals`` to one register with 0x06 (or 0x10 if ``function``
         is 16). A value that does not fit or has more decimals raises ValueError before
         anything is sent."""
-    def read_registers(self, address: int, count: int) -> list[int]:
-        """``count`` raw registers from ``address``, in requests of at most ``max_read``."""
+    def read_registers(self, address: int, count: int, *, function: _Read = 3) -> list[int]:
+        """``count`` raw registers from ``address``, in requests of at most ``max_read``
+        (``function=4``: input registers)."""
+    def read_coil(self, address: int) -> bool:
+        """One coil (0x01)."""
+    def read_coils(self, address: int, count: int) -> list[bool]:
+        """``count`` coils from ``address`` (0x01), in requests of at most ``max_read_bits``."""
+    def read_discrete_input(self, address: int) -> bool:
+        """One discrete input (0x02)."""
+    def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
+        """``count`` discrete inputs from ``address`` (0x02), in requests of at most
+        ``max_read_bits``."""
+    def write_coil(self, address: int, value: bool) -> None:
+        """Set one coil on (True) or off (False) with 0x05; the reply must echo it."""
+    def write_coils(self, address: int, values: Iterable[bool]) -> None:
+        """Set the coils from ``address`` to ``values`` (True or False each) with 0x0F, in
+        requests of at most ``max_write_bits``."""
     def write_registers(self, address: int, values: Iterable[int]) -> None:
         """Write raw ``values`` from ``address`` with 0x10, in requests of at most
         ``max_write``."""
@@ -833,6 +861,7 @@ class InstrumentCore(_Station):
         *,
         byte_order: _Order = "big",
         bits: Literal[32, 64] = 32,
+        function: _Read = 3,
     ) -> int:
         """An integer of ``bits`` (32 or 64) over the 2 or 4 registers from ``address``,
         signed or not, laid out by ``word_order`` (which register first) and ``byte_order``
@@ -860,6 +889,7 @@ class InstrumentCore(_Station):
         *,
         byte_order: _Order = "big",
         bits: Literal[32, 64] = 32,
+        function: _Read = 3,
     ) -> float:
         """An IEEE 754 float of ``bits`` (32: single, 64: double) over 2 or 4 registers,
         laid out as :meth:`read_long` reads an integer."""
@@ -874,9 +904,9 @@ class InstrumentCore(_Station):
     ) -> None:
         """Write an IEEE 754 float of ``bits`` (32 or 64) over 2 or 4 registers (NaN,
         infinities and, in 32 bits, numbers beyond a single's range are refused)."""
-    def read_string(self, address: int, count: int) -> str:
-        """``count`` registers as text, two Latin-1 characters a register (high byte
-        first), without the NULs that pad it."""
+    def read_string(self, address: int, count: int, *, function: _Read = 3) -> str:
+        """``count`` registers as text, two Latin-1 characters a register (high byte first),
+        without the NULs that pad it (``function=4``: input registers)."""
     def write_string(self, address: int, text: str, count: int) -> None:
         """Write ``text`` into ``count`` registers, two characters a register, padded with
         NULs (longer text or characters outside Latin-1 raise ValueError)."""

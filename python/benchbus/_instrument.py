@@ -79,8 +79,9 @@ class Identification:
 
 
 class Instrument(InstrumentCore, BusDevice):
-    """Any Modbus RTU instrument with holding registers; the defaults fit a Taisong v2.1
-    panel meter (manual 004): 9600 8N1, at most 37 registers a read and 20 a write.
+    """Any Modbus instrument, in all four tables (holding and input registers, coils,
+    discrete inputs); the defaults fit a Taisong v2.1 panel meter (manual 004): 9600 8N1, at
+    most 37 registers a read and 20 a write.
 
     ::
 
@@ -89,14 +90,19 @@ class Instrument(InstrumentCore, BusDevice):
             meter.write_register(0x0005, 100)              # the setpoint SV
             block = meter.read_registers(0x0000, 100)      # 37 + 37 + 26 on the wire
             meter.write_float(0x0100, 21.5, word_order="little")
+            power = meter.read_float(0x000C, function=4)   # an input register
+            meter.write_coil(0x0002, True)                 # a relay
             print(meter.identify())                        # 0x2B / 0x0E, if supported
 
     Given a path, the instrument opens its own Bus at ``baudrate`` 8N1 (2400, 4800, 9600 or
     19200, the Taisong's; for other speeds open a Bus yourself); given a Bus, it shares it
     (``timeout`` / ``retries`` then apply to this instrument's requests only; ``baudrate``
     is not used). Reads and writes of any length are split into requests of at most
-    ``max_read`` / ``max_write`` registers; writes go at least ``min_write_interval``
-    seconds apart. A split write that fails part-way leaves the requests before it written.
+    ``max_read`` / ``max_write`` registers, and of ``max_read_bits`` / ``max_write_bits``
+    coils or inputs (the protocol's 2000 / 1968 unless the device takes fewer); writes go
+    at least ``min_write_interval`` seconds apart. Register reads take ``function=4`` for
+    input registers (3, holding registers, by default). A split write that fails part-way
+    leaves the requests before it written.
     The timeout counts from the start of the request (a request longer than half of it on
     the wire still leaves the device half of it after its end); a long reply's own time on
     the wire comes on top.
@@ -114,6 +120,8 @@ class Instrument(InstrumentCore, BusDevice):
         min_write_interval: float = 0.0,
         baudrate: int = 9600,
         *,
+        max_read_bits: int = 2000,
+        max_write_bits: int = 1968,
         timeout: float | None = None,
         retries: int | None = None,
     ) -> None:
@@ -126,6 +134,8 @@ class Instrument(InstrumentCore, BusDevice):
             max_read,
             max_write,
             min_write_interval,
+            max_read_bits,
+            max_write_bits,
             timeout=timeout,
             retries=retries,
             line=line,

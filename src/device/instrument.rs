@@ -4,9 +4,9 @@
 //! in any of the four layouts ([`Layout`]), strings, and Read Device Identification.
 
 use super::value::{registers_for_bits, Layout};
-use super::{Device, Station};
+use super::{Device, Station, Table};
 use crate::bus::{Bus, TxOptions};
-use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
+use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
 use crate::codec::DeviceIdentification;
 use crate::error::{Error, Result};
 use std::sync::Arc;
@@ -91,6 +91,8 @@ pub struct Instrument {
     station: Station,
     max_read: u16,
     max_write: u16,
+    max_read_bits: u16,
+    max_write_bits: u16,
 }
 
 impl Device for Instrument {
@@ -134,7 +136,32 @@ impl Instrument {
             station: Station::new(bus, unit, opts),
             max_read,
             max_write,
+            max_read_bits: MAX_READ_BITS,
+            max_write_bits: MAX_WRITE_BITS,
         })
+    }
+
+    /// The same instrument reading at most `max_read_bits` and writing at most
+    /// `max_write_bits` coils or inputs a request (the protocol's 2000 and 1968 unless the
+    /// device allows fewer).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if `max_read_bits` is not 1..=2000 or `max_write_bits` not
+    /// 1..=1968.
+    pub fn with_bit_limits(mut self, max_read_bits: u16, max_write_bits: u16) -> Result<Self> {
+        if !(1..=MAX_READ_BITS).contains(&max_read_bits) {
+            return Err(Error::InvalidArgument(format!(
+                "max_read_bits must be 1 to {MAX_READ_BITS}, got {max_read_bits}"
+            )));
+        }
+        if !(1..=MAX_WRITE_BITS).contains(&max_write_bits) {
+            return Err(Error::InvalidArgument(format!(
+                "max_write_bits must be 1 to {MAX_WRITE_BITS}, got {max_write_bits}"
+            )));
+        }
+        self.max_read_bits = max_read_bits;
+        self.max_write_bits = max_write_bits;
+        Ok(self)
     }
 
     /// Most registers one read asks for.
@@ -147,23 +174,71 @@ impl Instrument {
         self.max_write
     }
 
+    /// Most coils or discrete inputs one read asks for.
+    pub fn max_read_bits(&self) -> u16 {
+        self.max_read_bits
+    }
+
+    /// Most coils one write carries.
+    pub fn max_write_bits(&self) -> u16 {
+        self.max_write_bits
+    }
+
     /// Least time between two writes.
     pub fn min_write_interval(&self) -> Duration {
         self.station.opts().write_interval
     }
 
-    /// `count` registers from `address`, in requests of at most `max_read`.
+    /// `count` registers of `table` (holding or input) from `address`, in requests of at
+    /// most `max_read`.
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] for an empty span or one past 0xFFFF (nothing sent); any
-    /// [`Error`] of a request (the registers read before it are lost).
-    pub fn read_registers(&self, address: u16, count: usize) -> Result<Vec<u16>> {
+    /// [`Error::InvalidArgument`] for an empty span or one past 0xFFFF, or a table of bits
+    /// (nothing sent); any [`Error`] of a request (the registers read before it are lost).
+    pub fn read_registers(&self, table: Table, address: u16, count: usize) -> Result<Vec<u16>> {
         check_span(address, count)?;
         let mut words = Vec::with_capacity(count);
         for (at, n) in chunks(address, count, self.max_read) {
-            words.extend(self.station.read(at, n)?);
+            words.extend(self.station.read_table(table, at, n)?);
         }
         Ok(words)
+    }
+
+    /// `count` bits of `table` (coils or discrete inputs) from `address`, in requests of at
+    /// most `max_read_bits`.
+    ///
+    /// # Errors
+    /// As [`read_registers`](Self::read_registers), for a table of registers too.
+    pub fn read_bits(&self, table: Table, address: u16, count: usize) -> Result<Vec<bool>> {
+        check_span(address, count)?;
+        let mut bits = Vec::with_capacity(count);
+        for (at, n) in chunks(address, count, self.max_read_bits) {
+            bits.extend(self.station.read_bits(table, at, n)?);
+        }
+        Ok(bits)
+    }
+
+    /// Sets one coil (0x05).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn write_coil(&self, address: u16, value: bool) -> Result<()> {
+        self.station.write_coil(address, value)
+    }
+
+    /// Sets `values` on the coils from `address` with 0x0F, in requests of at most
+    /// `max_write_bits`.
+    ///
+    /// # Errors
+    /// As [`write_registers`](Self::write_registers).
+    pub fn write_coils(&self, address: u16, values: &[bool]) -> Result<()> {
+        check_span(address, values.len())?;
+        let mut start = address;
+        for part in values.chunks(usize::from(self.max_write_bits)) {
+            self.station.write_coils(start, part)?;
+            start = start.wrapping_add(part.len() as u16);
+        }
+        Ok(())
     }
 
     /// Writes `values` from `address` with 0x10, in requests of at most `max_write`.
@@ -181,12 +256,12 @@ impl Instrument {
         Ok(())
     }
 
-    /// One register: its raw word.
+    /// One register of `table` (holding or input): its raw word.
     ///
     /// # Errors
     /// Any [`Error`].
-    pub fn read_word(&self, address: u16) -> Result<u16> {
-        match self.read_registers(address, 1)?[..] {
+    pub fn read_word(&self, table: Table, address: u16) -> Result<u16> {
+        match self.read_registers(table, address, 1)?[..] {
             [w] => Ok(w),
             _ => Err(self.station.short_reply()),
         }
@@ -204,13 +279,19 @@ impl Instrument {
         }
     }
 
-    /// A register as a value with `decimals`, signed or not.
+    /// A register of `table` as a value with `decimals`, signed or not.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for decimals over 9; any [`Error`].
-    pub fn read_value(&self, address: u16, decimals: u8, signed: bool) -> Result<f64> {
+    pub fn read_value(
+        &self,
+        table: Table,
+        address: u16,
+        decimals: u8,
+        signed: bool,
+    ) -> Result<f64> {
         check_decimals(decimals)?;
-        Ok(from_raw(self.read_word(address)?, decimals, signed))
+        Ok(from_raw(self.read_word(table, address)?, decimals, signed))
     }
 
     /// Writes a value with `decimals`, signed or not, checked before anything is sent.
@@ -235,10 +316,10 @@ impl Instrument {
     /// # Errors
     /// [`Error::InvalidArgument`] for other `bits` or registers past 0xFFFF (nothing sent);
     /// any other [`Error`].
-    pub fn read_uint(&self, address: u16, bits: u32, layout: Layout) -> Result<u64> {
+    pub fn read_uint(&self, table: Table, address: u16, bits: u32, layout: Layout) -> Result<u64> {
         let count = registers_for_bits(bits)?;
         check_span(address, count)?;
-        let registers = self.read_registers(address, count)?;
+        let registers = self.read_registers(table, address, count)?;
         if registers.len() != count {
             return Err(self.station.short_reply());
         }
@@ -271,8 +352,8 @@ impl Instrument {
     ///
     /// # Errors
     /// As [`read_uint`](Self::read_uint).
-    pub fn read_float(&self, address: u16, bits: u32, layout: Layout) -> Result<f64> {
-        let raw = self.read_uint(address, bits, layout)?;
+    pub fn read_float(&self, table: Table, address: u16, bits: u32, layout: Layout) -> Result<f64> {
+        let raw = self.read_uint(table, address, bits, layout)?;
         Ok(if bits == 32 {
             f64::from(f32::from_bits(raw as u32))
         } else {
@@ -311,8 +392,8 @@ impl Instrument {
     ///
     /// # Errors
     /// Any [`Error`].
-    pub fn read_string(&self, address: u16, count: usize) -> Result<String> {
-        let words = self.read_registers(address, count)?;
+    pub fn read_string(&self, table: Table, address: u16, count: usize) -> Result<String> {
+        let words = self.read_registers(table, address, count)?;
         let bytes: Vec<u8> = words.iter().flat_map(|w| w.to_be_bytes()).collect();
         let end = bytes.iter().rposition(|&b| b != 0).map_or(0, |i| i + 1);
         // Latin-1: every byte is a character.

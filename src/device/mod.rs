@@ -14,6 +14,29 @@ use crate::error::{Error, Result};
 use std::sync::Arc;
 use std::time::Duration;
 
+/// Which of a device's four tables a value lives in (the Modbus data model): registers that
+/// may be written (holding) or only read (input), bits that may be written (coils) or only
+/// read (discrete inputs).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Table {
+    /// Holding registers: read with 0x03, written with 0x06 / 0x10.
+    #[default]
+    Holding,
+    /// Input registers: read with 0x04.
+    Input,
+    /// Coils: read with 0x01, written with 0x05 / 0x0F.
+    Coils,
+    /// Discrete inputs: read with 0x02.
+    Discrete,
+}
+
+impl Table {
+    /// Whether the table holds bits (coils, discrete inputs) rather than registers.
+    pub const fn holds_bits(self) -> bool {
+        matches!(self, Table::Coils | Table::Discrete)
+    }
+}
+
 /// Where a device is and how its requests go: the Bus, the unit address and the family's
 /// options (echo rule, write pacing, exception meanings, the device's own timeout and
 /// retries). Every device holds one and talks to the Bus only through it.
@@ -61,11 +84,67 @@ impl Station {
     /// # Errors
     /// Any [`Error`] of the request.
     pub fn read(&self, address: u16, count: u16) -> Result<Vec<u16>> {
-        let words = self
-            .bus
-            .read_holding_registers(self.unit, address, count, &self.opts)?;
-        if words.len() == usize::from(count) {
-            Ok(words)
+        self.read_table(Table::Holding, address, count)
+    }
+
+    /// Exactly `count` registers of `table` (holding or input) from `address`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a table of bits; any [`Error`] of the request.
+    pub fn read_table(&self, table: Table, address: u16, count: u16) -> Result<Vec<u16>> {
+        let (unit, opts) = (self.unit, &self.opts);
+        let words = match table {
+            Table::Holding => self
+                .bus
+                .read_holding_registers(unit, address, count, opts)?,
+            Table::Input => self.bus.read_input_registers(unit, address, count, opts)?,
+            Table::Coils | Table::Discrete => {
+                return Err(Error::InvalidArgument(
+                    "coils and discrete inputs hold bits, not registers".into(),
+                ))
+            }
+        };
+        self.exactly(words, count)
+    }
+
+    /// Exactly `count` bits of `table` (coils or discrete inputs) from `address`.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a table of registers; any [`Error`] of the request.
+    pub fn read_bits(&self, table: Table, address: u16, count: u16) -> Result<Vec<bool>> {
+        let (unit, opts) = (self.unit, &self.opts);
+        let bits = match table {
+            Table::Coils => self.bus.read_coils(unit, address, count, opts)?,
+            Table::Discrete => self.bus.read_discrete_inputs(unit, address, count, opts)?,
+            Table::Holding | Table::Input => {
+                return Err(Error::InvalidArgument(
+                    "holding and input registers hold registers, not bits".into(),
+                ))
+            }
+        };
+        self.exactly(bits, count)
+    }
+
+    /// Sets one coil (0x05).
+    ///
+    /// # Errors
+    /// Any [`Error`] of the request.
+    pub fn write_coil(&self, address: u16, value: bool) -> Result<()> {
+        self.bus.write_coil(self.unit, address, value, &self.opts)
+    }
+
+    /// Sets consecutive coils from `address` (0x0F).
+    ///
+    /// # Errors
+    /// Any [`Error`] of the request.
+    pub fn write_coils(&self, address: u16, values: &[bool]) -> Result<()> {
+        self.bus.write_coils(self.unit, address, values, &self.opts)
+    }
+
+    /// `items` if there are `count` of them, else the short-reply error.
+    fn exactly<T>(&self, items: Vec<T>, count: u16) -> Result<Vec<T>> {
+        if items.len() == usize::from(count) {
+            Ok(items)
         } else {
             Err(self.short_reply())
         }

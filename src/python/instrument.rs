@@ -6,9 +6,10 @@ use super::{
     int_in, number, opt, public, register_list, seconds, u16_arg, unit_arg, Attached, PyBus,
     PyStation,
 };
-use crate::codec::pdu::{MAX_READ_COUNT, MAX_WRITE_COUNT};
+use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
 use crate::device::instrument::{Instrument, MAX_DECIMALS};
 use crate::device::value::Layout;
+use crate::device::Table;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyString, PyTuple};
@@ -121,6 +122,39 @@ fn count_arg(obj: &Bound<'_, PyAny>, address: u16) -> PyResult<usize> {
     int_in(obj, "count", 1, most).map(|n| n as usize)
 }
 
+/// The table a register read asks: 3 (holding registers, absent or None) or 4 (input
+/// registers).
+fn read_function_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Table> {
+    opt(obj, Table::Holding, |f| {
+        match int_in(f, "function", 0, 255)? {
+            0x03 => Ok(Table::Holding),
+            0x04 => Ok(Table::Input),
+            other => Err(PyValueError::new_err(format!(
+                "function must be 3 (holding registers) or 4 (input registers), got {other}"
+            ))),
+        }
+    })
+}
+
+/// A coil's value: True or False (nothing truthy in its place).
+fn coil_arg(obj: &Bound<'_, PyAny>) -> PyResult<bool> {
+    obj.cast::<PyBool>().map(|b| b.is_true()).map_err(|_| {
+        PyTypeError::new_err(format!(
+            "a coil is True or False, got {}",
+            obj.get_type()
+                .name()
+                .map(|n| n.to_string())
+                .unwrap_or_default()
+        ))
+    })
+}
+
+/// A count of bits from `address`: 1 up to what fits below 0x10000.
+fn bit_count_arg(obj: &Bound<'_, PyAny>, address: u16) -> PyResult<usize> {
+    let most = 0x1_0000 - i64::from(address);
+    int_in(obj, "count", 1, most).map(|n| n as usize)
+}
+
 /// The function a single-register write uses: 0x06, or 0x10 (true).
 fn function_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<bool> {
     opt(obj, false, |f| match int_in(f, "function", 0, 255)? {
@@ -177,6 +211,29 @@ fn py_basic() -> Py<PyAny> {
     Python::attach(|py| PyString::new(py, "basic").into_any().unbind())
 }
 
+impl PyInstrumentCore {
+    /// One bit of `table` at `address`.
+    fn read_bit(&self, py: Python<'_>, table: Table, address: &Bound<'_, PyAny>) -> PyResult<bool> {
+        let address = u16_arg(address, "address")?;
+        let bits = self.dev.wire(py, move |i| i.read_bits(table, address, 1))?;
+        Ok(bits.first().copied().unwrap_or_default())
+    }
+
+    /// `count` bits of `table` from `address`.
+    fn read_many_bits(
+        &self,
+        py: Python<'_>,
+        table: Table,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<bool>> {
+        let address = u16_arg(address, "address")?;
+        let count = bit_count_arg(count, address)?;
+        self.dev
+            .wire(py, move |i| i.read_bits(table, address, count))
+    }
+}
+
 #[pymethods]
 impl PyInstrumentCore {
     #[new]
@@ -190,7 +247,7 @@ impl PyInstrumentCore {
 
     /// Attaches the instrument at `unit` to `bus` with its request limits (what
     /// `Instrument.__init__` does); `timeout` / `retries` replace the Bus's.
-    #[pyo3(signature = (bus, unit, max_read, max_write, min_write_interval, timeout=None, retries=None))]
+    #[pyo3(signature = (bus, unit, max_read, max_write, min_write_interval, max_read_bits, max_write_bits, timeout=None, retries=None))]
     #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn _attach(
         slf: &Bound<'_, Self>,
@@ -199,17 +256,23 @@ impl PyInstrumentCore {
         max_read: &Bound<'_, PyAny>,
         max_write: &Bound<'_, PyAny>,
         min_write_interval: &Bound<'_, PyAny>,
+        max_read_bits: &Bound<'_, PyAny>,
+        max_write_bits: &Bound<'_, PyAny>,
         timeout: Option<&Bound<'_, PyAny>>,
         retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let max_read = int_in(max_read, "max_read", 1, MAX_READ_COUNT.into())? as u16;
         let max_write = int_in(max_write, "max_write", 1, MAX_WRITE_COUNT.into())? as u16;
         let interval: Duration = seconds(min_write_interval, "min_write_interval", true)?;
+        let max_read_bits = int_in(max_read_bits, "max_read_bits", 1, MAX_READ_BITS.into())? as u16;
+        let max_write_bits =
+            int_in(max_write_bits, "max_write_bits", 1, MAX_WRITE_BITS.into())? as u16;
         let station = slf.as_super().get();
         slf.get()
             .dev
             .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
-                Instrument::new(b, u, max_read, max_write, interval)
+                Instrument::new(b, u, max_read, max_write, interval)?
+                    .with_bit_limits(max_read_bits, max_write_bits)
             })
     }
 
@@ -225,6 +288,18 @@ impl PyInstrumentCore {
         Ok(self.dev.device()?.max_write())
     }
 
+    /// Most coils or discrete inputs one read asks for.
+    #[getter]
+    fn max_read_bits(&self) -> PyResult<u16> {
+        Ok(self.dev.device()?.max_read_bits())
+    }
+
+    /// Most coils one write carries.
+    #[getter]
+    fn max_write_bits(&self) -> PyResult<u16> {
+        Ok(self.dev.device()?.max_write_bits())
+    }
+
     /// Least time between two writes, seconds.
     #[getter]
     fn min_write_interval(&self) -> PyResult<f64> {
@@ -232,20 +307,26 @@ impl PyInstrumentCore {
     }
 
     /// One register as a value: ``raw / 10**decimals`` (an int when ``decimals`` is 0),
-    /// two's complement if ``signed``.
-    #[pyo3(signature = (address, decimals=None, signed=false), text_signature = "(self, address, decimals=0, signed=False)")]
+    /// two's complement if ``signed``; ``function=4`` reads an input register instead of a
+    /// holding register (3).
+    #[pyo3(
+        signature = (address, decimals=None, signed=false, *, function=None),
+        text_signature = "(self, address, decimals=0, signed=False, *, function=3)"
+    )]
     fn read_register<'py>(
         &self,
         py: Python<'py>,
         address: &Bound<'py, PyAny>,
         decimals: Option<&Bound<'py, PyAny>>,
         signed: bool,
+        function: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let address = u16_arg(address, "address")?;
         let decimals = decimals_arg(decimals)?;
+        let table = read_function_arg(function)?;
         let v = self
             .dev
-            .wire(py, move |i| i.read_value(address, decimals, signed))?;
+            .wire(py, move |i| i.read_value(table, address, decimals, signed))?;
         Ok(if decimals == 0 {
             PyInt::new(py, v as i64).into_any()
         } else {
@@ -278,16 +359,93 @@ impl PyInstrumentCore {
         })
     }
 
-    /// ``count`` raw registers from ``address``, in requests of at most ``max_read``.
+    /// ``count`` raw registers from ``address``, in requests of at most ``max_read``
+    /// (``function=4``: input registers).
+    #[pyo3(signature = (address, count, *, function=None), text_signature = "(self, address, count, *, function=3)")]
     fn read_registers(
         &self,
         py: Python<'_>,
         address: &Bound<'_, PyAny>,
         count: &Bound<'_, PyAny>,
+        function: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Vec<u16>> {
         let address = u16_arg(address, "address")?;
         let count = count_arg(count, address)?;
-        self.dev.wire(py, move |i| i.read_registers(address, count))
+        let table = read_function_arg(function)?;
+        self.dev
+            .wire(py, move |i| i.read_registers(table, address, count))
+    }
+
+    /// One coil (0x01).
+    fn read_coil(&self, py: Python<'_>, address: &Bound<'_, PyAny>) -> PyResult<bool> {
+        self.read_bit(py, Table::Coils, address)
+    }
+
+    /// ``count`` coils from ``address`` (0x01), in requests of at most ``max_read_bits``.
+    fn read_coils(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<bool>> {
+        self.read_many_bits(py, Table::Coils, address, count)
+    }
+
+    /// One discrete input (0x02).
+    fn read_discrete_input(&self, py: Python<'_>, address: &Bound<'_, PyAny>) -> PyResult<bool> {
+        self.read_bit(py, Table::Discrete, address)
+    }
+
+    /// ``count`` discrete inputs from ``address`` (0x02), in requests of at most
+    /// ``max_read_bits``.
+    fn read_discrete_inputs(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        count: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<bool>> {
+        self.read_many_bits(py, Table::Discrete, address, count)
+    }
+
+    /// Set one coil on (True) or off (False) with 0x05; the reply must echo it.
+    fn write_coil(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let address = u16_arg(address, "address")?;
+        let value = coil_arg(value)?;
+        self.dev.wire(py, move |i| i.write_coil(address, value))
+    }
+
+    /// Set the coils from ``address`` to ``values`` (True or False each) with 0x0F, in
+    /// requests of at most ``max_write_bits``.
+    fn write_coils(
+        &self,
+        py: Python<'_>,
+        address: &Bound<'_, PyAny>,
+        values: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let address = u16_arg(address, "address")?;
+        if values.is_instance_of::<PyString>() || values.is_instance_of::<PyBytes>() {
+            return Err(PyTypeError::new_err(
+                "values must be a sequence of True / False, not str or bytes",
+            ));
+        }
+        let values = values
+            .try_iter()
+            .map_err(|_| PyTypeError::new_err("values must be a sequence of True / False"))?
+            .map(|v| coil_arg(&v?))
+            .collect::<PyResult<Vec<bool>>>()?;
+        let most = 0x1_0000 - usize::from(address);
+        if values.is_empty() || values.len() > most {
+            return Err(PyValueError::new_err(format!(
+                "values must hold 1 to {most} coils from {address:#06x}, got {}",
+                values.len()
+            )));
+        }
+        self.dev.wire(py, move |i| i.write_coils(address, &values))
     }
 
     /// Write raw ``values`` from ``address`` with 0x10, in requests of at most
@@ -309,9 +467,10 @@ impl PyInstrumentCore {
     /// signed or not, laid out by ``word_order`` (which register first) and ``byte_order``
     /// (which byte of each register first), each "big" (most significant first) or "little".
     #[pyo3(
-        signature = (address, signed=false, word_order=None, *, byte_order=None, bits=None),
-        text_signature = "(self, address, signed=False, word_order='big', *, byte_order='big', bits=32)"
+        signature = (address, signed=false, word_order=None, *, byte_order=None, bits=None, function=None),
+        text_signature = "(self, address, signed=False, word_order='big', *, byte_order='big', bits=32, function=3)"
     )]
+    #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn read_long<'py>(
         &self,
         py: Python<'py>,
@@ -320,13 +479,15 @@ impl PyInstrumentCore {
         word_order: Option<&Bound<'py, PyAny>>,
         byte_order: Option<&Bound<'py, PyAny>>,
         bits: Option<&Bound<'py, PyAny>>,
+        function: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let bits = bits_arg(bits)?;
         let address = value_address(address, bits)?;
         let layout = layout_arg(word_order, byte_order)?;
+        let table = read_function_arg(function)?;
         let v = self
             .dev
-            .wire(py, move |i| i.read_uint(address, bits, layout))?;
+            .wire(py, move |i| i.read_uint(table, address, bits, layout))?;
         Ok(match (signed, bits) {
             (true, 32) => (v as u32 as i32).into_pyobject(py)?.into_any(),
             (true, _) => (v as i64).into_pyobject(py)?.into_any(),
@@ -362,8 +523,8 @@ impl PyInstrumentCore {
     /// An IEEE 754 float of ``bits`` (32: single, 64: double) over 2 or 4 registers, laid
     /// out as :meth:`read_long` reads an integer.
     #[pyo3(
-        signature = (address, word_order=None, *, byte_order=None, bits=None),
-        text_signature = "(self, address, word_order='big', *, byte_order='big', bits=32)"
+        signature = (address, word_order=None, *, byte_order=None, bits=None, function=None),
+        text_signature = "(self, address, word_order='big', *, byte_order='big', bits=32, function=3)"
     )]
     fn read_float(
         &self,
@@ -372,12 +533,14 @@ impl PyInstrumentCore {
         word_order: Option<&Bound<'_, PyAny>>,
         byte_order: Option<&Bound<'_, PyAny>>,
         bits: Option<&Bound<'_, PyAny>>,
+        function: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<f64> {
         let bits = bits_arg(bits)?;
         let address = value_address(address, bits)?;
         let layout = layout_arg(word_order, byte_order)?;
+        let table = read_function_arg(function)?;
         self.dev
-            .wire(py, move |i| i.read_float(address, bits, layout))
+            .wire(py, move |i| i.read_float(table, address, bits, layout))
     }
 
     /// Write an IEEE 754 float of ``bits`` (32 or 64) over 2 or 4 registers (NaN,
@@ -404,16 +567,20 @@ impl PyInstrumentCore {
     }
 
     /// ``count`` registers as text, two Latin-1 characters a register (high byte first),
-    /// without the NULs that pad it.
+    /// without the NULs that pad it (``function=4``: input registers).
+    #[pyo3(signature = (address, count, *, function=None), text_signature = "(self, address, count, *, function=3)")]
     fn read_string(
         &self,
         py: Python<'_>,
         address: &Bound<'_, PyAny>,
         count: &Bound<'_, PyAny>,
+        function: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<String> {
         let address = u16_arg(address, "address")?;
         let count = count_arg(count, address)?;
-        self.dev.wire(py, move |i| i.read_string(address, count))
+        let table = read_function_arg(function)?;
+        self.dev
+            .wire(py, move |i| i.read_string(table, address, count))
     }
 
     /// Write ``text`` into ``count`` registers, two characters a register, padded with
