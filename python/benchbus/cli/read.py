@@ -1,4 +1,4 @@
-"""``benchbus read``: read holding registers."""
+"""``benchbus read``: read registers, coils or discrete inputs."""
 
 from __future__ import annotations
 
@@ -17,8 +17,24 @@ def _signed(word: int) -> int:
     return word - 0x10000 if word & 0x8000 else word
 
 
+#: Each table: the Bus method that reads it, the most a request takes, and whether it holds
+#: bits.
+TABLES = {
+    "holding": ("read_holding_registers", 125, False),
+    "input": ("read_input_registers", 125, False),
+    "coils": ("read_coils", 2000, True),
+    "discrete": ("read_discrete_inputs", 2000, True),
+}
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus read`` as ``args`` say; the exit status."""
+    method, most, bits = TABLES[args.table]
+    if bits and (args.hex or args.signed or args.decimals or args.type or args.order):
+        raise UsageError(
+            f"--table {args.table} reads bits: leave out --hex, --signed, --decimals, --type "
+            "and --order"
+        )
     if args.hex and (args.signed or args.decimals):
         raise UsageError("--hex prints the raw words: leave out --signed and --decimals")
     if args.order and not args.type:
@@ -27,37 +43,42 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError("--type prints typed values: leave out --hex, --signed and --decimals")
     width = VALUE_TYPES[args.type] if args.type else 1
     total = args.count * width
+    what = "coils" if args.table == "coils" else "inputs" if bits else "registers"
     if args.address + total > 0x10000:
-        raise UsageError(f"{total} registers from {args.address:#06x} run past 0xFFFF")
+        raise UsageError(f"{total} {what} from {args.address:#06x} run past 0xFFFF")
     unit = unit_of(args, "read")
-    words: list[int] = []
+    read: list[int] = []
     with open_bus(args, "read") as bus:
-        for start in range(args.address, args.address + total, 125):
-            count = min(125, args.address + total - start)
-            words += bus.read_holding_registers(unit, start, count)
-    if args.type:
-        values = bb.from_registers(words, args.type, args.order or "ABCD")
-        for index, typed in enumerate(values):
-            address = args.address + index * width
-            print(f"0x{address:04X}  {address}  {typed}")
+        for start in range(args.address, args.address + total, most):
+            count = min(most, args.address + total - start)
+            read += getattr(bus, method)(unit, start, count)
+    if bits or not args.type:
+        for offset, item in enumerate(read):
+            address = args.address + offset
+            print(f"0x{address:04X}  {address}  {_text(int(item), args)}")
         return 0
-    for offset, word in enumerate(words):
-        address = args.address + offset
-        if args.hex:
-            text = f"0x{word:04X}"
-        else:
-            value = _signed(word) if args.signed else word
-            text = str(Decimal(value).scaleb(-args.decimals)) if args.decimals else str(value)
-        print(f"0x{address:04X}  {address}  {text}")
+    values = bb.from_registers(read, args.type, args.order or "ABCD")
+    for index, typed in enumerate(values):
+        address = args.address + index * width
+        print(f"0x{address:04X}  {address}  {typed}")
     return 0
 
 
+def _text(word: int, args: argparse.Namespace) -> str:
+    """A register (or a bit, 0 or 1) as ``--hex``, ``--signed`` and ``--decimals`` say."""
+    if args.hex:
+        return f"0x{word:04X}"
+    value = _signed(word) if args.signed else word
+    return str(Decimal(value).scaleb(-args.decimals)) if args.decimals else str(value)
+
+
 #: What ``benchbus read`` does, as ``--help`` says.
-HELP = "read holding registers (function 0x03)"
+HELP = "read registers (0x03, 0x04), coils (0x01) or discrete inputs (0x02)"
 #: The rest of its ``--help``.
 EPILOG = (
-    "Prints one line per register (per value with --type): the address in hex, in decimal, "
-    "and the value."
+    "Prints one line per register, bit (1 or 0) or --type value: the address in hex, in "
+    "decimal, and the value. --table says which table: holding registers (0x03, the "
+    "default), input registers (0x04), coils (0x01) or discrete inputs (0x02)."
 )
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
 LINE_OPTIONS = {"unit": True}
@@ -72,8 +93,14 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         nargs="?",
         default=1,
         metavar="COUNT",
-        help="registers (or --type values) to read (default 1; more than 125 registers go in "
-        "several requests)",
+        help="registers, bits or --type values to read (default 1; more than 125 registers "
+        "or 2000 bits go in several requests)",
+    )
+    parser.add_argument(
+        "--table",
+        choices=tuple(TABLES),
+        default="holding",
+        help="the table to read: holding (default), input, coils or discrete",
     )
     parser.add_argument("--hex", action="store_true", help="print the values in hex")
     parser.add_argument("--signed", action="store_true", help="values are 16-bit two's complement")
