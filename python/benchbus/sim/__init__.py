@@ -11,6 +11,12 @@
 
 A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) and raises
 :class:`SimException` from its handlers to answer with an exception reply.
+:class:`RegisterDevice` is a whole Modbus unit: holding and input registers, coils and
+discrete inputs (``dev.coils[20] = True``, ``sim.peek(1, 20, table="coils")``), and every
+function a master needs (0x01..0x06, 0x0F, 0x10, 0x16, 0x17, 0x07, 0x08 / 0x0000, 0x11)
+with the Modbus Application Protocol's limits and exception codes; any other function is
+answered with exception 1, as is any function a device does not declare in
+:attr:`SimDevice.functions` (the families declare their manuals').
 :class:`DriveDevice` simulates a BLD2 / BLD3H / ZBLD.C20 brushless drive,
 :class:`PblDevice` a PBL-series brushless drive, :class:`J2Device` a J2-series PID
 temperature controller with a thermal process under its control, :class:`TaisongDevice` a

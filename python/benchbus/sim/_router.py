@@ -335,7 +335,7 @@ class Router:
             self.queue(self._unit_job(request, deliver=self._hooks.answers_broadcast(unit)))
 
     def _unit_job(self, frame: bytes, deliver: bool) -> Job:
-        code = refusal(self._f.pdu(frame))
+        code = refusal(self._f.pdu(frame), self._hooks.functions(self._f.unit(frame)))
         made = None if code is None else self._f.exception(frame, code)
         return Job(frame, deliver, made_reply=made)
 
