@@ -19,6 +19,7 @@ from pymodbus.client import ModbusSerialClient, ModbusTcpClient
 from test_sim import Client, frame
 from test_sim_network import Client as TcpClient
 from test_sim_network import address, mbap
+from test_sim_router import run, take
 
 from benchbus.sim import (
     DriveDevice,
@@ -31,7 +32,10 @@ from benchbus.sim import (
     TaisongDevice,
 )
 from benchbus.sim._functions import FUNCTIONS
+from benchbus.sim._line import SimState
+from benchbus.sim._router import Router, framing
 from benchbus.sim._rtu import reply_length, request_length
+from benchbus.sim._units import UnitHooks
 from conftest import crc
 
 logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
@@ -125,7 +129,7 @@ EXAMPLES = {
 }
 
 
-@pytest.mark.parametrize("network", [None, "tcp"])
+@pytest.mark.parametrize("network", [None, "tcp", "rtu+tcp"])
 @pytest.mark.parametrize("name", list(EXAMPLES))
 def test_the_specifications_examples(name: str, network: str | None) -> None:
     example = EXAMPLES[name]
@@ -133,20 +137,25 @@ def test_the_specifications_examples(name: str, network: str | None) -> None:
     example.preset(device)
     response = bytes.fromhex(example.response)
     with Simulator(device, network=network) as sim:
+        rtu_reply = bytes([1]) + response + crc(bytes([1]) + response)
         if network is None:
             client = Client(sim.port)
             try:
                 reply = client.transact(frame("01 " + example.request), len(response) + 3)
             finally:
                 client.close()
-            assert reply == bytes([1]) + response + crc(bytes([1]) + response)
+            assert reply == rtu_reply
         else:
             tcp = TcpClient(sim)
             try:
-                reply = tcp.transact(mbap(7, 1, example.request), len(response) + 7)
+                if network == "tcp":
+                    reply = tcp.transact(mbap(7, 1, example.request), len(response) + 7)
+                    assert reply == mbap(7, 1, example.response)
+                else:
+                    reply = tcp.transact(frame("01 " + example.request), len(response) + 3)
+                    assert reply == rtu_reply
             finally:
                 tcp.close()
-            assert reply == mbap(7, 1, example.response)
         assert sim.errors == []
     example.after(device)
 
@@ -608,3 +617,44 @@ def test_the_line_cuts_the_new_frames_by_their_length() -> None:
     assert request_length(frame("01 11")) == 4
     assert reply_length(frame("01 11 03 49 44 00")) == 8
     assert {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x11, 0x16, 0x17} == FUNCTIONS
+
+
+def test_the_router_asks_each_unit_for_its_functions() -> None:
+    def functions(unit: int) -> frozenset[int]:
+        if unit == 2:
+            raise RuntimeError("a faulty device")
+        return frozenset({0x01, 0x03})
+
+    hooks = UnitHooks("test", answers_broadcast=lambda unit: False, functions=functions)
+    router = Router(
+        SimState(),
+        framing(None),
+        units=frozenset({1, 2}),
+        broadcast=True,
+        hooks=hooks,
+        end_of_frame_silence=0.005,
+        cut_partial=True,
+    )
+    coils = frame("01 01 00 00 00 01")
+    run(router, library=coils)
+    assert take(router.to_server) == coils  # unit 1 serves 0x01
+    run(router, server=frame("01 01 01 00"))
+    assert take(router.to_library) == frame("01 01 01 00")
+    # Unit 1 does not serve 0x04; unit 2's callback fails: the basic functions hold.
+    for request, refused in (("01 04 00 00 00 01", "01 84 01"), ("02 01 00 00 00 01", "02 81 01")):
+        run(router, library=frame(request))
+        assert take(router.to_library) == frame(refused)
+    assert not router.to_server
+    read = frame("02 03 00 00 00 01")
+    run(router, library=read)
+    assert take(router.to_server) == read
+
+
+def test_a_devices_functions_may_change_while_running(
+    line: tuple[Simulator[RegisterDevice], Client],
+) -> None:
+    sim, client = line
+    assert client.transact(frame("01 07"), 5) == frame("01 07 00")
+    sim.devices[1].functions = frozenset({0x03})
+    assert client.transact(frame("01 07"), 5) == frame("01 87 01")
+    assert client.transact(frame("01 03 00 10 00 01"), 7) == frame("01 03 02 00 F0")
