@@ -309,9 +309,11 @@ def exception_of(client: Client, request: str) -> bytes:
         ("01 0F FF FF 00 02 01 03", 2),
         ("01 17 FF FF 00 02 00 00 00 01 02 00 01", 2),
         ("01 17 00 00 00 01 FF FF 00 02 04 00 01 00 02", 2),
-        # Diagnostics sub-functions other than 0x0000 (return query data): 1.
-        ("01 08 00 01 00 00", 1),
-        ("01 08 00 04 00 00", 1),
+        # Diagnostics sub-functions other than 0x0000, 0x0001 and 0x0004: 1.
+        ("01 08 00 02 00 00", 1),
+        ("01 08 00 0A 00 00", 1),
+        # Restart communications takes 0000 or FF00 only: 3.
+        ("01 08 00 01 12 34", 3),
         # Functions no RegisterDevice serves: 1.
         ("01 14 00 00 00 01", 1),
         ("01 41 00", 1),
@@ -658,3 +660,61 @@ def test_a_devices_functions_may_change_while_running(
     sim.devices[1].functions = frozenset({0x03})
     assert client.transact(frame("01 07"), 5) == frame("01 87 01")
     assert client.transact(frame("01 03 00 10 00 01"), 7) == frame("01 03 02 00 F0")
+
+
+# ---- Diagnostics: listen only mode -------------------------------------------------------
+
+
+def test_listen_only_mode_until_restart_communications() -> None:
+    with Simulator({1: RegisterDevice({5: 1}), 2: RegisterDevice()}) as sim:
+        client = Client(sim.port)
+        try:
+            # Restart communications outside the mode: the echo (then a restart).
+            restart = frame("01 08 00 01 FF 00")
+            assert client.transact(restart, 8) == restart
+            # Force listen only mode: no reply, and from now on no action and no reply.
+            client.send(frame("01 08 00 04 00 00"))
+            client.assert_quiet()
+            for request in ("01 03 00 05 00 01", "01 06 00 05 00 09", "01 08 00 00 12 34"):
+                client.send(frame(request))
+                client.assert_quiet()
+            assert sim.devices[1].registers[5] == 1
+            client.send(frame("00 06 00 06 00 07"))  # a broadcast passes it by too
+            client.assert_quiet()
+            assert sim.devices[1].registers[6] == 0 and sim.devices[2].registers[6] == 7
+            # The other unit answers meanwhile.
+            assert client.transact(frame("02 03 00 06 00 01"), 7) == frame("02 03 02 00 07")
+            # Restart communications ends the mode, unanswered.
+            client.send(frame("01 08 00 01 00 00"))
+            client.assert_quiet()
+            assert client.transact(frame("01 03 00 05 00 01"), 7) == frame("01 03 02 00 01")
+            assert len(sim.requests) == 9 and len(sim.replies) == 3
+            assert sim.errors == []
+        finally:
+            client.close()
+
+
+def test_listen_only_mode_behind_a_modbus_tcp_gateway() -> None:
+    with Simulator(RegisterDevice({5: 1}), network="tcp") as sim:
+        client = TcpClient(sim)
+        try:
+            client.send(mbap(1, 1, "08 00 04 00 00"))
+            client.assert_quiet()
+            client.send(mbap(2, 1, "03 00 05 00 01"))
+            client.assert_quiet()
+            client.send(mbap(3, 1, "08 00 01 00 00"))
+            client.assert_quiet()
+            assert client.transact(mbap(4, 1, "03 00 05 00 01"), 11) == mbap(4, 1, "03 02 00 01")
+        finally:
+            client.close()
+
+
+def test_a_device_without_diagnostics_refuses_listen_only_mode() -> None:
+    with Simulator(DriveDevice("BLD2")) as sim:
+        client = Client(sim.port)
+        try:
+            assert exception_of(client, "01 08 00 04 00 00") == frame("01 88 01")
+            reply = client.transact(frame("01 03 21 03 00 01"), 7)
+            assert reply[:3] == bytes.fromhex("01 03 02")
+        finally:
+            client.close()

@@ -24,8 +24,8 @@ _REGISTER_SPACE = 0x10000
 BASIC_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
 #: Every public function a :class:`RegisterDevice` answers: the basic ones, coils (0x01,
 #: 0x05, 0x0F), discrete inputs (0x02), input registers (0x04), Mask Write Register (0x16),
-#: Read/Write Multiple registers (0x17), Read Exception Status (0x07), Diagnostics
-#: sub-function 0x0000 (0x08) and Report Server ID (0x11).
+#: Read/Write Multiple registers (0x17), Read Exception Status (0x07), Diagnostics (0x08:
+#: sub-functions 0x0000, 0x0001 and 0x0004) and Report Server ID (0x11).
 STANDARD_FUNCTIONS = BASIC_FUNCTIONS | frozenset(
     {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x11, 0x16, 0x17}
 )
@@ -82,8 +82,12 @@ class SimDevice:
     - 0x17 (read/write multiple) :meth:`write_holding`, then :meth:`read_holding`, as the
       spec orders them (limits :attr:`max_write`, at most 121, and :attr:`max_read`);
     - 0x07 reads :attr:`exception_status`, 0x11 :attr:`server_id`, :attr:`run_indicator`
-      and :attr:`additional_data`; 0x08 sub-function 0x0000 (return query data) echoes the
-      request without asking the device (other sub-functions: exception 1).
+      and :attr:`additional_data`; 0x08 (Diagnostics) is answered without asking the
+      device: sub-function 0x0000 (return query data) echoes the request, 0x0004 (force
+      listen only mode) is not answered and puts the unit in the listen only mode, where
+      it takes and answers no request until 0x0001 (restart communications, data 0x0000
+      or 0xFF00), which ends the mode unanswered (outside it, 0x0001 is echoed); other
+      sub-functions answer exception 1.
 
     A request the Modbus Application Protocol V1.1b3 refuses is answered as it says before
     the device is asked: a quantity out of its range (coils and inputs 1..2000 a read,

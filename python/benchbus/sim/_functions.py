@@ -3,12 +3,14 @@
 Written from the Modbus Application Protocol Specification V1.1b3 (section 6 and its
 exception state diagrams) alone: coils (0x01, 0x05, 0x0F), discrete inputs (0x02), input
 registers (0x04), Mask Write Register (0x16), Read/Write Multiple registers (0x17), and the
-serial line's Read Exception Status (0x07), Diagnostics "return query data" (0x08 / 0x0000)
-and Report Server ID (0x11). :func:`serve` turns a request PDU's data into the reply PDU's
-data by calling the unit's :class:`~benchbus.sim.SimDevice` handlers, and raises
-:class:`~benchbus.sim.SimException` for an exception reply. The checks come in the spec's
-order: the quantity (and the byte count, and a coil's value) first, exception 3; then the
-addresses, exception 2; then the device's own limits and refusals. Pure Python, no pymodbus.
+serial line's Read Exception Status (0x07), Diagnostics (0x08: return query data 0x0000 and
+restart communications 0x0001; the listen only mode, 0x0004, is the router's, which keeps
+the requests from the unit) and Report Server ID (0x11). :func:`serve` turns a request
+PDU's data into the reply PDU's data by calling the unit's :class:`~benchbus.sim.SimDevice`
+handlers, and raises :class:`~benchbus.sim.SimException` for an exception reply. The
+checks come in the spec's order: the quantity (and the byte count, and a coil's value)
+first, exception 3, and the device's own limit on it (``too_many_code``); then the
+addresses, exception 2; then the device's own refusals. Pure Python, no pymodbus.
 """
 
 from __future__ import annotations
@@ -24,8 +26,9 @@ __all__ = ["FUNCTIONS", "pack_bits", "serve"]
 READ_BITS, WRITE_BITS, READ_REGISTERS, READ_WRITE_WRITE = 2000, 1968, 125, 121
 #: A coil's ON and OFF in a 0x05 request.
 COIL_ON, COIL_OFF = 0xFF00, 0x0000
-#: Diagnostics sub-function 0x0000: return query data.
-RETURN_QUERY_DATA = 0x0000
+#: Diagnostics sub-functions 0x0000, return query data, and 0x0001, restart communications
+#: (0x0004, force listen only mode, is the router's: ``benchbus.sim._router``).
+RETURN_QUERY_DATA, RESTART_COMMUNICATIONS = 0x0000, 0x0001
 #: Most bytes a Report Server ID reply's data may take (a PDU is at most 253 bytes).
 MAX_SERVER_ID_DATA = 251
 
@@ -174,7 +177,12 @@ def _read_exception_status(device: SimDevice, data: bytes) -> bytes:
 
 def _diagnostics(device: SimDevice, data: bytes) -> bytes:
     _need(len(data) >= 2, _ILLEGAL_VALUE)
-    _need(_word(data, 0) == RETURN_QUERY_DATA, _ILLEGAL_FUNCTION)
+    sub_function = _word(data, 0)
+    _need(sub_function in (RETURN_QUERY_DATA, RESTART_COMMUNICATIONS), _ILLEGAL_FUNCTION)
+    if sub_function == RESTART_COMMUNICATIONS:
+        # Out of the listen only mode (the router's business): the echo, then a restart
+        # (nothing to restart here). 0xFF00 would also clear an event log, kept by none.
+        _need(len(data) == 4 and _word(data, 2) in (0x0000, 0xFF00), _ILLEGAL_VALUE)
     return data  # the query data, echoed
 
 
