@@ -22,6 +22,8 @@ from test_sim_network import address, mbap
 from test_sim_router import run, take
 
 from benchbus.sim import (
+    BASIC_FUNCTIONS,
+    STANDARD_FUNCTIONS,
     DriveDevice,
     J2Device,
     PblDevice,
@@ -619,6 +621,8 @@ def test_the_line_cuts_the_new_frames_by_their_length() -> None:
     assert request_length(frame("01 11")) == 4
     assert reply_length(frame("01 11 03 49 44 00")) == 8
     assert {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x11, 0x16, 0x17} == FUNCTIONS
+    assert STANDARD_FUNCTIONS == BASIC_FUNCTIONS | FUNCTIONS == RegisterDevice.functions
+    assert BASIC_FUNCTIONS == {0x03, 0x06, 0x10, 0x2B} == SimDevice.functions
 
 
 def test_the_router_asks_each_unit_for_its_functions() -> None:

@@ -58,35 +58,33 @@ class Simulator(Generic[D]):
     applied before the faults). A unit answers the functions of its
     :attr:`SimDevice.functions` (a :class:`RegisterDevice` every public function of the
     Modbus Application Protocol a master needs: coils, discrete inputs, input and holding
-    registers, 0x16, 0x17, 0x07, 0x08 / 0x0000 and 0x11; the device families the
-    functions of their manuals), and exception 1 (illegal function) to any other. The set
-    of units is fixed at
-    :meth:`start`; a device object may be replaced in :attr:`devices` for a unit that
-    exists.
+    registers, 0x16, 0x17, 0x07, 0x08 and 0x11; the device families the functions of
+    their manuals), and exception 1 (illegal function) to any other. The set of units is
+    fixed at :meth:`start`; a device object may be replaced in :attr:`devices` for a unit
+    that exists.
 
-    **Network.** ``Simulator(devices, network="tcp")`` serves the units as a Modbus TCP
-    gateway does (MBAP frames), and ``network="rtu+tcp"`` as a transparent serial-to-Ethernet
-    converter (RTU frames, CRC included, over TCP); :attr:`port` is then
-    ``tcp://127.0.0.1:N`` or ``rtu+tcp://127.0.0.1:N``. A pymodbus TCP server answers for
-    the units behind a proxy thread listening on that port, which accepts several client
-    connections at once (each with its own connection to the server; the requests of one
-    connection are served one at a time, in order), logs every frame as it crossed the
-    socket (:attr:`requests`, :attr:`replies`; the MBAP header included) and applies the
-    faults. The units answer the same functions as on a line, the serial line's 0x07, 0x08
-    and 0x11 too (as serial devices behind a gateway would). The line's rules above hold,
-    except on ``tcp``: a request to a unit not in :attr:`devices`, or one the server leaves
-    unanswered for 1 s, is answered with exception 0x0B (gateway target failed to respond),
-    while a request to a silent unit (:meth:`set_silent`), a write to a unit that does not
-    answer writes and a broadcast get NO reply at all, as behind a gateway whose own timeout
-    is longer than the client's.
-    Replies the simulator makes (:meth:`answer_exception`, illegal function, 0x0B) and a
-    broadcast answered by a unit carry the request's transaction id; the latter the unit's
-    own unit id. :meth:`SimDevice.shape_reply` sees and gives RTU frames on both networks.
-    An MBAP header whose protocol id is not 0, or whose length is not 2..254, closes the
-    connection. Network only: :meth:`reset_next`, :meth:`refuse_connections`,
+    **Network.** ``Simulator(devices, network="tcp")`` serves the units as a Modbus TCP gateway
+    does (MBAP frames), and ``network="rtu+tcp"`` as a transparent serial-to-Ethernet converter
+    (RTU frames, CRC included, over TCP); :attr:`port` is then ``tcp://127.0.0.1:N`` or
+    ``rtu+tcp://127.0.0.1:N``. A pymodbus TCP server answers for the units behind a proxy thread
+    listening on that port, which accepts several client connections at once (each with its own
+    connection to the server; the requests of one connection are served one at a time, in
+    order), logs every frame as it crossed the socket (:attr:`requests`, :attr:`replies`; the
+    MBAP header included) and applies the faults. The units answer the same functions as on a
+    line, the serial line's 0x07, 0x08 and 0x11 too (as serial devices behind a gateway would).
+    The line's rules above hold, except on ``tcp``: a request to a unit not in :attr:`devices`,
+    or one the server leaves unanswered for 1 s, is answered with exception 0x0B (gateway target
+    failed to respond), while a request to a silent unit (:meth:`set_silent`) or to one in the
+    Diagnostics' listen only mode (see :class:`SimDevice`), a write to a unit that does not
+    answer writes and a broadcast get NO reply at all, as behind a gateway whose own timeout is
+    longer than the client's. Replies the simulator makes (:meth:`answer_exception`, illegal
+    function, 0x0B) and a broadcast answered by a unit carry the request's transaction id; the
+    latter the unit's own unit id. :meth:`SimDevice.shape_reply` sees and gives RTU frames on
+    both networks. An MBAP header whose protocol id is not 0, or whose length is not 2..254,
+    closes the connection. Network only: :meth:`reset_next`, :meth:`refuse_connections`,
     :meth:`drop_connections`, :attr:`connections`, :attr:`accepted`. Refused on ``tcp``
-    (ValueError): :meth:`corrupt_next`, :meth:`collide_next`, :attr:`faults`. Refused on
-    any network (ValueError): ``echo=True``.
+    (ValueError): :meth:`corrupt_next`, :meth:`collide_next`, :attr:`faults`. Refused on any
+    network (ValueError): ``echo=True``.
     """
 
     def __init__(
