@@ -19,16 +19,25 @@ from collections.abc import Callable
 
 from benchbus.sim._device import SimDevice, SimException
 
-__all__ = ["FUNCTIONS", "pack_bits", "serve"]
+__all__ = [
+    "DIAGNOSTICS",
+    "FORCE_LISTEN_ONLY",
+    "FUNCTIONS",
+    "RESTART_COMMUNICATIONS",
+    "pack_bits",
+    "serve",
+]
 
 #: The spec's quantity limits: bits a read (0x01, 0x02) and a write (0x0F) may carry,
 #: registers a read (0x04, 0x17) and a 0x17 write may carry.
 READ_BITS, WRITE_BITS, READ_REGISTERS, READ_WRITE_WRITE = 2000, 1968, 125, 121
 #: A coil's ON and OFF in a 0x05 request.
 COIL_ON, COIL_OFF = 0xFF00, 0x0000
-#: Diagnostics sub-functions 0x0000, return query data, and 0x0001, restart communications
-#: (0x0004, force listen only mode, is the router's: ``benchbus.sim._router``).
-RETURN_QUERY_DATA, RESTART_COMMUNICATIONS = 0x0000, 0x0001
+#: Diagnostics, and its sub-functions 0x0000 return query data, 0x0001 restart
+#: communications and 0x0004 force listen only mode (the listen only mode is the router's,
+#: ``benchbus.sim._router``: it keeps the requests from the unit).
+DIAGNOSTICS = 0x08
+RETURN_QUERY_DATA, RESTART_COMMUNICATIONS, FORCE_LISTEN_ONLY = 0x0000, 0x0001, 0x0004
 #: Most bytes a Report Server ID reply's data may take (a PDU is at most 253 bytes).
 MAX_SERVER_ID_DATA = 251
 
@@ -209,7 +218,7 @@ _HANDLERS: dict[int, Callable[[SimDevice, bytes], bytes]] = {
     0x04: _read_input_registers,
     0x05: _write_coil,
     0x07: _read_exception_status,
-    0x08: _diagnostics,
+    DIAGNOSTICS: _diagnostics,
     0x0F: _write_coils,
     0x11: _report_server_id,
     0x16: _mask_write_register,

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 from benchbus import _mbap
 from benchbus.sim._faults import Injection
+from benchbus.sim._functions import DIAGNOSTICS, FORCE_LISTEN_ONLY, RESTART_COMMUNICATIONS
 from benchbus.sim._rtu import crc_ok, reply_length, request_length, with_crc
 from benchbus.sim._units import Job, UnitHooks, refusal
 
@@ -44,9 +45,6 @@ NETWORKS = ("tcp", "rtu+tcp")
 SERVER_REPLY_TIMEOUT = 1.0
 #: Exception code of a Modbus TCP gateway whose target unit does not answer.
 GATEWAY_TARGET_FAILED = 0x0B
-#: Diagnostics, and its sub-functions the router handles itself: restart communications
-#: (ends the listen only mode) and force listen only mode.
-DIAGNOSTICS, RESTART_COMMUNICATIONS, FORCE_LISTEN_ONLY = 0x08, 0x0001, 0x0004
 #: How long a connection cut by ``reset_next`` lingers after its half reply, so that the
 #: half is on its way before the reset.
 RESET_GRACE = 0.02
