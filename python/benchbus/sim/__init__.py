@@ -11,6 +11,13 @@
 
 A device simulator subclasses :class:`SimDevice` (or :class:`RegisterDevice`) and raises
 :class:`SimException` from its handlers to answer with an exception reply.
+:class:`RegisterDevice` is a whole Modbus unit: holding and input registers, coils and
+discrete inputs (``dev.coils[20] = True``, ``sim.peek(1, 20, table="coils")``), and every
+function a master needs (0x01..0x06, 0x0F, 0x10, 0x16, 0x17, 0x07, 0x08 / 0x0000, 0x11)
+with the Modbus Application Protocol's limits and exception codes; any other function is
+answered with exception 1, as is any function a device does not declare in
+:attr:`SimDevice.functions` (the families declare their manuals'; :data:`BASIC_FUNCTIONS`
+and :data:`STANDARD_FUNCTIONS` are the two sets a device of your own may start from).
 :class:`DriveDevice` simulates a BLD2 / BLD3H / ZBLD.C20 brushless drive,
 :class:`PblDevice` a PBL-series brushless drive, :class:`J2Device` a J2-series PID
 temperature controller with a thermal process under its control, :class:`TaisongDevice` a
@@ -38,7 +45,13 @@ compiled core.
 
 from __future__ import annotations
 
-from benchbus.sim._device import RegisterDevice, SimDevice, SimException
+from benchbus.sim._device import (
+    BASIC_FUNCTIONS,
+    STANDARD_FUNCTIONS,
+    RegisterDevice,
+    SimDevice,
+    SimException,
+)
 from benchbus.sim._drive import DriveDevice
 from benchbus.sim._faults import FAULT_KINDS, Faults
 from benchbus.sim._instrument import Atv31Device, TaisongDevice
@@ -47,7 +60,9 @@ from benchbus.sim._pbl import PblDevice
 from benchbus.sim._simulator import Simulator
 
 __all__ = [
+    "BASIC_FUNCTIONS",
     "FAULT_KINDS",
+    "STANDARD_FUNCTIONS",
     "Atv31Device",
     "DriveDevice",
     "Faults",

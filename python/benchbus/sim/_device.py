@@ -5,10 +5,30 @@ from __future__ import annotations
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
+from typing import TypeVar
 
-__all__ = ["ClockedModel", "RegisterDevice", "SimDevice", "SimException", "pace_write"]
+__all__ = [
+    "BASIC_FUNCTIONS",
+    "STANDARD_FUNCTIONS",
+    "ClockedModel",
+    "RegisterDevice",
+    "SimDevice",
+    "SimException",
+    "pace_write",
+]
 
 _REGISTER_SPACE = 0x10000
+
+#: What every :class:`SimDevice` may answer: holding registers (0x03, 0x06, 0x10) and Read
+#: Device Identification (0x2B, answered exception 1 when the device has no ``identity``).
+BASIC_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
+#: Every public function a :class:`RegisterDevice` answers: the basic ones, coils (0x01,
+#: 0x05, 0x0F), discrete inputs (0x02), input registers (0x04), Mask Write Register (0x16),
+#: Read/Write Multiple registers (0x17), Read Exception Status (0x07), Diagnostics (0x08:
+#: sub-functions 0x0000, 0x0001 and 0x0004) and Report Server ID (0x11).
+STANDARD_FUNCTIONS = BASIC_FUNCTIONS | frozenset(
+    {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x11, 0x16, 0x17}
+)
 
 
 class SimException(Exception):
@@ -48,7 +68,39 @@ class SimDevice:
     A request for more registers than :attr:`max_read` / :attr:`max_write` is answered
     with :attr:`too_many_code` before either is called. The base class has no registers:
     every access answers exception 2 (illegal data address).
+
+    A unit answers the function codes in :attr:`functions` and exception 1 (illegal
+    function) to any other. The base class serves 0x03, 0x06, 0x10 and 0x2B, as the
+    device manuals of the families do; a device that serves more declares them, and for
+    each the simulator calls (as above, in the server thread):
+
+    - 0x01 :meth:`read_coils`, 0x05 and 0x0F :meth:`write_coils` (limits
+      :attr:`max_read_bits` / :attr:`max_write_bits`), 0x02 :meth:`read_discrete_inputs`
+      (:attr:`max_read_bits`), 0x04 :meth:`read_input_registers` (:attr:`max_read`);
+    - 0x16 (mask write) :meth:`read_holding` of the one register, then
+      :meth:`write_holding` of ``(current AND and_mask) OR (or_mask AND NOT and_mask)``;
+    - 0x17 (read/write multiple) :meth:`write_holding`, then :meth:`read_holding`, as the
+      spec orders them (limits :attr:`max_write`, at most 121, and :attr:`max_read`);
+    - 0x07 reads :attr:`exception_status`, 0x11 :attr:`server_id`, :attr:`run_indicator`
+      and :attr:`additional_data`; 0x08 (Diagnostics) is answered without asking the
+      device: sub-function 0x0000 (return query data) echoes the request, 0x0004 (force
+      listen only mode) is not answered and puts the unit in the listen only mode, where
+      it takes and answers no request until 0x0001 (restart communications, data 0x0000
+      or 0xFF00), which ends the mode unanswered (outside it, 0x0001 is echoed); other
+      sub-functions answer exception 1.
+
+    A request the Modbus Application Protocol V1.1b3 refuses is answered as it says before
+    the device is asked: a quantity out of its range (coils and inputs 1..2000 a read,
+    1..1968 a write; registers 1..125 a read, 1..121 a 0x17 write), a byte count that does
+    not match, or a 0x05 value other than 0xFF00 / 0x0000 with exception 3; a block past
+    address 0xFFFF with exception 2. A quantity within the spec's range but over the
+    device's own limit answers :attr:`too_many_code`.
     """
+
+    #: The function codes this unit answers (any other: exception 1, illegal function).
+    #: Read once per request, before the unit handles it, so a subclass may make it a
+    #: property.
+    functions: frozenset[int] = BASIC_FUNCTIONS
 
     #: Most registers one read (0x03) may ask for. The protocol allows 125; a device
     #: simulator declares its manual's limit, so that a master which asks a real device for
@@ -60,7 +112,15 @@ class SimDevice:
     #: :attr:`max_read`.
     max_write: int = 123
 
-    #: The exception code answered to a request over :attr:`max_read` / :attr:`max_write`:
+    #: Most coils or discrete inputs one read (0x01, 0x02) may ask for: the protocol allows
+    #: 2000. As :attr:`max_read`.
+    max_read_bits: int = 2000
+
+    #: Most coils one write (0x0F) may carry: the protocol allows 1968. As :attr:`max_read`.
+    max_write_bits: int = 1968
+
+    #: The exception code answered to a request over :attr:`max_read` / :attr:`max_write`
+    #: (and :attr:`max_read_bits` / :attr:`max_write_bits`):
     #: 3 (illegal data value), as the Modbus specification gives for a quantity out of range.
     too_many_code: int = SimException.ILLEGAL_DATA_VALUE
 
@@ -70,16 +130,32 @@ class SimDevice:
     #: (answered with exception 1, illegal function).
     identity: dict[int, str] | None = None
 
+    #: The eight bits answered to Read Exception Status (0x07), 0..255: their meaning is the
+    #: device's.
+    exception_status: int = 0
+
+    #: The server id of a Report Server ID (0x11) reply: one byte or more, their meaning the
+    #: device's.
+    server_id: bytes = b"\x00"
+
+    #: The run indicator of a Report Server ID (0x11) reply: True ON (0xFF), False OFF (0x00).
+    run_indicator: bool = True
+
+    #: The additional data of a Report Server ID (0x11) reply, after the run indicator (the
+    #: three fields take at most 251 bytes together).
+    additional_data: bytes = b""
+
     #: Whether this unit answers a broadcast (unit 0) as if it had been addressed itself, with
     #: its own unit address in the reply. Standard Modbus units act on a broadcast silently;
     #: the PBL manual says its drives answer.
     answers_broadcast: bool = False
 
-    #: Whether this unit's replies to writes (0x06, 0x10) go on the line. When False the unit
-    #: still acts on each write (and the request is logged) but its reply, normal or
-    #: exception, is dropped, as a BLD drive does with F08.06 = 1 (the library's side of it
-    #: is ``Drive(write_ack=False)``). Read once per request, before the unit handles it, so
-    #: a subclass may make it a property.
+    #: Whether this unit's replies to writes (0x05, 0x06, 0x0F, 0x10, 0x16) go on the line.
+    #: When False the unit still acts on each write (and the request is logged) but its
+    #: reply, normal or exception, is dropped, as a BLD drive does with F08.06 = 1 (the
+    #: library's side of it is ``Drive(write_ack=False)``); a 0x17 read/write is answered.
+    #: Read once per request, before the unit handles it, so a subclass may make it a
+    #: property.
     answers_writes: bool = True
 
     #: Seconds this unit holds each of its replies before it goes on the line (a BLD drive's
@@ -100,6 +176,35 @@ class SimDevice:
 
         Raise :class:`SimException` to answer with an exception reply instead (then nothing
         should have been written).
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def read_coils(self, address: int, count: int) -> list[bool]:
+        """States of the ``count`` coils from ``address`` (function 0x01).
+
+        Raise :class:`SimException` to answer with an exception reply instead.
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def write_coils(self, address: int, values: list[bool]) -> None:
+        """Set the coils from ``address`` to ``values`` (0x05 gives one value, 0x0F several).
+
+        Raise :class:`SimException` to answer with an exception reply instead (then nothing
+        should have been written).
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
+        """States of the ``count`` discrete inputs from ``address`` (function 0x02).
+
+        Raise :class:`SimException` to answer with an exception reply instead.
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def read_input_registers(self, address: int, count: int) -> list[int]:
+        """Values of the ``count`` input registers from ``address`` (0x04; each 0..0xFFFF).
+
+        Raise :class:`SimException` to answer with an exception reply instead.
         """
         raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
 
@@ -162,16 +267,26 @@ class ClockedModel:
 
 
 class RegisterDevice(SimDevice):
-    """A plain table of 65536 holding registers, all 0 unless given.
+    """A plain Modbus unit: 65536 each of holding registers, input registers, coils and
+    discrete inputs, all 0 (False) unless given, and every public function of
+    :data:`STANDARD_FUNCTIONS`.
 
-    ``registers`` is a list of 65536 ints that a test reads and sets directly
-    (``dev.registers[0x2000] = 5``). Requests for more than ``max_read`` (0x03) or
-    ``max_write`` (0x06 / 0x10) registers answer exception 3 (illegal data value, see
-    :attr:`SimDevice.max_read`), requests past address 0xFFFF exception 2 (illegal data
-    address), and a write touching a register in ``readonly`` answers
-    :attr:`readonly_code` (2, illegal data address, unless a subclass changes it) and writes
-    nothing.
+    The tables are lists a test reads and sets directly: :attr:`registers` (holding,
+    ``dev.registers[0x2000] = 5``), :attr:`input_registers`, :attr:`coils`
+    (``dev.coils[20] = True``) and :attr:`discrete_inputs`; ``Simulator.peek`` reads them
+    through the device. Requests for more than ``max_read`` (0x03, 0x04, the read of 0x17)
+    or ``max_write`` (0x06 / 0x10, the write of 0x17) registers, or more than
+    ``max_read_bits`` (0x01, 0x02) or ``max_write_bits`` (0x0F) bits, answer exception 3
+    (illegal data value, see :attr:`SimDevice.max_read`), requests past address 0xFFFF
+    exception 2 (illegal data address), and a write (0x06, 0x10, 0x16, 0x17) touching a
+    holding register in ``readonly`` answers :attr:`readonly_code` (2, illegal data
+    address, unless a subclass changes it) and writes nothing. Read Exception Status (0x07)
+    answers :attr:`SimDevice.exception_status` and Report Server ID (0x11)
+    :attr:`SimDevice.server_id`, :attr:`SimDevice.run_indicator` and
+    :attr:`SimDevice.additional_data`, which may be set at any time.
     """
+
+    functions = STANDARD_FUNCTIONS
 
     #: Exception code answered to a write that touches a read-only register.
     readonly_code: int = SimException.ILLEGAL_DATA_ADDRESS
@@ -180,50 +295,78 @@ class RegisterDevice(SimDevice):
         self,
         registers: Mapping[int, int] | None = None,
         *,
+        input_registers: Mapping[int, int] | None = None,
+        coils: Mapping[int, bool] | Iterable[int] | None = None,
+        discrete_inputs: Mapping[int, bool] | Iterable[int] | None = None,
         identity: Mapping[int, str] | None = None,
         max_read: int | None = None,
         max_write: int | None = None,
+        max_read_bits: int | None = None,
+        max_write_bits: int | None = None,
         readonly: Iterable[int] = (),
     ) -> None:
-        """Registers from ``{address: value}``; the others are 0.
+        """Holding and input registers from ``{address: value}``, coils and discrete inputs
+        from ``{address: bool}`` (or the addresses that are on); the others are 0 (False).
 
-        ``max_read`` is at most 125 and ``max_write`` at most 123 (the protocol's limits);
-        None keeps the class's (:attr:`SimDevice.max_read`, which a subclass may declare).
+        ``max_read`` is at most 125, ``max_write`` at most 123, ``max_read_bits`` at most
+        2000 and ``max_write_bits`` at most 1968 (the protocol's limits); None keeps the
+        class's (:attr:`SimDevice.max_read`, which a subclass may declare).
         """
-        if max_read is not None and not 1 <= max_read <= 125:
-            raise ValueError(f"max_read must be 1..125, not {max_read}")
-        if max_write is not None and not 1 <= max_write <= 123:
-            raise ValueError(f"max_write must be 1..123, not {max_write}")
-        self.registers: list[int] = [0] * _REGISTER_SPACE
-        for address, value in (registers or {}).items():
-            _check_address(address)
-            _check_value(value)
-            self.registers[address] = value
+        for name, value, top in (
+            ("max_read", max_read, 125),
+            ("max_write", max_write, 123),
+            ("max_read_bits", max_read_bits, 2000),
+            ("max_write_bits", max_write_bits, 1968),
+        ):
+            if value is not None:
+                if isinstance(value, bool) or not isinstance(value, int) or not 1 <= value <= top:
+                    raise ValueError(f"{name} must be 1..{top}, not {value!r}")
+                setattr(self, name, value)
+        #: The holding registers (0x03, 0x06, 0x10, 0x16, 0x17): 65536 ints 0..0xFFFF.
+        self.registers: list[int] = _words(registers)
+        #: The input registers (0x04): 65536 ints 0..0xFFFF.
+        self.input_registers: list[int] = _words(input_registers)
+        #: The coils (0x01, 0x05, 0x0F): 65536 bools.
+        self.coils: list[bool] = _bits(coils)
+        #: The discrete inputs (0x02): 65536 bools.
+        self.discrete_inputs: list[bool] = _bits(discrete_inputs)
         self.identity = dict(identity) if identity is not None else None
-        if max_read is not None:
-            self.max_read = max_read
-        if max_write is not None:
-            self.max_write = max_write
         self.readonly: set[int] = set(readonly)
         for address in self.readonly:
             _check_address(address)
 
     def read_holding(self, address: int, count: int) -> list[int]:
         """The registers ``address .. address + count - 1`` from :attr:`registers`."""
-        if not 0 <= address <= _REGISTER_SPACE - count:
-            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
-        return self.registers[address : address + count]
+        return _block(self.registers, address, count)
 
     def write_holding(self, address: int, values: list[int]) -> None:
         """Store ``values`` from ``address``, all or nothing."""
         count = len(values)
-        if not 0 <= address <= _REGISTER_SPACE - count:
-            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        _block(self.registers, address, count)
         if any(a in self.readonly for a in range(address, address + count)):
             raise SimException(self.readonly_code)
         for value in values:
             _check_value(value)
         self.registers[address : address + count] = values
+
+    def read_input_registers(self, address: int, count: int) -> list[int]:
+        """The input registers ``address .. address + count - 1`` from
+        :attr:`input_registers`."""
+        return _block(self.input_registers, address, count)
+
+    def read_coils(self, address: int, count: int) -> list[bool]:
+        """The coils ``address .. address + count - 1`` from :attr:`coils`."""
+        return _block(self.coils, address, count)
+
+    def write_coils(self, address: int, values: list[bool]) -> None:
+        """Set the coils from ``address`` to ``values``, all or nothing."""
+        _block(self.coils, address, len(values))
+        self.coils[address : address + len(values)] = [bool(v) for v in values]
+
+    def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
+        """The discrete inputs ``address .. address + count - 1`` from
+        :attr:`discrete_inputs`."""
+        return _block(self.discrete_inputs, address, count)
 
     def __repr__(self) -> str:
         """Class name and the registers that are not 0."""
@@ -231,6 +374,36 @@ class RegisterDevice(SimDevice):
         shown = ", ".join(f"{a:#06x}: {v}" for a, v in list(nonzero.items())[:8])
         more = ", ..." if len(nonzero) > 8 else ""
         return f"{type(self).__name__}({{{shown}{more}}})"
+
+
+_T = TypeVar("_T")
+
+
+def _block(table: list[_T], address: int, count: int) -> list[_T]:
+    """``table[address : address + count]``; exception 2 if it runs past the table."""
+    if not 0 <= address <= len(table) - count:
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+    return table[address : address + count]
+
+
+def _words(given: Mapping[int, int] | None) -> list[int]:
+    table = [0] * _REGISTER_SPACE
+    for address, value in (given or {}).items():
+        _check_address(address)
+        _check_value(value)
+        table[address] = value
+    return table
+
+
+def _bits(given: Mapping[int, bool] | Iterable[int] | None) -> list[bool]:
+    table = [False] * _REGISTER_SPACE
+    items = given.items() if isinstance(given, Mapping) else ((a, True) for a in given or ())
+    for address, value in items:
+        _check_address(address)
+        if not isinstance(value, bool):
+            raise TypeError(f"a coil or input is True or False, not {value!r}")
+        table[address] = value
+    return table
 
 
 def pace_write(times: list[float], violations: list[float], interval: float) -> None:

@@ -14,7 +14,7 @@ import time
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from benchbus.sim._device import ClockedModel, RegisterDevice, pace_write
+from benchbus.sim._device import BASIC_FUNCTIONS, ClockedModel, RegisterDevice, pace_write
 from benchbus.sim._rtu import with_crc
 
 __all__ = ["Atv31Device", "TaisongDevice"]
@@ -92,6 +92,8 @@ class TaisongDevice(ClockedModel, RegisterDevice):
     :attr:`write_violations`, as for :class:`J2Device`.
     """
 
+    #: The manual's functions: 0x03, 0x06 and 0x10 (any other answers exception 1).
+    functions = BASIC_FUNCTIONS
     #: The factory baud rate (the manual: 2400, 4800, 9600 or 19200, 8N1).
     BAUDRATE = 9600
     #: Most registers one read (0x03) may ask for.
@@ -311,6 +313,8 @@ class Atv31Device(RegisterDevice):
     function is not supported: exception 1 in the standard form either way.
     """
 
+    #: The manual's functions: 0x03, 0x06, 0x10 and 0x2B (any other answers exception 1).
+    functions = BASIC_FUNCTIONS
     #: The manual's identification objects (read-only mapping).
     IDENTITY: Mapping[int, str] = MappingProxyType(
         {0: "TELEMECANIQUE", 1: "ATV31HU09M3S232", 2: "0201"}

@@ -82,6 +82,8 @@ class SimState:
         self.reply_delay = 0.0
         self.silent_all = False
         self.silent_units: set[int] = set()
+        #: Units in the Diagnostics' listen only mode (0x08 / 0x0004) until 0x08 / 0x0001.
+        self.listen_only: set[int] = set()
         self.corrupt = 0
         #: Whether the library's adapter hears its own requests (they come back to it).
         self.echo = False

@@ -21,6 +21,16 @@ module to change when it does. What 3.16 offers and how it is used here:
   at an object id the stream does not hold with no objects at all for the basic stream
   (and for the regular one started at a private id); the spec says to restart at object 0,
   so the request class does that before asking the factory.
+- The server's decoder takes a custom request class for a function pymodbus has classes of
+  its own for too (``DecodePDU.register`` replaces the entry of its table). The functions
+  beyond 0x03, 0x06, 0x10 and 0x2B get one such class each (:func:`_raw_request`): it
+  keeps the request's data as bytes, hands them to ``serve`` and sends back the bytes it
+  gives (or an exception reply with the code it gives), so pymodbus only frames them and
+  its own datastore, process-wide control block (0x07, 0x08, 0x11) and checks are not
+  used. The RTU framer asks the class for the request's length
+  (``calculateRtuFrameSize``, 0 while more bytes are needed): the simulator's own
+  ``request_length``, or all there is for a function whose length it cannot tell (0x08:
+  the line delivers one whole frame at a time).
 - An exception reply pymodbus builds from an ``ExcCodes`` member can carry any code once
   built: ``ExceptionResponse.encode`` packs whatever ``exception_code`` holds. The server's
   ``trace_pdu`` hook sees every PDU it sends, so for a code ``ExcCodes`` lacks the action
@@ -48,6 +58,8 @@ from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from benchbus._extras import sim_missing
+from benchbus.sim._functions import FUNCTIONS
+from benchbus.sim._rtu import request_length
 
 try:
     # pymodbus imports pyserial only when it opens a port: ask for it here, so that a
@@ -67,7 +79,7 @@ except ImportError as exc:
         raise
     raise missing from exc
 
-__all__ = ["Dispatch", "IdentityOf", "PymodbusServer", "SerialServer", "TcpServer"]
+__all__ = ["Dispatch", "IdentityOf", "PymodbusServer", "SerialServer", "Serve", "TcpServer"]
 
 log = logging.getLogger("benchbus.sim")
 
@@ -76,6 +88,9 @@ log = logging.getLogger("benchbus.sim")
 Dispatch = Callable[[int, int, int, int, "list[int] | None"], "list[int] | int | None"]
 #: unit -> its Read Device Identification objects, or None when it has none.
 IdentityOf = Callable[[int], "Mapping[int, str] | None"]
+#: ``(unit, function, request data)`` -> the reply's data (after the function code), or an
+#: int exception code.
+Serve = Callable[[int, int, bytes], "bytes | int"]
 
 _EXC_CODES = {int(c) for c in ExcCodes}
 
@@ -151,6 +166,46 @@ def _identification_request(identity_of: IdentityOf) -> type[ModbusPDU]:
     return ReadDeviceIdentification
 
 
+class _RawResponse(ModbusPDU):
+    """A reply PDU sent as the bytes it was given."""
+
+    def __init__(self, function: int, data: bytes) -> None:
+        super().__init__()
+        self.function_code = function
+        self.data = data
+
+    def encode(self) -> bytes:
+        return self.data
+
+
+def _raw_request(function: int, serve: Serve) -> type[ModbusPDU]:
+    """A request class for ``function`` that ``serve`` answers (see the module doc)."""
+
+    class RawRequest(ModbusPDU):
+        function_code = function
+
+        def __init__(self) -> None:
+            super().__init__()
+            self.data = b""
+
+        @classmethod
+        def calculateRtuFrameSize(cls, data: bytes) -> int:  # noqa: N802 - pymodbus's name
+            length = request_length(bytes(data))
+            return len(data) if length is None else length
+
+        def decode(self, data: bytes) -> None:
+            self.data = bytes(data)
+
+        async def datastore_update(self, context: Any, device_id: int) -> ModbusPDU:
+            answer = serve(device_id, self.function_code, self.data)
+            if isinstance(answer, int):
+                # encode() packs any code, also one ExcCodes has no member for.
+                return ExceptionResponse(self.function_code, answer)
+            return _RawResponse(self.function_code, answer)
+
+    return RawRequest
+
+
 async def _cancel_other_tasks() -> None:
     """Cancel and await whatever pymodbus left running in this loop."""
     current = asyncio.current_task()
@@ -165,7 +220,8 @@ class PymodbusServer:
 
     The base of :class:`SerialServer` and :class:`TcpServer`, which say where it listens:
     every register access goes to ``dispatch``, Read Device Identification to
-    ``identity_of``, and exception codes pymodbus lacks are put into the replies here.
+    ``identity_of``, the other functions (``FUNCTIONS``) to ``serve``, and exception
+    codes pymodbus lacks are put into the replies here.
     """
 
     def __init__(
@@ -174,12 +230,14 @@ class PymodbusServer:
         *,
         dispatch: Dispatch,
         identity_of: IdentityOf,
+        serve: Serve,
         where: str,
     ) -> None:
         """Serve ``units``; ``where`` names the place in error messages."""
         self._units = list(units)
         self._dispatch = dispatch
         self._identity_of = identity_of
+        self._serve_raw = serve
         self._where = where
         self._pending_code: int | None = None  # only touched in the server's event loop
         self._loop: asyncio.AbstractEventLoop | None = None
@@ -246,7 +304,10 @@ class PymodbusServer:
             ignore_missing_devices=True,
             broadcast_enable=False,  # the line or gateway fans broadcasts out itself
             trace_pdu=self._trace_pdu,
-            custom_pdu=[_identification_request(self._identity_of)],
+            custom_pdu=[
+                _identification_request(self._identity_of),
+                *(_raw_request(f, self._serve_raw) for f in sorted(FUNCTIONS)),
+            ],
         )
         try:
             await server.serve_forever(background=True)
@@ -312,9 +373,10 @@ class SerialServer(PymodbusServer):
         baudrate: int,
         dispatch: Dispatch,
         identity_of: IdentityOf,
+        serve: Serve,
     ) -> None:
         """Serve ``units`` on ``port``; register accesses go to ``dispatch``."""
-        super().__init__(units, dispatch=dispatch, identity_of=identity_of, where=port)
+        super().__init__(units, dispatch=dispatch, identity_of=identity_of, serve=serve, where=port)
         self._port = port
         self._baudrate = baudrate
 
@@ -341,10 +403,11 @@ class TcpServer(PymodbusServer):
         rtu: bool,
         dispatch: Dispatch,
         identity_of: IdentityOf,
+        serve: Serve,
         host: str = "127.0.0.1",
     ) -> None:
         """Serve ``units`` with RTU framing (``rtu``) or MBAP framing (Modbus TCP)."""
-        super().__init__(units, dispatch=dispatch, identity_of=identity_of, where=host)
+        super().__init__(units, dispatch=dispatch, identity_of=identity_of, serve=serve, where=host)
         self._host = host
         self._framer = FramerType.RTU if rtu else FramerType.SOCKET
         self._address: tuple[str, int] | None = None

@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING
 
 from benchbus import _mbap
 from benchbus.sim._faults import Injection
+from benchbus.sim._functions import DIAGNOSTICS, FORCE_LISTEN_ONLY, RESTART_COMMUNICATIONS
 from benchbus.sim._rtu import crc_ok, reply_length, request_length, with_crc
 from benchbus.sim._units import Job, UnitHooks, refusal
 
@@ -317,8 +318,9 @@ class Router:
             if made is not None:
                 self.queue(Job(frame, True, made_reply=made))
             return
+        sub_function = self._diagnostic(unit, f.pdu(frame))
         with state.lock:
-            if state.is_silent(unit):
+            if state.is_silent(unit) or self._listens_only(unit, sub_function):
                 return
             forced = state.take_exception(unit)
         if forced is not None:
@@ -328,14 +330,45 @@ class Router:
 
     def _on_broadcast(self, frame: bytes) -> None:
         pdu = self._f.pdu(frame)
+        subs = {unit: self._diagnostic(unit, pdu) for unit in self._units}
         with self._state.lock:
-            units = [u for u in sorted(self._units) if not self._state.is_silent(u)]
+            units = [
+                u
+                for u in sorted(self._units)
+                if not (self._state.is_silent(u) or self._listens_only(u, subs[u]))
+            ]
         for unit in units:
             request = self._f.make(unit, pdu, frame)
             self.queue(self._unit_job(request, deliver=self._hooks.answers_broadcast(unit)))
 
+    def _diagnostic(self, unit: int, pdu: bytes) -> int | None:
+        """The Diagnostics (0x08) sub-function of ``pdu``, if ``unit`` serves 0x08."""
+        if len(pdu) < 3 or pdu[0] != DIAGNOSTICS:
+            return None
+        if DIAGNOSTICS not in self._hooks.functions(unit):
+            return None
+        return int.from_bytes(pdu[1:3], "big")
+
+    def _listens_only(self, unit: int, sub_function: int | None) -> bool:
+        """Whether a request to ``unit`` (with this Diagnostics sub-function, if any) goes no
+        further, as the spec's listen only mode says (call with the state's lock held).
+
+        0x08 / 0x0004 puts the unit in the mode, unanswered; there it takes no request
+        and answers none, until 0x08 / 0x0001 (restart communications) ends the mode,
+        unanswered too.
+        """
+        listening = self._state.listen_only
+        if unit in listening:
+            if sub_function == RESTART_COMMUNICATIONS:
+                listening.discard(unit)
+            return True
+        if sub_function == FORCE_LISTEN_ONLY:
+            listening.add(unit)
+            return True
+        return False
+
     def _unit_job(self, frame: bytes, deliver: bool) -> Job:
-        code = refusal(self._f.pdu(frame))
+        code = refusal(self._f.pdu(frame), self._hooks.functions(self._f.unit(frame)))
         made = None if code is None else self._f.exception(frame, code)
         return Job(frame, deliver, made_reply=made)
 

@@ -90,10 +90,16 @@ def request_length(buf: bytes) -> int | None:
     if len(buf) < 2:
         return 0
     function = buf[1]
+    if function in (0x07, 0x11):
+        return 4
     if function in (0x01, 0x02, 0x03, 0x04, 0x05, 0x06):
         return 8
+    if function == 0x16:
+        return 10
     if function in (0x0F, 0x10):
         return 0 if len(buf) < 7 else 9 + buf[6]
+    if function == 0x17:
+        return 0 if len(buf) < 11 else 13 + buf[10]
     if function == 0x2B:
         if len(buf) < 3:
             return 0
@@ -108,10 +114,14 @@ def reply_length(buf: bytes) -> int | None:
     function = buf[1]
     if function & 0x80:
         return 5
-    if function in (0x01, 0x02, 0x03, 0x04):
+    if function == 0x07:
+        return 5
+    if function in (0x01, 0x02, 0x03, 0x04, 0x11, 0x17):
         return 0 if len(buf) < 3 else 5 + buf[2]
     if function in (0x05, 0x06, 0x0F, 0x10):
         return 8
+    if function == 0x16:
+        return 10
     if function == 0x2B:
         return _device_identification_length(buf)
     return None

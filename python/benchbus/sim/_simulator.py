@@ -7,11 +7,12 @@ import os
 import threading
 from collections.abc import Mapping
 from types import TracebackType
-from typing import Generic, TypeVar
+from typing import Generic, Literal, TypeVar, overload
 
 from benchbus import _mbap
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
+from benchbus.sim._functions import serve
 from benchbus.sim._line import LOG_SIZE, Forwarder, PtyPair, SimState
 from benchbus.sim._network import NETWORKS, NetworkProxy, NetworkState, probe
 from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
@@ -54,32 +55,36 @@ class Simulator(Generic[D]):
     is False acts on writes without answering them, and a unit's own
     :attr:`SimDevice.reply_delay` holds its replies (the larger of it and :attr:`reply_delay`
     applies). A unit may give its replies a form of its own (:meth:`SimDevice.shape_reply`,
-    applied before the faults). Functions other than 0x03, 0x06, 0x10 and 0x2B/0x0E are
-    answered with exception 1 (illegal function). The set of units is fixed at
-    :meth:`start`; a device object may be replaced in :attr:`devices` for a unit that
-    exists.
+    applied before the faults). A unit answers the functions of its
+    :attr:`SimDevice.functions` (a :class:`RegisterDevice` every public function of the
+    Modbus Application Protocol a master needs: coils, discrete inputs, input and holding
+    registers, 0x16, 0x17, 0x07, 0x08 and 0x11; the device families the functions of
+    their manuals), and exception 1 (illegal function) to any other. The set of units is
+    fixed at :meth:`start`; a device object may be replaced in :attr:`devices` for a unit
+    that exists.
 
-    **Network.** ``Simulator(devices, network="tcp")`` serves the units as a Modbus TCP
-    gateway does (MBAP frames), and ``network="rtu+tcp"`` as a transparent serial-to-Ethernet
-    converter (RTU frames, CRC included, over TCP); :attr:`port` is then
-    ``tcp://127.0.0.1:N`` or ``rtu+tcp://127.0.0.1:N``. A pymodbus TCP server answers for
-    the units behind a proxy thread listening on that port, which accepts several client
-    connections at once (each with its own connection to the server; the requests of one
-    connection are served one at a time, in order), logs every frame as it crossed the
-    socket (:attr:`requests`, :attr:`replies`; the MBAP header included) and applies the
-    faults. The line's rules above hold, except on ``tcp``: a request to a unit not in
-    :attr:`devices`, or one the server leaves unanswered for 1 s, is answered with
-    exception 0x0B (gateway target failed to respond), while a request to a silent unit
-    (:meth:`set_silent`), a write to a unit that does not answer writes and a broadcast get
-    NO reply at all, as behind a gateway whose own timeout is longer than the client's.
-    Replies the simulator makes (:meth:`answer_exception`, illegal function, 0x0B) and a
-    broadcast answered by a unit carry the request's transaction id; the latter the unit's
-    own unit id. :meth:`SimDevice.shape_reply` sees and gives RTU frames on both networks.
-    An MBAP header whose protocol id is not 0, or whose length is not 2..254, closes the
-    connection. Network only: :meth:`reset_next`, :meth:`refuse_connections`,
+    **Network.** ``Simulator(devices, network="tcp")`` serves the units as a Modbus TCP gateway
+    does (MBAP frames), and ``network="rtu+tcp"`` as a transparent serial-to-Ethernet converter
+    (RTU frames, CRC included, over TCP); :attr:`port` is then ``tcp://127.0.0.1:N`` or
+    ``rtu+tcp://127.0.0.1:N``. A pymodbus TCP server answers for the units behind a proxy thread
+    listening on that port, which accepts several client connections at once (each with its own
+    connection to the server; the requests of one connection are served one at a time, in
+    order), logs every frame as it crossed the socket (:attr:`requests`, :attr:`replies`; the
+    MBAP header included) and applies the faults. The units answer the same functions as on a
+    line, the serial line's 0x07, 0x08 and 0x11 too (as serial devices behind a gateway would).
+    The line's rules above hold, except on ``tcp``: a request to a unit not in :attr:`devices`,
+    or one the server leaves unanswered for 1 s, is answered with exception 0x0B (gateway target
+    failed to respond), while a request to a silent unit (:meth:`set_silent`) or to one in the
+    Diagnostics' listen only mode (see :class:`SimDevice`), a write to a unit that does not
+    answer writes and a broadcast get NO reply at all, as behind a gateway whose own timeout is
+    longer than the client's. Replies the simulator makes (:meth:`answer_exception`, illegal
+    function, 0x0B) and a broadcast answered by a unit carry the request's transaction id; the
+    latter the unit's own unit id. :meth:`SimDevice.shape_reply` sees and gives RTU frames on
+    both networks. An MBAP header whose protocol id is not 0, or whose length is not 2..254,
+    closes the connection. Network only: :meth:`reset_next`, :meth:`refuse_connections`,
     :meth:`drop_connections`, :attr:`connections`, :attr:`accepted`. Refused on ``tcp``
-    (ValueError): :meth:`corrupt_next`, :meth:`collide_next`, :attr:`faults`. Refused on
-    any network (ValueError): ``echo=True``.
+    (ValueError): :meth:`corrupt_next`, :meth:`collide_next`, :attr:`faults`. Refused on any
+    network (ValueError): ``echo=True``.
     """
 
     def __init__(
@@ -203,11 +208,12 @@ class Simulator(Generic[D]):
             baudrate=self.baudrate,
             dispatch=self._dispatch,
             identity_of=self._identity_of,
+            serve=self._serve,
         )
         self._server.start(_START_TIMEOUT)
         self._forwarder.start()
-        # Prove the server answers: Diagnostics 0x08 / 0x00 "return query data" is echoed by
-        # pymodbus itself, without touching any device.
+        # Prove the server answers: Diagnostics 0x08 / 0x00 "return query data" is echoed
+        # without touching any device (the probe passes by the units' own functions).
         probe = with_crc(bytes([min(units, default=1), 0x08, 0x00, 0x00]) + os.urandom(2))
         for _ in range(3):
             if self._forwarder.probe(probe, timeout=_START_TIMEOUT / 3) == probe:
@@ -224,13 +230,18 @@ class Simulator(Generic[D]):
             answers_writes=lambda unit: bool(self.devices[unit].answers_writes),
             reply_delay=lambda unit: float(self.devices[unit].reply_delay),
             shape_reply=self._shape_reply,
+            functions=lambda unit: self.devices[unit].functions,
         )
 
     def _start_network(self, network: str) -> None:
         units = frozenset(self.devices)
         rtu = network == "rtu+tcp"
         server = TcpServer(
-            sorted(units), rtu=rtu, dispatch=self._dispatch, identity_of=self._identity_of
+            sorted(units),
+            rtu=rtu,
+            dispatch=self._dispatch,
+            identity_of=self._identity_of,
+            serve=self._serve,
         )
         self._server = server
         server.start(_START_TIMEOUT)
@@ -568,17 +579,47 @@ class Simulator(Generic[D]):
         with self._state.lock:
             return self._state.request_count
 
-    def peek(self, unit: int, address: int, count: int = 1) -> list[int]:
-        """What unit ``unit`` holds in ``count`` holding registers from ``address``: the truth.
+    @overload
+    def peek(
+        self,
+        unit: int,
+        address: int,
+        count: int = 1,
+        *,
+        table: Literal["holding", "input"] = "holding",
+    ) -> list[int]: ...
 
-        Asks the device directly (:meth:`SimDevice.read_holding`), past the line and its
-        faults, and logs nothing; a :class:`SimException` the device raises propagates. For
-        checking what the library returned, between its calls (the server thread may be
-        handling a request meanwhile otherwise).
+    @overload
+    def peek(
+        self, unit: int, address: int, count: int = 1, *, table: Literal["coils", "discrete"]
+    ) -> list[bool]: ...
+
+    def peek(
+        self, unit: int, address: int, count: int = 1, *, table: str = "holding"
+    ) -> list[int] | list[bool]:
+        """What unit ``unit`` holds in ``count`` entries of ``table`` from ``address``: the
+        truth.
+
+        ``table`` is ``"holding"`` (registers, the default), ``"input"`` (input registers),
+        ``"coils"`` or ``"discrete"`` (discrete inputs; both as bools). Asks the device
+        directly (:meth:`SimDevice.read_holding`, :meth:`SimDevice.read_input_registers`,
+        :meth:`SimDevice.read_coils`, :meth:`SimDevice.read_discrete_inputs`), past the line
+        and its faults, and logs nothing; a :class:`SimException` the device raises
+        propagates. For checking what the library returned, between its calls (the server
+        thread may be handling a request meanwhile otherwise).
         """
         if unit not in self.devices:
             raise ValueError(f"no simulated unit {unit!r}")
-        return list(self.devices[unit].read_holding(address, count))
+        device = self.devices[unit]
+        if table == "holding":
+            return list(device.read_holding(address, count))
+        if table == "input":
+            return list(device.read_input_registers(address, count))
+        if table == "coils":
+            return [bool(b) for b in device.read_coils(address, count)]
+        if table == "discrete":
+            return [bool(b) for b in device.read_discrete_inputs(address, count)]
+        raise ValueError(f"table must be 'holding', 'input', 'coils' or 'discrete', not {table!r}")
 
     def clear_log(self) -> None:
         """Empty :attr:`requests`, :attr:`request_times` and :attr:`replies`, and set
@@ -610,6 +651,18 @@ class Simulator(Generic[D]):
                 return [int(v) for v in result]
             device.write_holding(address, values)
             return None
+        except SimException as exc:
+            return exc.code
+        except Exception as exc:
+            log.exception("simulated unit %d failed on function %#04x", unit, function)
+            self.errors.append(exc)
+            return SimException.SERVER_DEVICE_FAILURE
+
+    def _serve(self, unit: int, function: int, data: bytes) -> bytes | int:
+        """The reply data of ``unit`` to ``function`` with ``data`` (see
+        ``benchbus.sim._functions``), or its exception code."""
+        try:
+            return serve(self.devices[unit], function, data)
         except SimException as exc:
             return exc.code
         except Exception as exc:

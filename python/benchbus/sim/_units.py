@@ -14,22 +14,25 @@ import dataclasses
 import logging
 import math
 import threading
-from collections.abc import Callable
+from collections.abc import Callable, Collection
+
+from benchbus.sim._device import BASIC_FUNCTIONS, STANDARD_FUNCTIONS
 
 __all__ = ["SERVER_FUNCTIONS", "WRITE_FUNCTIONS", "Job", "UnitHooks", "refusal"]
 
 log = logging.getLogger("benchbus.sim")
 
-#: Functions routed to the server; any other is answered exception 1 by the forwarder.
-SERVER_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
+#: Functions the server can take; any other is answered exception 1 by the forwarder.
+SERVER_FUNCTIONS = STANDARD_FUNCTIONS
 #: The write functions, whose replies a unit may keep off the line (``answers_writes``).
-WRITE_FUNCTIONS = frozenset({0x06, 0x10})
+WRITE_FUNCTIONS = frozenset({0x05, 0x06, 0x0F, 0x10, 0x16})
 
 
-def refusal(pdu: bytes) -> int | None:
-    """The exception code answered for a request the server cannot take; None if it can."""
+def refusal(pdu: bytes, functions: Collection[int] = BASIC_FUNCTIONS) -> int | None:
+    """The exception code answered for a request the server cannot take, or the unit does
+    not serve (its ``functions``); None if it can."""
     function = pdu[0] if pdu else 0
-    if function not in SERVER_FUNCTIONS:
+    if function not in SERVER_FUNCTIONS or function not in functions:
         return 0x01
     if function == 0x03 and (len(pdu) != 5 or not 1 <= int.from_bytes(pdu[3:5], "big") <= 125):
         # pymodbus cannot decode such a request and would answer function 0x80.
@@ -60,13 +63,17 @@ class UnitHooks:
         answers_writes: Callable[[int], bool] | None = None,
         reply_delay: Callable[[int], float] | None = None,
         shape_reply: Callable[[int, bytes, bytes], bytes] | None = None,
+        functions: Callable[[int], Collection[int]] | None = None,
     ) -> None:
         """``who`` names the caller in the log (``"simulator"``, ``"simulator gateway"``).
 
-        ``answers_writes(unit)`` defaults to True, ``reply_delay(unit)`` to 0 and
-        ``shape_reply(unit, request, reply)``, on RTU frames, to the reply as is.
+        ``answers_writes(unit)`` defaults to True, ``reply_delay(unit)`` to 0,
+        ``shape_reply(unit, request, reply)``, on RTU frames, to the reply as is, and
+        ``functions(unit)``, the function codes the unit serves, to the basic ones (0x03,
+        0x06, 0x10, 0x2B).
         """
         self.who = who
+        self._functions = functions
         self._answers_broadcast = answers_broadcast
         self._answers_writes = answers_writes
         self._reply_delay = reply_delay
@@ -103,6 +110,17 @@ class UnitHooks:
             log.error("%s: unit %d: reply_delay %r is not >= 0; no delay", self.who, unit, delay)
             return 0.0
         return delay
+
+    def functions(self, unit: int) -> Collection[int]:
+        """The function codes ``unit`` serves (the basic ones if the callback fails)."""
+        if self._functions is None:
+            return BASIC_FUNCTIONS
+        try:
+            functions = self._functions(unit)
+            return frozenset(int(f) for f in functions)
+        except Exception:
+            log.exception("%s: unit %d: functions failed; the basic ones", self.who, unit)
+            return BASIC_FUNCTIONS
 
     def shape(self, unit: int, request: bytes, reply: bytes) -> bytes:
         """``unit``'s own form of the server's RTU ``reply`` to ``request`` (``reply`` if the

@@ -1,0 +1,245 @@
+"""The public function codes a simulated unit answers besides 0x03, 0x06, 0x10 and 0x2B.
+
+Written from the Modbus Application Protocol Specification V1.1b3 (section 6 and its
+exception state diagrams) alone: coils (0x01, 0x05, 0x0F), discrete inputs (0x02), input
+registers (0x04), Mask Write Register (0x16), Read/Write Multiple registers (0x17), and the
+serial line's Read Exception Status (0x07), Diagnostics (0x08: return query data 0x0000 and
+restart communications 0x0001; the listen only mode, 0x0004, is the router's, which keeps
+the requests from the unit) and Report Server ID (0x11). :func:`serve` turns a request
+PDU's data into the reply PDU's data by calling the unit's :class:`~benchbus.sim.SimDevice`
+handlers, and raises :class:`~benchbus.sim.SimException` for an exception reply. The
+checks come in the spec's order: the quantity (and the byte count, and a coil's value)
+first, exception 3, and the device's own limit on it (``too_many_code``); then the
+addresses, exception 2; then the device's own refusals. Pure Python, no pymodbus.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+from benchbus.sim._device import SimDevice, SimException
+
+__all__ = [
+    "DIAGNOSTICS",
+    "FORCE_LISTEN_ONLY",
+    "FUNCTIONS",
+    "RESTART_COMMUNICATIONS",
+    "pack_bits",
+    "serve",
+]
+
+#: The spec's quantity limits: bits a read (0x01, 0x02) and a write (0x0F) may carry,
+#: registers a read (0x04, 0x17) and a 0x17 write may carry.
+READ_BITS, WRITE_BITS, READ_REGISTERS, READ_WRITE_WRITE = 2000, 1968, 125, 121
+#: A coil's ON and OFF in a 0x05 request.
+COIL_ON, COIL_OFF = 0xFF00, 0x0000
+#: Diagnostics, and its sub-functions 0x0000 return query data, 0x0001 restart
+#: communications and 0x0004 force listen only mode (the listen only mode is the router's,
+#: ``benchbus.sim._router``: it keeps the requests from the unit).
+DIAGNOSTICS = 0x08
+RETURN_QUERY_DATA, RESTART_COMMUNICATIONS, FORCE_LISTEN_ONLY = 0x0000, 0x0001, 0x0004
+#: Most bytes a Report Server ID reply's data may take (a PDU is at most 253 bytes).
+MAX_SERVER_ID_DATA = 251
+
+_SPACE = 0x10000
+_ILLEGAL_FUNCTION = SimException.ILLEGAL_FUNCTION
+_ILLEGAL_ADDRESS = SimException.ILLEGAL_DATA_ADDRESS
+_ILLEGAL_VALUE = SimException.ILLEGAL_DATA_VALUE
+
+
+def pack_bits(bits: list[bool]) -> bytes:
+    """``bits`` packed eight a byte, the first in the low bit of the first byte, the last
+    byte padded with zeros (the spec's coil and input status bytes)."""
+    out = bytearray((len(bits) + 7) // 8)
+    for i, bit in enumerate(bits):
+        if bit:
+            out[i // 8] |= 1 << (i % 8)
+    return bytes(out)
+
+
+def _unpack_bits(data: bytes, count: int) -> list[bool]:
+    return [bool(data[i // 8] >> (i % 8) & 1) for i in range(count)]
+
+
+def _word(data: bytes, at: int) -> int:
+    return int.from_bytes(data[at : at + 2], "big")
+
+
+def _need(condition: bool, code: int) -> None:
+    if not condition:
+        raise SimException(code)
+
+
+def _quantity(quantity: int, spec_limit: int, device_limit: int, too_many_code: int) -> None:
+    """The spec's range first (exception 3), then the device's own limit."""
+    _need(1 <= quantity <= spec_limit, _ILLEGAL_VALUE)
+    _need(quantity <= device_limit, too_many_code)
+
+
+def _span(address: int, quantity: int) -> None:
+    """Exception 2 for a block that runs past address 0xFFFF."""
+    _need(address + quantity <= _SPACE, _ILLEGAL_ADDRESS)
+
+
+def _checked(name: str, values: object, count: int, bits: bool) -> list[int]:
+    """A handler's result, checked: ``count`` bits (bools, or 0 and 1) or words."""
+    top = 1 if bits else 0xFFFF
+    if not (
+        isinstance(values, list)
+        and len(values) == count
+        and all(isinstance(v, int) and 0 <= v <= top for v in values)
+    ):
+        kind = "bools" if bits else "ints 0..0xFFFF"
+        raise ValueError(f"{name} returned {values!r}: expected {count} {kind}")
+    return [int(v) for v in values]
+
+
+def _read_bits(
+    device: SimDevice, data: bytes, read: Callable[[int, int], list[bool]], name: str
+) -> bytes:
+    _need(len(data) == 4, _ILLEGAL_VALUE)
+    address, count = _word(data, 0), _word(data, 2)
+    _quantity(count, READ_BITS, device.max_read_bits, device.too_many_code)
+    _span(address, count)
+    bits = _checked(f"{type(device).__name__}.{name}", read(address, count), count, bits=True)
+    packed = pack_bits([bool(b) for b in bits])
+    return bytes([len(packed)]) + packed
+
+
+def _words(values: list[int]) -> bytes:
+    return b"".join(v.to_bytes(2, "big") for v in values)
+
+
+def _read_holding(device: SimDevice, address: int, count: int) -> bytes:
+    values = device.read_holding(address, count)
+    name = f"{type(device).__name__}.read_holding"
+    return _words(_checked(name, values, count, bits=False))
+
+
+def _read_coils(device: SimDevice, data: bytes) -> bytes:
+    return _read_bits(device, data, device.read_coils, "read_coils")
+
+
+def _read_discrete_inputs(device: SimDevice, data: bytes) -> bytes:
+    return _read_bits(device, data, device.read_discrete_inputs, "read_discrete_inputs")
+
+
+def _read_input_registers(device: SimDevice, data: bytes) -> bytes:
+    _need(len(data) == 4, _ILLEGAL_VALUE)
+    address, count = _word(data, 0), _word(data, 2)
+    _quantity(count, READ_REGISTERS, device.max_read, device.too_many_code)
+    _span(address, count)
+    values = device.read_input_registers(address, count)
+    name = f"{type(device).__name__}.read_input_registers"
+    return bytes([2 * count]) + _words(_checked(name, values, count, bits=False))
+
+
+def _write_coil(device: SimDevice, data: bytes) -> bytes:
+    _need(len(data) == 4 and _word(data, 2) in (COIL_ON, COIL_OFF), _ILLEGAL_VALUE)
+    device.write_coils(_word(data, 0), [_word(data, 2) == COIL_ON])
+    return data
+
+
+def _write_coils(device: SimDevice, data: bytes) -> bytes:
+    _need(len(data) >= 5, _ILLEGAL_VALUE)
+    address, count, byte_count = _word(data, 0), _word(data, 2), data[4]
+    _need(1 <= count <= WRITE_BITS, _ILLEGAL_VALUE)
+    _need(byte_count == (count + 7) // 8 == len(data) - 5, _ILLEGAL_VALUE)
+    _need(count <= device.max_write_bits, device.too_many_code)
+    _span(address, count)
+    device.write_coils(address, _unpack_bits(data[5:], count))
+    return data[:4]
+
+
+def _mask_write_register(device: SimDevice, data: bytes) -> bytes:
+    _need(len(data) == 6, _ILLEGAL_VALUE)
+    address, and_mask, or_mask = _word(data, 0), _word(data, 2), _word(data, 4)
+    (current,) = _checked(
+        f"{type(device).__name__}.read_holding", device.read_holding(address, 1), 1, bits=False
+    )
+    device.write_holding(address, [(current & and_mask) | (or_mask & ~and_mask & 0xFFFF)])
+    return data
+
+
+def _read_write_registers(device: SimDevice, data: bytes) -> bytes:
+    _need(len(data) >= 9, _ILLEGAL_VALUE)
+    read_address, read_count = _word(data, 0), _word(data, 2)
+    write_address, write_count, byte_count = _word(data, 4), _word(data, 6), data[8]
+    _need(1 <= read_count <= READ_REGISTERS, _ILLEGAL_VALUE)
+    _need(1 <= write_count <= READ_WRITE_WRITE, _ILLEGAL_VALUE)
+    _need(byte_count == 2 * write_count == len(data) - 9, _ILLEGAL_VALUE)
+    _need(read_count <= device.max_read and write_count <= device.max_write, device.too_many_code)
+    _span(read_address, read_count)
+    _span(write_address, write_count)
+    values = [_word(data, 9 + 2 * i) for i in range(write_count)]
+    device.write_holding(write_address, values)  # the spec: the write before the read
+    return bytes([2 * read_count]) + _read_holding(device, read_address, read_count)
+
+
+def _read_exception_status(device: SimDevice, data: bytes) -> bytes:
+    _need(not data, _ILLEGAL_VALUE)
+    status = device.exception_status
+    if isinstance(status, bool) or not isinstance(status, int) or not 0 <= status <= 0xFF:
+        raise ValueError(f"{type(device).__name__}.exception_status is {status!r}: not 0..255")
+    return bytes([status])
+
+
+def _diagnostics(device: SimDevice, data: bytes) -> bytes:
+    _need(len(data) >= 2, _ILLEGAL_VALUE)
+    sub_function = _word(data, 0)
+    _need(sub_function in (RETURN_QUERY_DATA, RESTART_COMMUNICATIONS), _ILLEGAL_FUNCTION)
+    if sub_function == RESTART_COMMUNICATIONS:
+        # Out of the listen only mode (the router's business): the echo, then a restart
+        # (nothing to restart here). 0xFF00 would also clear an event log, kept by none.
+        _need(len(data) == 4 and _word(data, 2) in (0x0000, 0xFF00), _ILLEGAL_VALUE)
+    return data  # the query data, echoed
+
+
+def _report_server_id(device: SimDevice, data: bytes) -> bytes:
+    _need(not data, _ILLEGAL_VALUE)
+    server_id, extra = device.server_id, device.additional_data
+    if not isinstance(server_id, bytes) or not server_id or not isinstance(extra, bytes):
+        raise ValueError(
+            f"{type(device).__name__}: server_id {server_id!r} must be bytes (at least one)"
+            f" and additional_data {extra!r} bytes"
+        )
+    field = server_id + (b"\xff" if device.run_indicator else b"\x00") + extra
+    if len(field) > MAX_SERVER_ID_DATA:
+        raise ValueError(
+            f"{type(device).__name__}: a Report Server ID reply carries at most"
+            f" {MAX_SERVER_ID_DATA} bytes, not {len(field)}"
+        )
+    return bytes([len(field)]) + field
+
+
+_HANDLERS: dict[int, Callable[[SimDevice, bytes], bytes]] = {
+    0x01: _read_coils,
+    0x02: _read_discrete_inputs,
+    0x04: _read_input_registers,
+    0x05: _write_coil,
+    0x07: _read_exception_status,
+    DIAGNOSTICS: _diagnostics,
+    0x0F: _write_coils,
+    0x11: _report_server_id,
+    0x16: _mask_write_register,
+    0x17: _read_write_registers,
+}
+
+
+#: The functions :func:`serve` answers: the standard ones beyond the basic ones.
+FUNCTIONS = frozenset(_HANDLERS)
+
+
+def serve(device: SimDevice, function: int, data: bytes) -> bytes:
+    """The reply PDU's data (after the function code) to request ``function`` with ``data``.
+
+    ``function`` is one of :data:`FUNCTIONS` (another raises :class:`SimException` 1).
+    Whether the unit serves the function at all (:attr:`SimDevice.functions`) is the
+    caller's question. Raises :class:`SimException` for an exception reply (the device's
+    own, or the spec's for a bad request), and ValueError for a handler that returned
+    something a reply cannot carry.
+    """
+    handler = _HANDLERS.get(function)
+    if handler is None:
+        raise SimException(_ILLEGAL_FUNCTION)
+    return handler(device, bytes(data))
