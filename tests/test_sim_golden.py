@@ -8,10 +8,9 @@ library's judges) to the manuals. Vectors no simulator can answer as printed are
 
 The Modbus Application Protocol Specification's examples (their ``source`` starts with
 :data:`SPEC`) are not a manual's: they address a generic device's coils, discrete inputs,
-input registers and serial line functions, which :class:`benchbus.sim.RegisterDevice` does
-not serve yet. Each is listed by :func:`test_the_simulator_answers_the_specifications_example`
-and skipped with that reason, by this one rule (the source), until it does; the codec is held
-to them meanwhile by ``test_golden.py`` and ``golden.rs``.
+input registers and serial line functions, which :class:`benchbus.sim.RegisterDevice` serves
+from the state each example assumes (read from the specification's text in
+``test_sim_functions.py``).
 """
 
 from __future__ import annotations
@@ -23,12 +22,14 @@ from typing import Any
 
 import pytest
 from test_sim import Client
+from test_sim_functions import EXAMPLES
 
 from benchbus.sim import (
     Atv31Device,
     DriveDevice,
     J2Device,
     PblDevice,
+    RegisterDevice,
     SimDevice,
     Simulator,
     TaisongDevice,
@@ -124,11 +125,27 @@ def test_the_simulator_answers_the_manuals_example(vector: dict[str, Any]) -> No
         assert sim.errors == []
 
 
+#: Each specification example's device state, by function code: the state the example
+#: assumes (``preset``) and what the request must have done (``after``), as
+#: ``test_sim_functions`` reads them from the specification's text.
+SPEC_STATES = {int(name.split()[0], 16): example for name, example in EXAMPLES.items()}
+
+
 @pytest.mark.parametrize("vector", SPEC_VECTORS, ids=[v["id"] for v in SPEC_VECTORS])
 def test_the_simulator_answers_the_specifications_example(vector: dict[str, Any]) -> None:
-    # Every example is of a function beyond the holding registers RegisterDevice serves.
-    assert bytes.fromhex(vector["request"]["frame"])[1] not in (0x03, 0x06, 0x10)
-    pytest.skip("RegisterDevice serves no coils, inputs, input registers or 0x07/0x08/0x16/0x17")
+    request = bytes.fromhex(vector["request"]["frame"])
+    reply = bytes.fromhex(vector["reply"]["frame"])
+    state = SPEC_STATES[request[1]]
+    device = RegisterDevice()
+    state.preset(device)
+    with Simulator({vector["unit"]: device}) as sim:
+        client = Client(sim.port)
+        try:
+            assert client.transact(request, len(reply)).hex(" ") == reply.hex(" ")
+        finally:
+            client.close()
+        assert sim.errors == []
+    state.after(device)
 
 
 def by_id(name: str) -> dict[str, Any]:
