@@ -422,6 +422,38 @@ def test_read_and_write_typed_values_in_each_layout() -> None:
         assert sim.requests[-1][1] == 0x06 and sim.peek(7, 0x30) == [0x1234]
 
 
+def test_read_and_write_every_table() -> None:
+    device = RegisterDevice(coils=[1, 3], discrete_inputs=[0, 2])
+    device.input_registers[5:7] = [0x41AC, 0x0000]
+    with Simulator({4: device}) as sim:
+        port = ["--port", sim.port, "--unit", "4"]
+        assert ok(run("read", *port, "0", "4", "--table", "coils")) == [
+            "0x0000  0  0",
+            "0x0001  1  1",
+            "0x0002  2  0",
+            "0x0003  3  1",
+        ]
+        assert [
+            line.split()[-1] for line in ok(run("read", *port, "0", "3", "--table", "discrete"))
+        ] == ["1", "0", "1"]
+        assert ok(run("read", *port, "5", "--table", "input", "--type", "f32")) == [
+            "0x0005  5  21.5"
+        ]
+        assert [f[1] for f in sim.requests] == [0x01, 0x02, 0x04]
+        # 2500 coils: a read of 2000, then 500.
+        sim.clear_log()
+        assert len(ok(run("read", *port, "0", "2500", "--table", "coils"))) == 2500
+        assert [(f[1], f[4] << 8 | f[5]) for f in sim.requests] == [(1, 2000), (1, 500)]
+        assert ok(run("write", *port, "10", "on", "--table", "coils")) == [
+            "unit 4: wrote coils 1 at 0x000A (0x05)"
+        ]
+        assert ok(run("write", *port, "20", "1", "0", "true", "--table", "coils")) == [
+            "unit 4: wrote coils 1 0 1 at 0x0014 (0x0F)"
+        ]
+        assert sim.peek(4, 10, 1, table="coils") == [1]
+        assert sim.peek(4, 20, 3, table="coils") == [1, 0, 1]
+
+
 @pytest.mark.parametrize(
     ("args", "message"),
     [
@@ -432,6 +464,11 @@ def test_read_and_write_typed_values_in_each_layout() -> None:
         (["write", "0", "x", "--type", "f32"], "'x' is not a number"),
         (["write", "0", "70000", "--type", "u16"], "u16 value must be 0 to 65535"),
         (["write", "0", "1", "--type", "f32", "--decimals", "1"], "leave out --decimals"),
+        (["read", "0", "--table", "coils", "--hex"], "--table coils reads bits"),
+        (["read", "0", "--table", "discrete", "--type", "u32"], "reads bits"),
+        (["read", "0xFFFF", "2", "--table", "coils"], "2 coils from 0xffff run past"),
+        (["write", "0", "2", "--table", "coils"], "'2' is not a coil value"),
+        (["write", "0", "1", "--table", "coils", "--type", "u16"], "writes bits"),
     ],
 )
 def test_typed_values_refused_before_the_port_opens(args: list[str], message: str) -> None:

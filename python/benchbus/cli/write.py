@@ -1,4 +1,4 @@
-"""``benchbus write``: write holding registers."""
+"""``benchbus write``: write holding registers or coils."""
 
 from __future__ import annotations
 
@@ -54,8 +54,48 @@ def _typed_words(texts: list[str], kind: str, order: str) -> list[int]:
         raise UsageError(str(exc)) from None
 
 
+#: What a coil's value may be written as on the command line.
+_COIL = {"1": True, "on": True, "true": True, "0": False, "off": False, "false": False}
+
+
+def _write_coils(args: argparse.Namespace) -> int:
+    """``benchbus write --table coils``: 0x05 for one value, 0x0F for several."""
+    if args.type or args.order or args.decimals or args.multiple or args.accept_count_echo:
+        raise UsageError(
+            "--table coils writes bits: leave out --type, --order, --decimals, --multiple "
+            "and --accept-count-echo"
+        )
+    values = []
+    for text in args.values:
+        if text.strip().lower() not in _COIL:
+            raise UsageError(f"{text!r} is not a coil value (1/0, on/off, true/false)")
+        values.append(_COIL[text.strip().lower()])
+    if args.address + len(values) > 0x10000:
+        raise UsageError(f"{len(values)} coils from {args.address:#06x} run past 0xFFFF")
+    unit = unit_of(args, "write", broadcast=True)
+    with open_bus(args, "write") as bus:
+        if unit == 0:
+            if len(values) == 1:
+                bus.broadcast_write_coil(args.address, values[0])
+            else:
+                bus.broadcast_write_coils(args.address, values)
+            how = "broadcast"
+        elif len(values) == 1:
+            bus.write_coil(unit, args.address, values[0])
+            how = "0x05"
+        else:
+            for i in range(0, len(values), 1968):
+                bus.write_coils(unit, args.address + i, values[i : i + 1968])
+            how = "0x0F"
+    shown = " ".join("1" if v else "0" for v in values)
+    print(f"unit {unit}: wrote coils {shown} at 0x{args.address:04X} ({how})")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus write`` as ``args`` say; the exit status."""
+    if args.table == "coils":
+        return _write_coils(args)
     if args.order and not args.type:
         raise UsageError("--order says how a --type value lies: give --type with it")
     if args.type and args.decimals:
@@ -88,13 +128,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 #: What ``benchbus write`` does, as ``--help`` says.
-HELP = "write holding registers (0x06 for one value, 0x10 for several)"
+HELP = "write holding registers (0x06 for one value, 0x10 for several) or coils (0x05, 0x0F)"
 #: The rest of its ``--help``.
 EPILOG = (
     "Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
     "with --decimals N, decimal numbers written as value x 10**N; with --type, values of "
-    "that type over as many registers as it takes (0x10). --unit 0 broadcasts one value "
-    "and waits for no reply."
+    "that type over as many registers as it takes (0x10). --table coils writes coils: "
+    "1/0, on/off or true/false (0x05 for one, 0x0F for several). --unit 0 broadcasts and "
+    "waits for no reply."
 )
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
 LINE_OPTIONS = {"unit": True}
@@ -105,6 +146,12 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     parser.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
     parser.add_argument("values", nargs="+", metavar="VALUE")
     parser.add_argument("--multiple", action="store_true", help="use 0x10 even for a single value")
+    parser.add_argument(
+        "--table",
+        choices=("holding", "coils"),
+        default="holding",
+        help="the table to write: holding registers (default) or coils",
+    )
     parser.add_argument(
         "--decimals",
         type=integer(0, 9, "decimals"),
