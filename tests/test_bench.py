@@ -121,8 +121,8 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
     assert limits["115200 8E1"] == pytest.approx(314.2, abs=0.05)
     figures = report["figures"]
     scenarios = {f["scenario"][0] for f in figures}
-    assert scenarios == set("abcdefgh")
-    for letter in "abcdefgh":
+    assert scenarios == set("abcdefghi")
+    for letter in "abcdefghi":
         libraries = {f["library"] for f in figures if f["scenario"][0] == letter}
         assert libraries == {"benchbus", "minimalmodbus", "pymodbus"}, letter
     for f in figures:
@@ -134,6 +134,6 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
     judged = {t["target"].split(")")[0] + ")" for t in report["targets"]}
     early = [f for f in figures if f["metric"] == "requests < t3.5 after a reply"]
     assert {f["library"] for f in early} == {"benchbus", "minimalmodbus", "pymodbus"}
-    assert judged == {f"({x})" for x in "abcdegh"}
+    assert judged == {f"({x})" for x in "abcdeghi"}
     assert all(isinstance(t["met"], bool) for t in report["targets"])
     assert "benchbus" in proc.stdout and "ratio to wire limit" in proc.stdout
