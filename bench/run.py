@@ -878,7 +878,7 @@ def main(argv: list[str] | None = None) -> int:
     logging.getLogger("pymodbus").setLevel(logging.CRITICAL)  # it logs every timeout
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--quick", action="store_true", help="every scenario, briefly")
-    parser.add_argument("--only", default="abcdefgh", help="scenarios to run, e.g. 'ae'")
+    parser.add_argument("--only", default="".join(SCENARIOS), help="scenarios to run, e.g. 'ae'")
     parser.add_argument("--libraries", default=",".join(LIBRARIES))
     parser.add_argument("--json", type=Path, help="write the JSON here (default: stdout)")
     parser.add_argument(
