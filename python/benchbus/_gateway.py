@@ -9,7 +9,7 @@
 Each client connection gets a thread; every request goes through the one :class:`Bus`, which
 runs one transaction at a time, so requests from several processes never interleave on the
 line. Every function goes through as the client sent it and comes back as the unit
-answered (:meth:`Gateway._ask`). The Bus keeps its own t3.5, timeout and retries on the
+answered (:meth:`Gateway.handle`). The Bus keeps its own t3.5, timeout and retries on the
 serial side; the gateway adds the per-unit write pacing the clients cannot keep for each
 other (``write_intervals``: the Bus applies it to the 0x06 and 0x10 it writes, to their
 retries too, and the gateway to every write, :class:`_Pacer`).
@@ -743,7 +743,7 @@ class _Pacer:
 
 
 class _Unsupported(Exception):
-    """A function (or form of it) the gateway does not forward."""
+    """A function code no request has (0, or 0x80 and up: exception replies')."""
 
 
 def _recv_exactly(sock: socket.socket, n: int) -> bytes | None:
