@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import os
 import socket
 import struct
 import subprocess
@@ -24,7 +25,7 @@ from pymodbus_peer import COILS, DISCRETE, HOLDING, INPUT, pymodbus_serial_serve
 
 import benchbus as bb
 from benchbus.sim import Atv31Device, J2Device, RegisterDevice, Simulator
-from conftest import ScriptedSlave, gateway_command, rtu
+from conftest import ScriptedSlave, gateway_command, read_up_to, rtu
 
 TIMEOUT = 0.3  # generous: a loaded machine must not turn a reply into a 0x0B
 IDENTITY = {0: "Müller & Söhne €", 1: "RB-1", 2: "1.0"}
@@ -730,6 +731,32 @@ def test_any_other_function_is_forwarded_transparently(slave: ScriptedSlave) -> 
         assert reply.isError()
         assert (reply.function_code, reply.exception_code) == (0xC1, 0x04)
         assert gw.stats.gateway_exceptions == 0
+
+
+def test_an_unknown_reply_ends_by_the_buses_silence(slave: ScriptedSlave) -> None:
+    # An adapter that delivers the reply in two bursts 20 ms apart: with silence=0.1 the
+    # gateway's Bus waits for the second, and the client gets the reply whole.
+    frame = rtu("01 41 06 0A 0B 0C 0D 0E 0F")
+
+    def device() -> None:
+        slave.received.append(read_up_to(slave.master, 4, 2.0))
+        os.write(slave.master, frame[:4])
+        time.sleep(0.02)
+        os.write(slave.master, frame[4:])
+
+    with (
+        bb.Bus(slave.port, timeout=0.5, retries=0, silence=0.1) as bus,
+        bb.Gateway(bus, "127.0.0.1:0") as gw,
+        client_of(gw) as client,
+    ):
+        client.register(VendorPDU)
+        answering = threading.Thread(target=device)
+        answering.start()
+        reply = client.execute(False, VendorPDU(b"", dev_id=1))
+        answering.join(5)
+    assert slave.received == [rtu("01 41")]
+    assert isinstance(reply, VendorPDU)
+    assert reply.payload == frame[2:-2]
 
 
 def test_force_listen_only_is_sent_once_and_not_answered(
