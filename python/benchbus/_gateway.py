@@ -721,8 +721,9 @@ class _Pacer:
 
     @contextlib.contextmanager
     def hold(self, units: Iterable[int]) -> Iterator[None]:
-        """Within: a write to ``units`` (those with an interval), each one's interval since
-        its last write past; the write's end is noted on leaving."""
+        """Run the block as a write to ``units``: for those with an interval, under their
+        locks, once each one's interval since its last write has passed; the block's end is
+        then noted as their last write."""
         paced = sorted(set(units) & self._locks.keys())
         with contextlib.ExitStack() as stack:
             for unit in paced:  # in order: two holds of several units never deadlock
@@ -743,7 +744,7 @@ class _Pacer:
 
 
 class _Unsupported(Exception):
-    """A function code no request has (0, or 0x80 and up: exception replies')."""
+    """A function code no request has: 0, or 0x80 and up (those of exception replies)."""
 
 
 def _recv_exactly(sock: socket.socket, n: int) -> bytes | None:
