@@ -672,6 +672,14 @@ def test_serial_line_functions_through_the_gateway(third_party: ModbusTcpClient)
     # pymodbus's server id and its run indicator, ON.
     assert (server_id.identifier, server_id.status) == (b"Pymodbus", True)
     assert client.read_exception_status(device_id=1).status == 0
+    # Get comm event counter (0x0B, a reply of fixed length) and log (0x0C, whose reply
+    # the gateway reads by silence): nothing happened on pymodbus's side.
+    counter = client.diag_get_comm_event_counter(device_id=1)
+    assert not counter.isError()
+    assert (counter.status, counter.count) == (True, 0)
+    log = client.diag_get_comm_event_log(device_id=1)
+    assert not log.isError()
+    assert (log.status, log.event_count, log.events) == (True, 0, [])
 
 
 def test_an_exception_reply_passes_through(third_party: ModbusTcpClient) -> None:
