@@ -3,16 +3,20 @@
 The simulators in ``benchbus.sim`` are the library's judges for the seed devices; this peer
 is another's: pymodbus serves coils, discrete inputs, holding and input registers, and the
 serial line functions (0x07, 0x08, 0x11) from its own code, over Modbus TCP or RTU frames
-over TCP. It is the one test module that knows pymodbus's server API (3.16: the datastore
-classes are deprecated for 4.0, and a sequential block's address is offset by one).
+over TCP, or on a serial line (a pseudo-terminal). It is the one test module that knows
+pymodbus's server API (3.16: the datastore classes are deprecated for 4.0, and a sequential
+block's address is offset by one).
 """
 
 from __future__ import annotations
 
 import asyncio
 import logging
+import os
+import select
 import threading
-from collections.abc import Iterator, Sequence
+import tty
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 
 from pymodbus.datastore import (
@@ -21,7 +25,7 @@ from pymodbus.datastore import (
     ModbusServerContext,
 )
 from pymodbus.framer import FramerType
-from pymodbus.server import ModbusTcpServer
+from pymodbus.server import ModbusBaseServer, ModbusSerialServer, ModbusTcpServer
 
 #: The peer's tables at unit 1, from address 0.
 COILS = [1, 0, 1, 1, 0, 0, 1, 1, 1, 0] + [0] * 1990
@@ -35,27 +39,25 @@ def _block(values: Sequence[int]) -> ModbusSequentialDataBlock:
     return ModbusSequentialDataBlock(1, list(values))
 
 
+def _context() -> ModbusServerContext:
+    device = ModbusDeviceContext(
+        co=_block(COILS), di=_block(DISCRETE), hr=_block(HOLDING), ir=_block(INPUT)
+    )
+    return ModbusServerContext(devices={1: device}, single=False)
+
+
 @contextmanager
-def pymodbus_server(rtu: bool) -> Iterator[str]:
-    """A pymodbus TCP server on 127.0.0.1 serving unit 1 (``COILS``, ``DISCRETE``,
-    ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames) or ``tcp://`` (MBAP)."""
+def _serving(create: Callable[[], ModbusBaseServer]) -> Iterator[ModbusBaseServer]:
+    """The server ``create`` builds (in the event loop of a thread of its own), serving."""
     logging.getLogger("pymodbus").setLevel(logging.ERROR)
     ready = threading.Event()
     stop = threading.Event()
-    found: dict[str, int] = {}
+    found: list[ModbusBaseServer] = []
 
     async def serve() -> None:
-        device = ModbusDeviceContext(
-            co=_block(COILS), di=_block(DISCRETE), hr=_block(HOLDING), ir=_block(INPUT)
-        )
-        server = ModbusTcpServer(
-            ModbusServerContext(devices={1: device}, single=False),
-            framer=FramerType.RTU if rtu else FramerType.SOCKET,
-            address=("127.0.0.1", 0),
-        )
+        server = create()
         await server.serve_forever(background=True)
-        assert server.transport is not None
-        found["port"] = server.transport.sockets[0].getsockname()[1]
+        found.append(server)
         ready.set()
         while not stop.is_set():
             await asyncio.sleep(0.02)
@@ -65,7 +67,68 @@ def pymodbus_server(rtu: bool) -> Iterator[str]:
     thread.start()
     try:
         assert ready.wait(10), "the pymodbus server did not start"
-        yield f"{'rtu+tcp' if rtu else 'tcp'}://127.0.0.1:{found['port']}"
+        yield found[0]
     finally:
         stop.set()
         thread.join(10)
+
+
+@contextmanager
+def pymodbus_server(rtu: bool) -> Iterator[str]:
+    """A pymodbus TCP server on 127.0.0.1 serving unit 1 (``COILS``, ``DISCRETE``,
+    ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames) or ``tcp://`` (MBAP)."""
+
+    def create() -> ModbusBaseServer:
+        return ModbusTcpServer(
+            _context(),
+            framer=FramerType.RTU if rtu else FramerType.SOCKET,
+            address=("127.0.0.1", 0),
+        )
+
+    with _serving(create) as server:
+        assert server.transport is not None
+        port = server.transport.sockets[0].getsockname()[1]
+        yield f"{'rtu+tcp' if rtu else 'tcp'}://127.0.0.1:{port}"
+
+
+@contextmanager
+def pymodbus_serial_server() -> Iterator[str]:
+    """pymodbus's serial server (RTU, 19200 8N1) on a pseudo-terminal, serving unit 1 as
+    :func:`pymodbus_server` does: the path of the line's other end, for a Bus.
+
+    Two pseudo-terminals, their masters joined by a thread that copies bytes both ways: the
+    server opens one's slave end, the Bus the other's, as two ends of one cable. (3.16
+    answers any other unit with exception 4 as if it were unit 1's failure, whatever
+    ``ignore_missing_devices`` says: an absent unit is not for this peer to play.)"""
+    pairs = [os.openpty(), os.openpty()]
+    for _, slave in pairs:
+        tty.setraw(slave)
+    masters = [master for master, _ in pairs]
+    stop = threading.Event()
+
+    def carry() -> None:
+        while not stop.is_set():
+            for master in select.select(masters, [], [], 0.02)[0]:
+                data = os.read(master, 4096)
+                os.write(masters[1 - masters.index(master)], data)
+
+    carrier = threading.Thread(target=carry, daemon=True)
+    carrier.start()
+
+    def create() -> ModbusBaseServer:
+        return ModbusSerialServer(
+            _context(),
+            framer=FramerType.RTU,
+            port=os.ttyname(pairs[0][1]),
+            baudrate=19200,
+        )
+
+    try:
+        with _serving(create):
+            yield os.ttyname(pairs[1][1])
+    finally:
+        stop.set()
+        carrier.join(5)
+        for master, slave in pairs:
+            os.close(master)
+            os.close(slave)

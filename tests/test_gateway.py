@@ -1,11 +1,15 @@
-"""The gateway (issue 10, item 3): a Modbus TCP server that owns one serial port and
-serialises its clients onto it. Checked with raw MBAP frames from sockets, against a
-simulator on the serial side (which sees every frame the gateway puts on the line).
+"""The gateway: a Modbus TCP server that owns one serial port and serialises its clients
+onto it. Checked with raw MBAP frames from sockets, against a simulator on the serial side
+(which sees every frame the gateway puts on the line); and with a third-party client
+(pymodbus's) against a third-party serial device (pymodbus's serial server) or a scripted
+one for a vendor's function.
 """
 
 from __future__ import annotations
 
+import contextlib
 import logging
+import os
 import socket
 import struct
 import subprocess
@@ -15,10 +19,13 @@ import time
 from collections.abc import Iterator
 
 import pytest
+from pymodbus.client import ModbusTcpClient
+from pymodbus.pdu import ModbusPDU
+from pymodbus_peer import COILS, DISCRETE, HOLDING, INPUT, pymodbus_serial_server
 
 import benchbus as bb
 from benchbus.sim import Atv31Device, J2Device, RegisterDevice, Simulator
-from conftest import gateway_command
+from conftest import ScriptedSlave, gateway_command, read_up_to, rtu
 
 TIMEOUT = 0.3  # generous: a loaded machine must not turn a reply into a 0x0B
 IDENTITY = {0: "Müller & Söhne €", 1: "RB-1", 2: "1.0"}
@@ -104,20 +111,29 @@ def test_exceptions_from_the_unit_and_from_the_gateway(
         # A unit that does not answer: 0x0B, after the Bus's own timeout and retry.
         assert ask(client, 9, bytes.fromhex("03 00 00 00 01")) == bytes([0x83, 0x0B])
         assert [r[0] for r in sim.requests[-2:]] == [9, 9]
-        # A function the gateway does not forward: 0x01, and nothing on the line.
+        # A function code no request has (0, 0x80 and up): 0x01, and nothing on the line.
         before = len(sim.requests)
-        assert ask(client, 1, bytes.fromhex("04 00 00 00 01")) == bytes([0x84, 0x01])
+        assert ask(client, 1, bytes.fromhex("00 00 00 00 01")) == bytes([0x80, 0x01])
+        assert ask(client, 1, bytes.fromhex("84 00 00 00 01")) == bytes([0x84, 0x01])
         # A byte count that does not match: 0x03, nothing on the line.
         assert ask(client, 1, bytes.fromhex("10 00 00 00 02 02 00 01")) == bytes([0x90, 0x03])
         assert ask(client, 1, bytes.fromhex("03 00 00 00 00")) == bytes([0x83, 0x03])
-        # A supported function with a malformed length: 0x03 (illegal data value), not 0x01.
-        for pdu in ("03 0C 1E 00", "03 00 00 00 01 00", "06 00 01", "10 00 00", "2B", "2B 0E 01"):
+        # A function of the specification with a malformed length, a count past its limits
+        # or a byte count that does not match: 0x03 (illegal data value), not 0x01.
+        for pdu in (
+            *("03 0C 1E 00", "03 00 00 00 01 00", "06 00 01", "10 00 00", "2B", "2B 0E 01"),
+            *("01 00 00 07 D1", "02 FF FF 00 02", "04 00 00 00 7E", "05 00 00 12 34"),
+            *("0F 00 00 00 0A 01 FF", "0F 00 00 07 B1 F7" + " 00" * 247, "16 00 00 00 F2"),
+            *("17 00 00 00 01 00 00 00 01 01 00", "08 00", "07 00", "11 00", "0B 00"),
+        ):
             request = bytes.fromhex(pdu)
             assert ask(client, 1, request) == bytes([request[0] | 0x80, 0x03]), pdu
-        # Another MEI type of 0x2B is not forwarded: 0x01.
-        assert ask(client, 1, bytes.fromhex("2B 0D 01 00")) == bytes([0xAB, 0x01])
         assert len(sim.requests) == before
-    assert gateway.stats.gateway_exceptions == 11
+        # Any other function goes to the unit, and its answer comes back: here another MEI
+        # type of 0x2B, which this unit does not know.
+        assert ask(client, 1, bytes.fromhex("2B 0D 01 00")) == bytes([0xAB, 0x01])
+        assert sim.requests[-1][:-2] == bytes.fromhex("01 2B 0D 01 00")
+    assert gateway.stats.gateway_exceptions == 23
 
 
 def test_a_lost_line_is_path_unavailable(gateway: bb.Gateway) -> None:
@@ -272,6 +288,22 @@ def test_clients_in_threads_get_their_own_replies(
     assert all(bb.crc16(f[:-2]).to_bytes(2, "little") == f[-2:] for f in sim.requests)
 
 
+def at_once(gw: bb.Gateway, unit: int, requests: list[list[bytes]]) -> None:
+    """Each list of request PDUs for ``unit`` sent in turn by a client of its own, the
+    clients at once, each in a thread."""
+
+    def client_loop(pdus: list[bytes]) -> None:
+        with connect(gw) as client:
+            for pdu in pdus:
+                ask(client, unit, pdu)
+
+    threads = [threading.Thread(target=client_loop, args=(pdus,)) for pdus in requests]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(10)
+
+
 @pytest.mark.parametrize("paced", [True, False])
 def test_write_intervals_hold_across_clients(
     sim: Simulator[RegisterDevice | J2Device], paced: bool
@@ -283,17 +315,8 @@ def test_write_intervals_hold_across_clients(
         bb.Bus(sim.port, timeout=0.2, retries=0) as bus,
         bb.Gateway(bus, "127.0.0.1:0", write_intervals=intervals) as gw,
     ):
-
-        def writer(value: int) -> None:
-            with connect(gw) as client:
-                for _ in range(3):
-                    ask(client, 5, struct.pack(">BHH", 6, 8, value))  # AL1
-
-        threads = [threading.Thread(target=writer, args=(v,)) for v in (100, 200)]
-        for t in threads:
-            t.start()
-        for t in threads:
-            t.join(10)
+        # Two clients at once, each writing AL1 three times.
+        at_once(gw, 5, [[struct.pack(">BHH", 6, 8, value)] * 3 for value in (100, 200)])
     assert len(device.write_times) == 6
     if paced:
         assert device.write_violations == []
@@ -578,3 +601,221 @@ def test_the_gateway_command_limits_and_warns(sim: Simulator[RegisterDevice | J2
     warning, error = result.stderr.splitlines()
     assert "203.0.113.1" in warning and "no authentication" in warning and "--allow" in warning
     assert error.startswith("benchbus: cannot listen on 203.0.113.1:0")
+
+
+# ---- every function, from a third-party client to a third-party serial device ----
+
+
+@contextlib.contextmanager
+def client_of(gw: bb.Gateway) -> Iterator[ModbusTcpClient]:
+    """pymodbus's Modbus TCP client, connected to ``gw``."""
+    client = ModbusTcpClient(gw.address[0], port=gw.address[1], timeout=2.0, retries=0)
+    assert client.connect()
+    try:
+        yield client
+    finally:
+        client.close()
+
+
+@pytest.fixture
+def third_party() -> Iterator[ModbusTcpClient]:
+    """pymodbus's TCP client, through a Gateway, to pymodbus's serial server (unit 1)."""
+    with (
+        pymodbus_serial_server() as port,
+        bb.Bus(port, timeout=TIMEOUT, retries=0) as bus,
+        bb.Gateway(bus, "127.0.0.1:0") as gw,
+        client_of(gw) as client,
+    ):
+        yield client
+
+
+def bits(values: list[int]) -> list[bool]:
+    return [bool(v) for v in values]
+
+
+def test_a_third_party_client_reads_every_table_through_the_gateway(
+    third_party: ModbusTcpClient,
+) -> None:
+    client = third_party
+    assert client.read_coils(0, count=10, device_id=1).bits[:10] == bits(COILS[:10])
+    assert client.read_coils(0, count=2000, device_id=1).bits == bits(COILS)
+    assert client.read_discrete_inputs(3, count=5, device_id=1).bits[:5] == bits(DISCRETE[3:8])
+    assert client.read_discrete_inputs(0, count=2000, device_id=1).bits == bits(DISCRETE)
+    assert client.read_input_registers(0, count=125, device_id=1).registers == INPUT[:125]
+    assert client.read_input_registers(7, count=1, device_id=1).registers == [1007]
+    assert client.read_holding_registers(7, count=2, device_id=1).registers == HOLDING[7:9]
+
+
+def test_a_third_party_client_writes_through_the_gateway(third_party: ModbusTcpClient) -> None:
+    client = third_party
+    assert not client.write_coil(20, True, device_id=1).isError()
+    assert client.read_coils(19, count=3, device_id=1).bits[:3] == [False, True, False]
+    pattern = [True, False, True, True, False, False, True, True, True, False, True]
+    assert not client.write_coils(30, pattern, device_id=1).isError()
+    assert client.read_coils(30, count=11, device_id=1).bits[:11] == pattern
+    # The specification's mask write (6.16): 0x12 AND 0xF2 OR (0x25 AND NOT 0xF2) = 0x17.
+    assert not client.write_register(50, 0x12, device_id=1).isError()
+    reply = client.mask_write_register(address=50, and_mask=0xF2, or_mask=0x25, device_id=1)
+    assert not reply.isError()
+    assert client.read_holding_registers(50, count=1, device_id=1).registers == [0x17]
+    # 0x17 writes first, then reads: the values written come back.
+    reply = client.readwrite_registers(
+        read_address=60, read_count=4, write_address=61, values=[7, 8, 9], device_id=1
+    )
+    assert reply.registers == [60, 7, 8, 9]
+
+
+def test_serial_line_functions_through_the_gateway(third_party: ModbusTcpClient) -> None:
+    client = third_party
+    assert client.diag_query_data(b"\xa5\x37", device_id=1).message == b"\xa5\x37"
+    server_id = client.report_device_id(device_id=1)
+    # pymodbus's server id and its run indicator, ON.
+    assert (server_id.identifier, server_id.status) == (b"Pymodbus", True)
+    assert client.read_exception_status(device_id=1).status == 0
+    # Get comm event counter (0x0B, a reply of fixed length) and log (0x0C, whose reply
+    # the gateway reads by silence): nothing happened on pymodbus's side.
+    counter = client.diag_get_comm_event_counter(device_id=1)
+    assert not counter.isError()
+    assert (counter.status, counter.count) == (True, 0)
+    log = client.diag_get_comm_event_log(device_id=1)
+    assert not log.isError()
+    assert (log.status, log.event_count, log.events) == (True, 0, [])
+
+
+def test_an_exception_reply_passes_through(third_party: ModbusTcpClient) -> None:
+    # The peer's input registers end at 199: its own exception 2 (illegal data address).
+    reply = third_party.read_input_registers(199, count=5, device_id=1)
+    assert reply.isError()
+    assert (reply.function_code, reply.exception_code) == (0x84, 0x02)
+
+
+def test_an_absent_unit_is_target_failed_for_a_third_party_client(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with client_of(gateway) as client:
+        reply = client.read_coils(0, count=8, device_id=9)
+    assert reply.isError()
+    assert (reply.function_code, reply.exception_code) == (0x81, 0x0B)
+    # The Bus's timeout and retry on the line, then the gateway's answer.
+    assert [f[:2] for f in sim.requests] == [bytes([9, 0x01])] * 2
+
+
+class VendorPDU(ModbusPDU):
+    """A vendor's function 0x41 (request and reply alike): bytes of its own after the code."""
+
+    function_code = 0x41
+
+    def __init__(self, payload: bytes = b"", dev_id: int = 0, transaction_id: int = 0) -> None:
+        super().__init__(dev_id=dev_id, transaction_id=transaction_id)
+        self.payload = payload
+
+    def encode(self) -> bytes:
+        return self.payload
+
+    def decode(self, data: bytes) -> None:
+        self.payload = data
+
+
+def test_any_other_function_is_forwarded_transparently(slave: ScriptedSlave) -> None:
+    # A reply of the device's own length (11 bytes after the code): read by silence on the
+    # line, and given to the client byte for byte.
+    vendor_reply = bytes.fromhex("0A 00 01 02 03 04 05 06 07 08 09")
+    with (
+        bb.Bus(slave.port, timeout=0.5, retries=0) as bus,
+        bb.Gateway(bus, "127.0.0.1:0") as gw,
+        client_of(gw) as client,
+    ):
+        client.register(VendorPDU)
+        slave.expect(7, rtu("01 41 " + vendor_reply.hex()))
+        reply = client.execute(False, VendorPDU(bytes.fromhex("01 02 03"), dev_id=1))
+        slave.join()
+        assert isinstance(reply, VendorPDU)
+        assert reply.payload == vendor_reply
+        assert slave.received == [rtu("01 41 01 02 03")]
+        # The device's exception reply to it passes through too.
+        slave.expect(7, rtu("01 C1 04"))
+        reply = client.execute(False, VendorPDU(bytes.fromhex("01 02 03"), dev_id=1))
+        slave.join()
+        assert reply.isError()
+        assert (reply.function_code, reply.exception_code) == (0xC1, 0x04)
+        assert gw.stats.gateway_exceptions == 0
+
+
+def test_an_unknown_reply_ends_by_the_buses_silence(slave: ScriptedSlave) -> None:
+    # An adapter that delivers the reply in two bursts 20 ms apart: with silence=0.1 the
+    # gateway's Bus waits for the second, and the client gets the reply whole.
+    frame = rtu("01 41 06 0A 0B 0C 0D 0E 0F")
+
+    def device() -> None:
+        slave.received.append(read_up_to(slave.master, 4, 2.0))
+        os.write(slave.master, frame[:4])
+        time.sleep(0.02)
+        os.write(slave.master, frame[4:])
+
+    with (
+        bb.Bus(slave.port, timeout=0.5, retries=0, silence=0.1) as bus,
+        bb.Gateway(bus, "127.0.0.1:0") as gw,
+        client_of(gw) as client,
+    ):
+        client.register(VendorPDU)
+        answering = threading.Thread(target=device)
+        answering.start()
+        reply = client.execute(False, VendorPDU(b"", dev_id=1))
+        answering.join(5)
+    assert slave.received == [rtu("01 41")]
+    assert isinstance(reply, VendorPDU)
+    assert reply.payload == frame[2:-2]
+
+
+def test_force_listen_only_is_sent_once_and_not_answered(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        client.sendall(bytes.fromhex("00 05 00 00 00 06 01 08 00 04 00 00"))
+        # The next request's reply is the first thing to come back.
+        assert ask(client, 2, READ, tid=6) == bytes.fromhex("03 02 00 00")
+    assert [f[:-2] for f in sim.requests] == [bytes.fromhex("01 08 00 04 00 00"), rtu_of(2, READ)]
+
+
+def rtu_of(unit: int, pdu: bytes) -> bytes:
+    """The serial line's frame of ``pdu`` for ``unit``, without its CRC."""
+    return bytes([unit]) + pdu
+
+
+def test_coil_broadcasts_reach_every_unit(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    with connect(gateway) as client:
+        client.sendall(bytes.fromhex("00 05 00 00 00 06 00 05 00 03 FF 00"))
+        client.sendall(bytes.fromhex("00 06 00 00 00 09 00 0F 00 00 00 0A 02 CD 01"))
+        # A coil value that is neither on nor off goes nowhere, and is not answered.
+        client.sendall(bytes.fromhex("00 07 00 00 00 06 00 05 00 03 12 34"))
+        assert ask(client, 2, READ, tid=8) == bytes.fromhex("03 02 00 00")
+    assert [f[:-2] for f in sim.requests] == [
+        bytes.fromhex("00 05 00 03 FF 00"),
+        bytes.fromhex("00 0F 00 00 00 0A 02 CD 01"),
+        rtu_of(2, READ),
+    ]
+    assert gateway.bus.stats.broadcasts == 2
+
+
+@pytest.mark.parametrize("paced", [True, False])
+def test_write_intervals_hold_for_every_write_function(
+    sim: Simulator[RegisterDevice | J2Device], paced: bool
+) -> None:
+    # Writes the Bus paces itself (0x06) and raw ones (0x05, a vendor's 0x41) to one unit,
+    # from two clients at once.
+    intervals = {2: 0.15} if paced else {}
+    writes = [bytes.fromhex("06 00 00 00 07"), bytes.fromhex("05 00 01 FF 00"), b"\x41"]
+    with (
+        bb.Bus(sim.port, timeout=0.2, retries=0) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", write_intervals=intervals) as gw,
+    ):
+        at_once(gw, 2, [writes, writes[1:] + writes[:1]])
+    times = [t for f, t in zip(sim.requests, sim.request_times, strict=True) if f[0] == 2]
+    assert len(times) == 6
+    closest = min(b - a for a, b in zip(times, times[1:]))
+    if paced:
+        assert closest >= 0.15
+    else:  # the clients' writes come closer than the unit allows
+        assert closest < 0.15

@@ -8,9 +8,11 @@
 
 Each client connection gets a thread; every request goes through the one :class:`Bus`, which
 runs one transaction at a time, so requests from several processes never interleave on the
-line. The Bus keeps its own t3.5, timeout and retries on the serial side; the gateway adds
-the per-unit write pacing the clients cannot keep for each other (``write_intervals``,
-which the Bus applies, to its retries too).
+line. Every function goes through as the client sent it and comes back as the unit
+answered (:meth:`Gateway.handle`). The Bus keeps its own t3.5, timeout and retries on the
+serial side; the gateway adds the per-unit write pacing the clients cannot keep for each
+other (``write_intervals``: the Bus applies it to the 0x06 and 0x10 it writes, to their
+retries too, and the gateway to every write, :class:`_Pacer`).
 """
 
 from __future__ import annotations
@@ -23,12 +25,10 @@ import math
 import re
 import select
 import socket
-import struct
 import threading
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from types import TracebackType
-from typing import Any
 
 from benchbus import _mbap
 from benchbus._core import Bus
@@ -158,18 +158,28 @@ class Gateway:
         with bb.Bus("/dev/ttyUSB0") as bus, bb.Gateway(bus, "127.0.0.1:5020") as gw:
             ...  # other processes open bb.Bus(gw.url) and use their devices as usual
 
-    Forwards functions 0x03, 0x06, 0x10 and 0x2B / 0x0E (what the benchbus devices speak),
-    the identification with the conformity level and object bytes the unit sent; one of
-    these with a wrong length or byte count is answered exception 0x03 (illegal data
-    value), any other function 0x01. Unit 0 with 0x06 or 0x10 is a broadcast: sent, not
-    answered (nor is any other request to unit 0). A failure on the line comes back as
-    the gateway exceptions: 0x0B when the unit gave no valid reply (after the Bus's
-    retries), 0x0A when the serial port is lost or closed. An exception reply from the
-    unit is passed on as it is.
+    Forwards every function code (1..127): the client's PDU goes on the line as it came
+    (:meth:`Bus.request`), and the unit's reply goes back as it came, under the client's
+    transaction id. The reply is read by its length where the request tells it (0x01 to
+    0x08, 0x0B, 0x0F, 0x10, 0x16, 0x17), or by the byte count it carries (0x11; 0x2B / 0x0E,
+    the identification, whose pages the gateway follows and sends with the conformity level
+    and object bytes the unit sent); any other function's reply (a vendor's function, file
+    records, another MEI type) ends when the line falls quiet (the Bus's ``silence``, at
+    least t3.5). A request of one of the specification's functions with a wrong length or
+    byte count, or a count past the specification's limits, is answered exception 0x03
+    (illegal data value) and not sent; a function code 0 or 0x80 and up, 0x01. Diagnostics
+    sub-function 0x04 (force listen only) is sent once and not answered, as no device
+    answers it. Unit 0 with 0x05, 0x06, 0x0F or 0x10 is a broadcast: sent, not answered
+    (nor is any other request to unit 0). A failure on the line comes back as the gateway
+    exceptions: 0x0B when the unit gave no valid reply (after the Bus's retries), 0x0A when
+    the serial port is lost or closed. An exception reply from the unit is passed on as it
+    is.
 
     ``write_intervals`` (``{unit: seconds}``) keeps that least time between two writes to a
-    unit on the line, whichever client sends them, retries included (a J2 controller needs
-    0.15 s; the clients' own pacing cannot see each other's writes).
+    unit on the line (every function but the reads: 0x01 to 0x04, 0x07, 0x08, 0x11 and
+    0x2B / 0x0E), whichever client sends them (a J2 controller needs 0.15 s; the clients'
+    own pacing cannot see each other's writes); the Bus's retries of a 0x06 or 0x10 keep
+    it too, those of other writes do not.
 
     A client's timeout must cover the gateway's work: up to the Bus's ``timeout x (retries
     + 1)``, the unit's write interval, and the requests of other clients queued ahead of it.
@@ -235,6 +245,7 @@ class Gateway:
         self._allow = None if allow is None else [parse_allow(a) for a in allow]
         if self._allow == []:
             raise ValueError("allow is empty: no client could connect (None allows any)")
+        self._pacer = _Pacer(self._intervals)
         self._stats = GatewayStats()
         self._stats_lock = threading.Lock()
         self._server: socket.socket | None = None
@@ -498,8 +509,9 @@ class Gateway:
     def handle(self, unit: int, pdu: bytes) -> bytes | None:
         """The reply PDU to request ``pdu`` for ``unit``, after it went over the Bus.
 
-        None for a broadcast (no reply). Never raises for what a client sends or what
-        happens on the line: those are exception replies.
+        None for a broadcast and for force listen only (0x08 / 0x04): no reply is due.
+        Never raises for what a client sends or what happens on the line: those are
+        exception replies.
         """
         function = pdu[0] if pdu else 0
         reply: bytes | None = None
@@ -514,7 +526,7 @@ class Gateway:
         except PortError as exc:
             log.warning("gateway: the line is unavailable: %s", exc)
             refusal = PATH_UNAVAILABLE
-        except (ValueError, TypeError, struct.error, IndexError) as exc:
+        except (ValueError, TypeError, IndexError) as exc:
             log.debug("gateway: request refused: %s", exc)
             refusal = ILLEGAL_DATA_VALUE
         except _Unsupported:
@@ -526,64 +538,213 @@ class Gateway:
         if unit == 0:  # a broadcast is never answered, whatever it asks and however it went
             return None
         if refusal is None:
-            return reply
+            return reply  # None for force listen only: the unit answers nothing
         self._count(gateway_exceptions=1)
         return bytes([(function | 0x80) & 0xFF, refusal])
 
     def _forward(self, unit: int, function: int, data: bytes) -> bytes | None:
-        bus = self.bus
-        args = _parse(function, data)
+        """The reply PDU the line gave for request ``function`` / ``data``; None when none
+        is due (a broadcast, force listen only). Raises what the Bus raises, ValueError for
+        a malformed request of a function the specification defines, _Unsupported for a
+        function code no request has (0, 0x80 and up)."""
+        if not 1 <= function <= 0x7F:
+            raise _Unsupported
+        reply_length = _reply_length(function, data)
         if unit == 0:
-            if function == 0x06:
-                bus.broadcast_write_register(*args)
-            elif function == 0x10:
-                bus.broadcast_write_registers(*args)
-            else:
-                log.debug("gateway: broadcast of function %#04x not forwarded", function)
+            self._broadcast(function, data)
+            return None
+        writes = () if _is_read(function, data) else (unit,)
+        with self._pacer.hold(writes):
+            return self._ask(unit, function, data, reply_length)
+
+    def _ask(self, unit: int, function: int, data: bytes, reply_length: int | None) -> bytes | None:
+        """One request on the line, its reply PDU as the unit sent it (None: no reply due).
+
+        Every function goes out as the client's PDU through :meth:`Bus.request`, its reply
+        read by its length where the request tells it (``reply_length``), else by silence on
+        the line. Three read the Bus's own way, by the byte count their reply carries: the
+        identification (0x2B / 0x0E, its pages followed), the server id (0x11); and the
+        Bus's paced writes (0x06, 0x10 to a unit with a write interval, so that their
+        retries keep it too). Force listen only (0x08 / 0x04) is sent once, not awaited.
+        """
+        bus = self.bus
+        if function == 0x2B and data[0] == _MEI_DEVICE_ID:
+            conformity, objects = bus._device_identification(unit, data[1], data[2])
+            return _identification_reply(data[1], conformity, objects)
+        if function == 0x11:
+            server_id = bus.report_server_id(unit)
+            return bytes([0x11, len(server_id)]) + server_id
+        if function == 0x08 and data[:2] == _FORCE_LISTEN_ONLY:
+            bus.diagnostics(unit, 0x04, data[2:])
             return None
         interval = self._intervals.get(unit, 0.0)
-        if function == 0x03:
-            values = bus.read_holding_registers(unit, *args)
-            return struct.pack(f">BB{len(values)}H", 0x03, 2 * len(values), *values)
-        if function == 0x06:
-            bus.write_register(unit, *args, accept_count_echo=True, write_interval=interval)
+        if interval and function == 0x06:
+            address, value = _words(data, 2)
+            bus.write_register(
+                unit, address, value, accept_count_echo=True, write_interval=interval
+            )
             return bytes([0x06]) + data
-        if function == 0x10:
-            address, values = args
-            bus.write_registers(unit, address, values, write_interval=interval)
-            return struct.pack(">BHH", 0x10, address, len(values))
-        read_code, object_id = args
-        conformity, objects = bus._device_identification(unit, read_code, object_id)
-        return _identification_reply(read_code, conformity, objects)
+        if interval and function == 0x10:
+            address, count = _words(data, 2)
+            bus.write_registers(unit, address, _words(data[5:], count), write_interval=interval)
+            return bytes([0x10]) + data[:4]
+        return bytes([function]) + bus.request(unit, function, data, reply_length=reply_length)
+
+    def _broadcast(self, function: int, data: bytes) -> None:
+        """Send a write to unit 0 (checked by :func:`_reply_length`), if the Bus can
+        broadcast it: 0x05, 0x06, 0x0F, 0x10. Any other broadcast is dropped."""
+        bus = self.bus
+        if function not in (0x05, 0x06, 0x0F, 0x10):
+            log.debug("gateway: broadcast of function %#04x not forwarded", function)
+            return
+        address, word = _words(data, 2)
+        with self._pacer.hold(self._intervals):  # a write to every unit
+            if function == 0x05:
+                bus.broadcast_write_coil(address, word == _COIL_ON)
+            elif function == 0x06:
+                bus.broadcast_write_register(address, word)
+            elif function == 0x0F:
+                bits = data[5:]
+                bus.broadcast_write_coils(
+                    address, [bool(bits[i // 8] >> i % 8 & 1) for i in range(word)]
+                )
+            else:
+                bus.broadcast_write_registers(address, _words(data[5:], word))
 
 
-def _parse(function: int, data: bytes) -> tuple[Any, ...]:
-    """The arguments of a request the gateway forwards, from its data (the PDU after the
-    function code). Raises _Unsupported for a function it does not forward, ValueError
-    (answered 0x03, illegal data value) for a supported one whose length or byte count is
-    wrong (Modbus application protocol, 6.3, 6.6, 6.12, 6.21)."""
-    if function in (0x03, 0x06):
-        if len(data) != 4:
-            raise ValueError(f"function {function:#04x} takes 4 data bytes, not {len(data)}")
-        return struct.unpack(">HH", data)
-    if function == 0x10:
+#: Diagnostics (0x08) sub-function 0x04, force listen only: no device answers it.
+_FORCE_LISTEN_ONLY = b"\x00\x04"
+#: A coil's "on" in 0x05 (its "off" is 0x0000; anything else is no coil value).
+_COIL_ON = 0xFF00
+
+
+def _is_read(function: int, data: bytes) -> bool:
+    """Whether a request only reads (never paced as a write), as the Bus counts them: a
+    function it does not know may write."""
+    if function == 0x2B:
+        return data[:1] == bytes([_MEI_DEVICE_ID])
+    return function in (0x01, 0x02, 0x03, 0x04, 0x07, 0x08, 0x11)
+
+
+def _reply_length(function: int, data: bytes) -> int | None:
+    """The length of the reply's data (after its function code) to a request of a function
+    the specification defines, from the request's data (the PDU after the function code);
+    None when the reply says its own length or the function is not the specification's
+    (read by silence). Checks the request's form first: ValueError (answered 0x03, illegal
+    data value) for a wrong length or byte count, or a count past the specification's
+    limits (Modbus application protocol, 6.1 to 6.21)."""
+    if function in _FIXED:
+        size, reply = _FIXED[function]
+        _data_size(function, data, size)
+        if function == 0x05 and data[2:] not in (b"\x00\x00", b"\xff\x00"):
+            raise ValueError("0x05 takes 0xFF00 (on) or 0x0000 (off)")
+        return reply
+    if function in _READS:
+        _data_size(function, data, 4)
+        address, count = _words(data, 2)
+        most, bits = _READS[function]
+        _span(function, address, count, most)
+        return 1 + ((count + 7) // 8 if bits else 2 * count)
+    if function in _WRITES:
+        most, bits = _WRITES[function]
         if len(data) < 5:
-            raise ValueError(f"function 0x10 takes at least 5 data bytes, not {len(data)}")
-        address, count, size = struct.unpack(">HHB", data[:5])
-        if size != 2 * count or len(data) != 5 + size:
-            raise ValueError("byte count does not match the register count")
-        return address, list(struct.unpack(f">{count}H", data[5:]))
-    if function == 0x2B and not data:
-        raise ValueError("0x2B without its MEI type")
-    if function == 0x2B and data[0] == _MEI_DEVICE_ID:
-        if len(data) != 3:
-            raise ValueError(f"0x2B / 0x0E takes 3 data bytes, not {len(data)}")
-        return data[1], data[2]
-    raise _Unsupported
+            raise ValueError(
+                f"function {function:#04x} takes at least 5 data bytes, not {len(data)}"
+            )
+        address, count = _words(data, 2)
+        size = data[4]
+        _span(function, address, count, most)
+        if size != ((count + 7) // 8 if bits else 2 * count) or len(data) != 5 + size:
+            raise ValueError(f"function {function:#04x}: the byte count does not match the count")
+        return 4
+    if function == 0x17:
+        if len(data) < 9:
+            raise ValueError(f"function 0x17 takes at least 9 data bytes, not {len(data)}")
+        read_address, read_count, write_address, write_count = _words(data, 4)
+        size = data[8]
+        _span(function, read_address, read_count, 125)
+        _span(function, write_address, write_count, 121)
+        if size != 2 * write_count or len(data) != 9 + size:
+            raise ValueError("function 0x17: the byte count does not match the write count")
+        return 1 + 2 * read_count
+    if function == 0x08:
+        if len(data) < 2:
+            raise ValueError("function 0x08 takes its sub-function (2 bytes)")
+        return len(data)  # every sub-function answers as many bytes as it was sent
+    if function == 0x11:
+        _data_size(function, data, 0)
+    if function == 0x2B:
+        if not data:
+            raise ValueError("0x2B without its MEI type")
+        if data[0] == _MEI_DEVICE_ID:
+            _data_size(function, data, 3)
+    return None
+
+
+#: Functions whose request and reply have a fixed size: {function: (request data bytes,
+#: reply data bytes)}: write coil, write register, read exception status, get comm event
+#: counter, mask write register.
+_FIXED = {0x05: (4, 4), 0x06: (4, 4), 0x07: (0, 1), 0x0B: (0, 4), 0x16: (6, 6)}
+#: Reads of a count of bits or registers: {function: (most a request may ask, bits?)}.
+_READS = {0x01: (2000, True), 0x02: (2000, True), 0x03: (125, False), 0x04: (125, False)}
+#: Writes of a count of bits or registers: {function: (most a request may carry, bits?)}.
+_WRITES = {0x0F: (1968, True), 0x10: (123, False)}
+
+
+def _words(data: bytes, n: int) -> list[int]:
+    """The first ``n`` big-endian 16-bit fields of ``data``."""
+    return [int.from_bytes(data[i : i + 2], "big") for i in range(0, 2 * n, 2)]
+
+
+def _data_size(function: int, data: bytes, size: int) -> None:
+    if len(data) != size:
+        raise ValueError(f"function {function:#04x} takes {size} data bytes, not {len(data)}")
+
+
+def _span(function: int, address: int, count: int, most: int) -> None:
+    if not 1 <= count <= most:
+        raise ValueError(f"function {function:#04x}: count must be 1..{most}, not {count}")
+    if address + count > 0x10000:
+        raise ValueError(f"function {function:#04x}: {count} from {address:#06x} run past 0xFFFF")
+
+
+class _Pacer:
+    """The least time between two writes to a unit (``write_intervals``), whichever client
+    sends them. The Bus paces the writes it is given an interval for (the gateway's 0x06
+    and 0x10), retries included; a raw request has no interval in the Bus, so every write
+    to a paced unit waits here, under the unit's lock, for the interval since the last."""
+
+    def __init__(self, intervals: Mapping[int, float]) -> None:
+        self._intervals = dict(intervals)
+        self._locks = {unit: threading.Lock() for unit in intervals}
+        self._last: dict[int, float] = {}
+
+    @contextlib.contextmanager
+    def hold(self, units: Iterable[int]) -> Iterator[None]:
+        """Run the block as a write to ``units``: for those with an interval, under their
+        locks, once each one's interval since its last write has passed; the block's end is
+        then noted as their last write."""
+        paced = sorted(set(units) & self._locks.keys())
+        with contextlib.ExitStack() as stack:
+            for unit in paced:  # in order: two holds of several units never deadlock
+                stack.enter_context(self._locks[unit])
+            ready = max(
+                (self._last.get(u, -math.inf) + self._intervals[u] for u in paced),
+                default=-math.inf,
+            )
+            delay = ready - time.monotonic()
+            if delay > 0:
+                time.sleep(delay)
+            try:
+                yield
+            finally:
+                done = time.monotonic()
+                for unit in paced:
+                    self._last[unit] = done
 
 
 class _Unsupported(Exception):
-    """A function (or form of it) the gateway does not forward."""
+    """A function code no request has: 0, or 0x80 and up (those of exception replies)."""
 
 
 def _recv_exactly(sock: socket.socket, n: int) -> bytes | None:

@@ -74,8 +74,9 @@ EPILOG = (
     "(bb.Bus('tcp://127.0.0.1:5020')). Requests from every client go over the one line, "
     "one at a time, with this command's timeout and retries; a unit that does not answer "
     "comes back to the client as exception 0x0B, a lost port as 0x0A (the port is "
-    "reopened at the next request). Forwards functions 0x03, 0x06, 0x10 and 0x2B. For "
-    "one machine; for a line shared across a network, use a dedicated gateway (mbusd). "
+    "reopened at the next request). Forwards every function, each reply as the unit sent "
+    "it. For one machine; for a line shared across a network, use a dedicated gateway "
+    "(mbusd). "
     "Modbus TCP has no authentication: listening beyond loopback prints a warning; "
     "--allow limits who may connect."
 )
