@@ -14,6 +14,7 @@ mod ticks;
 mod values;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
+use crate::codec::ascii::AsciiError;
 use crate::codec::pdu::{
     MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT, MAX_WRITE_BITS,
     MAX_WRITE_COUNT,
@@ -70,7 +71,7 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
         Error::Frame {
             unit,
             function,
-            kind: FrameError::Crc { .. },
+            kind: FrameError::Crc { .. } | FrameError::Ascii(AsciiError::Lrc { .. }),
             ..
         } => ("CrcError", Some(*unit), Some(*function)),
         Error::Frame { unit, function, .. } => ("FrameError", Some(*unit), Some(*function)),
