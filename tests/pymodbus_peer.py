@@ -36,9 +36,10 @@ def _block(values: Sequence[int]) -> ModbusSequentialDataBlock:
 
 
 @contextmanager
-def pymodbus_server(rtu: bool) -> Iterator[str]:
+def pymodbus_server(rtu: bool, *, ascii: bool = False) -> Iterator[str]:
     """A pymodbus TCP server on 127.0.0.1 serving unit 1 (``COILS``, ``DISCRETE``,
-    ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames) or ``tcp://`` (MBAP)."""
+    ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames; with ``ascii``, Modbus
+    ASCII frames) or ``tcp://`` (MBAP)."""
     logging.getLogger("pymodbus").setLevel(logging.ERROR)
     ready = threading.Event()
     stop = threading.Event()
@@ -50,7 +51,7 @@ def pymodbus_server(rtu: bool) -> Iterator[str]:
         )
         server = ModbusTcpServer(
             ModbusServerContext(devices={1: device}, single=False),
-            framer=FramerType.RTU if rtu else FramerType.SOCKET,
+            framer=FramerType.ASCII if ascii else FramerType.RTU if rtu else FramerType.SOCKET,
             address=("127.0.0.1", 0),
         )
         await server.serve_forever(background=True)
@@ -65,7 +66,7 @@ def pymodbus_server(rtu: bool) -> Iterator[str]:
     thread.start()
     try:
         assert ready.wait(10), "the pymodbus server did not start"
-        yield f"{'rtu+tcp' if rtu else 'tcp'}://127.0.0.1:{found['port']}"
+        yield f"{'rtu+tcp' if rtu or ascii else 'tcp'}://127.0.0.1:{found['port']}"
     finally:
         stop.set()
         thread.join(10)
