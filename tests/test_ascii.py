@@ -260,3 +260,49 @@ def test_the_simulator_refuses_ascii_on_a_network_and_unknown_framings() -> None
     with pytest.raises(ValueError, match="framing"):
         Simulator({1: RegisterDevice()}, framing="binary")
     assert Simulator({1: RegisterDevice()}, framing="ascii").framing == "ascii"
+
+
+# ---- the command line ------------------------------------------------------------------------
+
+
+def test_the_cli_reads_writes_and_scans_in_ascii() -> None:
+    from test_cli import ok, one_line_error, run
+
+    device = RegisterDevice({0x10: 0xFFFB, 0x11: 1234})
+    with Simulator({7: device}, framing="ascii") as sim:
+        port = ["--port", sim.port, "--unit", "7"]
+        assert ok(run("read", *port, "0x10", "2", "--framing", "ascii")) == [
+            "0x0010  16  65531",
+            "0x0011  17  1234",
+        ]
+        ok(run("write", *port, "0x20", "5", "6", "--framing", "ASCII", "--parity", "N"))
+        assert device.registers[0x20:0x22] == [5, 6]
+        # 7N2 came from --parity N; the requests went out as ASCII frames (logged as RTU).
+        assert sim.requests[-1][1] == 0x10
+        found = ok(run("scan", "--port", sim.port, "--units", "6-8", "--framing", "ascii"))
+        assert found[1].split()[:4] == ["7", "0x07", "19200", "7E1"]
+        # Without --framing the command speaks RTU, which the ASCII line does not answer.
+        silent = run("read", *port, "0x10", "--timeout", "0.05", "--retries", "0")
+        assert "no complete reply" in one_line_error(silent, 1)
+        # 7N1 is refused before anything is sent.
+        sim.clear_log()
+        bad = run("read", *port, "0x10", "--framing", "ascii", "--parity", "N", "--stopbits", "1")
+        assert "7N1 is not allowed" in one_line_error(bad, 1)
+        assert sim.request_count == 0
+
+
+def test_the_cli_simulator_serves_ascii_and_doctor_takes_no_framing() -> None:
+    import signal
+
+    from test_cli import ok, readline, run, start, stop
+
+    proc = start("sim", "drive", "--framing", "ascii", "--seconds", "20")
+    try:
+        port = readline(proc.stdout).strip()
+        assert "Modbus ASCII" in readline(proc.stderr)
+        lines = ok(run("read", "--port", port, "0x3006", "--framing", "ascii"))
+        assert len(lines) == 1 and lines[0].startswith("0x3006")
+    finally:
+        stop(proc, signal.SIGTERM)
+    doctor = run("doctor", "--port", "/dev/null", "--framing", "ascii")
+    assert doctor.returncode == 2 and "--framing" in doctor.stderr

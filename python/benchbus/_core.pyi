@@ -177,8 +177,8 @@ class Bus:
         rs485: bool = False,
         rts_delay: Sequence[float] | None = None,
         silence: float = 0.0,
-        framing: Literal["rtu", "ascii"] = "rtu",
-        bytesize: Literal[7, 8] | None = None,
+        framing: str = "rtu",
+        bytesize: int | None = None,
     ) -> Self:
         """Open ``port`` (``/dev/ttyUSB0``, ``tcp://HOST[:PORT]`` or ``rtu+tcp://HOST:PORT``)
         at the given line format (the serial line's; unused by ``tcp://``).
@@ -445,7 +445,7 @@ class Bus:
     def bytesize(self) -> int:
         """Data bits: 8, or 7 (Modbus ASCII's usual line format)."""
     @property
-    def framing(self) -> Literal["rtu", "ascii"]:
+    def framing(self) -> str:
         """The framing on the line: "rtu", or "ascii" (Modbus ASCII)."""
     @property
     def timeout(self) -> float:
