@@ -306,3 +306,21 @@ def test_the_cli_simulator_serves_ascii_and_doctor_takes_no_framing() -> None:
         stop(proc, signal.SIGTERM)
     doctor = run("doctor", "--port", "/dev/null", "--framing", "ascii")
     assert doctor.returncode == 2 and "--framing" in doctor.stderr
+
+
+def test_the_gateway_serves_modbus_tcp_clients_from_an_ascii_line(ascii_sim: Any) -> None:
+    from pymodbus.client import ModbusTcpClient
+
+    with (
+        bb.Bus(ascii_sim.port, framing="ascii", timeout=0.5) as line,
+        bb.Gateway(line, "127.0.0.1:0") as gw,
+    ):
+        host, port = gw.address
+        client = ModbusTcpClient(host, port=port, timeout=2)
+        assert client.connect()
+        try:
+            assert client.read_holding_registers(0, count=2, device_id=1).registers == [5, 6]
+            assert not client.write_registers(0x50, [3, 4], device_id=1).isError()
+        finally:
+            client.close()
+    assert ascii_sim.devices[1].registers[0x50:0x52] == [3, 4]
