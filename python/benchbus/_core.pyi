@@ -106,7 +106,7 @@ class Stats:
         """Attempts that got no complete reply in time."""
     @property
     def crc_errors(self) -> int:
-        """Replies with a bad CRC."""
+        """Replies with a bad CRC (in Modbus ASCII, a bad LRC)."""
     @property
     def frame_errors(self) -> int:
         """Other malformed replies (wrong unit, function, length or echo)."""
