@@ -786,7 +786,7 @@ impl Bus {
             let transport = self.port(&mut st.link)?;
             let answers = transport.discard_input().map_err(|e| self.io_error(e))?;
             if !answers.is_empty() {
-                log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", hex(&answers));
+                log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", self.wire_text(&answers));
             }
             let now = Instant::now();
             st.silence.busy_until(now);
@@ -1042,7 +1042,7 @@ impl Bus {
                     {
                         break;
                     }
-                    log::debug!(target: "benchbus::wire", "late reply of unit {} dropped: {}", l.unit, hex(&buf[..n]));
+                    log::debug!(target: "benchbus::wire", "late reply of unit {} dropped: {}", l.unit, self.wire_text(&buf[..n]));
                     stats.stale_bytes += n as u64;
                     buf.drain(..n);
                     let at = last_byte.unwrap_or_else(Instant::now);
@@ -1095,7 +1095,7 @@ impl Bus {
                     silence.busy_until(at);
                 }
                 if !buf.is_empty() {
-                    log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", hex(&buf));
+                    log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", self.wire_text(&buf));
                 }
                 // The whole request and more: no reply, however cut short, looks like that.
                 if !self.config.echo && buf.len() > frame.len() && buf.starts_with(frame) {
@@ -1126,7 +1126,7 @@ impl Bus {
         }
         // What crossed the wire (over Modbus TCP the MBAP frame), for the log and errors.
         let shown = transport.on_the_wire(&buf, false);
-        log::debug!(target: "benchbus::wire", "<- {}", hex(shown.as_deref().unwrap_or(&buf)));
+        log::debug!(target: "benchbus::wire", "<- {}", self.wire_text(shown.as_deref().unwrap_or(&buf)));
         let at = last_byte.unwrap_or_else(Instant::now);
         match self.framing.decode_reply(unit, request, &buf) {
             Ok(reply) => {
@@ -1180,7 +1180,7 @@ impl Bus {
             while n > 0 && dropped < 2 * self.max_frame() {
                 dropped += n;
                 st.silence.busy_until(Instant::now());
-                log::debug!(target: "benchbus::wire", "late reply dropped: {}", hex(&scratch[..n]));
+                log::debug!(target: "benchbus::wire", "late reply dropped: {}", self.wire_text(&scratch[..n]));
                 n = self.read_within(transport, &mut scratch, self.end_of_frame_silence())?;
             }
             st.stats.stale_bytes += dropped as u64;
@@ -1193,7 +1193,7 @@ impl Bus {
             if !stale.is_empty() {
                 st.stats.stale_bytes += stale.len() as u64;
                 st.silence.busy_until(Instant::now());
-                log::debug!(target: "benchbus::wire", "stale input dropped: {}", hex(&stale));
+                log::debug!(target: "benchbus::wire", "stale input dropped: {}", self.wire_text(&stale));
             } else if round > 0 {
                 break;
             }
@@ -1204,7 +1204,7 @@ impl Bus {
             st.silence.wait(line.t3_5());
         }
         let shown = transport.on_the_wire(frame, true);
-        log::debug!(target: "benchbus::wire", "-> {}", hex(shown.as_deref().unwrap_or(frame)));
+        log::debug!(target: "benchbus::wire", "-> {}", self.wire_text(shown.as_deref().unwrap_or(frame)));
         st.frames_out += 1;
         let start = Instant::now();
         transport.write_all(frame).map_err(|e| self.io_error(e))?;
@@ -1266,7 +1266,7 @@ impl Bus {
             }
             got.extend_from_slice(&chunk[..n]);
         }
-        log::debug!(target: "benchbus::wire", "<- not the local echo: {}", hex(&got));
+        log::debug!(target: "benchbus::wire", "<- not the local echo: {}", self.wire_text(&got));
         let unit = self.unit_of(frame).unwrap_or_default();
         let reply_instead = match self.framing.reply_needed(request, &got) {
             Needed::Complete(n) => self.framing.decode_reply(unit, request, &got[..n]).is_ok(),
@@ -1301,6 +1301,16 @@ impl Bus {
             },
             got,
         ))
+    }
+
+    /// `bytes` from the line as the wire log shows them: in Modbus ASCII the characters
+    /// (CR LF and any other control or non-ASCII byte escaped: `:010300000002FA\r\n`), else
+    /// in hex.
+    fn wire_text(&self, bytes: &[u8]) -> String {
+        match self.framing {
+            Framing::Ascii => bytes.escape_ascii().to_string(),
+            Framing::Rtu | Framing::Mbap => hex(bytes),
+        }
     }
 
     /// The unit a frame in this Bus's framing goes to or comes from, once its first bytes
