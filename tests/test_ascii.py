@@ -324,3 +324,16 @@ def test_the_gateway_serves_modbus_tcp_clients_from_an_ascii_line(ascii_sim: Any
         finally:
             client.close()
     assert ascii_sim.devices[1].registers[0x50:0x52] == [3, 4]
+
+
+def test_an_echoing_adapter_on_an_ascii_line() -> None:
+    with (
+        Simulator({1: RegisterDevice({0: 5, 1: 6})}, framing="ascii", echo=True) as sim,
+        bb.Bus(sim.port, framing="ascii", echo=True, timeout=0.5) as bus,
+    ):
+        assert bus.read_holding_registers(1, 0, 2) == [5, 6]
+        bus.write_registers(1, 0x100, list(range(123)))  # the longest frame echoed
+        assert sim.devices[1].registers[0x100 : 0x100 + 123] == list(range(123))
+        sim.collide_next(1)
+        assert bus.read_holding_registers(1, 0, 2) == [5, 6]
+        assert bus.stats.frame_errors == 1 and bus.stats.retries == 1
