@@ -1521,7 +1521,8 @@ fn check_config(config: &BusConfig) -> Result<()> {
     check_rs485_platform(config.rs485.as_ref()).map_err(Error::InvalidArgument)?;
     let line = &config.line;
     if config.ascii {
-        if config.port.starts_with("tcp://") {
+        let endpoint = crate::transport::parse_endpoint(&config.port);
+        if matches!(endpoint, Ok(e) if e.framing() == Framing::Mbap) {
             return Err(Error::InvalidArgument(
                 "Modbus ASCII is a serial line framing: not over tcp:// (Modbus TCP)".into(),
             ));

@@ -340,6 +340,11 @@ fn line_formats_and_ports_that_cannot_carry_the_framing_are_refused() {
         LineFormat::ascii(9600, Parity::Even),
     ));
     assert!(m.contains("tcp://") && m.contains("serial line"), "{m}");
+    let upper = refused(ascii_cfg(
+        "TCP://127.0.0.1:1502",
+        LineFormat::ascii(9600, Parity::Even),
+    ));
+    assert!(upper.contains("tcp://"), "{upper}");
     // RTU takes 8 data bits.
     let m = refused(BusConfig::new(
         "mock",
