@@ -369,3 +369,20 @@ fn line_formats_and_ports_that_cannot_carry_the_framing_are_refused() {
         );
     }
 }
+
+#[test]
+fn the_longest_raw_request_is_513_characters_and_its_echo_fits() {
+    // 252 data bytes after the function code: unit | PDU is 254 bytes, the longest frame.
+    let (t, mut cfg) = mock(vec![], 0);
+    ascii_config(&mut cfg);
+    cfg.echo = true;
+    t.0.lock().unwrap().echo = true;
+    let reply = ascii::encode(&[0x11, 0x41, 0x00]);
+    t.0.lock().unwrap().acts.push_back(Act::Reply(reply));
+    let bus = Bus::with_transport(cfg, Box::new(t.clone()));
+    let data = bus
+        .request(0x11, 0x41, &[0xAB; 252], Some(1), &TxOptions::default())
+        .unwrap();
+    assert_eq!(data, [0x00]);
+    assert_eq!(sent(&t)[0].len(), ascii::MAX_FRAME);
+}
