@@ -19,8 +19,8 @@
 //! the Bus does that itself, once per call, before the call's request goes out.
 
 use crate::codec::{
-    check_echo, exception_meaning, is_gateway_exception, DeviceIdentification, Echo, FrameError,
-    Framing, Needed, Reply, Request, Response, BROADCAST,
+    ascii, check_echo, exception_meaning, is_gateway_exception, DeviceIdentification, Echo,
+    FrameError, Framing, Needed, Reply, Request, Response, BROADCAST,
 };
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard, WritePacing};
@@ -79,6 +79,11 @@ pub struct BusConfig {
     /// an adapter that delivers a reply in bursts (an FTDI chip's latency timer splits
     /// replies into chunks 16 ms apart unless set lower).
     pub silence: Duration,
+    /// Whether the line speaks Modbus ASCII (`:`, hex, LRC, CR LF; [`crate::codec::ascii`])
+    /// rather than RTU: serial lines and `rtu+tcp://` only (refused on `tcp://`). A reply
+    /// ends at its CR LF, with up to [`crate::codec::ascii::INTER_CHAR_TIMEOUT`] between two
+    /// of its characters; the line format is checked by [`LineFormat::check_ascii`].
+    pub ascii: bool,
 }
 
 impl BusConfig {
@@ -92,6 +97,7 @@ impl BusConfig {
             turnaround: Duration::from_millis(100),
             reconnect: false,
             echo: false,
+            ascii: false,
             interrupted: None,
             rs485: None,
             silence: Duration::ZERO,
@@ -145,7 +151,7 @@ pub struct Stats {
     pub retries: u64,
     /// Attempts that got no complete reply in time.
     pub timeouts: u64,
-    /// Replies with a bad CRC.
+    /// Replies with a bad CRC (in Modbus ASCII, a bad LRC).
     pub crc_errors: u64,
     /// Other malformed replies (wrong unit, function, length or echo).
     pub frame_errors: u64,
@@ -239,7 +245,11 @@ impl Bus {
 
     fn build(config: BusConfig, transport: Box<dyn Transport>, opener: Option<Opener>) -> Bus {
         let framed = Framed::new(transport, &config.port);
-        let framing = framed.framing();
+        let framing = if config.ascii {
+            Framing::Ascii
+        } else {
+            framed.framing()
+        };
         Bus {
             config,
             framing,
@@ -776,7 +786,7 @@ impl Bus {
             let transport = self.port(&mut st.link)?;
             let answers = transport.discard_input().map_err(|e| self.io_error(e))?;
             if !answers.is_empty() {
-                log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", hex(&answers));
+                log::debug!(target: "benchbus::wire", "broadcast answered, dropped: {}", self.wire_text(&answers));
             }
             let now = Instant::now();
             st.silence.busy_until(now);
@@ -925,7 +935,8 @@ impl Bus {
                         timed_out = true;
                     }
                     Error::Frame {
-                        kind: FrameError::Crc { .. },
+                        kind:
+                            FrameError::Crc { .. } | FrameError::Ascii(ascii::AsciiError::Lrc { .. }),
                         ..
                     } => st.stats.crc_errors += 1,
                     Error::Frame { .. } => st.stats.frame_errors += 1,
@@ -968,7 +979,7 @@ impl Bus {
         let sent_end = self.send(st, frame, request, timeout)?;
         let function = request.function();
         let mut buf = Vec::with_capacity(64);
-        let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
+        let mut chunk = [0u8; ascii::MAX_FRAME];
         let line = self.config.line;
         let State {
             link,
@@ -1016,7 +1027,7 @@ impl Bus {
         loop {
             // A late reply from another unit, which timed out earlier, may come first: taken
             // whole and valid, it is dropped, and the wait for this reply goes on.
-            let other = late_reply_of(late, unit, &buf);
+            let other = late_reply_of(late, unit, self.unit_of(&buf));
             let needed = match other {
                 Some(l) => self.framing.reply_needed(&l.request, &buf),
                 None => self.framing.reply_needed(request, &buf),
@@ -1031,7 +1042,7 @@ impl Bus {
                     {
                         break;
                     }
-                    log::debug!(target: "benchbus::wire", "late reply of unit {} dropped: {}", l.unit, hex(&buf[..n]));
+                    log::debug!(target: "benchbus::wire", "late reply of unit {} dropped: {}", l.unit, self.wire_text(&buf[..n]));
                     stats.stale_bytes += n as u64;
                     buf.drain(..n);
                     let at = last_byte.unwrap_or_else(Instant::now);
@@ -1043,14 +1054,21 @@ impl Bus {
                     continue;
                 }
                 // The rest of another unit's frame follows within a frame's gaps.
-                Needed::More(n) if other.is_some() => (n, self.end_of_frame_silence()),
+                Needed::More(n) if other.is_some() => (n, self.within_frame()),
                 Needed::More(n) => {
                     let on_wire = match (serial, buf.is_empty()) {
                         (false, _) => Duration::ZERO,
                         (true, true) => line.char_time(),
                         (true, false) => line.frame_time(buf.len() + n),
                     };
-                    let deadline = answer_by + on_wire;
+                    let mut deadline = answer_by + on_wire;
+                    // In ASCII a frame begun (its `:` came) may pause up to 1 s between two
+                    // characters; noise before a `:` does not hold the wait.
+                    if let (Framing::Ascii, Some(at), false) =
+                        (self.framing, last_byte, buf.is_empty())
+                    {
+                        deadline = deadline.max(at + ascii::INTER_CHAR_TIMEOUT);
+                    }
                     (n, deadline.saturating_duration_since(Instant::now()))
                 }
                 // Not a reply to this request: take what follows until the line is quiet, so
@@ -1062,7 +1080,7 @@ impl Bus {
             };
             let want = want
                 .min(chunk.len())
-                .min(crate::codec::rtu::MAX_ADU.saturating_sub(buf.len()));
+                .min(self.max_frame().saturating_sub(buf.len()));
             let n = self.read_within(transport, &mut chunk[..want], wait)?;
             if n == 0 {
                 if matches!(needed, Needed::Unknown | Needed::Silence)
@@ -1077,7 +1095,7 @@ impl Bus {
                     silence.busy_until(at);
                 }
                 if !buf.is_empty() {
-                    log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", hex(&buf));
+                    log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", self.wire_text(&buf));
                 }
                 // The whole request and more: no reply, however cut short, looks like that.
                 if !self.config.echo && buf.len() > frame.len() && buf.starts_with(frame) {
@@ -1093,10 +1111,22 @@ impl Bus {
             }
             buf.extend_from_slice(&chunk[..n]);
             last_byte = Some(Instant::now());
+            if self.framing == Framing::Ascii {
+                // Characters before the frame's `:` are noise: dropped, so that they do not
+                // take the room of the frame.
+                let noise = match ascii::seen(&buf) {
+                    ascii::Seen::Nothing => buf.len(),
+                    ascii::Seen::Begun { start }
+                    | ascii::Seen::Ended { start, .. }
+                    | ascii::Seen::TooLong { start } => start,
+                };
+                buf.drain(..noise);
+                stats.stale_bytes += noise as u64;
+            }
         }
         // What crossed the wire (over Modbus TCP the MBAP frame), for the log and errors.
         let shown = transport.on_the_wire(&buf, false);
-        log::debug!(target: "benchbus::wire", "<- {}", hex(shown.as_deref().unwrap_or(&buf)));
+        log::debug!(target: "benchbus::wire", "<- {}", self.wire_text(shown.as_deref().unwrap_or(&buf)));
         let at = last_byte.unwrap_or_else(Instant::now);
         match self.framing.decode_reply(unit, request, &buf) {
             Ok(reply) => {
@@ -1135,22 +1165,22 @@ impl Bus {
         // for what is left of its window before sending anything: dropped here, it cannot be
         // taken for this request's answer. A broadcast waits for every unit's. Over Modbus TCP
         // the transaction id tells a late reply from the answer (see `attempt`).
-        let target = frame.first().copied().unwrap_or(BROADCAST);
+        let target = self.unit_of(frame).unwrap_or(BROADCAST);
         let late = if serial {
             take_late(&mut st.late, target)
         } else {
             None
         };
         if let Some(until) = late {
-            let mut scratch = [0u8; crate::codec::rtu::MAX_ADU];
+            let mut scratch = [0u8; ascii::MAX_FRAME];
             let wait = until.saturating_duration_since(Instant::now());
             // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
             let mut n = self.read_within(transport, &mut scratch, wait)?;
             let mut dropped = 0;
-            while n > 0 && dropped < 2 * crate::codec::rtu::MAX_ADU {
+            while n > 0 && dropped < 2 * self.max_frame() {
                 dropped += n;
                 st.silence.busy_until(Instant::now());
-                log::debug!(target: "benchbus::wire", "late reply dropped: {}", hex(&scratch[..n]));
+                log::debug!(target: "benchbus::wire", "late reply dropped: {}", self.wire_text(&scratch[..n]));
                 n = self.read_within(transport, &mut scratch, self.end_of_frame_silence())?;
             }
             st.stats.stale_bytes += dropped as u64;
@@ -1163,17 +1193,18 @@ impl Bus {
             if !stale.is_empty() {
                 st.stats.stale_bytes += stale.len() as u64;
                 st.silence.busy_until(Instant::now());
-                log::debug!(target: "benchbus::wire", "stale input dropped: {}", hex(&stale));
+                log::debug!(target: "benchbus::wire", "stale input dropped: {}", self.wire_text(&stale));
             } else if round > 0 {
                 break;
             }
-            if !serial {
+            // No t3.5 in ASCII: a frame is told by its `:` and CR LF, not by silence.
+            if !serial || self.framing == Framing::Ascii {
                 break;
             }
             st.silence.wait(line.t3_5());
         }
         let shown = transport.on_the_wire(frame, true);
-        log::debug!(target: "benchbus::wire", "-> {}", hex(shown.as_deref().unwrap_or(frame)));
+        log::debug!(target: "benchbus::wire", "-> {}", self.wire_text(shown.as_deref().unwrap_or(frame)));
         st.frames_out += 1;
         let start = Instant::now();
         transport.write_all(frame).map_err(|e| self.io_error(e))?;
@@ -1217,7 +1248,7 @@ impl Bus {
     ) -> Result<()> {
         let quiet = self.end_of_frame_silence();
         let mut got = Vec::with_capacity(frame.len());
-        let mut chunk = [0u8; crate::codec::rtu::MAX_ADU];
+        let mut chunk = [0u8; ascii::MAX_FRAME];
         loop {
             let echoing = frame.starts_with(&got);
             if echoing && got.len() == frame.len() {
@@ -1235,8 +1266,8 @@ impl Bus {
             }
             got.extend_from_slice(&chunk[..n]);
         }
-        log::debug!(target: "benchbus::wire", "<- not the local echo: {}", hex(&got));
-        let unit = frame.first().copied().unwrap_or_default();
+        log::debug!(target: "benchbus::wire", "<- not the local echo: {}", self.wire_text(&got));
+        let unit = self.unit_of(frame).unwrap_or_default();
         let reply_instead = match self.framing.reply_needed(request, &got) {
             Needed::Complete(n) => self.framing.decode_reply(unit, request, &got[..n]).is_ok(),
             _ => false,
@@ -1272,6 +1303,33 @@ impl Bus {
         ))
     }
 
+    /// `bytes` from the line as the wire log shows them: in Modbus ASCII the characters
+    /// (CR LF and any other control or non-ASCII byte escaped: `:010300000002FA\r\n`), else
+    /// in hex.
+    fn wire_text(&self, bytes: &[u8]) -> String {
+        match self.framing {
+            Framing::Ascii => bytes.escape_ascii().to_string(),
+            Framing::Rtu | Framing::Mbap => hex(bytes),
+        }
+    }
+
+    /// The unit a frame in this Bus's framing goes to or comes from, once its first bytes
+    /// have come.
+    fn unit_of(&self, frame: &[u8]) -> Option<u8> {
+        match self.framing {
+            Framing::Ascii => ascii::unit_of(frame),
+            Framing::Rtu | Framing::Mbap => frame.first().copied(),
+        }
+    }
+
+    /// The longest frame in this Bus's framing, in bytes on the wire.
+    fn max_frame(&self) -> usize {
+        match self.framing {
+            Framing::Ascii => ascii::MAX_FRAME,
+            Framing::Rtu | Framing::Mbap => crate::codec::rtu::MAX_ADU,
+        }
+    }
+
     /// Whether the caller asks the call in progress to stop before its next attempt.
     fn interrupted(&self) -> bool {
         self.config.interrupted.is_some_and(|asked| asked())
@@ -1291,6 +1349,15 @@ impl Bus {
     /// simulators' `end_of_frame_silence` is the same idea, with their own t3.5 and floor.)
     fn end_of_frame_silence(&self) -> Duration {
         self.config.line.t3_5().max(Duration::from_millis(2))
+    }
+
+    /// The longest gap between two characters of a frame begun: in RTU the end-of-frame
+    /// silence, in ASCII the inter-character timeout (a frame ends at its CR LF).
+    fn within_frame(&self) -> Duration {
+        match self.framing {
+            Framing::Ascii => ascii::INTER_CHAR_TIMEOUT,
+            Framing::Rtu | Framing::Mbap => self.end_of_frame_silence(),
+        }
     }
 
     /// The quiet gap that ends a reply of no known length: the end-of-frame silence, or
@@ -1438,8 +1505,8 @@ fn take_late(late: &mut Vec<Late>, target: u8) -> Option<Instant> {
 }
 
 /// The late request of another unit than `unit` that `buf`, a reply begun, may answer.
-fn late_reply_of<'a>(late: &'a [Late], unit: u8, buf: &[u8]) -> Option<&'a Late> {
-    let &first = buf.first()?;
+fn late_reply_of(late: &[Late], unit: u8, first: Option<u8>) -> Option<&Late> {
+    let first = first?;
     late.iter().find(|l| l.unit == first && l.unit != unit)
 }
 
@@ -1453,6 +1520,20 @@ fn check_config(config: &BusConfig) -> Result<()> {
         .map_err(Error::InvalidArgument)?;
     check_rs485_platform(config.rs485.as_ref()).map_err(Error::InvalidArgument)?;
     let line = &config.line;
+    if config.ascii {
+        let endpoint = crate::transport::parse_endpoint(&config.port);
+        if matches!(endpoint, Ok(e) if e.framing() == Framing::Mbap) {
+            return Err(Error::InvalidArgument(
+                "Modbus ASCII is a serial line framing: not over tcp:// (Modbus TCP)".into(),
+            ));
+        }
+        line.check_ascii().map_err(Error::InvalidArgument)?;
+    } else if line.data_bits != 8 {
+        return Err(Error::InvalidArgument(format!(
+            "Modbus RTU takes 8 data bits, not {}",
+            line.data_bits
+        )));
+    }
     if line.baudrate == 0 {
         return Err(Error::InvalidArgument("baudrate must be positive".into()));
     }

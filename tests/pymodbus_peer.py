@@ -74,21 +74,22 @@ def _serving(create: Callable[[], ModbusBaseServer]) -> Iterator[ModbusBaseServe
 
 
 @contextmanager
-def pymodbus_server(rtu: bool) -> Iterator[str]:
+def pymodbus_server(rtu: bool, *, ascii: bool = False) -> Iterator[str]:
     """A pymodbus TCP server on 127.0.0.1 serving unit 1 (``COILS``, ``DISCRETE``,
-    ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames) or ``tcp://`` (MBAP)."""
+    ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames; with ``ascii``, Modbus
+    ASCII frames) or ``tcp://`` (MBAP)."""
 
     def create() -> ModbusBaseServer:
         return ModbusTcpServer(
             _context(),
-            framer=FramerType.RTU if rtu else FramerType.SOCKET,
+            framer=FramerType.ASCII if ascii else FramerType.RTU if rtu else FramerType.SOCKET,
             address=("127.0.0.1", 0),
         )
 
     with _serving(create) as server:
         assert server.transport is not None
         port = server.transport.sockets[0].getsockname()[1]
-        yield f"{'rtu+tcp' if rtu else 'tcp'}://127.0.0.1:{port}"
+        yield f"{'rtu+tcp' if rtu or ascii else 'tcp'}://127.0.0.1:{port}"
 
 
 @contextmanager

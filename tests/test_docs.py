@@ -38,6 +38,7 @@ PICKED_BY = (
     "tcp://192.168.1.50:502",
     "bus.read_coils(",
     "bb.from_registers(",
+    'framing="ascii"',
 )
 
 
@@ -88,6 +89,16 @@ def test_readme_functions_example(capsys: pytest.CaptureFixture[str]) -> None:
         "0x17",
         "02 03 e8",
     ]
+
+
+def test_readme_ascii_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """The Modbus ASCII example, on the simulator's line speaking ASCII."""
+    (block,) = [b for b in readme_blocks() if 'framing="ascii"' in b]
+    device = RegisterDevice({0: 7, 1: 8})
+    with Simulator({1: device}, framing="ascii") as sim:
+        exec(block.replace("/dev/ttyUSB2", sim.port), {})
+    assert capsys.readouterr().out.splitlines() == ["[7, 8]", "ascii 7 E 1"]
+    assert device.registers[5] == 42
 
 
 def test_readme_simulator_examples() -> None:

@@ -1,7 +1,8 @@
 """The Bus's functions beyond holding registers: coils, discrete inputs, input registers,
 0x16, 0x17, 0x07, 0x08, 0x11, raw requests and coil broadcasts.
 
-Against a third-party server (pymodbus's own, over ``tcp://`` and ``rtu+tcp://``), and on a
+Against a third-party server (pymodbus's own, over ``tcp://``, ``rtu+tcp://`` and Modbus
+ASCII over TCP), and on a
 pseudo-terminal against scripted replies where the test needs a reply the peer does not
 give (bursts with a gap, a wrong echo, silence).
 """
@@ -23,10 +24,14 @@ import benchbus as bb
 from conftest import ScriptedSlave, read_up_to, rtu
 
 
-@pytest.fixture(params=["tcp", "rtu+tcp"])
+@pytest.fixture(params=["tcp", "rtu+tcp", "ascii"])
 def peer(request: pytest.FixtureRequest) -> Iterator[bb.Bus]:
-    """A Bus on a pymodbus server, over Modbus TCP and RTU over TCP."""
-    with pymodbus_server(rtu=request.param == "rtu+tcp") as url, bb.Bus(url, timeout=1.0) as bus:
+    """A Bus on a pymodbus server, over Modbus TCP, RTU over TCP and Modbus ASCII over TCP."""
+    ascii = request.param == "ascii"
+    with (
+        pymodbus_server(rtu=request.param != "tcp", ascii=ascii) as url,
+        bb.Bus(url, timeout=1.0, framing="ascii" if ascii else "rtu") as bus,
+    ):
         yield bus
 
 
@@ -91,7 +96,11 @@ def test_an_exception_reply_carries_unit_function_and_frame(peer: bb.Bus) -> Non
     with pytest.raises(bb.ModbusException) as e:
         peer.read_coils(1, 1990, 20)
     assert (e.value.unit, e.value.function, e.value.code) == (1, 0x01, 2)
-    assert e.value.frame is not None and "81 02" in e.value.frame
+    assert e.value.frame is not None
+    if peer.framing == "ascii":  # the frame's characters, in hex
+        assert bytes.fromhex(e.value.frame) == b":0181027C\r\n"
+    else:
+        assert "81 02" in e.value.frame
     assert peer.stats.exceptions == 1
 
 
@@ -120,8 +129,13 @@ def test_the_wire_log_shows_a_coil_read(peer: bb.Bus, caplog: pytest.LogCaptureF
         bb.refresh_logging()
         peer.read_coils(1, 0, 3)
     sent = [r.getMessage() for r in caplog.records if r.getMessage().startswith("->")]
-    # Over tcp:// behind an MBAP header, over rtu+tcp:// before the CRC.
-    assert sent and "01 01 00 00 00 03" in sent[-1], sent
+    # Over tcp:// behind an MBAP header, over rtu+tcp:// before the CRC; in ASCII as text.
+    if peer.framing == "ascii":
+        assert sent == ["-> :010100000003FB\\r\\n"], sent
+        received = [r.getMessage() for r in caplog.records if r.getMessage().startswith("<-")]
+        assert received == ["<- :01010105F8\\r\\n"], received
+    else:
+        assert sent and "01 01 00 00 00 03" in sent[-1], sent
 
 
 # ---- on a pseudo-terminal, scripted ----

@@ -108,7 +108,7 @@ class Stats:
         """Attempts that got no complete reply in time."""
     @property
     def crc_errors(self) -> int:
-        """Replies with a bad CRC."""
+        """Replies with a bad CRC (in Modbus ASCII, a bad LRC)."""
     @property
     def frame_errors(self) -> int:
         """Other malformed replies (wrong unit, function, length or echo)."""
@@ -129,7 +129,8 @@ class Stats:
 
 @final
 class Bus:
-    """A Modbus RTU master on one serial line, or through a TCP gateway to one.
+    """A Modbus RTU (or ASCII: ``framing="ascii"``) master on one serial line, or through a
+    TCP gateway to one.
 
     The port string picks the transport:
 
@@ -178,6 +179,8 @@ class Bus:
         rs485: bool = False,
         rts_delay: Sequence[float] | None = None,
         silence: float = 0.0,
+        framing: str = "rtu",
+        bytesize: int | None = None,
     ) -> Self:
         """Open ``port`` (``/dev/ttyUSB0``, ``tcp://HOST[:PORT]`` or ``rtu+tcp://HOST:PORT``)
         at the given line format (the serial line's; unused by ``tcp://``).
@@ -229,6 +232,16 @@ class Bus:
         :meth:`request` without ``reply_length``, when longer than t3.5: raise it for an
         adapter that delivers replies in bursts (an FTDI chip's 16 ms latency timer splits a
         reply into chunks). Every other reply is read by its length and never waits for it.
+
+        ``framing="ascii"`` speaks Modbus ASCII on the line (``:``, the hex digits of unit,
+        PDU and LRC, CR LF), for serial lines and ``rtu+tcp://`` (ValueError on ``tcp://``,
+        which is Modbus TCP). Its line format is the serial line spec's 7E1 unless given:
+        ``bytesize`` 7 (8 if asked), ``parity`` "E", and with ``parity="N"`` 2 stop bits
+        (7N2; ``stopbits=1`` with 7 data bits and no parity, 7N1, is not allowed: ValueError).
+        A reply ends at its CR LF, with up to 1 s between two of its characters; characters
+        before its ``:`` are dropped (``stale_bytes``), a bad LRC is a CrcError. Every method
+        works the same. ``bytesize`` is 8 for RTU (7: ValueError). On a pseudo-terminal,
+        which carries 8 data bits and no parity, the port opens at 8N1 as for parity.
         """
     def read_holding_registers(self, unit: int, address: int, count: int) -> list[int]:
         """Read ``count`` (1..125) holding registers from ``address`` (function 0x03)."""
@@ -430,6 +443,12 @@ class Bus:
     @property
     def stopbits(self) -> int:
         """Stop bits: 1 or 2."""
+    @property
+    def bytesize(self) -> int:
+        """Data bits: 8, or 7 (Modbus ASCII's usual line format)."""
+    @property
+    def framing(self) -> str:
+        """The framing on the line: "rtu", or "ascii" (Modbus ASCII)."""
     @property
     def timeout(self) -> float:
         """Reply timeout per attempt, in seconds."""

@@ -77,7 +77,7 @@ class FrameError(BenchbusError):
 
 
 class CrcError(FrameError):
-    """A reply arrived with a CRC that does not match its contents."""
+    """A reply arrived with a CRC (in Modbus ASCII, an LRC) that does not match its contents."""
 
 
 class ModbusException(BenchbusError):

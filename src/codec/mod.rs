@@ -27,6 +27,8 @@ pub enum Framing {
     Rtu,
     /// Modbus TCP: MBAP header + PDU ([`mbap`]).
     Mbap,
+    /// Modbus ASCII frames (`:`, hex, LRC, CR LF; [`ascii`]) on a serial line.
+    Ascii,
 }
 
 impl Framing {
@@ -34,19 +36,25 @@ impl Framing {
     pub const fn trailer(self) -> usize {
         match self {
             Framing::Rtu => rtu::CRC_LEN,
-            Framing::Mbap => 0,
+            Framing::Mbap | Framing::Ascii => 0,
         }
     }
 
     /// `request` to `unit` as the Bus hands it to the transport: an RTU frame, or
     /// `unit | PDU` for the Modbus TCP session.
     pub fn encode_request(self, unit: u8, request: &Request) -> Vec<u8> {
-        rtu::encode_in(self, unit, request)
+        match self {
+            Framing::Ascii => ascii::encode_request(unit, request),
+            _ => rtu::encode_in(self, unit, request),
+        }
     }
 
     /// [`reply_needed`] for a reply in this framing.
     pub fn reply_needed(self, request: &Request, buf: &[u8]) -> Needed {
-        rtu::needed_in(self, request, buf)
+        match self {
+            Framing::Ascii => ascii::reply_needed(request, buf),
+            _ => rtu::needed_in(self, request, buf),
+        }
     }
 
     /// [`decode_reply`] for a reply in this framing.
@@ -59,7 +67,10 @@ impl Framing {
         request: &Request,
         frame: &[u8],
     ) -> Result<Reply, FrameError> {
-        rtu::decode_in(self, unit, request, frame)
+        match self {
+            Framing::Ascii => ascii::decode_reply(unit, request, frame),
+            _ => rtu::decode_in(self, unit, request, frame),
+        }
     }
 }
 

@@ -261,6 +261,9 @@ pub enum FrameError {
          then open the Bus with echo=True"
     )]
     UnexpectedEcho,
+    /// A Modbus ASCII frame is malformed: a character, its length or its LRC.
+    #[error(transparent)]
+    Ascii(#[from] super::ascii::AsciiError),
 }
 
 /// What the first bytes of a reply from `unit` to `request` already show to be wrong: a
@@ -319,7 +322,7 @@ pub(super) fn decode_in(
             }
             body
         }
-        Framing::Mbap => frame,
+        Framing::Mbap | Framing::Ascii => frame,
     };
     if body[0] != unit {
         return Err(FrameError::WrongUnit {

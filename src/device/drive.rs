@@ -949,7 +949,10 @@ fn is_refusal(e: &Error) -> bool {
         Error::Exception { .. } => true,
         Error::Frame { kind, .. } => !matches!(
             kind,
-            FrameError::Crc { .. } | FrameError::LocalEcho { .. } | FrameError::UnexpectedEcho
+            FrameError::Crc { .. }
+                | FrameError::Ascii(_)
+                | FrameError::LocalEcho { .. }
+                | FrameError::UnexpectedEcho
         ),
         _ => false,
     }
@@ -1098,5 +1101,25 @@ mod tests {
         assert!(Command::JogForward.starts_jog() && !Command::JogStop.starts_jog());
         assert_eq!(meaning(8), "not changeable while running");
         assert_eq!(meaning(0x0B), exception_meaning(0x0B));
+    }
+
+    #[test]
+    fn a_corrupt_ascii_reply_is_no_refusal_but_a_wrong_shape_is() {
+        use crate::codec::ascii::AsciiError;
+        let frame = |kind| Error::Frame {
+            unit: 1,
+            function: 3,
+            kind,
+            frame: Vec::new(),
+        };
+        let lrc = AsciiError::Lrc {
+            computed: 1,
+            received: 2,
+        };
+        assert!(!is_refusal(&frame(FrameError::Ascii(lrc))));
+        assert!(!is_refusal(&frame(FrameError::Ascii(
+            AsciiError::OddLength(5)
+        ))));
+        assert!(is_refusal(&frame(FrameError::Length("short".into()))));
     }
 }

@@ -14,6 +14,7 @@ mod ticks;
 mod values;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
+use crate::codec::ascii::AsciiError;
 use crate::codec::pdu::{
     MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT, MAX_WRITE_BITS,
     MAX_WRITE_COUNT,
@@ -70,7 +71,7 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
         Error::Frame {
             unit,
             function,
-            kind: FrameError::Crc { .. },
+            kind: FrameError::Crc { .. } | FrameError::Ascii(AsciiError::Lrc { .. }),
             ..
         } => ("CrcError", Some(*unit), Some(*function)),
         Error::Frame { unit, function, .. } => ("FrameError", Some(*unit), Some(*function)),
@@ -287,6 +288,48 @@ fn line_arg(
     })?;
     let stop_bits = opt(stopbits, 1, |s| u8_in(s, "stopbits", 1, 2))?;
     Ok(LineFormat::new(baudrate, parity, stop_bits))
+}
+
+/// `framing` of a Bus ("rtu", the default, or "ascii") and its line format with
+/// `bytesize` (7 or 8): whether the Bus speaks Modbus ASCII, and `line` (from
+/// [`line_arg`]) with the data bits and the framing's defaults for what was not given. In
+/// ASCII the serial line spec's 7E1 (parity "E", 7 data bits), and 2 stop bits for 7 data
+/// bits without parity (7N2: 7N1 is not allowed, and is refused when the Bus opens); in RTU
+/// 8 data bits.
+fn framing_arg(
+    framing: Option<&Bound<'_, PyAny>>,
+    bytesize: Option<&Bound<'_, PyAny>>,
+    parity: Option<&Bound<'_, PyAny>>,
+    stopbits: Option<&Bound<'_, PyAny>>,
+    mut line: LineFormat,
+) -> PyResult<(bool, LineFormat)> {
+    let name: String = opt(framing, "rtu".to_string(), |f| {
+        f.extract()
+            .map_err(|_| PyTypeError::new_err("framing must be 'rtu' or 'ascii'"))
+    })?;
+    let ascii = match name.as_str() {
+        "rtu" => false,
+        "ascii" => true,
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "framing must be 'rtu' or 'ascii', got {name:?}"
+            )))
+        }
+    };
+    let given = |arg: Option<&Bound<'_, PyAny>>| arg.is_some_and(|a| !a.is_none());
+    let default_bits = if ascii {
+        crate::codec::ascii::DATA_BITS
+    } else {
+        8
+    };
+    line.data_bits = opt(bytesize, default_bits, |b| u8_in(b, "bytesize", 7, 8))?;
+    if ascii && !given(parity) {
+        line.parity = Parity::Even;
+    }
+    if ascii && !given(stopbits) && line.data_bits == 7 && line.parity == Parity::None {
+        line.stop_bits = 2;
+    }
+    Ok((ascii, line))
 }
 
 /// `rs485` and `rts_delay` of a Bus: the kernel RS485 mode to set, if any. `rts_delay` is
@@ -654,8 +697,8 @@ impl PyBus {
 impl PyBus {
     #[new]
     #[pyo3(
-        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None, echo=None, rs485=None, rts_delay=None, silence=None),
-        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False, echo=False, rs485=False, rts_delay=None, silence=0.0)"
+        signature = (port, baudrate=None, parity=None, stopbits=None, timeout=None, retries=None, *, turnaround=None, reconnect=None, echo=None, rs485=None, rts_delay=None, silence=None, framing=None, bytesize=None),
+        text_signature = "(port, baudrate=19200, parity='N', stopbits=1, timeout=0.1, retries=2, *, turnaround=0.1, reconnect=False, echo=False, rs485=False, rts_delay=None, silence=0.0, framing='rtu', bytesize=None)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -672,6 +715,8 @@ impl PyBus {
         rs485: Option<&Bound<'_, PyAny>>,
         rts_delay: Option<&Bound<'_, PyAny>>,
         silence: Option<&Bound<'_, PyAny>>,
+        framing: Option<&Bound<'_, PyAny>>,
+        bytesize: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
         let port: std::path::PathBuf = port
             .extract()
@@ -683,7 +728,10 @@ impl PyBus {
         if port.is_empty() {
             return Err(PyValueError::new_err("port must not be empty"));
         }
-        let mut config = BusConfig::new(&port, line_arg(baudrate, parity, stopbits)?);
+        let line = line_arg(baudrate, parity, stopbits)?;
+        let (ascii, line) = framing_arg(framing, bytesize, parity, stopbits, line)?;
+        let mut config = BusConfig::new(&port, line);
+        config.ascii = ascii;
         config.timeout = opt(timeout, config.timeout, |t| seconds(t, "timeout", false))?;
         config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, 100))? as u32;
         config.turnaround = opt(turnaround, config.turnaround, |t| {
@@ -1191,6 +1239,22 @@ impl PyBus {
         self.bus.config().line.stop_bits
     }
 
+    /// Data bits: 8, or 7 (Modbus ASCII's usual line format).
+    #[getter]
+    fn bytesize(&self) -> u8 {
+        self.bus.config().line.data_bits
+    }
+
+    /// The framing on the line: "rtu", or "ascii" (Modbus ASCII).
+    #[getter]
+    fn framing(&self) -> &'static str {
+        if self.bus.config().ascii {
+            "ascii"
+        } else {
+            "rtu"
+        }
+    }
+
     /// Reply timeout per attempt, in seconds.
     #[getter]
     fn timeout(&self) -> f64 {
@@ -1231,13 +1295,18 @@ impl PyBus {
     fn __repr__(&self) -> String {
         let c = self.bus.config();
         format!(
-            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{}{})",
+            "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{}{}{})",
             c.port.replace('\\', "\\\\").replace('\'', "\\'"),
             c.line.baudrate,
             c.line.parity.letter(),
             c.line.stop_bits,
             c.timeout.as_secs_f64(),
             c.retries,
+            if c.ascii {
+                format!(", framing='ascii', bytesize={}", c.line.data_bits)
+            } else {
+                String::new()
+            },
             if c.reconnect { ", reconnect=True" } else { "" },
             if c.echo { ", echo=True" } else { "" },
             if c.rs485.is_some() {

@@ -54,14 +54,25 @@ fn to_serialport_parity(p: Parity) -> serialport::Parity {
     }
 }
 
-static PARITY_DROPPED: Once = Once::new();
+/// The crate's data bits for `bits` (7 for Modbus ASCII's usual format; 8 otherwise).
+fn to_serialport_data_bits(bits: u8) -> serialport::DataBits {
+    match bits {
+        5 => serialport::DataBits::Five,
+        6 => serialport::DataBits::Six,
+        7 => serialport::DataBits::Seven,
+        _ => serialport::DataBits::Eight,
+    }
+}
+
+static FORMAT_DROPPED: Once = Once::new();
 
 impl SerialTransport {
     /// Opens `path` with the line format `line`.
     ///
-    /// A pseudo-terminal has no parity bit: the kernel either clears `PARENB` silently or
-    /// refuses the setting with `EINVAL`. Either way the port is opened without parity and
-    /// this is logged once at DEBUG; the bus still times the line with the format it was given.
+    /// A pseudo-terminal has no parity bit and carries 8 data bits: the kernel either clears
+    /// `PARENB` (and reads back 8 data bits for 7) silently or refuses the setting with
+    /// `EINVAL`. Either way the port is opened at 8 data bits without parity and this is
+    /// logged once at DEBUG; the bus still times the line with the format it was given.
     ///
     /// # Errors
     /// The serialport error if the port cannot be opened.
@@ -90,23 +101,26 @@ impl SerialTransport {
         #[cfg(not(windows))]
         let device = path.to_string();
         let builder = serialport::new(device.as_str(), line.baudrate)
-            .data_bits(serialport::DataBits::Eight)
             .stop_bits(stop_bits)
             .flow_control(serialport::FlowControl::None)
             .timeout(Duration::from_millis(100));
         let wanted = to_serialport_parity(line.parity);
-        let port = match Port::open(&builder.clone().parity(wanted)) {
+        let bits = to_serialport_data_bits(line.data_bits);
+        let plain = wanted == serialport::Parity::None && bits == serialport::DataBits::Eight;
+        let port = match Port::open(&builder.clone().parity(wanted).data_bits(bits)) {
             Ok(port) => port,
-            Err(e) if wanted != serialport::Parity::None && is_invalid_input(&e) => {
-                let port = Port::open(&builder.parity(serialport::Parity::None))
-                    .map_err(|e| open_error(&device, e))?;
-                note_parity_dropped(path, line);
+            Err(e) if !plain && is_invalid_input(&e) => {
+                let eight_none = builder
+                    .parity(serialport::Parity::None)
+                    .data_bits(serialport::DataBits::Eight);
+                let port = Port::open(&eight_none).map_err(|e| open_error(&device, e))?;
+                note_format_dropped(path, line);
                 port
             }
             Err(e) => return Err(open_error(&device, e)),
         };
-        if wanted != serialport::Parity::None && port.parity().ok() != Some(wanted) {
-            note_parity_dropped(path, line);
+        if !plain && (port.parity().ok() != Some(wanted) || port.data_bits().ok() != Some(bits)) {
+            note_format_dropped(path, line);
         }
         let tuned = tuning::on_open(&port, rs485).map_err(|message| {
             serialport::Error::new(
@@ -189,12 +203,12 @@ fn is_invalid_input(e: &serialport::Error) -> bool {
         || e.description.contains("Invalid argument")
 }
 
-fn note_parity_dropped(path: &str, line: &LineFormat) {
-    PARITY_DROPPED.call_once(|| {
+fn note_format_dropped(path: &str, line: &LineFormat) {
+    FORMAT_DROPPED.call_once(|| {
         log::debug!(
             target: "benchbus::transport",
-            "{path} has no parity bit (a pseudo-terminal?): opened without parity; \
-             timing still uses {line}"
+            "{path} has no parity bit and 8 data bits only (a pseudo-terminal?): opened \
+             at 8 data bits without parity; timing still uses {line}"
         );
     });
 }
@@ -393,6 +407,30 @@ mod tests {
         );
         drop(held);
         assert!(SerialTransport::open(&path, &line()).is_ok());
+        // SAFETY: our own fd, closed once.
+        unsafe { libc::close(master) };
+    }
+
+    #[test]
+    fn the_line_formats_data_bits_are_asked_of_the_driver() {
+        assert_eq!(to_serialport_data_bits(7), serialport::DataBits::Seven);
+        assert_eq!(to_serialport_data_bits(8), serialport::DataBits::Eight);
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_pty_asked_for_7e1_opens_and_carries_whole_bytes() {
+        let (master, path) = crate::transport::test_pty();
+        let mut t = SerialTransport::open(&path, &LineFormat::ascii(9600, Parity::Even)).unwrap();
+        // The far end writes a byte with its top bit set: the pty, at 8 data bits whatever
+        // it was asked, hands it over whole.
+        // SAFETY: our own fd and a valid one-byte buffer.
+        let wrote = unsafe { libc::write(master, [0xB1u8].as_ptr().cast(), 1) };
+        assert_eq!(wrote, 1);
+        let mut got = [0u8; 4];
+        let n = t.read(&mut got, Duration::from_secs(1)).unwrap();
+        assert_eq!(&got[..n], [0xB1]);
+        assert_eq!(t.line.data_bits, 7, "the Bus still times 7 data bits");
         // SAFETY: our own fd, closed once.
         unsafe { libc::close(master) };
     }

@@ -17,9 +17,10 @@
     benchbus doctor  --port PATH [--unit N]  (what stands between benchbus and the port)
 
 The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--unit``,
-``--timeout``, ``--retries``; ``--rs485`` and ``--rts-delay BEFORE,AFTER`` for a board UART in
-the Linux kernel's RS485 mode) go anywhere after the command; their defaults are those of the
-device family the command talks to. ``--port`` falls back to ``$BENCHBUS_PORT``. Numbers
+``--timeout``, ``--retries``; ``--framing rtu|ascii`` and ``--bytesize 7|8`` for Modbus ASCII,
+7E1 unless given; ``--rs485`` and ``--rts-delay BEFORE,AFTER`` for a board UART in the Linux
+kernel's RS485 mode) go anywhere after the command; their defaults are those of the device
+family the command talks to. ``--port`` falls back to ``$BENCHBUS_PORT``. Numbers
 (addresses, values, units) are decimal or ``0x`` hex.
 
 Errors print one line, ``benchbus: <what went wrong>``, on stderr and exit with 1 (2 for a

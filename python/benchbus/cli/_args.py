@@ -139,6 +139,14 @@ def parity(text: str) -> str:
         raise argparse.ArgumentTypeError(f"parity is N, E or O, got {text!r}") from None
 
 
+def framing(text: str) -> str:
+    """An argparse type: rtu or ascii (any case)."""
+    name = text.strip().lower()
+    if name not in ("rtu", "ascii"):
+        raise argparse.ArgumentTypeError(f"framing is rtu or ascii, got {text!r}")
+    return name
+
+
 class Parser(argparse.ArgumentParser):
     """An ArgumentParser whose usage errors are one line: ``benchbus: read: <message>``."""
 
@@ -186,9 +194,28 @@ def _rts_delay(text: str) -> tuple[float, float]:
     return before, after
 
 
-def line_options(unit: bool, rs485: bool = True) -> Parser:
+def _framing_options(group: argparse._ArgumentGroup) -> None:
+    """``--framing rtu|ascii`` and ``--bytesize 7|8``."""
+    group.add_argument(
+        "--framing",
+        type=framing,
+        metavar="rtu|ascii",
+        default=_S,
+        help="Modbus RTU (default) or Modbus ASCII; ASCII's line format is 7E1 unless given",
+    )
+    group.add_argument(
+        "--bytesize",
+        type=integer(7, 8, "bytesize"),
+        metavar="7|8",
+        default=_S,
+        help="data bits (default 8; 7 with --framing ascii)",
+    )
+
+
+def line_options(unit: bool, rs485: bool = True, framing: bool = True) -> Parser:
     """The line options (``--port``, ``--baudrate``...; ``--unit`` with ``unit``, the RS485
-    ones with ``rs485``), each left out of the namespace unless given."""
+    ones with ``rs485``, ``--framing`` and ``--bytesize`` with ``framing``), each left out of
+    the namespace unless given."""
     parent = Parser(add_help=False)
     group = parent.add_argument_group(
         "line options (defaults: the device family's line format and timing)"
@@ -204,6 +231,8 @@ def line_options(unit: bool, rs485: bool = True) -> Parser:
     )
     group.add_argument("--parity", type=parity, metavar="N|E|O", default=_S)
     group.add_argument("--stopbits", type=integer(1, 2, "stopbits"), metavar="1|2", default=_S)
+    if framing:
+        _framing_options(group)
     if unit:
         group.add_argument(
             "--unit", type=integer(0, 255, "unit"), metavar="N", default=_S, help="default 1"

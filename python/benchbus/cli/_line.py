@@ -17,17 +17,21 @@ from benchbus.cli._errors import CliError, UsageError
 
 @dataclasses.dataclass(frozen=True)
 class BusOptions:
-    """What a command opens its Bus with: line format, reply timeout, retries and unit."""
+    """What a command opens its Bus with: line format, reply timeout, retries and unit, and
+    the framing (``"rtu"`` or ``"ascii"``) with its data bits."""
 
     baudrate: int
     parity: str
     timeout: float
     retries: int
     unit: int = 1
+    framing: str = "rtu"
+    bytesize: int = 8
 
     def describe(self, stopbits: int = 1) -> str:
-        """``19200 8N1``."""
-        return f"{self.baudrate} 8{self.parity}{stopbits}"
+        """``19200 8N1``, or ``9600 7E1 ASCII``."""
+        ascii = " ASCII" if self.framing == "ascii" else ""
+        return f"{self.baudrate} {self.bytesize}{self.parity}{stopbits}{ascii}"
 
 
 #: The Bus options of each command (the scan's timeout is per unit probed).
@@ -64,13 +68,24 @@ def port_of(args: argparse.Namespace) -> str:
 def bus_options_of(args: argparse.Namespace, family: str) -> BusOptions:
     """The family's Bus options with the line options given on the command line."""
     base = BUS_OPTIONS[family]
+    # Modbus ASCII's line format is the serial line spec's 7E1 unless given.
+    ascii = opt(args, "framing", base.framing) == "ascii"
     return BusOptions(
         baudrate=opt(args, "baudrate", base.baudrate),
-        parity=opt(args, "parity", base.parity),
+        parity=opt(args, "parity", "E" if ascii else base.parity),
         timeout=opt(args, "timeout", base.timeout),
         retries=opt(args, "retries", base.retries),
         unit=opt(args, "unit", base.unit),
+        framing="ascii" if ascii else "rtu",
+        bytesize=opt(args, "bytesize", 7 if ascii else base.bytesize),
     )
+
+
+def stopbits_of(args: argparse.Namespace, options: BusOptions) -> int:
+    """``--stopbits``, else 1, or 2 for 7 data bits without parity (7N2: Modbus ASCII does
+    not allow 7N1)."""
+    plain_seven = options.bytesize == 7 and options.parity == "N"
+    return int(opt(args, "stopbits", 2 if plain_seven else 1))
 
 
 def open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) -> bb.Bus:
@@ -80,10 +95,12 @@ def open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) 
         port_of(args),
         baudrate=options.baudrate,
         parity=options.parity,
-        stopbits=opt(args, "stopbits", 1),
+        stopbits=stopbits_of(args, options),
         timeout=options.timeout,
         retries=options.retries,
         reconnect=reconnect,
+        framing=options.framing,
+        bytesize=options.bytesize,
         **rs485_options(args),
     )
 

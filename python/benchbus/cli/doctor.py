@@ -42,7 +42,7 @@ EPILOG = (
     "echo: one read of register 0 goes to --unit). Exits 1 if any finding fails."
 )
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
-LINE_OPTIONS = {"unit": True, "rs485": False}
+LINE_OPTIONS = {"unit": True, "rs485": False, "framing": False}
 
 
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:

@@ -9,7 +9,7 @@ import benchbus as bb
 from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen
 from benchbus.cli._args import Parser, integer, number, seconds
 from benchbus.cli._errors import CliError
-from benchbus.cli._line import bus_options_of, open_bus, opt
+from benchbus.cli._line import bus_options_of, open_bus, stopbits_of
 from benchbus.cli._serve import serve_until_stopped
 
 __all__ = ["HELP", "add_arguments", "run"]
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         try:
             serve_until_stopped(
                 gateway.url,
-                f"gateway for {bus.port} ({options.describe(opt(args, 'stopbits', 1))})",
+                f"gateway for {bus.port} ({options.describe(stopbits_of(args, options))})",
                 args.seconds,
             )
         finally:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from typing import IO
 
@@ -11,7 +12,7 @@ from benchbus._families import FAMILIES
 from benchbus._recognise import Probe
 from benchbus.cli._args import Parser, integer, units_type
 from benchbus.cli._errors import CliError, UsageError, interrupted
-from benchbus.cli._line import bus_options_of, opt, port_of, rs485_options
+from benchbus.cli._line import BusOptions, bus_options_of, opt, port_of, rs485_options, stopbits_of
 from benchbus.cli._output import print_table
 
 __all__ = ["AUTO_FORMATS", "HELP", "add_arguments", "guess_model", "run"]
@@ -88,6 +89,12 @@ def guess_model(bus: bb.Bus, unit: int, *, identify: bool = True) -> str:
     return next((name for f in FAMILIES if (name := f.identify(probe))), "?")
 
 
+def _describe(args: argparse.Namespace, options: BusOptions, baudrate: int, parity: str) -> str:
+    """``19200 8N1``: the line format of ``options`` at ``baudrate`` and ``parity``."""
+    line = dataclasses.replace(options, baudrate=baudrate, parity=parity)
+    return line.describe(stopbits_of(args, line))
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus scan`` as ``args`` say; the exit status."""
     port = port_of(args)
@@ -95,7 +102,6 @@ def run(args: argparse.Namespace) -> int:
     if args.auto and given:
         raise UsageError(f"--auto tries every line format: leave out --{given[0]}")
     options = bus_options_of(args, "scan")
-    stopbits = opt(args, "stopbits", 1)
     formats = (
         [(b, p) for b, p, _ in AUTO_FORMATS] if args.auto else [(options.baudrate, options.parity)]
     )
@@ -114,12 +120,16 @@ def run(args: argparse.Namespace) -> int:
     done = 0
     try:
         for baudrate, parity in formats:
-            fmt = "tcp" if tcp else f"{baudrate} 8{parity}{stopbits}"
+            line = dataclasses.replace(options, baudrate=baudrate, parity=parity)
+            stopbits = stopbits_of(args, line)
+            fmt = "tcp" if tcp else line.describe(stopbits)
             with bb.Bus(
                 port,
                 baudrate=baudrate,
                 parity=parity,
                 stopbits=stopbits,
+                framing=line.framing,
+                bytesize=line.bytesize,
                 # Over the network the identification gets the scan's own time, once.
                 timeout=options.timeout if tcp else max(options.timeout, 0.1),
                 retries=0 if tcp else 1,
@@ -155,7 +165,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         progress.close()
     if not found:
-        tried = "tcp" if tcp else ", ".join(f"{b} 8{p}{stopbits}" for b, p in formats)
+        tried = "tcp" if tcp else ", ".join(_describe(args, options, b, p) for b, p in formats)
         raise CliError(f"no unit answered on {port} (at {tried})")
     _print_found(found)
     if tcp and len(units) > 1 and len(found) == len(units):

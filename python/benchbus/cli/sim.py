@@ -6,7 +6,7 @@ import argparse
 from typing import TYPE_CHECKING
 
 from benchbus._families import FAMILIES, family
-from benchbus.cli._args import Parser, integer, positive, seconds, units_type
+from benchbus.cli._args import Parser, framing, integer, positive, seconds, units_type
 from benchbus.cli._errors import CliError
 from benchbus.cli._serve import serve_until_stopped
 
@@ -34,14 +34,17 @@ def run(args: argparse.Namespace) -> int:
     kind: str = args.device
     units: list[int] = args.unit
     baudrate: int = args.baudrate or SIM_DEVICES[kind]
-    simulator = Simulator({u: _sim_device(kind, args) for u in units}, baudrate=baudrate)
+    simulator = Simulator(
+        {u: _sim_device(kind, args) for u in units}, baudrate=baudrate, framing=args.framing
+    )
     simulator.start()
     try:
         what = f"{args.model} drive" if kind == "drive" else kind
         at = ", ".join(str(u) for u in units)
         serve_until_stopped(
             simulator.port,
-            f"simulating {what} (unit {at}, {baudrate} baud frame timing)",
+            f"simulating {what} (unit {at}, {baudrate} baud frame timing"
+            f"{', Modbus ASCII' if args.framing == 'ascii' else ''})",
             args.seconds,
         )
     finally:
@@ -82,6 +85,13 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         help="the frame timing (default: the device's usual speed)",
     )
     parser.add_argument("--seconds", type=seconds, metavar="S", help="stop after S seconds")
+    parser.add_argument(
+        "--framing",
+        type=framing,
+        default="rtu",
+        metavar="rtu|ascii",
+        help="serve Modbus RTU (default) or Modbus ASCII",
+    )
     parser.add_argument(
         "--model",
         type=str.upper,

@@ -23,10 +23,11 @@ import select
 import threading
 import time
 
+from benchbus.sim import _ascii
 from benchbus.sim._faults import FaultInjector, Faults, Injection
 from benchbus.sim._loop import StepLoop
 from benchbus.sim._router import Router, framing
-from benchbus.sim._rtu import end_of_frame_silence
+from benchbus.sim._rtu import crc_ok, end_of_frame_silence, with_crc
 from benchbus.sim._units import Job, UnitHooks
 
 __all__ = ["LOG_SIZE", "Forwarder", "PtyPair", "SimState"]
@@ -167,6 +168,18 @@ class SimState:
         return Injection([reply])
 
 
+class _AsciiLine(bytearray):
+    """The bytes toward the library on a Modbus ASCII line. The router adds each frame it
+    puts on the line (``+=``: a reply or an echo, as an RTU frame): it goes out as the ASCII
+    frame of its unit and PDU, with a bad LRC if its CRC is bad (a fault, a collision).
+    ``extend`` adds bytes as they are (injected bytes)."""
+
+    def __iadd__(self, frame: bytes | bytearray) -> _AsciiLine:  # type: ignore[override,misc]
+        rtu = bytes(frame)
+        self.extend(_ascii.encode(rtu[:-2], bad_lrc=not crc_ok(rtu)))
+        return self
+
+
 class Forwarder(StepLoop):
     """The thread between master A (library side) and master B (server side): the I/O of a
     :class:`~benchbus.sim._router.Router`."""
@@ -181,10 +194,15 @@ class Forwarder(StepLoop):
         broadcast: bool,
         hooks: UnitHooks,
         baudrate: int,
+        ascii: bool = False,
     ) -> None:
         """Forward between ``library`` and ``server`` for the simulated ``units``.
 
         ``hooks`` are the units' callbacks (see :class:`~benchbus.sim._router.Router`).
+        With ``ascii`` the library's side of the line speaks Modbus ASCII: each of its
+        frames goes to the router as the RTU frame of its unit and PDU (so the logs and the
+        faults see RTU frames), and each frame for the library goes out in ASCII; the server
+        speaks RTU either way.
         """
         super().__init__("simulator line thread", "benchbus-sim-line")
         self._a = library.master
@@ -198,6 +216,9 @@ class Forwarder(StepLoop):
             end_of_frame_silence=end_of_frame_silence(baudrate),
             cut_partial=True,  # a serial line: a talker that stops has ended its frame
         )
+        self._ascii = _ascii.Receiver() if ascii else None
+        if ascii:
+            self._router.to_library = _AsciiLine()
         self._inject: collections.deque[tuple[bytes, threading.Event]] = collections.deque()
         self._lock = threading.Lock()  # guards _inject
         self._wake_r, self._wake_w = os.pipe()
@@ -262,7 +283,10 @@ class Forwarder(StepLoop):
             _drain(self._wake_r)
         if self._a in readable:
             data = _read(self._a)
-            if data:
+            if data and self._ascii is not None:
+                for unit_pdu in self._ascii.feed(data, now):
+                    router.rx_req.feed(with_crc(unit_pdu), now)
+            elif data:
                 router.rx_req.feed(data, now)
         if self._b in readable:
             data = _read(self._b)
@@ -282,7 +306,7 @@ class Forwarder(StepLoop):
             injects = list(self._inject)
             self._inject.clear()
         for data, written in injects:
-            self._router.to_library += data
+            self._router.to_library.extend(data)
             _write(self._a, self._router.to_library)
             written.set()
 

@@ -19,11 +19,14 @@ from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
 from benchbus.sim._rtu import with_crc
 from benchbus.sim._units import UnitHooks
 
-__all__ = ["Simulator"]
+__all__ = ["FRAMINGS", "Simulator"]
 
 log = logging.getLogger("benchbus.sim")
 
 D = TypeVar("D", bound=SimDevice)
+
+#: The framings a Simulator's line speaks.
+FRAMINGS = ("rtu", "ascii")
 
 _START_TIMEOUT = 5.0
 _STOP_TIMEOUT = 5.0
@@ -97,6 +100,7 @@ class Simulator(Generic[D]):
         echo: bool = False,
         network: str | None = None,
         log_size: int = LOG_SIZE,
+        framing: str = "rtu",
     ) -> None:
         """Simulate ``devices`` (``{unit: device}``; a single device is unit 1).
 
@@ -111,7 +115,8 @@ class Simulator(Generic[D]):
         pseudo-terminal (see the class doc); ``baudrate`` then only sets the silent gap that
         ends an RTU frame of unknown length. ``log_size`` is how many frames each log
         (:attr:`requests`, :attr:`request_times`, :attr:`replies`) keeps, the most recent:
-        an int >= 1, 10,000 by default.
+        an int >= 1, 10,000 by default. ``framing="ascii"`` serves the line in Modbus ASCII
+        (see :attr:`framing`; the pseudo-terminal line only: ValueError with ``network``).
         """
         if isinstance(devices, SimDevice):
             devices = {1: devices}
@@ -125,6 +130,13 @@ class Simulator(Generic[D]):
             raise ValueError(f"baudrate must be a positive int, not {baudrate!r}")
         if network is not None and network not in NETWORKS:
             raise ValueError(f"network must be None or one of {NETWORKS}, not {network!r}")
+        if framing not in FRAMINGS:
+            raise ValueError(f"framing must be one of {FRAMINGS}, not {framing!r}")
+        if framing == "ascii" and network is not None:
+            raise ValueError(
+                "framing='ascii' is served on the pseudo-terminal line only, not a network"
+            )
+        self._framing: str = framing
         if isinstance(log_size, bool) or not isinstance(log_size, int):
             raise TypeError(f"log_size must be an int, not {type(log_size).__name__}")
         if log_size < 1:
@@ -154,6 +166,16 @@ class Simulator(Generic[D]):
     def network(self) -> str | None:
         """``"tcp"``, ``"rtu+tcp"``, or None for a pseudo-terminal line."""
         return self._network
+
+    @property
+    def framing(self) -> str:
+        """``"rtu"``, or ``"ascii"``: the line speaks Modbus ASCII to the library (``:``,
+        hex, LRC, CR LF, from the serial line spec; a frame with a bad LRC gets no reply, a
+        frame begun and left for over 1 s is dropped). The units behind it speak RTU: the
+        logs (:attr:`requests`, :attr:`replies`) hold each frame as the RTU frame of its unit
+        and PDU, and the faults spoil those, a spoiled reply going out with a bad LRC.
+        :meth:`inject_raw` puts its bytes on the line as they are."""
+        return self._framing
 
     @property
     def port(self) -> str:
@@ -201,6 +223,7 @@ class Simulator(Generic[D]):
             broadcast=self.broadcast,
             hooks=self._unit_hooks("simulator"),
             baudrate=self.baudrate,
+            ascii=self._framing == "ascii",
         )
         self._server = SerialServer(
             server.path,
