@@ -19,6 +19,7 @@ from pymodbus.client import ModbusSerialClient
 from pymodbus.framer import FramerType
 from pymodbus_peer import COILS, HOLDING, INPUT, pymodbus_server
 from test_sim import Client
+from test_sim_functions import EXAMPLES
 
 import benchbus as bb
 from benchbus.sim import RegisterDevice, Simulator
@@ -30,8 +31,21 @@ VECTORS = {v["id"]: v for v in ALL_VECTORS}
 
 #: The examples a RegisterDevice answers as printed, and its registers for them (the spec's
 #: read example reads 0x022B, 0, 0x64 at 0x006B..0x006D).
-SERVED = ["read-holding", "write-single", "write-multiple", "broadcast-write"]
+SERVED = [
+    "read-holding",
+    "write-single",
+    "write-multiple",
+    "broadcast-write",
+    "read-coils",
+    "read-input",
+]
 REGISTERS = {0x6B: 0x022B, 0x6C: 0, 0x6D: 0x64}
+#: The specification's state for the coil and input-register examples (from its text, as
+#: test_sim_functions reads it): set up on the device before the request.
+PRESETS = {
+    "read-coils": EXAMPLES["0x01 read coils"],
+    "read-input": EXAMPLES["0x04 read input registers"],
+}
 
 
 def ascii_reply(client: Client, timeout: float = 2.0) -> bytes:
@@ -52,6 +66,8 @@ def test_the_simulator_answers_the_specifications_example(vector_id: str) -> Non
     vector: dict[str, Any] = VECTORS[vector_id]
     unit = vector["unit"] or 0x11
     device = RegisterDevice(REGISTERS)
+    if vector_id in PRESETS:
+        PRESETS[vector_id].preset(device)
     with Simulator({unit: device}, framing="ascii") as sim:
         client = Client(sim.port)
         try:
