@@ -144,6 +144,26 @@ def test_relays_access_bits_and_limits(relays: Rig) -> None:
     assert dev.value("relay1") is True and dev.value("relay2") is False
 
 
+def test_relays_mask_write_and_read_write_keep_the_checks(relays: Rig) -> None:
+    sim, client, dev = relays
+    # 0x16 on the command word: (0b00 AND 0xFFFE) OR (0x0001 AND NOT 0xFFFE) sets bit 0.
+    reply = client.mask_write_register(address=0x0010, and_mask=0xFFFE, or_mask=0x0001, device_id=1)
+    assert not reply.isError()
+    assert sim.requests[-1] == frame(0x16, 0x00, 0x10, 0xFF, 0xFE, 0x00, 0x01)
+    assert (dev.value("all_on"), dev.value("all_off")) == (True, False)
+    reply = client.mask_write_register(address=0x0020, and_mask=0, or_mask=9, device_id=1)
+    assert reply.exception_code == 2 and dev.value("board_address") == 1
+    # 0x17: the write first, then the read; a refused write writes and reads nothing.
+    reply = client.readwrite_registers(
+        read_address=0x0020, read_count=1, write_address=0x0010, values=[0b10], device_id=1
+    )
+    assert reply.registers == [1] and dev.value("all_off") is True
+    reply = client.readwrite_registers(
+        read_address=0x0010, read_count=1, write_address=0x0020, values=[7], device_id=1
+    )
+    assert reply.exception_code == 2 and dev.value("board_address") == 1
+
+
 # ---- the controller: 32- and 64-bit values, orders, enum, string ----------------------------
 
 
@@ -261,6 +281,11 @@ address = 1
         ('[[register]]\nname = "b"\naddress = 0xFFFF\ntype = "f32"\n', "past"),
         ('[[register]]\nname = "b c"\naddress = 9\n', "identifier"),
         ("[limits]\nmax_read = 0\n", "max_read"),
+        ('[line]\nparity = "X"\n', "parity"),
+        ("[line]\nstopbits = 3\n", "stopbits"),
+        ("[line]\nbaudrate = -9600\n", "baudrate"),
+        ("[line]\ntimeout = 0\n", "timeout"),
+        ('[line]\nframing = "tcp"\n', "framing"),
         ("[[register\n", "not valid TOML"),
     ],
 )

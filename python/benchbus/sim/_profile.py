@@ -170,6 +170,7 @@ class ProfileDevice(RegisterDevice):
         self.line: dict[str, Any] = _table(self.path, profile, "line", _LINE_KEYS)
         #: The profile's ``[limits]`` table, as written.
         self.limits: dict[str, Any] = _table(self.path, profile, "limits", _LIMIT_KEYS)
+        _check_line(self.path, self.line)
         _check_limits(self.path, self.limits)
         rows = profile.get("register", [])
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
@@ -368,6 +369,31 @@ def _table(path: str, profile: dict[str, Any], key: str, allowed: set[str]) -> d
     if unknown:
         raise ValueError(f"{path}: [{key}]: unknown key(s) {', '.join(sorted(unknown))}")
     return dict(table)
+
+
+#: What each ``[line]`` key may be.
+_LINE_VALUES: dict[str, tuple[object, ...]] = {
+    "parity": ("N", "E", "O"),
+    "stopbits": (1, 2),
+    "framing": ("rtu", "ascii"),
+    "bytesize": (7, 8),
+}
+
+
+def _check_line(path: str, line: dict[str, Any]) -> None:
+    for key, allowed in _LINE_VALUES.items():
+        v = line.get(key)
+        if v is not None and (isinstance(v, bool) or v not in allowed):
+            shown = " | ".join(repr(a) for a in allowed)
+            raise ValueError(f"{path}: [line] {key} must be {shown}, not {v!r}")
+    baudrate = line.get("baudrate")
+    if baudrate is not None and (
+        isinstance(baudrate, bool) or not isinstance(baudrate, int) or baudrate <= 0
+    ):
+        raise ValueError(f"{path}: [line] baudrate must be a positive integer, not {baudrate!r}")
+    timeout = line.get("timeout")
+    if timeout is not None and (not _number(timeout) or timeout <= 0):
+        raise ValueError(f"{path}: [line] timeout must be > 0 s, not {timeout!r}")
 
 
 def _check_limits(path: str, limits: dict[str, Any]) -> None:
