@@ -39,6 +39,7 @@ PICKED_BY = (
     "bus.read_coils(",
     "bb.from_registers(",
     'framing="ascii"',
+    "ProfileDevice(",
 )
 
 
@@ -106,6 +107,12 @@ def test_readme_simulator_examples() -> None:
     assert len(blocks) >= 2  # a Bus on a simulator; the simulator's tables
     for block in blocks:
         exec(block, {})  # as written: it imports what it uses
+
+
+def test_readme_profile_simulator_example(monkeypatch: pytest.MonkeyPatch) -> None:
+    (block,) = [b for b in readme_blocks() if "ProfileDevice(" in b]
+    monkeypatch.chdir(ROOT)  # the block names its profile from the repository's root
+    exec(block, {})
 
 
 def test_readme_poll_example(capsys: pytest.CaptureFixture[str]) -> None:

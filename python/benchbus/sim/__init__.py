@@ -27,6 +27,8 @@ Identification (paged on request, and the manual's 6-byte error form). Each refu
 manual does not allow, among it requests for more registers than the manual's frame takes
 (:attr:`SimDevice.max_read` / :attr:`SimDevice.max_write`: a BLD drive reads one register a
 request, a PBL drive 61, a J2 16, a Taisong meter 37), with exception 3.
+:class:`ProfileDevice` serves a device profile (a TOML file of registers) of your own:
+every table it declares, values encoded as it says, its access, ranges and limits.
 
 The same units can sit behind a Modbus TCP gateway instead:
 ``Simulator(devices, network="tcp")`` (MBAP) or ``network="rtu+tcp"`` (RTU frames over TCP)
@@ -57,6 +59,7 @@ from benchbus.sim._faults import FAULT_KINDS, Faults
 from benchbus.sim._instrument import Atv31Device, TaisongDevice
 from benchbus.sim._j2 import J2Device
 from benchbus.sim._pbl import PblDevice
+from benchbus.sim._profile import ProfileDevice
 from benchbus.sim._simulator import Simulator
 
 __all__ = [
@@ -68,6 +71,7 @@ __all__ = [
     "Faults",
     "J2Device",
     "PblDevice",
+    "ProfileDevice",
     "RegisterDevice",
     "SimDevice",
     "SimException",
