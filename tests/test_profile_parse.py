@@ -218,6 +218,8 @@ CASES = [
     (REG + 'type = "u32"\norder = "ACDB"\n', 7, "register[0].order"),
     (REG + "scale = 0\n", 6, "register[0].scale"),
     (REG + "default = -1\n", 6, "register[0].default"),
+    (REG + "scale = 0.5\ndefault = 0.75\n", 7, "register[0].default"),
+    ('[[register]]\nname = "sample_units"\naddress = 1\n', 4, "register[0].name"),
     ('[line]\nparity = "X"\n', 4, "line.parity"),
     ("[line]\nstopbits = 3\n", 4, "line.stopbits"),
     ("[line]\nbytesize = 6\n", 4, "line.bytesize"),

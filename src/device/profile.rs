@@ -17,6 +17,7 @@ pub const RESERVED_NAMES: &[&str] = &[
     "close",
     "describe",
     "from_profile",
+    "get",
     "name",
     "profile",
     "read",
@@ -24,6 +25,8 @@ pub const RESERVED_NAMES: &[&str] = &[
     "record",
     "registers",
     "sample",
+    "sample_units",
+    "set",
     "table",
     "unit",
     "units",
@@ -670,7 +673,7 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
             "an enum register takes no scale or offset",
         ));
     }
-    let default = default(s, value, range, &members)?;
+    let default = default(s, value, (range, scale, offset), &members)?;
     Ok(ProfileRegister {
         register: Register {
             name: name.to_string(),
@@ -877,7 +880,7 @@ fn parse_int(text: &str) -> Option<i128> {
 fn default(
     s: &Section<'_, '_, '_>,
     value: ValueType,
-    range: (f64, f64),
+    (range, scale, offset): ((f64, f64), f64, f64),
     members: &[(i128, String)],
 ) -> Parsed<Option<ProfileValue>> {
     let Some(given) = s.get("default") else {
@@ -917,6 +920,10 @@ fn default(
             }
             if v < range.0 || v > range.1 {
                 return bad(format!("{v} is outside {} to {}", range.0, range.1));
+            }
+            let steps = (v - offset) / scale;
+            if int_range(kind).is_some() && (steps - steps.round()).abs() > 1e-6 {
+                return bad(format!("{v} is not a whole number of steps of {scale}"));
             }
             match (int_range(kind), s.int("default").ok().flatten()) {
                 (Some(_), Some(n)) => Ok(Some(ProfileValue::Int(n))),
@@ -1253,6 +1260,14 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
     fn defaults() {
         fails(&format!("{R}default = 70000\n"), 6, "register[0].default");
         fails(&format!("{R}default = true\n"), 6, "register[0].default");
+        fails(
+            &format!("{R}scale = 0.5\ndefault = 1.25\n"),
+            7,
+            "register[0].default",
+        );
+        let text = format!("[device]\nname = \"d\"\n{R}scale = 0.5\ndefault = 1.5\n");
+        let p = Profile::parse("d.toml", &text).unwrap();
+        assert_eq!(p.registers[0].default, Some(ProfileValue::Float(1.5)));
         fails(
             &format!("{R}type = \"bool\"\ndefault = 1\n"),
             7,
