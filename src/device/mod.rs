@@ -268,6 +268,20 @@ impl<S: AsRef<str>> Register<S> {
         }
     }
 
+    /// The same register holding its own name and unit (a `const` table's row as a
+    /// profile's).
+    pub fn owned(&self) -> Register<String> {
+        Register {
+            name: self.name.as_ref().to_string(),
+            address: self.address,
+            scale: self.scale,
+            signed: self.signed,
+            unit: self.unit.as_ref().to_string(),
+            access: self.access,
+            range: self.range,
+        }
+    }
+
     /// Whether values of this register are whole numbers (a scale of 1).
     pub fn is_integer(&self) -> bool {
         self.scale == 1.0

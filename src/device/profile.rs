@@ -1000,6 +1000,22 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
         );
     }
 
+    #[test]
+    fn a_table_row_and_its_profile_row_are_the_same_register() {
+        let row = super::super::pbl::PARAMETERS
+            .iter()
+            .find(|r| r.name == "max_speed")
+            .unwrap();
+        let text = "[device]\nname = \"pbl\"\n[[register]]\nname = \"max_speed\"\n\
+                    address = 124\nunit = \"rpm\"\n";
+        let p = Profile::parse("pbl.toml", text).unwrap();
+        assert_eq!(p.registers[0].register, row.owned());
+        assert_eq!(
+            p.registers[0].register.encode(3000.0).ok(),
+            row.encode(3000.0).ok()
+        );
+    }
+
     fn error(extra: &str) -> ProfileError {
         let text = format!("[device]\nname = \"d\"\n{extra}");
         *Profile::parse("d.toml", &text).unwrap_err()
