@@ -72,6 +72,7 @@ from benchbus.exceptions import (
     GatewayError,
     ModbusException,
     PortError,
+    ProfileError,
     ResponseTimeout,
     StateError,
 )
@@ -116,6 +117,7 @@ __all__ = [
     "Pid",
     "Poll",
     "PortError",
+    "ProfileError",
     "Recording",
     "ResponseTimeout",
     "SpeedSource",

@@ -34,6 +34,7 @@ __all__ = [
     "diagnose",
     "from_registers",
     "list_ports",
+    "load_profile",
     "refresh_logging",
     "to_registers",
 ]
@@ -69,6 +70,21 @@ def list_ports(
     ``driver``, and for a USB adapter ``vid``, ``pid``, ``manufacturer``, ``product``,
     ``serial_number`` and ``chip`` (FTDI, CH340, CP210x, PL2303...; None where the system
     does not say). ``sysfs_root`` reads another sysfs tree than ``/sys`` (Linux only)."""
+
+def load_profile(path: str | os.PathLike[str]) -> dict[str, Any]:
+    """Reads and checks the device profile (TOML) at ``path``.
+
+    Returns a dict: ``name``, ``description``, ``line`` (``baudrate``, ``parity``,
+    ``stopbits``, ``timeout``, ``framing``, ``bytesize``; None where the file is silent),
+    ``limits`` (``max_read``, ``max_write``, ``min_write_interval``, ``block_reads``; None
+    where silent) and ``registers``, one dict per ``[[register]]`` in the file's order:
+    ``name``, ``address``, ``table`` ("holding", "input", "coil", "discrete"), ``type``,
+    ``bit``, ``length``, ``order``, ``scale``, ``offset``, ``signed``, ``unit``, ``access``
+    ("r", "rw", "w"), ``min``, ``max`` (None for a bool or a string), ``enum`` ({number:
+    name}), ``default``, ``description`` and ``line``.
+
+    Raises ``ProfileError`` (a ``ValueError``) naming the file, the line and the key of the
+    first mistake; nothing is opened."""
 
 def diagnose(
     port: str | os.PathLike[str],

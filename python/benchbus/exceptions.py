@@ -11,7 +11,9 @@
     ├── ModbusException(BenchbusError)             the device answered with an exception
     │   └── GatewayError(ModbusException)          a gateway answered 0x0A (no path to the
     │                                              unit) or 0x0B (the unit did not answer it)
-    └── StateError(BenchbusError)                  the device's state forbids the request
+    ├── StateError(BenchbusError)                  the device's state forbids the request
+    └── ProfileError(BenchbusError, ValueError)    a device profile file is wrong: its
+                                                   path, line and key
 
 Bad arguments raise ``ValueError`` / ``TypeError`` before anything is sent. A bug inside
 benchbus (a panic in its core) raises ``BenchbusError`` itself, saying so, and the Bus goes on.
@@ -29,6 +31,7 @@ __all__ = [
     "GatewayError",
     "ModbusException",
     "PortError",
+    "ProfileError",
     "ResponseTimeout",
     "StateError",
 ]
@@ -123,3 +126,24 @@ class StateError(BenchbusError):
     For example MV written to a J2 controller in automatic mode (its manual allows MV only
     in manual mode). The message says how to get past it.
     """
+
+
+class ProfileError(BenchbusError, ValueError):
+    """A device profile file is wrong; raised before any port is opened.
+
+    The message reads ``FILE:LINE: key: what is wrong``.
+    """
+
+    path: str
+    """The file, as it was given."""
+    line: int
+    """The line (from 1) of the offending key or value; 0 if the file cannot be read."""
+    key: str
+    """The key, dotted from the top of the file (``line.parity``, ``register[2].type``);
+    empty for a file that is not valid TOML."""
+
+    def __init__(self, message: str, *, path: str = "", line: int = 0, key: str = "") -> None:
+        super().__init__(message)
+        self.path = path
+        self.line = line
+        self.key = key

@@ -6,6 +6,7 @@ pub mod drive;
 pub mod instrument;
 pub mod j2;
 pub mod pbl;
+pub mod profile;
 pub mod value;
 
 use crate::bus::{Bus, TxOptions};
@@ -225,13 +226,17 @@ pub enum Access {
     ReadWrite,
     /// `W/R*`: writable only while the motor is stopped.
     WriteWhenStopped,
+    /// `W`: write-only (a command register, which reads back nothing useful).
+    Write,
 }
 
-/// One holding register: where it is and how its raw word maps to an engineering value.
+/// One register: where it is and how its raw word maps to an engineering value. The
+/// built-in families' `const` tables hold `&'static str` names and units (the default); a
+/// device profile read from a file ([`profile`]) holds its own `String`s.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Register {
+pub struct Register<S = &'static str> {
     /// The name it has in the Python API (`speed_setpoint`).
-    pub name: &'static str,
+    pub name: S,
     /// Register address.
     pub address: u16,
     /// Engineering value = raw word x scale (0.1 for a value in tenths).
@@ -239,14 +244,14 @@ pub struct Register {
     /// Whether the raw word is a two's complement signed value.
     pub signed: bool,
     /// Unit of the engineering value ("rpm", "s", "V", ""...).
-    pub unit: &'static str,
+    pub unit: S,
     /// Who may write it.
     pub access: Access,
     /// The engineering values a write may carry (inclusive).
     pub range: (f64, f64),
 }
 
-impl Register {
+impl<S: AsRef<str>> Register<S> {
     /// The engineering value of a raw word.
     pub fn decode(&self, raw: u16) -> f64 {
         let raw = if self.signed {
@@ -260,6 +265,20 @@ impl Register {
             raw / per_unit
         } else {
             raw * self.scale
+        }
+    }
+
+    /// The same register holding its own name and unit (a `const` table's row as a
+    /// profile's).
+    pub fn owned(&self) -> Register<String> {
+        Register {
+            name: self.name.as_ref().to_string(),
+            address: self.address,
+            scale: self.scale,
+            signed: self.signed,
+            unit: self.unit.as_ref().to_string(),
+            access: self.access,
+            range: self.range,
         }
     }
 
@@ -277,7 +296,7 @@ impl Register {
         if self.access == Access::Read {
             return Err(Error::InvalidArgument(format!(
                 "{} is read-only",
-                self.name
+                self.name.as_ref()
             )));
         }
         let (lo, hi) = self.range;
@@ -290,19 +309,19 @@ impl Register {
         {
             return Err(Error::InvalidArgument(format!(
                 "{} must be {} to {}{}, got {}",
-                self.name,
+                self.name.as_ref(),
                 fmt_num(lo),
                 fmt_num(hi),
-                unit_suffix(self.unit),
+                unit_suffix(self.unit.as_ref()),
                 fmt_num(value)
             )));
         }
         if (steps - whole).abs() > tolerance {
             return Err(Error::InvalidArgument(format!(
                 "{} is set in steps of {}{}: {} is not a whole number of steps",
-                self.name,
+                self.name.as_ref(),
                 fmt_num(self.scale),
-                unit_suffix(self.unit),
+                unit_suffix(self.unit.as_ref()),
                 fmt_num(value)
             )));
         }

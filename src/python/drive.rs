@@ -46,6 +46,7 @@ fn table<'py>(py: Python<'py>, family: Family) -> PyResult<Bound<'py, PyList>> {
             Access::Read => "R",
             Access::ReadWrite => "W/R",
             Access::WriteWhenStopped => "W/R*",
+            Access::Write => "W",
         };
         let row = (
             r.name, r.address, r.scale, r.unit, access, r.range.0, r.range.1,

@@ -10,6 +10,7 @@ mod j2;
 mod pbl;
 mod poll;
 mod ports;
+mod profile;
 mod ticks;
 mod values;
 
@@ -1376,6 +1377,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(values::from_registers, m)?)?;
     m.add_function(wrap_pyfunction!(values::to_registers, m)?)?;
     m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
+    m.add_function(wrap_pyfunction!(profile::load_profile, m)?)?;
     m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;

@@ -1,0 +1,1340 @@
+//! Device profiles: a device described in a TOML file, with the same [`Register`] the
+//! built-in families' tables use, plus what a file must say that a family's code knows
+//! (the table, the value's type and layout, enum members, the line settings and the
+//! device's request limits). [`Profile::parse`] checks everything before any port is
+//! opened; every mistake is a [`ProfileError`] naming the file, the line and the key.
+
+use super::value::{Kind, Layout};
+use super::{Access, Register, Table};
+use std::collections::{BTreeMap, HashSet};
+use std::ops::Range;
+use toml::de::{DeTable, DeValue};
+use toml::Spanned;
+
+/// Names a profile register may not take: the members every profile device has.
+pub const RESERVED_NAMES: &[&str] = &[
+    "bus",
+    "close",
+    "describe",
+    "from_profile",
+    "get",
+    "name",
+    "profile",
+    "read",
+    "read_many",
+    "record",
+    "registers",
+    "sample",
+    "sample_units",
+    "set",
+    "table",
+    "unit",
+    "units",
+    "write",
+    "write_many",
+];
+
+const PYTHON_KEYWORDS: &[&str] = &[
+    "False", "None", "True", "and", "as", "assert", "async", "await", "break", "class", "continue",
+    "def", "del", "elif", "else", "except", "finally", "for", "from", "global", "if", "import",
+    "in", "is", "lambda", "nonlocal", "not", "or", "pass", "raise", "return", "try", "while",
+    "with", "yield",
+];
+
+/// A mistake in a profile file: where it is and what is wrong.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{path}:{line}: {}{message}", if .key.is_empty() { String::new() } else { format!("{}: ", .key) })]
+pub struct ProfileError {
+    /// The file, as it was given.
+    pub path: String,
+    /// The line (from 1) of the offending key or value.
+    pub line: usize,
+    /// The key, dotted from the top of the file (`line.parity`, `register[2].type`); empty
+    /// for a file that is not valid TOML.
+    pub key: String,
+    /// What is wrong.
+    pub message: String,
+}
+
+/// The kind of value a profile register holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ValueType {
+    /// A number over one, two or four registers.
+    Number(Kind),
+    /// A coil or discrete input, or one bit of a register (`bit`), or a whole register
+    /// read as zero / non-zero (`bit` None).
+    Bool {
+        /// The bit (0..15) of a holding or input register.
+        bit: Option<u8>,
+    },
+    /// Text over `length` registers, two characters each.
+    Text {
+        /// How many registers.
+        length: u16,
+    },
+}
+
+impl ValueType {
+    /// Its name in a profile: "u16".."f64", "bool" or "string".
+    pub fn name(self) -> &'static str {
+        match self {
+            ValueType::Number(kind) => kind.name(),
+            ValueType::Bool { .. } => "bool",
+            ValueType::Text { .. } => "string",
+        }
+    }
+
+    /// How many registers (or bits, in a table of bits) a value covers.
+    pub fn width(self) -> u32 {
+        match self {
+            ValueType::Number(kind) => kind.registers() as u32,
+            ValueType::Bool { .. } => 1,
+            ValueType::Text { length } => u32::from(length),
+        }
+    }
+}
+
+/// A value given in a profile (`default`).
+#[derive(Debug, Clone, PartialEq)]
+pub enum ProfileValue {
+    /// An integer (or an enum member's number).
+    Int(i128),
+    /// A float.
+    Float(f64),
+    /// A bool.
+    Bool(bool),
+    /// Text (or an enum member's name).
+    Text(String),
+}
+
+/// One register of a profile: the shared [`Register`] (name, address, scale, signedness,
+/// unit, access, range) and what the file adds.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ProfileRegister {
+    /// Name, address, scale, signedness, unit, access and the engineering range.
+    pub register: Register<String>,
+    /// The table it lives in.
+    pub table: Table,
+    /// What it holds.
+    pub value: ValueType,
+    /// How a multi-register value lies over its registers.
+    pub layout: Layout,
+    /// Engineering value = raw x scale + offset.
+    pub offset: f64,
+    /// Enum members (number, name), in the file's order; empty for none.
+    pub members: Vec<(i128, String)>,
+    /// The simulator's initial value, if given.
+    pub default: Option<ProfileValue>,
+    /// Free text.
+    pub description: String,
+    /// The line (from 1) of its `[[register]]` header.
+    pub line: usize,
+}
+
+/// How the device's own line is set up (each None: the caller's default).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct LineSettings {
+    /// Bits per second.
+    pub baudrate: Option<u32>,
+    /// 'N', 'E' or 'O'.
+    pub parity: Option<char>,
+    /// 1 or 2.
+    pub stopbits: Option<u8>,
+    /// Reply timeout, seconds.
+    pub timeout: Option<f64>,
+    /// "rtu" or "ascii".
+    pub framing: Option<String>,
+    /// 7 or 8.
+    pub bytesize: Option<u8>,
+}
+
+/// What the device accepts in one request (each None: no limit beyond Modbus's).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Limits {
+    /// Registers (or bits in a table of bits) one read may ask for.
+    pub max_read: Option<u16>,
+    /// Registers (or bits) one write may carry.
+    pub max_write: Option<u16>,
+    /// Seconds between two writes to the device.
+    pub min_write_interval: Option<f64>,
+    /// Whether neighbouring registers may be read in one request.
+    pub block_reads: Option<bool>,
+}
+
+/// A device described by a profile file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Profile {
+    /// The device's name (`[device] name`).
+    pub name: String,
+    /// Free text.
+    pub description: String,
+    /// `[line]`.
+    pub line: LineSettings,
+    /// `[limits]`.
+    pub limits: Limits,
+    /// Every `[[register]]`, in the file's order.
+    pub registers: Vec<ProfileRegister>,
+}
+
+type Fail = Box<ProfileError>;
+/// The registers that take one address: (index in the file, bit or None).
+type Owners = Vec<(usize, Option<u8>)>;
+type Parsed<T> = std::result::Result<T, Fail>;
+
+/// Where the parser is: the file's name and text, to turn spans into lines.
+struct Source<'a> {
+    path: &'a str,
+    text: &'a str,
+}
+
+impl Source<'_> {
+    fn fail(&self, span: Range<usize>, key: &str, message: impl Into<String>) -> Fail {
+        let start = span.start.min(self.text.len());
+        let line = self.text.get(..start).unwrap_or("").matches('\n').count() + 1;
+        Box::new(ProfileError {
+            path: self.path.to_string(),
+            line,
+            key: key.to_string(),
+            message: message.into(),
+        })
+    }
+}
+
+/// One table of the file, with its dotted name for messages.
+struct Section<'s, 'a, 'i> {
+    src: &'s Source<'a>,
+    table: &'s DeTable<'i>,
+    prefix: String,
+    span: Range<usize>,
+}
+
+impl<'s, 'a, 'i> Section<'s, 'a, 'i> {
+    fn key(&self, key: &str) -> String {
+        format!("{}.{key}", self.prefix)
+    }
+
+    fn fail(&self, key: &str, span: Range<usize>, message: impl Into<String>) -> Fail {
+        self.src.fail(span, &self.key(key), message)
+    }
+
+    /// Refuses a key not in `allowed`.
+    fn known(&self, allowed: &[&str]) -> Parsed<()> {
+        for (key, _) in self.table.iter() {
+            let name: &str = key.get_ref();
+            if !allowed.contains(&name) {
+                return Err(self.fail(
+                    name,
+                    key.span(),
+                    format!("unknown key (known: {})", allowed.join(", ")),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    fn get(&self, key: &str) -> Option<&'s Spanned<DeValue<'i>>> {
+        self.table.get(key)
+    }
+
+    fn span_of(&self, key: &str) -> Range<usize> {
+        self.get(key).map_or(self.span.clone(), Spanned::span)
+    }
+
+    fn string(&self, key: &str) -> Parsed<Option<&'s str>> {
+        match self.get(key).map(|v| (v.get_ref(), v.span())) {
+            None => Ok(None),
+            Some((DeValue::String(s), _)) => Ok(Some(s.as_ref())),
+            Some((other, span)) => Err(self.fail(key, span, wrong("a string", other))),
+        }
+    }
+
+    fn int(&self, key: &str) -> Parsed<Option<i128>> {
+        match self.get(key).map(|v| (v.get_ref(), v.span())) {
+            None => Ok(None),
+            Some((DeValue::Integer(i), span)) => i128::from_str_radix(i.as_str(), i.radix())
+                .map(Some)
+                .map_err(|_| self.fail(key, span, "integer out of range")),
+            Some((other, span)) => Err(self.fail(key, span, wrong("an integer", other))),
+        }
+    }
+
+    fn number(&self, key: &str) -> Parsed<Option<f64>> {
+        let value = match self.get(key).map(|v| (v.get_ref(), v.span())) {
+            None => return Ok(None),
+            Some((DeValue::Integer(_), _)) => self.int(key)?.map(|i| i as f64),
+            Some((DeValue::Float(f), _)) => f.as_str().replace('_', "").parse::<f64>().ok(),
+            Some((other, span)) => return Err(self.fail(key, span, wrong("a number", other))),
+        };
+        match value {
+            Some(v) if v.is_finite() => Ok(Some(v)),
+            _ => Err(self.fail(key, self.span_of(key), "must be a finite number")),
+        }
+    }
+
+    fn boolean(&self, key: &str) -> Parsed<Option<bool>> {
+        match self.get(key).map(|v| (v.get_ref(), v.span())) {
+            None => Ok(None),
+            Some((DeValue::Boolean(b), _)) => Ok(Some(*b)),
+            Some((other, span)) => Err(self.fail(key, span, wrong("true or false", other))),
+        }
+    }
+
+    /// An integer in `lo..=hi`.
+    fn int_in(&self, key: &str, lo: i128, hi: i128) -> Parsed<Option<i128>> {
+        match self.int(key)? {
+            Some(v) if !(lo..=hi).contains(&v) => Err(self.fail(
+                key,
+                self.span_of(key),
+                format!("must be {lo} to {hi}, got {v}"),
+            )),
+            v => Ok(v),
+        }
+    }
+
+    /// One of `choices`.
+    fn choice(&self, key: &str, choices: &[&str]) -> Parsed<Option<&'s str>> {
+        match self.string(key)? {
+            Some(s) if !choices.contains(&s) => Err(self.fail(
+                key,
+                self.span_of(key),
+                format!("must be one of {}, got {s:?}", quoted(choices)),
+            )),
+            s => Ok(s),
+        }
+    }
+}
+
+fn wrong(expected: &str, got: &DeValue<'_>) -> String {
+    let kind = match got {
+        DeValue::String(_) => "a string",
+        DeValue::Integer(_) => "an integer",
+        DeValue::Float(_) => "a float",
+        DeValue::Boolean(_) => "a bool",
+        DeValue::Datetime(_) => "a date",
+        DeValue::Array(_) => "an array",
+        DeValue::Table(_) => "a table",
+    };
+    format!("must be {expected}, got {kind}")
+}
+
+fn quoted(choices: &[&str]) -> String {
+    choices
+        .iter()
+        .map(|c| format!("{c:?}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+/// Whether `name` is a Python identifier (ASCII) and not a keyword.
+pub fn is_identifier(name: &str) -> bool {
+    let mut chars = name.chars();
+    matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
+        && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
+        && !PYTHON_KEYWORDS.contains(&name)
+}
+
+/// The raw values a number kind holds.
+fn raw_range(kind: Kind) -> (f64, f64) {
+    match kind {
+        Kind::U16 => (0.0, 65535.0),
+        Kind::I16 => (-32768.0, 32767.0),
+        Kind::U32 => (0.0, 4_294_967_295.0),
+        Kind::I32 => (-2_147_483_648.0, 2_147_483_647.0),
+        Kind::U64 => (0.0, u64::MAX as f64),
+        Kind::I64 => (i64::MIN as f64, i64::MAX as f64),
+        Kind::F32 => (-f64::from(f32::MAX), f64::from(f32::MAX)),
+        Kind::F64 => (f64::MIN, f64::MAX),
+    }
+}
+
+/// The integers an integer kind holds, or None for a float kind.
+fn int_range(kind: Kind) -> Option<(i128, i128)> {
+    match kind {
+        Kind::U16 => Some((0, 0xFFFF)),
+        Kind::I16 => Some((-0x8000, 0x7FFF)),
+        Kind::U32 => Some((0, 0xFFFF_FFFF)),
+        Kind::I32 => Some((i128::from(i32::MIN), i128::from(i32::MAX))),
+        Kind::U64 => Some((0, i128::from(u64::MAX))),
+        Kind::I64 => Some((i128::from(i64::MIN), i128::from(i64::MAX))),
+        Kind::F32 | Kind::F64 => None,
+    }
+}
+
+const TOP_KEYS: &[&str] = &["device", "line", "limits", "register"];
+const DEVICE_KEYS: &[&str] = &["name", "description"];
+const LINE_KEYS: &[&str] = &[
+    "baudrate", "parity", "stopbits", "timeout", "framing", "bytesize",
+];
+const LIMIT_KEYS: &[&str] = &["max_read", "max_write", "min_write_interval", "block_reads"];
+const REGISTER_KEYS: &[&str] = &[
+    "name",
+    "address",
+    "table",
+    "type",
+    "order",
+    "scale",
+    "offset",
+    "unit",
+    "access",
+    "min",
+    "max",
+    "description",
+    "enum",
+    "default",
+    "bit",
+    "length",
+];
+
+impl Profile {
+    /// Reads and checks the profile file at `path`.
+    ///
+    /// # Errors
+    /// A [`ProfileError`] for a file that cannot be read (line 0) or any mistake in it.
+    pub fn load(path: &std::path::Path) -> Result<Profile, Box<ProfileError>> {
+        let shown = path.display().to_string();
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            Box::new(ProfileError {
+                path: shown.clone(),
+                line: 0,
+                key: String::new(),
+                message: format!("cannot read the file: {e}"),
+            })
+        })?;
+        Profile::parse(&shown, &text)
+    }
+
+    /// Checks the profile `text`, read from `path` (used only in errors).
+    ///
+    /// # Errors
+    /// A [`ProfileError`] for the first mistake in it.
+    pub fn parse(path: &str, text: &str) -> Result<Profile, Box<ProfileError>> {
+        let src = Source { path, text };
+        let root = DeTable::parse(text).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            src.fail(span, "", e.message().trim().to_string())
+        })?;
+        let top = Section {
+            src: &src,
+            table: root.get_ref(),
+            prefix: String::new(),
+            span: root.span(),
+        };
+        for (key, _) in top.table.iter() {
+            if !TOP_KEYS.contains(&key.get_ref().as_ref()) {
+                return Err(src.fail(
+                    key.span(),
+                    key.get_ref(),
+                    format!("unknown section (known: {})", TOP_KEYS.join(", ")),
+                ));
+            }
+        }
+        let device = sub(&top, "device")?
+            .ok_or_else(|| src.fail(0..0, "device", "missing [device] with its name"))?;
+        device.known(DEVICE_KEYS)?;
+        let name = device
+            .string("name")?
+            .ok_or_else(|| device.fail("name", device.span.clone(), "missing (required)"))?;
+        if name.trim().is_empty() {
+            return Err(device.fail("name", device.span_of("name"), "must not be empty"));
+        }
+        let description = device.string("description")?.unwrap_or("").to_string();
+        let line = match sub(&top, "line")? {
+            Some(s) => line_settings(&s)?,
+            None => LineSettings::default(),
+        };
+        let limits = match sub(&top, "limits")? {
+            Some(s) => limits(&s)?,
+            None => Limits::default(),
+        };
+        let registers = registers(&top)?;
+        Ok(Profile {
+            name: name.to_string(),
+            description,
+            line,
+            limits,
+            registers,
+        })
+    }
+}
+
+/// The table `key` of `parent`, if there.
+fn sub<'s, 'a, 'i>(parent: &Section<'s, 'a, 'i>, key: &str) -> Parsed<Option<Section<'s, 'a, 'i>>> {
+    match parent.get(key).map(|v| (v.get_ref(), v.span())) {
+        None => Ok(None),
+        Some((DeValue::Table(t), span)) => Ok(Some(Section {
+            src: parent.src,
+            table: t,
+            prefix: key.to_string(),
+            span,
+        })),
+        Some((other, span)) => Err(parent.src.fail(span, key, wrong("a table", other))),
+    }
+}
+
+fn line_settings(s: &Section<'_, '_, '_>) -> Parsed<LineSettings> {
+    s.known(LINE_KEYS)?;
+    let timeout = s.number("timeout")?;
+    if let Some(t) = timeout {
+        if t <= 0.0 {
+            return Err(s.fail("timeout", s.span_of("timeout"), "must be above 0 s"));
+        }
+    }
+    Ok(LineSettings {
+        baudrate: s.int_in("baudrate", 1, 4_000_000)?.map(|b| b as u32),
+        parity: s
+            .choice("parity", &["N", "E", "O"])?
+            .and_then(|p| p.chars().next()),
+        stopbits: s.int_in("stopbits", 1, 2)?.map(|b| b as u8),
+        timeout,
+        framing: s.choice("framing", &["rtu", "ascii"])?.map(str::to_string),
+        bytesize: s.int_in("bytesize", 7, 8)?.map(|b| b as u8),
+    })
+}
+
+fn limits(s: &Section<'_, '_, '_>) -> Parsed<Limits> {
+    s.known(LIMIT_KEYS)?;
+    let interval = s.number("min_write_interval")?;
+    if let Some(t) = interval {
+        if t < 0.0 {
+            return Err(s.fail(
+                "min_write_interval",
+                s.span_of("min_write_interval"),
+                "must be 0 s or more",
+            ));
+        }
+    }
+    // 2000 bits is the most one read of coils may ask for; 1968 one write of coils.
+    Ok(Limits {
+        max_read: s.int_in("max_read", 1, 2000)?.map(|v| v as u16),
+        max_write: s.int_in("max_write", 1, 1968)?.map(|v| v as u16),
+        min_write_interval: interval,
+        block_reads: s.boolean("block_reads")?,
+    })
+}
+
+fn registers(top: &Section<'_, '_, '_>) -> Parsed<Vec<ProfileRegister>> {
+    let items = match top.get("register").map(|v| (v.get_ref(), v.span())) {
+        None => return Ok(Vec::new()),
+        Some((DeValue::Array(a), _)) => a,
+        Some((other, span)) => {
+            return Err(top.src.fail(
+                span,
+                "register",
+                wrong("an array of tables ([[register]])", other),
+            ))
+        }
+    };
+    let mut out: Vec<ProfileRegister> = Vec::new();
+    let mut names: HashSet<String> = HashSet::new();
+    // Per table: the registers (or bits) taken, by address: (owner index, bit or None).
+    let mut taken: BTreeMap<(u8, u32), Owners> = BTreeMap::new();
+    for (index, item) in items.iter().enumerate() {
+        let prefix = format!("register[{index}]");
+        let DeValue::Table(table) = item.get_ref() else {
+            return Err(top.src.fail(item.span(), &prefix, "must be a table"));
+        };
+        let s = Section {
+            src: top.src,
+            table,
+            prefix,
+            span: item.span(),
+        };
+        let reg = register(&s)?;
+        if !names.insert(reg.register.name.clone()) {
+            return Err(s.fail(
+                "name",
+                s.span_of("name"),
+                format!("duplicate name {:?}", reg.register.name),
+            ));
+        }
+        let table_id = reg.table as u8;
+        let bit = match reg.value {
+            ValueType::Bool { bit } => bit,
+            _ => None,
+        };
+        for address in
+            u32::from(reg.register.address)..u32::from(reg.register.address) + reg.value.width()
+        {
+            let owners = taken.entry((table_id, address)).or_default();
+            for (other, other_bit) in owners.iter() {
+                let shared = matches!((bit, other_bit), (Some(a), Some(b)) if a != *b);
+                if !shared {
+                    let other_name = out.get(*other).map_or("", |r| r.register.name.as_str());
+                    return Err(s.fail(
+                        "address",
+                        s.span_of("address"),
+                        format!("{address:#06x} overlaps {other_name:?}"),
+                    ));
+                }
+            }
+            owners.push((index, bit));
+        }
+        out.push(reg);
+    }
+    Ok(out)
+}
+
+fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
+    s.known(REGISTER_KEYS)?;
+    let line = s.src.fail(s.span.clone(), "", "").line;
+    let name = s
+        .string("name")?
+        .ok_or_else(|| s.fail("name", s.span.clone(), "missing (required)"))?;
+    if !is_identifier(name) {
+        return Err(s.fail(
+            "name",
+            s.span_of("name"),
+            format!("{name:?} is not a Python identifier"),
+        ));
+    }
+    if RESERVED_NAMES.contains(&name) || name.starts_with('_') {
+        return Err(s.fail(
+            "name",
+            s.span_of("name"),
+            format!("{name:?} would shadow a member of the device"),
+        ));
+    }
+    let address =
+        s.int_in("address", 0, 0xFFFF)?
+            .ok_or_else(|| s.fail("address", s.span.clone(), "missing (required)"))? as u16;
+    let table = match s.choice("table", &["holding", "input", "coil", "discrete"])? {
+        None | Some("holding") => Table::Holding,
+        Some("input") => Table::Input,
+        Some("coil") => Table::Coils,
+        _ => Table::Discrete,
+    };
+    let value = value_type(s, table)?;
+    let width = value.width();
+    if u32::from(address) + width - 1 > 0xFFFF {
+        return Err(s.fail(
+            "address",
+            s.span_of("address"),
+            format!("a {} from {address:#06x} runs past 0xFFFF", value.name()),
+        ));
+    }
+    let kind = match value {
+        ValueType::Number(kind) => Some(kind),
+        _ => None,
+    };
+    let layout = match s.string("order")? {
+        None => Layout::Abcd,
+        Some(_) if matches!(value, ValueType::Bool { .. }) => {
+            return Err(s.fail("order", s.span_of("order"), "a bool has no byte order"))
+        }
+        Some(o) => Layout::from_name(o).ok_or_else(|| {
+            s.fail(
+                "order",
+                s.span_of("order"),
+                format!("must be one of \"ABCD\", \"CDAB\", \"BADC\", \"DCBA\", got {o:?}"),
+            )
+        })?,
+    };
+    for key in ["scale", "offset", "min", "max", "enum"] {
+        if kind.is_none() && s.get(key).is_some() {
+            return Err(s.fail(
+                key,
+                s.span_of(key),
+                format!("a {} register takes no {key}", value.name()),
+            ));
+        }
+    }
+    let scale = s.number("scale")?.unwrap_or(1.0);
+    if scale == 0.0 {
+        return Err(s.fail("scale", s.span_of("scale"), "must not be 0"));
+    }
+    let offset = s.number("offset")?.unwrap_or(0.0);
+    let read_only = matches!(table, Table::Input | Table::Discrete);
+    let access = match s.choice("access", &["r", "rw", "w"])? {
+        None if read_only => Access::Read,
+        None => Access::ReadWrite,
+        Some("r") => Access::Read,
+        Some(_) if read_only => {
+            return Err(s.fail(
+                "access",
+                s.span_of("access"),
+                format!("{} is read-only", table_name(table)),
+            ))
+        }
+        Some("rw") => Access::ReadWrite,
+        _ => Access::Write,
+    };
+    let range = match kind {
+        Some(kind) => range(s, kind, scale, offset)?,
+        None => (0.0, 0.0),
+    };
+    let members = match kind {
+        Some(kind) => members(s, kind)?,
+        None => Vec::new(),
+    };
+    if !members.is_empty() && (scale != 1.0 || offset != 0.0) {
+        return Err(s.fail(
+            "enum",
+            s.span_of("enum"),
+            "an enum register takes no scale or offset",
+        ));
+    }
+    let default = default(s, value, (range, scale, offset), &members)?;
+    Ok(ProfileRegister {
+        register: Register {
+            name: name.to_string(),
+            address,
+            scale,
+            signed: matches!(kind, Some(Kind::I16 | Kind::I32 | Kind::I64)),
+            unit: s.string("unit")?.unwrap_or("").to_string(),
+            access,
+            range,
+        },
+        table,
+        value,
+        layout,
+        offset,
+        members,
+        default,
+        description: s.string("description")?.unwrap_or("").to_string(),
+        line,
+    })
+}
+
+fn table_name(table: Table) -> &'static str {
+    match table {
+        Table::Holding => "holding",
+        Table::Input => "input",
+        Table::Coils => "coil",
+        Table::Discrete => "discrete",
+    }
+}
+
+fn value_type(s: &Section<'_, '_, '_>, table: Table) -> Parsed<ValueType> {
+    let named = s.string("type")?;
+    let value = match named {
+        None if table.holds_bits() => ValueType::Bool { bit: None },
+        None => ValueType::Number(Kind::U16),
+        Some("bool") => ValueType::Bool { bit: None },
+        Some("string") => ValueType::Text { length: 0 },
+        Some(t) => match Kind::from_name(t).filter(|k| k.name() == t) {
+            Some(kind) => ValueType::Number(kind),
+            None => {
+                return Err(s.fail(
+                    "type",
+                    s.span_of("type"),
+                    format!(
+                        "must be one of \"u16\", \"i16\", \"u32\", \"i32\", \"u64\", \"i64\", \
+                         \"f32\", \"f64\", \"bool\", \"string\", got {t:?}"
+                    ),
+                ))
+            }
+        },
+    };
+    if table.holds_bits() && !matches!(value, ValueType::Bool { .. }) {
+        return Err(s.fail(
+            "type",
+            s.span_of("type"),
+            format!(
+                "a {} table holds bits: its type is bool, not {}",
+                table_name(table),
+                value.name()
+            ),
+        ));
+    }
+    let bit = s.int_in("bit", 0, 15)?;
+    if bit.is_some() && (table.holds_bits() || !matches!(value, ValueType::Bool { .. })) {
+        return Err(s.fail(
+            "bit",
+            s.span_of("bit"),
+            "only a bool on a holding or input register takes a bit",
+        ));
+    }
+    let length = s.int_in("length", 1, 0xFFFF)?;
+    match value {
+        ValueType::Text { .. } => {
+            let length = length.ok_or_else(|| {
+                s.fail(
+                    "length",
+                    s.span.clone(),
+                    "missing: a string takes a length (registers)",
+                )
+            })?;
+            Ok(ValueType::Text {
+                length: length as u16,
+            })
+        }
+        _ if length.is_some() => Err(s.fail(
+            "length",
+            s.span_of("length"),
+            "only a string takes a length",
+        )),
+        ValueType::Bool { .. } => Ok(ValueType::Bool {
+            bit: bit.map(|b| b as u8),
+        }),
+        other => Ok(other),
+    }
+}
+
+/// The engineering range: `min`/`max`, checked against what the type holds.
+fn range(s: &Section<'_, '_, '_>, kind: Kind, scale: f64, offset: f64) -> Parsed<(f64, f64)> {
+    let (raw_lo, raw_hi) = raw_range(kind);
+    let (a, b) = (raw_lo * scale + offset, raw_hi * scale + offset);
+    let (lo, hi) = (a.min(b), a.max(b));
+    let min = s.number("min")?;
+    let max = s.number("max")?;
+    // A margin for the float rounding of scale and offset.
+    let slack = |v: f64| 1e-9 * v.abs().max(1.0);
+    for (key, value) in [("min", min), ("max", max)] {
+        if let Some(v) = value {
+            if v < lo - slack(lo) || v > hi + slack(hi) {
+                return Err(s.fail(
+                    key,
+                    s.span_of(key),
+                    format!("{v} is outside what a {} holds ({lo} to {hi})", kind.name()),
+                ));
+            }
+        }
+    }
+    let (min, max) = (min.unwrap_or(lo), max.unwrap_or(hi));
+    if min > max {
+        return Err(s.fail(
+            "min",
+            s.span_of("min"),
+            format!("min {min} is above max {max}"),
+        ));
+    }
+    Ok((min, max))
+}
+
+fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
+    let span = s.span_of("enum");
+    let table = match s.get("enum").map(Spanned::get_ref) {
+        None => return Ok(Vec::new()),
+        Some(DeValue::Table(t)) => t,
+        Some(other) => return Err(s.fail("enum", span, wrong("a table { 0 = \"name\" }", other))),
+    };
+    let Some((lo, hi)) = int_range(kind) else {
+        return Err(s.fail(
+            "enum",
+            span,
+            format!("a {} register takes no enum", kind.name()),
+        ));
+    };
+    if table.is_empty() {
+        return Err(s.fail("enum", span, "must name at least one member"));
+    }
+    let mut out: Vec<(i128, String)> = Vec::new();
+    for (key, value) in table.iter() {
+        let text: &str = key.get_ref();
+        let key_name = format!("enum.{text}");
+        let number = parse_int(text)
+            .ok_or_else(|| s.fail(&key_name, key.span(), format!("{text:?} is not an integer")))?;
+        if !(lo..=hi).contains(&number) {
+            return Err(s.fail(
+                &key_name,
+                key.span(),
+                format!("{number} does not fit a {} ({lo} to {hi})", kind.name()),
+            ));
+        }
+        let DeValue::String(member) = value.get_ref() else {
+            return Err(s.fail(&key_name, value.span(), wrong("a name", value.get_ref())));
+        };
+        if !is_identifier(member) {
+            return Err(s.fail(
+                &key_name,
+                value.span(),
+                format!("{member:?} is not a Python identifier"),
+            ));
+        }
+        if out
+            .iter()
+            .any(|(n, m)| *n == number || m == member.as_ref())
+        {
+            return Err(s.fail(
+                &key_name,
+                key.span(),
+                format!("duplicate member {member:?} = {number}"),
+            ));
+        }
+        out.push((number, member.to_string()));
+    }
+    out.sort_by_key(|(n, _)| *n);
+    Ok(out)
+}
+
+/// An integer written as an enum key: decimal (with a sign) or 0x / 0o / 0b.
+fn parse_int(text: &str) -> Option<i128> {
+    let t = text.replace('_', "");
+    let (negative, digits) = match t.strip_prefix('-') {
+        Some(rest) => (true, rest),
+        None => (false, t.strip_prefix('+').unwrap_or(&t)),
+    };
+    let (radix, digits) = match digits.get(..2) {
+        Some("0x") | Some("0X") => (16, &digits[2..]),
+        Some("0o") => (8, &digits[2..]),
+        Some("0b") => (2, &digits[2..]),
+        _ => (10, digits),
+    };
+    if digits.is_empty() || digits.starts_with(['+', '-']) {
+        return None;
+    }
+    let v = i128::from_str_radix(digits, radix).ok()?;
+    Some(if negative { -v } else { v })
+}
+
+fn default(
+    s: &Section<'_, '_, '_>,
+    value: ValueType,
+    (range, scale, offset): ((f64, f64), f64, f64),
+    members: &[(i128, String)],
+) -> Parsed<Option<ProfileValue>> {
+    let Some(given) = s.get("default") else {
+        return Ok(None);
+    };
+    let span = given.span();
+    let bad = |message: String| Err(s.fail("default", span.clone(), message));
+    let got = given.get_ref();
+    match (value, got) {
+        (ValueType::Bool { .. }, DeValue::Boolean(b)) => Ok(Some(ProfileValue::Bool(*b))),
+        (ValueType::Bool { .. }, other) => bad(wrong("true or false", other)),
+        (ValueType::Text { length }, DeValue::String(t)) => {
+            if !t.is_ascii() || t.len() > 2 * usize::from(length) {
+                bad(format!(
+                    "must be ASCII text of at most {} characters",
+                    2 * usize::from(length)
+                ))
+            } else {
+                Ok(Some(ProfileValue::Text(t.to_string())))
+            }
+        }
+        (ValueType::Text { .. }, other) => bad(wrong("a string", other)),
+        (ValueType::Number(_), DeValue::String(t)) if !members.is_empty() => {
+            match members.iter().find(|(_, m)| m == t.as_ref()) {
+                Some(_) => Ok(Some(ProfileValue::Text(t.to_string()))),
+                None => bad(format!("{t:?} is not a member of the enum")),
+            }
+        }
+        (ValueType::Number(kind), DeValue::Integer(_) | DeValue::Float(_)) => {
+            let v = s.number("default")?.unwrap_or(0.0);
+            if !members.is_empty() {
+                let member = s.int("default").ok().flatten();
+                return match member.filter(|n| members.iter().any(|(m, _)| m == n)) {
+                    Some(n) => Ok(Some(ProfileValue::Int(n))),
+                    None => bad(format!("{v} is not a member of the enum")),
+                };
+            }
+            if v < range.0 || v > range.1 {
+                return bad(format!("{v} is outside {} to {}", range.0, range.1));
+            }
+            let steps = (v - offset) / scale;
+            if int_range(kind).is_some() && (steps - steps.round()).abs() > 1e-6 {
+                return bad(format!("{v} is not a whole number of steps of {scale}"));
+            }
+            match (int_range(kind), s.int("default").ok().flatten()) {
+                (Some(_), Some(n)) => Ok(Some(ProfileValue::Int(n))),
+                _ => Ok(Some(ProfileValue::Float(v))),
+            }
+        }
+        (ValueType::Number(_), other) => bad(wrong("a number", other)),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const EXAMPLE: &str = r#"[device]
+name = "XY-MD02"                 # shown in reprs, CLI, errors
+description = "RS485 temperature and humidity sensor"
+
+[line]
+baudrate = 9600
+parity = "N"
+
+[limits]
+max_read = 10
+max_write = 1
+min_write_interval = 0.0
+block_reads = true
+
+[[register]]
+name = "temperature"
+address = 0x0001
+table = "input"
+type = "i16"
+order = "ABCD"
+scale = 0.1
+unit = "degC"
+access = "r"
+min = -40.0
+max = 125.0
+description = "air temperature"
+
+[[register]]
+name = "mode"
+address = 0x0101
+access = "rw"
+enum = { 0 = "off", 1 = "heat", 2 = "cool" }
+"#;
+
+    #[test]
+    fn the_example_parses() {
+        let p = Profile::parse("xy.toml", EXAMPLE).unwrap();
+        assert_eq!(p.name, "XY-MD02");
+        assert_eq!(p.line.baudrate, Some(9600));
+        assert_eq!(p.line.parity, Some('N'));
+        assert_eq!(p.limits.max_read, Some(10));
+        assert_eq!(p.limits.block_reads, Some(true));
+        let t = &p.registers[0];
+        assert_eq!(t.register.name, "temperature");
+        assert_eq!(t.register.address, 1);
+        assert_eq!(t.table, Table::Input);
+        assert_eq!(t.value, ValueType::Number(Kind::I16));
+        assert_eq!(t.register.access, Access::Read);
+        assert_eq!(t.register.range, (-40.0, 125.0));
+        assert!(t.register.signed);
+        assert_eq!(t.line, 15);
+        assert!((t.register.decode(0xFFCE) + 5.0).abs() < 1e-9);
+        let m = &p.registers[1];
+        assert_eq!(m.table, Table::Holding);
+        assert_eq!(m.value, ValueType::Number(Kind::U16));
+        assert_eq!(m.register.access, Access::ReadWrite);
+        assert_eq!(
+            m.members,
+            vec![(0, "off".into()), (1, "heat".into()), (2, "cool".into())]
+        );
+    }
+
+    #[test]
+    fn a_table_row_and_its_profile_row_are_the_same_register() {
+        let row = super::super::pbl::PARAMETERS
+            .iter()
+            .find(|r| r.name == "max_speed")
+            .unwrap();
+        let text = "[device]\nname = \"pbl\"\n[[register]]\nname = \"max_speed\"\n\
+                    address = 124\nunit = \"rpm\"\n";
+        let p = Profile::parse("pbl.toml", text).unwrap();
+        assert_eq!(p.registers[0].register, row.owned());
+        assert_eq!(
+            p.registers[0].register.encode(3000.0).ok(),
+            row.encode(3000.0).ok()
+        );
+    }
+
+    fn error(extra: &str) -> ProfileError {
+        let text = format!("[device]\nname = \"d\"\n{extra}");
+        *Profile::parse("d.toml", &text).unwrap_err()
+    }
+
+    /// `body` after two lines of [device]: the error's line and key.
+    fn fails(body: &str, line: usize, key: &str) {
+        let e = error(body);
+        assert_eq!((e.line, e.key.as_str()), (line, key), "{e}");
+        assert!(
+            e.to_string()
+                .starts_with(&format!("d.toml:{line}: {key}: ")),
+            "{e}"
+        );
+    }
+
+    const R: &str = "[[register]]\nname = \"a\"\naddress = 1\n"; // lines 3..5
+
+    #[test]
+    fn unknown_keys_at_every_level() {
+        fails("colour = 1\n", 3, "device.colour");
+        let e = *Profile::parse("d.toml", "colour = 1\n[device]\nname = \"d\"\n").unwrap_err();
+        assert_eq!((e.line, e.key.as_str()), (1, "colour"));
+        fails("[line]\nbaud = 1\n", 4, "line.baud");
+        fails("[limits]\nmax = 1\n", 4, "limits.max");
+        fails(&format!("{R}scal = 1\n"), 6, "register[0].scal");
+        let e = *Profile::parse("d.toml", "[device]\nname = \"d\"\nnick = \"x\"\n").unwrap_err();
+        assert_eq!((e.line, e.key.as_str()), (3, "device.nick"));
+    }
+
+    #[test]
+    fn missing_required_keys() {
+        fails("[[register]]\naddress = 1\n", 3, "register[0].name");
+        fails("[[register]]\nname = \"a\"\n", 3, "register[0].address");
+        let e = *Profile::parse("d.toml", "[line]\nbaudrate = 9600\n").unwrap_err();
+        assert_eq!(e.key, "device");
+        let e = *Profile::parse("d.toml", "[device]\ndescription = \"x\"\n").unwrap_err();
+        assert_eq!((e.line, e.key.as_str()), (1, "device.name"));
+    }
+
+    #[test]
+    fn names() {
+        fails(
+            &format!("{R}[[register]]\nname = \"a\"\naddress = 2\n"),
+            7,
+            "register[1].name",
+        );
+        fails(
+            "[[register]]\nname = \"2x\"\naddress = 1\n",
+            4,
+            "register[0].name",
+        );
+        fails(
+            "[[register]]\nname = \"class\"\naddress = 1\n",
+            4,
+            "register[0].name",
+        );
+        for reserved in RESERVED_NAMES {
+            fails(
+                &format!("[[register]]\nname = \"{reserved}\"\naddress = 1\n"),
+                4,
+                "register[0].name",
+            );
+        }
+    }
+
+    #[test]
+    fn addresses() {
+        fails(
+            "[[register]]\nname = \"a\"\naddress = 0x10000\n",
+            5,
+            "register[0].address",
+        );
+        fails(
+            "[[register]]\nname = \"a\"\naddress = -1\n",
+            5,
+            "register[0].address",
+        );
+        fails(
+            "[[register]]\nname = \"a\"\naddress = 0xFFFF\ntype = \"u32\"\n",
+            5,
+            "register[0].address",
+        );
+        fails(
+            "[[register]]\nname = \"a\"\naddress = 0xFFFE\ntype = \"string\"\nlength = 3\n",
+            5,
+            "register[0].address",
+        );
+        // A u32 at 1 covers 2.
+        fails(
+            "[[register]]\nname = \"a\"\naddress = 1\ntype = \"u32\"\n\
+             [[register]]\nname = \"b\"\naddress = 2\n",
+            9,
+            "register[1].address",
+        );
+        // A string of 3 at 10 covers 12.
+        fails(
+            "[[register]]\nname = \"a\"\naddress = 10\ntype = \"string\"\nlength = 3\n\
+             [[register]]\nname = \"b\"\naddress = 12\n",
+            10,
+            "register[1].address",
+        );
+        // The same bit twice, or a bit on a register a number uses.
+        let bit = |n: &str, b: u8| {
+            format!("[[register]]\nname = \"{n}\"\naddress = 5\ntype = \"bool\"\nbit = {b}\n")
+        };
+        fails(
+            &format!("{}{}", bit("a", 1), bit("b", 1)),
+            10,
+            "register[1].address",
+        );
+        fails(
+            &format!("{}{R}", bit("a", 1)).replace("\"a\"\naddress = 1\n", "\"c\"\naddress = 5\n"),
+            10,
+            "register[1].address",
+        );
+        // Distinct bits share a register; other tables are apart.
+        let text = format!("[device]\nname = \"d\"\n{}{}", bit("a", 1), bit("b", 2));
+        assert!(Profile::parse("d.toml", &text).is_ok());
+        let text = "[device]\nname = \"d\"\n[[register]]\nname = \"a\"\naddress = 1\n\
+                    [[register]]\nname = \"b\"\naddress = 1\ntable = \"input\"\n";
+        assert!(Profile::parse("d.toml", text).is_ok());
+    }
+
+    #[test]
+    fn types_and_tables() {
+        fails(&format!("{R}type = \"u8\"\n"), 6, "register[0].type");
+        fails(
+            &format!("{R}table = \"coil\"\ntype = \"u16\"\n"),
+            7,
+            "register[0].type",
+        );
+        fails(
+            &format!("{R}table = \"discrete\"\ntype = \"f32\"\n"),
+            7,
+            "register[0].type",
+        );
+        fails(
+            &format!("{R}table = \"holdings\"\n"),
+            6,
+            "register[0].table",
+        );
+        fails(
+            &format!("{R}table = \"coil\"\nbit = 1\n"),
+            7,
+            "register[0].bit",
+        );
+        fails(
+            &format!("{R}type = \"u16\"\nbit = 1\n"),
+            7,
+            "register[0].bit",
+        );
+        fails(
+            &format!("{R}type = \"bool\"\nbit = 16\n"),
+            7,
+            "register[0].bit",
+        );
+        fails(&format!("{R}type = \"string\"\n"), 3, "register[0].length");
+        fails(&format!("{R}length = 2\n"), 6, "register[0].length");
+        fails(
+            &format!("{R}type = \"bool\"\nscale = 2\n"),
+            7,
+            "register[0].scale",
+        );
+        let text = format!("[device]\nname = \"d\"\n{R}table = \"coil\"\n");
+        let p = Profile::parse("d.toml", &text).unwrap();
+        assert_eq!(p.registers[0].value, ValueType::Bool { bit: None });
+        assert_eq!(p.registers[0].register.access, Access::ReadWrite);
+    }
+
+    #[test]
+    fn access_order_scale() {
+        fails(
+            &format!("{R}table = \"input\"\naccess = \"rw\"\n"),
+            7,
+            "register[0].access",
+        );
+        fails(
+            &format!("{R}table = \"discrete\"\naccess = \"w\"\n"),
+            7,
+            "register[0].access",
+        );
+        fails(&format!("{R}access = \"x\"\n"), 6, "register[0].access");
+        fails(
+            &format!("{R}type = \"u32\"\norder = \"ACBD\"\n"),
+            7,
+            "register[0].order",
+        );
+        fails(&format!("{R}scale = 0\n"), 6, "register[0].scale");
+        fails(&format!("{R}scale = 0.0\n"), 6, "register[0].scale");
+        fails(&format!("{R}scale = \"x\"\n"), 6, "register[0].scale");
+        fails(&format!("{R}offset = nan\n"), 6, "register[0].offset");
+    }
+
+    #[test]
+    fn ranges() {
+        fails(&format!("{R}min = 10\nmax = 5\n"), 6, "register[0].min");
+        fails(&format!("{R}min = -1\n"), 6, "register[0].min");
+        fails(&format!("{R}max = 65536\n"), 6, "register[0].max");
+        fails(
+            &format!("{R}type = \"i16\"\nscale = 0.1\nmax = 3276.8\n"),
+            8,
+            "register[0].max",
+        );
+        // Scaled, the range follows the scale.
+        let text =
+            format!("[device]\nname = \"d\"\n{R}type = \"i16\"\nscale = 0.1\nmax = 3276.7\n");
+        assert!(Profile::parse("d.toml", &text).is_ok());
+    }
+
+    #[test]
+    fn enums() {
+        fails(
+            &format!("{R}enum = {{ x = \"off\" }}\n"),
+            6,
+            "register[0].enum.x",
+        );
+        fails(
+            &format!("{R}enum = {{ -1 = \"off\" }}\n"),
+            6,
+            "register[0].enum.-1",
+        );
+        fails(
+            &format!("{R}type = \"i16\"\nenum = {{ 40000 = \"off\" }}\n"),
+            7,
+            "register[0].enum.40000",
+        );
+        fails(
+            &format!("{R}enum = {{ 0 = \"2off\" }}\n"),
+            6,
+            "register[0].enum.0",
+        );
+        fails(
+            &format!("{R}enum = {{ 0 = \"off\", 1 = \"off\" }}\n"),
+            6,
+            "register[0].enum.1",
+        );
+        fails(&format!("{R}enum = {{ 0 = 1 }}\n"), 6, "register[0].enum.0");
+        fails(
+            &format!("{R}type = \"f32\"\nenum = {{ 0 = \"off\" }}\n"),
+            7,
+            "register[0].enum",
+        );
+        fails(
+            &format!("{R}enum = {{ 0 = \"off\" }}\nscale = 0.5\n"),
+            6,
+            "register[0].enum",
+        );
+        let text = format!("[device]\nname = \"d\"\n{R}enum = {{ 0x10 = \"hi\", 0 = \"lo\" }}\n");
+        let p = Profile::parse("d.toml", &text).unwrap();
+        assert_eq!(
+            p.registers[0].members,
+            vec![(0, "lo".into()), (16, "hi".into())]
+        );
+    }
+
+    #[test]
+    fn defaults() {
+        fails(&format!("{R}default = 70000\n"), 6, "register[0].default");
+        fails(&format!("{R}default = true\n"), 6, "register[0].default");
+        fails(
+            &format!("{R}scale = 0.5\ndefault = 1.25\n"),
+            7,
+            "register[0].default",
+        );
+        let text = format!("[device]\nname = \"d\"\n{R}scale = 0.5\ndefault = 1.5\n");
+        let p = Profile::parse("d.toml", &text).unwrap();
+        assert_eq!(p.registers[0].default, Some(ProfileValue::Float(1.5)));
+        fails(
+            &format!("{R}type = \"bool\"\ndefault = 1\n"),
+            7,
+            "register[0].default",
+        );
+        fails(
+            &format!("{R}type = \"string\"\nlength = 1\ndefault = \"abc\"\n"),
+            8,
+            "register[0].default",
+        );
+        fails(
+            &format!("{R}enum = {{ 0 = \"off\" }}\ndefault = \"on\"\n"),
+            7,
+            "register[0].default",
+        );
+        fails(
+            &format!("{R}enum = {{ 0 = \"off\" }}\ndefault = 3\n"),
+            7,
+            "register[0].default",
+        );
+        let text =
+            format!("[device]\nname = \"d\"\n{R}enum = {{ 0 = \"off\" }}\ndefault = \"off\"\n");
+        let p = Profile::parse("d.toml", &text).unwrap();
+        assert_eq!(
+            p.registers[0].default,
+            Some(ProfileValue::Text("off".into()))
+        );
+    }
+
+    #[test]
+    fn line_and_limits() {
+        fails("[line]\nparity = \"X\"\n", 4, "line.parity");
+        fails("[line]\nstopbits = 3\n", 4, "line.stopbits");
+        fails("[line]\nbytesize = 9\n", 4, "line.bytesize");
+        fails("[line]\nbaudrate = 0\n", 4, "line.baudrate");
+        fails("[line]\ntimeout = 0\n", 4, "line.timeout");
+        fails("[line]\nframing = \"tcp\"\n", 4, "line.framing");
+        fails("[limits]\nmax_read = 0\n", 4, "limits.max_read");
+        fails("[limits]\nmax_write = 2000\n", 4, "limits.max_write");
+        fails(
+            "[limits]\nmin_write_interval = -1\n",
+            4,
+            "limits.min_write_interval",
+        );
+        fails("[limits]\nblock_reads = 1\n", 4, "limits.block_reads");
+    }
+
+    #[test]
+    fn bad_toml_names_its_line() {
+        let e = error("[[register]]\nname = \n");
+        assert_eq!((e.line, e.key.as_str()), (4, ""));
+        assert!(e.to_string().starts_with("d.toml:4: "), "{e}");
+    }
+}

@@ -1,0 +1,264 @@
+"""Device profiles: the issue's example parsed by the core, and every mistake a ProfileError
+naming the file, the line and the key."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+import benchbus as bb
+from benchbus._core import load_profile
+
+EXAMPLE = """\
+[device]
+name = "XY-MD02"                 # shown in reprs, CLI, errors
+description = "RS485 temperature and humidity sensor"
+
+[line]                           # used when the device opens its own port
+baudrate = 9600
+parity = "N"
+
+[limits]                         # all optional
+max_read = 10                    # registers (or bits for coil tables) per request
+max_write = 1
+min_write_interval = 0.0         # s between writes to this unit (as on Instrument)
+block_reads = true               # may read neighbouring registers in one request
+
+[[register]]
+name = "temperature"             # a Python identifier; unique
+address = 0x0001                 # decimal or hex
+table = "input"                  # holding (default) | input | coil | discrete
+type = "i16"
+order = "ABCD"
+scale = 0.1                      # value = raw * scale + offset (offset optional)
+unit = "degC"
+access = "r"
+min = -40.0                      # checked before a write; also documents the range
+max = 125.0
+description = "air temperature"
+
+[[register]]
+name = "mode"
+address = 0x0101
+access = "rw"
+enum = { 0 = "off", 1 = "heat", 2 = "cool" }   # read as the name, written by name or number
+"""
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "device.toml"
+    path.write_text(text, encoding="utf-8")
+    return path
+
+
+def test_the_example_parses(tmp_path: Path) -> None:
+    p = load_profile(write(tmp_path, EXAMPLE))
+    assert p["name"] == "XY-MD02"
+    assert p["description"] == "RS485 temperature and humidity sensor"
+    assert p["line"] == {
+        "baudrate": 9600,
+        "parity": "N",
+        "stopbits": None,
+        "timeout": None,
+        "framing": None,
+        "bytesize": None,
+    }
+    assert p["limits"] == {
+        "max_read": 10,
+        "max_write": 1,
+        "min_write_interval": 0.0,
+        "block_reads": True,
+    }
+    temperature, mode = p["registers"]
+    assert temperature == {
+        "name": "temperature",
+        "address": 1,
+        "table": "input",
+        "type": "i16",
+        "bit": None,
+        "length": None,
+        "order": "ABCD",
+        "scale": 0.1,
+        "offset": 0.0,
+        "signed": True,
+        "unit": "degC",
+        "access": "r",
+        "min": -40.0,
+        "max": 125.0,
+        "enum": {},
+        "default": None,
+        "description": "air temperature",
+        "line": 15,
+    }
+    assert mode["address"] == 0x0101
+    assert mode["table"] == "holding"
+    assert mode["type"] == "u16"
+    assert mode["access"] == "rw"
+    assert mode["enum"] == {0: "off", 1: "heat", 2: "cool"}
+    assert (mode["min"], mode["max"]) == (0.0, 65535.0)
+    assert mode["line"] == 28
+
+
+def test_every_field_of_the_other_types(tmp_path: Path) -> None:
+    text = """\
+[device]
+name = "relay"
+[line]
+stopbits = 2
+parity = "E"
+timeout = 0.25
+framing = "ascii"
+bytesize = 7
+[[register]]
+name = "relay1"
+address = 0
+table = "coil"
+default = true
+[[register]]
+name = "alarm"
+address = 7
+type = "bool"
+bit = 3
+[[register]]
+name = "fault"
+address = 7
+type = "bool"
+bit = 4
+access = "r"
+[[register]]
+name = "label"
+address = 8
+type = "string"
+length = 4
+default = "relay"
+[[register]]
+name = "energy"
+address = 20
+table = "input"
+type = "f64"
+order = "CDAB"
+offset = -1.5
+[[register]]
+name = "command"
+address = 30
+access = "w"
+default = 7
+"""
+    p = load_profile(str(write(tmp_path, text)))
+    assert p["line"] == {
+        "baudrate": None,
+        "parity": "E",
+        "stopbits": 2,
+        "timeout": 0.25,
+        "framing": "ascii",
+        "bytesize": 7,
+    }
+    rows = {r["name"]: r for r in p["registers"]}
+    assert list(rows) == ["relay1", "alarm", "fault", "label", "energy", "command"]
+    assert (rows["relay1"]["type"], rows["relay1"]["access"], rows["relay1"]["default"]) == (
+        "bool",
+        "rw",
+        True,
+    )
+    assert (rows["alarm"]["bit"], rows["fault"]["bit"], rows["fault"]["access"]) == (3, 4, "r")
+    assert (rows["label"]["length"], rows["label"]["default"]) == (4, "relay")
+    assert rows["label"]["min"] is None
+    assert (rows["energy"]["order"], rows["energy"]["offset"]) == ("CDAB", -1.5)
+    assert rows["energy"]["access"] == "r"
+    assert (rows["command"]["access"], rows["command"]["default"]) == ("w", 7)
+
+
+HEAD = '[device]\nname = "d"\n'  # lines 1-2
+REG = '[[register]]\nname = "a"\naddress = 1\n'  # lines 3-5
+
+# (what follows HEAD, the line, the key)
+CASES = [
+    ("colour = 1\n", 3, "device.colour"),
+    ("[line]\nbaud = 9600\n", 4, "line.baud"),
+    ("[limits]\nmax = 1\n", 4, "limits.max"),
+    (REG + "scal = 0.1\n", 6, "register[0].scal"),
+    ("[[register]]\naddress = 1\n", 3, "register[0].name"),
+    ('[[register]]\nname = "a"\n', 3, "register[0].address"),
+    (REG + REG, 7, "register[1].name"),
+    ('[[register]]\nname = "2x"\naddress = 1\n', 4, "register[0].name"),
+    ('[[register]]\nname = "my-reg"\naddress = 1\n', 4, "register[0].name"),
+    ('[[register]]\nname = "read"\naddress = 1\n', 4, "register[0].name"),
+    ('[[register]]\nname = "sample"\naddress = 1\n', 4, "register[0].name"),
+    ('[[register]]\nname = "bus"\naddress = 1\n', 4, "register[0].name"),
+    ('[[register]]\nname = "a"\naddress = 0x10000\n', 5, "register[0].address"),
+    ('[[register]]\nname = "a"\naddress = 0xFFFE\ntype = "u64"\n', 5, "register[0].address"),
+    (
+        '[[register]]\nname = "a"\naddress = 1\ntype = "f32"\n'
+        '[[register]]\nname = "b"\naddress = 2\n',
+        9,
+        "register[1].address",
+    ),
+    (
+        '[[register]]\nname = "a"\naddress = 4\ntype = "bool"\nbit = 2\n'
+        '[[register]]\nname = "b"\naddress = 4\ntype = "bool"\nbit = 2\n',
+        10,
+        "register[1].address",
+    ),
+    (REG + 'table = "coil"\ntype = "u16"\n', 7, "register[0].type"),
+    (REG + 'table = "discrete"\ntype = "string"\nlength = 1\n', 7, "register[0].type"),
+    (REG + 'type = "u8"\n', 6, "register[0].type"),
+    (REG + 'table = "coil"\nbit = 0\n', 7, "register[0].bit"),
+    (REG + 'type = "i16"\nbit = 0\n', 7, "register[0].bit"),
+    (REG + 'type = "bool"\nbit = 16\n', 7, "register[0].bit"),
+    (REG + 'type = "string"\n', 3, "register[0].length"),
+    (REG + 'enum = { one = "a" }\n', 6, "register[0].enum.one"),
+    (REG + 'type = "i16"\nenum = { 32768 = "big" }\n', 7, "register[0].enum.32768"),
+    (REG + 'enum = { 0 = "not ok" }\n', 6, "register[0].enum.0"),
+    (REG + 'enum = { 0 = "on", 1 = "on" }\n', 6, "register[0].enum.1"),
+    (REG + "min = 5\nmax = 1\n", 6, "register[0].min"),
+    (REG + 'type = "i16"\nmin = -40000\n', 7, "register[0].min"),
+    (REG + 'table = "input"\naccess = "rw"\n', 7, "register[0].access"),
+    (REG + 'table = "discrete"\naccess = "w"\n', 7, "register[0].access"),
+    (REG + 'type = "u32"\norder = "ACDB"\n', 7, "register[0].order"),
+    (REG + "scale = 0\n", 6, "register[0].scale"),
+    (REG + "default = -1\n", 6, "register[0].default"),
+    (REG + "scale = 0.5\ndefault = 0.75\n", 7, "register[0].default"),
+    ('[[register]]\nname = "sample_units"\naddress = 1\n', 4, "register[0].name"),
+    ('[line]\nparity = "X"\n', 4, "line.parity"),
+    ("[line]\nstopbits = 3\n", 4, "line.stopbits"),
+    ("[line]\nbytesize = 6\n", 4, "line.bytesize"),
+    ('[line]\nframing = "tcp"\n', 4, "line.framing"),
+    ("[line]\ntimeout = -0.1\n", 4, "line.timeout"),
+    ("[line]\nbaudrate = 0\n", 4, "line.baudrate"),
+    ("[limits]\nmax_read = 0\n", 4, "limits.max_read"),
+    ("[limits]\nmin_write_interval = -1\n", 4, "limits.min_write_interval"),
+    ('[limits]\nblock_reads = "yes"\n', 4, "limits.block_reads"),
+]
+
+
+@pytest.mark.parametrize(("body", "line", "key"), CASES, ids=[c[2] + str(c[1]) for c in CASES])
+def test_every_mistake_is_a_profile_error(tmp_path: Path, body: str, line: int, key: str) -> None:
+    path = write(tmp_path, HEAD + body)
+    with pytest.raises(bb.ProfileError) as raised:
+        load_profile(path)
+    err = raised.value
+    assert isinstance(err, ValueError)
+    assert isinstance(err, bb.BenchbusError)
+    assert (err.path, err.line, err.key) == (str(path), line, key)
+    assert str(err).startswith(f"{path}:{line}: {key}: ")
+
+
+def test_a_file_that_is_not_toml_names_its_line(tmp_path: Path) -> None:
+    path = write(tmp_path, HEAD + "[[register]]\nname = \n")
+    with pytest.raises(bb.ProfileError) as raised:
+        load_profile(path)
+    assert (raised.value.line, raised.value.key) == (4, "")
+    assert str(raised.value).startswith(f"{path}:4: ")
+
+
+def test_a_missing_file(tmp_path: Path) -> None:
+    path = tmp_path / "absent.toml"
+    with pytest.raises(bb.ProfileError, match="cannot read the file") as raised:
+        load_profile(path)
+    assert raised.value.path == str(path)
+
+
+def test_the_path_must_be_a_path() -> None:
+    with pytest.raises(TypeError):
+        load_profile(3)  # type: ignore[arg-type]
