@@ -652,3 +652,20 @@ def test_sim_ends_after_its_seconds_and_at_ctrl_c() -> None:
     finally:
         status, _, err = stop(proc, signal.SIGINT)
     assert status == 0, err
+
+
+def test_profile_check_prints_the_table_and_refuses_a_mistake_with_its_line(
+    tmp_path: Path,
+) -> None:
+    example = Path(__file__).resolve().parent.parent / "examples" / "profiles" / "xy_md02.toml"
+    lines = ok(run("profile", "check", example))
+    assert lines[0].startswith("XY-MD02")
+    assert lines[1].startswith("line 9600 8N1 rtu")
+    rows = {line.split()[0]: line.split() for line in lines[3:]}
+    assert rows["temperature"][1:5] == ["input", "0x0001", "i16", "0.1"]
+    assert rows["baud"][-1].startswith("0=b9600")
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[device]\nname = "x"\n\n[[register]]\nname = "sample"\naddress = 1\n')
+    message = one_line_error(run("profile", "check", bad), 2)
+    assert f"{bad}:5: register[0].name" in message and "shadow" in message
+    assert "No such file" in one_line_error(run("profile", "check", tmp_path / "none.toml"), 2)

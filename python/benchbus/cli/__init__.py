@@ -3,7 +3,7 @@
 ::
 
     benchbus scan    --port PATH [--units 1-247] [--auto] [--progress]
-    benchbus read    --port PATH [--unit N] ADDRESS [COUNT] [--hex | --signed --decimals N]
+    benchbus read    --port PATH [--unit N] ADDRESS [COUNT] [--table T] [--type T --order O]
     benchbus write   --port PATH [--unit N] ADDRESS VALUE [VALUE ...]
     benchbus drive   --port PATH [--family BLD|C20] status|start|stop|reverse|set-speed RPM
                                                   |reset-fault
@@ -13,6 +13,7 @@
                                               [--no-reconnect]
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
+    benchbus profile check FILE  (a device profile's register table, or its mistakes)
     benchbus ports   (the serial ports, with their USB ids, chip, maker and serial number)
     benchbus doctor  --port PATH [--unit N]  (what stands between benchbus and the port)
 
@@ -54,6 +55,7 @@ from benchbus.cli import (
     monitor,
     pbl,
     ports,
+    profile,
     read,
     scan,
     sim,
@@ -93,7 +95,7 @@ __all__ = [
 ]
 
 #: The commands, in the order ``--help`` lists them.
-COMMANDS = (scan, read, write, drive, pbl, j2, monitor, sim, gateway, ports, doctor, demo)
+COMMANDS = (scan, read, write, drive, pbl, j2, monitor, sim, gateway, profile, ports, doctor, demo)
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,89 @@
+"""``benchbus profile``: work with device profiles (TOML files describing a device)."""
+
+from __future__ import annotations
+
+import argparse
+from typing import Any
+
+from benchbus.cli._args import Parser, add_command
+from benchbus.cli._errors import UsageError
+from benchbus.cli._output import print_table
+
+__all__ = ["HELP", "add_arguments", "run"]
+
+
+def _range(row: dict[str, Any]) -> str:
+    """A register's writable range, as the profile gives it ("" for none)."""
+    if row["enum"]:
+        return "|".join(f"{k}={v}" for k, v in sorted(row["enum"].items()))
+    low, high = row["min"], row["max"]
+    if low is None and high is None:
+        return ""
+    return f"{'' if low is None else f'{low:g}'}..{'' if high is None else f'{high:g}'}"
+
+
+def _kind(row: dict[str, Any]) -> str:
+    """The register's type, with its bit, length or order where it has one."""
+    if row["bit"] is not None:
+        return f"bool bit {row['bit']}"
+    if row["length"] is not None:
+        return f"string x{row['length']}"
+    if row["type"] in ("u16", "i16", "bool"):
+        return str(row["type"])
+    return f"{row['type']} {row['order']}"
+
+
+def check(path: str) -> int:
+    """``benchbus profile check``: load ``path`` and print its table (a profile's mistake
+    is a usage error: the file, its line and the key)."""
+    from benchbus._core import load_profile
+    from benchbus.exceptions import ProfileError
+
+    try:
+        profile = load_profile(path)
+    except (ProfileError, OSError) as exc:
+        raise UsageError(str(exc)) from None
+    line = profile["line"]
+    limits = profile["limits"]
+    print(f"{profile['name']}: {profile['description']}".rstrip(": "))
+    print(
+        f"line {line['baudrate']} {line['bytesize']}{line['parity']}{line['stopbits']}"
+        f" {line['framing']}, timeout {line['timeout']:g} s; at most {limits['max_read']} read,"
+        f" {limits['max_write']} written a request"
+    )
+    rows = [
+        [
+            row["name"],
+            row["table"],
+            f"0x{row['address']:04X}",
+            _kind(row),
+            f"{row['scale']:g}" + (f" {row['offset']:+g}" if row["offset"] else ""),
+            row["unit"],
+            row["access"],
+            _range(row),
+        ]
+        for row in profile["registers"]
+    ]
+    print_table(["name", "table", "address", "type", "scale", "unit", "access", "range"], rows)
+    return 0
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``benchbus profile`` as ``args`` say; the exit status."""
+    return check(args.path)
+
+
+#: What ``benchbus profile`` does, as ``--help`` says.
+HELP = "check a device profile (a TOML file) and print its register table"
+#: The rest of its ``--help``.
+EPILOG = (
+    "A profile's mistakes (unknown keys, overlapping addresses, a type that does not fit "
+    "its table...) are reported with the file, the line and the key, exit status 2."
+)
+
+
+def add_arguments(parser: Parser, parents: list[Parser]) -> None:
+    """The arguments of ``benchbus profile`` (``parents``: its option groups)."""
+    actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
+    checking = add_command(actions, "check", "validate a profile and print its table", parents)
+    checking.add_argument("path", metavar="FILE", help="the profile (TOML)")
