@@ -3,8 +3,8 @@
 //! identification record, the repr, the context manager).
 
 use super::{
-    int_in, number, opt, public, register_list, seconds, u16_arg, unit_arg, Attached, PyBus,
-    PyStation,
+    bool_sequence, int_in, number, opt, public, register_list, seconds, u16_arg, unit_arg,
+    Attached, PyBus, PyStation,
 };
 use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
 use crate::device::instrument::{Instrument, MAX_DECIMALS};
@@ -428,16 +428,7 @@ impl PyInstrumentCore {
         values: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let address = u16_arg(address, "address")?;
-        if values.is_instance_of::<PyString>() || values.is_instance_of::<PyBytes>() {
-            return Err(PyTypeError::new_err(
-                "values must be a sequence of True / False, not str or bytes",
-            ));
-        }
-        let values = values
-            .try_iter()
-            .map_err(|_| PyTypeError::new_err("values must be a sequence of True / False"))?
-            .map(|v| coil_arg(&v?))
-            .collect::<PyResult<Vec<bool>>>()?;
+        let values = bool_sequence(values, "True / False", coil_arg)?;
         let most = 0x1_0000 - usize::from(address);
         if values.is_empty() || values.len() > most {
             return Err(PyValueError::new_err(format!(

@@ -551,20 +551,30 @@ fn read_args(
     Ok((unit, address, count))
 }
 
+/// `values` as a list of bools, each converted by `each`: TypeError ("values must be a
+/// sequence of {what}") for a str, bytes or anything not iterable.
+fn bool_sequence(
+    values: &Bound<'_, PyAny>,
+    what: &str,
+    each: impl Fn(&Bound<'_, PyAny>) -> PyResult<bool>,
+) -> PyResult<Vec<bool>> {
+    if values.is_instance_of::<PyString>() || values.is_instance_of::<PyBytes>() {
+        return Err(PyTypeError::new_err(format!(
+            "values must be a sequence of {what}, not str or bytes"
+        )));
+    }
+    values
+        .try_iter()
+        .map_err(|_| PyTypeError::new_err(format!("values must be a sequence of {what}")))?
+        .map(|item| each(&item?))
+        .collect()
+}
+
 /// The `address` and `values` of a 0x0F write, checked: a start address, 1..=1968 coil
 /// values (each True or False) and a block that stays within the address map.
 fn coil_block(address: &Bound<'_, PyAny>, values: &Bound<'_, PyAny>) -> PyResult<(u16, Vec<bool>)> {
     let address = u16_arg(address, "address")?;
-    if values.is_instance_of::<PyString>() || values.is_instance_of::<PyBytes>() {
-        return Err(PyTypeError::new_err(
-            "values must be a sequence of bools, not str or bytes",
-        ));
-    }
-    let values = values
-        .try_iter()
-        .map_err(|_| PyTypeError::new_err("values must be a sequence of bools"))?
-        .map(|item| bool_arg(&item?, "each value"))
-        .collect::<PyResult<Vec<bool>>>()?;
+    let values = bool_sequence(values, "bools", |item| bool_arg(item, "each value"))?;
     let max = usize::from(MAX_WRITE_BITS);
     if values.is_empty() || values.len() > max {
         return Err(PyValueError::new_err(format!(
