@@ -323,8 +323,7 @@ impl Instrument {
         if registers.len() != count {
             return Err(self.station.short_reply());
         }
-        let bytes = layout.from_registers(&registers);
-        Ok(bytes.iter().fold(0, |v, b| v << 8 | u64::from(*b)))
+        Ok(layout.join(&registers))
     }
 
     /// Writes an unsigned integer of `bits` (32 or 64; a signed value as its two's
@@ -342,9 +341,7 @@ impl Instrument {
                 "value must fit {bits} bits, got {value}"
             )));
         }
-        let bytes = value.to_be_bytes();
-        let ours = bytes.get(8 - 2 * count..).unwrap_or(&bytes);
-        self.write_registers(address, &layout.to_registers(ours))
+        self.write_registers(address, &layout.split(value, count))
     }
 
     /// An IEEE 754 float of `bits` (32: single, 64: double) over 2 or 4 registers from

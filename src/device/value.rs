@@ -107,34 +107,17 @@ impl Layout {
             .collect()
     }
 
-    /// The registers of a 32-bit value.
-    pub fn split32(self, value: u32) -> [u16; 2] {
-        match self.to_registers(&value.to_be_bytes())[..] {
-            [a, b] => [a, b],
-            _ => [0, 0],
-        }
+    /// The `count` registers (1 to 4) that hold the low `16 * count` bits of `value`.
+    pub fn split(self, value: u64, count: usize) -> Vec<u16> {
+        let bytes = value.to_be_bytes();
+        self.to_registers(bytes.get(8 - 2 * count.min(4)..).unwrap_or(&bytes))
     }
 
-    /// The 32-bit value of two registers.
-    pub fn join32(self, registers: [u16; 2]) -> u32 {
-        let mut bytes = [0u8; 4];
-        bytes.copy_from_slice(&self.from_registers(&registers));
-        u32::from_be_bytes(bytes)
-    }
-
-    /// The registers of a 64-bit value.
-    pub fn split64(self, value: u64) -> [u16; 4] {
-        match self.to_registers(&value.to_be_bytes())[..] {
-            [a, b, c, d] => [a, b, c, d],
-            _ => [0; 4],
-        }
-    }
-
-    /// The 64-bit value of four registers.
-    pub fn join64(self, registers: [u16; 4]) -> u64 {
-        let mut bytes = [0u8; 8];
-        bytes.copy_from_slice(&self.from_registers(&registers));
-        u64::from_be_bytes(bytes)
+    /// The value (up to 64 bits) that `registers` (1 to 4) hold.
+    pub fn join(self, registers: &[u16]) -> u64 {
+        self.from_registers(registers)
+            .iter()
+            .fold(0, |v, b| v << 8 | u64::from(*b))
     }
 }
 
@@ -240,13 +223,12 @@ impl Kind {
         }
         Ok(registers
             .chunks(width)
-            .map(|one| self.number(layout.from_registers(one)))
+            .map(|one| self.number(layout.join(one)))
             .collect())
     }
 
-    /// The value of its bytes, most significant first.
-    fn number(self, bytes: Vec<u8>) -> Number {
-        let raw = bytes.iter().fold(0u64, |v, b| v << 8 | u64::from(*b));
+    /// The value of its raw bits.
+    fn number(self, raw: u64) -> Number {
         match self {
             Kind::F32 => Number::Float(f64::from(f32::from_bits(raw as u32))),
             Kind::F64 => Number::Float(f64::from_bits(raw)),
@@ -305,9 +287,7 @@ impl Kind {
                 }
             }
         };
-        let bytes = raw.to_be_bytes();
-        let ours = bytes.get(8 - 2 * self.registers()..).unwrap_or(&bytes);
-        Ok(layout.to_registers(ours))
+        Ok(layout.split(raw, self.registers()))
     }
 }
 
@@ -338,20 +318,20 @@ mod tests {
             (Layout::Dcba, [0x0403, 0x0201]),
         ];
         for (layout, registers) in cases {
-            assert_eq!(layout.split32(0x0102_0304), registers, "{}", layout.name());
-            assert_eq!(layout.join32(registers), 0x0102_0304, "{}", layout.name());
+            assert_eq!(layout.split(0x0102_0304, 2), registers, "{}", layout.name());
+            assert_eq!(layout.join(&registers), 0x0102_0304, "{}", layout.name());
         }
     }
 
     #[test]
     fn a_64_bit_value_lies_the_same_way_over_four_registers() {
         let v = 0x0102_0304_0506_0708;
-        assert_eq!(Layout::Abcd.split64(v), [0x0102, 0x0304, 0x0506, 0x0708]);
-        assert_eq!(Layout::Cdab.split64(v), [0x0708, 0x0506, 0x0304, 0x0102]);
-        assert_eq!(Layout::Badc.split64(v), [0x0201, 0x0403, 0x0605, 0x0807]);
-        assert_eq!(Layout::Dcba.split64(v), [0x0807, 0x0605, 0x0403, 0x0201]);
+        assert_eq!(Layout::Abcd.split(v, 4), [0x0102, 0x0304, 0x0506, 0x0708]);
+        assert_eq!(Layout::Cdab.split(v, 4), [0x0708, 0x0506, 0x0304, 0x0102]);
+        assert_eq!(Layout::Badc.split(v, 4), [0x0201, 0x0403, 0x0605, 0x0807]);
+        assert_eq!(Layout::Dcba.split(v, 4), [0x0807, 0x0605, 0x0403, 0x0201]);
         for layout in Layout::ALL {
-            assert_eq!(layout.join64(layout.split64(v)), v);
+            assert_eq!(layout.join(&layout.split(v, 4)), v);
         }
     }
 
