@@ -8,6 +8,8 @@ from collections.abc import Callable
 from decimal import Decimal, InvalidOperation
 from typing import Any, NoReturn
 
+from benchbus._core import to_registers
+
 PROG = "benchbus"
 
 
@@ -47,8 +49,11 @@ def integer(low: int, high: int, what: str) -> Callable[[str], int]:
     return convert
 
 
-#: The value types ``--type`` takes, and how many registers each lies over.
-VALUE_TYPES = {"u16": 1, "i16": 1, "u32": 2, "i32": 2, "u64": 4, "i64": 4, "f32": 2, "f64": 4}
+#: The value types ``--type`` takes, and how many registers each lies over (the core's).
+VALUE_TYPES = {
+    kind: len(to_registers(0, kind))
+    for kind in ("u16", "i16", "u32", "i32", "u64", "i64", "f32", "f64")
+}
 #: The layouts ``--order`` takes (see :func:`benchbus.from_registers`).
 ORDERS = ("ABCD", "CDAB", "BADC", "DCBA")
 
