@@ -8,7 +8,6 @@ from pathlib import Path
 import pytest
 
 import benchbus as bb
-from benchbus._core import load_profile
 
 EXAMPLE = """\
 [device]
@@ -53,10 +52,10 @@ def write(tmp_path: Path, text: str) -> Path:
 
 
 def test_the_example_parses(tmp_path: Path) -> None:
-    p = load_profile(write(tmp_path, EXAMPLE))
-    assert p["name"] == "XY-MD02"
-    assert p["description"] == "RS485 temperature and humidity sensor"
-    assert p["line"] == {
+    p = bb.Profile(write(tmp_path, EXAMPLE))
+    assert p.name == "XY-MD02"
+    assert p.description == "RS485 temperature and humidity sensor"
+    assert p.line._asdict() == {
         "baudrate": 9600,
         "parity": "N",
         "stopbits": None,
@@ -64,14 +63,14 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "framing": None,
         "bytesize": None,
     }
-    assert p["limits"] == {
+    assert p.limits._asdict() == {
         "max_read": 10,
         "max_write": 1,
         "min_write_interval": 0.0,
         "block_reads": True,
     }
-    temperature, mode = p["registers"]
-    assert temperature == {
+    temperature, mode = p.registers
+    assert temperature._asdict() == {
         "name": "temperature",
         "address": 1,
         "table": "input",
@@ -81,7 +80,6 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "order": "ABCD",
         "scale": 0.1,
         "offset": 0.0,
-        "signed": True,
         "unit": "degC",
         "access": "r",
         "min": -40.0,
@@ -91,13 +89,13 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "description": "air temperature",
         "line": 15,
     }
-    assert mode["address"] == 0x0101
-    assert mode["table"] == "holding"
-    assert mode["type"] == "u16"
-    assert mode["access"] == "rw"
-    assert mode["enum"] == {0: "off", 1: "heat", 2: "cool"}
-    assert (mode["min"], mode["max"]) == (0.0, 65535.0)
-    assert mode["line"] == 28
+    assert mode.address == 0x0101
+    assert mode.table == "holding"
+    assert mode.type == "u16"
+    assert mode.access == "rw"
+    assert mode.enum == {0: "off", 1: "heat", 2: "cool"}
+    assert (mode.min, mode.max) == (0.0, 65535.0)
+    assert mode.line == 28
 
 
 def test_every_field_of_the_other_types(tmp_path: Path) -> None:
@@ -145,8 +143,8 @@ address = 30
 access = "w"
 default = 7
 """
-    p = load_profile(str(write(tmp_path, text)))
-    assert p["line"] == {
+    p = bb.Profile(str(write(tmp_path, text)))
+    assert p.line._asdict() == {
         "baudrate": None,
         "parity": "E",
         "stopbits": 2,
@@ -154,19 +152,19 @@ default = 7
         "framing": "ascii",
         "bytesize": 7,
     }
-    rows = {r["name"]: r for r in p["registers"]}
+    rows = {r.name: r for r in p.registers}
     assert list(rows) == ["relay1", "alarm", "fault", "label", "energy", "command"]
-    assert (rows["relay1"]["type"], rows["relay1"]["access"], rows["relay1"]["default"]) == (
+    assert (rows["relay1"].type, rows["relay1"].access, rows["relay1"].default) == (
         "bool",
         "rw",
         True,
     )
-    assert (rows["alarm"]["bit"], rows["fault"]["bit"], rows["fault"]["access"]) == (3, 4, "r")
-    assert (rows["label"]["length"], rows["label"]["default"]) == (4, "relay")
-    assert rows["label"]["min"] is None
-    assert (rows["energy"]["order"], rows["energy"]["offset"]) == ("CDAB", -1.5)
-    assert rows["energy"]["access"] == "r"
-    assert (rows["command"]["access"], rows["command"]["default"]) == ("w", 7)
+    assert (rows["alarm"].bit, rows["fault"].bit, rows["fault"].access) == (3, 4, "r")
+    assert (rows["label"].length, rows["label"].default) == (4, "relay")
+    assert rows["label"].min is None
+    assert (rows["energy"].order, rows["energy"].offset) == ("CDAB", -1.5)
+    assert rows["energy"].access == "r"
+    assert (rows["command"].access, rows["command"].default) == ("w", 7)
 
 
 HEAD = '[device]\nname = "d"\n'  # lines 1-2
@@ -236,7 +234,7 @@ CASES = [
 def test_every_mistake_is_a_profile_error(tmp_path: Path, body: str, line: int, key: str) -> None:
     path = write(tmp_path, HEAD + body)
     with pytest.raises(bb.ProfileError) as raised:
-        load_profile(path)
+        bb.Profile(path)
     err = raised.value
     assert isinstance(err, ValueError)
     assert isinstance(err, bb.BenchbusError)
@@ -247,7 +245,7 @@ def test_every_mistake_is_a_profile_error(tmp_path: Path, body: str, line: int, 
 def test_a_file_that_is_not_toml_names_its_line(tmp_path: Path) -> None:
     path = write(tmp_path, HEAD + "[[register]]\nname = \n")
     with pytest.raises(bb.ProfileError) as raised:
-        load_profile(path)
+        bb.Profile(path)
     assert (raised.value.line, raised.value.key) == (4, "")
     assert str(raised.value).startswith(f"{path}:4: ")
 
@@ -255,10 +253,10 @@ def test_a_file_that_is_not_toml_names_its_line(tmp_path: Path) -> None:
 def test_a_missing_file(tmp_path: Path) -> None:
     path = tmp_path / "absent.toml"
     with pytest.raises(bb.ProfileError, match="cannot read the file") as raised:
-        load_profile(path)
+        bb.Profile(path)
     assert raised.value.path == str(path)
 
 
 def test_the_path_must_be_a_path() -> None:
     with pytest.raises(TypeError):
-        load_profile(3)  # type: ignore[arg-type]
+        bb.Profile(3)  # type: ignore[arg-type]

@@ -25,6 +25,7 @@ from __future__ import annotations
 from benchbus._core import (
     Bus,
     Poll,
+    Profile,
     Stats,
     __version__,
     crc16,
@@ -63,6 +64,7 @@ from benchbus._pbl import (
     PblTelemetry,
     StartStopSource,
 )
+from benchbus._profile import Device, ProfileLimits, ProfileLine, ProfileRegister
 from benchbus._record import Recording
 from benchbus._wirelog import enable_wire_log
 from benchbus.exceptions import (
@@ -85,6 +87,7 @@ __all__ = [
     "ControlMode",
     "CrcError",
     "DecelMode",
+    "Device",
     "Direction",
     "DirectionSetting",
     "Drive",
@@ -117,7 +120,11 @@ __all__ = [
     "Pid",
     "Poll",
     "PortError",
+    "Profile",
     "ProfileError",
+    "ProfileLimits",
+    "ProfileLine",
+    "ProfileRegister",
     "Recording",
     "ResponseTimeout",
     "SpeedSource",

@@ -11,6 +11,7 @@ from benchbus._drive import DriveRegister, DriveStatus, DriveTelemetry, Model
 from benchbus._instrument import Identification
 from benchbus._j2 import J2Parameter, J2Status, Limits, Pid
 from benchbus._pbl import Direction, PblParameter, PblStatus, PblTelemetry
+from benchbus._profile import ProfileLimits, ProfileLine, ProfileRegister
 
 #: Which register (word order) or which byte of a register (byte order) of a multi-register
 #: value comes first: "big" the most significant (the Modbus convention), "little" the least.
@@ -25,6 +26,8 @@ __all__ = [
     "J2Core",
     "PblCore",
     "Poll",
+    "Profile",
+    "ProfileCore",
     "Stats",
     "_Station",
     "_Ticks",
@@ -34,7 +37,6 @@ __all__ = [
     "diagnose",
     "from_registers",
     "list_ports",
-    "load_profile",
     "refresh_logging",
     "to_registers",
 ]
@@ -70,21 +72,6 @@ def list_ports(
     ``driver``, and for a USB adapter ``vid``, ``pid``, ``manufacturer``, ``product``,
     ``serial_number`` and ``chip`` (FTDI, CH340, CP210x, PL2303...; None where the system
     does not say). ``sysfs_root`` reads another sysfs tree than ``/sys`` (Linux only)."""
-
-def load_profile(path: str | os.PathLike[str]) -> dict[str, Any]:
-    """Reads and checks the device profile (TOML) at ``path``.
-
-    Returns a dict: ``name``, ``description``, ``line`` (``baudrate``, ``parity``,
-    ``stopbits``, ``timeout``, ``framing``, ``bytesize``; None where the file is silent),
-    ``limits`` (``max_read``, ``max_write``, ``min_write_interval``, ``block_reads``; None
-    where silent) and ``registers``, one dict per ``[[register]]`` in the file's order:
-    ``name``, ``address``, ``table`` ("holding", "input", "coil", "discrete"), ``type``,
-    ``bit``, ``length``, ``order``, ``scale``, ``offset``, ``signed``, ``unit``, ``access``
-    ("r", "rw", "w"), ``min``, ``max`` (None for a bool or a string), ``enum`` ({number:
-    name}), ``default``, ``description`` and ``line``.
-
-    Raises ``ProfileError`` (a ``ValueError``) naming the file, the line and the key of the
-    first mistake; nothing is opened."""
 
 def diagnose(
     port: str | os.PathLike[str],
@@ -952,3 +939,82 @@ class InstrumentCore(_Station):
         A device without the function raises :class:`~benchbus.ModbusException` with code 1
         (its ``meaning`` says so).
         """
+
+@final
+class Profile:
+    """A device profile: a device described in a TOML file, read and checked by the core.
+
+    ::
+
+        profile = bb.Profile("xy_md02.toml")
+        profile.name, len(profile), profile["temperature"].unit
+        profile.plan(["temperature", "humidity"])   # the requests that read them
+
+    Every mistake (unknown keys, duplicate names, overlapping addresses, a name that shadows
+    a device member, a type that does not fit its table, a bad enum or range, a value one
+    request cannot carry) raises ``ProfileError`` (a ``ValueError``) naming the file, the
+    line and the key.
+    """
+
+    def __new__(cls, path: str | os.PathLike[str]) -> Self:
+        """Reads and checks the device profile (TOML) at ``path``; ``ProfileError`` (a
+        ``ValueError``) names the file, the line and the key of its first mistake."""
+    @staticmethod
+    def parse(text: str, path: str = "<string>") -> Profile:
+        """Checks the profile ``text``; ``path`` names it in errors."""
+    @property
+    def name(self) -> str:
+        """The device's name (``[device] name``)."""
+    @property
+    def description(self) -> str:
+        """The device's description ("" if the file has none)."""
+    @property
+    def path(self) -> str:
+        """The file it was read from (what ``parse`` was given for text)."""
+    @property
+    def line(self) -> ProfileLine:
+        """The ``[line]`` section as a ``ProfileLine`` (None where the file is silent)."""
+    @property
+    def limits(self) -> ProfileLimits:
+        """The ``[limits]`` section as a ``ProfileLimits`` (None where the file is silent)."""
+    @property
+    def registers(self) -> tuple[ProfileRegister, ...]:
+        """Every register as a ``ProfileRegister``, in the file's order."""
+    def __getitem__(self, key: str, /) -> ProfileRegister:
+        """The register called ``key`` (KeyError if there is none)."""
+    def __contains__(self, key: str, /) -> bool:
+        """Whether a register is called ``key``."""
+    def __len__(self) -> int:
+        """How many registers."""
+    def plan(self, names: Sequence[str]) -> list[tuple[str, int, int, list[str]]]:
+        """The requests that read the registers ``names`` (repeats once): ``(table, start,
+        count, names)`` each, tables apart, neighbours together where the limits allow."""
+
+@disjoint_base
+class ProfileCore(_Station):
+    """The compiled base of ``benchbus.Device`` (use that): the request plan, the value
+    conversions and every check of a device described by a profile. Every call that
+    touches the wire releases the GIL."""
+
+    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
+        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
+        ``__init__`` may take its own arguments)."""
+    def _attach(
+        self,
+        bus: Bus,
+        unit: int,
+        profile: Profile,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> None:
+        """Attaches the device ``profile`` describes at ``unit`` to ``bus`` (what
+        ``Device.__init__`` does); ``timeout`` / ``retries`` replace the Bus's."""
+    @property
+    def profile(self) -> Profile:
+        """The profile the device follows."""
+    def _read(self, names: Sequence[str]) -> list[Any]:
+        """The values of the registers ``names``, in that order, read in the fewest requests
+        the profile's limits allow; enum registers as their numbers."""
+    def _write(self, name: str, value: Any) -> None:
+        """Writes ``value`` to the register ``name``, every check made before anything is
+        sent."""

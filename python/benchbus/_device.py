@@ -165,6 +165,12 @@ class LineDefaults(NamedTuple):
     parity: str
     #: Seconds from the start of a request by which a device of the family starts answering.
     timeout: float
+    #: 1 or 2.
+    stopbits: int = 1
+    #: "rtu" or "ascii".
+    framing: str = "rtu"
+    #: Bits per character: 8, or 7 (Modbus ASCII only); None: the framing's own.
+    bytesize: int | None = None
 
 
 def check_baudrate(baudrate: object, allowed: tuple[int, ...]) -> None:
@@ -201,9 +207,11 @@ def on_line(
         port_or_bus,
         baudrate=line.baudrate,
         parity=line.parity,
-        stopbits=1,
+        stopbits=line.stopbits,
         timeout=line.timeout if timeout is None else timeout,
         retries=2 if retries is None else retries,
+        framing=line.framing,
+        bytesize=line.bytesize,
     )
     try:
         return make(bus, None, None), True

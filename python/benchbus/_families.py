@@ -7,7 +7,7 @@ extra) and its model probe (:mod:`benchbus._recognise`). The command line (its d
 commands, ``sim``, ``scan``'s model guess and the family check of ``status`` and
 ``monitor``), the pytest plugin and the demo all read :data:`FAMILIES`::
 
-    family("pbl").line              # LineDefaults(baudrate=115200, parity='E', timeout=0.1)
+    family("pbl").line              # LineDefaults(baudrate=115200, parity='E', timeout=0.1, ...)
     family("j2").simulate(speedup=20)   # a benchbus.sim.J2Device
     mismatch(bus, 1, "j2")          # None, or the family unit 1 looks like instead
 """

@@ -7,6 +7,7 @@ pub mod instrument;
 pub mod j2;
 pub mod pbl;
 pub mod profile;
+pub mod profiled;
 pub mod value;
 
 use crate::bus::{Bus, TxOptions};
@@ -334,7 +335,7 @@ impl<S: AsRef<str>> Register<S> {
     }
 }
 
-fn unit_suffix(unit: &str) -> String {
+pub(crate) fn unit_suffix(unit: &str) -> String {
     if unit.is_empty() {
         String::new()
     } else {
@@ -343,7 +344,7 @@ fn unit_suffix(unit: &str) -> String {
 }
 
 /// A number the way a person writes it: 3000, 0.1, 600.
-fn fmt_num(v: f64) -> String {
+pub(crate) fn fmt_num(v: f64) -> String {
     let s = format!("{v:.6}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" {

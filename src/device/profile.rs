@@ -13,9 +13,12 @@ use toml::Spanned;
 
 /// Names a profile register may not take: the members every profile device has.
 pub const RESERVED_NAMES: &[&str] = &[
+    "LINE_DEFAULTS",
+    "SAMPLE_FIELDS",
     "bus",
     "close",
     "describe",
+    "enums",
     "from_profile",
     "get",
     "name",
@@ -447,13 +450,48 @@ impl Profile {
             None => Limits::default(),
         };
         let registers = registers(&top)?;
-        Ok(Profile {
+        let profile = Profile {
             name: name.to_string(),
             description,
             line,
             limits,
             registers,
-        })
+        };
+        profile.check_widths(path)?;
+        Ok(profile)
+    }
+
+    /// Refuses a register that one request cannot read or write whole: a value split over
+    /// two requests could tear.
+    fn check_widths(&self, path: &str) -> Parsed<()> {
+        for (index, r) in self.registers.iter().enumerate() {
+            let width = r.value.width();
+            let (limit, what) = if r.register.access != Access::Write
+                && width > u32::from(self.read_limit(r.table))
+            {
+                (self.read_limit(r.table), "read")
+            } else if r.register.access != Access::Read
+                && width > u32::from(self.write_limit(r.table))
+            {
+                (self.write_limit(r.table), "write")
+            } else {
+                continue;
+            };
+            let key = match r.value {
+                ValueType::Text { .. } => "length",
+                _ => "type",
+            };
+            return Err(Box::new(ProfileError {
+                path: path.to_string(),
+                line: r.line,
+                key: format!("register[{index}].{key}"),
+                message: format!(
+                    "a {} of {width} registers does not fit one {what} of at most {limit}",
+                    r.value.name()
+                ),
+            }));
+        }
+        Ok(())
     }
 }
 
@@ -1329,6 +1367,34 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             "limits.min_write_interval",
         );
         fails("[limits]\nblock_reads = 1\n", 4, "limits.block_reads");
+    }
+
+    #[test]
+    fn a_value_one_request_cannot_carry_is_refused() {
+        // Lines: [limits] 3, max_read 4, max_write 5, [[register]] 6.
+        let limits = "[limits]\nmax_read = 2\nmax_write = 1\n[[register]]\nname = \"a\"\n";
+        fails(
+            &format!("{limits}address = 0\ntype = \"u64\"\naccess = \"r\"\n"),
+            6,
+            "register[0].type",
+        );
+        fails(
+            &format!("{limits}address = 0\ntype = \"string\"\nlength = 3\naccess = \"r\"\n"),
+            6,
+            "register[0].length",
+        );
+        // Read whole (2), but not written whole (1).
+        fails(
+            &format!("{limits}address = 0\ntype = \"u32\"\n"),
+            6,
+            "register[0].type",
+        );
+        // A register table's own limit applies even where max_read allows more bits.
+        fails(
+            "[[register]]\nname = \"a\"\naddress = 0\ntype = \"string\"\nlength = 124\n",
+            3,
+            "register[0].length",
+        );
     }
 
     #[test]

@@ -203,7 +203,8 @@ impl Kind {
         matches!(self, Kind::I16 | Kind::I32 | Kind::I64)
     }
 
-    const fn float(self) -> bool {
+    /// Whether it is an IEEE float (f32, f64).
+    pub const fn is_float(self) -> bool {
         matches!(self, Kind::F32 | Kind::F64)
     }
 
@@ -248,7 +249,7 @@ impl Kind {
     /// range).
     pub fn encode(self, value: Number, layout: Layout) -> Result<Vec<u16>> {
         let bits = self.bits();
-        let raw: u64 = match (value, self.float()) {
+        let raw: u64 = match (value, self.is_float()) {
             (Number::Int(v), false) => {
                 let (lo, hi) = if self.signed() {
                     (-(1i128 << (bits - 1)), (1i128 << (bits - 1)) - 1)

@@ -1387,7 +1387,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(values::from_registers, m)?)?;
     m.add_function(wrap_pyfunction!(values::to_registers, m)?)?;
     m.add_function(wrap_pyfunction!(ports::list_ports, m)?)?;
-    m.add_function(wrap_pyfunction!(profile::load_profile, m)?)?;
+    m.add_class::<profile::PyProfile>()?;
+    m.add_class::<profile::PyProfileCore>()?;
     m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;

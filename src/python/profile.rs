@@ -1,30 +1,27 @@
-//! `load_profile`: a device profile file, checked by the core, as plain Python data; its
-//! mistakes as `benchbus.ProfileError`.
+//! Device profiles: `Profile` (a profile file checked by the core; its mistakes as
+//! `benchbus.ProfileError`) and `ProfileCore`, the compiled base of `benchbus.Device`.
 
-use super::EXCEPTIONS;
+use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::profile::{Profile, ProfileError, ProfileRegister, ProfileValue, ValueType};
+use crate::device::profiled::ProfiledDevice;
 use crate::device::{Access, Table};
+use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyList, PyModule};
+use pyo3::types::{PyBool, PyDict, PyFloat, PyModule, PyString, PyTuple};
 use std::path::PathBuf;
+use std::sync::{Arc, OnceLock};
 
-/// Reads and checks the device profile (TOML) at `path`.
-///
-/// Returns a dict: ``name``, ``description``, ``line`` (``baudrate``, ``parity``,
-/// ``stopbits``, ``timeout``, ``framing``, ``bytesize``; None where the file is silent),
-/// ``limits`` (``max_read``, ``max_write``, ``min_write_interval``, ``block_reads``; None
-/// where silent) and ``registers``, one dict per ``[[register]]`` in the file's order:
-/// ``name``, ``address``, ``table`` ("holding", "input", "coil", "discrete"), ``type``,
-/// ``bit``, ``length``, ``order``, ``scale``, ``offset``, ``signed``, ``unit``, ``access``
-/// ("r", "rw", "w"), ``min``, ``max`` (None for a bool or a string), ``enum`` ({number:
-/// name}), ``default``, ``description`` and ``line``.
-///
-/// Raises ``ProfileError`` (a ``ValueError``) naming the file, the line and the key of the
-/// first mistake; nothing is opened.
-#[pyfunction]
-pub(super) fn load_profile(py: Python<'_>, path: PathBuf) -> PyResult<Bound<'_, PyDict>> {
-    let profile = Profile::load(&path).map_err(|e| profile_error(py, &e))?;
-    profile_dict(py, &profile)
+/// One request of a plan, as Python has it: table, first address, count, register names.
+type PlannedRead = (&'static str, u16, u16, Vec<String>);
+
+/// Where the public row types live.
+const ROWS: &str = "benchbus._profile";
+
+/// A device profile: a device described in a TOML file, checked by the core.
+#[pyclass(frozen, module = "benchbus._core", name = "Profile")]
+pub(super) struct PyProfile {
+    profile: Arc<Profile>,
+    path: String,
 }
 
 /// The `benchbus.ProfileError` of `err`.
@@ -46,83 +43,359 @@ fn profile_error(py: Python<'_>, err: &ProfileError) -> PyErr {
     build().unwrap_or_else(|e| e)
 }
 
-fn profile_dict<'py>(py: Python<'py>, p: &Profile) -> PyResult<Bound<'py, PyDict>> {
-    let out = PyDict::new(py);
-    out.set_item("name", p.name.as_str())?;
-    out.set_item("description", p.description.as_str())?;
-    let line = PyDict::new(py);
-    line.set_item("baudrate", p.line.baudrate)?;
-    line.set_item("parity", p.line.parity.map(String::from))?;
-    line.set_item("stopbits", p.line.stopbits)?;
-    line.set_item("timeout", p.line.timeout)?;
-    line.set_item("framing", p.line.framing.as_deref())?;
-    line.set_item("bytesize", p.line.bytesize)?;
-    out.set_item("line", line)?;
-    let limits = PyDict::new(py);
-    limits.set_item("max_read", p.limits.max_read)?;
-    limits.set_item("max_write", p.limits.max_write)?;
-    limits.set_item("min_write_interval", p.limits.min_write_interval)?;
-    limits.set_item("block_reads", p.limits.block_reads)?;
-    out.set_item("limits", limits)?;
-    let rows = PyList::empty(py);
-    for r in &p.registers {
-        rows.append(register_dict(py, r)?)?;
+fn table_name(table: Table) -> &'static str {
+    match table {
+        Table::Holding => "holding",
+        Table::Input => "input",
+        Table::Coils => "coil",
+        Table::Discrete => "discrete",
     }
-    out.set_item("registers", rows)?;
-    Ok(out)
 }
 
-fn register_dict<'py>(py: Python<'py>, r: &ProfileRegister) -> PyResult<Bound<'py, PyDict>> {
-    let reg = &r.register;
-    let d = PyDict::new(py);
-    d.set_item("name", reg.name.as_str())?;
-    d.set_item("address", reg.address)?;
-    d.set_item(
-        "table",
-        match r.table {
-            Table::Holding => "holding",
-            Table::Input => "input",
-            Table::Coils => "coil",
-            Table::Discrete => "discrete",
-        },
-    )?;
-    d.set_item("type", r.value.name())?;
-    let (bit, length) = match r.value {
-        ValueType::Bool { bit } => (bit, None),
-        ValueType::Text { length } => (None, Some(length)),
-        ValueType::Number(_) => (None, None),
+fn access_name(access: Access) -> &'static str {
+    match access {
+        Access::Read => "r",
+        Access::Write => "w",
+        Access::ReadWrite | Access::WriteWhenStopped => "rw",
+    }
+}
+
+/// A value as Python has it.
+fn to_object<'py>(py: Python<'py>, value: &ProfileValue) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match value {
+        ProfileValue::Int(n) => n.into_pyobject(py)?.into_any(),
+        ProfileValue::Float(f) => PyFloat::new(py, *f).into_any(),
+        ProfileValue::Bool(b) => PyBool::new(py, *b).to_owned().into_any(),
+        ProfileValue::Text(t) => PyString::new(py, t).into_any(),
+    })
+}
+
+/// `obj` as a value for the register `r`: TypeError for one of the wrong kind (a number for
+/// a bool, text for a number that is not an enum, ...).
+fn value_arg(r: &ProfileRegister, obj: &Bound<'_, PyAny>) -> PyResult<ProfileValue> {
+    let name = &r.register.name;
+    let wrong = |what: &str| -> PyResult<ProfileValue> {
+        Err(PyTypeError::new_err(format!(
+            "{name} takes {what}, got {}",
+            obj.get_type().name()?
+        )))
     };
-    d.set_item("bit", bit)?;
-    d.set_item("length", length)?;
-    d.set_item("order", r.layout.name())?;
-    d.set_item("scale", reg.scale)?;
-    d.set_item("offset", r.offset)?;
-    d.set_item("signed", reg.signed)?;
-    d.set_item("unit", reg.unit.as_str())?;
-    d.set_item(
-        "access",
-        match reg.access {
-            Access::Read => "r",
-            Access::Write => "w",
-            Access::ReadWrite | Access::WriteWhenStopped => "rw",
+    let enum_register = !r.members.is_empty();
+    match r.value {
+        ValueType::Bool { .. } => match obj.cast::<PyBool>() {
+            Ok(b) => Ok(ProfileValue::Bool(b.is_true())),
+            Err(_) => wrong("True or False"),
         },
-    )?;
-    let number = matches!(r.value, ValueType::Number(_));
-    d.set_item("min", number.then_some(reg.range.0))?;
-    d.set_item("max", number.then_some(reg.range.1))?;
-    let members = PyDict::new(py);
-    for (n, name) in &r.members {
-        members.set_item(n, name.as_str())?;
+        ValueType::Text { .. } => match obj.cast::<PyString>() {
+            Ok(s) => Ok(ProfileValue::Text(s.to_cow()?.into_owned())),
+            Err(_) => wrong("a str"),
+        },
+        ValueType::Number(_) => {
+            if obj.is_instance_of::<PyBool>() {
+                return wrong(if enum_register {
+                    "a member, its name or its number"
+                } else {
+                    "a number"
+                });
+            }
+            if let Ok(s) = obj.cast::<PyString>() {
+                if enum_register {
+                    return Ok(ProfileValue::Text(s.to_cow()?.into_owned()));
+                }
+                return wrong("a number");
+            }
+            if obj.is_instance_of::<PyFloat>() {
+                return Ok(ProfileValue::Float(obj.extract()?));
+            }
+            if let Ok(n) = obj.extract::<i128>() {
+                return Ok(ProfileValue::Int(n));
+            }
+            match obj.extract::<f64>() {
+                Ok(f) if !enum_register => Ok(ProfileValue::Float(f)),
+                _ => wrong(if enum_register {
+                    "a member, its name or its number"
+                } else {
+                    "a number"
+                }),
+            }
+        }
     }
-    d.set_item("enum", members)?;
-    match &r.default {
-        None => d.set_item("default", py.None())?,
-        Some(ProfileValue::Int(n)) => d.set_item("default", n)?,
-        Some(ProfileValue::Float(f)) => d.set_item("default", f)?,
-        Some(ProfileValue::Bool(b)) => d.set_item("default", b)?,
-        Some(ProfileValue::Text(t)) => d.set_item("default", t.as_str())?,
+}
+
+impl PyProfile {
+    fn new_checked(
+        py: Python<'_>,
+        path: String,
+        loaded: Result<Profile, Box<ProfileError>>,
+    ) -> PyResult<Self> {
+        let profile = loaded.map_err(|e| profile_error(py, &e))?;
+        Ok(PyProfile {
+            profile: Arc::new(profile),
+            path,
+        })
     }
-    d.set_item("description", r.description.as_str())?;
-    d.set_item("line", r.line)?;
-    Ok(d)
+
+    /// The register called `name`, or ValueError naming the profile.
+    fn index(&self, name: &str) -> PyResult<usize> {
+        self.profile.index(name).ok_or_else(|| {
+            PyValueError::new_err(format!("{} has no register {name:?}", self.profile.name))
+        })
+    }
+
+    fn row<'py>(&self, py: Python<'py>, r: &ProfileRegister) -> PyResult<Bound<'py, PyAny>> {
+        let reg = &r.register;
+        let (bit, length) = match r.value {
+            ValueType::Bool { bit } => (bit, None),
+            ValueType::Text { length } => (None, Some(length)),
+            ValueType::Number(_) => (None, None),
+        };
+        let number = matches!(r.value, ValueType::Number(_));
+        let members = PyDict::new(py);
+        for (n, name) in &r.members {
+            members.set_item(n, name.as_str())?;
+        }
+        let default = match &r.default {
+            None => py.None().into_bound(py),
+            Some(v) => to_object(py, v)?,
+        };
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("name", reg.name.as_str())?;
+        kwargs.set_item("address", reg.address)?;
+        kwargs.set_item("table", table_name(r.table))?;
+        kwargs.set_item("type", r.value.name())?;
+        kwargs.set_item("bit", bit)?;
+        kwargs.set_item("length", length)?;
+        kwargs.set_item("order", r.layout.name())?;
+        kwargs.set_item("scale", reg.scale)?;
+        kwargs.set_item("offset", r.offset)?;
+        kwargs.set_item("unit", reg.unit.as_str())?;
+        kwargs.set_item("access", access_name(reg.access))?;
+        kwargs.set_item("min", number.then_some(reg.range.0))?;
+        kwargs.set_item("max", number.then_some(reg.range.1))?;
+        kwargs.set_item("enum", members)?;
+        kwargs.set_item("default", default)?;
+        kwargs.set_item("description", r.description.as_str())?;
+        kwargs.set_item("line", r.line)?;
+        public(py, ROWS, "ProfileRegister", (), Some(&kwargs))
+    }
+}
+
+#[pymethods]
+impl PyProfile {
+    /// Reads and checks the device profile (TOML) at `path`; ``ProfileError`` (a
+    /// ``ValueError``) names the file, the line and the key of its first mistake.
+    #[new]
+    fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let shown = path.display().to_string();
+        let loaded = Profile::load(&path);
+        PyProfile::new_checked(py, shown, loaded)
+    }
+
+    /// Checks the profile `text`; `path` names it in errors.
+    #[staticmethod]
+    #[pyo3(signature = (text, path = "<string>"))]
+    fn parse(py: Python<'_>, text: &str, path: &str) -> PyResult<Self> {
+        PyProfile::new_checked(py, path.to_string(), Profile::parse(path, text))
+    }
+
+    /// The device's name (``[device] name``).
+    #[getter]
+    fn name(&self) -> &str {
+        &self.profile.name
+    }
+
+    /// The device's description ("" if the file has none).
+    #[getter]
+    fn description(&self) -> &str {
+        &self.profile.description
+    }
+
+    /// The file it was read from (what ``parse`` was given for text).
+    #[getter]
+    fn path(&self) -> &str {
+        &self.path
+    }
+
+    /// The ``[line]`` section as a ``ProfileLine`` (None where the file is silent).
+    #[getter]
+    fn line<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let l = &self.profile.line;
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("baudrate", l.baudrate)?;
+        kwargs.set_item("parity", l.parity.map(String::from))?;
+        kwargs.set_item("stopbits", l.stopbits)?;
+        kwargs.set_item("timeout", l.timeout)?;
+        kwargs.set_item("framing", l.framing.as_deref())?;
+        kwargs.set_item("bytesize", l.bytesize)?;
+        public(py, ROWS, "ProfileLine", (), Some(&kwargs))
+    }
+
+    /// The ``[limits]`` section as a ``ProfileLimits`` (None where the file is silent).
+    #[getter]
+    fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let l = &self.profile.limits;
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("max_read", l.max_read)?;
+        kwargs.set_item("max_write", l.max_write)?;
+        kwargs.set_item("min_write_interval", l.min_write_interval)?;
+        kwargs.set_item("block_reads", l.block_reads)?;
+        public(py, ROWS, "ProfileLimits", (), Some(&kwargs))
+    }
+
+    /// Every register as a ``ProfileRegister``, in the file's order.
+    #[getter]
+    fn registers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let rows = self
+            .profile
+            .registers
+            .iter()
+            .map(|r| self.row(py, r))
+            .collect::<PyResult<Vec<_>>>()?;
+        PyTuple::new(py, rows)
+    }
+
+    /// The register called `name` (KeyError if there is none).
+    fn __getitem__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
+        let r = self
+            .profile
+            .index(name)
+            .and_then(|i| self.profile.registers.get(i))
+            .ok_or_else(|| PyKeyError::new_err(name.to_string()))?;
+        self.row(py, r)
+    }
+
+    /// Whether a register is called `name`.
+    fn __contains__(&self, name: &str) -> bool {
+        self.profile.index(name).is_some()
+    }
+
+    /// How many registers.
+    fn __len__(&self) -> usize {
+        self.profile.registers.len()
+    }
+
+    /// The requests that read the registers `names` (repeats once): ``(table, start, count,
+    /// names)`` each, tables apart, neighbours together where the limits allow.
+    fn plan(&self, names: Vec<String>) -> PyResult<Vec<PlannedRead>> {
+        let indices = names
+            .iter()
+            .map(|n| self.index(n))
+            .collect::<PyResult<Vec<_>>>()?;
+        Ok(self
+            .profile
+            .plan(&indices)
+            .into_iter()
+            .map(|b| {
+                let members = b
+                    .members
+                    .iter()
+                    .filter_map(|i| self.profile.registers.get(*i))
+                    .map(|r| r.register.name.clone())
+                    .collect();
+                (table_name(b.table), b.start, b.count, members)
+            })
+            .collect())
+    }
+
+    /// ``<Profile 'NAME' (N registers) from PATH>``.
+    fn __repr__(&self) -> String {
+        format!(
+            "<Profile {:?} ({} registers) from {}>",
+            self.profile.name,
+            self.profile.registers.len(),
+            self.path
+        )
+    }
+}
+
+/// The compiled base of a device described by a profile (`benchbus.Device`).
+#[pyclass(extends = PyStation, subclass, frozen, module = "benchbus._core", name = "ProfileCore")]
+pub(super) struct PyProfileCore {
+    dev: Attached<ProfiledDevice>,
+    profile: OnceLock<Py<PyProfile>>,
+}
+
+impl PyProfileCore {
+    fn profile_ref(&self) -> PyResult<&Py<PyProfile>> {
+        self.profile.get().ok_or_else(|| {
+            PyRuntimeError::new_err(
+                "the device is not attached to a Bus: its class's __init__ did not run",
+            )
+        })
+    }
+}
+
+#[pymethods]
+impl PyProfileCore {
+    #[new]
+    #[pyo3(signature = (*_args, **_kwargs))]
+    fn new(
+        _args: &Bound<'_, PyTuple>,
+        _kwargs: Option<&Bound<'_, PyDict>>,
+    ) -> PyClassInitializer<Self> {
+        Attached::class(|dev| PyProfileCore {
+            dev,
+            profile: OnceLock::new(),
+        })
+    }
+
+    /// Attaches the device `profile` describes at `unit` to `bus` (what ``Device.__init__``
+    /// does); `timeout` / `retries` replace the Bus's.
+    #[pyo3(signature = (bus, unit, profile, timeout=None, retries=None))]
+    fn _attach(
+        slf: &Bound<'_, Self>,
+        bus: Bound<'_, PyBus>,
+        unit: &Bound<'_, PyAny>,
+        profile: Bound<'_, PyProfile>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let me = slf.get();
+        let described = Arc::clone(&profile.get().profile);
+        me.dev.attach(
+            slf.as_super().get(),
+            bus,
+            unit,
+            super::unit_arg,
+            timeout,
+            retries,
+            |bus, unit| Ok(ProfiledDevice::new(bus, unit, described)),
+        )?;
+        me.profile
+            .set(profile.unbind())
+            .map_err(|_| PyRuntimeError::new_err("the device is attached to a Bus already"))
+    }
+
+    /// The profile the device follows.
+    #[getter]
+    fn profile(&self, py: Python<'_>) -> PyResult<Py<PyProfile>> {
+        Ok(self.profile_ref()?.clone_ref(py))
+    }
+
+    /// The values of the registers `names`, in that order, read in the fewest requests the
+    /// profile's limits allow; enum registers as their numbers.
+    fn _read<'py>(&self, py: Python<'py>, names: Vec<String>) -> PyResult<Vec<Bound<'py, PyAny>>> {
+        let indices = {
+            let profile = self.profile_ref()?.get();
+            names
+                .iter()
+                .map(|n| profile.index(n))
+                .collect::<PyResult<Vec<_>>>()?
+        };
+        let values = self.dev.wire(py, move |d| d.read(&indices))?;
+        values.iter().map(|v| to_object(py, v)).collect()
+    }
+
+    /// Writes `value` to the register `name`, every check made before anything is sent.
+    fn _write(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let profile = self.profile_ref()?.get();
+        let index = profile.index(name)?;
+        let register = profile
+            .profile
+            .registers
+            .get(index)
+            .ok_or_else(|| PyValueError::new_err(format!("no register {name:?}")))?;
+        let value = value_arg(register, value)?;
+        self.dev.wire(py, move |d| d.write(index, &value))
+    }
 }

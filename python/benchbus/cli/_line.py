@@ -40,7 +40,10 @@ BUS_OPTIONS = {
     "read": BusOptions(19200, "N", 0.1, 2),
     "write": BusOptions(19200, "N", 0.1, 2),
     "gateway": BusOptions(19200, "N", 0.1, 2),
-    **{f.key: BusOptions(*f.line, 2) for f in command_families()},
+    **{
+        f.key: BusOptions(f.line.baudrate, f.line.parity, f.line.timeout, 2)
+        for f in command_families()
+    },
 }
 
 

@@ -3,66 +3,69 @@
 from __future__ import annotations
 
 import argparse
-from typing import Any
+from typing import TYPE_CHECKING
 
 from benchbus.cli._args import Parser, add_command
 from benchbus.cli._errors import UsageError
 from benchbus.cli._output import print_table
 
+if TYPE_CHECKING:
+    from benchbus import ProfileRegister
+
 __all__ = ["HELP", "add_arguments", "run"]
 
 
-def _range(row: dict[str, Any]) -> str:
+def _range(row: ProfileRegister) -> str:
     """A register's writable range, as the profile gives it ("" for none)."""
-    if row["enum"]:
-        return "|".join(f"{k}={v}" for k, v in sorted(row["enum"].items()))
-    low, high = row["min"], row["max"]
+    if row.enum:
+        return "|".join(f"{k}={v}" for k, v in sorted(row.enum.items()))
+    low, high = row.min, row.max
     if low is None and high is None:
         return ""
     return f"{'' if low is None else f'{low:g}'}..{'' if high is None else f'{high:g}'}"
 
 
-def _kind(row: dict[str, Any]) -> str:
+def _kind(row: ProfileRegister) -> str:
     """The register's type, with its bit, length or order where it has one."""
-    if row["bit"] is not None:
-        return f"bool bit {row['bit']}"
-    if row["length"] is not None:
-        return f"string x{row['length']}"
-    if row["type"] in ("u16", "i16", "bool"):
-        return str(row["type"])
-    return f"{row['type']} {row['order']}"
+    if row.bit is not None:
+        return f"bool bit {row.bit}"
+    if row.length is not None:
+        return f"string x{row.length}"
+    if row.type in ("u16", "i16", "bool"):
+        return str(row.type)
+    return f"{row.type} {row.order}"
 
 
 def check(path: str) -> int:
     """``benchbus profile check``: load ``path`` and print its table (a profile's mistake
     is a usage error: the file, its line and the key)."""
-    from benchbus._core import load_profile
+    from benchbus import Profile
     from benchbus.exceptions import ProfileError
 
     try:
-        profile = load_profile(path)
+        profile = Profile(path)
     except (ProfileError, OSError) as exc:
         raise UsageError(str(exc)) from None
-    line = profile["line"]
-    limits = profile["limits"]
-    print(f"{profile['name']}: {profile['description']}".rstrip(": "))
+    line = profile.line
+    limits = profile.limits
+    print(f"{profile.name}: {profile.description}".rstrip(": "))
     print(
-        f"line {line['baudrate']} {line['bytesize']}{line['parity']}{line['stopbits']}"
-        f" {line['framing']}, timeout {line['timeout']:g} s; at most {limits['max_read']} read,"
-        f" {limits['max_write']} written a request"
+        f"line {line.baudrate} {line.bytesize}{line.parity}{line.stopbits}"
+        f" {line.framing}, timeout {line.timeout:g} s; at most {limits.max_read} read,"
+        f" {limits.max_write} written a request"
     )
     rows = [
         [
-            row["name"],
-            row["table"],
-            f"0x{row['address']:04X}",
+            row.name,
+            row.table,
+            f"0x{row.address:04X}",
             _kind(row),
-            f"{row['scale']:g}" + (f" {row['offset']:+g}" if row["offset"] else ""),
-            row["unit"],
-            row["access"],
+            f"{row.scale:g}" + (f" {row.offset:+g}" if row.offset else ""),
+            row.unit,
+            row.access,
             _range(row),
         ]
-        for row in profile["registers"]
+        for row in profile.registers
     ]
     print_table(["name", "table", "address", "type", "scale", "unit", "access", "range"], rows)
     return 0

@@ -1,0 +1,324 @@
+"""Devices described by a profile: a TOML file that lists a device's registers, read and
+checked by the core (``Profile``), and the device object it gives (``Device``).
+
+The core plans the requests, converts the values and checks every write before anything is
+sent (the compiled base ``ProfileCore``); this module adds the attributes named after the
+registers, the enums built from the profile, the repr and the context manager.
+"""
+
+from __future__ import annotations
+
+import difflib
+import functools
+import os
+from typing import TYPE_CHECKING, Any, NamedTuple
+
+from benchbus._core import Bus, Profile, ProfileCore
+from benchbus._device import BusDevice, LineDefaults, PrintableIntEnum, _declared
+from benchbus._display import html_table
+
+if TYPE_CHECKING:
+    from collections.abc import Iterable
+
+__all__ = ["Device", "ProfileLimits", "ProfileLine", "ProfileRegister"]
+
+
+class ProfileLine(NamedTuple):
+    """A profile's ``[line]``: how the device's own port is opened (None: not given)."""
+
+    #: Bits per second.
+    baudrate: int | None
+    #: "N", "E" or "O".
+    parity: str | None
+    #: 1 or 2.
+    stopbits: int | None
+    #: Reply timeout, seconds.
+    timeout: float | None
+    #: "rtu" or "ascii".
+    framing: str | None
+    #: 7 or 8.
+    bytesize: int | None
+
+
+class ProfileLimits(NamedTuple):
+    """A profile's ``[limits]``: what the device takes in one request (None: not given)."""
+
+    #: Registers (bits, in a table of bits) one read may ask for.
+    max_read: int | None
+    #: Registers (bits) one write may carry.
+    max_write: int | None
+    #: Seconds between two writes.
+    min_write_interval: float | None
+    #: Whether neighbouring registers may be read in one request (default True).
+    block_reads: bool | None
+
+
+class ProfileRegister(NamedTuple):
+    """One ``[[register]]`` of a profile, as the core checked it."""
+
+    #: The attribute name (a Python identifier).
+    name: str
+    #: Its address (the first of a multi-register value).
+    address: int
+    #: "holding", "input", "coil" or "discrete".
+    table: str
+    #: "u16", "i16", "u32", "i32", "u64", "i64", "f32", "f64", "bool" or "string".
+    type: str
+    #: The bit (0..15) of a register a bool is, or None.
+    bit: int | None
+    #: How many registers a string takes, or None.
+    length: int | None
+    #: A multi-register value's layout: "ABCD", "CDAB", "BADC" or "DCBA".
+    order: str
+    #: Engineering value = raw x scale + offset.
+    scale: float
+    #: See ``scale``.
+    offset: float
+    #: Unit of the engineering value ("" for none).
+    unit: str
+    #: "r", "rw" or "w".
+    access: str
+    #: Lowest value a write may carry (None for a bool or a string).
+    min: float | None
+    #: Highest value a write may carry (None for a bool or a string).
+    max: float | None
+    #: Enum members, ``{number: name}`` (empty for none).
+    enum: dict[int, str]
+    #: The simulator's initial value, if the file gives one.
+    default: int | float | bool | str | None
+    #: Free text.
+    description: str
+    #: The line of its ``[[register]]`` header in the file.
+    line: int
+
+
+#: The line of a device whose profile says nothing of it: 9600 8N1, 0.2 s.
+PROFILE_LINE = LineDefaults(9600, "N", 0.2)
+
+
+def _line(profile: Profile) -> LineDefaults:
+    """The line a device opens its own port at: the profile's, else :data:`PROFILE_LINE`."""
+    given = profile.line
+    return LineDefaults(
+        baudrate=given.baudrate or PROFILE_LINE.baudrate,
+        parity=given.parity or PROFILE_LINE.parity,
+        timeout=given.timeout or PROFILE_LINE.timeout,
+        stopbits=given.stopbits or PROFILE_LINE.stopbits,
+        framing=given.framing or PROFILE_LINE.framing,
+        bytesize=given.bytesize,
+    )
+
+
+def _camel(name: str) -> str:
+    """``op_mode`` -> ``OpMode``."""
+    return "".join(part[:1].upper() + part[1:] for part in name.split("_"))
+
+
+@functools.lru_cache(maxsize=256)
+def _enum(name: str, members: tuple[tuple[str, int], ...]) -> type[PrintableIntEnum]:
+    """The enum of a register called ``name`` (one class per definition)."""
+    made: type[PrintableIntEnum] = PrintableIntEnum(_camel(name), members)  # type: ignore[call-arg, arg-type, assignment]
+    return made
+
+
+def as_profile(profile: Profile | str | os.PathLike[str]) -> Profile:
+    """``profile`` itself, or the profile read from the file it names."""
+    return profile if isinstance(profile, Profile) else Profile(profile)
+
+
+class Device(ProfileCore, BusDevice):
+    """A device described by a profile (a TOML file naming its registers): every register
+    is an attribute, in engineering units.
+
+    ::
+
+        dev = bb.Device.from_profile("xy_md02.toml", "/dev/ttyUSB0", unit=1)
+        print(dev.temperature, dev.humidity)      # 21.5 48.2 (degC, %RH)
+        dev.mode = "heat"                         # an enum: by name, number or member
+        dev.read_many(["temperature", "humidity"])
+        dev.sample()                              # every readable value, fewest requests
+
+    Given a path, the device opens its own Bus at the profile's ``[line]`` (9600 8N1 and a
+    0.2 s timeout where it is silent); given a Bus, it shares it (``timeout`` / ``retries``
+    then apply to this device's requests only). Reads are planned by the core: each table
+    apart, neighbouring registers in one request up to the profile's ``max_read`` (unless
+    ``block_reads = false``), a value never split between two requests. Writes go at least
+    ``min_write_interval`` apart; a write to a read-only register, a value out of its range,
+    off its scale's steps or not an enum member, raises ValueError (TypeError for the wrong
+    kind of value) before anything is sent. A ``bool`` that is one bit of a holding register
+    is written by reading the register and writing it back with the bit changed, as one
+    sequence on the Bus.
+
+    An enum register reads as a member of an ``IntEnum`` built from the profile (named
+    after the register: ``mode`` gives ``Mode``, in :attr:`enums`), or as the plain number
+    when the device holds a value the profile does not list.
+    """
+
+    #: Line format and reply timeout when the profile says nothing of them.
+    LINE_DEFAULTS = PROFILE_LINE
+    #: Each enum register's enum class, by register name.
+    enums: dict[str, type[PrintableIntEnum]]
+    #: The readable registers :meth:`sample` gives (every readable one but strings).
+    SAMPLE_FIELDS: tuple[str, ...] | None
+
+    def __init__(
+        self,
+        profile: Profile | str | os.PathLike[str],
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        *,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> None:
+        """The device ``profile`` describes at ``unit``; see :meth:`from_profile`."""
+        checked = as_profile(profile)
+        self.enums = {
+            r.name: _enum(r.name, tuple((member, n) for n, member in r.enum.items()))
+            for r in checked.registers
+            if r.enum
+        }
+        self.SAMPLE_FIELDS = tuple(
+            r.name for r in checked.registers if r.access != "w" and r.type != "string"
+        )
+        self._on_line(
+            port_or_bus,
+            unit,
+            checked,
+            timeout=timeout,
+            retries=retries,
+            line=_line(checked),
+        )
+
+    @classmethod
+    def from_profile(
+        cls,
+        profile: Profile | str | os.PathLike[str],
+        port_or_bus: str | os.PathLike[str] | Bus,
+        unit: int = 1,
+        *,
+        timeout: float | None = None,
+        retries: int | None = None,
+    ) -> Device:
+        """The device ``profile`` (a :class:`Profile` or the path of its TOML file)
+        describes, at ``unit`` on a Bus or on a port opened at the profile's line.
+
+        A profile's mistake raises ``ProfileError`` (file, line, key) before any port is
+        opened.
+        """
+        return cls(profile, port_or_bus, unit, timeout=timeout, retries=retries)
+
+    def _known(self, name: str) -> str:
+        """``name`` if the profile has it, else ValueError with the closest names."""
+        if name in self.profile:
+            return name
+        names = [r.name for r in self.profile.registers]
+        close = difflib.get_close_matches(name, names, n=3)
+        hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+        raise ValueError(f"{self.profile.name} has no register {name!r}{hint}")
+
+    def _shown(self, name: str, value: Any) -> Any:
+        """``value`` of the register ``name`` as Python has it (an enum member)."""
+        enum_type = self.enums.get(name)
+        if enum_type is None or isinstance(value, bool):
+            return value
+        try:
+            return enum_type(value)
+        except ValueError:
+            return value
+
+    def read(self, name: str) -> Any:
+        """The register ``name``, in engineering units (an enum member, a bool, a str)."""
+        return self.read_many([name])[name]
+
+    def read_many(self, names: Iterable[str]) -> dict[str, Any]:
+        """The registers ``names``, ``{name: value}`` in that order, read in the fewest
+        requests the profile allows (:meth:`Profile.plan` shows which)."""
+        wanted = [self._known(n) for n in names]
+        values = self._read(wanted)
+        return {n: self._shown(n, v) for n, v in zip(wanted, values)}
+
+    def write(self, name: str, value: Any) -> None:
+        """Write ``value`` (engineering units; an enum by member, name or number) to the
+        register ``name``, checked before anything is sent."""
+        self._write(self._known(name), value)
+
+    def get(self, name: str) -> Any:
+        """:meth:`read`, under the name every benchbus device reads a register by."""
+        return self.read(name)
+
+    def set(self, name: str, value: Any) -> None:
+        """:meth:`write`, under the name every benchbus device writes a register by."""
+        self.write(name, value)
+
+    def sample(self) -> dict[str, Any]:
+        """Every readable register but strings, ``{name: value}`` in the profile's order, in
+        the fewest requests the profile allows: what :meth:`record` and ``benchbus
+        monitor`` take."""
+        return self.read_many(self.SAMPLE_FIELDS or ())
+
+    def units(self) -> dict[str, str]:
+        """The unit of every register by name ("" for none)."""
+        return {r.name: r.unit for r in self.profile.registers}
+
+    def _register_named(self, name: str) -> bool:
+        """Whether ``name`` is a register (not a member of the object) of an attached device."""
+        if name.startswith("_") or _declared(type(self), name):
+            return False
+        try:
+            return name in self.profile
+        except RuntimeError:  # not attached yet: its __init__ is running
+            return False
+
+    def __getattr__(self, name: str) -> Any:
+        """A register's value, read now; AttributeError with the closest names otherwise."""
+        if self._register_named(name):
+            return self.read(name)
+        raise self._no_attribute(name, "")
+
+    def __setattr__(self, name: str, value: Any) -> None:
+        """Write a register (``dev.mode = "heat"``), or set an attribute of the object;
+        AttributeError with the closest names for a name it has neither of."""
+        if self._register_named(name):
+            self.write(name, value)
+            return
+        try:
+            super().__setattr__(name, value)
+        except AttributeError as exc:
+            if getattr(exc, "name", None) != name:
+                raise
+            raise self._no_attribute(name, " to set") from None
+
+    def _no_attribute(self, name: str, to: str) -> AttributeError:
+        """An AttributeError for ``name`` naming the closest registers and members."""
+        try:
+            registers = [r.name for r in self.profile.registers]
+        except RuntimeError:
+            registers = []
+        known = registers + [n for n in dir(type(self)) if not n.startswith("_")]
+        close = difflib.get_close_matches(name, known, n=3)
+        hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+        error = AttributeError(
+            f"{type(self).__name__!r} object has no attribute {name!r}{to}{hint}"
+        )
+        error.name, error.obj = name, self
+        return error
+
+    def __dir__(self) -> Iterable[str]:
+        """The object's names and the registers' (for completion in notebooks)."""
+        return [*super().__dir__(), *(r.name for r in self.profile.registers)]
+
+    def __repr__(self) -> str:
+        """Profile name, unit and bus."""
+        return f"<Device {self.profile.name!r} unit={self.unit} on {self.bus!r}>"
+
+    def _repr_html_(self) -> str:
+        """The profile's registers with their units, for notebooks (nothing is read)."""
+        rows = [
+            [r.name, r.table, f"0x{r.address:04X}", r.type, r.unit, r.access, r.description]
+            for r in self.profile.registers
+        ]
+        return html_table(
+            ["name", "table", "address", "type", "unit", "access", "description"],
+            rows,
+            caption=f"{self.profile.name} (unit {self.unit})",
+        )

@@ -1,0 +1,561 @@
+//! A device described by a [`Profile`]: its registers read in the fewest requests the
+//! profile's limits allow, and written in engineering units after every check, on a
+//! [`Station`] like the built-in families.
+
+use super::profile::{Profile, ProfileRegister, ProfileValue, ValueType};
+use super::value::Number;
+use super::{fmt_num, unit_suffix, Access, Device, Station, Table};
+use crate::bus::{Bus, TxOptions};
+use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
+use crate::error::{Error, Result};
+use std::sync::Arc;
+use std::time::Duration;
+
+/// One read request of a plan: `count` registers (or bits) of `table` from `start`, holding
+/// the registers `members` (indices into the profile's registers).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct Block {
+    /// The table read.
+    pub table: Table,
+    /// The first address.
+    pub start: u16,
+    /// How many registers (or bits).
+    pub count: u16,
+    /// The profile registers it holds, by index, in address order.
+    pub members: Vec<usize>,
+}
+
+impl Block {
+    fn end(&self) -> u32 {
+        u32::from(self.start) + u32::from(self.count)
+    }
+}
+
+impl Profile {
+    /// The index of the register called `name`.
+    pub fn index(&self, name: &str) -> Option<usize> {
+        self.registers.iter().position(|r| r.register.name == name)
+    }
+
+    /// Most registers (or bits) one read of `table` asks for: `max_read`, within Modbus's.
+    pub fn read_limit(&self, table: Table) -> u16 {
+        let protocol = if table.holds_bits() {
+            MAX_READ_BITS
+        } else {
+            MAX_READ_COUNT
+        };
+        self.limits.max_read.map_or(protocol, |m| m.min(protocol))
+    }
+
+    /// Most registers (or bits) one write to `table` carries: `max_write`, within Modbus's.
+    pub fn write_limit(&self, table: Table) -> u16 {
+        let protocol = if table.holds_bits() {
+            MAX_WRITE_BITS
+        } else {
+            MAX_WRITE_COUNT
+        };
+        self.limits.max_write.map_or(protocol, |m| m.min(protocol))
+    }
+
+    /// The requests that read the registers `wanted` (indices; repeats read once): each
+    /// table apart, in address order; with `block_reads` (the default), neighbouring and
+    /// overlapping registers share a request up to [`read_limit`](Self::read_limit),
+    /// otherwise only registers at the same address do (bits of one register).
+    pub fn plan(&self, wanted: &[usize]) -> Vec<Block> {
+        let mut order: Vec<usize> = wanted
+            .iter()
+            .copied()
+            .filter(|i| *i < self.registers.len())
+            .collect();
+        order.sort_by_key(|i| {
+            let r = &self.registers[*i];
+            (r.table as u8, r.register.address, *i)
+        });
+        order.dedup();
+        let merge = self.limits.block_reads.unwrap_or(true);
+        let mut blocks: Vec<Block> = Vec::new();
+        for i in order {
+            let r = &self.registers[i];
+            let start = u32::from(r.register.address);
+            let end = start + r.value.width();
+            if let Some(last) = blocks.last_mut() {
+                let joins = last.table == r.table
+                    && (start < last.end() || (merge && start == last.end()))
+                    && end.max(last.end()) - u32::from(last.start)
+                        <= u32::from(self.read_limit(r.table));
+                if joins {
+                    last.count = (end.max(last.end()) - u32::from(last.start)) as u16;
+                    last.members.push(i);
+                    continue;
+                }
+            }
+            blocks.push(Block {
+                table: r.table,
+                start: r.register.address,
+                count: r.value.width() as u16,
+                members: vec![i],
+            });
+        }
+        blocks
+    }
+}
+
+/// What a write of one profile register sends.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Encoded {
+    /// Registers from the register's address (0x06 for one, 0x10 for more).
+    Words(Vec<u16>),
+    /// One coil (0x05).
+    Coil(bool),
+    /// One bit of a holding register: read the word, set or clear the bit, write it back.
+    Bit {
+        /// The bit, 0..15.
+        bit: u8,
+        /// Set or clear.
+        on: bool,
+    },
+}
+
+impl ProfileRegister {
+    fn name(&self) -> &str {
+        &self.register.name
+    }
+
+    /// The engineering value of the register's words (for a bool on a table of bits, the
+    /// one word 0 or 1).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] when `words` is not the register's width.
+    pub fn decode(&self, words: &[u16]) -> Result<ProfileValue> {
+        if words.len() != self.value.width() as usize {
+            return Err(Error::InvalidArgument(format!(
+                "{} takes {} registers, got {}",
+                self.name(),
+                self.value.width(),
+                words.len()
+            )));
+        }
+        Ok(match self.value {
+            ValueType::Bool { bit: Some(bit) } => ProfileValue::Bool(words[0] >> bit & 1 == 1),
+            ValueType::Bool { bit: None } => ProfileValue::Bool(words[0] != 0),
+            ValueType::Text { .. } => {
+                let bytes = self.layout.from_registers(words);
+                let kept = bytes.len() - bytes.iter().rev().take_while(|b| **b == 0).count();
+                ProfileValue::Text(bytes[..kept].iter().map(|b| char::from(*b)).collect())
+            }
+            ValueType::Number(kind) => {
+                let number = kind
+                    .decode(words, self.layout)?
+                    .first()
+                    .copied()
+                    .unwrap_or(Number::Int(0));
+                self.engineering(number)
+            }
+        })
+    }
+
+    /// The engineering value of a raw number: itself when unscaled, else raw x scale +
+    /// offset as a float.
+    fn engineering(&self, raw: Number) -> ProfileValue {
+        let (scale, offset) = (self.register.scale, self.offset);
+        if scale == 1.0 && offset == 0.0 {
+            return match raw {
+                Number::Int(v) => ProfileValue::Int(v),
+                Number::Float(v) => ProfileValue::Float(v),
+            };
+        }
+        let raw = match raw {
+            Number::Int(v) => v as f64,
+            Number::Float(v) => v,
+        };
+        // Divide by 100 rather than multiply by 0.01: 123456 hundredths read 1234.56.
+        let per_unit = (1.0 / scale).round();
+        let value = if scale.abs() < 1.0 && (per_unit * scale - 1.0).abs() < 1e-12 {
+            raw / per_unit
+        } else {
+            raw * scale
+        };
+        ProfileValue::Float(value + offset)
+    }
+
+    /// What writing `value` sends, checked first: access, type, enum member, range, the
+    /// scale's steps and what the type holds.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a read-only register or a value it cannot take.
+    pub fn encode(&self, value: &ProfileValue) -> Result<Encoded> {
+        let name = self.name();
+        if self.register.access == Access::Read {
+            return Err(Error::InvalidArgument(format!("{name} is read-only")));
+        }
+        let wrong = |what: &str| {
+            Error::InvalidArgument(format!("{name} takes {what}, got {}", shown(value)))
+        };
+        match (self.value, value) {
+            (ValueType::Bool { .. }, ProfileValue::Bool(on)) => {
+                Ok(match (self.table, self.value) {
+                    (Table::Coils, _) => Encoded::Coil(*on),
+                    (_, ValueType::Bool { bit: Some(bit) }) => Encoded::Bit { bit, on: *on },
+                    _ => Encoded::Words(vec![u16::from(*on)]),
+                })
+            }
+            (ValueType::Bool { .. }, _) => Err(wrong("True or False")),
+            (ValueType::Text { length }, ProfileValue::Text(text)) => {
+                let mut bytes = Vec::with_capacity(2 * usize::from(length));
+                for c in text.chars() {
+                    let byte = u8::try_from(u32::from(c)).map_err(|_| {
+                        Error::InvalidArgument(format!(
+                            "{name} holds Latin-1 text; {c:?} is not Latin-1"
+                        ))
+                    })?;
+                    bytes.push(byte);
+                }
+                if bytes.len() > 2 * usize::from(length) {
+                    return Err(Error::InvalidArgument(format!(
+                        "{name} holds at most {} characters, got {}",
+                        2 * length,
+                        bytes.len()
+                    )));
+                }
+                bytes.resize(2 * usize::from(length), 0);
+                Ok(Encoded::Words(self.layout.to_registers(&bytes)))
+            }
+            (ValueType::Text { .. }, _) => Err(wrong("a string")),
+            (ValueType::Number(kind), _) if !self.members.is_empty() => {
+                let number = match value {
+                    ProfileValue::Int(n) => self.members.iter().find(|(m, _)| m == n),
+                    ProfileValue::Text(t) => self.members.iter().find(|(_, m)| m == t),
+                    _ => None,
+                };
+                let Some((number, _)) = number else {
+                    let names: Vec<&str> = self.members.iter().map(|(_, m)| m.as_str()).collect();
+                    return Err(Error::InvalidArgument(format!(
+                        "{name} is one of {}, got {}",
+                        names.join(", "),
+                        shown(value)
+                    )));
+                };
+                Ok(Encoded::Words(
+                    kind.encode(Number::Int(*number), self.layout)?,
+                ))
+            }
+            (ValueType::Number(kind), ProfileValue::Int(_) | ProfileValue::Float(_)) => {
+                let v = match value {
+                    ProfileValue::Int(n) => *n as f64,
+                    ProfileValue::Float(f) => *f,
+                    _ => 0.0,
+                };
+                let (lo, hi) = self.register.range;
+                let (scale, offset) = (self.register.scale, self.offset);
+                let slack = 1e-6 * scale.abs();
+                if !v.is_finite() || v < lo - slack || v > hi + slack {
+                    return Err(Error::InvalidArgument(format!(
+                        "{name} must be {} to {}{}, got {}",
+                        fmt_num(lo),
+                        fmt_num(hi),
+                        unit_suffix(&self.register.unit),
+                        shown(value)
+                    )));
+                }
+                let number = match (value, scale == 1.0 && offset == 0.0) {
+                    // Unscaled integers go as they are: 2^63 - 1 is not a float.
+                    (ProfileValue::Int(n), true) => Number::Int(*n),
+                    _ if kind.is_float() => Number::Float((v - offset) / scale),
+                    _ => {
+                        let steps = (v - offset) / scale;
+                        let whole = steps.round();
+                        if (steps - whole).abs() > 1e-6 * whole.abs().max(1.0) {
+                            return Err(Error::InvalidArgument(format!(
+                                "{name} goes in steps of {}{}, got {}",
+                                fmt_num(scale),
+                                unit_suffix(&self.register.unit),
+                                shown(value)
+                            )));
+                        }
+                        Number::Int(whole as i128)
+                    }
+                };
+                Ok(Encoded::Words(kind.encode(number, self.layout)?))
+            }
+            (ValueType::Number(_), _) => Err(wrong("a number")),
+        }
+    }
+}
+
+/// A value as an error message shows it.
+fn shown(value: &ProfileValue) -> String {
+    match value {
+        ProfileValue::Int(n) => n.to_string(),
+        ProfileValue::Float(f) => fmt_num(*f),
+        ProfileValue::Bool(b) => if *b { "True" } else { "False" }.to_string(),
+        ProfileValue::Text(t) => format!("{t:?}"),
+    }
+}
+
+/// A device described by a profile, on a bus.
+#[derive(Debug)]
+pub struct ProfiledDevice {
+    station: Station,
+    profile: Arc<Profile>,
+}
+
+impl Device for ProfiledDevice {
+    fn station(&self) -> &Station {
+        &self.station
+    }
+
+    fn station_mut(&mut self) -> &mut Station {
+        &mut self.station
+    }
+}
+
+impl ProfiledDevice {
+    /// The device `profile` describes, at `unit` on `bus`, its writes at least the
+    /// profile's `min_write_interval` apart.
+    pub fn new(bus: Arc<Bus>, unit: u8, profile: Arc<Profile>) -> ProfiledDevice {
+        let interval = profile.limits.min_write_interval.unwrap_or(0.0);
+        let opts = TxOptions {
+            write_interval: Duration::try_from_secs_f64(interval).unwrap_or_default(),
+            ..TxOptions::default()
+        };
+        ProfiledDevice {
+            station: Station::new(bus, unit, opts),
+            profile,
+        }
+    }
+
+    /// The profile.
+    pub fn profile(&self) -> &Arc<Profile> {
+        &self.profile
+    }
+
+    /// The register at `index`.
+    fn register(&self, index: usize) -> Result<&ProfileRegister> {
+        self.profile
+            .registers
+            .get(index)
+            .ok_or_else(|| Error::InvalidArgument(format!("no register {index}")))
+    }
+
+    /// The engineering values of the registers `indices`, in that order, read as
+    /// [`Profile::plan`] groups them.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a write-only register (nothing sent); any [`Error`]
+    /// of a request (the values read before it are lost).
+    pub fn read(&self, indices: &[usize]) -> Result<Vec<ProfileValue>> {
+        for i in indices {
+            let r = self.register(*i)?;
+            if r.register.access == Access::Write {
+                return Err(Error::InvalidArgument(format!(
+                    "{} is write-only",
+                    r.register.name
+                )));
+            }
+        }
+        let mut values: Vec<Option<ProfileValue>> = vec![None; self.profile.registers.len()];
+        for block in self.profile.plan(indices) {
+            let words: Vec<u16> = if block.table.holds_bits() {
+                self.station
+                    .read_bits(block.table, block.start, block.count)?
+                    .into_iter()
+                    .map(u16::from)
+                    .collect()
+            } else {
+                self.station
+                    .read_table(block.table, block.start, block.count)?
+            };
+            for i in &block.members {
+                let r = self.register(*i)?;
+                let from = usize::from(r.register.address - block.start);
+                let to = from + r.value.width() as usize;
+                let own = words
+                    .get(from..to)
+                    .ok_or_else(|| self.station.short_reply())?;
+                values[*i] = Some(r.decode(own)?);
+            }
+        }
+        indices
+            .iter()
+            .map(|i| {
+                values
+                    .get(*i)
+                    .cloned()
+                    .flatten()
+                    .ok_or_else(|| Error::InvalidArgument(format!("no register {i}")))
+            })
+            .collect()
+    }
+
+    /// Writes `value` to the register at `index`, every check made before anything is
+    /// sent; a bit of a holding register is read, changed and written back as one sequence.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a read-only register or a value it cannot take
+    /// (nothing sent); any [`Error`] of a request.
+    pub fn write(&self, index: usize, value: &ProfileValue) -> Result<()> {
+        let r = self.register(index)?;
+        let address = r.register.address;
+        match r.encode(value)? {
+            Encoded::Coil(on) => self.station.write_coil(address, on),
+            Encoded::Words(words) if words.len() == 1 => self.station.write(address, words[0]),
+            Encoded::Words(words) => self.station.write_many(address, &words),
+            Encoded::Bit { bit, on } => self.station.exclusive(|| {
+                let word = *self
+                    .station
+                    .read(address, 1)?
+                    .first()
+                    .ok_or_else(|| self.station.short_reply())?;
+                let mask = 1u16 << bit;
+                let word = if on { word | mask } else { word & !mask };
+                self.station.write(address, word)
+            }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn profile(extra: &str, registers: &str) -> Profile {
+        let text = format!("[device]\nname = \"T\"\n{extra}\n{registers}");
+        Profile::parse("t.toml", &text).unwrap()
+    }
+
+    const SENSOR: &str = r#"
+[[register]]
+name = "a"
+address = 0
+table = "input"
+[[register]]
+name = "b"
+address = 1
+table = "input"
+type = "f32"
+[[register]]
+name = "c"
+address = 10
+table = "input"
+[[register]]
+name = "d"
+address = 3
+[[register]]
+name = "e"
+address = 4
+"#;
+
+    fn spans(p: &Profile, wanted: &[usize]) -> Vec<(Table, u16, u16, Vec<usize>)> {
+        p.plan(wanted)
+            .into_iter()
+            .map(|b| (b.table, b.start, b.count, b.members))
+            .collect()
+    }
+
+    #[test]
+    fn neighbours_share_a_request_and_tables_stay_apart() {
+        let p = profile("", SENSOR);
+        assert_eq!(
+            spans(&p, &[4, 0, 2, 1, 3]),
+            vec![
+                (Table::Holding, 3, 2, vec![3, 4]),
+                (Table::Input, 0, 3, vec![0, 1]),
+                (Table::Input, 10, 1, vec![2]),
+            ]
+        );
+    }
+
+    #[test]
+    fn max_read_and_block_reads_split_the_plan() {
+        let p = profile("[limits]\nmax_read = 2\n", SENSOR);
+        assert_eq!(
+            spans(&p, &[0, 1]),
+            vec![(Table::Input, 0, 1, vec![0]), (Table::Input, 1, 2, vec![1])]
+        );
+        let p = profile("[limits]\nblock_reads = false\n", SENSOR);
+        assert_eq!(spans(&p, &[3, 4]).len(), 2);
+    }
+
+    #[test]
+    fn bits_of_one_register_are_read_once_even_without_block_reads() {
+        let p = profile(
+            "[limits]\nblock_reads = false\n",
+            "[[register]]\nname = \"x\"\naddress = 7\ntype = \"bool\"\nbit = 0\n\
+             [[register]]\nname = \"y\"\naddress = 7\ntype = \"bool\"\nbit = 3\n",
+        );
+        assert_eq!(
+            spans(&p, &[1, 0, 1]),
+            vec![(Table::Holding, 7, 1, vec![0, 1])]
+        );
+    }
+
+    #[test]
+    fn values_decode_and_encode_in_engineering_units() {
+        let p = profile(
+            "",
+            "[[register]]\nname = \"t\"\naddress = 0\ntype = \"i16\"\nscale = 0.1\n\
+             min = -40.0\nmax = 125.0\nunit = \"degC\"\n\
+             [[register]]\nname = \"k\"\naddress = 1\ntype = \"i32\"\norder = \"DCBA\"\n\
+             scale = 0.01\noffset = -273.15\n\
+             [[register]]\nname = \"m\"\naddress = 3\nenum = { 0 = \"off\", 2 = \"cool\" }\n\
+             [[register]]\nname = \"s\"\naddress = 4\ntype = \"string\"\nlength = 2\n",
+        );
+        let t = &p.registers[0];
+        assert_eq!(t.decode(&[0xFF9C]).unwrap(), ProfileValue::Float(-10.0));
+        assert_eq!(
+            t.encode(&ProfileValue::Float(21.5)).unwrap(),
+            Encoded::Words(vec![215])
+        );
+        let err = t.encode(&ProfileValue::Float(130.0)).unwrap_err();
+        assert!(
+            err.to_string()
+                .contains("t must be -40 to 125 degC, got 130"),
+            "{err}"
+        );
+        let err = t.encode(&ProfileValue::Float(21.55)).unwrap_err();
+        assert!(err.to_string().contains("steps of 0.1"), "{err}");
+        // 295.65 K in centikelvin, DCBA: 29565 = 0x0000737D.
+        let k = &p.registers[1];
+        let words = vec![0x7D73, 0x0000];
+        assert_eq!(
+            k.encode(&ProfileValue::Float(22.5)).unwrap(),
+            Encoded::Words(words.clone())
+        );
+        match k.decode(&words).unwrap() {
+            ProfileValue::Float(v) => assert!((v - 22.5).abs() < 1e-9, "{v}"),
+            other => panic!("{other:?}"),
+        }
+        let m = &p.registers[2];
+        assert_eq!(
+            m.encode(&ProfileValue::Text("cool".into())).unwrap(),
+            Encoded::Words(vec![2])
+        );
+        assert!(m.encode(&ProfileValue::Int(1)).is_err());
+        assert_eq!(m.decode(&[2]).unwrap(), ProfileValue::Int(2));
+        let s = &p.registers[3];
+        assert_eq!(
+            s.encode(&ProfileValue::Text("AB".into())).unwrap(),
+            Encoded::Words(vec![0x4142, 0])
+        );
+        assert_eq!(
+            s.decode(&[0x4142, 0x4300]).unwrap(),
+            ProfileValue::Text("ABC".into())
+        );
+        assert!(s.encode(&ProfileValue::Text("ABCDE".into())).is_err());
+        assert!(s.encode(&ProfileValue::Text("\u{263A}".into())).is_err());
+    }
+
+    #[test]
+    fn read_only_and_wrong_types_are_refused() {
+        let p = profile(SENSOR, "");
+        let a = &p.registers[0];
+        assert!(a.encode(&ProfileValue::Int(1)).is_err());
+        let d = &p.registers[3];
+        assert!(d.encode(&ProfileValue::Bool(true)).is_err());
+        assert!(d.encode(&ProfileValue::Text("1".into())).is_err());
+        assert_eq!(
+            d.encode(&ProfileValue::Int(7)).unwrap(),
+            Encoded::Words(vec![7])
+        );
+    }
+}

@@ -1,0 +1,302 @@
+"""bb.Device.from_profile: the three example profiles, each against its own simulator
+(benchbus.sim.ProfileDevice, which reads the profile itself), with every request checked
+frame by frame as it crossed the line and every value against the simulator's."""
+
+from __future__ import annotations
+
+import struct
+import time
+from collections.abc import Iterator
+from pathlib import Path
+
+import pytest
+
+import benchbus as bb
+from benchbus.sim import ProfileDevice, Simulator
+from conftest import crc
+
+PROFILES = Path(__file__).resolve().parent.parent / "examples" / "profiles"
+SENSOR = PROFILES / "xy_md02.toml"
+RELAYS = PROFILES / "relay_board.toml"
+CONTROLLER = PROFILES / "flow_controller.toml"
+
+
+def frame(*pdu: int, unit: int = 1) -> bytes:
+    body = bytes([unit, *pdu])
+    return body + crc(body)
+
+
+Rig = tuple[Simulator[ProfileDevice], bb.Device, ProfileDevice]
+
+
+def rig(path: Path, **values: object) -> Iterator[Rig]:
+    model = ProfileDevice(path, values=values)
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, baudrate=9600, timeout=0.5) as bus:
+        yield sim, bb.Device.from_profile(path, bus, unit=1), model
+        assert sim.errors == []
+
+
+@pytest.fixture
+def sensor() -> Iterator[Rig]:
+    yield from rig(SENSOR, temperature=-12.3)
+
+
+@pytest.fixture
+def relays() -> Iterator[Rig]:
+    yield from rig(RELAYS)
+
+
+@pytest.fixture
+def controller() -> Iterator[Rig]:
+    yield from rig(CONTROLLER)
+
+
+def sent_by(sim: Simulator[ProfileDevice], before: int) -> list[bytes]:
+    """The requests the simulator received since it had ``before``."""
+    return list(sim.requests[before:])
+
+
+# ---- the sensor: input registers read together, settings one by one -----------------------
+
+
+def test_sensor_sample_reads_neighbours_in_one_request_per_table(sensor: Rig) -> None:
+    sim, dev, model = sensor
+    before = len(sim.requests)
+    values = dev.sample()
+    assert sent_by(sim, before) == [
+        frame(0x03, 0x01, 0x01, 0x00, 0x04),  # unit_address, baud and the two corrections
+        frame(0x04, 0x00, 0x01, 0x00, 0x02),  # temperature and humidity
+    ]
+    assert list(values) == [
+        "temperature",
+        "humidity",
+        "unit_address",
+        "baud",
+        "temperature_correction",
+        "humidity_correction",
+    ]
+    assert values["temperature"] == pytest.approx(-12.3)
+    assert values["humidity"] == pytest.approx(45.0)
+    for name, value in values.items():
+        assert value == pytest.approx(model.value(name)) or value.name == model.value(name)
+
+
+def test_sensor_attributes_in_engineering_units(sensor: Rig) -> None:
+    sim, dev, model = sensor
+    model.set_value("humidity", 61.7)
+    assert dev.humidity == pytest.approx(61.7)
+    assert dev.read("temperature") == pytest.approx(-12.3)
+    assert isinstance(dev.unit_address, int) and dev.unit_address == 1
+    before = len(sim.requests)
+    dev.temperature_correction = -1.5
+    assert sent_by(sim, before) == [frame(0x06, 0x01, 0x03, 0xFF, 0xF1)]  # -15 tenths
+    assert model.value("temperature_correction") == pytest.approx(-1.5)
+
+
+def test_sensor_enum_by_member_name_and_number(sensor: Rig) -> None:
+    sim, dev, model = sensor
+    baud = dev.baud
+    baud_enum = dev.enums["baud"]
+    assert type(baud) is baud_enum and baud_enum.__name__ == "Baud"
+    assert baud is baud_enum.b9600 and str(baud) == "Baud.b9600"
+    dev.baud = "b19200"
+    assert model.value("baud") == "b19200"
+    assert dev.baud is baud_enum.b19200
+    dev.baud = baud_enum.b14400
+    assert sim.requests[-1] == frame(0x06, 0x01, 0x02, 0x00, 0x01)
+    dev.write("baud", 0)
+    assert model.value("baud") == "b9600"
+
+
+def test_sensor_checks_before_sending(sensor: Rig) -> None:
+    sim, dev, model = sensor
+    before = len(sim.requests)
+    with pytest.raises(ValueError, match=r"unit_address must be 1 to 247, got 248"):
+        dev.unit_address = 248
+    with pytest.raises(ValueError, match=r"steps of 0\.1 degC"):
+        dev.temperature_correction = 0.25
+    with pytest.raises(ValueError, match="temperature is read-only"):
+        dev.temperature = 20.0
+    with pytest.raises(ValueError, match="baud is one of b9600, b14400, b19200"):
+        dev.baud = "b115200"
+    with pytest.raises(TypeError, match="unit_address takes a number, got str"):
+        dev.write("unit_address", "5")
+    with pytest.raises(TypeError, match="a member, its name or its number"):
+        dev.baud = True
+    with pytest.raises(ValueError, match=r"no register 'humidty'; did you mean 'humidity'"):
+        dev.read("humidty")
+    assert sent_by(sim, before) == []
+    assert model.value("unit_address") == 1
+
+
+def test_typos_are_attribute_errors_with_suggestions(sensor: Rig) -> None:
+    _, dev, _ = sensor
+    with pytest.raises(AttributeError, match=r"'temprature'; did you mean 'temperature'") as got:
+        dev.temprature  # noqa: B018
+    assert got.value.name == "temprature"
+    with pytest.raises(AttributeError, match=r"'humidty' to set; did you mean 'humidity'"):
+        dev.humidty = 5
+    assert "humidity" in dir(dev) and "read_many" in dir(dev)
+
+
+# ---- the relay board: coils, discrete inputs, bits of a register ---------------------------
+
+
+def test_relays_sample_one_request_per_table(relays: Rig) -> None:
+    sim, dev, model = relays
+    model.set_value("input3", True)
+    before = len(sim.requests)
+    values = dev.sample()
+    assert sent_by(sim, before) == [
+        frame(0x03, 0x00, 0x10, 0x00, 0x01),  # all_on and all_off: one word
+        frame(0x03, 0x00, 0x20, 0x00, 0x01),  # board_address
+        frame(0x01, 0x00, 0x00, 0x00, 0x07),  # relay1..7 (relay8 is write-only)
+        frame(0x02, 0x00, 0x00, 0x00, 0x08),  # input1..8
+    ]
+    assert "relay8" not in values
+    assert values["relay1"] is True and values["relay2"] is False
+    assert values["input3"] is True and values["input4"] is False
+
+
+def test_relays_coils_and_bits_written(relays: Rig) -> None:
+    sim, dev, model = relays
+    before = len(sim.requests)
+    dev.relay2 = True
+    dev.relay8 = True
+    assert sent_by(sim, before) == [
+        frame(0x05, 0x00, 0x01, 0xFF, 0x00),
+        frame(0x05, 0x00, 0x07, 0xFF, 0x00),
+    ]
+    assert model.value("relay2") is True
+    with pytest.raises(ValueError, match="relay8 is write-only"):
+        dev.relay8  # noqa: B018
+    with pytest.raises(TypeError, match="relay3 takes True or False, got int"):
+        dev.relay3 = 1
+    # A bit of a holding register: the word read, the bit set, the word written back.
+    model.set_value("all_off", True)
+    before = len(sim.requests)
+    dev.all_on = True
+    assert sent_by(sim, before) == [
+        frame(0x03, 0x00, 0x10, 0x00, 0x01),
+        frame(0x06, 0x00, 0x10, 0x00, 0x03),
+    ]
+    assert (model.value("all_on"), model.value("all_off")) == (True, True)
+    assert dev.read_many(["all_off", "input1"]) == {"all_off": True, "input1": False}
+
+
+# ---- the controller: wide values, word orders, strings, one register a request -------------
+
+
+def test_controller_reads_each_register_apart_without_block_reads(controller: Rig) -> None:
+    sim, dev, model = controller
+    before = len(sim.requests)
+    values = dev.read_many(["setpoint", "mode", "flow", "total"])
+    assert sent_by(sim, before) == [
+        frame(0x03, 0x00, 0x00, 0x00, 0x02),
+        frame(0x03, 0x00, 0x10, 0x00, 0x01),
+        frame(0x04, 0x00, 0x02, 0x00, 0x02),
+        frame(0x04, 0x00, 0x04, 0x00, 0x02),
+    ]
+    assert values["setpoint"] == pytest.approx(50.0)
+    assert values["flow"] == pytest.approx(49.75)
+    assert values["total"] == pytest.approx(1234.56)
+    assert values["mode"] == 1 and values["mode"].name == "control"
+    assert dev.gas_temperature == pytest.approx(model.value("gas_temperature"))
+    assert dev.runtime == 86400 and dev.zero_offset == -42 and dev.gain == 1.0
+    assert dev.device_name == "FC-200 #1"
+
+
+def test_controller_writes_wide_values_in_their_order(controller: Rig) -> None:
+    sim, dev, model = controller
+    before = len(sim.requests)
+    dev.setpoint = 120.5
+    dev.zero_offset = -1000
+    dev.device_name = "line 3"
+    abcd = struct.unpack(">HH", struct.pack(">f", 120.5))
+    counts = struct.unpack(">HHHH", struct.pack(">q", -1000))
+    text = b"line 3".ljust(16, b"\0")
+    assert sent_by(sim, before) == [
+        frame(0x10, 0x00, 0x00, 0x00, 0x02, 4, *struct.pack(">HH", abcd[1], abcd[0])),  # CDAB
+        frame(0x10, 0x00, 0x24, 0x00, 0x04, 8, *struct.pack(">HHHH", *counts)),
+        frame(0x10, 0x00, 0x30, 0x00, 0x08, 16, *text),
+    ]
+    assert model.value("setpoint") == pytest.approx(120.5)
+    assert model.value("zero_offset") == -1000
+    assert model.value("device_name") == "line 3"
+    with pytest.raises(ValueError, match="holds at most 16 characters"):
+        dev.device_name = "x" * 17
+    with pytest.raises(ValueError, match=r"gain must be 0\.5 to 2, got 2\.5"):
+        dev.gain = 2.5
+
+
+def test_controller_writes_are_paced(controller: Rig) -> None:
+    _, dev, model = controller
+    start = time.monotonic()
+    dev.mode = "purge"
+    dev.mode = "close"
+    dev.mode = "off"
+    # min_write_interval = 0.05: three writes span at least two intervals.
+    assert time.monotonic() - start >= 0.1
+    assert model.value("mode") == "off"
+
+
+def test_controller_record_keeps_the_units(controller: Rig) -> None:
+    _, dev, _ = controller
+    rec = dev.record(0.25, 0.1, columns=["flow", "gas_temperature"])
+    assert len(rec) >= 2
+    assert rec.unit_map() == {"flow": "sccm", "gas_temperature": "degC"}
+    assert rec["flow"][0] == pytest.approx(49.75)
+    pytest.importorskip("pandas")
+    frame_ = rec.to_pandas()
+    assert frame_.attrs["units"] == {"flow": "sccm", "gas_temperature": "degC"}
+    assert dev.sample_units()["total"] == "scc"
+    assert "device_name" not in dev.SAMPLE_FIELDS  # a string is no measurement
+
+
+def test_repr_and_html(controller: Rig) -> None:
+    _, dev, _ = controller
+    assert repr(dev).startswith("<Device 'FC-200' unit=1 on Bus(")
+    page = dev._repr_html_()
+    assert "FC-200 (unit 1)" in page
+    assert "<td>sccm</td>" in page and "gas_temperature" in page
+
+
+# ---- the profile object, and mistakes before any port is opened ----------------------------
+
+
+def test_profile_plan_groups_neighbours_within_max_read() -> None:
+    profile = bb.Profile(RELAYS)
+    assert profile.plan(["input8", "input1", "relay1", "relay2", "all_off", "all_on"]) == [
+        ("holding", 0x10, 1, ["all_on", "all_off"]),
+        ("coil", 0, 2, ["relay1", "relay2"]),
+        ("discrete", 0, 1, ["input1"]),
+        ("discrete", 7, 1, ["input8"]),
+    ]
+    assert len(profile) == 19 and "relay1" in profile and profile["relay1"].table == "coil"
+    with pytest.raises(KeyError):
+        profile["relay9"]
+
+
+def test_a_bad_profile_fails_before_the_port_opens(tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text('[device]\nname = "x"\n[[register]]\nname = "read"\naddress = 0\n')
+    with pytest.raises(bb.ProfileError, match=r"bad.toml:4: register\[0\].name"):
+        bb.Device.from_profile(path, "/dev/does-not-exist")
+
+
+@pytest.mark.parametrize(
+    "member", [*sorted(n for n in dir(bb.Device) if not n.startswith("_")), "name", "enums"]
+)
+def test_no_register_may_shadow_a_device_member(member: str) -> None:
+    text = f'[device]\nname = "x"\n[[register]]\nname = "{member}"\naddress = 0\n'
+    with pytest.raises(bb.ProfileError, match="would shadow a member of the device"):
+        bb.Profile.parse(text)
+
+
+def test_the_device_opens_its_own_port_at_the_profiles_line() -> None:
+    with Simulator({1: ProfileDevice(SENSOR)}) as sim:
+        with bb.Device.from_profile(SENSOR, sim.port) as dev:
+            assert (dev.bus.baudrate, dev.bus.parity, dev.bus.timeout) == (9600, "N", 0.5)
+            assert dev.humidity == pytest.approx(45.0)
+            bus = dev.bus
+        assert bus.closed
