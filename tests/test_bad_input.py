@@ -28,11 +28,23 @@ import pytest
 
 import benchbus as bb
 from benchbus._device import MeasuredProperty, RegisterProperty
-from benchbus.sim import DriveDevice, J2Device, PblDevice, SimDevice, Simulator, TaisongDevice
+from benchbus.sim import (
+    DriveDevice,
+    J2Device,
+    PblDevice,
+    ProfileDevice,
+    SimDevice,
+    Simulator,
+    TaisongDevice,
+)
 
 NAN, INF = math.nan, math.inf
 #: An int far too big for any register, a u64, or PyO3's conversions.
 HUGE = 2**70
+#: A profile with every kind of value: floats in two orders, enums, strings, 64-bit values.
+CONTROLLER = str(
+    Path(__file__).resolve().parent.parent / "examples" / "profiles" / "flow_controller.toml"
+)
 
 
 class _Placeholder:
@@ -59,6 +71,7 @@ OWNERS: dict[str, type] = {
     "PblDrive": bb.PblDrive,
     "J2Controller": bb.J2Controller,
     "Instrument": bb.Instrument,
+    "Device": bb.Device,
 }
 
 #: Public names that take no input at all, so have nothing to refuse.
@@ -709,6 +722,48 @@ EXPLICIT: list[Case] = [
     *calls("Instrument", "record", ValueError, "duration", A(NAN, 0.1)),
     # An instrument has no fixed measurements: refused at the first sample, before any read.
     *calls("Instrument", "record", TypeError, "measurements", A(1, 0.1)),
+    # -- Device (the flow controller's profile: floats, enums, strings, 64-bit values)
+    *calls("Device", "__init__", TypeError, "path", A(5, BUS), A(None, BUS)),
+    *calls(
+        "Device",
+        "__init__",
+        ValueError,
+        "unit",
+        *(A(CONTROLLER, BUS, u) for u in (-1, 0, 256, HUGE)),
+    ),
+    *calls("Device", "__init__", TypeError, "unit", A(CONTROLLER, BUS, "4")),
+    *calls("Device", "__init__", ValueError, "timeout", A(CONTROLLER, BUS, 5, timeout=NAN)),
+    *calls("Device", "from_profile", TypeError, "path", A(5, BUS)),
+    *calls("Device", "from_profile", ValueError, "unit", A(CONTROLLER, BUS, -1)),
+    *calls("Device", "from_profile", ValueError, "retries", A(CONTROLLER, BUS, 5, retries=-1)),
+    *calls("Device", "read", ValueError, "nope", A("nope")),
+    *calls("Device", "read", ValueError, "register ''", A("")),
+    *calls("Device", "read", ValueError, "reset_total", A("reset_total")),  # write-only
+    *calls("Device", "get", ValueError, "NOPE", A("NOPE")),
+    *calls("Device", "read_many", ValueError, "nope", A(["flow", "nope"])),
+    *calls("Device", "read_many", TypeError, "int", A(5)),
+    *calls(
+        "Device",
+        "write",
+        ValueError,
+        "setpoint",
+        *(A("setpoint", v) for v in (-0.5, 200.5, NAN, INF, -INF, HUGE, -HUGE)),
+    ),
+    *calls("Device", "write", TypeError, "setpoint", A("setpoint", "x"), A("setpoint", None)),
+    *calls("Device", "write", TypeError, "setpoint", A("setpoint", True), A("setpoint", [1])),
+    *calls("Device", "write", ValueError, "flow", A("flow", 1.0)),  # read-only
+    *calls("Device", "write", ValueError, "mode", A("mode", "heat"), A("mode", 9), A("mode", -1)),
+    *calls("Device", "write", TypeError, "mode", A("mode", 1.0), A("mode", False)),
+    *calls("Device", "write", ValueError, "zero_offset", A("zero_offset", 10**6 + 1)),
+    *calls("Device", "write", ValueError, "zero_offset", A("zero_offset", 2**64)),
+    *calls("Device", "write", ValueError, "device_name", A("device_name", "x" * 17)),
+    *calls("Device", "write", ValueError, "device_name", A("device_name", "\u20ac")),
+    *calls("Device", "write", TypeError, "device_name", A("device_name", 5)),
+    *calls("Device", "write", ValueError, "nope", A("nope", 1)),
+    *calls("Device", "set", ValueError, "gain", A("gain", 0.4), A("gain", NAN)),
+    *calls("Device", "set", ValueError, "NOPE", A("NOPE", 1)),
+    *calls("Device", "record", ValueError, "duration", A(NAN, 0.1)),
+    *calls("Device", "record", ValueError, "nope", A(1, 0.1, columns=["nope"])),
 ]
 
 
@@ -789,6 +844,7 @@ def env() -> Iterator[Env]:
         3: J2Device(),
         4: TaisongDevice(),
         0x11: PblDevice(),
+        5: ProfileDevice(CONTROLLER),
     }
     with Simulator(devices) as sim, bb.Bus(sim.port, timeout=0.5) as bus:
         drive = bb.Drive(bus, 1)
@@ -800,6 +856,7 @@ def env() -> Iterator[Env]:
             "PblDrive": bb.PblDrive(bus, 0x11),
             "J2Controller": bb.J2Controller(bus, 3),
             "Instrument": bb.Instrument(bus, 4),
+            "Device": bb.Device.from_profile(CONTROLLER, bus, 5),
         }
         ranges = {
             "Drive": {r[0]: (r[5], r[6]) for r in drive.registers()},

@@ -104,7 +104,7 @@ fn value_arg(r: &ProfileRegister, obj: &Bound<'_, PyAny>) -> PyResult<ProfileVal
                 }
                 return wrong("a number");
             }
-            if obj.is_instance_of::<PyFloat>() {
+            if obj.is_instance_of::<PyFloat>() && !enum_register {
                 return Ok(ProfileValue::Float(obj.extract()?));
             }
             if let Ok(n) = obj.extract::<i128>() {
