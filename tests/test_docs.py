@@ -40,6 +40,7 @@ PICKED_BY = (
     "bb.from_registers(",
     'framing="ascii"',
     "ProfileDevice(",
+    "Device.from_profile(",
 )
 
 
@@ -113,6 +114,27 @@ def test_readme_profile_simulator_example(monkeypatch: pytest.MonkeyPatch) -> No
     (block,) = [b for b in readme_blocks() if "ProfileDevice(" in b]
     monkeypatch.chdir(ROOT)  # the block names its profile from the repository's root
     exec(block, {})
+
+
+def test_readme_profile_device_example(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """The profile device, on the sensor's own simulator."""
+    (block,) = [b for b in readme_blocks() if "Device.from_profile(" in b]
+    from benchbus.sim import ProfileDevice
+
+    monkeypatch.chdir(ROOT)  # the block names its profile from the repository's root
+    sensor = ProfileDevice("examples/profiles/xy_md02.toml")
+    with Simulator({1: sensor}) as sim:
+        exec(block.replace("/dev/ttyUSB3", sim.port), {})
+    assert capsys.readouterr().out.splitlines() == [
+        "21.5 45.0",
+        "Baud.b19200 %RH",
+        "{'temperature': 21.5, 'humidity': 45.0}",
+        "temperature_correction must be -10 to 10 degC, got 12",
+    ]
+    assert sensor.value("temperature_correction") == -0.5
+    assert sensor.value("baud") == "b19200"
 
 
 def test_readme_poll_example(capsys: pytest.CaptureFixture[str]) -> None:
@@ -218,6 +240,22 @@ def test_drive_bench_example_runs() -> None:
     assert out[3] == "  DriveState.FAULT, fault 0x0A undervoltage"
     assert out[4] == "  after reset: DriveState.STOPPED, fault None"
     assert out[5] == "  left the block: the drive got command 5 (stop), DriveState.STOPPED"
+
+
+def test_profiles_tour_runs() -> None:
+    out = run_example("profiles/tour.py").splitlines()
+    assert out[0] == "XY-MD02 (RS485 temperature and humidity sensor), 6 registers"
+    assert "    temperature                        21.5 degC" in out
+    assert "    baud                         Baud.b9600" in out
+    assert "  one sample took 2 requests" in out  # input registers, then the settings
+    assert "  wrote baud = 'b19200': reads back Baud.b19200" in out
+    assert "  one sample took 4 requests" in out  # coils, inputs, two register reads
+    assert "  wrote all_off = True: reads back True" in out
+    assert "    total                           1234.56 scc" in out
+    assert "  one sample took 8 requests" in out  # block_reads = false: one each
+    assert "  wrote mode = 'purge': reads back Mode.purge" in out
+    refused = [line for line in out if line.startswith("  refused:")]
+    assert len(refused) == 3 and all(line.endswith("(0 requests sent)") for line in refused)
 
 
 def test_first_steps_example_runs() -> None:
