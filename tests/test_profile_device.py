@@ -249,6 +249,7 @@ def test_controller_record_keeps_the_units(controller: Rig) -> None:
     pytest.importorskip("pandas")
     frame_ = rec.to_pandas()
     assert frame_.attrs["units"] == {"flow": "sccm", "gas_temperature": "degC"}
+    assert frame_.attrs["device"] == "FC-200 unit 1"
     assert dev.sample_units()["total"] == "scc"
     assert "device_name" not in dev.SAMPLE_FIELDS  # a string is no measurement
 

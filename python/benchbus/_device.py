@@ -391,13 +391,17 @@ class BusDevice(metaclass=_DeviceType):
             self.sample,
             duration,
             interval,
-            device=f"{type(self).__name__} unit {self.unit}",
+            device=f"{self._kind()} unit {self.unit}",
             columns=columns,
             known=self.SAMPLE_FIELDS,
             units=self.sample_units(),
             clock=clock,
             sleep=sleep,
         )
+
+    def _kind(self) -> str:
+        """What the device is, as recordings name it: its class."""
+        return type(self).__name__
 
     def close(self) -> None:
         """Close the Bus if the device opened it (a shared Bus stays open)."""

@@ -307,6 +307,10 @@ class Device(ProfileCore, BusDevice):
         """The object's names and the registers' (for completion in notebooks)."""
         return [*super().__dir__(), *(r.name for r in self.profile.registers)]
 
+    def _kind(self) -> str:
+        """What the device is, as recordings name it: its profile's name."""
+        return self.profile.name
+
     def __repr__(self) -> str:
         """Profile name, unit and bus."""
         return f"<Device {self.profile.name!r} unit={self.unit} on {self.bus!r}>"
