@@ -41,6 +41,7 @@ PICKED_BY = (
     'framing="ascii"',
     "ProfileDevice(",
     "Device.from_profile(",
+    "sim_profile(",
 )
 
 
@@ -202,6 +203,17 @@ def test_readme_pytest_example(pytester: pytest.Pytester) -> None:
     (block,) = [b for b in readme_blocks() if "def test_spin_up" in b]
     pytester.makepyfile(test_readme_bench=block)
     pytester.runpytest_subprocess("-q").assert_outcomes(passed=2)
+
+
+def test_readme_sim_profile_example(pytester: pytest.Pytester) -> None:
+    (block,) = [b for b in readme_blocks() if "sim_profile(" in b]
+    profiles = pytester.path / "examples" / "profiles"
+    profiles.mkdir(parents=True)
+    (profiles / "xy_md02.toml").write_bytes(
+        (ROOT / "examples" / "profiles" / "xy_md02.toml").read_bytes()
+    )
+    pytester.makepyfile(test_readme_profile=block)
+    pytester.runpytest_subprocess("-q").assert_outcomes(passed=1)
 
 
 def test_readme_recording_example() -> None:

@@ -21,6 +21,7 @@ from benchbus.sim import DriveDevice, J2Device, Simulator
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "examples" / "bench" / "test_motor_bench.py"
+PROFILES = ROOT / "examples" / "profiles"
 
 SIMULATED_HEADER = "benchbus: simulated devices (tests marked hardware skipped: no --benchbus-port)"
 SKIP_REASON = "needs a real device: run with --benchbus-port PATH"
@@ -322,3 +323,84 @@ def test_the_example_bench_passes_simulated_and_on_a_line(
     assert drive.commands.count(1) == 3  # three tests ran the drive on the line
     assert drive.state == DriveDevice.STOPPED
     assert j2.value("SV") == j2.DEFAULTS["SV"]  # the setpoint was put back
+
+
+PROFILE_TESTS = """
+import threading
+from pathlib import Path
+
+import pytest
+
+import benchbus as bb
+from benchbus.pytest_plugin import ProfileBench
+from benchbus.sim import ProfileDevice, Simulator
+
+PROFILES = Path({profiles!r})
+
+
+def sim_threads():
+    return [t for t in threading.enumerate() if t.name.startswith("benchbus-sim")]
+
+
+def test_defaults_and_values(sim_profile):
+    bench = sim_profile(PROFILES / "xy_md02.toml", unit=3, values={{"humidity": 51.2}})
+    assert isinstance(bench, ProfileBench) and isinstance(bench.model, ProfileDevice)
+    assert isinstance(bench.sim, Simulator) and bench.unit == 3
+    assert bench.port == bench.sim.port == bench.bus.port and bench.port.startswith("/dev/")
+    assert bench.baudrate == bench.sim.baudrate == bench.bus.baudrate == 9600  # its [line]
+    assert (bench.bus.parity, bench.bus.timeout, bench.framing) == ("N", 0.5, "rtu")
+    # temperature 21.5 (its default) and humidity 51.2 (values=), 0.1 a count
+    assert bench.bus.read_input_registers(3, 0x0001, 2) == [215, 512]
+    assert bench.bus.read_holding_registers(3, 0x0101, 2) == [1, 0]  # unit_address, b9600
+    bench.bus.write_register(3, 0x0102, 2)
+    assert bench.model.value("baud") == "b19200"
+    assert bench.sim.requests[-1][:2] == bytes([3, 0x06])
+    with pytest.raises(bb.ResponseTimeout):
+        bench.bus.read_input_registers(1, 0x0001, 1)  # only unit 3 answers
+    # The device on that Bus, in engineering units.
+    assert isinstance(bench.device, bb.Device) and bench.device.unit == 3
+    assert bench.device.humidity == 51.2 and bench.device.baud.name == "b19200"
+    bench.device.temperature_correction = -0.5
+    assert bench.model.value("temperature_correction") == -0.5
+
+
+def test_several_profiles_each_on_its_own_simulator(sim_profile):
+    flow = sim_profile(PROFILES / "flow_controller.toml", values={{"mode": "purge"}})
+    relays = sim_profile(PROFILES / "relay_board.toml", baudrate=38400, framing="ascii")
+    assert flow.port != relays.port and flow.sim is not relays.sim
+    assert (flow.baudrate, flow.bus.parity, flow.bus.timeout) == (19200, "E", 0.2)
+    assert bb.from_registers(flow.bus.read_holding_registers(1, 0, 2), "f32", "CDAB") == [50.0]
+    assert flow.bus.read_holding_registers(1, 0x10, 1) == [2]  # purge
+    assert (relays.baudrate, relays.framing) == (38400, "ascii")
+    assert (relays.sim.baudrate, relays.sim.framing) == (38400, "ascii")
+    # Another framing than the profile's (RTU 8N1): the Bus's own format for it, 7E1.
+    assert (relays.bus.framing, relays.bus.bytesize, relays.bus.parity) == ("ascii", 7, "E")
+    assert relays.bus.read_coils(1, 0, 3) == [True, False, False]
+
+
+def test_a_broken_profile_starts_nothing(sim_profile, tmp_path):
+    bad = tmp_path / "bad.toml"
+    bad.write_text('[device]\\nname = "x"\\n\\n[[register]]\\nname = "a"\\naddress = 70000\\n')
+    before = sim_threads()
+    with pytest.raises(bb.ProfileError, match=r"bad.toml:6: register\\[0\\].address"):
+        sim_profile(bad)
+    assert sim_threads() == before
+
+
+def test_fails_with_simulators_running(sim_profile):
+    sim_profile(PROFILES / "xy_md02.toml")
+    sim_profile(PROFILES / "relay_board.toml").sim.set_silent(None)
+    Path("during.txt").write_text(str(len(sim_threads())))
+    assert False, "inner failure"
+"""
+
+
+def test_sim_profile_serves_profiles_and_stops_them_after(pytester: pytest.Pytester) -> None:
+    pytester.makepyfile(test_inner_profile=PROFILE_TESTS.format(profiles=str(PROFILES)))
+    threads, fds = sim_threads(), open_fds()
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(passed=3, failed=1)  # and no errors: every teardown went through
+    result.stdout.fnmatch_lines(["*AssertionError: inner failure*"])
+    assert int((pytester.path / "during.txt").read_text()) >= len(threads) + 4  # 2 each
+    assert sim_threads() <= threads  # every simulator stopped
+    assert open_fds() == fds  # every pseudo-terminal and Bus closed

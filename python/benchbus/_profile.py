@@ -20,7 +20,14 @@ from benchbus._display import html_table
 if TYPE_CHECKING:
     from collections.abc import Iterable
 
-__all__ = ["Device", "ProfileLimits", "ProfileLine", "ProfileRegister"]
+__all__ = [
+    "PROFILE_LINE",
+    "Device",
+    "ProfileLimits",
+    "ProfileLine",
+    "ProfileRegister",
+    "profile_line",
+]
 
 
 class ProfileLine(NamedTuple):
@@ -96,7 +103,7 @@ class ProfileRegister(NamedTuple):
 PROFILE_LINE = LineDefaults(9600, "N", 0.2)
 
 
-def _line(profile: Profile) -> LineDefaults:
+def profile_line(profile: Profile) -> LineDefaults:
     """The line a device opens its own port at: the profile's, else :data:`PROFILE_LINE`."""
     given = profile.line
     return LineDefaults(
@@ -186,7 +193,7 @@ class Device(ProfileCore, BusDevice):
             checked,
             timeout=timeout,
             retries=retries,
-            line=_line(checked),
+            line=profile_line(checked),
         )
 
     @classmethod

@@ -48,6 +48,25 @@ Override one in a ``conftest.py`` or a test module to simulate something else::
     def sim_drive_model():
         return DriveDevice("C20", single_register_reads=False)  # block reads answered
 
+**Device profiles.** ``sim_profile`` is a factory: ``sim_profile(path, *, unit=1,
+values=None, baudrate=None, framing=None)`` serves the device profile (a TOML file of
+registers) at ``path`` as a :class:`benchbus.sim.ProfileDevice` at ``unit``, with its
+``default`` values and then ``values`` (engineering values by register name), on a
+Simulator and pseudo-terminal of its own, and returns a :class:`ProfileBench`: ``.port``,
+``.unit``, ``.baudrate``, ``.framing``, ``.model`` (the ProfileDevice: ``value(name)``,
+``set_value(name, v)``), ``.sim`` (the Simulator) and ``.bus``, a :class:`benchbus.Bus` open
+on the port at the profile's ``[line]`` (``baudrate`` and ``framing`` given here win over
+it, and another framing than the profile's takes the Bus's character format for it, 7E1 for
+ASCII; where the profile is silent, a Bus's defaults at 19200 baud). Reading the device is
+the test's, on ``.bus`` at ``.unit``. Each call starts another simulator (one profile and
+one unit each, so two profiles never share a line); after the test every Bus is closed and
+every simulator stopped, also when the test fails. A broken profile raises
+:class:`benchbus.ProfileError` (file, line, key) from the call, before anything starts::
+
+    def test_the_sensor(sim_profile):
+        bench = sim_profile("xy_md02.toml", values={"temperature": 23.4})
+        assert bench.bus.read_input_registers(bench.unit, 0x0001, 1) == [234]
+
 **Real or simulated.** ``bench_drive``, ``bench_pbl``, ``bench_j2`` and ``bench_instrument``
 yield the device alone: on the port given with ``--benchbus-port`` if there is one,
 otherwise on a simulator as above (from the same ``sim_*_model`` fixtures), so one test runs
@@ -85,12 +104,13 @@ from __future__ import annotations
 import argparse
 import contextlib
 import dataclasses
-from collections.abc import Callable, Iterator
-from typing import TYPE_CHECKING, Any, Generic, TypeVar
+import os
+from collections.abc import Callable, Iterator, Mapping
+from typing import TYPE_CHECKING, Any, Generic, TypeVar, Union
 
 import pytest
 
-from benchbus._core import Bus
+from benchbus._core import Bus, Profile
 from benchbus._device import BusDevice, MotorDevice
 from benchbus._drive import Drive
 from benchbus._extras import sim_missing
@@ -100,16 +120,26 @@ from benchbus._j2 import J2Controller
 from benchbus._pbl import PblDrive
 
 if TYPE_CHECKING:
+    from benchbus._profile import Device
     from benchbus.sim import (
         DriveDevice,
         J2Device,
         PblDevice,
+        ProfileDevice,
         SimDevice,
         Simulator,
         TaisongDevice,
     )
 
-__all__ = ["INSTRUMENT_SPEEDUP", "J2_SPEEDUP", "KINDS", "SIM_UNIT", "SimBench"]
+__all__ = [
+    "INSTRUMENT_SPEEDUP",
+    "J2_SPEEDUP",
+    "KINDS",
+    "SIM_UNIT",
+    "ProfileBench",
+    "SimBench",
+    "SimProfile",
+]
 
 #: The device kinds, as ``--benchbus-unit`` names them: the families with a benchbus class.
 KINDS = tuple(f.key for f in FAMILIES if f.device is not None)
@@ -145,6 +175,46 @@ class SimBench(Generic[DevT, ModelT]):
     def __iter__(self) -> Iterator[Any]:
         """``device``, ``sim``, ``model``."""
         return iter((self.device, self.sim, self.model))
+
+
+#: A register's engineering value, as ``values=`` gives it: a number, a bool, an enum
+#: member's name (or number) or a string.
+ProfileValue = Union[int, float, bool, str]
+
+
+@dataclasses.dataclass(frozen=True)
+class ProfileBench:
+    """A device profile served by a simulator: what the ``sim_profile`` factory returns.
+
+    The master side is the test's: :attr:`bus` is a :class:`benchbus.Bus` already open on
+    :attr:`port` at the profile's line, to read the device at :attr:`unit` with.
+    """
+
+    #: The profile's path, as given.
+    path: str
+    #: The pseudo-terminal the simulator serves (:attr:`sim`'s port).
+    port: str
+    #: The unit address the profile's device answers at.
+    unit: int
+    #: The baud rate: the factory's ``baudrate``, else the profile's ``[line]``, else 9600.
+    baudrate: int
+    #: The framing: ``"rtu"`` or ``"ascii"`` (the factory's, else the profile's, else RTU).
+    framing: str
+    #: The Simulator serving it: frame logs and line faults.
+    sim: Simulator[ProfileDevice]
+    #: The simulated device (:class:`benchbus.sim.ProfileDevice`): its values by name.
+    model: ProfileDevice
+    #: A Bus open on :attr:`port` at the profile's line (parity, stop bits, timeout, byte
+    #: size as its ``[line]`` gives them, 9600 8N1 and 0.2 s where it is silent, as for a
+    #: :class:`benchbus.Device` opening its own port), closed after the test.
+    bus: Bus
+    #: The device on :attr:`bus` (:meth:`benchbus.Device.from_profile`).
+    device: Device
+
+
+#: The ``sim_profile`` fixture: ``sim_profile(path, *, unit=1, values=None, baudrate=None,
+#: framing=None)`` serves the profile at ``path`` and returns its :class:`ProfileBench`.
+SimProfile = Callable[..., ProfileBench]
 
 
 # ---- options ---------------------------------------------------------------------------------
@@ -374,6 +444,75 @@ def sim_instrument(
     after."""
     with _simulated("instrument", sim_instrument_model) as bench:
         yield bench
+
+
+def _serve_profile(
+    stack: contextlib.ExitStack,
+    path: str | os.PathLike[str],
+    unit: int,
+    values: Mapping[str, ProfileValue] | None,
+    baudrate: int | None,
+    framing: str | None,
+) -> ProfileBench:
+    """The profile at ``path`` served at ``unit`` on a Simulator of its own, with a Bus
+    open on it; both closed by ``stack``. A broken profile raises the core's ProfileError
+    before anything starts."""
+    profile = Profile(path)  # ProfileError: file, line, key
+    _require_sim()
+    from benchbus._profile import Device, profile_line
+    from benchbus.sim import ProfileDevice, Simulator
+
+    # The line a Device of the profile opens its own port at (its [line], else 9600 8N1);
+    # its character format is for its own framing, so another framing takes the Bus's.
+    line = profile_line(profile)
+    options: dict[str, Any] = {
+        "parity": line.parity,
+        "stopbits": line.stopbits,
+        "timeout": line.timeout,
+        "bytesize": line.bytesize,
+    }
+    if framing is not None and framing != line.framing:
+        options = {"timeout": line.timeout}
+    served: dict[str, Any] = {
+        "baudrate": baudrate or line.baudrate,
+        "framing": framing or line.framing,
+    }
+    model = ProfileDevice(path, values)
+    sim = stack.enter_context(Simulator({unit: model}, **served))
+    bus = stack.enter_context(Bus(sim.port, **served, **options))
+    return ProfileBench(
+        path=os.fspath(path),
+        port=sim.port,
+        unit=unit,
+        baudrate=served["baudrate"],
+        framing=served["framing"],
+        sim=sim,
+        model=model,
+        bus=bus,
+        device=Device(profile, bus, unit),
+    )
+
+
+@pytest.fixture
+def sim_profile() -> Iterator[SimProfile]:
+    """A factory: ``sim_profile(path, *, unit=1, values=None, baudrate=None, framing=None)``
+    serves the device profile at ``path`` on a simulator of its own and returns a
+    :class:`ProfileBench` (``.port``, ``.unit``, ``.bus``, ``.model``, ``.sim``). Every
+    simulator it started is stopped after the test, and its Bus closed, also when the test
+    fails."""
+    with contextlib.ExitStack() as stack:
+
+        def serve(
+            path: str | os.PathLike[str],
+            *,
+            unit: int = SIM_UNIT,
+            values: Mapping[str, ProfileValue] | None = None,
+            baudrate: int | None = None,
+            framing: str | None = None,
+        ) -> ProfileBench:
+            return _serve_profile(stack, path, unit, values, baudrate, framing)
+
+        yield serve
 
 
 # ---- real or simulated -------------------------------------------------------------------------

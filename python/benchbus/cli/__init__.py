@@ -12,6 +12,7 @@
     benchbus monitor --port PATH drive|pbl|j2 [--interval S] [--count N | --duration S] [--csv FILE]
                                               [--no-reconnect]
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
+    benchbus sim     --profile FILE [--value NAME=VALUE ...] [--unit N] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
     benchbus profile check FILE  (a device profile's register table, or its mistakes)
     benchbus ports   (the serial ports, with their USB ids, chip, maker and serial number)

@@ -3,14 +3,24 @@
 from __future__ import annotations
 
 import argparse
+import os
 from typing import TYPE_CHECKING
 
 from benchbus._families import FAMILIES, family
-from benchbus.cli._args import Parser, framing, integer, positive, seconds, units_type
-from benchbus.cli._errors import CliError
+from benchbus.cli._args import (
+    Parser,
+    framing,
+    integer,
+    parse_int,
+    positive,
+    seconds,
+    units_type,
+)
+from benchbus.cli._errors import CliError, UsageError
 from benchbus.cli._serve import serve_until_stopped
 
 if TYPE_CHECKING:
+    from benchbus import Profile, ProfileRegister
     from benchbus.sim import SimDevice
 
 __all__ = ["HELP", "SIM_DEVICES", "add_arguments", "run"]
@@ -25,26 +35,104 @@ def _sim_device(kind: str, args: argparse.Namespace) -> SimDevice:
     return of.simulate(**{option: getattr(args, option) for option in of.sim_options})
 
 
+_TRUE = ("1", "true", "on", "yes")
+_FALSE = ("0", "false", "off", "no")
+
+
+def _initial_value(row: ProfileRegister, text: str) -> bool | int | float | str:
+    """``--value``'s text as the value of the profile's register ``row``: true/false for a
+    bool, the text for a string, a member's name or number for an enum, else a number."""
+    if row.type == "bool":
+        word = text.strip().lower()
+        if word in _TRUE + _FALSE:
+            return word in _TRUE
+        raise UsageError(f"--value {row.name}: true or false, not {text!r}")
+    if row.type == "string" or text in row.enum.values():
+        return text
+    try:
+        return parse_int(text)
+    except ValueError:
+        pass
+    if row.enum:
+        members = ", ".join(row.enum.values())
+        raise UsageError(f"--value {row.name}: one of {members} (or its number), not {text!r}")
+    try:
+        return float(text)
+    except ValueError:
+        raise UsageError(f"--value {row.name}: {text!r} is not a number") from None
+
+
+def _profile_devices(
+    path: str, units: list[int], assignments: list[str]
+) -> tuple[dict[int, SimDevice], Profile]:
+    """A :class:`~benchbus.sim.ProfileDevice` of the profile at ``path`` for each unit, with
+    the ``--value`` assignments; and the profile as the core reads it. A mistake in the
+    profile or the assignments is a usage error: nothing is served."""
+    from benchbus import Profile
+    from benchbus.exceptions import ProfileError
+    from benchbus.sim import ProfileDevice
+
+    try:
+        profile = Profile(path)
+    except (ProfileError, OSError) as exc:
+        raise UsageError(str(exc)) from None
+    rows = {row.name: row for row in profile.registers}
+    values: dict[str, bool | int | float | str] = {}
+    for assignment in assignments:
+        name, equals, text = assignment.partition("=")
+        name = name.strip()
+        if not equals:
+            raise UsageError(f"--value takes NAME=VALUE, not {assignment!r}")
+        if name not in rows:
+            raise UsageError(
+                f"--value: {profile.name} has no register {name!r} (it has {', '.join(rows)})"
+            )
+        values[name] = _initial_value(rows[name], text)
+    try:
+        return {u: ProfileDevice(path, values) for u in units}, profile
+    except (ValueError, TypeError) as exc:  # a value out of range, of the wrong kind
+        raise UsageError(str(exc)) from None
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus sim`` as ``args`` say; the exit status."""
+    kind: str | None = args.device
+    if (kind is None) == (args.profile is None):
+        raise UsageError(
+            "give a device (drive|pbl|j2|instrument|atv31) or --profile FILE, not both"
+            if kind
+            else "give a device (drive|pbl|j2|instrument|atv31) or --profile FILE"
+        )
+    if args.value and args.profile is None:
+        raise UsageError("--value sets a register of a --profile device")
     try:
         from benchbus.sim import Simulator
     except ModuleNotFoundError as exc:  # the message says what to install
         raise CliError(str(exc)) from None
-    kind: str = args.device
     units: list[int] = args.unit
-    baudrate: int = args.baudrate or SIM_DEVICES[kind]
-    simulator = Simulator(
-        {u: _sim_device(kind, args) for u in units}, baudrate=baudrate, framing=args.framing
-    )
+    devices: dict[int, SimDevice]
+    if args.profile is not None:
+        devices, profile = _profile_devices(args.profile, units, args.value)
+        from benchbus._profile import profile_line
+
+        line = profile_line(profile)  # a Device's own line: the profile's, else 9600 8N1
+        baudrate: int = args.baudrate or line.baudrate
+        served_framing: str = args.framing or line.framing
+        what = f"{profile.name} from {os.path.basename(args.profile)}"
+    else:
+        assert kind is not None
+        devices = {u: _sim_device(kind, args) for u in units}
+        baudrate = args.baudrate or SIM_DEVICES[kind]
+        served_framing = args.framing or "rtu"
+        what = f"{args.model} drive" if kind == "drive" else kind
+    simulator = Simulator(devices, baudrate=baudrate, framing=served_framing)
     simulator.start()
     try:
-        what = f"{args.model} drive" if kind == "drive" else kind
         at = ", ".join(str(u) for u in units)
         serve_until_stopped(
             simulator.port,
             f"simulating {what} (unit {at}, {baudrate} baud frame timing"
-            f"{', Modbus ASCII' if args.framing == 'ascii' else ''})",
+            f"{', Modbus ASCII' if served_framing == 'ascii' else ''})",
             args.seconds,
         )
     finally:
@@ -58,7 +146,11 @@ HELP = "serve a simulated device on a pseudo-terminal until Ctrl-C"
 EPILOG = (
     "The first line of stdout is the pseudo-terminal's path: open it as the port "
     "(any line format works on it). Stops on Ctrl-C, SIGTERM or after --seconds, with "
-    "exit status 0."
+    "exit status 0. With --profile FILE instead of a device, it serves a device profile "
+    "(a TOML file of registers): each register at its default, or as --value NAME=VALUE "
+    "sets it; the frame timing and framing are the profile's [line] unless given (its "
+    "parity is the master's to open: a pseudo-terminal carries none). A mistake in the "
+    "profile is reported with the file, the line and the key, exit status 2."
 )
 
 
@@ -66,10 +158,25 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus sim`` (``parents``: its option groups, for its actions)."""
     parser.add_argument(
         "device",
+        nargs="?",
         choices=tuple(SIM_DEVICES),
         metavar="|".join(SIM_DEVICES),
         help="drive: BLD2/BLD3H/C20; pbl: PBL drive; j2: J2 controller with a thermal "
-        "process; instrument: Taisong meter; atv31: the Taisong manual's ATV31 drive",
+        "process; instrument: Taisong meter; atv31: the Taisong manual's ATV31 drive "
+        "(or --profile instead)",
+    )
+    parser.add_argument(
+        "--profile",
+        metavar="FILE",
+        help="serve the device a profile (TOML) describes, instead of a built-in one",
+    )
+    parser.add_argument(
+        "--value",
+        action="append",
+        default=[],
+        metavar="NAME=VALUE",
+        help="with --profile: a register's initial value (a number, true/false, an enum "
+        "member or a string); repeatable",
     )
     parser.add_argument(
         "--unit",
@@ -82,15 +189,14 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         "--baudrate",
         type=integer(50, 4_000_000, "baudrate"),
         metavar="BPS",
-        help="the frame timing (default: the device's usual speed)",
+        help="the frame timing (default: the device's usual speed, or the profile's)",
     )
     parser.add_argument("--seconds", type=seconds, metavar="S", help="stop after S seconds")
     parser.add_argument(
         "--framing",
         type=framing,
-        default="rtu",
         metavar="rtu|ascii",
-        help="serve Modbus RTU (default) or Modbus ASCII",
+        help="serve Modbus RTU (default) or Modbus ASCII (default for a profile: its own)",
     )
     parser.add_argument(
         "--model",
