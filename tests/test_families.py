@@ -9,6 +9,7 @@ import pytest
 import benchbus as bb
 from benchbus import pytest_plugin
 from benchbus._core import DriveCore
+from benchbus._device import LineDefaults
 from benchbus._families import FAMILIES, command_families, family, mismatch
 from benchbus.cli import BUS_OPTIONS, SIM_DEVICES, guess_model
 from benchbus.sim import (
@@ -36,7 +37,7 @@ def test_line_defaults_are_the_classes() -> None:
     for f in FAMILIES:
         if f.device is not None:
             assert f.line is f.device.LINE_DEFAULTS, f.key
-    assert family("atv31").line == (19200, "N", 0.1)  # the generic device's
+    assert family("atv31").line == LineDefaults(19200, "N", 0.1)  # the generic device's
 
 
 def test_the_command_line_and_the_plugin_read_the_registry() -> None:
@@ -49,7 +50,12 @@ def test_the_command_line_and_the_plugin_read_the_registry() -> None:
     }
     for f in command_families():
         options = BUS_OPTIONS[f.key]
-        assert (options.baudrate, options.parity, options.timeout, options.retries) == (*f.line, 2)
+        assert (options.baudrate, options.parity, options.timeout, options.retries) == (
+            f.line.baudrate,
+            f.line.parity,
+            f.line.timeout,
+            2,
+        )
     assert pytest_plugin.KINDS == ("drive", "pbl", "j2", "instrument")
 
 
