@@ -40,6 +40,7 @@ PICKED_BY = (
     "bb.from_registers(",
     'framing="ascii"',
     "ProfileDevice(",
+    "Profile.family(",
 )
 
 
@@ -112,6 +113,11 @@ def test_readme_simulator_examples() -> None:
 def test_readme_profile_simulator_example(monkeypatch: pytest.MonkeyPatch) -> None:
     (block,) = [b for b in readme_blocks() if "ProfileDevice(" in b]
     monkeypatch.chdir(ROOT)  # the block names its profile from the repository's root
+    exec(block, {})
+
+
+def test_readme_profile_export_example() -> None:
+    (block,) = [b for b in readme_blocks() if "Profile.family(" in b]
     exec(block, {})
 
 
