@@ -427,6 +427,7 @@ address = 0x20
 type = "u64"
 order = "BADC"
 access = "r"
+default = 18446744073709551615
 
 [[register]]
 name = "level"
@@ -500,6 +501,8 @@ name = "wide"
 address = 2
 table = "input"
 type = "f32"
+max = 1e30
+default = -2.5e-8
 "#;
 
     #[test]
