@@ -669,3 +669,21 @@ def test_profile_check_prints_the_table_and_refuses_a_mistake_with_its_line(
     message = one_line_error(run("profile", "check", bad), 2)
     assert f"{bad}:5: register[0].name" in message and "shadow" in message
     assert "No such file" in one_line_error(run("profile", "check", tmp_path / "none.toml"), 2)
+
+
+def test_profile_export_writes_a_family_as_a_profile_that_reads_back(tmp_path: Path) -> None:
+    text = run("profile", "export", "j2")
+    lines = ok(text)
+    assert lines[0].startswith("# ") and "RAPNF" in text.stdout
+    profile = bb.Profile.parse(text.stdout, "j2.toml")
+    table = bb.J2Controller.table()
+    assert [(r.name, r.address) for r in profile.registers] == [(t.name, t.address) for t in table]
+    assert profile["PV"].type == "i16" and profile["PV"].scale == 0.1
+    out = tmp_path / "pbl.toml"
+    assert ok(run("profile", "export", "pbl", "-o", out)) == []
+    assert out.read_text(encoding="utf-8") == bb.Profile.family("pbl").to_toml()
+    assert ok(run("profile", "check", out))[0].startswith("PBL")
+    message = one_line_error(run("profile", "export", "atv31"), 2)
+    assert "drive, drive-c20, pbl, j2" in message
+    message = one_line_error(run("profile", "export", "drive", "-o", tmp_path / "no" / "x"), 2)
+    assert "cannot write" in message

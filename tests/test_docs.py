@@ -42,6 +42,7 @@ PICKED_BY = (
     "ProfileDevice(",
     "Device.from_profile(",
     "sim_profile(",
+    "Profile.family(",
 )
 
 
@@ -136,6 +137,9 @@ def test_readme_profile_device_example(
     ]
     assert sensor.value("temperature_correction") == -0.5
     assert sensor.value("baud") == "b19200"
+def test_readme_profile_export_example() -> None:
+    (block,) = [b for b in readme_blocks() if "Profile.family(" in b]
+    exec(block, {})
 
 
 def test_readme_poll_example(capsys: pytest.CaptureFixture[str]) -> None:

@@ -962,6 +962,14 @@ class Profile:
     @staticmethod
     def parse(text: str, path: str = "<string>") -> Profile:
         """Checks the profile ``text``; ``path`` names it in errors."""
+    @staticmethod
+    def family(key: str) -> Profile:
+        """The built-in family ``key`` ("drive" for a BLD2 / BLD3H, "drive-c20", "pbl" or
+        "j2") as a profile, made from the family's own register table, with its class's
+        line defaults; ValueError for another key."""
+    def to_toml(self) -> str:
+        """The profile as a TOML file that reads back as the same profile (a built-in family's
+        starts with comments on what its class does in code and the file cannot say)."""
     @property
     def name(self) -> str:
         """The device's name (``[device] name``)."""

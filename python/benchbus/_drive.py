@@ -16,7 +16,7 @@ import threading
 import time
 from typing import TYPE_CHECKING, Any, NamedTuple
 
-from benchbus._core import Bus, DriveCore
+from benchbus._core import Bus, DriveCore, Profile
 from benchbus._device import (
     LineDefaults,
     MeasuredProperty,
@@ -272,6 +272,14 @@ class Drive(DriveCore, MotorDevice):
 
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(19200, "N", 0.25)
+
+    @property
+    def profile(self) -> Profile:
+        """The drive's register table as a :class:`~benchbus.Profile`
+        (``Profile.family("drive")``, ``"drive-c20"`` on a C20): a row for each name
+        :meth:`get` and :meth:`set` take, with its unit, access and range."""
+        return Profile.family("drive-c20" if self.family == "C20" else "drive")
+
     speed_setpoint = RegisterProperty(
         "speed_setpoint", to_int, "Speed setpoint, rpm 0..3000 (0x2001)."
     )

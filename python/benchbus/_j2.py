@@ -14,7 +14,7 @@ import dataclasses
 import os
 from typing import TYPE_CHECKING, NamedTuple, Union
 
-from benchbus._core import Bus, J2Core
+from benchbus._core import Bus, J2Core, Profile
 from benchbus._device import (
     BusDevice,
     LineDefaults,
@@ -160,6 +160,13 @@ class J2Controller(J2Core, BusDevice):
 
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(9600, "N", 0.3)
+
+    @property
+    def profile(self) -> Profile:
+        """The parameter table as a :class:`~benchbus.Profile` (``Profile.family("j2")``):
+        a row for each name :meth:`get` and :meth:`set` take (the manual's, "SV"), with its
+        unit, access and range."""
+        return Profile.family("j2")
 
     pv = MeasuredProperty("PV", to_float, "Process value (PV), read-only.")
     sv = RegisterProperty("SV", to_float, "Setpoint (SV), within LSP..USP.")

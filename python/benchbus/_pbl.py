@@ -13,7 +13,7 @@ import os
 import warnings
 from typing import TYPE_CHECKING, NamedTuple
 
-from benchbus._core import Bus, PblCore
+from benchbus._core import Bus, PblCore, Profile
 from benchbus._device import (
     LineDefaults,
     MeasuredProperty,
@@ -142,6 +142,14 @@ class PblDrive(PblCore, MotorDevice):
 
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(115200, "E", 0.1)
+
+    @property
+    def profile(self) -> Profile:
+        """The parameter table as a :class:`~benchbus.Profile` (``Profile.family("pbl")``):
+        a row for each name :meth:`get` and :meth:`set` take, with its unit, access and
+        range."""
+        return Profile.family("pbl")
+
     control_mode = RegisterProperty("control_mode", to_enum(PblControlMode), "Mode (100).")
     pole_pairs = RegisterProperty("pole_pairs", to_int, "Motor pole pairs (205).")
     acceleration = RegisterProperty("acceleration", to_int, "Acceleration, rpm/s (209).")

@@ -3,6 +3,7 @@
 //! it holds no I/O of its own.
 
 pub mod drive;
+pub mod export;
 pub mod instrument;
 pub mod j2;
 pub mod pbl;

@@ -130,7 +130,8 @@ pub struct ProfileRegister {
     pub default: Option<ProfileValue>,
     /// Free text.
     pub description: String,
-    /// The line (from 1) of its `[[register]]` header.
+    /// The line (from 1) of its `[[register]]` header; 0 for a register not read from a
+    /// file (a built-in family's, [`Profile::family`]).
     pub line: usize,
 }
 
@@ -334,6 +335,14 @@ pub fn is_identifier(name: &str) -> bool {
     matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
         && !PYTHON_KEYWORDS.contains(&name)
+}
+
+/// The engineering values a number kind holds at `scale` and `offset`, low to high: the
+/// range of a register whose profile gives no `min` / `max`.
+pub(crate) fn full_range(kind: Kind, scale: f64, offset: f64) -> (f64, f64) {
+    let (raw_lo, raw_hi) = raw_range(kind);
+    let (a, b) = (raw_lo * scale + offset, raw_hi * scale + offset);
+    (a.min(b), a.max(b))
 }
 
 /// The raw values a number kind holds.
@@ -733,7 +742,8 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
     })
 }
 
-fn table_name(table: Table) -> &'static str {
+/// The table's name in a profile.
+pub(crate) fn table_name(table: Table) -> &'static str {
     match table {
         Table::Holding => "holding",
         Table::Input => "input",
@@ -810,9 +820,7 @@ fn value_type(s: &Section<'_, '_, '_>, table: Table) -> Parsed<ValueType> {
 
 /// The engineering range: `min`/`max`, checked against what the type holds.
 fn range(s: &Section<'_, '_, '_>, kind: Kind, scale: f64, offset: f64) -> Parsed<(f64, f64)> {
-    let (raw_lo, raw_hi) = raw_range(kind);
-    let (a, b) = (raw_lo * scale + offset, raw_hi * scale + offset);
-    let (lo, hi) = (a.min(b), a.max(b));
+    let (lo, hi) = full_range(kind, scale, offset);
     let min = s.number("min")?;
     let max = s.number("max")?;
     // A margin for the float rounding of scale and offset.

@@ -2,7 +2,10 @@
 //! `benchbus.ProfileError`) and `ProfileCore`, the compiled base of `benchbus.Device`.
 
 use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
-use crate::device::profile::{Profile, ProfileError, ProfileRegister, ProfileValue, ValueType};
+use crate::device::export::{family_note, FAMILIES};
+use crate::device::profile::{
+    LineSettings, Profile, ProfileError, ProfileRegister, ProfileValue, ValueType,
+};
 use crate::device::profiled::ProfiledDevice;
 use crate::device::{Access, Table};
 use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
@@ -22,6 +25,31 @@ const ROWS: &str = "benchbus._profile";
 pub(super) struct PyProfile {
     profile: Arc<Profile>,
     path: String,
+    /// Comment lines for the top of the file `to_toml` writes ("" for none).
+    note: String,
+}
+
+/// The line defaults of the built-in family `key`, from its class's ``LINE_DEFAULTS`` (the
+/// family registry's `line`), so that they are declared once.
+fn family_line(py: Python<'_>, key: &str) -> PyResult<LineSettings> {
+    let base = if key.starts_with("drive") {
+        "drive"
+    } else {
+        key
+    };
+    let line = PyModule::import(py, "benchbus._families")?
+        .getattr("family")?
+        .call1((base,))?
+        .getattr("line")?;
+    let parity: String = line.getattr("parity")?.extract()?;
+    Ok(LineSettings {
+        baudrate: line.getattr("baudrate")?.extract()?,
+        parity: parity.chars().next(),
+        stopbits: line.getattr("stopbits")?.extract()?,
+        timeout: line.getattr("timeout")?.extract()?,
+        framing: line.getattr("framing")?.extract()?,
+        bytesize: line.getattr("bytesize")?.extract()?,
+    })
 }
 
 /// The `benchbus.ProfileError` of `err`.
@@ -132,6 +160,7 @@ impl PyProfile {
         Ok(PyProfile {
             profile: Arc::new(profile),
             path,
+            note: String::new(),
         })
     }
 
@@ -196,6 +225,36 @@ impl PyProfile {
     #[pyo3(signature = (text, path = "<string>"))]
     fn parse(py: Python<'_>, text: &str, path: &str) -> PyResult<Self> {
         PyProfile::new_checked(py, path.to_string(), Profile::parse(path, text))
+    }
+
+    /// The built-in family ``key`` ("drive" for a BLD2 / BLD3H, "drive-c20", "pbl" or
+    /// "j2") as a profile, made from the family's own register table, with its class's
+    /// line defaults; ValueError for another key.
+    #[staticmethod]
+    fn family(py: Python<'_>, key: &str) -> PyResult<Self> {
+        let (Some(mut profile), Some(note)) = (Profile::family(key), family_note(key)) else {
+            return Err(PyValueError::new_err(format!(
+                "no built-in family {key:?}: one of {}",
+                FAMILIES.join(", ")
+            )));
+        };
+        profile.line = family_line(py, key)?;
+        Ok(PyProfile {
+            profile: Arc::new(profile),
+            path: format!("<{key}>"),
+            note: note.to_string(),
+        })
+    }
+
+    /// The profile as a TOML file that reads back as the same profile (a built-in family's
+    /// starts with comments on what its class does in code and the file cannot say).
+    fn to_toml(&self) -> String {
+        let mut out: String = self.note.lines().map(|l| format!("# {l}\n")).collect();
+        if !out.is_empty() {
+            out.push('\n');
+        }
+        out.push_str(&self.profile.to_toml());
+        out
     }
 
     /// The device's name (``[device] name``).

@@ -71,17 +71,41 @@ def check(path: str) -> int:
     return 0
 
 
+def export(key: str, output: str | None) -> int:
+    """``benchbus profile export``: the built-in family ``key`` as a profile, on stdout or
+    into the file ``output``."""
+    from benchbus import Profile
+
+    try:
+        text = Profile.family(key).to_toml()
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    if output is None:
+        print(text, end="")
+    else:
+        try:
+            with open(output, "w", encoding="utf-8") as f:
+                f.write(text)
+        except OSError as exc:
+            raise UsageError(f"cannot write {output}: {exc.strerror}") from None
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus profile`` as ``args`` say; the exit status."""
+    if args.action == "export":
+        return export(args.family, args.output)
     return check(args.path)
 
 
 #: What ``benchbus profile`` does, as ``--help`` says.
-HELP = "check a device profile (a TOML file) and print its register table"
+HELP = "check a device profile (a TOML file) and print its register table, or export a family's"
 #: The rest of its ``--help``.
 EPILOG = (
     "A profile's mistakes (unknown keys, overlapping addresses, a type that does not fit "
-    "its table...) are reported with the file, the line and the key, exit status 2."
+    "its table...) are reported with the file, the line and the key, exit status 2. "
+    "'export' writes a built-in family's register table as a profile, made from the same "
+    "table the family's class uses; the rules its class keeps in code are listed at the top."
 )
 
 
@@ -90,3 +114,12 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     checking = add_command(actions, "check", "validate a profile and print its table", parents)
     checking.add_argument("path", metavar="FILE", help="the profile (TOML)")
+    exporting = add_command(
+        actions, "export", "write a built-in family's register table as a profile", parents
+    )
+    exporting.add_argument(
+        "family", metavar="FAMILY", help="drive (BLD2 / BLD3H), drive-c20, pbl or j2"
+    )
+    exporting.add_argument(
+        "-o", "--output", metavar="FILE", help="write it to FILE instead of stdout"
+    )
