@@ -126,6 +126,17 @@ def as_profile(profile: Profile | str | os.PathLike[str]) -> Profile:
     return profile if isinstance(profile, Profile) else Profile(profile)
 
 
+def known(profile: Profile, name: str) -> str:
+    """``name`` if ``profile`` has a register of that name, else ValueError naming the
+    closest ones."""
+    if name in profile:
+        return name
+    names = [r.name for r in profile.registers]
+    close = difflib.get_close_matches(name, names, n=3)
+    hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+    raise ValueError(f"{profile.name} has no register {name!r}{hint}")
+
+
 class Device(ProfileCore, BusDevice):
     """A device described by a profile (a TOML file naming its registers): every register
     is an attribute, in engineering units.
@@ -209,12 +220,7 @@ class Device(ProfileCore, BusDevice):
 
     def _known(self, name: str) -> str:
         """``name`` if the profile has it, else ValueError with the closest names."""
-        if name in self.profile:
-            return name
-        names = [r.name for r in self.profile.registers]
-        close = difflib.get_close_matches(name, names, n=3)
-        hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
-        raise ValueError(f"{self.profile.name} has no register {name!r}{hint}")
+        return known(self.profile, name)
 
     def _shown(self, name: str, value: Any) -> Any:
         """``value`` of the register ``name`` as Python has it (an enum member)."""

@@ -9,6 +9,7 @@ from decimal import Decimal, InvalidOperation
 from typing import Any, NoReturn
 
 from benchbus._core import to_registers
+from benchbus.cli._errors import UsageError
 
 PROG = "benchbus"
 
@@ -74,6 +75,24 @@ def add_value_options(parser: argparse.ArgumentParser, verb: str) -> None:
         help="how a --type value lies over its registers: ABCD (default), CDAB (word swap), "
         "BADC (byte swap) or DCBA",
     )
+
+
+def add_profile_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--profile FILE``: the registers of a device profile, by name (``what`` they do)."""
+    parser.add_argument(
+        "--profile",
+        metavar="FILE",
+        help=f"a device profile (TOML): {what}; its [line] gives the line defaults",
+    )
+
+
+def argument(text: str, convert: Callable[[str], Any], name: str) -> Any:
+    """``convert(text)`` for the positional argument ``name``, its failure a usage error as
+    argparse words it (for an argument whose meaning depends on other options)."""
+    try:
+        return convert(text)
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"argument {name}: {exc}") from None
 
 
 def parse_units(text: str, low: int = 1, high: int = 255) -> list[int]:
