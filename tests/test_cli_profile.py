@@ -304,6 +304,11 @@ def test_monitor_a_profile_shows_its_sample_with_units_and_logs_it(
         assert float(values["temperature"]) == pytest.approx(-12.3)
     # Each sample: the plan's two requests.
     assert sim.requests == planned(SENSOR, fields) * 2
+    some = ok(run("monitor", *profile, "--count", "1", "--fields", "humidity,baud"))
+    assert some[0].split() == ["t", "(s)", "humidity", "(%RH)", "baud"]
+    assert some[1].split()[1:] == ["56.7", "b9600"]
+    bad = run("monitor", *profile, "--count", "1", "--fields", "humid")
+    assert "choose from temperature, humidity" in one_line_error(bad, 2)
 
 
 def test_monitor_takes_a_family_or_a_profile_not_both_nor_neither(sensor: Rig) -> None:
