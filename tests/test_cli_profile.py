@@ -315,6 +315,8 @@ def test_monitor_takes_a_family_or_a_profile_not_both_nor_neither(sensor: Rig) -
     _, _, profile = sensor
     assert "not both" in one_line_error(run("monitor", "j2", *profile, "--count", "1"), 2)
     assert "or --profile FILE" in one_line_error(run("monitor", "--port", "/dev/null"), 2)
+    family = run("monitor", *profile, "--family", "C20", "--count", "1")
+    assert "--family goes with drive" in one_line_error(family, 2)
 
 
 # ---- the line ------------------------------------------------------------------------------
@@ -355,3 +357,17 @@ def test_read_at_the_unit_given(sensor: Rig) -> None:
         port = ["--profile", SENSOR, "--port", sim.port]
         assert table(ok(run("read", *port, "--unit", "5", "humidity"))) == {"humidity": "33.3 %RH"}
         assert sim.requests == [frame(0x04, 0x00, 0x02, 0x00, 0x01, unit=5)]
+
+
+def test_what_the_device_refuses_or_a_silent_unit_is_an_error_of_the_line(tmp_path: Path) -> None:
+    # The master's profile allows setpoints up to 1000; the device's own table, 200.
+    wider = tmp_path / "wider.toml"
+    wider.write_text(CONTROLLER.read_text().replace("max = 200.0", "max = 1000.0"))
+    model = ProfileDevice(CONTROLLER)
+    with Simulator({1: model}) as sim:
+        port = ["--profile", wider, "--port", sim.port]
+        assert "illegal data value" in one_line_error(run("write", *port, "setpoint", "500"), 1)
+        assert model.value("setpoint") == 50.0 and len(sim.requests) == 1
+        sim.set_silent(1)
+        quick = ["--timeout", "0.05", "--retries", "0"]
+        assert "no complete reply" in one_line_error(run("read", *port, "flow", *quick), 1)

@@ -27,6 +27,7 @@ from benchbus.cli._line import (
     open_bus,
     open_device,
     open_profiled,
+    opt,
     profile_line,
     profile_of,
 )
@@ -140,6 +141,8 @@ def run(args: argparse.Namespace) -> int:
     profile = profile_of(args)
     if (profile is None) == (args.device is None):
         raise UsageError(f"give a device ({'|'.join(_kinds())}) or --profile FILE, not both")
+    if profile is not None and opt(args, "family") is not None:
+        raise UsageError("--family goes with drive: a profile says what the device is")
     kind: str = "profile" if profile is not None else args.device
     log: CsvLog | None = None
     samples = 0
