@@ -15,7 +15,7 @@ from test_cli import ok, one_line_error, run, table
 
 import benchbus as bb
 from benchbus import cli
-from benchbus.cli._line import open_bus, profile_line
+from benchbus.cli._line import open_bus, profile_options
 from benchbus.sim import ProfileDevice, Simulator
 from conftest import crc
 
@@ -330,7 +330,7 @@ def test_the_profiles_line_is_the_default_and_the_options_override_it(tmp_path: 
 
         def line(path: Path, *options: str) -> tuple[object, ...]:
             args = parser.parse_args(["read", "--profile", str(path), "--port", sim.port, *options])
-            with open_bus(args, profile_line(bb.Profile(path))) as bus:
+            with open_bus(args, profile_options(bb.Profile(path))) as bus:
                 return (
                     bus.baudrate, bus.bytesize, bus.parity, bus.stopbits, bus.framing,
                     bus.timeout, bus.retries,

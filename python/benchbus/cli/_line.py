@@ -65,7 +65,7 @@ def profile_of(args: argparse.Namespace) -> bb.Profile | None:
         raise UsageError(str(exc)) from None
 
 
-def profile_line(profile: bb.Profile) -> BusOptions:
+def profile_options(profile: bb.Profile) -> BusOptions:
     """The Bus options of a device ``profile`` describes: its ``[line]``, the device's own
     defaults (9600 8N1, 0.2 s; Modbus ASCII 7E1) where it is silent, 2 retries."""
     line = profile.line
@@ -83,7 +83,7 @@ def profile_line(profile: bb.Profile) -> BusOptions:
 
 def open_profiled(bus: bb.Bus, args: argparse.Namespace, profile: bb.Profile) -> bb.Device:
     """The device ``profile`` describes at the unit given (``--unit``, else 1) on ``bus``."""
-    return bb.Device.from_profile(profile, bus, unit_of(args, profile_line(profile)))
+    return bb.Device.from_profile(profile, bus, unit_of(args, profile_options(profile)))
 
 
 @contextlib.contextmanager
@@ -100,7 +100,7 @@ def refused_as_usage() -> Iterator[None]:
 
 
 #: Whose defaults a command's line takes: a key of :data:`BUS_OPTIONS`, or the options
-#: themselves (a profile's, :func:`profile_line`).
+#: themselves (a profile's, :func:`profile_options`).
 Defaults = str | BusOptions
 
 

@@ -28,8 +28,8 @@ from benchbus.cli._line import (
     open_device,
     open_profiled,
     opt,
-    profile_line,
     profile_of,
+    profile_options,
 )
 from benchbus.cli._output import csv_number, fmt, shown, text_table
 
@@ -147,7 +147,7 @@ def run(args: argparse.Namespace) -> int:
     log: CsvLog | None = None
     samples = 0
     lost: float | None = None  # when the port was lost, while it is
-    line = kind if profile is None else profile_line(profile)
+    line = kind if profile is None else profile_options(profile)
     with open_bus(args, line, reconnect=args.reconnect) as bus:
         if profile is None:
             device = open_device(bus, args, kind)

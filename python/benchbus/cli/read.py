@@ -20,8 +20,8 @@ from benchbus.cli._errors import UsageError
 from benchbus.cli._line import (
     open_bus,
     open_profiled,
-    profile_line,
     profile_of,
+    profile_options,
     refused_as_usage,
     unit_of,
 )
@@ -58,7 +58,7 @@ def _read_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     names = names or [r.name for r in profile.registers if r.access != "w"]
-    with open_bus(args, profile_line(profile)) as bus:
+    with open_bus(args, profile_options(profile)) as bus:
         device = open_profiled(bus, args, profile)
         with refused_as_usage():
             values = device.read_many(names)

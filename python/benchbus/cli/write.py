@@ -3,12 +3,12 @@
 from __future__ import annotations
 
 import argparse
-import math
 from decimal import Decimal, InvalidOperation
 
 import benchbus as bb
 from benchbus._profile import known
 from benchbus.cli._args import (
+    BOOLS,
     VALUE_TYPES,
     Parser,
     add_profile_option,
@@ -16,13 +16,14 @@ from benchbus.cli._args import (
     argument,
     integer,
     parse_int,
+    profile_value,
 )
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import (
     open_bus,
     open_profiled,
-    profile_line,
     profile_of,
+    profile_options,
     refused_as_usage,
     unit_of,
 )
@@ -72,10 +73,6 @@ def _typed_words(texts: list[str], kind: str, order: str) -> list[int]:
         raise UsageError(str(exc)) from None
 
 
-#: What a coil's value may be written as on the command line.
-_COIL = {"1": True, "on": True, "true": True, "0": False, "off": False, "false": False}
-
-
 def _write_coils(args: argparse.Namespace) -> int:
     """``benchbus write --table coils``: 0x05 for one value, 0x0F for several."""
     if args.type or args.order or args.decimals or args.multiple or args.accept_count_echo:
@@ -85,9 +82,9 @@ def _write_coils(args: argparse.Namespace) -> int:
         )
     values = []
     for text in args.values:
-        if text.strip().lower() not in _COIL:
+        if text.strip().lower() not in BOOLS:
             raise UsageError(f"{text!r} is not a coil value (1/0, on/off, true/false)")
-        values.append(_COIL[text.strip().lower()])
+        values.append(BOOLS[text.strip().lower()])
     if args.address + len(values) > 0x10000:
         raise UsageError(f"{len(values)} coils from {args.address:#06x} run past 0xFFFF")
     unit = unit_of(args, "write", broadcast=True)
@@ -110,33 +107,6 @@ def _write_coils(args: argparse.Namespace) -> int:
     return 0
 
 
-def _profile_value(register: bb.ProfileRegister, text: str) -> bool | int | float | str:
-    """The value ``text`` says for ``register`` of a profile: for a bool, true/false, on/off
-    or 1/0 (any case); for a string, the text as it is; otherwise a whole number (decimal
-    or 0x hex) or a decimal one (120.5, 1e3), or for an enum a member's name. The device
-    then checks it against the register (range, steps, members) before sending it."""
-    if register.type == "bool":
-        key = text.strip().lower()
-        if key not in _COIL:
-            raise UsageError(f"{register.name} takes true or false (on/off, 1/0), got {text!r}")
-        return _COIL[key]
-    if register.type == "string":
-        return text
-    try:
-        return parse_int(text)
-    except ValueError:
-        pass
-    if register.enum:
-        return text.strip()
-    try:
-        value = float(text)
-    except ValueError:
-        value = math.nan
-    if not math.isfinite(value):
-        raise UsageError(f"{register.name} takes a number (decimal or 0x hex), got {text!r}")
-    return value
-
-
 def _write_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
     """``benchbus write --profile FILE NAME VALUE``: the register NAME, in engineering
     units, every check made before anything is sent."""
@@ -154,8 +124,8 @@ def _write_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
     except ValueError as exc:
         raise UsageError(str(exc)) from None
     register = profile[name]
-    value = _profile_value(register, args.values[0])
-    with open_bus(args, profile_line(profile)) as bus:
+    value = profile_value(register, args.values[0])
+    with open_bus(args, profile_options(profile)) as bus:
         device = open_profiled(bus, args, profile)
         with refused_as_usage():
             device.write(name, value)
