@@ -142,10 +142,16 @@ def test_a_profiles_mistake_is_a_usage_error_and_nothing_is_served(tmp_path: Pat
         (["drive", "--value", "a=1"], "--value sets a register of a --profile device"),
         (["--profile", XY_MD02, "--value", "tempo=1"], "XY-MD02 has no register 'tempo'"),
         (["--profile", XY_MD02, "--value", "humidity"], "NAME=VALUE"),
-        (["--profile", XY_MD02, "--value", "humidity=wet"], "'wet' is not a number"),
+        (
+            ["--profile", XY_MD02, "--value", "humidity=wet"],
+            "--value humidity takes a number (decimal or 0x hex), got 'wet'",
+        ),
         (["--profile", XY_MD02, "--value", "temperature=300"], "-40.0..125.0, not 300"),
         (["--profile", XY_MD02, "--value", "baud=b1200"], "one of b9600, b14400, b19200"),
-        (["--profile", RELAYS, "--value", "relay1=maybe"], "true or false, not 'maybe'"),
+        (
+            ["--profile", RELAYS, "--value", "relay1=maybe"],
+            "--value relay1 takes true or false (on/off, 1/0), got 'maybe'",
+        ),
     ],
 )
 def test_usage_errors_serve_nothing(args: list[object], words: str) -> None:

@@ -137,6 +137,8 @@ def test_readme_profile_device_example(
     ]
     assert sensor.value("temperature_correction") == -0.5
     assert sensor.value("baud") == "b19200"
+
+
 def test_readme_profile_export_example() -> None:
     (block,) = [b for b in readme_blocks() if "Profile.family(" in b]
     exec(block, {})

@@ -104,15 +104,20 @@ PROFILE_LINE = LineDefaults(9600, "N", 0.2)
 
 
 def profile_line(profile: Profile) -> LineDefaults:
-    """The line a device opens its own port at: the profile's, else :data:`PROFILE_LINE`."""
+    """The line a device opens its own port at: the profile's, else :data:`PROFILE_LINE`
+    (Modbus ASCII: 7E1 unless the profile says otherwise)."""
     given = profile.line
+    ascii = given.framing == "ascii"
+    parity = given.parity or ("E" if ascii else PROFILE_LINE.parity)
+    bytesize = given.bytesize or (7 if ascii else 8)
     return LineDefaults(
         baudrate=given.baudrate or PROFILE_LINE.baudrate,
-        parity=given.parity or PROFILE_LINE.parity,
+        parity=parity,
         timeout=given.timeout or PROFILE_LINE.timeout,
-        stopbits=given.stopbits or PROFILE_LINE.stopbits,
+        # Seven data bits without parity take two stop bits (Modbus ASCII's 7N2).
+        stopbits=given.stopbits or (2 if bytesize == 7 and parity == "N" else 1),
         framing=given.framing or PROFILE_LINE.framing,
-        bytesize=given.bytesize,
+        bytesize=bytesize,
     )
 
 
@@ -131,6 +136,17 @@ def _enum(name: str, members: tuple[tuple[str, int], ...]) -> type[PrintableIntE
 def as_profile(profile: Profile | str | os.PathLike[str]) -> Profile:
     """``profile`` itself, or the profile read from the file it names."""
     return profile if isinstance(profile, Profile) else Profile(profile)
+
+
+def known(profile: Profile, name: str) -> str:
+    """``name`` if ``profile`` has a register of that name, else ValueError naming the
+    closest ones."""
+    if name in profile:
+        return name
+    names = [r.name for r in profile.registers]
+    close = difflib.get_close_matches(name, names, n=3)
+    hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+    raise ValueError(f"{profile.name} has no register {name!r}{hint}")
 
 
 class Device(ProfileCore, BusDevice):
@@ -216,12 +232,7 @@ class Device(ProfileCore, BusDevice):
 
     def _known(self, name: str) -> str:
         """``name`` if the profile has it, else ValueError with the closest names."""
-        if name in self.profile:
-            return name
-        names = [r.name for r in self.profile.registers]
-        close = difflib.get_close_matches(name, names, n=3)
-        hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
-        raise ValueError(f"{self.profile.name} has no register {name!r}{hint}")
+        return known(self.profile, name)
 
     def _shown(self, name: str, value: Any) -> Any:
         """``value`` of the register ``name`` as Python has it (an enum member)."""

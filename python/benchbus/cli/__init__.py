@@ -5,12 +5,15 @@
     benchbus scan    --port PATH [--units 1-247] [--auto] [--progress]
     benchbus read    --port PATH [--unit N] ADDRESS [COUNT] [--table T] [--type T --order O]
     benchbus write   --port PATH [--unit N] ADDRESS VALUE [VALUE ...]
+    benchbus read    --profile FILE --port PATH [NAME ...]    (a device profile's registers)
+    benchbus write   --profile FILE --port PATH NAME VALUE
     benchbus drive   --port PATH [--family BLD|C20] status|start|stop|reverse|set-speed RPM
                                                   |reset-fault
     benchbus pbl     --port PATH status|start|stop|reverse|set-speed RPM
     benchbus j2      --port PATH status|set-sv VALUE|auto|manual|set-output PERCENT
     benchbus monitor --port PATH drive|pbl|j2 [--interval S] [--count N | --duration S] [--csv FILE]
                                               [--no-reconnect]
+    benchbus monitor --port PATH --profile FILE [...as above]
     benchbus sim     drive|pbl|j2|instrument|atv31 [--unit N] [--baudrate B] [--seconds S]
     benchbus sim     --profile FILE [--value NAME=VALUE ...] [--unit N] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
@@ -22,8 +25,8 @@ The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--
 ``--timeout``, ``--retries``; ``--framing rtu|ascii`` and ``--bytesize 7|8`` for Modbus ASCII,
 7E1 unless given; ``--rs485`` and ``--rts-delay BEFORE,AFTER`` for a board UART in the Linux
 kernel's RS485 mode) go anywhere after the command; their defaults are those of the device
-family the command talks to. ``--port`` falls back to ``$BENCHBUS_PORT``. Numbers
-(addresses, values, units) are decimal or ``0x`` hex.
+family the command talks to (with ``--profile``, the profile's ``[line]``). ``--port`` falls
+back to ``$BENCHBUS_PORT``. Numbers (addresses, values, units) are decimal or ``0x`` hex.
 
 Errors print one line, ``benchbus: <what went wrong>``, on stderr and exit with 1 (2 for a
 usage error, 130 after Ctrl-C; in ``monitor`` and ``sim`` Ctrl-C is the normal end and exits

@@ -3,12 +3,17 @@
 from __future__ import annotations
 
 import argparse
+import math
 import re
 from collections.abc import Callable
 from decimal import Decimal, InvalidOperation
-from typing import Any, NoReturn
+from typing import TYPE_CHECKING, Any, NoReturn
 
 from benchbus._core import to_registers
+from benchbus.cli._errors import UsageError
+
+if TYPE_CHECKING:
+    from benchbus import ProfileRegister
 
 PROG = "benchbus"
 
@@ -31,6 +36,38 @@ def parse_int(text: str) -> int:
             raise ValueError(f"{text!r} is not a whole number")
         raise ValueError(f"{text!r} is not a number (write decimal, 100, or hex, 0x64)")
     return int(s, 16 if "x" in s else 10)
+
+
+#: What a bool (a coil's value) may be written as on the command line.
+BOOLS = {"1": True, "on": True, "true": True, "0": False, "off": False, "false": False}
+
+
+def profile_value(register: ProfileRegister, text: str) -> bool | int | float | str:
+    """The value ``text`` (as written on the command line) says for ``register`` of a
+    profile: for a bool, true/false, on/off or 1/0 (any case); for a string, the text as it
+    is; otherwise a whole number (decimal or 0x hex) or a decimal one (120.5, 1e3), or for
+    an enum a member's name. The device checks it against the register (range, steps,
+    members) before sending it; anything else is a UsageError naming the register."""
+    if register.type == "bool":
+        key = text.strip().lower()
+        if key not in BOOLS:
+            raise UsageError(f"{register.name} takes true or false (on/off, 1/0), got {text!r}")
+        return BOOLS[key]
+    if register.type == "string":
+        return text
+    try:
+        return parse_int(text)
+    except ValueError:
+        pass
+    if register.enum:
+        return text.strip()
+    try:
+        value = float(text)
+    except ValueError:
+        value = math.nan
+    if not math.isfinite(value):
+        raise UsageError(f"{register.name} takes a number (decimal or 0x hex), got {text!r}")
+    return value
 
 
 def integer(low: int, high: int, what: str) -> Callable[[str], int]:
@@ -74,6 +111,24 @@ def add_value_options(parser: argparse.ArgumentParser, verb: str) -> None:
         help="how a --type value lies over its registers: ABCD (default), CDAB (word swap), "
         "BADC (byte swap) or DCBA",
     )
+
+
+def add_profile_option(parser: argparse.ArgumentParser, what: str) -> None:
+    """``--profile FILE``: the registers of a device profile, by name (``what`` they do)."""
+    parser.add_argument(
+        "--profile",
+        metavar="FILE",
+        help=f"a device profile (TOML): {what}; its [line] gives the line defaults",
+    )
+
+
+def argument(text: str, convert: Callable[[str], Any], name: str) -> Any:
+    """``convert(text)`` for the positional argument ``name``, its failure a usage error as
+    argparse words it (for an argument whose meaning depends on other options)."""
+    try:
+        return convert(text)
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"argument {name}: {exc}") from None
 
 
 def parse_units(text: str, low: int = 1, high: int = 255) -> list[int]:

@@ -1,16 +1,20 @@
-"""The line a command talks on: the Bus options of its family's (or its own) defaults with the
-line options given (``--baudrate``, ``--timeout``, ...), the Bus, the unit."""
+"""The line a command talks on: the Bus options of its family's (or its own, or a device
+profile's) defaults with the line options given (``--baudrate``, ``--timeout``, ...), the Bus,
+the unit."""
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import dataclasses
 import os
+from collections.abc import Iterator
 from typing import Any
 
 import benchbus as bb
 from benchbus._device import BusDevice
 from benchbus._families import command_families, family, mismatch
+from benchbus._profile import profile_line
 from benchbus.cli._args import PORT_ENV, PROG
 from benchbus.cli._errors import CliError, UsageError
 
@@ -27,6 +31,8 @@ class BusOptions:
     unit: int = 1
     framing: str = "rtu"
     bytesize: int = 8
+    #: None: 1, or 2 for 7 data bits without parity (see :func:`stopbits_of`).
+    stopbits: int | None = None
 
     def describe(self, stopbits: int = 1) -> str:
         """``19200 8N1``, or ``9600 7E1 ASCII``."""
@@ -45,6 +51,56 @@ BUS_OPTIONS = {
         for f in command_families()
     },
 }
+
+
+def profile_of(args: argparse.Namespace) -> bb.Profile | None:
+    """The device profile ``--profile`` names, read and checked (None without one); its
+    mistake (file, line, key) or an unreadable file is a UsageError, before any port opens."""
+    path = opt(args, "profile")
+    if path is None:
+        return None
+    try:
+        return bb.Profile(path)
+    except (bb.ProfileError, OSError) as exc:
+        raise UsageError(str(exc)) from None
+
+
+def profile_options(profile: bb.Profile) -> BusOptions:
+    """The Bus options of a device ``profile`` describes: the line the device opens its own
+    port at (its ``[line]``, else 9600 8N1, 0.2 s; Modbus ASCII 7E1), 2 retries."""
+    line = profile_line(profile)
+    return BusOptions(
+        baudrate=line.baudrate,
+        parity=line.parity,
+        timeout=line.timeout,
+        retries=2,
+        framing=line.framing,
+        bytesize=line.bytesize or 8,
+        stopbits=line.stopbits,
+    )
+
+
+def open_profiled(bus: bb.Bus, args: argparse.Namespace, profile: bb.Profile) -> bb.Device:
+    """The device ``profile`` describes at the unit given (``--unit``, else 1) on ``bus``."""
+    return bb.Device.from_profile(profile, bus, unit_of(args, profile_options(profile)))
+
+
+@contextlib.contextmanager
+def refused_as_usage() -> Iterator[None]:
+    """A ValueError or TypeError of a check made before anything is sent (a profile
+    device's: a write-only register read, a value out of range...) as a UsageError; the
+    line's own errors pass."""
+    try:
+        yield
+    except (ValueError, TypeError) as exc:
+        if isinstance(exc, bb.BenchbusError):
+            raise
+        raise UsageError(str(exc)) from None
+
+
+#: Whose defaults a command's line takes: a key of :data:`BUS_OPTIONS`, or the options
+#: themselves (a profile's, :func:`profile_options`).
+Defaults = str | BusOptions
 
 
 def rs485_options(args: argparse.Namespace) -> dict[str, Any]:
@@ -68,30 +124,33 @@ def port_of(args: argparse.Namespace) -> str:
     return str(port)
 
 
-def bus_options_of(args: argparse.Namespace, family: str) -> BusOptions:
+def bus_options_of(args: argparse.Namespace, family: Defaults) -> BusOptions:
     """The family's Bus options with the line options given on the command line."""
-    base = BUS_OPTIONS[family]
-    # Modbus ASCII's line format is the serial line spec's 7E1 unless given.
+    base = family if isinstance(family, BusOptions) else BUS_OPTIONS[family]
+    # Modbus ASCII's line format is the serial line spec's 7E1 unless given; a --framing
+    # other than the defaults' brings its own parity and data bits.
     ascii = opt(args, "framing", base.framing) == "ascii"
+    switched = ascii != (base.framing == "ascii")
     return BusOptions(
         baudrate=opt(args, "baudrate", base.baudrate),
-        parity=opt(args, "parity", "E" if ascii else base.parity),
+        parity=opt(args, "parity", ("E" if ascii else "N") if switched else base.parity),
         timeout=opt(args, "timeout", base.timeout),
         retries=opt(args, "retries", base.retries),
         unit=opt(args, "unit", base.unit),
         framing="ascii" if ascii else "rtu",
-        bytesize=opt(args, "bytesize", 7 if ascii else base.bytesize),
+        bytesize=opt(args, "bytesize", (7 if ascii else 8) if switched else base.bytesize),
+        stopbits=None if switched else base.stopbits,
     )
 
 
 def stopbits_of(args: argparse.Namespace, options: BusOptions) -> int:
-    """``--stopbits``, else 1, or 2 for 7 data bits without parity (7N2: Modbus ASCII does
-    not allow 7N1)."""
+    """``--stopbits``, else the defaults' (a profile's), else 1, or 2 for 7 data bits without
+    parity (7N2: Modbus ASCII does not allow 7N1)."""
     plain_seven = options.bytesize == 7 and options.parity == "N"
-    return int(opt(args, "stopbits", 2 if plain_seven else 1))
+    return int(opt(args, "stopbits", options.stopbits or (2 if plain_seven else 1)))
 
 
-def open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) -> bb.Bus:
+def open_bus(args: argparse.Namespace, family: Defaults, *, reconnect: bool = False) -> bb.Bus:
     """A Bus on the port at the ``family``'s line with the options given."""
     options = bus_options_of(args, family)
     return bb.Bus(
@@ -108,7 +167,7 @@ def open_bus(args: argparse.Namespace, family: str, *, reconnect: bool = False) 
     )
 
 
-def unit_of(args: argparse.Namespace, family: str, *, broadcast: bool = False) -> int:
+def unit_of(args: argparse.Namespace, family: Defaults, *, broadcast: bool = False) -> int:
     """The unit to talk to (``--unit``, else the family's); 0 only for a ``broadcast``."""
     unit = int(bus_options_of(args, family).unit)
     if unit == 0 and not broadcast:

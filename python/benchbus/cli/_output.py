@@ -28,6 +28,18 @@ def enum_name(value: object) -> str:
     return value.name if isinstance(value, enum.Enum) else str(value)
 
 
+def shown(value: object, unit: str = "") -> str:
+    """A value as read: an enum member by its name, a bool as ``true`` or ``false``, a
+    number with its unit (:func:`measured`), text as it is."""
+    if isinstance(value, enum.Enum):
+        return value.name
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, (int, float)):
+        return measured(value, unit)
+    return str(value)
+
+
 def text_table(headers: Sequence[str] | None, rows: Sequence[Sequence[str]]) -> list[str]:
     """Left-aligned columns, two spaces apart."""
     lines = [list(headers)] if headers else []

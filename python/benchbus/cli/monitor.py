@@ -17,12 +17,21 @@ from benchbus._record import with_unit
 from benchbus.cli._args import (
     PROG,
     Parser,
+    add_profile_option,
     integer,
     seconds,
 )
 from benchbus.cli._errors import CliError, UsageError, end_ctrl_c_line, interrupted, one_line
-from benchbus.cli._line import check_family, open_bus, open_device
-from benchbus.cli._output import csv_number, fmt, text_table
+from benchbus.cli._line import (
+    check_family,
+    open_bus,
+    open_device,
+    open_profiled,
+    opt,
+    profile_of,
+    profile_options,
+)
+from benchbus.cli._output import csv_number, fmt, shown, text_table
 
 __all__ = ["DRIVE_FIELDS", "HELP", "CsvLog", "LiveTable", "add_arguments", "run"]
 
@@ -50,7 +59,7 @@ class CsvLog:
         self._file: IO[str] | None = None
         self._writer: Any = None
 
-    def write(self, when: datetime.datetime, t: float, sample: dict[str, float]) -> None:
+    def write(self, when: datetime.datetime, t: float, sample: dict[str, Any]) -> None:
         """Append one row (the header first, if the file is new or empty)."""
         header = [
             "time",
@@ -100,9 +109,9 @@ class LiveTable:
         self._header = [with_unit("t", "s"), *map(with_unit, fields, self.units)]
         self._widths = [max(len(h), 9) for h in self._header]
 
-    def show(self, n: int, t: float, missed: int, sample: dict[str, float]) -> None:
+    def show(self, n: int, t: float, missed: int, sample: dict[str, Any]) -> None:
         """Show one sample."""
-        values = [fmt(sample[f]) for f in self.fields]
+        values = [shown(sample[f]) for f in self.fields]
         if self.tty:
             late = f", {missed} deadlines missed" if missed else ""
             lines = [self.title, f"sample {n}  t {t:.1f} s{late}  (Ctrl-C to stop)"]
@@ -129,13 +138,23 @@ class LiveTable:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus monitor`` as ``args`` say; the exit status."""
-    kind: str = args.device
+    profile = profile_of(args)
+    if (profile is None) == (args.device is None):
+        raise UsageError(f"give a device ({'|'.join(_kinds())}) or --profile FILE, not both")
+    if profile is not None and opt(args, "family") is not None:
+        raise UsageError("--family goes with drive: a profile says what the device is")
+    kind: str = "profile" if profile is not None else args.device
     log: CsvLog | None = None
     samples = 0
     lost: float | None = None  # when the port was lost, while it is
-    with open_bus(args, kind, reconnect=args.reconnect) as bus:
-        device = open_device(bus, args, kind)
-        check_family(device, kind)
+    line = kind if profile is None else profile_options(profile)
+    with open_bus(args, line, reconnect=args.reconnect) as bus:
+        if profile is None:
+            device = open_device(bus, args, kind)
+            check_family(device, kind)
+        else:
+            device = open_profiled(bus, args, profile)
+            kind = profile.name
         units = device.sample_units()
         log = CsvLog(args.csv, units) if args.csv else None
         title = f"{kind} unit {device.unit} on {bus.port}, every {fmt(args.interval)} s"
@@ -184,7 +203,12 @@ def _note(table: LiveTable | None, text: str) -> None:
         table.below()
 
 
-def _fields(spec: str | None, kind: str, sample: dict[str, float]) -> list[str]:
+def _kinds() -> tuple[str, ...]:
+    """The device families ``monitor`` takes by name."""
+    return tuple(f.key for f in command_families())
+
+
+def _fields(spec: str | None, kind: str, sample: dict[str, Any]) -> list[str]:
     if spec is None or spec.strip() == "all":
         if spec is None and kind == "drive":
             return [f for f in DRIVE_FIELDS if f in sample]
@@ -199,7 +223,7 @@ def _fields(spec: str | None, kind: str, sample: dict[str, float]) -> list[str]:
 
 
 #: What ``benchbus monitor`` does, as ``--help`` says.
-HELP = "a live table of a device's measurements until Ctrl-C"
+HELP = "a live table of a device's (or a device profile's) measurements until Ctrl-C"
 #: The rest of its ``--help``.
 EPILOG = (
     "On a terminal the table is redrawn in place; otherwise one line is printed "
@@ -207,7 +231,9 @@ EPILOG = (
     "sample is read are skipped, and counted). The CSV file gets every measurement, "
     "with a header when the file is new; an existing file must have the same columns. "
     "A lost port (an adapter unplugged) is reported in one line and reopened at each "
-    "sample until it is back."
+    "sample until it is back. With --profile FILE instead of a family, every readable "
+    "register of that device profile but strings (enums by their members' names in the "
+    "table, their numbers in the CSV file; bools true or false, 1 or 0)."
 )
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
 LINE_OPTIONS = {"unit": True}
@@ -217,8 +243,9 @@ FAMILY_OPTION = True
 
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus monitor`` (``parents``: its option groups, for its actions)."""
-    kinds = tuple(f.key for f in command_families())
-    parser.add_argument("device", choices=kinds, metavar="|".join(kinds))
+    kinds = _kinds()
+    parser.add_argument("device", nargs="?", choices=kinds, metavar="|".join(kinds))
+    add_profile_option(parser, "monitor its registers")
     parser.add_argument(
         "--interval", type=seconds, default=0.5, metavar="S", help="seconds between samples"
     )

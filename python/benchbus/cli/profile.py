@@ -40,19 +40,21 @@ def check(path: str) -> int:
     """``benchbus profile check``: load ``path`` and print its table (a profile's mistake
     is a usage error: the file, its line and the key)."""
     from benchbus import Profile
+    from benchbus._profile import profile_line
     from benchbus.exceptions import ProfileError
 
     try:
         profile = Profile(path)
     except (ProfileError, OSError) as exc:
         raise UsageError(str(exc)) from None
-    line = profile.line
+    line = profile_line(profile)  # as the device opens its own port
     limits = profile.limits
     print(f"{profile.name}: {profile.description}".rstrip(": "))
     print(
         f"line {line.baudrate} {line.bytesize}{line.parity}{line.stopbits}"
-        f" {line.framing}, timeout {line.timeout:g} s; at most {limits.max_read} read,"
-        f" {limits.max_write} written a request"
+        f" {line.framing}, timeout {line.timeout:g} s; at most"
+        f" {limits.max_read or 'the protocol limit'} read,"
+        f" {limits.max_write or 'the protocol limit'} written a request"
     )
     rows = [
         [

@@ -1,4 +1,5 @@
-"""``benchbus read``: read registers, coils or discrete inputs."""
+"""``benchbus read``: read registers, coils or discrete inputs, or a profile's registers by
+name."""
 
 from __future__ import annotations
 
@@ -6,9 +7,25 @@ import argparse
 from decimal import Decimal
 
 import benchbus as bb
-from benchbus.cli._args import VALUE_TYPES, Parser, add_value_options, integer
+from benchbus._profile import known
+from benchbus.cli._args import (
+    VALUE_TYPES,
+    Parser,
+    add_profile_option,
+    add_value_options,
+    argument,
+    integer,
+)
 from benchbus.cli._errors import UsageError
-from benchbus.cli._line import open_bus, unit_of
+from benchbus.cli._line import (
+    open_bus,
+    open_profiled,
+    profile_of,
+    profile_options,
+    refused_as_usage,
+    unit_of,
+)
+from benchbus.cli._output import print_table, shown
 
 __all__ = ["HELP", "add_arguments", "run"]
 
@@ -27,8 +44,42 @@ TABLES = {
 }
 
 
+def _read_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
+    """``benchbus read --profile FILE [NAME ...]``: the registers named (every readable one
+    without names) in engineering units, in the fewest requests the profile allows."""
+    raw = (args.hex, args.signed, args.decimals, args.type, args.order)
+    if args.table != "holding" or any(raw):
+        raise UsageError(
+            "--profile reads registers by name, in engineering units: leave out --table, "
+            "--hex, --signed, --decimals, --type and --order"
+        )
+    try:
+        names = [known(profile, n) for n in args.targets]
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    names = names or [r.name for r in profile.registers if r.access != "w"]
+    with open_bus(args, profile_options(profile)) as bus:
+        device = open_profiled(bus, args, profile)
+        with refused_as_usage():
+            values = device.read_many(names)
+    units = device.units()
+    print_table(None, [[name, shown(value, units[name])] for name, value in values.items()])
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus read`` as ``args`` say; the exit status."""
+    profile = profile_of(args)
+    if profile is not None:
+        return _read_profile(args, profile)
+    if not args.targets:
+        raise UsageError("the following arguments are required: ADDRESS")
+    if len(args.targets) > 2:
+        raise UsageError(f"unrecognized arguments: {' '.join(args.targets[2:])}")
+    args.address = argument(args.targets[0], integer(0, 0xFFFF, "ADDRESS"), "ADDRESS")
+    args.count = 1
+    if len(args.targets) == 2:
+        args.count = argument(args.targets[1], integer(1, 0x10000, "COUNT"), "COUNT")
     method, most, bits = TABLES[args.table]
     if bits and (args.hex or args.signed or args.decimals or args.type or args.order):
         raise UsageError(
@@ -73,12 +124,19 @@ def _text(word: int, args: argparse.Namespace) -> str:
 
 
 #: What ``benchbus read`` does, as ``--help`` says.
-HELP = "read registers (0x03, 0x04), coils (0x01) or discrete inputs (0x02)"
+HELP = (
+    "read registers (0x03, 0x04), coils (0x01) or discrete inputs (0x02), or a device "
+    "profile's registers by name"
+)
 #: The rest of its ``--help``.
 EPILOG = (
     "Prints one line per register, bit (1 or 0) or --type value: the address in hex, in "
     "decimal, and the value. --table says which table: holding registers (0x03, the "
-    "default), input registers (0x04), coils (0x01) or discrete inputs (0x02)."
+    "default), input registers (0x04), coils (0x01) or discrete inputs (0x02). With "
+    "--profile FILE, the registers NAME ... of that device profile (every readable one "
+    "without names), one line each: the name and the value in engineering units with its "
+    "unit (an enum by its member's name, a bool as true or false), read in the fewest "
+    "requests the profile allows."
 )
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
 LINE_OPTIONS = {"unit": True}
@@ -86,16 +144,15 @@ LINE_OPTIONS = {"unit": True}
 
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus read`` (``parents``: its option groups, for its actions)."""
-    parser.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
     parser.add_argument(
-        "count",
-        type=integer(1, 0x10000, "COUNT"),
-        nargs="?",
-        default=1,
-        metavar="COUNT",
-        help="registers, bits or --type values to read (default 1; more than 125 registers "
-        "or 2000 bits go in several requests)",
+        "targets",
+        nargs="*",
+        metavar="ADDRESS [COUNT] | NAME",
+        help="the first address and how many registers, bits or --type values to read "
+        "(default 1; more than 125 registers or 2000 bits go in several requests); with "
+        "--profile, register names",
     )
+    add_profile_option(parser, "read its registers by name")
     parser.add_argument(
         "--table",
         choices=tuple(TABLES),

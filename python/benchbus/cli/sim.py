@@ -11,8 +11,8 @@ from benchbus.cli._args import (
     Parser,
     framing,
     integer,
-    parse_int,
     positive,
+    profile_value,
     seconds,
     units_type,
 )
@@ -20,7 +20,7 @@ from benchbus.cli._errors import CliError, UsageError
 from benchbus.cli._serve import serve_until_stopped
 
 if TYPE_CHECKING:
-    from benchbus import Profile, ProfileRegister
+    from benchbus import Profile
     from benchbus.sim import SimDevice
 
 __all__ = ["HELP", "SIM_DEVICES", "add_arguments", "run"]
@@ -33,33 +33,6 @@ SIM_DEVICES: dict[str, int] = {f.key: f.line.baudrate for f in FAMILIES}
 def _sim_device(kind: str, args: argparse.Namespace) -> SimDevice:
     of = family(kind)
     return of.simulate(**{option: getattr(args, option) for option in of.sim_options})
-
-
-_TRUE = ("1", "true", "on", "yes")
-_FALSE = ("0", "false", "off", "no")
-
-
-def _initial_value(row: ProfileRegister, text: str) -> bool | int | float | str:
-    """``--value``'s text as the value of the profile's register ``row``: true/false for a
-    bool, the text for a string, a member's name or number for an enum, else a number."""
-    if row.type == "bool":
-        word = text.strip().lower()
-        if word in _TRUE + _FALSE:
-            return word in _TRUE
-        raise UsageError(f"--value {row.name}: true or false, not {text!r}")
-    if row.type == "string" or text in row.enum.values():
-        return text
-    try:
-        return parse_int(text)
-    except ValueError:
-        pass
-    if row.enum:
-        members = ", ".join(row.enum.values())
-        raise UsageError(f"--value {row.name}: one of {members} (or its number), not {text!r}")
-    try:
-        return float(text)
-    except ValueError:
-        raise UsageError(f"--value {row.name}: {text!r} is not a number") from None
 
 
 def _profile_devices(
@@ -87,7 +60,10 @@ def _profile_devices(
             raise UsageError(
                 f"--value: {profile.name} has no register {name!r} (it has {', '.join(rows)})"
             )
-        values[name] = _initial_value(rows[name], text)
+        try:
+            values[name] = profile_value(rows[name], text)
+        except UsageError as exc:
+            raise UsageError(f"--value {exc}") from None
     try:
         return {u: ProfileDevice(path, values) for u in units}, profile
     except (ValueError, TypeError) as exc:  # a value out of range, of the wrong kind

@@ -1,4 +1,4 @@
-"""``benchbus write``: write holding registers or coils."""
+"""``benchbus write``: write holding registers or coils, or a profile's register by name."""
 
 from __future__ import annotations
 
@@ -6,9 +6,28 @@ import argparse
 from decimal import Decimal, InvalidOperation
 
 import benchbus as bb
-from benchbus.cli._args import VALUE_TYPES, Parser, add_value_options, integer, parse_int
+from benchbus._profile import known
+from benchbus.cli._args import (
+    BOOLS,
+    VALUE_TYPES,
+    Parser,
+    add_profile_option,
+    add_value_options,
+    argument,
+    integer,
+    parse_int,
+    profile_value,
+)
 from benchbus.cli._errors import UsageError
-from benchbus.cli._line import open_bus, unit_of
+from benchbus.cli._line import (
+    open_bus,
+    open_profiled,
+    profile_of,
+    profile_options,
+    refused_as_usage,
+    unit_of,
+)
+from benchbus.cli._output import shown
 
 __all__ = ["HELP", "add_arguments", "run"]
 
@@ -54,10 +73,6 @@ def _typed_words(texts: list[str], kind: str, order: str) -> list[int]:
         raise UsageError(str(exc)) from None
 
 
-#: What a coil's value may be written as on the command line.
-_COIL = {"1": True, "on": True, "true": True, "0": False, "off": False, "false": False}
-
-
 def _write_coils(args: argparse.Namespace) -> int:
     """``benchbus write --table coils``: 0x05 for one value, 0x0F for several."""
     if args.type or args.order or args.decimals or args.multiple or args.accept_count_echo:
@@ -67,9 +82,9 @@ def _write_coils(args: argparse.Namespace) -> int:
         )
     values = []
     for text in args.values:
-        if text.strip().lower() not in _COIL:
+        if text.strip().lower() not in BOOLS:
             raise UsageError(f"{text!r} is not a coil value (1/0, on/off, true/false)")
-        values.append(_COIL[text.strip().lower()])
+        values.append(BOOLS[text.strip().lower()])
     if args.address + len(values) > 0x10000:
         raise UsageError(f"{len(values)} coils from {args.address:#06x} run past 0xFFFF")
     unit = unit_of(args, "write", broadcast=True)
@@ -92,8 +107,40 @@ def _write_coils(args: argparse.Namespace) -> int:
     return 0
 
 
+def _write_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
+    """``benchbus write --profile FILE NAME VALUE``: the register NAME, in engineering
+    units, every check made before anything is sent."""
+    if any((args.table != "holding", args.type, args.order, args.decimals, args.multiple)) or (
+        args.accept_count_echo
+    ):
+        raise UsageError(
+            "--profile writes a register by name, in engineering units: leave out --table, "
+            "--type, --order, --decimals, --multiple and --accept-count-echo"
+        )
+    if len(args.values) != 1:
+        raise UsageError("--profile writes one register: give NAME VALUE")
+    try:
+        name = known(profile, args.address)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
+    register = profile[name]
+    value = profile_value(register, args.values[0])
+    with open_bus(args, profile_options(profile)) as bus:
+        device = open_profiled(bus, args, profile)
+        with refused_as_usage():
+            device.write(name, value)
+    members = device.enums.get(name)
+    written = members(value) if members is not None and isinstance(value, int) else value
+    print(f"unit {device.unit}: wrote {name} {shown(written, register.unit)}")
+    return 0
+
+
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus write`` as ``args`` say; the exit status."""
+    profile = profile_of(args)
+    if profile is not None:
+        return _write_profile(args, profile)
+    args.address = argument(args.address, integer(0, 0xFFFF, "ADDRESS"), "ADDRESS")
     if args.table == "coils":
         return _write_coils(args)
     if args.order and not args.type:
@@ -128,14 +175,21 @@ def run(args: argparse.Namespace) -> int:
 
 
 #: What ``benchbus write`` does, as ``--help`` says.
-HELP = "write holding registers (0x06 for one value, 0x10 for several) or coils (0x05, 0x0F)"
+HELP = (
+    "write holding registers (0x06 for one value, 0x10 for several) or coils (0x05, 0x0F), "
+    "or a device profile's register by name"
+)
 #: The rest of its ``--help``.
 EPILOG = (
     "Values are -32768 to 65535 (negative ones in two's complement), decimal or hex; "
     "with --decimals N, decimal numbers written as value x 10**N; with --type, values of "
     "that type over as many registers as it takes (0x10). --table coils writes coils: "
     "1/0, on/off or true/false (0x05 for one, 0x0F for several). --unit 0 broadcasts and "
-    "waits for no reply."
+    "waits for no reply. With --profile FILE, NAME VALUE writes that register of the "
+    "device profile in engineering units: a bool as true/false, on/off or 1/0; an enum by "
+    "its member's name or number; a string as given; any other register a number (decimal "
+    "or 0x hex). A value out of range, off the scale's steps or not a member, or a "
+    "read-only register, is refused before anything is sent (exit status 2)."
 )
 #: Its line options (see :func:`benchbus.cli._args.line_options`).
 LINE_OPTIONS = {"unit": True}
@@ -143,8 +197,13 @@ LINE_OPTIONS = {"unit": True}
 
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus write`` (``parents``: its option groups, for its actions)."""
-    parser.add_argument("address", type=integer(0, 0xFFFF, "ADDRESS"), metavar="ADDRESS")
+    parser.add_argument(
+        "address",
+        metavar="ADDRESS|NAME",
+        help="the first register or coil; with --profile, the register's name",
+    )
     parser.add_argument("values", nargs="+", metavar="VALUE")
+    add_profile_option(parser, "write a register by name")
     parser.add_argument("--multiple", action="store_true", help="use 0x10 even for a single value")
     parser.add_argument(
         "--table",
