@@ -266,6 +266,36 @@ def test_read_only_has_no_set_and_write_only_no_get(sensor: Rig, relays: Rig) ->
     assert board_sim.requests[before:] == []
 
 
+class Registers:
+    """Not a ``bb.Device``: only what :func:`instrument` asks of a device (``profile``, ``get``
+    and ``set``), as every benchbus device has them, here passed on to a device on the
+    simulator."""
+
+    def __init__(self, dev: bb.Device) -> None:
+        self.profile = dev.profile
+        self._dev = dev
+
+    def get(self, name: str) -> object:
+        return self._dev.get(name)
+
+    def set(self, name: str, value: object) -> None:
+        self._dev.set(name, value)
+
+
+def test_any_device_with_a_profile_get_and_set_is_wrapped(controller: Rig) -> None:
+    sim, fc, model = controller
+    inst = instrument(Registers(fc.device), "registers", close_device=True)  # type: ignore[arg-type]
+    assert list(inst.parameters) == list(fc.parameters)
+    assert inst.metadata["benchbus"]["unit"] is None  # it has no unit to say
+    assert inst.gain.vals.min_value == 0.5  # type: ignore[union-attr]
+    inst.gain(1.25)
+    assert model.value("gain") == 1.25
+    assert inst.flow() == pytest.approx(49.75)
+    inst.close()  # handed over, but it has no close(): nothing more to do
+    assert not Instrument.exist("registers") and not fc.device.bus.closed  # type: ignore[attr-defined]
+    assert sim.errors == []
+
+
 # ---- a QCoDeS measurement -------------------------------------------------------------
 
 
