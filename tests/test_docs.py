@@ -43,6 +43,7 @@ PICKED_BY = (
     "Device.from_profile(",
     "sim_profile(",
     "Profile.family(",
+    "benchbus.qcodes",
 )
 
 
@@ -192,6 +193,35 @@ def test_readme_instrument_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert out[2].startswith(
         "Identification(vendor='TELEMECANIQUE', product_code='ATV31HU09M3S232'"
     )
+
+
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="QCoDeS needs Python 3.11")
+def test_readme_qcodes_example(
+    capsys: pytest.CaptureFixture[str], monkeypatch: pytest.MonkeyPatch, tmp_path: Path
+) -> None:
+    """The QCoDeS example, on a simulated flow controller, its database in a temporary
+    directory."""
+    import qcodes
+    from qcodes.instrument import Instrument
+
+    from benchbus.sim import ProfileDevice
+
+    (block,) = [b for b in readme_blocks() if "benchbus.qcodes" in b]
+    model = ProfileDevice(ROOT / "examples" / "profiles" / "flow_controller.toml")
+    monkeypatch.chdir(tmp_path)  # the block writes flows.db where it runs
+    monkeypatch.setitem(qcodes.config.core, "db_location", qcodes.config.core.db_location)
+    with Simulator({1: model}) as sim:
+        block = block.replace("examples/profiles/", f"{ROOT}/examples/profiles/")
+        exec(block.replace("/dev/ttyUSB3", sim.port), {})
+        assert sim.errors == []
+    assert not Instrument.exist("fc")
+    assert capsys.readouterr().out.splitlines() == [
+        "sccm <Numbers 0.0<=v<=200.0> False",
+        "Starting experimental run with id: 1. ",  # QCoDeS says so
+        "[49.75 49.75 49.75]",
+    ]
+    assert model.value("setpoint") == 100.0
+    assert (tmp_path / "flows.db").is_file()
 
 
 def test_readme_values_example(capsys: pytest.CaptureFixture[str]) -> None:
