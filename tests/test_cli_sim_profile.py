@@ -140,6 +140,8 @@ def test_a_profiles_mistake_is_a_usage_error_and_nothing_is_served(tmp_path: Pat
         (["drive", "--profile", XY_MD02], "not both"),
         ([], "give a device (drive|pbl|j2|instrument|atv31) or --profile FILE"),
         (["drive", "--value", "a=1"], "--value sets a register of a --profile device"),
+        (["--profile", XY_MD02, "--model", "C20"], "--model and --speedup are for the built-in"),
+        (["--profile", XY_MD02, "--speedup", "2"], "--model and --speedup are for the built-in"),
         (["--profile", XY_MD02, "--value", "tempo=1"], "XY-MD02 has no register 'tempo'"),
         (["--profile", XY_MD02, "--value", "humidity"], "NAME=VALUE"),
         (

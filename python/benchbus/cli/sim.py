@@ -32,7 +32,8 @@ SIM_DEVICES: dict[str, int] = {f.key: f.line.baudrate for f in FAMILIES}
 
 def _sim_device(kind: str, args: argparse.Namespace) -> SimDevice:
     of = family(kind)
-    return of.simulate(**{option: getattr(args, option) for option in of.sim_options})
+    given = {option: getattr(args, option, None) for option in of.sim_options}
+    return of.simulate(**{option: v for option, v in given.items() if v is not None})
 
 
 def _profile_devices(
@@ -81,6 +82,8 @@ def run(args: argparse.Namespace) -> int:
         )
     if args.value and args.profile is None:
         raise UsageError("--value sets a register of a --profile device")
+    if args.profile is not None and (args.model is not None or args.speedup is not None):
+        raise UsageError("--model and --speedup are for the built-in devices, not --profile")
     try:
         from benchbus.sim import Simulator
     except ModuleNotFoundError as exc:  # the message says what to install
@@ -100,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         devices = {u: _sim_device(kind, args) for u in units}
         baudrate = args.baudrate or SIM_DEVICES[kind]
         served_framing = args.framing or "rtu"
-        what = f"{args.model} drive" if kind == "drive" else kind
+        what = f"{args.model or 'BLD2'} drive" if kind == "drive" else kind
     simulator = Simulator(devices, baudrate=baudrate, framing=served_framing)
     simulator.start()
     try:
@@ -178,13 +181,11 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         "--model",
         type=str.upper,
         choices=("BLD2", "BLD3H", "C20"),
-        default="BLD2",
-        help="the drive model (drive only)",
+        help="the drive model (drive only; default BLD2)",
     )
     parser.add_argument(
         "--speedup",
         type=positive("speedup"),
-        default=1.0,
         metavar="X",
         help="run the process X times faster than real time (j2, instrument)",
     )
