@@ -7,7 +7,8 @@
 
 use super::drive::{self, Family};
 use super::profile::{
-    full_range, table_name, Limits, LineSettings, Profile, ProfileRegister, ProfileValue, ValueType,
+    access_name, full_range, table_name, Limits, LineSettings, Profile, ProfileRegister,
+    ProfileValue, ValueType,
 };
 use super::value::{Kind, Layout};
 use super::{j2, pbl, Access, Register, Table};
@@ -218,16 +219,16 @@ fn register(out: &mut String, r: &ProfileRegister) {
     if !reg.unit.is_empty() {
         let _ = writeln!(out, "unit = {}", quote(&reg.unit));
     }
-    let read_only_table = matches!(r.table, Table::Input | Table::Discrete);
-    let access = match reg.access {
-        Access::Read if read_only_table => None,
-        Access::Read => Some("r"),
-        Access::ReadWrite | Access::WriteWhenStopped if read_only_table => Some("rw"),
-        Access::ReadWrite | Access::WriteWhenStopped => None,
-        Access::Write => Some("w"),
+    // Written where it is not the table's default: "r" for input registers and discrete
+    // inputs, "rw" for the rest.
+    let access = access_name(reg.access);
+    let default = if matches!(r.table, Table::Input | Table::Discrete) {
+        "r"
+    } else {
+        "rw"
     };
-    if let Some(a) = access {
-        let _ = writeln!(out, "access = {}", quote(a));
+    if access != default {
+        let _ = writeln!(out, "access = {}", quote(access));
     }
     if let ValueType::Number(kind) = r.value {
         let (lo, hi) = full_range(kind, reg.scale, r.offset);

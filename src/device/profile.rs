@@ -743,6 +743,15 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
 }
 
 /// The table's name in a profile.
+/// How a profile names `access`: "r", "rw" (also for W/R*, whose rule stays code) or "w".
+pub(crate) fn access_name(access: Access) -> &'static str {
+    match access {
+        Access::Read => "r",
+        Access::Write => "w",
+        Access::ReadWrite | Access::WriteWhenStopped => "rw",
+    }
+}
+
 pub(crate) fn table_name(table: Table) -> &'static str {
     match table {
         Table::Holding => "holding",

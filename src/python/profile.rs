@@ -4,10 +4,10 @@
 use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::export::{family_note, FAMILIES};
 use crate::device::profile::{
-    LineSettings, Profile, ProfileError, ProfileRegister, ProfileValue, ValueType,
+    access_name, table_name, LineSettings, Profile, ProfileError, ProfileRegister, ProfileValue,
+    ValueType,
 };
 use crate::device::profiled::ProfiledDevice;
-use crate::device::{Access, Table};
 use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyModule, PyString, PyTuple};
@@ -69,23 +69,6 @@ fn profile_error(py: Python<'_>, err: &ProfileError) -> PyErr {
         Ok(PyErr::from_value(instance))
     };
     build().unwrap_or_else(|e| e)
-}
-
-fn table_name(table: Table) -> &'static str {
-    match table {
-        Table::Holding => "holding",
-        Table::Input => "input",
-        Table::Coils => "coil",
-        Table::Discrete => "discrete",
-    }
-}
-
-fn access_name(access: Access) -> &'static str {
-    match access {
-        Access::Read => "r",
-        Access::Write => "w",
-        Access::ReadWrite | Access::WriteWhenStopped => "rw",
-    }
 }
 
 /// A value as Python has it.
