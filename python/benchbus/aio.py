@@ -44,7 +44,7 @@ import threading
 import time
 from collections.abc import Callable, Coroutine, Iterable
 from types import TracebackType
-from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar
+from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar, overload
 
 from benchbus import _core
 from benchbus._core import Bus, _Ticks
@@ -313,8 +313,14 @@ class _BusProperty(Generic[T]):
         self._prop = prop
         self.__doc__ = prop.__doc__
 
-    def __get__(self, bus: AsyncBus, owner: type[AsyncBus] | None = None) -> T:
-        """The property's value on ``bus``'s Bus."""
+    @overload
+    def __get__(self, bus: None, owner: type[AsyncBus] | None = None) -> Self: ...
+    @overload
+    def __get__(self, bus: AsyncBus, owner: type[AsyncBus] | None = None) -> T: ...
+    def __get__(self, bus: AsyncBus | None, owner: type[AsyncBus] | None = None) -> T | Self:
+        """The property's value on ``bus``'s Bus (the descriptor itself on the class)."""
+        if bus is None:
+            return self
         getter: Any = self._prop
         value: T = getter.__get__(bus.bus)
         return value
