@@ -635,3 +635,21 @@ def test_nothing_runs_a_loop_of_its_own() -> None:
         loop.run_forever()
         loop.close()
         assert got == [[5]]
+
+
+def test_the_async_poll_example_runs() -> None:
+    done = subprocess.run(
+        [sys.executable, str(ROOT / "examples" / "async_poll.py")],
+        capture_output=True,
+        text=True,
+        timeout=60,
+        check=False,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "python")},
+    )
+    assert done.returncode == 0, done.stderr
+    out = done.stdout.splitlines()
+    assert out[0].endswith(" rpm") and out[4] == "0.80 s  1200 rpm"
+    assert out[5] == "20 samples, 0 missed"
+    ticked = out[6].split()
+    assert int(ticked[3]) >= 60  # ~100 in the second polled: the loop ran meanwhile
+    assert out[7] == "commands the drive received: [1, 5]"
