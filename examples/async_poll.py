@@ -27,18 +27,17 @@ async def main(port: str) -> None:
     """Spin the drive up and poll its speed for a second, with a ticker beside it."""
     lags: list[float] = []
     ticks = asyncio.create_task(ticker(lags))
-    async with bb.aio.AsyncBus(port, timeout=0.25) as bus:
-        async with bb.aio.Drive(bus, unit=1) as drive:
-            await drive.set("accel_time", 0.5)
-            await drive.set("speed_setpoint", 1200)
-            await drive.forward()
-            poll = bus.poll(1, 0x3006, interval=0.05, duration=1.0)
-            samples = 0
-            async for t, (speed,) in poll:
-                samples += 1
-                if round(t / 0.05) % 4 == 0:
-                    print(f"{t:4.2f} s  {speed:4d} rpm")
-            print(f"{samples} samples, {poll.missed} missed")
+    async with bb.aio.AsyncBus(port, timeout=0.25) as bus, bb.aio.Drive(bus, unit=1) as drive:
+        await drive.set("accel_time", 0.5)
+        await drive.set("speed_setpoint", 1200)
+        await drive.forward()
+        poll = bus.poll(1, 0x3006, interval=0.05, duration=1.0)
+        samples = 0
+        async for t, (speed,) in poll:
+            samples += 1
+            if round(t / 0.05) % 4 == 0:
+                print(f"{t:4.2f} s  {speed:4d} rpm")
+        print(f"{samples} samples, {poll.missed} missed")
     ticks.cancel()
     print(f"the loop ticked {len(lags)} times meanwhile, at most {max(lags) * 1e3:.1f} ms late")
 
