@@ -454,8 +454,8 @@ def test_drive_on_an_async_bus() -> None:
                 assert isinstance(drive.sync, bb.Drive)
                 with pytest.raises(AttributeError, match=r"await device\.set"):
                     drive.speed_setpoint = 10
-                with pytest.raises(AttributeError):
-                    drive.no_such_thing  # noqa: B018
+                with pytest.raises(AttributeError, match="did you mean 'speed_setpoint'"):
+                    drive.speed_setpoin  # noqa: B018
                 with pytest.raises(ValueError):
                     await drive.set("speed_setpoint", 99999)
             assert device.commands == [1, 5]  # stopped on leaving
@@ -537,6 +537,7 @@ def test_a_device_on_its_own_port_closes_it_and_its_threads() -> None:
             assert await drive.get("speed") == 0
             await drive.aclose()
             assert drive.bus.bus.closed
+            await drive.aclose()  # twice is harmless
             with pytest.raises(bb.PortError):
                 await drive.get("speed")
 
@@ -608,6 +609,10 @@ def test_device_from_profile() -> None:
                     "temperature",
                     "humidity",
                 }
+                sent = len(sim.requests)
+                with pytest.raises(AttributeError, match="did you mean 'temperature'"):
+                    dev.temperatur  # noqa: B018
+                assert len(sim.requests) == sent  # nothing read to say so
                 await dev.aclose()
                 assert not bus.closed
 

@@ -37,6 +37,7 @@ from __future__ import annotations
 import asyncio
 import collections
 import contextlib
+import difflib
 import functools
 import inspect
 import os
@@ -648,12 +649,21 @@ class AsyncDevice(Generic[D]):
         if name in _LOCAL or isinstance(found, (staticmethod, classmethod)):
             return getattr(sync, name)
         if found is None:
-            getattr(sync, name)  # AttributeError with the sync class's hint
-            # A name the sync object resolves dynamically (a profile's register).
+            registers = getattr(sync, "_register_named", None)
+            if registers is None or not registers(name):
+                raise self._no_attribute(name)
+            # A profile's register, which the sync device reads as an attribute.
             return self._call(lambda: getattr(sync, name))()
         if inspect.isroutine(found):
             return self._call(getattr(sync, name))
         return self._call(lambda: getattr(sync, name))()
+
+    def _no_attribute(self, name: str) -> AttributeError:
+        """An AttributeError for ``name``, naming the closest public names (nothing is
+        read to find them)."""
+        close = difflib.get_close_matches(name, [n for n in dir(self) if n[:1] != "_"], n=3)
+        hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+        return AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}{hint}")
 
     def __setattr__(self, name: str, value: Any) -> None:
         """Refused: writing a register is ``await device.set(name, value)``."""
@@ -674,6 +684,9 @@ class AsyncDevice(Generic[D]):
     async def _leave(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the bus's threads (after what is queued, and whatever happens to
         the awaiting task), then end the threads if they are the device's."""
+        if self._abus._pool.closed:  # the port is closed too: nothing waits for the line
+            fn()
+            return
         done = self._abus._pool.submit(fn, cancellable=False)
         ended = self._abus._pool.close() if self._owns_pool else None
         await asyncio.shield(done)
