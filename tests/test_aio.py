@@ -322,6 +322,23 @@ def test_aclose_lets_calls_in_threads_finish_and_fails_the_queued_ones_unsent(
     assert device_of(sim).registers[60] == 0
 
 
+def test_idle_threads_end_by_themselves(
+    sim: Simulator[RegisterDevice], monkeypatch: pytest.MonkeyPatch
+) -> None:
+    monkeypatch.setattr(aio, "IDLE_END", 0.05)
+
+    async def main() -> None:
+        bus = aio.AsyncBus(sim.port)
+        await asyncio.gather(*(bus.read_holding_registers(1, 0, 1) for _ in range(3)))
+        assert aio_threads()
+        await asyncio.sleep(0.3)
+        assert aio_threads() == []  # even on a bus not closed
+        assert await bus.read_holding_registers(1, 1, 1) == [8]  # a new thread takes it
+        await bus.aclose()
+
+    run(main)
+
+
 def test_workers_are_checked() -> None:
     with pytest.raises(ValueError, match="workers"):
         aio.AsyncBus("/dev/null", workers=0)

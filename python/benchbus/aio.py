@@ -77,6 +77,9 @@ R = TypeVar("R")
 
 #: How many worker threads an AsyncBus has unless told.
 WORKERS = 8
+#: Seconds a worker thread waits for a call before it ends (a bus left idle, or never
+#: closed, keeps no thread running).
+IDLE_END = 10.0
 #: How long before a poll's deadline the loop hands the read to a thread, which then waits
 #: out the rest on the monotonic clock (the loop's own timers are only as fine as a
 #: millisecond).
@@ -154,7 +157,7 @@ class _Pool:
     """Worker threads that run calls in the order they were handed over.
 
     Threads are started as calls need them, up to ``workers``, and end when the pool is
-    closed and has nothing left to run.
+    closed and has nothing left to run, or after :data:`IDLE_END` seconds without a call.
     """
 
     def __init__(self, workers: int, name: str) -> None:
@@ -194,7 +197,7 @@ class _Pool:
             if self._closed:
                 raise PortError(f"{self._name}: closed")
             self._queue.append(call)
-            if len(self._queue) > self._idle and len(self._threads) < self._workers:
+            if len(self._queue) > self._idle and self._live < self._workers:
                 thread = threading.Thread(
                     target=self._work,
                     name=f"benchbus.aio {self._name} #{len(self._threads)}",
@@ -226,8 +229,11 @@ class _Pool:
             with self._lock:
                 while not self._queue and not self._closed:
                     self._idle += 1
-                    self._wake.wait()
+                    woke = self._wake.wait(IDLE_END)
                     self._idle -= 1
+                    if not (woke or self._queue or self._closed):
+                        self._live -= 1  # idle too long: the next call starts another
+                        return
                 if not self._queue:
                     self._live -= 1
                     last = self._live == 0
