@@ -18,7 +18,9 @@ from collections.abc import Awaitable, Callable, Iterator
 from pathlib import Path
 from typing import Any, TypeVar
 
+import nbformat
 import pytest
+from nbclient import NotebookClient
 
 import benchbus as bb
 from benchbus import aio
@@ -675,3 +677,28 @@ def test_the_async_poll_example_runs() -> None:
     ticked = out[6].split()
     assert int(ticked[3]) >= 60  # ~100 in the second polled: the loop ran meanwhile
     assert out[7] == "commands the drive received: [1, 5]"
+
+
+@pytest.mark.timeout(120)
+def test_top_level_await_in_a_jupyter_kernel() -> None:
+    """In the loop a Jupyter kernel runs, cells await the bus and a drive directly."""
+    cells = [
+        "import threading\n"
+        "import benchbus as bb\n"
+        "from benchbus.sim import DriveDevice, Simulator\n"
+        "sim = Simulator({1: DriveDevice()}).start()\n"
+        "bus = bb.aio.AsyncBus(sim.port)",
+        "print(await bus.read_holding_registers(1, 0x2001, 1))",
+        "async with bb.aio.Drive(bus, 1) as drive:\n"
+        "    await drive.set('speed_setpoint', 900)\n"
+        "    await drive.forward()\n"
+        "    print(await drive.get('speed_setpoint'))\n"
+        "print(sim.devices[1].commands)",
+        "await bus.aclose()\n"
+        "sim.stop()\n"
+        "print([t.name for t in threading.enumerate() if t.name.startswith('benchbus.aio')])",
+    ]
+    notebook = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell(c) for c in cells])
+    NotebookClient(notebook, timeout=60, kernel_name="python3").execute()
+    printed = ["".join(o.get("text", "") for o in cell.outputs) for cell in notebook.cells]
+    assert printed == ["", "[0]\n", "900\n[1, 5]\n", "[]\n"]
