@@ -361,7 +361,7 @@ def test_poll_on_absolute_deadlines(sim: Simulator[RegisterDevice]) -> None:
             assert sim.requests == []
             poll = bus.poll(1, 0, 2, interval=0.05, duration=0.3)
             assert poll.started is None
-            samples = []
+            samples: list[tuple[float, list[int], float]] = []
             async for t, values in poll:
                 assert poll.started is not None
                 samples.append((t, values, time.monotonic() - (poll.started + t)))
