@@ -216,6 +216,35 @@ def test_calls_run_at_once_in_several_threads_and_leave_in_arrival_order(
     assert len(sim.requests) == 12
 
 
+def test_one_thread_sends_the_calls_in_the_order_they_were_made(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port, workers=1) as bus:
+            await asyncio.gather(*(bus.write_register(1, 100, i) for i in range(10)))
+
+    run(main)
+    # 0x06 requests: unit, function, address (2), value (2), CRC: the value is bytes 4..5.
+    assert [int.from_bytes(f[4:6], "big") for f in sim.requests] == list(range(10))
+
+
+def test_the_bus_options_are_the_buses() -> None:
+    device = RegisterDevice({0: 7})
+    with Simulator({1: device}, framing="ascii") as sim:
+
+        async def main() -> None:
+            async with aio.AsyncBus(sim.port, framing="ascii", turnaround=0.05) as bus:
+                assert (bus.framing, bus.bytesize, bus.parity, bus.turnaround) == (
+                    "ascii",
+                    7,
+                    "E",
+                    0.05,
+                )
+                assert await bus.read_holding_registers(1, 0, 1) == [7]
+
+        run(main)
+
+
 def test_the_loop_runs_while_a_call_waits_for_the_line(sim: Simulator[RegisterDevice]) -> None:
     sim.set_silent(1)
 

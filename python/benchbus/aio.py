@@ -360,21 +360,17 @@ class AsyncBus:
     def __init__(
         self,
         port: str | os.PathLike[str],
-        baudrate: int = 19200,
-        parity: str = "N",
-        stopbits: int = 1,
-        timeout: float = 0.1,
-        retries: int = 2,
-        *,
+        *args: Any,
         workers: int = WORKERS,
-        **options: Any,
+        **kwargs: Any,
     ) -> None:
-        """Open ``port`` as :class:`benchbus.Bus` does, with the same arguments (``options``
-        are its keyword-only ones: ``turnaround``, ``reconnect``, ``echo``, ``rs485``,
-        ``rts_delay``, ``silence``, ``framing``, ``bytesize``); ``workers`` is how many
+        """Open ``port`` as :class:`benchbus.Bus` does, with the same arguments (``baudrate``,
+        ``parity``, ``stopbits``, ``timeout``, ``retries``, then its keyword-only ones:
+        ``turnaround``, ``reconnect``, ``echo``, ``rs485``, ``rts_delay``, ``silence``,
+        ``framing``, ``bytesize``), given to it as they are; ``workers`` (1..64) is how many
         calls may run at once."""
         pool = _Pool(workers, str(port))
-        self._adopt(Bus(port, baudrate, parity, stopbits, timeout, retries, **options), pool)
+        self._adopt(Bus(port, *args, **kwargs), pool)
 
     def _adopt(self, bus: Bus, pool: _Pool) -> None:
         """Serve ``bus`` with ``pool``'s threads."""
