@@ -10,6 +10,7 @@ import inspect
 import os
 import select
 import selectors
+import signal
 import subprocess
 import sys
 import threading
@@ -572,6 +573,42 @@ def test_the_stop_is_sent_even_when_the_task_is_cancelled_again_while_leaving() 
             await asyncio.sleep(0.3)
 
         run(main)
+        assert device.commands == [1, 5]
+
+
+CTRL_C = """
+import asyncio, sys
+import benchbus as bb
+
+async def main(port):
+    async with bb.aio.Drive(port) as drive:
+        await drive.forward()
+        print("running", flush=True)
+        await asyncio.sleep(30)
+
+asyncio.run(main(sys.argv[1]))
+"""
+
+
+def test_ctrl_c_in_asyncio_run_stops_the_motor() -> None:
+    device = DriveDevice()
+    with Simulator(device) as sim:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", CTRL_C, sim.port],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "PYTHONPATH": str(ROOT / "python")},
+        )
+        try:
+            assert proc.stdout is not None
+            assert select.select([proc.stdout], [], [], 20)[0], "the script did not start"
+            assert proc.stdout.readline() == "running\n"
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=20)
+        finally:
+            proc.kill()
+        assert "KeyboardInterrupt" in err
         assert device.commands == [1, 5]
 
 
