@@ -347,8 +347,9 @@ class AsyncBus:
     ``tcp://`` connection may wait up to its 3 s connect timeout), and exclusively: a Bus
     and an AsyncBus cannot hold the same port at once (PortError). ``workers`` (1..64, 8 by
     default) is how many calls may be in threads at once; more wait in the bus's queue, in
-    the order they were made, and a cancelled one leaves the queue unsent. Devices made on
-    the AsyncBus (``bb.aio.Drive(bus, 1)``) share its threads.
+    the order they were made, and a cancelled one leaves the queue unsent. The threads
+    start as calls need them and end after :data:`IDLE_END` seconds without one. Devices
+    made on the AsyncBus (``bb.aio.Drive(bus, 1)``) share its threads.
 
     :meth:`aclose` (or leaving ``async with``) refuses new calls (PortError), fails the
     calls still queued with PortError without sending them, lets those already in a
