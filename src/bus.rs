@@ -10,9 +10,9 @@
 //! ```
 //!
 //! The line is shared fairly: a call waits for its turn in arrival order and runs one attempt
-//! per turn; a retry takes a new turn at the back of the queue ([`queue`]), so an absent
-//! unit's retries never hold the line while others wait. A [`CancelToken`] stops a call
-//! between attempts, or takes it out of the queue.
+//! per turn; a retry takes a new turn at the back of the queue, so an absent unit's retries
+//! never hold the line while others wait. A [`CancelToken`] stops a call between attempts, or
+//! takes it out of the queue.
 //!
 //! Stale bytes in the input buffer are dropped (and counted) before each request; the reply
 //! is read by its expected length ([`Framing::reply_needed`]), never by waiting for a timeout; only a
@@ -862,9 +862,10 @@ impl Bus {
 
     /// One request, retried after a timeout or a corrupt frame, and its checked response.
     ///
-    /// Each attempt has its own turn on the line ([`Bus::line`]): a retry waits at the back
-    /// of the queue, behind the callers that asked meanwhile. A paced write waits for its
-    /// interval without a turn. Under a cancelled [`CancelToken`] the call starts no further
+    /// Each attempt has its own turn on the line: a retry waits at the back of the queue,
+    /// behind the callers that asked meanwhile. A paced write waits for its interval, and a
+    /// request to a unit whose late reply may still come waits out its window, without a
+    /// turn. Under a cancelled [`CancelToken`] the call starts no further
     /// attempt and fails with [`Error::Cancelled`].
     ///
     /// # Errors

@@ -134,6 +134,38 @@ def test_an_absent_unit_does_not_hold_the_line_from_present_ones(
     assert (stats.frame_errors, stats.crc_errors) == (0, 0)
 
 
+def test_a_late_reply_coming_while_another_caller_has_the_line_is_dropped_there(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """Unit 1 answers later than the timeout; unit 2's calls, served between unit 1's
+    attempts, drop its late replies and get their own answers."""
+    sim.devices[1].reply_delay = 1.6 * TIMEOUT
+    with open_bus(sim, retries=1) as bus:
+        stop_at = time.monotonic() + 1.5
+        slow_results: list[list[int] | BaseException] = []
+
+        def slow() -> None:
+            while time.monotonic() < stop_at:
+                try:
+                    slow_results.append(bus.read_holding_registers(1, 10, 1))
+                except bb.ResponseTimeout as exc:
+                    slow_results.append(exc)
+
+        thread = threading.Thread(target=slow)
+        thread.start()
+        calls = 0
+        while time.monotonic() < stop_at:
+            assert bus.read_holding_registers(2, 3, 1) == [203]
+            calls += 1
+        thread.join(10)
+        stats = bus.stats
+    assert calls > 20
+    # Unit 1's retries may take its own late reply (the same request), never another's.
+    assert all(r == [110] for r in slow_results if not isinstance(r, BaseException))
+    assert (stats.frame_errors, stats.crc_errors) == (0, 0)
+    assert stats.stale_bytes >= 7
+
+
 # ---- cancellation ------------------------------------------------------------------------------
 
 

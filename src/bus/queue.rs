@@ -122,7 +122,8 @@ impl Drop for Turn<'_> {
 /// starts nothing more (no retry, no further request of a call made of several) and fails
 /// with [`crate::Error::Cancelled`]. An attempt that ends the call (a reply, an exception)
 /// stands: its result is returned. A cancelled token stays cancelled: every call made under
-/// it fails at once.
+/// it fails at once. (A device's sequence waiting for another sequence on the same unit,
+/// see [`crate::Bus::exclusive`], is not woken: its first request fails once it runs.)
 #[derive(Clone, Default)]
 pub struct CancelToken(Arc<TokenState>);
 
