@@ -918,10 +918,10 @@ impl Bus {
             // An attempt timed out, so a reply to it may still come (even when a retry was
             // then answered: by the first attempt's late reply, perhaps). RTU replies carry no
             // transaction id, but they name their unit: the next request to the same unit
-            // listens for it first (see `send`), and a request to another unit goes out at
-            // once and drops it if it comes (see `attempt`); other callers' attempts between
-            // this call's attempts included. Within a call a late reply answers the same
-            // request, so retries do not wait. A probe's unit is not asked again, and a late
+            // waits out its window first (see `State::late_until`), and a request to another
+            // unit goes out at once and drops it if it comes (see `attempt`): so it is
+            // recorded at once, for the other callers' attempts between this call's. Within a
+            // call a late reply answers the same request, so retries do not wait. A probe's unit is not asked again, and a late
             // answer from it would name the wrong unit. Two timeouts: a unit slower than the
             // timeout may have queued the retry's reply behind the late one.
             if timed_out && !opts.window_from_start {

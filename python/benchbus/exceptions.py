@@ -134,9 +134,10 @@ class Cancelled(BenchbusError):
     """The call's :class:`benchbus.CancelToken` was cancelled, so the call stopped short.
 
     It left the queue for the line without sending anything, or its attempt in flight
-    finished (the line stays in step) and it started no further attempt or request. The
-    asyncio layer turns it into the cancelled task's ``asyncio.CancelledError``; a plain
-    thread catches it as any benchbus error. ``frame`` is None.
+    finished (the line stays in step) and it started no further attempt or request. It is a
+    :class:`BenchbusError`, not an ``asyncio.CancelledError``: a plain thread catches it as
+    any benchbus error, and an event loop that cancelled a call running in a worker thread
+    raises its own task's ``CancelledError``. ``frame`` is None.
     """
 
 
