@@ -290,3 +290,26 @@ def test_cancel_from_an_event_loop_while_a_worker_thread_makes_the_call(
     with open_bus(sim, retries=5) as bus:
         asyncio.run(main(bus))
         assert len(sim.requests) == 1
+
+
+def test_a_cancel_while_waiting_out_a_late_reply_window_sends_nothing(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """After a timeout, the next request to that unit waits out the late reply's window
+    (two timeouts) before its turn: cancelled then, it leaves with nothing sent, and the
+    other units' calls went on meanwhile."""
+    sim.set_silent(1)
+    with open_bus(sim, retries=0) as bus:
+        with pytest.raises(bb.ResponseTimeout):
+            bus.read_holding_registers(1, 10, 1)
+        token = bb.CancelToken()
+        waiting = Call(lambda: bus.read_holding_registers(1, 11, 1), token)
+        start = time.monotonic()
+        assert bus.read_holding_registers(2, 4, 1) == [204]
+        assert time.monotonic() - start < TIMEOUT  # unit 2 is not held up
+        assert waiting.is_alive()
+        token.cancel()
+        error = waiting.outcome()
+        assert isinstance(error, bb.Cancelled) and "before it was sent" in str(error)
+        assert waiting.took < 1.5 * TIMEOUT  # well within its window of two timeouts
+        assert len(to(1, sim.requests)) == 1
