@@ -24,6 +24,7 @@ from __future__ import annotations
 
 from benchbus._core import (
     Bus,
+    CancelToken,
     Poll,
     Profile,
     Stats,
@@ -69,6 +70,7 @@ from benchbus._record import Recording
 from benchbus._wirelog import enable_wire_log
 from benchbus.exceptions import (
     BenchbusError,
+    Cancelled,
     CrcError,
     FrameError,
     GatewayError,
@@ -83,6 +85,8 @@ __all__ = [
     "BenchbusError",
     "Bus",
     "C20ControlMode",
+    "CancelToken",
+    "Cancelled",
     "CommandSource",
     "ControlMode",
     "CrcError",
