@@ -9,6 +9,11 @@
 //!          ^ timeout counts from the start of the request (at least timeout / 2 after its end)
 //! ```
 //!
+//! The line is shared fairly: a call waits for its turn in arrival order and runs one attempt
+//! per turn; a retry takes a new turn at the back of the queue, so an absent unit's retries
+//! never hold the line while others wait. A [`CancelToken`] stops a call between attempts, or
+//! takes it out of the queue.
+//!
 //! Stale bytes in the input buffer are dropped (and counted) before each request; the reply
 //! is read by its expected length ([`Framing::reply_needed`]), never by waiting for a timeout; only a
 //! timeout or a corrupt frame is retried, never an exception reply.
@@ -26,9 +31,14 @@ use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard, WritePacing};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
 use crate::transport::{check_line_options, is_lost, open, Framed, Transport};
+use queue::{Cancel, Queue, Turn};
+pub use queue::{CancelToken, Entered};
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
+
+mod queue;
 
 /// How many times stale input arriving during the t3.5 wait restarts it before a request.
 const STALE_ROUNDS: u32 = 4;
@@ -193,15 +203,22 @@ struct State {
     /// Whether a local echo has come back right on this Bus (see [`Bus::read_echo`]).
     echo_seen: bool,
     stats: Stats,
+    /// The call whose attempt has the line (see [`Bus::line`]).
+    serving: u64,
 }
 
-/// A Modbus RTU master on one line. Thread-safe: a second caller waits its turn.
+/// A Modbus RTU master on one line. Thread-safe: callers take turns, one attempt each, in
+/// the order they asked.
 pub struct Bus {
     config: BusConfig,
     /// The framing of the port's transport: what the Bus builds requests and reads replies
     /// in.
     framing: Framing,
     state: Mutex<State>,
+    /// The turns on the line: whoever holds one may lock `state` for one attempt.
+    queue: Arc<Queue>,
+    /// The number of the next call (see [`Late::call`]).
+    calls: AtomicU64,
     /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]).
     sequences: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
 }
@@ -262,7 +279,10 @@ impl Bus {
                 late: Vec::new(),
                 echo_seen: false,
                 stats: Stats::default(),
+                serving: 0,
             }),
+            queue: Arc::new(Queue::default()),
+            calls: AtomicU64::new(0),
             sequences: Mutex::new(HashMap::new()),
         }
     }
@@ -306,7 +326,11 @@ impl Bus {
     /// [`Error::Port`] if the path cannot be opened (absent, in use) or the Bus was given its
     /// transport rather than a way to open it.
     pub fn reopen(&self) -> Result<()> {
-        let mut st = self.lock();
+        let Some(mut st) = self.line(&Cancel::default(), |_| None) else {
+            return Err(Error::Internal(
+                "no turn on the line without a token".into(),
+            ));
+        };
         if st.opener.is_none() {
             return Err(self.cannot_reopen());
         }
@@ -335,7 +359,8 @@ impl Bus {
         Ok(())
     }
 
-    /// Runs `body` (one call's work on the wire) on the open port.
+    /// Runs `body` (one attempt of a call, in its turn) on the open port; `call` is what
+    /// the call did on the port in its earlier attempts.
     ///
     /// A lost port fails the call at once, or with [`BusConfig::reconnect`] is reopened
     /// first. A port lost during `body` is dropped; if nothing of this call had been written
@@ -344,16 +369,16 @@ impl Bus {
     fn on_port<T>(
         &self,
         st: &mut State,
+        call: &mut CallPort,
         mut body: impl FnMut(&mut State) -> Result<T>,
     ) -> Result<T> {
-        let mut reopened = false;
         match &st.link {
             Link::Open(_) => {}
             Link::Closed => return Err(self.closed()),
-            Link::Lost(reason) if self.config.reconnect => {
+            Link::Lost(reason) if self.config.reconnect && !call.reopened => {
                 let reason = reason.clone();
                 self.reconnect(st, &reason)?;
-                reopened = true;
+                call.reopened = true;
             }
             Link::Lost(reason) => {
                 return Err(Error::Port {
@@ -369,6 +394,8 @@ impl Bus {
         loop {
             let before = st.frames_out;
             let result = body(st);
+            let untouched = !call.wrote && st.frames_out == before;
+            call.wrote |= st.frames_out != before;
             let reason = match &result {
                 Err(Error::Port {
                     source: Some(io), ..
@@ -378,12 +405,11 @@ impl Bus {
             // Dropping the transport closes the port (and releases its lock).
             st.link = Link::Lost(reason.clone());
             log::debug!(target: "benchbus::wire", "port {} lost: {reason}", self.config.port);
-            let untouched = st.frames_out == before;
-            if !self.config.reconnect || reopened || !untouched {
+            if !self.config.reconnect || call.reopened || !untouched {
                 return result;
             }
             self.reconnect(st, &reason)?;
-            reopened = true;
+            call.reopened = true;
         }
     }
 
@@ -771,8 +797,16 @@ impl Bus {
         }
         request.validate()?;
         let frame = self.framing.encode_request(BROADCAST, request);
-        let mut st = self.lock_when(|st| st.pacing.broadcast_ready());
-        self.on_port(&mut st, |st| {
+        let call = self.calls.fetch_add(1, Ordering::Relaxed);
+        let ready = |st: &State| {
+            let late = st.late_until(BROADCAST, call);
+            st.pacing.broadcast_ready().max(late)
+        };
+        let Some(mut st) = self.line(&Cancel::current(), ready) else {
+            return Err(cancelled(BROADCAST, request, 0));
+        };
+        st.serving = call;
+        self.on_port(&mut st, &mut CallPort::default(), |st| {
             let sent = self.send(st, &frame, request, self.config.timeout);
             let sent_end = match &sent {
                 Ok(end) => *end,
@@ -828,9 +862,15 @@ impl Bus {
 
     /// One request, retried after a timeout or a corrupt frame, and its checked response.
     ///
+    /// Each attempt has its own turn on the line: a retry waits at the back of the queue,
+    /// behind the callers that asked meanwhile. A paced write waits for its interval, and a
+    /// request to a unit whose late reply may still come waits out its window, without a
+    /// turn. Under a cancelled [`CancelToken`] the call starts no further
+    /// attempt and fails with [`Error::Cancelled`].
+    ///
     /// # Errors
     /// Any [`Error`]: bad arguments before anything is sent, then port, timeout (after the
-    /// last attempt), frame or exception.
+    /// last attempt), frame or exception; [`Error::Cancelled`], [`Error::Interrupted`].
     pub fn transact(&self, unit: u8, request: &Request, opts: &TxOptions) -> Result<Response> {
         if !UNITS.contains(&unit) {
             return Err(Error::InvalidArgument(format!(
@@ -839,34 +879,9 @@ impl Bus {
         }
         request.validate()?;
         let frame = self.framing.encode_request(unit, request);
+        let cancel = Cancel::current();
+        let call = self.calls.fetch_add(1, Ordering::Relaxed);
         let paced = is_write(request) && !opts.write_interval.is_zero();
-        let mut guard = if paced {
-            self.lock_paced(unit, opts.write_interval)
-        } else {
-            self.lock()
-        };
-        self.on_port(&mut guard, |st| {
-            self.exchange(st, unit, request, &frame, opts)
-        })
-    }
-
-    /// A request's attempts on the open port, and its checked response: the one loop that
-    /// retries, after a timeout or a corrupt frame (a garbled local echo included), never
-    /// after an exception reply.
-    fn exchange(
-        &self,
-        st: &mut State,
-        unit: u8,
-        request: &Request,
-        frame: &[u8],
-        opts: &TxOptions,
-    ) -> Result<Response> {
-        let is_write = is_write(request);
-        let paced = is_write && !opts.write_interval.is_zero();
-        // Nothing comes back but the local echo on a Bus opened with `echo`: a garbled one
-        // is sent again, as a corrupt reply would be. A request no device answers (force
-        // listen only) is sent once.
-        let unanswered = !request.is_answered() || (request.is_echoed_write() && !opts.write_ack);
         let timeout = opts.timeout.unwrap_or(self.config.timeout);
         let attempts = if request.is_answered() {
             opts.retries
@@ -875,95 +890,120 @@ impl Bus {
         } else {
             1
         };
+        let mut port = CallPort::default();
         let mut last_error = None;
         let mut timed_out = false;
-        let result = 'attempts: {
-            for attempt in 0..attempts {
-                if attempt > 0 {
-                    if self.interrupted() {
-                        break 'attempts Err(interrupted(unit, request, attempt));
-                    }
-                    st.stats.retries += 1;
-                    if paced {
-                        // A repeated write is a write command too: it keeps the interval.
-                        pace(st, unit, opts.write_interval);
-                    }
-                }
-                let outcome = if unanswered {
-                    self.send(st, frame, request, timeout)
-                        .map(|_| (Reply::Normal(request.assumed_reply()), Vec::new()))
-                } else {
-                    self.attempt(st, unit, request, frame, timeout, opts.window_from_start)
-                };
-                // Late frames the framing told apart and dropped itself (Modbus TCP).
-                if let Link::Open(transport) = &mut st.link {
-                    st.stats.stale_bytes += transport.take_dropped();
-                }
-                if is_write {
-                    st.pacing.wrote(unit, opts.write_interval, Instant::now());
-                }
-                let error = match outcome {
-                    Ok((Reply::Normal(response), _)) if unanswered => {
-                        st.stats.transactions += 1;
-                        break 'attempts Ok(response);
-                    }
-                    Ok((Reply::Normal(response), reply)) => {
-                        match check_echo(request, &response, opts.echo) {
-                            Ok(()) => {
-                                st.stats.transactions += 1;
-                                break 'attempts Ok(response);
-                            }
-                            Err(kind) => frame_error(unit, request.function(), kind, reply),
-                        }
-                    }
-                    Ok((Reply::Exception { function, code }, reply)) => {
-                        st.stats.transactions += 1;
-                        st.stats.exceptions += 1;
-                        break 'attempts Err(Error::Exception {
-                            unit,
-                            function,
-                            code,
-                            meaning: (opts.meaning)(code).to_string(),
-                            frame: reply,
-                        });
-                    }
-                    Err(e) => e,
-                };
-                match &error {
-                    Error::Timeout { .. } => {
-                        st.stats.timeouts += 1;
-                        timed_out = true;
-                    }
-                    Error::Frame {
-                        kind:
-                            FrameError::Crc { .. } | FrameError::Ascii(ascii::AsciiError::Lrc { .. }),
-                        ..
-                    } => st.stats.crc_errors += 1,
-                    Error::Frame { .. } => st.stats.frame_errors += 1,
-                    _ => break 'attempts Err(error),
-                }
-                if unanswered && attempt + 1 < attempts {
-                    log::debug!(target: "benchbus::wire", "unanswered write, sent again: {error}");
-                }
-                last_error = Some(error);
+        for attempt in 0..attempts {
+            if attempt > 0 && self.interrupted() {
+                return Err(interrupted(unit, request, attempt));
             }
-            if let Some(Error::Timeout { attempts: n, .. }) = &mut last_error {
-                *n = attempts;
+            // A repeated write is a write command too: it keeps the interval.
+            let ready = |st: &State| {
+                let pacing = paced
+                    .then(|| st.pacing.write_ready(unit, opts.write_interval))
+                    .flatten();
+                pacing.max(st.late_until(unit, call))
+            };
+            let Some(mut st) = self.line(&cancel, ready) else {
+                return Err(cancelled(unit, request, attempt));
+            };
+            st.serving = call;
+            if attempt > 0 {
+                st.stats.retries += 1;
             }
-            Err(last_error.unwrap_or_else(|| Error::InvalidArgument("no attempt made".into())))
-        };
-        // An attempt timed out, so a reply to it may still come (even when a retry was then
-        // answered: by the first attempt's late reply, perhaps). RTU replies carry no
-        // transaction id, but they name their unit: the next request to the same unit listens
-        // for it first (see `send`), and a request to another unit goes out at once and drops
-        // it if it comes (see `attempt`). Within a call a late reply answers the same request,
-        // so retries do not wait. A probe's unit is not asked again, and a late answer from
-        // it would name the wrong unit. Two timeouts: a unit slower than the timeout may have
-        // queued the retry's reply behind the late one.
-        if timed_out && !opts.window_from_start {
-            st.expect_late(unit, request, Instant::now() + timeout * 2);
+            let outcome = self.on_port(&mut st, &mut port, |st| {
+                self.exchange(st, unit, request, &frame, opts, timeout)
+            });
+            timed_out |= matches!(outcome, Err(Error::Timeout { .. }));
+            // An attempt timed out, so a reply to it may still come (even when a retry was
+            // then answered: by the first attempt's late reply, perhaps). RTU replies carry no
+            // transaction id, but they name their unit: the next request to the same unit
+            // waits out its window first (see `State::late_until`), and a request to another
+            // unit goes out at once and drops it if it comes (see `attempt`): so it is
+            // recorded at once, for the other callers' attempts between this call's. Within a
+            // call a late reply answers the same request, so retries do not wait. A probe's unit is not asked again, and a late
+            // answer from it would name the wrong unit. Two timeouts: a unit slower than the
+            // timeout may have queued the retry's reply behind the late one.
+            if timed_out && !opts.window_from_start {
+                st.expect_late(unit, request, Instant::now() + timeout * 2);
+            }
+            let error = match outcome {
+                Err(e) if e.is_retryable() => e,
+                ended => return ended,
+            };
+            if unanswered(request, opts) && attempt + 1 < attempts {
+                log::debug!(target: "benchbus::wire", "unanswered write, sent again: {error}");
+            }
+            last_error = Some(error);
         }
-        result
+        if let Some(Error::Timeout { attempts: n, .. }) = &mut last_error {
+            *n = attempts;
+        }
+        Err(last_error.unwrap_or_else(|| Error::InvalidArgument("no attempt made".into())))
+    }
+
+    /// One attempt of a request on the open port, and its checked response, counted in the
+    /// stats. A request that is not answered ([`unanswered`]) is sent, and only a garbled
+    /// local echo fails it (to be sent again, as a corrupt reply would be).
+    fn exchange(
+        &self,
+        st: &mut State,
+        unit: u8,
+        request: &Request,
+        frame: &[u8],
+        opts: &TxOptions,
+        timeout: Duration,
+    ) -> Result<Response> {
+        let unanswered = unanswered(request, opts);
+        let outcome = if unanswered {
+            self.send(st, frame, request, timeout)
+                .map(|_| (Reply::Normal(request.assumed_reply()), Vec::new()))
+        } else {
+            self.attempt(st, unit, request, frame, timeout, opts.window_from_start)
+        };
+        // Late frames the framing told apart and dropped itself (Modbus TCP).
+        if let Link::Open(transport) = &mut st.link {
+            st.stats.stale_bytes += transport.take_dropped();
+        }
+        if is_write(request) {
+            st.pacing.wrote(unit, opts.write_interval, Instant::now());
+        }
+        let error = match outcome {
+            Ok((Reply::Normal(response), _)) if unanswered => {
+                st.stats.transactions += 1;
+                return Ok(response);
+            }
+            Ok((Reply::Normal(response), reply)) => match check_echo(request, &response, opts.echo)
+            {
+                Ok(()) => {
+                    st.stats.transactions += 1;
+                    return Ok(response);
+                }
+                Err(kind) => frame_error(unit, request.function(), kind, reply),
+            },
+            Ok((Reply::Exception { function, code }, reply)) => {
+                st.stats.transactions += 1;
+                st.stats.exceptions += 1;
+                return Err(Error::Exception {
+                    unit,
+                    function,
+                    code,
+                    meaning: (opts.meaning)(code).to_string(),
+                    frame: reply,
+                });
+            }
+            Err(e) => e,
+        };
+        match &error {
+            Error::Timeout { .. } => st.stats.timeouts += 1,
+            Error::Frame {
+                kind: FrameError::Crc { .. } | FrameError::Ascii(ascii::AsciiError::Lrc { .. }),
+                ..
+            } => st.stats.crc_errors += 1,
+            Error::Frame { .. } => st.stats.frame_errors += 1,
+            _ => {}
+        }
+        Err(error)
     }
 
     /// One attempt: drop stale input, wait for silence, send, read the reply by its length.
@@ -986,6 +1026,7 @@ impl Bus {
             silence,
             late,
             stats,
+            serving,
             ..
         } = st;
         let transport = self.port(link)?;
@@ -1013,8 +1054,10 @@ impl Bus {
         } else {
             // A Modbus TCP gateway that serves one request at a time answers this one only
             // after the late one it is still busy with: that time is not this unit's.
+            // (Not this call's own: its retries keep their timeout, as when a call held the line throughout.)
             let queued = late
                 .iter()
+                .filter(|l| l.call != *serving)
                 .map(|l| l.until)
                 .max()
                 .map_or(Duration::ZERO, |end| {
@@ -1163,11 +1206,13 @@ impl Bus {
         let serial = transport.is_serial_line();
         // After a call to this unit in which an attempt timed out, listen for its late reply
         // for what is left of its window before sending anything: dropped here, it cannot be
-        // taken for this request's answer. A broadcast waits for every unit's. Over Modbus TCP
-        // the transaction id tells a late reply from the answer (see `attempt`).
+        // taken for this request's answer. A broadcast waits for every unit's. (The caller
+        // waited out that window before its turn, see `State::late_until`, so this only
+        // forgets the windows that are over.) Over Modbus TCP the transaction id tells a
+        // late reply from the answer (see `attempt`).
         let target = self.unit_of(frame).unwrap_or(BROADCAST);
         let late = if serial {
-            take_late(&mut st.late, target)
+            take_late(&mut st.late, target, st.serving)
         } else {
             None
         };
@@ -1411,24 +1456,24 @@ impl Bus {
         }
     }
 
-    /// The bus, once `interval` has passed since the last write to `unit`. The wait happens
-    /// without the lock, so requests to other units go on meanwhile.
-    fn lock_paced(&self, unit: u8, interval: Duration) -> MutexGuard<'_, State> {
-        self.lock_when(|st| st.pacing.write_ready(unit, interval))
-    }
-
-    /// The bus, once `ready(state)` (the instant it may go on) has passed; the waiting
-    /// happens without the lock.
-    fn lock_when(&self, ready: impl Fn(&State) -> Option<Instant>) -> MutexGuard<'_, State> {
+    /// The line for one attempt: this caller's turn in the queue (callers are served in the
+    /// order they asked), once `ready(state)` (the instant it may go on, if later than now)
+    /// has passed. A caller not ready yet gives its turn up and waits without one, so the
+    /// others go on meanwhile, then asks again at the back. None if `cancel` fires first:
+    /// the caller leaves the queue without touching the line.
+    fn line(&self, cancel: &Cancel, ready: impl Fn(&State) -> Option<Instant>) -> Option<Line<'_>> {
         loop {
+            let turn = self.queue.turn(cancel)?;
             let st = self.lock();
-            let now = Instant::now();
             match ready(&st) {
-                Some(at) if at > now => {
+                Some(at) if at > Instant::now() => {
                     drop(st);
-                    sleep_until(at);
+                    drop(turn);
+                    if !self.queue.wait_until(at, cancel) {
+                        return None;
+                    }
                 }
-                _ => return st,
+                _ => return Some(Line { st, _turn: turn }),
             }
         }
     }
@@ -1457,15 +1502,70 @@ impl Bus {
     }
 }
 
+/// The line for one attempt: the state, and the turn that lets its holder use it (the
+/// state goes first, so that the next turn finds it free).
+struct Line<'a> {
+    st: MutexGuard<'a, State>,
+    _turn: Turn<'a>,
+}
+
+impl std::ops::Deref for Line<'_> {
+    type Target = State;
+    fn deref(&self) -> &State {
+        &self.st
+    }
+}
+
+impl std::ops::DerefMut for Line<'_> {
+    fn deref_mut(&mut self) -> &mut State {
+        &mut self.st
+    }
+}
+
+/// What one call did on the port over its attempts (see [`Bus::on_port`]).
+#[derive(Default)]
+struct CallPort {
+    /// Whether the call reopened the port (once per call at most).
+    reopened: bool,
+    /// Whether any of its attempts wrote to the port.
+    wrote: bool,
+}
+
 /// A request that timed out: its reply may still arrive until `until`.
 struct Late {
     unit: u8,
     request: Request,
     until: Instant,
+    /// The call that sent it: its own retries do not wait for it (a late reply answers the
+    /// same request).
+    call: u64,
 }
 
 impl State {
-    /// Records that the reply of `request` to `unit` may still arrive until `until`.
+    /// Until when, on a serial line, a late reply from `target` (a broadcast: from any unit)
+    /// to a request of another call than `call` may still come. A request of `call` to
+    /// `target` waits that long, without a turn, so that the late reply cannot pass for its
+    /// answer; meanwhile other callers use the line, and their attempts drop the late reply
+    /// if it comes (see [`Bus::attempt`]); whatever of it is left is dropped before the
+    /// request (see [`Bus::send`]).
+    fn late_until(&self, target: u8, call: u64) -> Option<Instant> {
+        let Link::Open(transport) = &self.link else {
+            return None;
+        };
+        if !transport.is_serial_line() {
+            return None;
+        }
+        let now = Instant::now();
+        self.late
+            .iter()
+            .filter(|l| (target == BROADCAST || l.unit == target) && l.call != call)
+            .map(|l| l.until)
+            .filter(|&until| until > now)
+            .max()
+    }
+
+    /// Records that the reply of `request` to `unit`, sent by the call being served, may
+    /// still arrive until `until`.
     fn expect_late(&mut self, unit: u8, request: &Request, until: Instant) {
         let now = Instant::now();
         self.late.retain(|l| l.unit != unit && l.until > now);
@@ -1473,14 +1573,8 @@ impl State {
             unit,
             request: request.clone(),
             until,
+            call: self.serving,
         });
-    }
-}
-
-/// Sleeps (holding the bus) until `interval` has passed since the last write to `unit`.
-fn pace(st: &State, unit: u8, interval: Duration) {
-    if let Some(ready) = st.pacing.write_ready(unit, interval) {
-        sleep_until(ready);
     }
 }
 
@@ -1492,14 +1586,15 @@ fn port_message(e: &Error) -> String {
     }
 }
 
-/// Until when a late reply that could pass for the answer of a request to `target` may come
-/// (a broadcast: any unit's), if one still may; those replies are no longer expected after.
-fn take_late(late: &mut Vec<Late>, target: u8) -> Option<Instant> {
+/// Until when a late reply that could pass for the answer of a request of call `call` to
+/// `target` may come (a broadcast: any unit's), if one still may; those replies are no longer
+/// expected after. The call's own late requests are not waited for (nor taken).
+fn take_late(late: &mut Vec<Late>, target: u8, call: u64) -> Option<Instant> {
     let now = Instant::now();
     let (taken, kept): (Vec<Late>, Vec<Late>) = std::mem::take(late)
         .into_iter()
         .filter(|l| l.until > now)
-        .partition(|l| target == BROADCAST || l.unit == target);
+        .partition(|l| (target == BROADCAST || l.unit == target) && l.call != call);
     *late = kept;
     taken.iter().map(|l| l.until).max()
 }
@@ -1508,6 +1603,13 @@ fn take_late(late: &mut Vec<Late>, target: u8) -> Option<Instant> {
 fn late_reply_of(late: &[Late], unit: u8, first: Option<u8>) -> Option<&Late> {
     let first = first?;
     late.iter().find(|l| l.unit == first && l.unit != unit)
+}
+
+/// Whether nothing comes back for `request` but, on a Bus opened with `echo`, its local echo:
+/// a request no device answers (force listen only), or a write the device does not
+/// acknowledge.
+fn unanswered(request: &Request, opts: &TxOptions) -> bool {
+    !request.is_answered() || (request.is_echoed_write() && !opts.write_ack)
 }
 
 /// Whether `request` may write (reads are always answered; writes are paced).
@@ -1544,6 +1646,14 @@ fn check_config(config: &BusConfig) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+fn cancelled(unit: u8, request: &Request, attempts: u32) -> Error {
+    Error::Cancelled {
+        unit,
+        function: request.function(),
+        attempts,
+    }
 }
 
 fn interrupted(unit: u8, request: &Request, attempts: u32) -> Error {

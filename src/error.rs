@@ -92,6 +92,19 @@ pub enum Error {
         /// How many times the request had been sent.
         attempts: u32,
     },
+    /// The call was cancelled ([`crate::bus::CancelToken`]): it left the queue for the line
+    /// without sending anything (`attempts` 0), or after an attempt that failed it started
+    /// no further one. The attempts made were whole, and a late reply to them is listened
+    /// for as after any timeout, so the line stays in step.
+    #[error("unit {unit}, function {function:#04x}: cancelled {}", cancelled_after(*.attempts))]
+    Cancelled {
+        /// Unit asked (0 for a broadcast).
+        unit: u8,
+        /// Function asked.
+        function: u8,
+        /// How many times the request had been sent.
+        attempts: u32,
+    },
     /// A bug in benchbus: a panic, caught before it reached the caller (see [`guarded`]).
     #[error("internal error in benchbus (a bug; please report it): {0}")]
     Internal(String),
@@ -156,6 +169,14 @@ fn tries(attempts: u32) -> String {
         format!(" in each of {attempts} attempts")
     } else {
         String::new()
+    }
+}
+
+fn cancelled_after(attempts: u32) -> String {
+    match attempts {
+        0 => "before it was sent".into(),
+        1 => "after 1 attempt".into(),
+        n => format!("after {n} attempts"),
     }
 }
 

@@ -17,6 +17,6 @@ pub mod transport;
 #[cfg(feature = "python")]
 mod python;
 
-pub use bus::{Bus, BusConfig, Stats, TxOptions};
+pub use bus::{Bus, BusConfig, CancelToken, Stats, TxOptions};
 pub use error::{Error, Result};
 pub use timing::{LineFormat, Parity};

@@ -42,7 +42,7 @@ PICKED_BY = (
     "bb.from_registers(",
     'framing="ascii"',
     "ProfileDevice(",
-    "Device.from_profile(",
+    'dev.baud = "b19200"',
     "sim_profile(",
     "Profile.family(",
     "benchbus.qcodes",
@@ -126,7 +126,7 @@ def test_readme_profile_device_example(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The profile device, on the sensor's own simulator."""
-    (block,) = [b for b in readme_blocks() if "Device.from_profile(" in b]
+    (block,) = [b for b in readme_blocks() if 'dev.baud = "b19200"' in b]
     from benchbus.sim import ProfileDevice
 
     monkeypatch.chdir(ROOT)  # the block names its profile from the repository's root

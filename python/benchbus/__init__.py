@@ -25,6 +25,7 @@ from __future__ import annotations
 from benchbus import aio
 from benchbus._core import (
     Bus,
+    CancelToken,
     Poll,
     Profile,
     Stats,
@@ -70,6 +71,7 @@ from benchbus._record import Recording
 from benchbus._wirelog import enable_wire_log
 from benchbus.exceptions import (
     BenchbusError,
+    Cancelled,
     CrcError,
     FrameError,
     GatewayError,
@@ -84,6 +86,8 @@ __all__ = [
     "BenchbusError",
     "Bus",
     "C20ControlMode",
+    "CancelToken",
+    "Cancelled",
     "CommandSource",
     "ControlMode",
     "CrcError",

@@ -21,6 +21,7 @@ _Read = Literal[3, 4]
 
 __all__ = [
     "Bus",
+    "CancelToken",
     "DriveCore",
     "InstrumentCore",
     "J2Core",
@@ -129,6 +130,36 @@ class Stats:
         """Times the port was opened again (:meth:`Bus.reopen`, or a reconnect)."""
     def as_dict(self) -> dict[str, int]:
         """The counters as a dict."""
+
+@final
+class CancelToken:
+    """Cancels the calls made inside its ``with`` block, from any thread.
+
+    ``with token: bus.read_holding_registers(...)``: the calls this thread makes inside the
+    block (on a Bus, or on a device, which calls its Bus) honour the token. ``token.cancel()``
+    (from any thread) then stops them: a call waiting for its turn on the line leaves the
+    queue without sending anything; an attempt in flight finishes (its reply is read or its
+    timeout runs out, so the line stays in step) and the call starts no further attempt or
+    request. Either way it raises :class:`benchbus.Cancelled`; an attempt that ends the call
+    (a reply, an exception reply) stands, and its result is returned. A cancelled token
+    stays cancelled: every call in its block raises at once.
+    """
+
+    def __init__(self) -> None: ...
+    def cancel(self) -> None:
+        """Cancels the calls made under this token, now and later; any thread may call it."""
+
+    @property
+    def cancelled(self) -> bool:
+        """Whether :meth:`cancel` was called."""
+
+    def __enter__(self) -> Self: ...
+    def __exit__(
+        self,
+        exc_type: type[BaseException] | None,
+        exc: BaseException | None,
+        tb: TracebackType | None,
+    ) -> bool: ...
 
 @final
 class Bus:

@@ -12,6 +12,7 @@
     │   └── GatewayError(ModbusException)          a gateway answered 0x0A (no path to the
     │                                              unit) or 0x0B (the unit did not answer it)
     ├── StateError(BenchbusError)                  the device's state forbids the request
+    ├── Cancelled(BenchbusError)                   the call's CancelToken was cancelled
     └── ProfileError(BenchbusError, ValueError)    a device profile file is wrong: its
                                                    path, line and key
 
@@ -26,6 +27,7 @@ from __future__ import annotations
 
 __all__ = [
     "BenchbusError",
+    "Cancelled",
     "CrcError",
     "FrameError",
     "GatewayError",
@@ -125,6 +127,17 @@ class StateError(BenchbusError):
 
     For example MV written to a J2 controller in automatic mode (its manual allows MV only
     in manual mode). The message says how to get past it.
+    """
+
+
+class Cancelled(BenchbusError):
+    """The call's :class:`benchbus.CancelToken` was cancelled, so the call stopped short.
+
+    It left the queue for the line without sending anything, or its attempt in flight
+    finished (the line stays in step) and it started no further attempt or request. It is a
+    :class:`BenchbusError`, not an ``asyncio.CancelledError``: a plain thread catches it as
+    any benchbus error, and an event loop that cancelled a call running in a worker thread
+    raises its own task's ``CancelledError``. ``frame`` is None.
     """
 
 

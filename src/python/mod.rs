@@ -3,6 +3,7 @@
 //! Every call that touches the wire runs inside `py.detach`, so other Python threads (and
 //! other buses) go on while one waits for its device.
 
+mod cancel;
 mod doctor;
 mod drive;
 mod instrument;
@@ -67,6 +68,7 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
             Some(raised) => return raised,
             None => ("BenchbusError", Some(*unit), Some(*function)),
         },
+        Error::Cancelled { unit, function, .. } => ("Cancelled", Some(*unit), Some(*function)),
         Error::Port { .. } | Error::Closed { .. } => ("PortError", None, None),
         Error::Timeout { unit, function, .. } => ("ResponseTimeout", Some(*unit), Some(*function)),
         Error::Frame {
@@ -1375,6 +1377,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
         }
     }
     m.add_class::<PyBus>()?;
+    m.add_class::<cancel::PyCancelToken>()?;
     m.add_class::<PyStats>()?;
     m.add_class::<PyStation>()?;
     m.add_class::<drive::PyDriveCore>()?;
