@@ -271,26 +271,42 @@ def test_the_loop_runs_while_a_call_waits_for_the_line(sim: Simulator[RegisterDe
 # ---- cancellation and closing -------------------------------------------------------------
 
 
-def test_a_call_cancelled_in_the_queue_is_never_sent(sim: Simulator[RegisterDevice]) -> None:
-    sim.set_silent(2)  # unit 2 never answers: its read holds the only thread
-    device = device_of(sim)
+@pytest.mark.parametrize("workers", [1, 2], ids=["in-the-aio-queue", "in-the-core"])
+def test_a_call_cancelled_while_it_waits_for_the_line_is_never_sent(
+    sim: Simulator[RegisterDevice], workers: int
+) -> None:
+    """With one thread the write waits in this layer's queue; with two, a thread takes it
+    and it waits its turn in the core (the core's CancelToken takes it out)."""
+    sim.set_silent(2)  # unit 2 never answers: its read holds the line
 
     async def main() -> None:
-        async with aio.AsyncBus(sim.port, timeout=0.3, retries=0, workers=1) as bus:
+        async with aio.AsyncBus(sim.port, timeout=0.3, retries=0, workers=workers) as bus:
             busy = asyncio.create_task(bus.read_holding_registers(2, 0, 1))
             await asyncio.sleep(0.05)
-            queued = asyncio.create_task(bus.write_register(1, 50, 1234))
+            waiting = asyncio.create_task(bus.write_register(1, 50, 1234))
             await asyncio.sleep(0.05)
-            assert len(bus._pool._queue) == 1
-            queued.cancel()
+            assert len(bus._pool._queue) == 2 - workers
+            waiting.cancel()
             with pytest.raises(asyncio.CancelledError):
-                await queued
+                await waiting
             assert len(bus._pool._queue) == 0
             with pytest.raises(bb.ResponseTimeout):
                 await busy
-            # The thread is free again and the line in order.
+            # The threads are free again and the line in order.
             assert await bus.read_holding_registers(1, 0, 1) == [7]
-            # wait_for's timeout cancels a queued call the same way.
+
+    run(main)
+    assert [frame[0] for frame in sim.requests] == [2, 1], "the write was never sent"
+    assert device_of(sim).registers[50] == 0
+
+
+def test_wait_for_running_out_cancels_a_queued_call_unsent(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    sim.set_silent(2)
+
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port, timeout=0.3, retries=0, workers=1) as bus:
             busy = asyncio.create_task(bus.read_holding_registers(2, 0, 1))
             await asyncio.sleep(0.05)
             with pytest.raises(asyncio.TimeoutError):
@@ -299,9 +315,8 @@ def test_a_call_cancelled_in_the_queue_is_never_sent(sim: Simulator[RegisterDevi
                 await busy
 
     run(main)
-    units = [frame[0] for frame in sim.requests]
-    assert units == [2, 1, 2], "the cancelled writes were never sent"
-    assert device.registers[50:52] == [0, 0]
+    assert [frame[0] for frame in sim.requests] == [2]
+    assert device_of(sim).registers[51] == 0
 
 
 def test_a_call_cancelled_in_its_thread_returns_at_once_and_the_line_stays_in_sync(
@@ -768,3 +783,76 @@ def test_top_level_await_in_a_jupyter_kernel() -> None:
     NotebookClient(notebook, timeout=60, kernel_name="python3").execute()
     printed = ["".join(o.get("text", "") for o in cell.outputs) for cell in notebook.cells]
     assert printed == ["", "[0]\n", "900\n[1, 5]\n", "[]\n"]
+
+
+# ---- cancellation inside the core (its CancelToken) -------------------------------------------
+
+
+def test_a_call_cancelled_mid_attempt_makes_no_further_attempt(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    sim.set_silent(1)
+
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port, timeout=0.3, retries=3) as bus:
+            call = asyncio.create_task(bus.read_holding_registers(1, 0, 1))
+            await asyncio.sleep(0.1)  # its first attempt waits for a reply
+            assert len(sim.requests) == 1
+            call.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await call
+            await asyncio.sleep(1.0)  # three more attempts would be on the line by now
+            assert len(sim.requests) == 1
+            assert bus.stats.retries == 0
+            sim.set_silent(1, False)
+            # The thread is free and the line in step: the next call gets its own reply.
+            assert await bus.read_holding_registers(1, 1, 1) == [8]
+
+    run(main)
+
+
+def test_a_cancelled_device_method_sends_nothing_more(sim: Simulator[RegisterDevice]) -> None:
+    """A device method of several requests stops at the one on the wire when cancelled."""
+    sim.reply_delay = 0.1
+
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port, timeout=0.5) as bus:
+            meter = aio.Instrument(bus, unit=1, max_read=10)
+            read = asyncio.create_task(meter.read_registers(0, 100))  # ten requests
+            await asyncio.sleep(0.25)
+            read.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await read
+            await asyncio.sleep(0.3)
+            assert 2 <= len(sim.requests) <= 4
+
+    run(main)
+
+
+def test_four_present_units_are_served_alike_beside_an_absent_one() -> None:
+    """4 tasks polling 4 present units, a fifth an absent one (retried): the present units'
+    completed calls per second are within 10 % of their mean."""
+    with Simulator({u: RegisterDevice({0: u}) for u in range(1, 5)}) as sim:
+
+        async def main() -> dict[int, int]:
+            async with aio.AsyncBus(sim.port, timeout=0.05, retries=2) as bus:
+                done = {u: 0 for u in range(1, 5)}
+                end = time.monotonic() + 2.0
+
+                async def present(unit: int) -> None:
+                    while time.monotonic() < end:
+                        assert await bus.read_holding_registers(unit, 0, 1) == [unit]
+                        done[unit] += 1
+
+                async def absent() -> None:
+                    while time.monotonic() < end:
+                        with pytest.raises(bb.ResponseTimeout):
+                            await bus.read_holding_registers(9, 0, 1)
+
+                await asyncio.gather(absent(), *(present(u) for u in range(1, 5)))
+                return done
+
+        done = run(main)
+    mean = sum(done.values()) / len(done)
+    assert mean > 20, done
+    assert all(abs(n - mean) <= 0.1 * mean for n in done.values()), done

@@ -25,9 +25,11 @@ adds is the queue in front of those threads and cancellation:
   several may be under way at once, and the core serves them one transaction at a time.
 - A task cancelled while its call still waits in the queue (no thread has taken it) takes
   the call out of the queue: nothing is sent. A task cancelled while its call is in a thread
-  gets ``CancelledError`` at once; the call's attempt on the wire finishes in the core
-  (which keeps the line in sync: the next call never reads the cancelled call's reply)
-  and its result is dropped.
+  gets ``CancelledError`` at once, and the call's :class:`benchbus.CancelToken` is
+  cancelled: a call still waiting for its turn on the line leaves without sending
+  anything; an attempt on the wire finishes in the core (which keeps the line in step: the
+  next call never reads the cancelled call's reply), no retry or further request follows
+  (a device method of several requests stops there), and its result is dropped.
 - Nothing here runs an event loop of its own (no ``asyncio.run``): it works in the loop a
   notebook already runs (top-level ``await``) as in ``asyncio.run``.
 """
@@ -48,7 +50,7 @@ from types import TracebackType
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar, overload
 
 from benchbus import _core
-from benchbus._core import Bus, _Ticks
+from benchbus._core import Bus, CancelToken, _Ticks
 from benchbus._device import BusDevice
 from benchbus._drive import Drive as _SyncDrive
 from benchbus._instrument import Instrument as _SyncInstrument
@@ -89,34 +91,15 @@ _EARLY = 0.002
 # ---- cancellation in the core ---------------------------------------------------------------
 
 
-class _NoToken:
-    """What a call runs under while the core has no cancel token: cancelling it does
-    nothing to a call already in a thread (its attempts go on; the result is dropped)."""
-
-    cancelled = False
-
-    def cancel(self) -> None:
-        """Nothing to tell the core."""
-
-    def __enter__(self) -> None:
-        """Nothing to arm."""
-
-    def __exit__(self, *exc: object) -> None:
-        """Nothing to disarm."""
-
-
-def _new_token() -> Any:
-    """The cancel token a call carries into its thread: the core's ``CancelToken`` where
-    the core has one, else a token that does nothing."""
-    token_type = getattr(_core, "CancelToken", None)
-    return _NoToken() if token_type is None else token_type()
-
-
-def _run_cancellable(token: Any, fn: Callable[[], R]) -> R:
-    """``fn()`` in this thread under ``token``: once the token is cancelled the core sends
-    nothing more (an attempt already on the wire finishes; the call then raises)."""
-    with token:
+def _run_cancellable(token: CancelToken | None, fn: Callable[[], R]) -> R:
+    """``fn()`` in this thread under ``token`` (None: a call that cannot be cancelled): once
+    the token is cancelled the core sends nothing more (an attempt already on the wire
+    finishes) and the call raises :class:`benchbus.Cancelled`."""
+    if token is None:
         return fn()
+    with token:
+        result = fn()
+    return result
 
 
 # ---- the worker threads -----------------------------------------------------------------------
@@ -132,7 +115,7 @@ class _Call:
         fn: Callable[[], Any],
         future: asyncio.Future[Any],
         loop: asyncio.AbstractEventLoop,
-        token: Any,
+        token: CancelToken | None,
     ) -> None:
         self.fn = fn
         self.future = future
@@ -192,7 +175,7 @@ class _Pool:
         future takes a queued call out of the queue, or cancels a running one's token."""
         loop = asyncio.get_running_loop()
         future: asyncio.Future[R] = loop.create_future()
-        call = _Call(fn, future, loop, _new_token() if cancellable else None)
+        call = _Call(fn, future, loop, CancelToken() if cancellable else None)
         with self._lock:
             if self._closed:
                 raise PortError(f"{self._name}: closed")
@@ -221,7 +204,8 @@ class _Pool:
                 with contextlib.suppress(ValueError):
                     self._queue.remove(call)
                 return
-        call.token.cancel()
+        if call.token is not None:
+            call.token.cancel()
 
     def _work(self) -> None:
         """A worker thread: take calls in order and run them, until closed and drained."""
@@ -243,8 +227,7 @@ class _Pool:
             result: Any = None
             error: BaseException | None = None
             try:
-                token = _NoToken() if call.token is None else call.token
-                result = _run_cancellable(token, call.fn)
+                result = _run_cancellable(call.token, call.fn)
             except BaseException as exc:  # handed to the awaiting task
                 error = exc
             with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
@@ -354,8 +337,9 @@ class AsyncBus:
     :meth:`aclose` (or leaving ``async with``) refuses new calls (PortError), fails the
     calls still queued with PortError without sending them, lets those already in a
     thread finish, then closes the port and ends the threads. Cancelling a call in a
-    thread returns ``CancelledError`` to its task at once; its attempt on the wire finishes
-    in the core and its result is dropped.
+    thread returns ``CancelledError`` to its task at once and cancels the call's
+    :class:`benchbus.CancelToken`: its attempt on the wire, if any, finishes in the core,
+    nothing more is sent for it, and its result is dropped.
     """
 
     def __init__(
