@@ -34,6 +34,7 @@ from benchbus.sim import (
     Simulator,
     TaisongDevice,
 )
+from conftest import ScriptedSlave, read_up_to, rtu
 
 ROOT = Path(__file__).resolve().parent.parent
 T = TypeVar("T")
@@ -339,6 +340,59 @@ def test_a_call_cancelled_in_its_thread_returns_at_once_and_the_line_stays_in_sy
             assert bus.stats.stale_bytes == 0
 
     run(main)
+
+
+def test_a_call_cancelled_mid_reply_leaves_the_line_in_step(slave: ScriptedSlave) -> None:
+    """Half the reply is on the line when the task is cancelled: the attempt reads the rest
+    (not left for the next call to find), and no retry follows."""
+    first = rtu("01 03 02 00 07")
+    second = rtu("01 03 02 00 08")
+
+    def serve() -> None:
+        slave.received.append(read_up_to(slave.master, 8, 2.0))
+        os.write(slave.master, first[:3])
+        time.sleep(0.2)
+        os.write(slave.master, first[3:])
+        slave.received.append(read_up_to(slave.master, 8, 2.0))
+        os.write(slave.master, second)
+
+    server = threading.Thread(target=serve, daemon=True)
+    server.start()
+
+    async def main() -> None:
+        async with aio.AsyncBus(slave.port, timeout=0.5, retries=2) as bus:
+            call = asyncio.create_task(bus.read_holding_registers(1, 0, 1))
+            await asyncio.sleep(0.1)  # the reply's first bytes have come
+            call.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await call
+            assert await bus.read_holding_registers(1, 1, 1) == [8]
+            assert (bus.stats.retries, bus.stats.stale_bytes, bus.stats.crc_errors) == (0, 0, 0)
+
+    run(main)
+    server.join(2)
+    assert slave.received == [rtu("01 03 00 00 00 01"), rtu("01 03 00 01 00 01")]
+
+
+def test_a_call_cancelled_while_it_waits_out_its_write_interval_is_never_sent(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """Before it is sent: the write waits in the core for the unit's write interval."""
+
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port) as bus:
+            await bus.write_register(1, 80, 1, write_interval=0.5)
+            paced = asyncio.create_task(bus.write_register(1, 81, 2, write_interval=0.5))
+            await asyncio.sleep(0.1)
+            assert len(bus._pool._queue) == 0  # in its thread, waiting out the interval
+            paced.cancel()
+            with pytest.raises(asyncio.CancelledError):
+                await paced
+            await asyncio.sleep(0.6)
+
+    run(main)
+    assert len(sim.requests) == 1
+    assert device_of(sim).registers[80:82] == [1, 0]
 
 
 def test_aclose_lets_calls_in_threads_finish_and_fails_the_queued_ones_unsent(
