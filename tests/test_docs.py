@@ -3,6 +3,8 @@ on a third-party server)."""
 
 from __future__ import annotations
 
+import ast
+import asyncio
 import re
 import subprocess
 import sys
@@ -44,6 +46,7 @@ PICKED_BY = (
     "sim_profile(",
     "Profile.family(",
     "benchbus.qcodes",
+    "bb.aio.AsyncBus(",
 )
 
 
@@ -222,6 +225,24 @@ def test_readme_qcodes_example(
     ]
     assert model.value("setpoint") == 100.0
     assert (tmp_path / "flows.db").is_file()
+
+
+def test_readme_asyncio_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """The notebook cell, with its top-level await, on a simulated drive."""
+    (block,) = [b for b in readme_blocks() if "bb.aio.AsyncBus(" in b]
+    device = DriveDevice()
+    with Simulator({1: device}) as sim:
+        source = block.replace("/dev/ttyUSB4", sim.port)
+        code = compile(source, "<README>", "exec", flags=ast.PyCF_ALLOW_TOP_LEVEL_AWAIT)
+
+        async def cell() -> None:
+            await eval(code, {})  # what a notebook does with a cell that awaits
+
+        asyncio.run(cell())
+    out = capsys.readouterr().out.splitlines()
+    assert out[0].startswith("0.0 s  ") and out[4].startswith("0.4 s  ")
+    assert out[5] == "1500 1500"
+    assert device.commands == [1, 5]
 
 
 def test_readme_values_example(capsys: pytest.CaptureFixture[str]) -> None:

@@ -22,6 +22,7 @@ Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 
 from __future__ import annotations
 
+from benchbus import aio
 from benchbus._core import (
     Bus,
     CancelToken,
@@ -137,6 +138,7 @@ __all__ = [
     "Stats",
     "StopMode",
     "__version__",
+    "aio",
     "crc16",
     "doctor",
     "enable_wire_log",
