@@ -28,7 +28,7 @@ from ophyd_async.core import SignalR, SignalRW, SignalW, SubsetEnum
 import benchbus as bb
 from benchbus.ophyd import DriveDevice, RegisterDevice, device
 from benchbus.sim import DriveDevice as SimDrive
-from benchbus.sim import ProfileDevice, Simulator
+from benchbus.sim import J2Device, PblDevice, ProfileDevice, Simulator
 
 PROFILES = Path(__file__).resolve().parent.parent / "examples" / "profiles"
 SENSOR = PROFILES / "xy_md02.toml"
@@ -406,6 +406,47 @@ def test_drive_registers_and_count(RE: RunEngine, spindle: Any) -> None:  # noqa
     assert keys["spindle-speed"]["units"] == "rpm"
     assert keys["spindle-speed"]["dtype"] == "integer"
     assert keys["spindle-bus_voltage"]["units"] == "V"
+
+
+def test_a_pbl_drive_is_a_motor_on_its_internal_speed(RE: RunEngine) -> None:  # noqa: N803
+    model = PblDevice()
+    with Simulator({0x11: model}) as sim, bb.PblDrive(sim.port, 0x11) as pbl:
+        pbl.start_stop_source = bb.StartStopSource.COMMUNICATION
+        pbl.set("acceleration", 6000)  # rpm/s: 1500 rpm in 0.25 s
+        motor = device(pbl, "pbl", tolerance=20, poll_period=0.02)
+        assert isinstance(motor, DriveDevice)
+        assert motor.control.setpoint == "internal_speed"
+        during: list[tuple[float, bool]] = []
+
+        def plan() -> Any:
+            yield from bps.mv(motor, 1500)
+            during.append((model.speed, model.running))
+
+        start = time.monotonic()
+        RE(plan())
+        ((speed, running),) = during
+        assert time.monotonic() - start >= 0.2  # it waited out the ramp
+        assert abs(speed - 1500) <= 21 and running
+        assert model.peek(201) == 1500
+        assert model.peek(0) & 1 == 0  # the RunEngine's stop cleared the start bit
+        assert sim.errors == []
+
+
+def test_j2_is_wrapped_with_its_units_and_no_motor(RE: RunEngine) -> None:  # noqa: N803
+    model = J2Device(clock=lambda: 0.0)
+    with Simulator({3: model}) as sim, bb.J2Controller(sim.port, 3) as j2:
+        dev = device(j2, "oven")
+        assert type(dev) is RegisterDevice
+        RE(bps.mv(dev.SV, 120.5))  # type: ignore[attr-defined]
+        assert j2.get("SV") == 120.5
+        docs = run(RE, count([dev], num=1))
+        descriptor = next(doc for name, doc in docs if name == "descriptor")
+        assert descriptor["data_keys"]["oven-PV"]["units"] == "°C"
+        assert descriptor["data_keys"]["oven-PV"]["precision"] == 1
+        event = next(doc for name, doc in docs if name == "event")
+        assert event["data"]["oven-PV"] == j2.get("PV")
+        assert descriptor["configuration"]["oven"]["data"]["oven-SV"] == 120.5
+        assert sim.errors == []
 
 
 # ---- the event loop stays free ------------------------------------------------------------------

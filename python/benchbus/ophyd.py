@@ -36,7 +36,7 @@ import math
 import re
 import time
 from collections.abc import AsyncIterator, Callable
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from benchbus._core import CancelToken
 
@@ -45,14 +45,17 @@ if TYPE_CHECKING:
     from benchbus._profile import ProfileRegister
 
 __all__ = [
+    "SPEED_CONTROLS",
     "AsyncRegisterDevice",
     "DriveDevice",
     "RegisterBackend",
     "RegisterDevice",
     "RegisterSource",
+    "SpeedControl",
     "asynchronous",
     "datatype",
     "device",
+    "speed_control",
 ]
 
 #: Why ophyd-async or Bluesky could not be imported (None: they are there).
@@ -90,6 +93,69 @@ _INTEGERS = {
     "u64": (0, 0xFFFF_FFFF_FFFF_FFFF),
     "i64": (-0x8000_0000_0000_0000, 0x7FFF_FFFF_FFFF_FFFF),
 }
+
+
+class SpeedControl(NamedTuple):
+    """How a drive family runs at a speed: the registers and the command that
+    :class:`DriveDevice` uses."""
+
+    #: The register the speed (rpm) is written to.
+    setpoint: str
+    #: The register of the measured speed (rpm).
+    readback: str
+    #: The device's method that starts the motor.
+    start: str
+    #: The register that says whether the motor is running...
+    state: str
+    #: ...as this function of its value says.
+    running: Callable[[int], bool]
+    #: The registers of the ramp up and the ramp down.
+    ramps: tuple[str, str]
+    #: The seconds a ramp takes: a function of the change of speed (rpm) and the ramp
+    #: register's value.
+    ramp_seconds: Callable[[float, float], float]
+
+
+#: The built-in drives: a BLD / C20 drive (runs forward, a ramp is its time for 3000 rpm)
+#: and a PBL drive (starts in the direction it is set to, a ramp is in rpm/s).
+SPEED_CONTROLS = (
+    SpeedControl(
+        "speed_setpoint",
+        "speed",
+        "forward",
+        "state",
+        lambda state: state in (1, 2),  # forward or reverse
+        ("accel_time", "decel_time"),
+        lambda change, seconds: change / 3000 * seconds,
+    ),
+    SpeedControl(
+        "internal_speed",
+        "speed",
+        "start",
+        "status",
+        lambda status: bool(status & 1),
+        ("acceleration", "deceleration"),
+        lambda change, rate: change / rate if rate > 0 else 0.0,
+    ),
+)
+
+
+def speed_control(source: Any) -> SpeedControl | None:
+    """The :data:`SPEED_CONTROLS` entry whose registers ``source``'s profile has and whose
+    start command and ``stop`` it has (None: not a drive)."""
+    try:
+        names = {r.name for r in source.profile.registers}
+    except (AttributeError, RuntimeError):
+        return None
+    for control in SPEED_CONTROLS:
+        wanted = {control.setpoint, control.readback, control.state, *control.ramps}
+        if (
+            wanted <= names
+            and callable(getattr(source, control.start, None))
+            and callable(getattr(source, "stop", None))
+        ):
+            return control
+    return None
 
 
 class RegisterSource(Protocol):
@@ -454,13 +520,18 @@ if _MISSING is None:
             source: RegisterSource,
             name: str = "",
             *,
+            control: SpeedControl | None = None,
             tolerance: float = 10.0,
             timeout: float | None = None,
             poll_period: float = 0.1,
         ) -> None:
-            """The drive ``source`` called ``name``: :meth:`set` is done once the measured
-            speed is within ``tolerance`` rpm of the target; it fails after ``timeout``
-            seconds (None: twice the ramp the accel / decel time gives, plus 5 s)."""
+            """The drive ``source`` called ``name``, run as ``control`` says (None: the
+            built-in family it is, see :func:`speed_control`): :meth:`set` is done once the
+            measured speed is within ``tolerance`` rpm of the target; it fails after
+            ``timeout`` seconds (None: twice the time its ramp takes, plus 5 s)."""
+            control = control or speed_control(source)
+            if control is None:
+                raise TypeError(f"{type(source).__name__} is not a drive this module knows")
             for key, number in (("tolerance", tolerance), ("poll_period", poll_period)):
                 if isinstance(number, bool) or not isinstance(number, (int, float)):
                     raise TypeError(f"{key} must be a number, got {type(number).__name__}")
@@ -471,6 +542,8 @@ if _MISSING is None:
             super().__init__(source, name, poll_period=poll_period)
             #: How close (rpm) the measured speed must come to the target.
             self.tolerance = float(tolerance)
+            #: The registers and command the motor is run with.
+            self.control = control
             #: Seconds a move may take (None: from the ramp).
             self.timeout = timeout
             #: Seconds between two reads of the speed while a move waits.
@@ -479,39 +552,39 @@ if _MISSING is None:
 
         async def _ramp_timeout(self, start: float, target: float) -> float:
             """Twice the time the drive's ramp takes from ``start`` to ``target``, + 5 s."""
-            full = self.backends["speed_setpoint"].register.max or 3000.0
-            name = "accel_time" if target >= start else "decel_time"
-            ramp = float(await self.bus_device.get(name))
-            return 2 * abs(target - start) / full * ramp + 5.0
+            up, down = self.control.ramps
+            ramp = float(await self.bus_device.get(up if target >= start else down))
+            return 2 * self.control.ramp_seconds(abs(target - start), ramp) + 5.0
 
         @WatchableAsyncStatus.wrap
         async def set(
             self, value: float, timeout: CalculatableTimeout = "CALCULATE_TIMEOUT"
         ) -> AsyncIterator[WatcherUpdate[float]]:
             """Run at ``value`` rpm: write the speed setpoint (checked first), start the
-            motor forward if it is not turning, and finish once the measured speed is within
+            motor if it is not running (a BLD / C20 drive forward, a PBL drive in the
+            direction it is set to), and finish once the measured speed is within
             :attr:`tolerance` of it. TimeoutError after ``timeout`` seconds (by default the
             device's :attr:`timeout`); RuntimeError if :meth:`stop` ends the move with
             ``success=False``. Watchers see the speed as it ramps."""
-            backend = self.backends["speed_setpoint"]
+            control = self.control
+            backend = self.backends[control.setpoint]
             target = backend.check(value)
             self._stopped = None
-            initial = float(await self.bus_device.get("speed"))
+            initial = float(await self.bus_device.get(control.readback))
             if timeout == CALCULATE_TIMEOUT:
                 timeout = self.timeout
                 if timeout is None:
                     timeout = await self._ramp_timeout(initial, target)
             await backend.put(target)
-            state = int(await self.bus_device.get("state"))
-            if state not in (1, 2):  # neither forward nor reverse
-                await self.bus_device.forward()
+            if not control.running(int(await self.bus_device.get(control.state))):
+                await getattr(self.bus_device, control.start)()
             deadline = None if timeout is None else time.monotonic() + float(timeout)
             while True:
                 if self._stopped is not None:
                     if self._stopped:
                         return
                     raise RuntimeError(f"{self.name} was stopped")
-                speed = float(await self.bus_device.get("speed"))
+                speed = float(await self.bus_device.get(control.readback))
                 yield WatcherUpdate(
                     current=speed,
                     initial=initial,
@@ -534,20 +607,6 @@ if _MISSING is None:
             success or (``success=False``, what Bluesky sends on an abort) an error."""
             self._stopped = success
             await self.bus_device.stop()
-
-
-def _is_drive(source: Any) -> bool:
-    """Whether ``source`` is a drive with a speed to move to: a stop and a forward command,
-    and speed, speed_setpoint and state registers."""
-    try:
-        names = {r.name for r in source.profile.registers}
-    except (AttributeError, RuntimeError):
-        return False
-    return (
-        {"speed", "speed_setpoint", "state"} <= names
-        and callable(getattr(source, "forward", None))
-        and callable(getattr(source, "stop", None))
-    )
 
 
 def device(
@@ -574,9 +633,9 @@ def device(
     member's name) and raises TypeError or ValueError before anything is sent; the device
     checks it again.
 
-    A drive (``bb.Drive``, or an async drive: ``forward`` and ``stop``, and ``speed``,
-    ``speed_setpoint`` and ``state`` registers) gives a :class:`DriveDevice`, which is
-    also a motor on its speed: ``set(rpm)`` completes once the measured speed is within
+    A drive (``bb.Drive``, ``bb.PblDrive``, or an async drive with their registers and
+    commands: :func:`speed_control`) gives a :class:`DriveDevice`, which is also a motor
+    on its speed: ``set(rpm)`` completes once the measured speed is within
     ``tolerance`` rpm (``timeout`` seconds at most), ``stop()`` stops the motor. While a
     plan watches a signal, the register is read every ``poll_period`` seconds.
 
@@ -584,9 +643,15 @@ def device(
     runs in a worker thread) or have coroutine methods (awaited as they are).
     """
     _needs_ophyd()
-    if _is_drive(source):
+    control = speed_control(source)
+    if control is not None:
         return DriveDevice(
-            source, name, tolerance=tolerance, timeout=timeout, poll_period=poll_period
+            source,
+            name,
+            control=control,
+            tolerance=tolerance,
+            timeout=timeout,
+            poll_period=poll_period,
         )
     return RegisterDevice(source, name, poll_period=poll_period)
 
