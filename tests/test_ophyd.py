@@ -195,6 +195,19 @@ def test_mv_writes_a_register_and_an_enum_by_name(
     assert model.value("reset_total") == 1  # a write-only register: a SignalW
 
 
+def test_an_enum_number_the_profile_does_not_list_reads_as_its_digits(
+    RE: RunEngine,  # noqa: N803
+    controller: tuple[Simulator[ProfileDevice], RegisterDevice, ProfileDevice],
+) -> None:
+    _, dev, model = controller
+    model.registers[0x0010] = 7  # mode: not a member
+    value = on_loop(RE, dev.mode.get_value())  # type: ignore[attr-defined]
+    assert value == "7" and type(value) is str
+    docs = run(RE, count([dev], num=1))
+    config = next(doc for name, doc in docs if name == "descriptor")["configuration"]["fc"]
+    assert config["data"]["fc-mode"] == "7"
+
+
 def test_a_bool_register(RE: RunEngine) -> None:  # noqa: N803
     model = ProfileDevice(RELAYS)
     with Simulator({1: model}) as sim, bb.Bus(sim.port) as bus:
@@ -533,6 +546,23 @@ def test_an_async_device_is_awaited_on_the_loop() -> None:
 def test_not_a_device_is_a_type_error() -> None:
     with pytest.raises(TypeError, match="benchbus device"):
         device(object(), "x")  # type: ignore[arg-type]
+
+
+@pytest.mark.parametrize(
+    ("option", "error"),
+    [
+        ({"tolerance": -1}, ValueError),
+        ({"tolerance": "5"}, TypeError),
+        ({"poll_period": math.inf}, ValueError),
+        ({"timeout": 0}, ValueError),
+        ({"timeout": True}, ValueError),
+    ],
+)
+def test_bad_motor_options_are_refused(option: dict[str, Any], error: type[Exception]) -> None:
+    with Simulator(SimDrive()) as sim, bb.Drive(sim.port) as drive:
+        with pytest.raises(error):
+            device(drive, "spindle", **option)
+        assert sim.request_count == 0
 
 
 def test_without_ophyd_async_the_module_imports_and_says_what_to_install() -> None:

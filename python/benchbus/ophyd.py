@@ -537,7 +537,11 @@ if _MISSING is None:
                     raise TypeError(f"{key} must be a number, got {type(number).__name__}")
                 if not (math.isfinite(number) and number >= 0):
                     raise ValueError(f"{key} must be >= 0, got {number}")
-            if timeout is not None and not (isinstance(timeout, (int, float)) and timeout > 0):
+            if timeout is not None and (
+                isinstance(timeout, bool)
+                or not isinstance(timeout, (int, float))
+                or not timeout > 0
+            ):
                 raise ValueError(f"timeout must be > 0 seconds or None, got {timeout!r}")
             super().__init__(source, name, poll_period=poll_period)
             #: How close (rpm) the measured speed must come to the target.
