@@ -26,7 +26,7 @@ from bluesky.utils import FailedStatus
 from ophyd_async.core import SignalR, SignalRW, SignalW, SubsetEnum
 
 import benchbus as bb
-from benchbus.ophyd import DriveDevice, RegisterDevice, device
+from benchbus.ophyd import DriveDevice, RegisterDevice, datatype, device
 from benchbus.sim import DriveDevice as SimDrive
 from benchbus.sim import J2Device, PblDevice, ProfileDevice, Simulator
 
@@ -124,6 +124,22 @@ def test_datatypes_follow_the_register_types(
     assert isinstance(mode, type) and issubclass(mode, SubsetEnum)
     assert [m.value for m in mode] == ["off", "control", "purge", "close"]
     assert [m.name for m in mode] == ["OFF", "CONTROL", "PURGE", "CLOSE"]
+
+
+def test_enum_member_names_become_upper_case_python_names() -> None:
+    text = (
+        '[device]\nname = "x"\n[[register]]\nname = "line_speed"\naddress = 0\n'
+        'access = "rw"\nenum = { 0 = "_9600", 1 = "on_off", 2 = "On_Off", 3 = "b9600" }\n'
+    )
+    (register,) = bb.Profile.parse(text).registers
+    kind = datatype(register)
+    assert kind.__name__ == "LineSpeed"
+    assert {m.name: m.value for m in kind} == {
+        "V__9600": "_9600",
+        "ON_OFF": "on_off",
+        "ON_OFF_": "On_Off",
+        "B9600": "b9600",
+    }
 
 
 # ---- Bluesky plans ------------------------------------------------------------------------------

@@ -84,15 +84,8 @@ try:
 except ImportError as exc:  # the module imports without the extra; device() says so
     _MISSING = exc
 
-#: Every value an integer type holds, exactly.
-_INTEGERS = {
-    "u16": (0, 0xFFFF),
-    "i16": (-0x8000, 0x7FFF),
-    "u32": (0, 0xFFFF_FFFF),
-    "i32": (-0x8000_0000, 0x7FFF_FFFF),
-    "u64": (0, 0xFFFF_FFFF_FFFF_FFFF),
-    "i64": (-0x8000_0000_0000_0000, 0x7FFF_FFFF_FFFF_FFFF),
-}
+#: The register types that hold an integer.
+_INTEGER_TYPES = ("u16", "i16", "u32", "i32", "u64", "i64")
 
 
 class SpeedControl(NamedTuple):
@@ -261,7 +254,7 @@ def _needs_ophyd() -> None:
 def _whole(register: ProfileRegister) -> bool:
     """Whether a register's engineering value is an integer (unscaled, not an enum)."""
     return (
-        register.type in _INTEGERS
+        register.type in _INTEGER_TYPES
         and register.scale == 1.0
         and register.offset == 0.0
         and not register.enum
