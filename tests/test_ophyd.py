@@ -478,6 +478,40 @@ def test_j2_is_wrapped_with_its_units_and_no_motor(RE: RunEngine) -> None:  # no
         assert sim.errors == []
 
 
+def test_a_watched_signal_is_polled_and_survives_a_silent_unit(
+    RE: RunEngine,  # noqa: N803
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    model = ProfileDevice(SENSOR, values={"temperature": 20.0})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, timeout=0.05, retries=0) as bus:
+        sensor = device(bb.Device.from_profile(SENSOR, bus), "s", poll_period=0.02)
+
+        async def watch() -> list[float]:
+            seen: list[float] = []
+            signal = sensor.temperature  # type: ignore[attr-defined]
+
+            def note(readings: dict[str, Any]) -> None:
+                seen.append(readings["s-temperature"]["value"])
+
+            signal.subscribe_reading(note)
+            await asyncio.sleep(0.1)
+            model.set_value("temperature", 21.5)
+            await asyncio.sleep(0.1)
+            sim.set_silent(1)
+            await asyncio.sleep(0.3)
+            model.set_value("temperature", 23.0)
+            sim.set_silent(1, False)
+            await asyncio.sleep(0.2)
+            signal.clear_sub(note)
+            return seen
+
+        seen = on_loop(RE, watch())
+    assert seen == [20.0, 21.5, 23.0]  # each new value once, and on after the silence
+    warnings = [r for r in caplog.records if r.name == "benchbus.ophyd"]
+    assert len(warnings) == 1  # once for the whole silence
+    assert "polling goes on" in warnings[0].getMessage()
+
+
 # ---- the event loop stays free ------------------------------------------------------------------
 
 

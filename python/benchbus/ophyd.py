@@ -32,6 +32,7 @@ from __future__ import annotations
 import asyncio
 import functools
 import inspect
+import logging
 import math
 import re
 import time
@@ -39,6 +40,7 @@ from collections.abc import AsyncIterator, Callable
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from benchbus._core import CancelToken
+from benchbus.exceptions import BenchbusError
 
 if TYPE_CHECKING:
     from benchbus._core import Profile
@@ -57,6 +59,8 @@ __all__ = [
     "device",
     "speed_control",
 ]
+
+log = logging.getLogger("benchbus.ophyd")
 
 #: Why ophyd-async or Bluesky could not be imported (None: they are there).
 _MISSING: ImportError | None = None
@@ -348,7 +352,7 @@ if _MISSING is None:
             """``value`` as the device takes it, or TypeError / ValueError for a value of
             the wrong kind, out of the register's range or not a member (nothing is sent)."""
             register, kind = self.register, self.datatype
-            where = f"{register.name}"
+            where = register.name
             if register.access == "r":
                 raise ValueError(f"{where} is read-only")
             if isinstance(value, np.generic):
@@ -434,13 +438,22 @@ if _MISSING is None:
                 self._poller = asyncio.get_running_loop().create_task(self._poll(callback))
 
         async def _poll(self, callback: Callback[Reading[Any]]) -> None:
-            """Read the register every :attr:`poll_period` and pass on each new value."""
+            """Read the register every :attr:`poll_period` and pass on each new value; a
+            failed read is logged (once until a read succeeds again) and tried again."""
             last: Any = object()
+            failing = False
             while True:
-                reading = await self.get_reading()
-                if reading["value"] != last:
-                    last = reading["value"]
-                    callback(reading)
+                try:
+                    reading = await self.get_reading()
+                except BenchbusError as exc:
+                    if not failing:
+                        log.warning("%s: polling goes on after %s", self._source, exc)
+                    failing = True
+                else:
+                    failing = False
+                    if reading["value"] != last:
+                        last = reading["value"]
+                        callback(reading)
                 await asyncio.sleep(self.poll_period)
 
     def _signal(backend: RegisterBackend) -> SignalR[Any] | SignalW[Any]:
