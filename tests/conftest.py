@@ -21,9 +21,9 @@ pytest_plugins = ("pytester",)
 # The wheel smoke suite runs against an installed wheel, from a copy outside the checkout
 # (.ci/wheel-smoke.sh), not in this run.
 collect_ignore = ["wheel_smoke"]
-# QCoDeS (the qcodes extra) needs Python 3.11.
+# QCoDeS (the qcodes extra) and ophyd-async (the bluesky extra) need Python 3.11.
 if sys.version_info < (3, 11):
-    collect_ignore.append("test_qcodes.py")
+    collect_ignore += ["test_qcodes.py", "test_ophyd.py"]
 
 
 def read_up_to(fd: int, n: int, timeout: float) -> bytes:

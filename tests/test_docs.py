@@ -47,6 +47,7 @@ PICKED_BY = (
     "Profile.family(",
     "benchbus.qcodes",
     "bb.aio.AsyncBus(",
+    "benchbus.ophyd",
 )
 
 
@@ -243,6 +244,27 @@ def test_readme_asyncio_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert out[0].startswith("0.0 s  ") and out[4].startswith("0.4 s  ")
     assert out[5] == "1500 1500"
     assert device.commands == [1, 5]
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="ophyd-async needs Python 3.11")
+def test_readme_ophyd_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """The Bluesky example, on a simulated flow controller and a simulated drive."""
+    from benchbus.sim import ProfileDevice
+
+    (block,) = [b for b in readme_blocks() if "benchbus.ophyd" in b]
+    model = ProfileDevice(ROOT / "examples" / "profiles" / "flow_controller.toml")
+    drive = DriveDevice(single_register_reads=False)
+    with Simulator({1: model}) as sim, Simulator(drive) as drive_sim:
+        block = block.replace("examples/profiles/", f"{ROOT}/examples/profiles/")
+        block = block.replace("/dev/ttyUSB3", sim.port).replace("/dev/ttyUSB4", drive_sim.port)
+        exec(block, {"__name__": "readme"})
+        assert sim.errors == drive_sim.errors == []
+    units = "{'fc-flow': 'sccm', 'fc-total': 'scc', 'fc-gas_temperature': 'degC', "
+    units += "'fc-runtime': 's', 'spindle-speed': 'rpm'}"
+    assert capsys.readouterr().out.splitlines() == [units, "49.75 True", "49.75 True"]
+    assert model.value("setpoint") == 100.0
+    assert model.value("mode") == "control"
+    assert drive.peek(0x2001) == 1500
+    # Forward, the stop at the end of the plan, and the one leaving the with block sends.
+    assert drive.commands == [1, 5, 5]
 
 
 def test_readme_values_example(capsys: pytest.CaptureFixture[str]) -> None:
