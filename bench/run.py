@@ -1,6 +1,6 @@
 """benchbus beside minimalmodbus and pymodbus, on a line that takes as long as a real one.
 
-    python bench/run.py            # the full run (about 7 minutes)
+    python bench/run.py            # the full run (about 8 minutes)
     python bench/run.py --quick    # every scenario, briefly (what CI runs)
 
 Each library goes through the same scenarios against the same fake slave (bench/lineemu.py),
@@ -724,6 +724,129 @@ def scenario_i(res: Results, plan: Plan, name: str) -> None:
                 res.add(key, name, "requests < t3.5 after a reply", "", float(st["early"]))
 
 
+async def _async_back_to_back(read: Callable[[], Any], seconds: float) -> int:
+    """Await ``read()`` (register 5 of unit 1) back to back for ``seconds``: the calls made."""
+    n, t0 = 0, time.perf_counter()
+    while time.perf_counter() - t0 < seconds:
+        check(await read(), 1, 5)
+        n += 1
+    return n
+
+
+def _async_client(name: str, port: str, line: LineSpec) -> tuple[Any, Callable[[], Any]] | None:
+    """The library's asyncio client on ``port`` and its read of register 5 of unit 1 (None
+    for a library without one); to be made inside the running loop."""
+    if name == "benchbus":
+        from benchbus.aio import AsyncBus
+
+        bus = AsyncBus(port, line.baud, line.parity, timeout=0.1, retries=0)
+        return bus, lambda: bus.read_holding_registers(1, 5, 1)
+    if name == "pymodbus":
+        from pymodbus.client import AsyncModbusSerialClient
+
+        client = AsyncModbusSerialClient(
+            port, baudrate=line.baud, parity="N", timeout=0.1, retries=0
+        )
+
+        async def read() -> list[int]:
+            reply = await client.read_holding_registers(5, count=1, device_id=1)
+            if reply.isError():
+                raise RuntimeError(f"pymodbus: {reply}")
+            return list(reply.registers)
+
+        return client, read
+    return None
+
+
+async def _async_open(client: Any) -> None:
+    connect = getattr(client, "connect", None)
+    if connect is not None and not await connect():
+        raise OSError("pymodbus cannot open its port")
+
+
+async def _async_close(client: Any) -> None:
+    if hasattr(client, "aclose"):
+        await client.aclose()
+    else:
+        client.close()
+
+
+def scenario_j(res: Results, plan: Plan, name: str) -> None:
+    """(j) back-to-back single-register reads at 19200 8N1 from an asyncio task, beside the
+    same library's blocking client in the same run (minimalmodbus has no asyncio client)."""
+    import asyncio
+
+    line = N81_19200
+    key = f"j: asyncio reads {line}"
+    if name == "minimalmodbus":
+        return
+
+    async def measure(port: str) -> float:
+        made = _async_client(name, port, line)
+        assert made is not None
+        client, read = made
+        await _async_open(client)
+        try:
+            await _async_back_to_back(read, 0.1)  # warm up
+            return await _async_back_to_back(read, plan.seconds) / plan.seconds
+        finally:
+            await _async_close(client)
+
+    with Emulator(line) as emu:
+        port = emu.ports[0]
+        for _ in range(plan.repeats):
+            emu.stats()
+            rate = asyncio.run(measure(port))
+            early = float(emu.stats()[0]["early"])
+            blocking = CLIENTS[name](port, line, 0.1)  # the port is free again
+            try:
+                back_to_back(blocking, 0.1)  # warm up
+                n, wall, _ = back_to_back(blocking, plan.seconds)
+            finally:
+                blocking.close()
+            res.add(key, name, "tx/s", "1/s", rate)
+            res.add(key, name, "ratio to wire limit", "", rate / line.limit())
+            res.add(key, name, "asyncio / blocking client", "", rate / (n / wall))
+            res.add(key, name, "requests < t3.5 after a reply", "", early)
+
+
+def scenario_k(res: Results, plan: Plan, name: str) -> None:
+    """(k) four lines from four tasks on one event loop against one line from one task."""
+    import asyncio
+
+    line = E81_115200
+    key = f"k: 4 lines from 4 asyncio tasks, {line}"
+    if name == "minimalmodbus":
+        return
+    seconds = max(1.0, plan.seconds)
+
+    async def measure(ports: list[str]) -> tuple[float, float]:
+        made = [_async_client(name, port, line) for port in ports]
+        clients = [m for m in made if m is not None]
+        for client, _ in clients:
+            await _async_open(client)
+        try:
+            one = await _async_back_to_back(clients[0][1], seconds) / seconds
+            t0 = time.perf_counter()
+            counts = await asyncio.gather(
+                *(_async_back_to_back(read, seconds) for _, read in clients)
+            )
+            return one, sum(counts) / (time.perf_counter() - t0)
+        finally:
+            for client, _ in clients:
+                await _async_close(client)
+
+    with Emulator(line, lines=4) as emu:
+        for _ in range(max(1, plan.repeats // 2)):
+            emu.stats()
+            single, total = asyncio.run(measure(emu.ports))
+            early = sum(st["early"] for st in emu.stats())
+            res.add(key, name, "1 line", "tx/s", single)
+            res.add(key, name, "4 lines", "tx/s", total)
+            res.add(key, name, "4 lines / 1 line", "x", total / single)
+            res.add(key, name, "requests < t3.5 after a reply", "", float(early))
+
+
 SCENARIOS = {
     "a": scenario_a,
     "b": scenario_b,
@@ -734,6 +857,8 @@ SCENARIOS = {
     "g": scenario_g,
     "h": scenario_h,
     "i": scenario_i,
+    "j": scenario_j,
+    "k": scenario_k,
 }
 
 
@@ -847,6 +972,14 @@ def targets(res: Results) -> list[dict[str, Any]]:
             f">= 0.97 and > peers ({fmt(best_peer)})",
             own >= 0.97 and own > best_peer,
         )
+    if any(k[0].startswith("j:") for k in res.figures):
+        ratio = m("j:", "asyncio / blocking client")
+        judge("(j) asyncio / blocking Bus", ratio, ">= 0.97", ratio >= 0.97)
+        own, peer = m("j:", "tx/s"), m("j:", "tx/s", "pymodbus")
+        judge("(j) asyncio reads [tx/s]", own, f">= pymodbus async ({fmt(peer)})", own >= peer)
+    if any(k[0].startswith("k:") for k in res.figures):
+        speedup = m("k:", "4 lines / 1 line")
+        judge("(k) 4 lines / 1 line from asyncio tasks", speedup, ">= 3.5", speedup >= 3.5)
     return out
 
 

@@ -121,19 +121,30 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
     assert limits["115200 8E1"] == pytest.approx(314.2, abs=0.05)
     figures = report["figures"]
     scenarios = {f["scenario"][0] for f in figures}
-    assert scenarios == set("abcdefghi")
-    for letter in "abcdefghi":
+    assert scenarios == set("abcdefghijk")
+    for letter in "abcdefghijk":
         libraries = {f["library"] for f in figures if f["scenario"][0] == letter}
-        assert libraries == {"benchbus", "minimalmodbus", "pymodbus"}, letter
+        # minimalmodbus has no asyncio client for (j) and (k).
+        everyone = {"benchbus", "pymodbus"} | ({"minimalmodbus"} if letter < "j" else set())
+        assert libraries == everyone, letter
+    early_by = {
+        (f["scenario"], f["library"]): f["max"]
+        for f in figures
+        if f["metric"] == "requests < t3.5 after a reply"
+    }
     for f in figures:
         assert f["min"] <= f["median"] <= f["max"], f
         if f["metric"] == "ratio to wire limit":
-            # The emulator holds every library to the wire: nobody can beat the limit.
-            assert 0.3 < f["max"] <= 1.02, f
+            # The emulator holds every library that keeps t3.5 to the wire: none of them
+            # can beat the limit. (pymodbus's asyncio client sends inside t3.5, and so can.)
+            assert f["max"] > 0.3, f
+            if early_by.get((f["scenario"], f["library"])) == 0 or f["library"] == "benchbus":
+                assert f["max"] <= 1.02, f
     # Every target of the issue is judged (met or not: figures are the machine's).
     judged = {t["target"].split(")")[0] + ")" for t in report["targets"]}
     early = [f for f in figures if f["metric"] == "requests < t3.5 after a reply"]
     assert {f["library"] for f in early} == {"benchbus", "minimalmodbus", "pymodbus"}
-    assert judged == {f"({x})" for x in "abcdeghi"}
+    assert judged == {f"({x})" for x in "abcdeghijk"}
+    assert all(v == 0 for (scenario, lib), v in early_by.items() if lib == "benchbus")
     assert all(isinstance(t["met"], bool) for t in report["targets"])
     assert "benchbus" in proc.stdout and "ratio to wire limit" in proc.stdout
