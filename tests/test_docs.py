@@ -244,6 +244,8 @@ def test_readme_asyncio_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert out[0].startswith("0.0 s  ") and out[4].startswith("0.4 s  ")
     assert out[5] == "1500 1500"
     assert device.commands == [1, 5]
+
+
 @pytest.mark.skipif(sys.version_info < (3, 11), reason="ophyd-async needs Python 3.11")
 def test_readme_ophyd_example(capsys: pytest.CaptureFixture[str]) -> None:
     """The Bluesky example, on a simulated flow controller and a simulated drive."""
