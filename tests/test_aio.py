@@ -910,3 +910,131 @@ def test_four_present_units_are_served_alike_beside_an_absent_one() -> None:
     mean = sum(done.values()) / len(done)
     assert mean > 20, done
     assert all(abs(n - mean) <= 0.1 * mean for n in done.values()), done
+
+
+# ---- what a review found: each a test that hung, sent or lost something before ----------------
+
+
+STATS_UNDER_LOAD = """
+import asyncio, sys, time
+from benchbus import aio
+
+async def main(port):
+    async with aio.AsyncBus(port, timeout=0.05, retries=0) as bus:
+        end = time.monotonic() + 1.5
+        async def hammer():
+            while time.monotonic() < end:
+                await bus.read_holding_registers(1, 0, 1)
+        tasks = [asyncio.create_task(hammer()) for _ in range(4)]
+        reads = 0
+        while time.monotonic() < end:
+            bus.stats, bus.closed, repr(bus.bus)  # on the loop, while calls hold the line
+            reads += 1
+            await asyncio.sleep(0)
+        await asyncio.gather(*tasks)
+        print(reads, bus.stats.transactions)
+
+asyncio.run(main(sys.argv[1]))
+"""
+
+
+def test_reading_the_stats_on_the_loop_while_calls_run_neither_blocks_nor_deadlocks(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """A call on the line holds the Bus's state and logs into Python; the stats read on the
+    loop (holding the GIL) used to wait for that state: the process hung."""
+    done = subprocess.run(
+        [sys.executable, "-c", STATS_UNDER_LOAD, sim.port],
+        capture_output=True,
+        text=True,
+        timeout=30,
+        check=False,
+    )
+    assert done.returncode == 0, done.stderr
+    reads, transactions = map(int, done.stdout.split())
+    assert transactions > 20 and reads > transactions
+
+
+def test_a_call_cancelled_in_the_queue_is_not_sent_even_before_its_callback_runs(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """The task is cancelled, then the loop is busy before the done-callback that takes the
+    call out of the queue runs: a free thread must still not send it."""
+    sim.reply_delay = 0.1
+
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port, timeout=0.5, retries=0, workers=1) as bus:
+            busy = asyncio.create_task(bus.read_holding_registers(1, 0, 1))
+            await asyncio.sleep(0.05)
+            queued = asyncio.create_task(bus.write_register(1, 50, 1234))
+            await asyncio.sleep(0.01)
+            queued.cancel()
+            time.sleep(0.2)  # the loop is busy: the thread is free before the callback runs
+            with pytest.raises(asyncio.CancelledError):
+                await queued
+            await busy
+            await asyncio.sleep(0.2)
+
+    run(main)
+    assert len(sim.requests) == 1 and sim.requests[0][1] == 0x03
+    assert device_of(sim).registers[50] != 1234
+
+
+def test_a_call_raising_stop_iteration_reaches_its_task() -> None:
+    async def main() -> None:
+        pool = aio._Pool(1, "test")
+
+        def stops() -> None:
+            raise StopIteration("done")
+
+        with pytest.raises(RuntimeError, match="StopIteration"):
+            await asyncio.wait_for(pool.submit(stops), 5)
+        await pool.close()
+
+    run(main)
+
+
+CANCELLED_WHILE_THE_STOP_WAITS = """
+import asyncio, sys
+import benchbus as bb
+
+async def main(port):
+    async with bb.aio.Drive(port, timeout=2.0) as drive:
+        await drive.forward()
+        async def poll():
+            while True:
+                await drive.get("speed")
+        poller = asyncio.create_task(poll())
+        print("running", flush=True)
+        await asyncio.sleep(0.5)
+        print("leaving", flush=True)
+        raise RuntimeError("the bench failed")  # the stop queues behind a slow read
+
+asyncio.run(main(sys.argv[1]))
+"""
+
+
+def test_ctrl_c_while_the_stop_waits_behind_a_read_still_sends_the_stop() -> None:
+    device = DriveDevice()
+    with Simulator(device) as sim:
+        proc = subprocess.Popen(
+            [sys.executable, "-c", CANCELLED_WHILE_THE_STOP_WAITS, sim.port],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            assert proc.stdout is not None
+            assert select.select([proc.stdout], [], [], 20)[0], "the script did not start"
+            assert proc.stdout.readline() == "running\n"
+            sim.reply_delay = 0.8  # each read now holds the line for 0.8 s
+            assert proc.stdout.readline() == "leaving\n"
+            time.sleep(0.2)  # the stop is queued behind a read
+            proc.send_signal(signal.SIGINT)
+            proc.communicate(timeout=20)
+        finally:
+            proc.kill()
+        deadline = time.monotonic() + 3
+        while device.commands != [1, 5] and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert device.commands == [1, 5]

@@ -102,6 +102,24 @@ def _run_cancellable(token: CancelToken | None, fn: Callable[[], R]) -> R:
     return result
 
 
+async def _unstoppable(future: asyncio.Future[R]) -> R:
+    """The outcome of ``future``, awaited to the end even when the awaiting task is
+    cancelled meanwhile (a motor's stop must be sent before ``asyncio.run`` ends and takes
+    the worker threads with it); the cancellation is raised after."""
+    cancelled: asyncio.CancelledError | None = None
+    while not future.done():
+        try:
+            await asyncio.shield(future)
+        except asyncio.CancelledError as exc:
+            if future.done() and future.cancelled():
+                raise
+            cancelled = exc
+    result = future.result()
+    if cancelled is not None:
+        raise cancelled
+    return result
+
+
 # ---- the worker threads -----------------------------------------------------------------------
 
 
@@ -132,6 +150,8 @@ def _settle(future: asyncio.Future[Any], result: Any, error: BaseException | Non
         return
     if error is None:
         future.set_result(result)
+    elif isinstance(error, StopIteration):  # a future cannot carry one
+        future.set_exception(RuntimeError(f"the call raised StopIteration: {error}"))
     else:
         future.set_exception(error)
 
@@ -223,6 +243,9 @@ class _Pool:
                     last = self._live == 0
                     break
                 call = self._queue.popleft()
+                if call.token is not None and call.future.cancelled():
+                    # Cancelled on the loop, its callback not yet run: never sent.
+                    continue
                 call.taken = True
             result: Any = None
             error: BaseException | None = None
@@ -676,9 +699,9 @@ class AsyncDevice(Generic[D]):
             return
         done = self._abus._pool.submit(fn, cancellable=False)
         ended = self._abus._pool.close() if self._owns_pool else None
-        await asyncio.shield(done)
+        await _unstoppable(done)
         if ended is not None:
-            await asyncio.shield(ended)
+            await _unstoppable(ended)
 
     async def __aenter__(self) -> Self:
         """The device itself."""

@@ -1177,8 +1177,10 @@ impl PyBus {
 
     /// Counters of what happened on this bus.
     #[getter]
-    fn stats(&self) -> PyStats {
-        self.bus.stats().into()
+    fn stats(&self, py: Python<'_>) -> PyStats {
+        // Without the GIL: a call on the line holds the state and may log into Python.
+        let bus = Arc::clone(&self.bus);
+        py.detach(move || bus.stats()).into()
     }
 
     /// Closes the port. Further calls raise PortError; closing twice is harmless.
@@ -1189,8 +1191,9 @@ impl PyBus {
 
     /// True once the bus is closed (and not reopened since).
     #[getter]
-    fn closed(&self) -> bool {
-        self.bus.is_closed()
+    fn closed(&self, py: Python<'_>) -> bool {
+        let bus = Arc::clone(&self.bus);
+        py.detach(move || bus.is_closed())
     }
 
     /// Closes the port and opens the same path again with the same settings (also after
@@ -1305,7 +1308,16 @@ impl PyBus {
         self.bus.config().line.t3_5().as_secs_f64()
     }
 
-    fn __repr__(&self) -> String {
+    fn __repr__(&self, py: Python<'_>) -> String {
+        let bus = Arc::clone(&self.bus);
+        let (closed, lost) = py.detach(move || (bus.is_closed(), bus.is_lost()));
+        let state = if closed {
+            ", closed"
+        } else if lost {
+            ", lost"
+        } else {
+            ""
+        };
         let c = self.bus.config();
         format!(
             "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{}{}{})",
@@ -1332,13 +1344,7 @@ impl PyBus {
             } else {
                 format!(", silence={}", c.silence.as_secs_f64())
             },
-            if self.bus.is_closed() {
-                ", closed"
-            } else if self.bus.is_lost() {
-                ", lost"
-            } else {
-                ""
-            }
+            state
         )
     }
 }

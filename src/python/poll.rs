@@ -55,7 +55,8 @@ impl PyPoll {
         let period = seconds(interval, "interval", false)?;
         let interval = seconds_value(interval, "interval")?;
         let duration = opt(duration, None, |d| duration_arg(d).map(Some))?;
-        if bus.is_closed() {
+        let shared = Arc::clone(bus);
+        if py.detach(move || shared.is_closed()) {
             return Err(to_pyerr(py, bus.closed()));
         }
         Ok(PyPoll {
@@ -108,7 +109,8 @@ impl PyPoll {
 
     /// Sleeps until the next deadline, reads, and returns `(t, values)`.
     fn __next__(&self, py: Python<'_>) -> PyResult<Option<(f64, Vec<u16>)>> {
-        if self.bus.is_closed() {
+        let bus = Arc::clone(&self.bus);
+        if py.detach(move || bus.is_closed()) {
             return Err(to_pyerr(py, self.bus.closed()));
         }
         let Some((n, deadline)) = self.next_deadline(py)? else {
