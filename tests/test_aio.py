@@ -1038,3 +1038,37 @@ def test_ctrl_c_while_the_stop_waits_behind_a_read_still_sends_the_stop() -> Non
         while device.commands != [1, 5] and time.monotonic() < deadline:
             time.sleep(0.05)
         assert device.commands == [1, 5]
+
+
+def test_calls_reach_the_line_in_the_order_they_were_made_with_several_threads(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """Eight threads: each call goes to the line only once the call made before it holds its
+    place in the line's queue, so the line sees them in the order they were made, and the
+    last of several writes to one register is the one that stays."""
+
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port, timeout=0.3, workers=8) as bus:
+            for _ in range(5):
+                await asyncio.gather(*(bus.read_holding_registers(1, i, 1) for i in range(16)))
+            for round_ in range(10):
+                await asyncio.gather(*(bus.write_register(1, 40, round_ * 8 + v) for v in range(8)))
+                assert device_of(sim).registers[40] == round_ * 8 + 7
+
+    run(main)
+    reads = [int.from_bytes(r[2:4], "big") for r in sim.requests if r[1] == 0x03]
+    assert reads == list(range(16)) * 5
+
+
+def test_a_token_says_when_its_call_took_its_place_in_line(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    with bb.Bus(sim.port, timeout=0.3) as bus:
+        token = bb.CancelToken()
+        assert not token.queued
+        with token:
+            with pytest.raises(ValueError):
+                bus.read_holding_registers(1, 0, 0)  # refused before it asks for the line
+            assert not token.queued
+            bus.read_holding_registers(1, 0, 1)
+        assert token.queued

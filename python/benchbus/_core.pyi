@@ -153,6 +153,10 @@ class CancelToken:
     def cancelled(self) -> bool:
         """Whether :meth:`cancel` was called."""
 
+    @property
+    def queued(self) -> bool:
+        """Whether a call made under this token has taken its place in a Bus's queue for the
+        line (its first turn asked for)."""
     def __enter__(self) -> Self: ...
     def __exit__(
         self,

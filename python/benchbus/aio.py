@@ -21,8 +21,10 @@ wire with the GIL released, so the event loop never waits for the line. What thi
 adds is the queue in front of those threads and cancellation:
 
 - Each :class:`AsyncBus` has its own worker threads (``workers``, 8 by default), shared by
-  the devices made on it. Calls are handed to the threads in the order they were made;
-  several may be under way at once, and the core serves them one transaction at a time.
+  the devices made on it. Several calls may be under way at once, and they reach the line
+  in the order they were made: a thread lets its call go only once the call before it
+  holds its place in the line's queue (``CancelToken.queued``). The core serves them one
+  attempt at a time, in that order.
 - A task cancelled while its call still waits in the queue (no thread has taken it) takes
   the call out of the queue: nothing is sent. A task cancelled while its call is in a thread
   gets ``CancelledError`` at once, and the call's :class:`benchbus.CancelToken` is
@@ -86,17 +88,19 @@ IDLE_END = 10.0
 #: out the rest on the monotonic clock (the loop's own timers are only as fine as a
 #: millisecond).
 _EARLY = 0.002
+#: How often a thread looks whether the call before its own holds its place in the line's
+#: queue (it usually does within microseconds).
+_ADMIT_POLL = 0.0002
 
 
 # ---- cancellation in the core ---------------------------------------------------------------
 
 
-def _run_cancellable(token: CancelToken | None, fn: Callable[[], R]) -> R:
-    """``fn()`` in this thread under ``token`` (None: a call that cannot be cancelled): once
-    the token is cancelled the core sends nothing more (an attempt already on the wire
-    finishes) and the call raises :class:`benchbus.Cancelled`."""
-    if token is None:
-        return fn()
+def _run_cancellable(token: CancelToken, fn: Callable[[], R]) -> R:
+    """``fn()`` in this thread under ``token``: once the token is cancelled the core sends
+    nothing more (an attempt already on the wire finishes) and the call raises
+    :class:`benchbus.Cancelled`; ``token.queued`` says when the call took its place in the
+    line's queue."""
     with token:
         result = fn()
     return result
@@ -126,22 +130,32 @@ async def _unstoppable(future: asyncio.Future[R]) -> R:
 class _Call:
     """One call waiting for, or in, a worker thread."""
 
-    __slots__ = ("fn", "future", "loop", "taken", "token")
+    __slots__ = ("cancellable", "finished", "fn", "future", "loop", "taken", "token")
 
     def __init__(
         self,
         fn: Callable[[], Any],
         future: asyncio.Future[Any],
         loop: asyncio.AbstractEventLoop,
-        token: CancelToken | None,
+        cancellable: bool,
     ) -> None:
         self.fn = fn
         self.future = future
         self.loop = loop
-        #: None for a call that cannot be cancelled (a motor's stop on leaving a block).
-        self.token = token
+        #: False for a call that cannot be cancelled (a motor's stop on leaving a block).
+        self.cancellable = cancellable
+        #: Cancelled when the awaiting task is; also says when the call took its place in
+        #: the line's queue.
+        self.token = CancelToken()
         #: Whether a thread has taken it.
         self.taken = False
+        #: Set once its thread is done with it.
+        self.finished = threading.Event()
+
+    def admitted(self) -> bool:
+        """Whether the call after it may go to the line: this one holds its place in the
+        line's queue, or is over (or never needed the line)."""
+        return self.token.queued or self.finished.is_set()
 
 
 def _settle(future: asyncio.Future[Any], result: Any, error: BaseException | None) -> None:
@@ -178,6 +192,8 @@ class _Pool:
         self._live = 0
         self._closed = False
         self._then: Callable[[], None] | None = None
+        #: The call a thread took last: the next waits until it holds its place in line.
+        self._last: _Call | None = None
         self._ended: asyncio.Future[None] | None = None
 
     @property
@@ -195,7 +211,7 @@ class _Pool:
         future takes a queued call out of the queue, or cancels a running one's token."""
         loop = asyncio.get_running_loop()
         future: asyncio.Future[R] = loop.create_future()
-        call = _Call(fn, future, loop, CancelToken() if cancellable else None)
+        call = _Call(fn, future, loop, cancellable)
         with self._lock:
             if self._closed:
                 raise PortError(f"{self._name}: closed")
@@ -224,8 +240,7 @@ class _Pool:
                 with contextlib.suppress(ValueError):
                     self._queue.remove(call)
                 return
-        if call.token is not None:
-            call.token.cancel()
+        call.token.cancel()
 
     def _work(self) -> None:
         """A worker thread: take calls in order and run them, until closed and drained."""
@@ -243,16 +258,24 @@ class _Pool:
                     last = self._live == 0
                     break
                 call = self._queue.popleft()
-                if call.token is not None and call.future.cancelled():
+                if call.cancellable and call.future.cancelled():
                     # Cancelled on the loop, its callback not yet run: never sent.
                     continue
                 call.taken = True
+                before, self._last = self._last, call
             result: Any = None
             error: BaseException | None = None
             try:
+                # The calls reach the line in the order they were made: this one goes once
+                # the one before holds its place in the line's queue (or is over).
+                while before is not None and not before.admitted():
+                    before.finished.wait(_ADMIT_POLL)
+                del before
                 result = _run_cancellable(call.token, call.fn)
             except BaseException as exc:  # handed to the awaiting task
                 error = exc
+            finally:
+                call.finished.set()
             with contextlib.suppress(RuntimeError):  # the loop is closed: nobody waits
                 call.loop.call_soon_threadsafe(_settle, call.future, result, error)
             del call, result, error
@@ -284,7 +307,7 @@ class _Pool:
             self._closed = True
             self._ended = loop.create_future()
             self._then = then
-            dropped = [c for c in self._queue if c.token is not None]
+            dropped = [c for c in self._queue if c.cancellable]
             for call in dropped:
                 self._queue.remove(call)
             self._wake.notify_all()

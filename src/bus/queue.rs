@@ -43,6 +43,7 @@ impl Queue {
         let ticket = tickets.next;
         tickets.next += 1;
         tickets.waiting.push_back(ticket);
+        cancel.queued();
         loop {
             if cancel.is_cancelled() {
                 tickets.waiting.retain(|&t| t != ticket);
@@ -130,6 +131,8 @@ pub struct CancelToken(Arc<TokenState>);
 #[derive(Default)]
 struct TokenState {
     cancelled: AtomicBool,
+    /// Whether a call under this token has taken a ticket in a line's queue.
+    queued: AtomicBool,
     /// The queues where calls under this token wait, to wake them when it is cancelled.
     watchers: Mutex<Vec<Weak<Queue>>>,
 }
@@ -152,6 +155,13 @@ impl CancelToken {
     /// Whether [`CancelToken::cancel`] was called.
     pub fn is_cancelled(&self) -> bool {
         self.0.cancelled.load(Ordering::SeqCst)
+    }
+
+    /// Whether a call made under this token has taken its place in a line's queue (its
+    /// first turn asked for): a caller that hands calls to several threads can let the
+    /// next one go only then, so that they reach the line in the order they were made.
+    pub fn has_queued(&self) -> bool {
+        self.0.queued.load(Ordering::SeqCst)
     }
 
     /// Puts the token in force for the calls this thread makes until the guard is dropped
@@ -228,6 +238,13 @@ impl Cancel {
     /// This thread's tokens in force.
     pub(crate) fn current() -> Cancel {
         Cancel(SCOPE.with(|scope| scope.borrow().clone()))
+    }
+
+    /// Marks the tokens: a call under them has taken a ticket.
+    fn queued(&self) {
+        for token in &self.0 {
+            token.0.queued.store(true, Ordering::SeqCst);
+        }
     }
 
     /// Whether any of the tokens was cancelled.

@@ -37,6 +37,13 @@ impl PyCancelToken {
         self.token.is_cancelled()
     }
 
+    /// Whether a call made under this token has taken its place in a Bus's queue for the
+    /// line (its first turn asked for).
+    #[getter]
+    fn queued(&self) -> bool {
+        self.token.has_queued()
+    }
+
     fn __enter__(slf: Bound<'_, Self>) -> Bound<'_, Self> {
         let entered = slf.get().token.enter();
         ENTERED.with(|blocks| blocks.borrow_mut().push(entered));
