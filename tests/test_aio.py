@@ -564,6 +564,10 @@ def test_drive_on_an_async_bus() -> None:
                 await drive.set("speed_setpoint", 1500)
                 assert await drive.get("speed_setpoint") == 1500
                 assert await drive.speed_setpoint == 1500  # a property, awaited
+                with pytest.raises(AttributeError, match=r"await device\.assign"):
+                    drive.comm_loss_timeout = 2.0
+                await drive.assign("comm_loss_timeout", 2.0)  # a setting, not a register
+                assert await drive.comm_loss_timeout == 2.0
                 await drive.forward()
                 telemetry = await drive.telemetry()
                 assert isinstance(telemetry, bb.DriveTelemetry)
@@ -576,9 +580,13 @@ def test_drive_on_an_async_bus() -> None:
                     drive.speed_setpoin  # noqa: B018
                 with pytest.raises(ValueError):
                     await drive.set("speed_setpoint", 99999)
+                await drive.assign("speed_setpoint", 1200)  # a register's property
+                assert await drive.get("speed_setpoint") == 1200
+                with pytest.raises(AttributeError, match="did you mean 'comm_loss_timeout'"):
+                    await drive.assign("comm_loss_timeuot", 1.0)
             assert device.commands == [1, 5]  # stopped on leaving
             assert not bus.closed  # the shared bus stays open
-            assert await bus.read_holding_registers(1, 0x2001, 1) == [1500]
+            assert await bus.read_holding_registers(1, 0x2001, 1) == [1200]
 
     run(main)
 

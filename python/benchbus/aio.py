@@ -699,11 +699,24 @@ class AsyncDevice(Generic[D]):
         return AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}{hint}")
 
     def __setattr__(self, name: str, value: Any) -> None:
-        """Refused: writing a register is ``await device.set(name, value)``."""
+        """Refused: writing a register is ``await device.set(name, value)``, and any other
+        setting ``await device.assign(name, value)``."""
         raise AttributeError(
             f"{type(self).__name__}.{name} cannot be set here: use "
-            f"`await device.set({name!r}, value)`"
+            f"`await device.set({name!r}, value)` for a register or "
+            f"`await device.assign({name!r}, value)`"
         )
+
+    async def assign(self, name: str, value: Any) -> None:
+        """Set the sync device's attribute ``name`` (a setting such as a drive's
+        ``comm_loss_timeout``, or a register's property) to ``value``, in the bus's threads:
+        ``device.name = value`` for asyncio."""
+        if name.startswith("_") or not inspect.isdatadescriptor(
+            inspect.getattr_static(type(self._sync), name, None)
+        ):
+            raise self._no_attribute(name)
+        sync = self._sync
+        await self._abus._run(setattr, sync, name, value)
 
     def __dir__(self) -> Iterable[str]:
         """The sync device's public names, and this object's."""
@@ -717,8 +730,8 @@ class AsyncDevice(Generic[D]):
     async def _leave(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the bus's threads (after what is queued, and whatever happens to
         the awaiting task), then end the threads if they are the device's."""
-        if self._abus._pool.closed:  # the port is closed too: nothing waits for the line
-            fn()
+        if self._abus._pool.closed:  # the bus is closing: a thread of its own, off the loop
+            await _unstoppable(asyncio.ensure_future(asyncio.to_thread(fn)))
             return
         done = self._abus._pool.submit(fn, cancellable=False)
         ended = self._abus._pool.close() if self._owns_pool else None
