@@ -1080,3 +1080,26 @@ def test_a_token_says_when_its_call_took_its_place_in_line(
             assert not token.queued
             bus.read_holding_registers(1, 0, 1)
         assert token.queued
+
+
+def test_closing_begun_on_one_event_loop_is_awaited_from_another(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """aclose() given up on a first loop (wait_for ran out while a call to a silent unit was
+    on the line) goes on, and another loop's aclose() waits for the same closing."""
+    sim.set_silent(2)
+    bus = aio.AsyncBus(sim.port, timeout=0.5, retries=0)
+
+    async def first() -> None:
+        call = asyncio.create_task(bus.read_holding_registers(2, 0, 1))
+        await asyncio.sleep(0.05)
+        with pytest.raises(asyncio.TimeoutError):
+            await asyncio.wait_for(bus.aclose(), 0.05)
+        call.cancel()
+
+    async def second() -> None:
+        await asyncio.wait_for(bus.aclose(), 3)
+
+    asyncio.run(first())
+    asyncio.run(second())
+    assert bus.closed

@@ -40,6 +40,7 @@ from __future__ import annotations
 
 import asyncio
 import collections
+import concurrent.futures
 import contextlib
 import difflib
 import functools
@@ -194,7 +195,8 @@ class _Pool:
         self._then: Callable[[], None] | None = None
         #: The call a thread took last: the next waits until it holds its place in line.
         self._last: _Call | None = None
-        self._ended: asyncio.Future[None] | None = None
+        #: Done once closing is: a future of no event loop, so that any loop may await it.
+        self._ended: concurrent.futures.Future[None] | None = None
 
     @property
     def closed(self) -> bool:
@@ -292,9 +294,11 @@ class _Pool:
             except BaseException as exc:
                 error = exc
         ended = self._ended
-        if ended is not None:
-            with contextlib.suppress(RuntimeError):
-                ended.get_loop().call_soon_threadsafe(_settle, ended, None, error)
+        if ended is not None and not ended.done():
+            if error is None:
+                ended.set_result(None)
+            else:
+                ended.set_exception(error)
 
     def close(self, then: Callable[[], None] | None = None) -> asyncio.Future[None]:
         """Refuse new calls; fail the queued ones that can be cancelled with PortError,
@@ -303,9 +307,9 @@ class _Pool:
         loop = asyncio.get_running_loop()
         with self._lock:
             if self._ended is not None:
-                return self._ended
+                return asyncio.wrap_future(self._ended, loop=loop)
             self._closed = True
-            self._ended = loop.create_future()
+            self._ended = concurrent.futures.Future()
             self._then = then
             dropped = [c for c in self._queue if c.cancellable]
             for call in dropped:
@@ -313,10 +317,15 @@ class _Pool:
             self._wake.notify_all()
             running = self._live > 0
         for call in dropped:
-            _settle(call.future, None, PortError(f"{self._name}: closed before it was sent"))
+            error = PortError(f"{self._name}: closed before it was sent")
+            if call.loop is loop:
+                _settle(call.future, None, error)
+            else:  # a call made on another event loop
+                with contextlib.suppress(RuntimeError):  # that loop is closed: nobody waits
+                    call.loop.call_soon_threadsafe(_settle, call.future, None, error)
         if not running:
             self._finish()
-        return self._ended
+        return asyncio.wrap_future(self._ended, loop=loop)
 
 
 # ---- the bus ----------------------------------------------------------------------------------
