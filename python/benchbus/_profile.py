@@ -60,6 +60,18 @@ class ProfileLimits(NamedTuple):
     block_reads: bool | None
 
 
+#: The whole numbers each integer type holds, exactly (a profile's ``min`` / ``max`` are
+#: floats, which cannot say 2**64 - 1).
+INTEGER_RANGES: dict[str, tuple[int, int]] = {
+    "u16": (0, 2**16 - 1),
+    "i16": (-(2**15), 2**15 - 1),
+    "u32": (0, 2**32 - 1),
+    "i32": (-(2**31), 2**31 - 1),
+    "u64": (0, 2**64 - 1),
+    "i64": (-(2**63), 2**63 - 1),
+}
+
+
 class ProfileRegister(NamedTuple):
     """One ``[[register]]`` of a profile, as the core checked it."""
 
@@ -97,6 +109,13 @@ class ProfileRegister(NamedTuple):
     description: str
     #: The line of its ``[[register]]`` header in the file.
     line: int
+
+    def integer_range(self) -> tuple[int, int] | None:
+        """The exact range of an unscaled integer register's type (its engineering values
+        are then whole numbers); None for a float, a scaled value, a bool or a string."""
+        if self.scale != 1.0 or self.offset != 0.0:
+            return None
+        return INTEGER_RANGES.get(self.type)
 
 
 #: The line of a device whose profile says nothing of it: 9600 8N1, 0.2 s.

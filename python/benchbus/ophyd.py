@@ -88,9 +88,6 @@ try:
 except ImportError as exc:  # the module imports without the extra; device() says so
     _MISSING = exc
 
-#: The register types that hold an integer.
-_INTEGER_TYPES = ("u16", "i16", "u32", "i32", "u64", "i64")
-
 
 class SpeedControl(NamedTuple):
     """How a drive family runs at a speed: the registers and the command that
@@ -257,12 +254,7 @@ def _needs_ophyd() -> None:
 
 def _whole(register: ProfileRegister) -> bool:
     """Whether a register's engineering value is an integer (unscaled, not an enum)."""
-    return (
-        register.type in _INTEGER_TYPES
-        and register.scale == 1.0
-        and register.offset == 0.0
-        and not register.enum
-    )
+    return register.integer_range() is not None and not register.enum
 
 
 def _member_key(name: str, taken: set[str]) -> str:

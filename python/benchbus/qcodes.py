@@ -39,16 +39,6 @@ try:
 except ImportError as exc:  # the module imports without the extra; instrument() says so
     _MISSING = exc
 
-#: Every value an integer type holds, exactly (a profile's range is a float: 2**64 - 1 is not).
-_INTEGERS = {
-    "u16": (0, 0xFFFF),
-    "i16": (-0x8000, 0x7FFF),
-    "u32": (0, 0xFFFF_FFFF),
-    "i32": (-0x8000_0000, 0x7FFF_FFFF),
-    "u64": (0, 0xFFFF_FFFF_FFFF_FFFF),
-    "i64": (-0x8000_0000_0000_0000, 0x7FFF_FFFF_FFFF_FFFF),
-}
-
 
 class RegisterDevice(Protocol):
     """What :func:`instrument` wraps: any benchbus device, with its register table as
@@ -125,8 +115,8 @@ if _MISSING is None:
             return Members(register.enum)
         low = -math.inf if register.min is None else register.min
         high = math.inf if register.max is None else register.max
-        whole = _INTEGERS.get(register.type)
-        if whole is not None and register.scale == 1.0 and register.offset == 0.0:
+        whole = register.integer_range()
+        if whole is not None:
             first = whole[0] if math.isinf(low) else max(math.ceil(low), whole[0])
             last = whole[1] if math.isinf(high) else min(math.floor(high), whole[1])
             return vals.Ints(first, last) if first < last else vals.Enum(first)
