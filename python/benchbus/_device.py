@@ -46,6 +46,7 @@ __all__ = [
     "add_note",
     "as_enum",
     "check_baudrate",
+    "did_you_mean",
     "on_line",
     "to_enum",
     "to_float",
@@ -255,14 +256,20 @@ def _annotations(klass: type) -> dict[str, Any]:
     return annotations if isinstance(annotations, dict) else {}
 
 
+def did_you_mean(name: str, known: Iterable[str]) -> str:
+    """``; did you mean 'a' or 'b'?`` naming up to three of ``known`` closest to ``name``
+    (letter case aside), or "" when none is close: what a typo's error message ends with."""
+    by_folded = {n.lower(): n for n in sorted(known)}
+    close = [by_folded[n] for n in difflib.get_close_matches(name.lower(), by_folded, n=3)]
+    return f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+
+
 def _unknown_attribute(device: object, name: str) -> AttributeError:
     """An AttributeError for setting ``name``, naming the closest known names."""
     known = {n for n in dir(type(device)) if not n.startswith("__")}
     known |= set(vars(device))
     known = {n for n in known if n.startswith("_") == name.startswith("_")} - {"_made"}
-    by_folded = {n.lower(): n for n in sorted(known)}
-    close = [by_folded[n] for n in difflib.get_close_matches(name.lower(), by_folded, n=3)]
-    hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+    hint = did_you_mean(name, known)
     error = AttributeError(
         f"{type(device).__name__!r} object has no attribute {name!r} to set{hint}"
     )

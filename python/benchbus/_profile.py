@@ -8,13 +8,12 @@ registers, the enums built from the profile, the repr and the context manager.
 
 from __future__ import annotations
 
-import difflib
 import functools
 import os
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from benchbus._core import Bus, Profile, ProfileCore
-from benchbus._device import BusDevice, LineDefaults, PrintableIntEnum, _declared
+from benchbus._device import BusDevice, LineDefaults, PrintableIntEnum, _declared, did_you_mean
 from benchbus._display import html_table
 
 if TYPE_CHECKING:
@@ -162,9 +161,7 @@ def known(profile: Profile, name: str) -> str:
     closest ones."""
     if name in profile:
         return name
-    names = [r.name for r in profile.registers]
-    close = difflib.get_close_matches(name, names, n=3)
-    hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+    hint = did_you_mean(name, (r.name for r in profile.registers))
     raise ValueError(f"{profile.name} has no register {name!r}{hint}")
 
 
@@ -332,8 +329,7 @@ class Device(ProfileCore, BusDevice):
         except RuntimeError:
             registers = []
         known = registers + [n for n in dir(type(self)) if not n.startswith("_")]
-        close = difflib.get_close_matches(name, known, n=3)
-        hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+        hint = did_you_mean(name, known)
         error = AttributeError(
             f"{type(self).__name__!r} object has no attribute {name!r}{to}{hint}"
         )

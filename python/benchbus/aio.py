@@ -42,7 +42,6 @@ import asyncio
 import collections
 import concurrent.futures
 import contextlib
-import difflib
 import functools
 import inspect
 import os
@@ -54,7 +53,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar, overload
 
 from benchbus import _core
 from benchbus._core import Bus, CancelToken, _Ticks
-from benchbus._device import BusDevice
+from benchbus._device import BusDevice, did_you_mean
 from benchbus._drive import Drive as _SyncDrive
 from benchbus._instrument import Instrument as _SyncInstrument
 from benchbus._j2 import J2Controller as _SyncJ2Controller
@@ -703,8 +702,7 @@ class AsyncDevice(Generic[D]):
     def _no_attribute(self, name: str) -> AttributeError:
         """An AttributeError for ``name``, naming the closest public names (nothing is
         read to find them)."""
-        close = difflib.get_close_matches(name, [n for n in dir(self) if n[:1] != "_"], n=3)
-        hint = f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+        hint = did_you_mean(name, (n for n in dir(self) if n[:1] != "_"))
         return AttributeError(f"{type(self).__name__!r} object has no attribute {name!r}{hint}")
 
     def __setattr__(self, name: str, value: Any) -> None:
