@@ -6,6 +6,7 @@ Each test is a plain function that runs its coroutine with ``asyncio.run`` (no p
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import inspect
 import os
 import select
@@ -667,26 +668,33 @@ asyncio.run(main(sys.argv[1]))
 """
 
 
+@contextlib.contextmanager
+def running(script: str, port: str) -> Iterator[subprocess.Popen[str]]:
+    """``script`` run on ``port`` in a process of its own, once it printed "running";
+    killed on leaving if it has not ended."""
+    proc = subprocess.Popen(
+        [sys.executable, "-c", script, port],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "PYTHONPATH": str(ROOT / "python")},
+    )
+    try:
+        assert proc.stdout is not None
+        assert select.select([proc.stdout], [], [], 20)[0], "the script did not start"
+        assert proc.stdout.readline() == "running\n"
+        yield proc
+    finally:
+        proc.kill()
+
+
 def test_ctrl_c_in_asyncio_run_stops_the_motor() -> None:
     device = DriveDevice()
-    with Simulator(device) as sim:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", CTRL_C, sim.port],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-            env={**os.environ, "PYTHONPATH": str(ROOT / "python")},
-        )
-        try:
-            assert proc.stdout is not None
-            assert select.select([proc.stdout], [], [], 20)[0], "the script did not start"
-            assert proc.stdout.readline() == "running\n"
-            proc.send_signal(signal.SIGINT)
-            _, err = proc.communicate(timeout=20)
-        finally:
-            proc.kill()
-        assert "KeyboardInterrupt" in err
-        assert device.commands == [1, 5]
+    with Simulator(device) as sim, running(CTRL_C, sim.port) as proc:
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=20)
+    assert "KeyboardInterrupt" in err
+    assert device.commands == [1, 5]
 
 
 def test_a_device_on_its_own_port_closes_it_and_its_threads() -> None:
@@ -1025,23 +1033,13 @@ asyncio.run(main(sys.argv[1]))
 def test_ctrl_c_while_the_stop_waits_behind_a_read_still_sends_the_stop() -> None:
     device = DriveDevice()
     with Simulator(device) as sim:
-        proc = subprocess.Popen(
-            [sys.executable, "-c", CANCELLED_WHILE_THE_STOP_WAITS, sim.port],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
-        try:
+        with running(CANCELLED_WHILE_THE_STOP_WAITS, sim.port) as proc:
             assert proc.stdout is not None
-            assert select.select([proc.stdout], [], [], 20)[0], "the script did not start"
-            assert proc.stdout.readline() == "running\n"
             sim.reply_delay = 0.8  # each read now holds the line for 0.8 s
             assert proc.stdout.readline() == "leaving\n"
             time.sleep(0.2)  # the stop is queued behind a read
             proc.send_signal(signal.SIGINT)
             proc.communicate(timeout=20)
-        finally:
-            proc.kill()
         deadline = time.monotonic() + 3
         while device.commands != [1, 5] and time.monotonic() < deadline:
             time.sleep(0.05)
