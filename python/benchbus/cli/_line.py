@@ -53,16 +53,20 @@ BUS_OPTIONS = {
 }
 
 
-def profile_of(args: argparse.Namespace) -> bb.Profile | None:
-    """The device profile ``--profile`` names, read and checked (None without one); its
-    mistake (file, line, key) or an unreadable file is a UsageError, before any port opens."""
-    path = opt(args, "profile")
-    if path is None:
-        return None
+def read_profile(path: str) -> bb.Profile:
+    """The device profile at ``path``, read and checked; its mistake (file, line, key) or an
+    unreadable file is a UsageError, before any port opens."""
     try:
         return bb.Profile(path)
     except (bb.ProfileError, OSError) as exc:
         raise UsageError(str(exc)) from None
+
+
+def profile_of(args: argparse.Namespace) -> bb.Profile | None:
+    """The device profile ``--profile`` names (None without one), as :func:`read_profile`
+    reads it."""
+    path = opt(args, "profile")
+    return None if path is None else read_profile(path)
 
 
 def profile_options(profile: bb.Profile) -> BusOptions:

@@ -39,14 +39,10 @@ def _kind(row: ProfileRegister) -> str:
 def check(path: str) -> int:
     """``benchbus profile check``: load ``path`` and print its table (a profile's mistake
     is a usage error: the file, its line and the key)."""
-    from benchbus import Profile
     from benchbus._profile import profile_line
-    from benchbus.exceptions import ProfileError
+    from benchbus.cli._line import read_profile
 
-    try:
-        profile = Profile(path)
-    except (ProfileError, OSError) as exc:
-        raise UsageError(str(exc)) from None
+    profile = read_profile(path)
     line = profile_line(profile)  # as the device opens its own port
     limits = profile.limits
     print(f"{profile.name}: {profile.description}".rstrip(": "))

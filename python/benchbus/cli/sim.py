@@ -42,14 +42,10 @@ def _profile_devices(
     """A :class:`~benchbus.sim.ProfileDevice` of the profile at ``path`` for each unit, with
     the ``--value`` assignments; and the profile as the core reads it. A mistake in the
     profile or the assignments is a usage error: nothing is served."""
-    from benchbus import Profile
-    from benchbus.exceptions import ProfileError
+    from benchbus.cli._line import read_profile
     from benchbus.sim import ProfileDevice
 
-    try:
-        profile = Profile(path)
-    except (ProfileError, OSError) as exc:
-        raise UsageError(str(exc)) from None
+    profile = read_profile(path)
     rows = {row.name: row for row in profile.registers}
     values: dict[str, bool | int | float | str] = {}
     for assignment in assignments:
