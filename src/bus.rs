@@ -1218,7 +1218,12 @@ impl Bus {
         };
         if let Some(until) = late {
             let mut scratch = [0u8; ascii::MAX_FRAME];
-            let wait = until.saturating_duration_since(Instant::now());
+            // The window was mostly waited out of turn, without the port: listen on it for
+            // at least an end-of-frame silence, which also meets a port lost meanwhile (a
+            // COM port whose far end hung up fails a read, not the stale-input check).
+            let wait = until
+                .saturating_duration_since(Instant::now())
+                .max(self.end_of_frame_silence());
             // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
             let mut n = self.read_within(transport, &mut scratch, wait)?;
             let mut dropped = 0;
