@@ -976,7 +976,21 @@ def targets(res: Results) -> list[dict[str, Any]]:
         ratio = m("j:", "asyncio / blocking client")
         judge("(j) asyncio / blocking Bus", ratio, ">= 0.97", ratio >= 0.97)
         own, peer = m("j:", "tx/s"), m("j:", "tx/s", "pymodbus")
-        judge("(j) asyncio reads [tx/s]", own, f">= pymodbus async ({fmt(peer)})", own >= peer)
+        early = "requests < t3.5 after a reply"
+        if m("j:", early, "pymodbus") == 0:
+            judge("(j) asyncio reads [tx/s]", own, f">= pymodbus async ({fmt(peer)})", own >= peer)
+        else:
+            # A rate bought by sending inside the silence a device needs to see the end of
+            # a frame is no goal: judged instead against the most that keeping t3.5 allows,
+            # as (a) is.
+            ratio = m("j:", "ratio to wire limit")
+            judge(
+                "(j) asyncio reads: ratio to the wire limit",
+                ratio,
+                f">= 0.97 (pymodbus async's {fmt(peer)} tx/s send inside t3.5)",
+                ratio >= 0.97,
+            )
+        judge(f"(j) {early}", m("j:", early), "0", m("j:", early) == 0)
     if any(k[0].startswith("k:") for k in res.figures):
         speedup = m("k:", "4 lines / 1 line")
         judge("(k) 4 lines / 1 line from asyncio tasks", speedup, ">= 3.5", speedup >= 3.5)
