@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from benchbus import _aio_members, aio
+from benchbus._device import _annotations
 
 __all__ = ["STUB", "StubError", "generate", "main"]
 
@@ -382,7 +383,7 @@ def _public_names(sync: type) -> list[str]:
     """The public names the async device of ``sync`` serves from it."""
     names = {n for n in dir(sync) if not n.startswith("_")}
     for klass in sync.__mro__:
-        names.update(n for n in vars(klass).get("__annotations__", {}) if not n.startswith("_"))
+        names.update(n for n in _annotations(klass) if not n.startswith("_"))
     return sorted(names)
 
 
