@@ -44,6 +44,7 @@ lint: install
 	$(PYTHON) -m ruff check python tests examples bench
 	$(PYTHON) -m ruff format --check python tests examples bench
 	$(PYTHON) -m mypy python/benchbus
+	$(PYTHON) -m benchbus._aio_stubgen --check
 	$(PYTHON) -m mypy.stubtest benchbus._core
 	$(PYTHON) -m check_jsonschema --builtin-schema vendor.github-workflows .github/workflows/*.yml
 

@@ -280,42 +280,44 @@ class Drive(DriveCore, MotorDevice):
         :meth:`get` and :meth:`set` take, with its unit, access and range."""
         return Profile.family("drive-c20" if self.family == "C20" else "drive")
 
-    speed_setpoint = RegisterProperty(
+    speed_setpoint: RegisterProperty[Drive, int] = RegisterProperty(
         "speed_setpoint", to_int, "Speed setpoint, rpm 0..3000 (0x2001)."
     )
-    pole_pairs = RegisterProperty(
+    pole_pairs: RegisterProperty[Drive, int] = RegisterProperty(
         "pole_pairs", to_int, "Motor pole pairs, 1..20 (0x2002; stopped only)."
     )
-    accel_time = RegisterProperty(
+    accel_time: RegisterProperty[Drive, float] = RegisterProperty(
         "accel_time", to_float, "Acceleration time, s 0.1..600.0 in steps of 0.1 (0x2003)."
     )
-    decel_time = RegisterProperty(
+    decel_time: RegisterProperty[Drive, float] = RegisterProperty(
         "decel_time", to_float, "Deceleration time, s 0.1..600.0 in steps of 0.1 (0x2004)."
     )
-    control_mode = RegisterProperty(
+    control_mode: RegisterProperty[Drive, ControlMode | C20ControlMode | int] = RegisterProperty(
         "control_mode",
         _control_mode,
         "Control mode (0x2005; stopped only): ControlMode, or C20ControlMode on a C20.",
     )
-    command_source = RegisterProperty(
+    command_source: RegisterProperty[Drive, CommandSource | int] = RegisterProperty(
         "command_source", to_enum(CommandSource), "Where run commands come from (0x2006)."
     )
-    speed_source = RegisterProperty(
+    speed_source: RegisterProperty[Drive, SpeedSource | int] = RegisterProperty(
         "speed_source", to_enum(SpeedSource), "Where the speed reference comes from (0x2007)."
     )
-    virtual_inputs = RegisterProperty(
+    virtual_inputs: RegisterProperty[Drive, int] = RegisterProperty(
         "virtual_inputs", to_int, "Virtual input terminal bits, 0..0x1FF (0x200A)."
     )
-    virtual_outputs = RegisterProperty(
+    virtual_outputs: RegisterProperty[Drive, int] = RegisterProperty(
         "virtual_outputs", to_int, "Virtual output terminal bits, 0..0x0F (0x200B)."
     )
-    stop_mode = RegisterProperty(
+    stop_mode: RegisterProperty[Drive, StopMode | int] = RegisterProperty(
         "stop_mode", to_enum(StopMode), "What stop() does, BLD only (0x2012): StopMode."
     )
-    speed = MeasuredProperty(
+    speed: MeasuredProperty[Drive, int] = MeasuredProperty(
         "speed", to_int, "Measured motor speed, rpm (0x3006); a magnitude in both directions."
     )
-    state = MeasuredProperty("state", to_enum(DriveState), "Status word 1 (0x2100).")
+    state: MeasuredProperty[Drive, DriveState | int] = MeasuredProperty(
+        "state", to_enum(DriveState), "Status word 1 (0x2100)."
+    )
 
     def __init__(
         self,

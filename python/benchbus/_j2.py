@@ -168,20 +168,36 @@ class J2Controller(J2Core, BusDevice):
         unit, access and range."""
         return Profile.family("j2")
 
-    pv = MeasuredProperty("PV", to_float, "Process value (PV), read-only.")
-    sv = RegisterProperty("SV", to_float, "Setpoint (SV), within LSP..USP.")
-    mv = RegisterProperty(
+    pv: MeasuredProperty[J2Controller, float] = MeasuredProperty(
+        "PV", to_float, "Process value (PV), read-only."
+    )
+    sv: RegisterProperty[J2Controller, float] = RegisterProperty(
+        "SV", to_float, "Setpoint (SV), within LSP..USP."
+    )
+    mv: RegisterProperty[J2Controller, float] = RegisterProperty(
         "MV",
         to_float,
         "The output (MV), percent. Setting it needs manual mode: in automatic mode it raises "
         ":class:`~benchbus.StateError` (see :meth:`set_output`).",
     )
-    alarm1 = RegisterProperty("AL1", to_float, "Alarm 1 value (AL1), -1999..3276.7.")
-    alarm2 = RegisterProperty("AL2", to_float, "Alarm 2 value (AL2), -1999..3276.7.")
-    pv_offset = RegisterProperty("PVOS", to_float, "Process value offset (PVOS), -50..50.")
-    mode = RegisterProperty("AM", to_enum(J2Mode), "Automatic or manual control (AM).")
-    input_type = RegisterProperty("INP", to_enum(InputType), "Input type (INP).")
-    decimal_point = RegisterProperty("DP", to_int, "Decimal places shown (DP), 0..3.")
+    alarm1: RegisterProperty[J2Controller, float] = RegisterProperty(
+        "AL1", to_float, "Alarm 1 value (AL1), -1999..3276.7."
+    )
+    alarm2: RegisterProperty[J2Controller, float] = RegisterProperty(
+        "AL2", to_float, "Alarm 2 value (AL2), -1999..3276.7."
+    )
+    pv_offset: RegisterProperty[J2Controller, float] = RegisterProperty(
+        "PVOS", to_float, "Process value offset (PVOS), -50..50."
+    )
+    mode: RegisterProperty[J2Controller, J2Mode | int] = RegisterProperty(
+        "AM", to_enum(J2Mode), "Automatic or manual control (AM)."
+    )
+    input_type: RegisterProperty[J2Controller, InputType | int] = RegisterProperty(
+        "INP", to_enum(InputType), "Input type (INP)."
+    )
+    decimal_point: RegisterProperty[J2Controller, int] = RegisterProperty(
+        "DP", to_int, "Decimal places shown (DP), 0..3."
+    )
 
     def __init__(
         self,

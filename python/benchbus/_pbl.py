@@ -150,35 +150,61 @@ class PblDrive(PblCore, MotorDevice):
         range."""
         return Profile.family("pbl")
 
-    control_mode = RegisterProperty("control_mode", to_enum(PblControlMode), "Mode (100).")
-    pole_pairs = RegisterProperty("pole_pairs", to_int, "Motor pole pairs (205).")
-    acceleration = RegisterProperty("acceleration", to_int, "Acceleration, rpm/s (209).")
-    deceleration = RegisterProperty("deceleration", to_int, "Deceleration, rpm/s (210).")
-    speed_setpoint = RegisterProperty(
+    control_mode: RegisterProperty[PblDrive, PblControlMode | int] = RegisterProperty(
+        "control_mode", to_enum(PblControlMode), "Mode (100)."
+    )
+    pole_pairs: RegisterProperty[PblDrive, int] = RegisterProperty(
+        "pole_pairs", to_int, "Motor pole pairs (205)."
+    )
+    acceleration: RegisterProperty[PblDrive, int] = RegisterProperty(
+        "acceleration", to_int, "Acceleration, rpm/s (209)."
+    )
+    deceleration: RegisterProperty[PblDrive, int] = RegisterProperty(
+        "deceleration", to_int, "Deceleration, rpm/s (210)."
+    )
+    speed_setpoint: RegisterProperty[PblDrive, int] = RegisterProperty(
         "internal_speed", to_int, "Speed setpoint: the internal speed, rpm (201)."
     )
-    speed_source = RegisterProperty("speed_source", to_int, "Speed command source (202).")
-    direction_setting = RegisterProperty(
+    speed_source: RegisterProperty[PblDrive, int] = RegisterProperty(
+        "speed_source", to_int, "Speed command source (202)."
+    )
+    direction_setting: RegisterProperty[PblDrive, DirectionSetting | int] = RegisterProperty(
         "direction_setting", to_enum(DirectionSetting), "Normal or inverted direction (203)."
     )
-    start_stop_source = RegisterProperty(
+    start_stop_source: RegisterProperty[PblDrive, StartStopSource | int] = RegisterProperty(
         "start_stop_source", to_enum(StartStopSource), "Where start/stop come from (204)."
     )
-    max_speed = RegisterProperty("max_speed", to_int, "Maximum speed, rpm (124).")
-    min_speed = RegisterProperty("min_speed", to_int, "Minimum speed, rpm (123).")
-    decel_mode = RegisterProperty("decel_mode", to_enum(DecelMode), "Natural or braking (114).")
-    analog_max_speed = RegisterProperty(
+    max_speed: RegisterProperty[PblDrive, int] = RegisterProperty(
+        "max_speed", to_int, "Maximum speed, rpm (124)."
+    )
+    min_speed: RegisterProperty[PblDrive, int] = RegisterProperty(
+        "min_speed", to_int, "Minimum speed, rpm (123)."
+    )
+    decel_mode: RegisterProperty[PblDrive, DecelMode | int] = RegisterProperty(
+        "decel_mode", to_enum(DecelMode), "Natural or braking (114)."
+    )
+    analog_max_speed: RegisterProperty[PblDrive, int] = RegisterProperty(
         "analog_max_speed", to_int, "Speed at the analog input's maximum, rpm (211)."
     )
 
-    speed = MeasuredProperty("speed", to_int, "Measured speed, rpm (50).")
-    bus_voltage = MeasuredProperty("bus_voltage", to_int, "DC bus voltage, V (51).")
-    analog_speed_input = MeasuredProperty(
+    speed: MeasuredProperty[PblDrive, int] = MeasuredProperty(
+        "speed", to_int, "Measured speed, rpm (50)."
+    )
+    bus_voltage: MeasuredProperty[PblDrive, int] = MeasuredProperty(
+        "bus_voltage", to_int, "DC bus voltage, V (51)."
+    )
+    analog_speed_input: MeasuredProperty[PblDrive, int] = MeasuredProperty(
         "analog_speed_input", to_int, "Analog speed input, mV (52)."
     )
-    current = MeasuredProperty("current", to_int, "Motor current, A (53).")
-    power = MeasuredProperty("power", to_int, "Motor power, W (54).")
-    hall_state = MeasuredProperty("hall_state", to_int, "Hall sensor state (6).")
+    current: MeasuredProperty[PblDrive, int] = MeasuredProperty(
+        "current", to_int, "Motor current, A (53)."
+    )
+    power: MeasuredProperty[PblDrive, int] = MeasuredProperty(
+        "power", to_int, "Motor power, W (54)."
+    )
+    hall_state: MeasuredProperty[PblDrive, int] = MeasuredProperty(
+        "hall_state", to_int, "Hall sensor state (6)."
+    )
 
     def __init__(
         self,

@@ -80,6 +80,14 @@ def test_every_module_compiles_and_imports_on_this_python() -> None:
         importlib.import_module(name)
 
 
+def test_the_type_information_ships() -> None:
+    """PEP 561: the marker, the compiled module's stub and the async devices' members."""
+    package = Path(bb.__file__).parent
+    for name in ("py.typed", "_core.pyi", "_aio_members.pyi"):
+        assert (package / name).is_file(), name
+    assert "class DriveMembers:" in (package / "_aio_members.pyi").read_text(encoding="utf-8")
+
+
 @pytest.mark.sim
 def test_the_simulators_import() -> None:
     names = modules("benchbus.sim")

@@ -1,0 +1,470 @@
+"""Writes ``_aio_members.pyi``: the types of the async devices' members, from the sync classes.
+
+::
+
+    python -m benchbus._aio_stubgen            # rewrite the stub
+    python -m benchbus._aio_stubgen --check    # exit 1 if it is out of date
+
+An async device (:mod:`benchbus.aio`) serves each member of its sync class through
+``AsyncDevice.__getattr__``; this module declares, for type checkers, what that gives, in
+the same order of rules:
+
+- a name in ``aio._LOCAL``, a staticmethod or a classmethod: as the sync class declares it;
+- a method: ``async def`` with the sync method's parameters and result;
+- anything else readable (a property, a register descriptor): a read-only property whose
+  value is a ``Coroutine`` of the sync value.
+
+The declarations are read from the source where they are written: the Python modules for
+the Python classes, ``_core.pyi`` for the compiled bases (annotations as written, each name
+imported from the module that defines it). A register descriptor is declared with its
+value type (``speed: MeasuredProperty[Drive, int] = ...``), which mypy checks against its
+converter. What cannot be typed this way raises :class:`StubError` rather than being left
+out. The result goes through ``ruff`` (imports sorted, formatted), so it needs the dev
+tools.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ast
+import builtins
+import copy
+import functools
+import inspect
+import subprocess
+import sys
+import textwrap
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from benchbus import _aio_members, aio
+from benchbus._device import _annotations
+
+__all__ = ["STUB", "StubError", "generate", "main"]
+
+#: The generated stub.
+STUB = Path(__file__).with_name("_aio_members.pyi")
+
+#: Where the compiled module's declarations are.
+_CORE_STUB = Path(__file__).with_name("_core.pyi")
+
+#: The decorators a declaration may have (anything else is refused).
+_DECORATORS = frozenset({"property", "staticmethod", "classmethod"})
+
+#: The longest docstring line a member's docstring keeps (the stub's lines are 100 at most,
+#: indented by 8 and quoted).
+_DOC_WIDTH = 88
+
+_HEADER = '''"""The members of the async devices (benchbus.aio), for type checkers.
+
+Generated from the sync classes by ``python -m benchbus._aio_stubgen``: do not edit.
+"""
+'''
+
+
+class StubError(Exception):
+    """A member of a sync class whose async type cannot be declared."""
+
+
+@dataclass(frozen=True)
+class _Source:
+    """A module's parsed declarations."""
+
+    name: str
+    tree: ast.Module
+    #: Names the module defines at its top level.
+    defined: frozenset[str]
+    #: Names it imports: ``{local name: (module, name in it or None for a module)}``.
+    imported: dict[str, tuple[str, str | None]]
+
+
+def _top_level(tree: ast.Module) -> list[ast.stmt]:
+    """The module's top-level statements, those under a top-level ``if`` included."""
+    out: list[ast.stmt] = []
+    todo = list(tree.body)
+    while todo:
+        stmt = todo.pop(0)
+        if isinstance(stmt, ast.If):
+            todo[:0] = [*stmt.body, *stmt.orelse]
+        else:
+            out.append(stmt)
+    return out
+
+
+@functools.cache
+def _source(module: str) -> _Source:
+    """The declarations of ``module`` (``benchbus._core``'s from its stub)."""
+    if module == "benchbus._core":
+        path = _CORE_STUB
+    else:
+        found = inspect.getsourcefile(sys.modules[module])
+        if found is None:
+            raise StubError(f"{module} has no source to read declarations from")
+        path = Path(found)
+    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    defined: set[str] = set()
+    imported: dict[str, tuple[str, str | None]] = {}
+    for stmt in _top_level(tree):
+        if isinstance(stmt, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
+            defined.add(stmt.name)
+        elif isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
+            defined.add(stmt.target.id)
+        elif isinstance(stmt, ast.Assign):
+            defined.update(t.id for t in stmt.targets if isinstance(t, ast.Name))
+        elif isinstance(stmt, ast.ImportFrom) and stmt.module and not stmt.level:
+            for alias in stmt.names:
+                imported[alias.asname or alias.name] = (stmt.module, alias.name)
+        elif isinstance(stmt, ast.Import):
+            for alias in stmt.names:
+                local = alias.asname or alias.name.partition(".")[0]
+                imported[local] = (alias.name if alias.asname else local, None)
+    return _Source(module, tree, frozenset(defined), imported)
+
+
+def _origin(module: str, name: str) -> tuple[str, str | None]:
+    """Where the name ``name`` used in ``module`` is defined: ``(module, name)``, or
+    ``(module, None)`` for a module; ``("builtins", name)`` for a builtin."""
+    source = _source(module)
+    if name in source.defined:
+        return module, name
+    if name in source.imported:
+        where, what = source.imported[name]
+        if what is not None and where.startswith("benchbus") and where != module:
+            return _origin(where, what)  # a name benchbus imports from elsewhere
+        return where, what
+    if hasattr(builtins, name):
+        return "builtins", name
+    raise StubError(f"{module}: cannot tell where {name!r} comes from")
+
+
+class _Imports:
+    """The imports a stub needs, by the name it uses."""
+
+    def __init__(self) -> None:
+        self._by_name: dict[str, tuple[str, str | None]] = {}
+
+    def need(self, local: str, where: tuple[str, str | None]) -> None:
+        """Import ``where`` as ``local``; StubError if ``local`` already names another."""
+        if where[0] == "builtins":
+            return
+        known = self._by_name.setdefault(local, where)
+        if known != where:
+            raise StubError(f"{local!r} would name both {known} and {where}")
+
+    def lines(self) -> list[str]:
+        """The import statements (ruff sorts them)."""
+        out = []
+        for local, (module, name) in sorted(self._by_name.items()):
+            if name is None:
+                out.append(f"import {module}" if module == local else f"import {module} as {local}")
+            elif name == local:
+                out.append(f"from {module} import {name}")
+            else:
+                out.append(f"from {module} import {name} as {local}")
+        return out
+
+
+def _annotation(node: ast.expr | None, module: str, imports: _Imports, what: str) -> ast.expr:
+    """``node`` as the stub writes it (a quoted annotation unquoted), its names imported."""
+    if node is None:
+        raise StubError(f"{what} has no annotation")
+    if isinstance(node, ast.Constant) and isinstance(node.value, str):
+        node = ast.parse(node.value, mode="eval").body
+    for sub in ast.walk(node):
+        if isinstance(sub, ast.Name):
+            if sub.id == "Self":
+                raise StubError(f"{what}: Self would mean the members' class")
+            imports.need(sub.id, _origin(module, sub.id))
+    return node
+
+
+def _default(node: ast.expr | None) -> ast.expr | None:
+    """A parameter's default as a stub shows it: a literal as written, else ``...``."""
+    if node is None:
+        return None
+    literal = node.operand if isinstance(node, ast.UnaryOp) else node
+    if isinstance(literal, ast.Constant) and len(repr(literal.value)) <= 40:
+        return node
+    return ast.Constant(Ellipsis)
+
+
+def _decorators(node: ast.FunctionDef) -> list[str]:
+    """The names of ``node``'s decorators; StubError for one the stub cannot repeat."""
+    names = []
+    for decorator in node.decorator_list:
+        if isinstance(decorator, ast.Name) and decorator.id in _DECORATORS:
+            names.append(decorator.id)
+        else:
+            raise StubError(f"{node.name}: cannot declare a {ast.unparse(decorator)} member")
+    return names
+
+
+def _is_setter(node: ast.stmt) -> bool:
+    """Whether ``node`` is a property's setter or deleter."""
+    return isinstance(node, ast.FunctionDef) and any(
+        isinstance(d, ast.Attribute) and d.attr in ("setter", "deleter")
+        for d in node.decorator_list
+    )
+
+
+def _members(stmts: list[ast.stmt]) -> dict[str, ast.stmt]:
+    """The declarations of a class body by name (under ``if`` blocks too)."""
+    found: dict[str, ast.stmt] = {}
+    todo = list(stmts)
+    while todo:
+        stmt = todo.pop(0)
+        if isinstance(stmt, ast.If):
+            todo[:0] = [*stmt.body, *stmt.orelse]
+        elif isinstance(stmt, ast.FunctionDef) and not _is_setter(stmt):
+            found.setdefault(stmt.name, stmt)
+        elif isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
+            found.setdefault(stmt.target.id, stmt)
+        elif isinstance(stmt, ast.Assign):
+            for target in stmt.targets:
+                if isinstance(target, ast.Name):
+                    found.setdefault(target.id, stmt)
+        elif isinstance(stmt, ast.AsyncFunctionDef):
+            raise StubError(f"{stmt.name}: a sync class has no coroutine methods")
+    return found
+
+
+def _class_body(klass: type) -> dict[str, ast.stmt]:
+    """The declarations of ``klass`` by name ({} for a builtin such as ``object``)."""
+    if klass.__module__ == "builtins":
+        return {}
+    source = _source(klass.__module__)
+    for stmt in _top_level(source.tree):
+        if isinstance(stmt, ast.ClassDef) and stmt.name == klass.__qualname__:
+            return _members(stmt.body)
+    raise StubError(f"no declaration of {klass.__qualname__} in {klass.__module__}")
+
+
+def _declaration(sync: type, name: str, *, typed: bool = False) -> tuple[type, ast.stmt]:
+    """The class of ``sync``'s MRO that declares ``name`` first, and its declaration (with
+    ``typed``, the first one that gives it an annotation)."""
+    for klass in sync.__mro__:
+        node = _class_body(klass).get(name)
+        if node is not None and (not typed or not isinstance(node, ast.Assign)):
+            return klass, node
+    raise StubError(f"{sync.__name__}.{name}: no declaration found")
+
+
+def _body(doc: str | None) -> list[ast.stmt]:
+    """A stub's body: the docstring, or ``...``."""
+    return [ast.Expr(ast.Constant(doc if doc else Ellipsis))]
+
+
+def _function(
+    node: ast.FunctionDef,
+    module: str,
+    imports: _Imports,
+    doc: str | None,
+    *,
+    is_async: bool,
+    returns: ast.expr | None = None,
+) -> ast.stmt:
+    """``node`` as a stub declaration: its parameters with their annotations, its result
+    (or ``returns``), ``async`` if asked, its decorators."""
+    what = f"{module}.{node.name}"
+    args = copy.deepcopy(node.args)
+    for arg in [*args.posonlyargs, *args.args, *args.kwonlyargs, args.vararg, args.kwarg]:
+        if arg is not None and arg.annotation is not None:
+            arg.annotation = _annotation(arg.annotation, module, imports, what)
+    args.defaults = [d for d in map(_default, args.defaults) if d is not None]
+    args.kw_defaults = [_default(d) for d in args.kw_defaults]
+    fields: dict[str, Any] = {
+        "name": node.name,
+        "args": args,
+        "body": _body(doc),
+        "decorator_list": [ast.Name(d) for d in _decorators(node)],
+        "returns": returns or _annotation(node.returns, module, imports, what),
+    }
+    kind = ast.AsyncFunctionDef if is_async else ast.FunctionDef
+    if "type_params" in kind._fields:
+        fields["type_params"] = []
+    return kind(**fields)
+
+
+def _value_type(node: ast.stmt, module: str, imports: _Imports, what: str) -> ast.expr:
+    """The type a readable member gives: a property's result, or a descriptor's value
+    (``Descriptor[Owner, T]``: T)."""
+    if isinstance(node, ast.FunctionDef) and "property" in _decorators(node):
+        return _annotation(node.returns, module, imports, what)
+    if isinstance(node, ast.AnnAssign):
+        annotation = node.annotation
+        if isinstance(annotation, ast.Subscript) and isinstance(annotation.slice, ast.Tuple):
+            return _annotation(annotation.slice.elts[-1], module, imports, what)
+        return _annotation(annotation, module, imports, what)
+    raise StubError(f"{what}: declare it with its type (name: Descriptor[Owner, T] = ...)")
+
+
+def _property(name: str, returns: ast.expr, doc: str | None) -> ast.stmt:
+    """A read-only property declaration."""
+    fields: dict[str, Any] = {
+        "name": name,
+        "args": ast.arguments(
+            posonlyargs=[], args=[ast.arg("self")], kwonlyargs=[], kw_defaults=[], defaults=[]
+        ),
+        "body": _body(doc),
+        "decorator_list": [ast.Name("property")],
+        "returns": returns,
+    }
+    if "type_params" in ast.FunctionDef._fields:
+        fields["type_params"] = []
+    return ast.FunctionDef(**fields)
+
+
+def _doc(sync: type, name: str) -> str | None:
+    """The member's docstring, as ``help()`` shows it on the sync class."""
+    found = inspect.getattr_static(sync, name, None)
+    if isinstance(found, (staticmethod, classmethod)):
+        found = found.__func__
+    if found is None or not (inspect.isroutine(found) or inspect.isdatadescriptor(found)):
+        return None
+    doc = found.__doc__
+    if not isinstance(doc, str) or not doc.strip():
+        return None
+    # A line too long for the stub (a docstring built of joined strings) is wrapped.
+    return "\n".join(
+        textwrap.fill(line, _DOC_WIDTH, subsequent_indent=line[: len(line) - len(line.lstrip())])
+        if len(line) > _DOC_WIDTH
+        else line
+        for line in inspect.cleandoc(doc).splitlines()
+    )
+
+
+def _member(sync: type, name: str, imports: _Imports) -> ast.stmt:
+    """The declaration of ``name`` on the async device of ``sync``: the rules of
+    ``AsyncDevice.__getattr__``."""
+    what = f"{sync.__name__}.{name}"
+    found = inspect.getattr_static(sync, name, None)
+    klass, node = _declaration(sync, name)
+    module = klass.__module__
+    doc = _doc(sync, name)
+    if name in aio._LOCAL or isinstance(found, (staticmethod, classmethod)):
+        if isinstance(node, ast.FunctionDef):
+            if "property" in _decorators(node):
+                return _property(name, _value_type(node, module, imports, what), doc)
+            return _function(node, module, imports, doc, is_async=False)
+        return _attribute(sync, name, imports)
+    if found is None:
+        raise StubError(f"{what} is neither in the class nor local")
+    if inspect.isroutine(found):
+        if not isinstance(node, ast.FunctionDef) or _decorators(node):
+            raise StubError(f"{what}: a method declared as {ast.dump(node)[:60]}")
+        return _function(node, module, imports, doc, is_async=True)
+    value = _value_type(node, module, imports, what)
+    imports.need("Coroutine", ("collections.abc", "Coroutine"))
+    imports.need("Any", ("typing", "Any"))
+    coroutine = ast.parse(f"Coroutine[Any, Any, {ast.unparse(value)}]", mode="eval").body
+    return _property(name, coroutine, doc)
+
+
+def _attribute(sync: type, name: str, imports: _Imports) -> ast.stmt:
+    """A data attribute read as it is: its annotation in the first class that has one,
+    else the type of its value."""
+    what = f"{sync.__name__}.{name}"
+    try:
+        klass, node = _declaration(sync, name, typed=True)
+    except StubError:
+        value = inspect.getattr_static(sync, name)
+        kind = type(value)
+        imports.need(kind.__qualname__, (kind.__module__, kind.__qualname__))
+        annotation: ast.expr = ast.Name(kind.__qualname__)
+    else:
+        if not isinstance(node, ast.AnnAssign):
+            raise StubError(f"{what}: not a data attribute")
+        annotation = _annotation(node.annotation, klass.__module__, imports, what)
+    return ast.AnnAssign(ast.Name(name), annotation, None, simple=1)
+
+
+def _public_names(sync: type) -> list[str]:
+    """The public names the async device of ``sync`` serves from it."""
+    names = {n for n in dir(sync) if not n.startswith("_")}
+    for klass in sync.__mro__:
+        names.update(n for n in _annotations(klass) if not n.startswith("_"))
+    return sorted(names)
+
+
+def _classes() -> list[tuple[str, type[aio.AsyncDevice[Any]]]]:
+    """Each members class's name and the async device class it is for."""
+    out = []
+    for members in _aio_members.__all__:
+        device = getattr(aio, members.removesuffix("Members"))
+        if members not in {k.__name__ for k in device.__mro__}:
+            raise StubError(f"aio.{device.__name__} does not inherit {members}")
+        out.append((members, device))
+    return out
+
+
+def _ruff(text: str, *args: str) -> str:
+    """``text`` through ``ruff <args>`` (the project's settings apply)."""
+    done = subprocess.run(
+        [sys.executable, "-m", "ruff", *args, "--stdin-filename", str(STUB), "-"],
+        input=text,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    if done.returncode != 0:
+        raise StubError(f"ruff {' '.join(args)}: {done.stderr.strip() or done.stdout.strip()}")
+    return done.stdout
+
+
+def generate() -> str:
+    """The text of ``_aio_members.pyi`` for the sync classes as they are now."""
+    _source.cache_clear()  # read the sources as they are now
+    imports = _Imports()
+    classes = []
+    for members, device in _classes():
+        own = set(dir(device))  # what the async class itself defines, or its base
+        body: list[ast.stmt] = [
+            ast.Expr(ast.Constant(inspect.getdoc(getattr(_aio_members, members))))
+        ]
+        for name in _public_names(device.SYNC):
+            if name not in own:
+                body.append(_member(device.SYNC, name, imports))
+        fields: dict[str, Any] = {
+            "name": members,
+            "bases": [],
+            "keywords": [],
+            "body": body,
+            "decorator_list": [],
+        }
+        if "type_params" in ast.ClassDef._fields:
+            fields["type_params"] = []
+        tree = ast.Module(body=[ast.ClassDef(**fields)], type_ignores=[])
+        classes.append(ast.unparse(ast.fix_missing_locations(tree)))
+    all_names = "".join(f"    {m!r},\n" for m, _ in _classes())
+    text = "\n".join(
+        [
+            _HEADER,
+            *imports.lines(),
+            "",
+            f"__all__ = [\n{all_names}]",
+            "",
+            *("\n" + c + "\n" for c in classes),
+        ]
+    )
+    text = _ruff(text, "check", "--fix", "--select", "I", "--quiet", "--exit-zero")
+    return _ruff(text, "format", "--quiet")
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Write the stub, or with ``--check`` say whether it is up to date (exit 1 if not)."""
+    parser = argparse.ArgumentParser(prog="python -m benchbus._aio_stubgen")
+    parser.add_argument("--check", action="store_true", help="only compare, write nothing")
+    options = parser.parse_args(argv)
+    text = generate()
+    if options.check:
+        if STUB.read_text(encoding="utf-8") != text:
+            print(f"{STUB} is out of date: run python -m benchbus._aio_stubgen", file=sys.stderr)
+            return 1
+        return 0
+    STUB.write_text(text, encoding="utf-8")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

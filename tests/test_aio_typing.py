@@ -1,0 +1,351 @@
+"""The async devices' members are typed one by one (``_aio_members.pyi``), generated from
+the sync classes: the stub is up to date, declares what ``AsyncDevice.__getattr__`` serves
+with the kind it serves it as, and mypy accepts the right uses and refuses the wrong ones.
+"""
+
+from __future__ import annotations
+
+import ast
+import asyncio
+import inspect
+import re
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from mypy import api
+
+from benchbus import _aio_stubgen, aio
+from benchbus._device import RegisterProperty, to_int
+from benchbus._drive import Drive
+from benchbus.sim import DriveDevice, J2Device, PblDevice, ProfileDevice, Simulator, TaisongDevice
+
+ROOT = Path(__file__).resolve().parent.parent
+PROFILE = ROOT / "examples" / "profiles" / "xy_md02.toml"
+
+
+class GrownDrive(Drive):
+    """A drive class that gained a method and a property since the stub was made."""
+
+    def spin_up(self, rpm: float, *, within: float = 2.0) -> int:
+        """Start and wait for ``rpm``."""
+        return 0
+
+    @property
+    def spin(self) -> bool:
+        """Whether it turns."""
+        return True
+
+
+class UntypedDrive(Drive):
+    """A drive class with a register property declared without its value type."""
+
+    extra = RegisterProperty("speed_setpoint", to_int, "The setpoint again.")
+
+
+# ---- the stub is the generator's output ---------------------------------------------------------
+
+
+def test_the_checked_in_stub_is_what_the_generator_writes() -> None:
+    assert _aio_stubgen.STUB.read_text(encoding="utf-8") == _aio_stubgen.generate()
+    assert _aio_stubgen.main(["--check"]) == 0
+
+
+def test_a_sync_class_that_gains_members_makes_the_stub_out_of_date(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    monkeypatch.setattr(aio.Drive, "SYNC", GrownDrive)
+    text = _aio_stubgen.generate()
+    assert text != _aio_stubgen.STUB.read_text(encoding="utf-8")
+    assert "async def spin_up(self, rpm: float, *, within: float = 2.0) -> int:" in text
+    assert "def spin(self) -> Coroutine[Any, Any, bool]:" in text
+    assert _aio_stubgen.main(["--check"]) == 1
+    assert "out of date" in capsys.readouterr().err
+
+
+def test_a_member_that_cannot_be_typed_stops_the_generator(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    monkeypatch.setattr(aio.Drive, "SYNC", UntypedDrive)
+    with pytest.raises(_aio_stubgen.StubError, match=r"extra: declare it with its type"):
+        _aio_stubgen.generate()
+
+
+# ---- the stub declares what the devices serve ---------------------------------------------------
+
+
+def stub_members() -> dict[str, dict[str, ast.stmt]]:
+    """Each members class of the stub: its declarations by name."""
+    tree = ast.parse(_aio_stubgen.STUB.read_text(encoding="utf-8"))
+    classes = {}
+    for node in tree.body:
+        if isinstance(node, ast.ClassDef):
+            members: dict[str, ast.stmt] = {}
+            for stmt in node.body:
+                if isinstance(stmt, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                    members[stmt.name] = stmt
+                elif isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
+                    members[stmt.target.id] = stmt
+            classes[node.name] = members
+    return classes
+
+
+def kind(node: ast.stmt) -> str:
+    """How the stub declares a member: "coroutine function", "awaitable", "property",
+    "method", "staticmethod" or "attribute"."""
+    if isinstance(node, ast.AsyncFunctionDef):
+        return "coroutine function"
+    if isinstance(node, ast.AnnAssign):
+        return "attribute"
+    assert isinstance(node, ast.FunctionDef)
+    decorators = [ast.unparse(d) for d in node.decorator_list]
+    if decorators == ["property"]:
+        assert node.returns is not None
+        returns = ast.unparse(node.returns)
+        return "awaitable" if returns.startswith("Coroutine[Any, Any, ") else "property"
+    if decorators == ["staticmethod"]:
+        return "staticmethod"
+    assert decorators == [], decorators
+    return "method"
+
+
+def served_kind(value: Any, sync: object) -> str:
+    """What the async device gave for a member, told apart the same way (``sync``: its
+    sync device)."""
+    if inspect.iscoroutine(value):
+        value.close()  # never awaited: nothing was sent
+        return "awaitable"
+    if inspect.iscoroutinefunction(value):
+        return "coroutine function"
+    if getattr(value, "__self__", None) is sync:  # a method of the sync device, bound
+        return "method"
+    if inspect.isroutine(value):
+        return "staticmethod"
+    return "property or attribute"
+
+
+def parameters(node: ast.stmt) -> list[str]:
+    """The stub's parameter names and kinds, ``self`` left out."""
+    assert isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef))
+    args = node.args
+    names = [a.arg for a in [*args.posonlyargs, *args.args]]
+    if names[:1] == ["self"]:
+        names = names[1:]
+    names += [f"*{args.vararg.arg}"] if args.vararg else []
+    names += [f"kw:{a.arg}" for a in args.kwonlyargs]
+    names += [f"**{args.kwarg.arg}"] if args.kwarg else []
+    return names
+
+
+def runtime_parameters(value: Any) -> list[str]:
+    """The same of what the device serves (its signature is the sync method's)."""
+    out = []
+    for p in inspect.signature(value).parameters.values():
+        if p.kind is p.VAR_POSITIONAL:
+            out.append(f"*{p.name}")
+        elif p.kind is p.KEYWORD_ONLY:
+            out.append(f"kw:{p.name}")
+        elif p.kind is p.VAR_KEYWORD:
+            out.append(f"**{p.name}")
+        else:
+            out.append(p.name)
+    # A compiled method whose text signature says "self" rather than "$self" shows it.
+    return out[1:] if out[:1] == ["self"] else out
+
+
+@pytest.fixture
+def sims() -> Iterator[dict[str, tuple[Simulator[Any], int]]]:
+    """A simulator of each family: {members class: (simulator, unit)}."""
+    with (
+        Simulator({1: DriveDevice()}) as drive,
+        Simulator({0x11: PblDevice()}, baudrate=115200) as pbl,
+        Simulator({1: J2Device()}, baudrate=9600) as j2,
+        Simulator({1: TaisongDevice()}, baudrate=9600) as meter,
+        Simulator({1: ProfileDevice(PROFILE)}, baudrate=9600) as sensor,
+    ):
+        yield {
+            "DriveMembers": (drive, 1),
+            "PblDriveMembers": (pbl, 0x11),
+            "J2ControllerMembers": (j2, 1),
+            "InstrumentMembers": (meter, 1),
+            "DeviceMembers": (sensor, 1),
+        }
+
+
+def make(cls: type[aio.AsyncDevice[Any]], bus: aio.AsyncBus, unit: int) -> Any:
+    """An async device of ``cls`` (or of a class with the same SYNC) on ``bus``."""
+    if cls.SYNC is aio.Device.SYNC:
+        return cls(PROFILE, bus, unit)
+    return cls(bus, unit)
+
+
+def async_class(members: str) -> type[aio.AsyncDevice[Any]]:
+    """The async device class ``members`` types."""
+    cls: type[aio.AsyncDevice[Any]] = getattr(aio, members.removesuffix("Members"))
+    return cls
+
+
+def test_every_served_member_is_in_the_stub_as_the_kind_it_is_served_as(
+    sims: dict[str, tuple[Simulator[Any], int]],
+) -> None:
+    stub = stub_members()
+    assert set(stub) == set(sims)
+
+    async def main() -> None:
+        for members, (sim, unit) in sims.items():
+            async with aio.AsyncBus(sim.port) as bus:
+                device = make(async_class(members), bus, unit)
+                declared = stub[members]
+                served = {n for n in dir(device) if not n.startswith("_")}
+                served -= set(dir(type(device)))  # what the async class itself has
+                if members == "DeviceMembers":  # the registers stay dynamic
+                    served -= {r.name for r in device.sync.profile.registers}
+                assert set(declared) == served, members
+                for name, node in declared.items():
+                    value = getattr(device, name)
+                    want = kind(node)
+                    got = served_kind(value, device.sync)
+                    if want in ("property", "attribute"):
+                        assert got == "property or attribute", (members, name)
+                    else:
+                        assert got == want, (members, name)
+                    if want in ("coroutine function", "method", "staticmethod"):
+                        assert parameters(node) == runtime_parameters(value), (members, name)
+                assert sim.requests == []  # nothing was sent
+
+    asyncio.run(main())
+
+
+def test_the_members_classes_change_nothing_at_run_time(
+    sims: dict[str, tuple[Simulator[Any], int]],
+) -> None:
+    async def main() -> None:
+        for members, (sim, unit) in sims.items():
+            cls = async_class(members)
+            base = getattr(_aio_stubgen._aio_members, members)
+            assert cls.__mro__[1] is aio.AsyncDevice and base in cls.__mro__
+            assert set(vars(base)) <= {
+                "__module__",
+                "__qualname__",
+                "__doc__",
+                "__dict__",
+                "__weakref__",
+                "__firstlineno__",
+                "__static_attributes__",
+            }
+            bare = type("Bare", (aio.AsyncDevice,), {"SYNC": cls.SYNC})
+            async with aio.AsyncBus(sim.port) as bus:
+                typed, untyped = make(cls, bus, unit), make(bare, bus, unit)
+                assert dir(typed) == dir(untyped), members
+                for name in dir(untyped):
+                    if not name.startswith("_"):
+                        one, other = getattr(typed, name), getattr(untyped, name)
+                        assert served_kind(one, typed.sync) == served_kind(other, untyped.sync), (
+                            name
+                        )
+
+    asyncio.run(main())
+
+
+# ---- mypy --------------------------------------------------------------------------------------
+
+#: Each line marked ``# E: text`` must give a mypy error containing the text, and no other
+#: line any error; ``# N: text`` the same for a note (reveal_type).
+SNIPPET = """\
+import benchbus as bb
+from benchbus import aio
+
+
+async def uses(line: aio.AsyncBus) -> None:
+    drive = aio.Drive(line, unit=1)
+    await drive.set("speed_setpoint", 1500)
+    await drive.forward()
+    speed: int = await drive.speed
+    setpoint: int = await drive.get("speed_setpoint")  # E: (expression has type "int | float"
+    reveal_type(await drive.telemetry())  # N: Revealed type is "benchbus._drive.DriveTelemetry"
+    reveal_type(await drive.state)  # N: Revealed type is "benchbus._drive.DriveState | int"
+    reveal_type(await drive.wait_for_speed(1500, tolerance=20))  # N: Revealed type is "int"
+    unit: int = drive.unit
+    family: str = drive.family
+    commands: list[tuple[str, int]] = drive.commands()
+    units: dict[str, str] = drive.units()
+    await drive.forwardd()  # E: "Drive" has no attribute "forwardd"
+    name: str = await drive.speed  # E: expression has type "int", variable has type "str"
+    await drive.set("speed_setpoint", "x")  # E: "set" of "DriveMembers" has incompatible type "str"
+    await drive.wait_for_speed(1500, tolerence=20)  # E: argument "tolerence" for "wait_for_speed"
+    late: int = drive.speed  # E: (expression has type "Coroutine[Any, Any, int]"
+    drive.forward()  # E: Value of type "Coroutine[Any, Any, None]" must be used
+    await drive.unit  # E: Incompatible types in "await" (actual type "int"
+
+    pbl = aio.PblDrive(line, unit=0x11)
+    await pbl.start()
+    reveal_type(await pbl.direction)  # N: Revealed type is "benchbus._pbl.Direction"
+    j2 = aio.J2Controller(line)
+    reveal_type(await j2.pid)  # N: "tuple[float, float, float, fallback=benchbus._j2.Pid]"
+    await j2.set_output(20.0, switch_to_manual=True)
+    meter = aio.Instrument(line)
+    reveal_type(await meter.read_float(0x000C, function=4))  # N: Revealed type is "float"
+    await meter.read_float(12, function=5)  # E: has incompatible type "Literal[5]"; expected
+    max_read: int = meter.max_read
+    dev = aio.Device.from_profile("meter.toml", line)
+    reveal_type(await dev.temperature)  # N: Revealed type is "Any"
+    reveal_type(await dev.read_many(["temperature"]))  # N: Revealed type is "dict[str, Any]"
+    sync: bb.Drive = drive.sync
+"""
+
+
+def expected(snippet: str) -> dict[tuple[int, str], list[str]]:
+    """``{(line, "error" or "note"): [texts]}`` from the snippet's marks."""
+    out: dict[tuple[int, str], list[str]] = {}
+    for number, line in enumerate(snippet.splitlines(), start=1):
+        mark = re.search(r"  # ([EN]): (.*)$", line)
+        if mark:
+            severity = "error" if mark.group(1) == "E" else "note"
+            out.setdefault((number, severity), []).append(mark.group(2))
+    return out
+
+
+def test_mypy_accepts_the_right_uses_and_names_the_wrong_ones(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = tmp_path / "uses.py"
+    path.write_text(SNIPPET, encoding="utf-8")
+    # This checkout's package, whatever the environment has installed.
+    monkeypatch.setenv("MYPYPATH", str(ROOT / "python"))
+    monkeypatch.chdir(tmp_path)  # no configuration file but the flags below
+    started = time.monotonic()
+    stdout, stderr, status = api.run(
+        [
+            "--strict",
+            "--python-version",
+            "3.10",
+            "--cache-dir",
+            str(tmp_path / "cache"),
+            "--show-error-codes",
+            "--no-pretty",
+            "--no-error-summary",
+            str(path),
+        ]
+    )
+    took = time.monotonic() - started
+    assert stderr == ""
+    found: dict[tuple[int, str], list[str]] = {}
+    for line in stdout.splitlines():
+        where = re.match(r".*uses\.py:(\d+): (error|note): (.*)$", line)
+        assert where, line
+        # Older mypy names builtins in full ("builtins.int").
+        text = where.group(3).replace("builtins.", "")
+        found.setdefault((int(where.group(1)), where.group(2)), []).append(text)
+    want = expected(SNIPPET)
+    errors = {key for key in found if key[1] == "error"}
+    assert errors == {key for key in want if key[1] == "error"}, stdout
+    # A note is a revealed type where one is asked, or a hint beside an error.
+    for line, severity in found:
+        assert severity == "error" or (line, "note") in want or (line, "error") in want, stdout
+    for key, texts in want.items():
+        for text in texts:
+            assert any(text in message for message in found.get(key, [])), (key, text, stdout)
+    assert status == 1  # the errors above, and only those
+    print(f"mypy took {took:.1f} s")
