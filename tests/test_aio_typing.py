@@ -151,8 +151,7 @@ def runtime_parameters(value: Any) -> list[str]:
             out.append(f"**{p.name}")
         else:
             out.append(p.name)
-    # A compiled method whose text signature says "self" rather than "$self" shows it.
-    return out[1:] if out[:1] == ["self"] else out
+    return out
 
 
 @pytest.fixture

@@ -238,3 +238,21 @@ def test_a_device_whose_init_did_not_run_says_so_and_is_attached_once(
             device.__init__(bus, 4)  # type: ignore[misc]
         assert device.unit == 3
     assert nothing_sent(slave)
+
+
+def test_compiled_methods_do_not_show_self_as_a_parameter() -> None:
+    """A bound compiled method's signature lists only what the caller passes: its text
+    signature marks the instance as ``$self`` (a plain ``self`` shows up as a parameter,
+    in ``help()`` and in the async devices built from the same signatures)."""
+    from benchbus import _core
+
+    meter = bb.Instrument.__new__(bb.Instrument)
+    for cls in vars(_core).values():
+        if not isinstance(cls, type):
+            continue
+        for name, member in vars(cls).items():
+            text = getattr(member, "__text_signature__", None)
+            if text is None or name.startswith("__"):
+                continue
+            assert not text.startswith("(self"), f"{cls.__name__}.{name}: {text}"
+    assert "self" not in inspect.signature(meter.read_long).parameters

@@ -311,7 +311,7 @@ impl PyInstrumentCore {
     /// holding register (3).
     #[pyo3(
         signature = (address, decimals=None, signed=false, *, function=None),
-        text_signature = "(self, address, decimals=0, signed=False, *, function=3)"
+        text_signature = "($self, address, decimals=0, signed=False, *, function=3)"
     )]
     fn read_register<'py>(
         &self,
@@ -339,7 +339,7 @@ impl PyInstrumentCore {
     /// anything is sent.
     #[pyo3(
         signature = (address, value, decimals=None, signed=false, *, function=None),
-        text_signature = "(self, address, value, decimals=0, signed=False, *, function=6)"
+        text_signature = "($self, address, value, decimals=0, signed=False, *, function=6)"
     )]
     fn write_register(
         &self,
@@ -361,7 +361,7 @@ impl PyInstrumentCore {
 
     /// ``count`` raw registers from ``address``, in requests of at most ``max_read``
     /// (``function=4``: input registers).
-    #[pyo3(signature = (address, count, *, function=None), text_signature = "(self, address, count, *, function=3)")]
+    #[pyo3(signature = (address, count, *, function=None), text_signature = "($self, address, count, *, function=3)")]
     fn read_registers(
         &self,
         py: Python<'_>,
@@ -459,7 +459,7 @@ impl PyInstrumentCore {
     /// (which byte of each register first), each "big" (most significant first) or "little".
     #[pyo3(
         signature = (address, signed=false, word_order=None, *, byte_order=None, bits=None, function=None),
-        text_signature = "(self, address, signed=False, word_order='big', *, byte_order='big', bits=32, function=3)"
+        text_signature = "($self, address, signed=False, word_order='big', *, byte_order='big', bits=32, function=3)"
     )]
     #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn read_long<'py>(
@@ -490,7 +490,7 @@ impl PyInstrumentCore {
     /// :meth:`read_long` reads it, in one request (more if ``max_write`` is smaller).
     #[pyo3(
         signature = (address, value, signed=false, word_order=None, *, byte_order=None, bits=None),
-        text_signature = "(self, address, value, signed=False, word_order='big', *, byte_order='big', bits=32)"
+        text_signature = "($self, address, value, signed=False, word_order='big', *, byte_order='big', bits=32)"
     )]
     #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn write_long(
@@ -515,7 +515,7 @@ impl PyInstrumentCore {
     /// out as :meth:`read_long` reads an integer.
     #[pyo3(
         signature = (address, word_order=None, *, byte_order=None, bits=None, function=None),
-        text_signature = "(self, address, word_order='big', *, byte_order='big', bits=32, function=3)"
+        text_signature = "($self, address, word_order='big', *, byte_order='big', bits=32, function=3)"
     )]
     fn read_float(
         &self,
@@ -538,7 +538,7 @@ impl PyInstrumentCore {
     /// infinities and, in 32 bits, numbers beyond a single's range are refused).
     #[pyo3(
         signature = (address, value, word_order=None, *, byte_order=None, bits=None),
-        text_signature = "(self, address, value, word_order='big', *, byte_order='big', bits=32)"
+        text_signature = "($self, address, value, word_order='big', *, byte_order='big', bits=32)"
     )]
     fn write_float(
         &self,
@@ -559,7 +559,7 @@ impl PyInstrumentCore {
 
     /// ``count`` registers as text, two Latin-1 characters a register (high byte first),
     /// without the NULs that pad it (``function=4``: input registers).
-    #[pyo3(signature = (address, count, *, function=None), text_signature = "(self, address, count, *, function=3)")]
+    #[pyo3(signature = (address, count, *, function=None), text_signature = "($self, address, count, *, function=3)")]
     fn read_string(
         &self,
         py: Python<'_>,
@@ -601,7 +601,7 @@ impl PyInstrumentCore {
     ///
     /// A device without the function raises :class:`~benchbus.ModbusException` with code 1
     /// (its ``meaning`` says so).
-    #[pyo3(signature = (level=py_basic()), text_signature = "(self, level='basic')")]
+    #[pyo3(signature = (level=py_basic()), text_signature = "($self, level='basic')")]
     fn identify<'py>(&self, py: Python<'py>, level: Py<PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let read_code = level_arg(level.bind(py))?;
         let id = self.dev.wire(py, move |i| i.identify(read_code))?;

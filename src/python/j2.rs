@@ -178,7 +178,7 @@ impl PyJ2Core {
     ///
     /// ``function`` is 0x06 (write single register) or 0x10 (write multiple registers,
     /// here one); the manual shows both for SV.
-    #[pyo3(signature = (name, value, *, function=py_six()), text_signature = "(self, name, value, *, function=6)")]
+    #[pyo3(signature = (name, value, *, function=py_six()), text_signature = "($self, name, value, *, function=6)")]
     fn write(
         &self,
         py: Python<'_>,
@@ -279,7 +279,7 @@ impl PyJ2Core {
     /// The manual allows MV only in manual mode: in automatic mode this raises
     /// :class:`~benchbus.StateError`, unless ``switch_to_manual`` (then AM is written 0
     /// first, and the controller stays in manual mode).
-    #[pyo3(signature = (percent, switch_to_manual=py_false()), text_signature = "(self, percent, switch_to_manual=False)")]
+    #[pyo3(signature = (percent, switch_to_manual=py_false()), text_signature = "($self, percent, switch_to_manual=False)")]
     fn set_output(
         &self,
         py: Python<'_>,
