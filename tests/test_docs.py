@@ -1,5 +1,5 @@
-"""The README's examples and examples/*.py run as written, on simulated devices (and one
-on a third-party server)."""
+"""The examples of the README and of the documentation site's pages, and examples/*.py, run
+as written, on simulated devices (and one on a third-party server)."""
 
 from __future__ import annotations
 
@@ -20,13 +20,22 @@ from benchbus.sim import DriveDevice, RegisterDevice, Simulator
 ROOT = Path(__file__).resolve().parent.parent
 
 
-def readme_blocks() -> list[str]:
-    text = (ROOT / "README.md").read_text("utf-8")
-    return re.findall(r"```python\n(.*?)```", text, flags=re.S)
+def doc_pages() -> list[Path]:
+    """The README and every page of the documentation site."""
+    return [ROOT / "README.md", *sorted((ROOT / "docs").rglob("*.md"))]
 
 
-#: What each test below picks its README block by: every Python block of the README must be
-#: picked by exactly one, so that a new block cannot go untested.
+def doc_blocks() -> list[str]:
+    """Every Python block of the README and of the site's pages."""
+    blocks = []
+    for page in doc_pages():
+        text = page.read_text("utf-8")
+        blocks += re.findall(r"^ *```python\n(.*?)^ *```", text, flags=re.S | re.M)
+    return [textwrap.dedent(block) for block in blocks]
+
+
+#: What each test below picks its block by: every Python block of the README and of the
+#: site's pages must be picked by exactly one, so that a new block cannot go untested.
 PICKED_BY = (
     "/dev/ttyUSB0",
     "RegisterDevice(",
@@ -51,14 +60,14 @@ PICKED_BY = (
 )
 
 
-def test_every_python_block_of_the_readme_is_run() -> None:
-    for block in readme_blocks():
+def test_every_python_block_of_the_docs_is_run() -> None:
+    for block in doc_blocks():
         assert sum(marker in block for marker in PICKED_BY) == 1, block
 
 
 def test_readme_hardware_example_on_a_simulated_line(capsys: pytest.CaptureFixture[str]) -> None:
     """The first example, with the simulator's pty in place of /dev/ttyUSB0."""
-    (block,) = [b for b in readme_blocks() if "/dev/ttyUSB0" in b]
+    (block,) = [b for b in doc_blocks() if "/dev/ttyUSB0" in b]
     drive = RegisterDevice({0x3006: 1450})
     meter = RegisterDevice(identity={0: "ACME", 1: "M-1", 2: "1.0"})
     with Simulator({1: drive, 2: meter}) as sim:
@@ -75,7 +84,7 @@ def test_readme_hardware_example_on_a_simulated_line(capsys: pytest.CaptureFixtu
 
 def test_readme_networks_example(capsys: pytest.CaptureFixture[str]) -> None:
     """The Networks example, with a simulated Modbus TCP gateway in place of the real one."""
-    (block,) = [b for b in readme_blocks() if "tcp://192.168.1.50:502" in b]
+    (block,) = [b for b in doc_blocks() if "tcp://192.168.1.50:502" in b]
     drive = DriveDevice()
     with Simulator({1: drive}, network="tcp") as sim:
         exec(block.replace("tcp://192.168.1.50:502", sim.port), {})
@@ -87,7 +96,7 @@ def test_readme_networks_example(capsys: pytest.CaptureFixture[str]) -> None:
 def test_readme_functions_example(capsys: pytest.CaptureFixture[str]) -> None:
     """Every table's example, on a third-party server (pymodbus's, over RTU frames) in place
     of the device on /dev/ttyUSB1."""
-    (block,) = [b for b in readme_blocks() if "bus.read_coils(" in b]
+    (block,) = [b for b in doc_blocks() if "bus.read_coils(" in b]
     with pymodbus_server(rtu=True) as url:
         exec(block.replace('"/dev/ttyUSB1", baudrate=9600', f'"{url}"'), {})
     assert capsys.readouterr().out.splitlines() == [
@@ -102,7 +111,7 @@ def test_readme_functions_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 def test_readme_ascii_example(capsys: pytest.CaptureFixture[str]) -> None:
     """The Modbus ASCII example, on the simulator's line speaking ASCII."""
-    (block,) = [b for b in readme_blocks() if 'framing="ascii"' in b]
+    (block,) = [b for b in doc_blocks() if 'framing="ascii"' in b]
     device = RegisterDevice({0: 7, 1: 8})
     with Simulator({1: device}, framing="ascii") as sim:
         exec(block.replace("/dev/ttyUSB2", sim.port), {})
@@ -111,14 +120,14 @@ def test_readme_ascii_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_readme_simulator_examples() -> None:
-    blocks = [b for b in readme_blocks() if "RegisterDevice(" in b]
+    blocks = [b for b in doc_blocks() if "RegisterDevice(" in b]
     assert len(blocks) >= 2  # a Bus on a simulator; the simulator's tables
     for block in blocks:
         exec(block, {})  # as written: it imports what it uses
 
 
 def test_readme_profile_simulator_example(monkeypatch: pytest.MonkeyPatch) -> None:
-    (block,) = [b for b in readme_blocks() if "ProfileDevice(" in b]
+    (block,) = [b for b in doc_blocks() if "ProfileDevice(" in b]
     monkeypatch.chdir(ROOT)  # the block names its profile from the repository's root
     exec(block, {})
 
@@ -127,7 +136,7 @@ def test_readme_profile_device_example(
     monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
 ) -> None:
     """The profile device, on the sensor's own simulator."""
-    (block,) = [b for b in readme_blocks() if 'dev.baud = "b19200"' in b]
+    (block,) = [b for b in doc_blocks() if 'dev.baud = "b19200"' in b]
     from benchbus.sim import ProfileDevice
 
     monkeypatch.chdir(ROOT)  # the block names its profile from the repository's root
@@ -145,13 +154,13 @@ def test_readme_profile_device_example(
 
 
 def test_readme_profile_export_example() -> None:
-    (block,) = [b for b in readme_blocks() if "Profile.family(" in b]
+    (block,) = [b for b in doc_blocks() if "Profile.family(" in b]
     exec(block, {})
 
 
 def test_readme_poll_example(capsys: pytest.CaptureFixture[str]) -> None:
     """The polling loop, on a simulated drive's speed register, for 0.5 s instead of 10."""
-    (block,) = [b for b in readme_blocks() if "bus.poll(" in b]
+    (block,) = [b for b in doc_blocks() if "bus.poll(" in b]
     with Simulator({1: RegisterDevice({0x3006: 1450})}) as sim, bb.Bus(sim.port) as bus:
         exec(block.replace("duration=10.0", "duration=0.5"), {"bus": bus})
     lines = capsys.readouterr().out.splitlines()
@@ -160,7 +169,7 @@ def test_readme_poll_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_readme_drive_example(capsys: pytest.CaptureFixture[str]) -> None:
-    (block,) = [b for b in readme_blocks() if "DriveDevice(" in b]
+    (block,) = [b for b in doc_blocks() if "DriveDevice(" in b]
     exec(block, {})
     out = capsys.readouterr().out.splitlines()
     assert abs(int(out[0]) - 1500) <= 30
@@ -171,7 +180,7 @@ def test_readme_drive_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_readme_pbl_example(capsys: pytest.CaptureFixture[str]) -> None:
-    (block,) = [b for b in readme_blocks() if "PblDevice(" in b]
+    (block,) = [b for b in doc_blocks() if "PblDevice(" in b]
     exec(block, {})
     out = capsys.readouterr().out.splitlines()
     assert out[0].startswith("PblStatus(running=True, direction=<Direction.REVERSE: 1>)")
@@ -181,7 +190,7 @@ def test_readme_pbl_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_readme_j2_example(capsys: pytest.CaptureFixture[str]) -> None:
-    (block,) = [b for b in readme_blocks() if "J2Device(" in b]
+    (block,) = [b for b in doc_blocks() if "J2Device(" in b]
     exec(block, {})
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "J2Mode.AUTO InputType.K -50.0 Pid(p=20.0, i=90.0, d=20.0)"
@@ -189,7 +198,7 @@ def test_readme_j2_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_readme_instrument_example(capsys: pytest.CaptureFixture[str]) -> None:
-    (block,) = [b for b in readme_blocks() if "TaisongDevice(" in b]
+    (block,) = [b for b in doc_blocks() if "TaisongDevice(" in b]
     exec(block, {})
     out = capsys.readouterr().out.splitlines()
     assert out[0] == "100 100"
@@ -210,7 +219,7 @@ def test_readme_qcodes_example(
 
     from benchbus.sim import ProfileDevice
 
-    (block,) = [b for b in readme_blocks() if "benchbus.qcodes" in b]
+    (block,) = [b for b in doc_blocks() if "benchbus.qcodes" in b]
     model = ProfileDevice(ROOT / "examples" / "profiles" / "flow_controller.toml")
     monkeypatch.chdir(tmp_path)  # the block writes flows.db where it runs
     monkeypatch.setitem(qcodes.config.core, "db_location", qcodes.config.core.db_location)
@@ -230,7 +239,7 @@ def test_readme_qcodes_example(
 
 def test_readme_asyncio_example(capsys: pytest.CaptureFixture[str]) -> None:
     """The notebook cell, with its top-level await, on a simulated drive."""
-    (block,) = [b for b in readme_blocks() if "bb.aio.AsyncBus(" in b]
+    (block,) = [b for b in doc_blocks() if "bb.aio.AsyncBus(" in b]
     device = DriveDevice()
     with Simulator({1: device}) as sim:
         source = block.replace("/dev/ttyUSB4", sim.port)
@@ -251,7 +260,7 @@ def test_readme_ophyd_example(capsys: pytest.CaptureFixture[str]) -> None:
     """The Bluesky example, on a simulated flow controller and a simulated drive."""
     from benchbus.sim import ProfileDevice
 
-    (block,) = [b for b in readme_blocks() if "benchbus.ophyd" in b]
+    (block,) = [b for b in doc_blocks() if "benchbus.ophyd" in b]
     model = ProfileDevice(ROOT / "examples" / "profiles" / "flow_controller.toml")
     drive = DriveDevice(single_register_reads=False)
     with Simulator({1: model}) as sim, Simulator(drive) as drive_sim:
@@ -270,7 +279,7 @@ def test_readme_ophyd_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_readme_values_example(capsys: pytest.CaptureFixture[str]) -> None:
-    (block,) = [b for b in readme_blocks() if "bb.from_registers(" in b]
+    (block,) = [b for b in doc_blocks() if "bb.from_registers(" in b]
     device = RegisterDevice()
     # 21.5 (0x41AC0000) and -0.5 (0xBF000000) as two floats, low word first.
     device.registers[0x0100:0x0104] = [0x0000, 0x41AC, 0x0000, 0xBF00]
@@ -281,13 +290,13 @@ def test_readme_values_example(capsys: pytest.CaptureFixture[str]) -> None:
 
 
 def test_readme_pytest_example(pytester: pytest.Pytester) -> None:
-    (block,) = [b for b in readme_blocks() if "def test_spin_up" in b]
+    (block,) = [b for b in doc_blocks() if "def test_spin_up" in b]
     pytester.makepyfile(test_readme_bench=block)
     pytester.runpytest_subprocess("-q").assert_outcomes(passed=2)
 
 
 def test_readme_sim_profile_example(pytester: pytest.Pytester) -> None:
-    (block,) = [b for b in readme_blocks() if "sim_profile(" in b]
+    (block,) = [b for b in doc_blocks() if "sim_profile(" in b]
     profiles = pytester.path / "examples" / "profiles"
     profiles.mkdir(parents=True)
     (profiles / "xy_md02.toml").write_bytes(
@@ -298,7 +307,7 @@ def test_readme_sim_profile_example(pytester: pytest.Pytester) -> None:
 
 
 def test_readme_recording_example() -> None:
-    (block,) = [b for b in readme_blocks() if "drive.record(" in b]
+    (block,) = [b for b in doc_blocks() if "drive.record(" in b]
     from benchbus.sim import DriveDevice
 
     fast = DriveDevice(single_register_reads=False)  # a telemetry sample in one request

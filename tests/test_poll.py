@@ -13,7 +13,7 @@ import time
 from collections.abc import Callable, Iterator
 
 import pytest
-from test_docs import readme_blocks
+from test_docs import doc_blocks
 
 import benchbus as bb
 from benchbus.sim import RegisterDevice, Simulator
@@ -236,7 +236,7 @@ def test_ctrl_c_interrupts_a_long_wait(sim: Simulator[RegisterDevice]) -> None:
 def test_readme_poll_example(
     sim: Simulator[RegisterDevice], capsys: pytest.CaptureFixture[str]
 ) -> None:
-    (block,) = [b for b in readme_blocks() if "bus.poll(" in b]
+    (block,) = [b for b in doc_blocks() if "bus.poll(" in b]
     with bb.Bus(sim.port, timeout=0.5) as bus:
         exec(block.replace("duration=10.0", "duration=0.3"), {"bus": bus})
     lines = capsys.readouterr().out.splitlines()
