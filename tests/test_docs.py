@@ -57,6 +57,7 @@ PICKED_BY = (
     "benchbus.qcodes",
     "bb.aio.AsyncBus(",
     "benchbus.ophyd",
+    "Faults(",
 )
 
 
@@ -303,6 +304,13 @@ def test_readme_sim_profile_example(pytester: pytest.Pytester) -> None:
         (ROOT / "examples" / "profiles" / "xy_md02.toml").read_bytes()
     )
     pytester.makepyfile(test_readme_profile=block)
+    pytester.runpytest_subprocess("-q").assert_outcomes(passed=1)
+
+
+def test_faults_example(pytester: pytest.Pytester) -> None:
+    """The testing guide's noisy-line test: one spoilt reply, retried, counted."""
+    (block,) = [b for b in doc_blocks() if "Faults(" in b]
+    pytester.makepyfile(test_faults_example=block)
     pytester.runpytest_subprocess("-q").assert_outcomes(passed=1)
 
 
