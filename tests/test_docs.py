@@ -16,6 +16,7 @@ from pymodbus_peer import pymodbus_server
 
 import benchbus as bb
 from benchbus.sim import DriveDevice, RegisterDevice, Simulator
+from conftest import rtu
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -37,7 +38,8 @@ def doc_blocks() -> list[str]:
 #: What each test below picks its block by: every Python block of the README and of the
 #: site's pages must be picked by exactly one, so that a new block cannot go untested.
 PICKED_BY = (
-    "/dev/ttyUSB0",
+    "bus.broadcast_write_register(",
+    'bb.Drive("/dev/ttyUSB0"',
     "RegisterDevice(",
     "drive.record(",
     "def test_spin_up",
@@ -68,7 +70,7 @@ def test_every_python_block_of_the_docs_is_run() -> None:
 
 def test_readme_hardware_example_on_a_simulated_line(capsys: pytest.CaptureFixture[str]) -> None:
     """The first example, with the simulator's pty in place of /dev/ttyUSB0."""
-    (block,) = [b for b in doc_blocks() if "/dev/ttyUSB0" in b]
+    (block,) = [b for b in doc_blocks() if "bus.broadcast_write_register(" in b]
     drive = RegisterDevice({0x3006: 1450})
     meter = RegisterDevice(identity={0: "ACME", 1: "M-1", 2: "1.0"})
     with Simulator({1: drive, 2: meter}) as sim:
@@ -81,6 +83,20 @@ def test_readme_hardware_example_on_a_simulated_line(capsys: pytest.CaptureFixtu
     assert drive.registers[0x2003:0x2005] == [25, 25]
     # The broadcast reached both units.
     assert drive.registers[0x2000] == meter.registers[0x2000] == 5
+
+
+def test_readme_hardware_drive_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """The README's drive on hardware, with a simulated BLD2's pty in place of /dev/ttyUSB0."""
+    (block,) = [b for b in doc_blocks() if 'bb.Drive("/dev/ttyUSB0"' in b]
+    device = DriveDevice("BLD2")
+    with Simulator(device) as sim:
+        exec(block.replace("/dev/ttyUSB0", sim.port), {})
+    model, speed = capsys.readouterr().out.splitlines()
+    assert model == "BLD2 DriveState.STOPPED"
+    assert abs(int(speed.removesuffix(" rpm")) - 1500) <= 30
+    # Leaving the block sent the stop (command 5 to 0x2000), its last request.
+    assert device.peek(0x2000) == 5
+    assert sim.requests[-1] == rtu("01 06 2000 0005")
 
 
 def test_readme_networks_example(capsys: pytest.CaptureFixture[str]) -> None:
