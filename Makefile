@@ -62,7 +62,7 @@ wheel: $(VENV)/bin/python
 wheel-smoke: wheel
 	.ci/wheel-smoke.sh
 
-# The checks for other operating systems that can run on Linux (see the README's Platforms).
+# The checks for other operating systems that can run on Linux (see docs/guides/platforms.md).
 # macOS: clippy for both Apple targets; Windows: clippy, the Rust suite and COM ports under
 # wine, and the Windows wheel (the scripts install their own targets and tools).
 cross: install

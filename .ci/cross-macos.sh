@@ -2,7 +2,7 @@
 # macOS cross checks: clippy (all targets, with and without the Python bindings) for Apple
 # silicon and Intel Macs, from Linux. Needs only `rustup target add`: no Apple SDK and no
 # macOS Python (PyO3's abi3-py39 feature configures a cross build without an interpreter).
-# Nothing is linked or run here; see the README's Platforms section for what that leaves.
+# Nothing is linked or run here; see docs/guides/platforms.md for what that leaves.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 # A target directory of its own, so host builds are not invalidated by the cross builds.

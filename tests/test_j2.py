@@ -348,7 +348,7 @@ def test_the_library_and_the_simulator_share_one_table() -> None:
         assert J2Device.PARAMETERS[name] == (address, low, high, 10 if signed else 1), name
         assert writable == (name not in J2Device.READ_ONLY), name
         # The library holds only SV to LSP..USP; the simulator, as the manual reads, all of
-        # these (the controller judges the others: see README).
+        # these (the controller judges the others: see docs/devices/j2.md).
         assert within_limits == (name == "SV"), name
         assert name in J2Device.BETWEEN_LSP_USP or not within_limits, name
 

@@ -58,7 +58,7 @@ def test_values_agree_with_pymodbus(kind: str, order: str) -> None:
         assert back == [value] or (kind == "f32" and back[0] == pytest.approx(value, rel=1e-7))
 
 
-#: 0x01020304 in the four layouts (the issue's and the README's table).
+#: 0x01020304 in the four layouts (the values table of docs/devices/instruments.md).
 FOUR = {
     "ABCD": [0x0102, 0x0304],
     "CDAB": [0x0304, 0x0102],
