@@ -257,7 +257,10 @@ def test_async_bus_methods_are_documented_from_the_bus(site: Build) -> None:
     path = built(site)
     inventory = read_inventory(path / "objects.inv")
     page = (path / "reference" / "aio" / "index.html").read_text("utf-8")
+    bus_page = (path / "reference" / "benchbus" / "index.html").read_text("utf-8")
     for name in ("read_holding_registers", "write_register", "scan", "reopen"):
+        # The compiled Bus's methods, from its stubs.
+        assert entry_text(bus_page, f"benchbus.Bus.{name}")
         assert f"benchbus.aio.AsyncBus.{name}" in inventory
         text = entry_text(page, f"benchbus.aio.AsyncBus.{name}")
         assert own_docstring(getattr(benchbus.Bus, name)).split()[0] in text  # type: ignore[union-attr]
