@@ -123,6 +123,27 @@ def _async_bus(pkg: griffe.Module) -> None:
         async_bus.set_member(name, new)
 
 
+def _constructor(cls: griffe.Class) -> None:
+    """A compiled class is made by ``__new__`` (its stub says so): give it an ``__init__``
+    with that signature and docstring, which the class's entry shows as its constructor."""
+    new = cls.members.get("__new__")
+    if "__init__" in cls.all_members or not isinstance(new, griffe.Function):
+        return
+    first, *parameters = list(new.parameters)  # cls, then the constructor's own
+    init = griffe.Function(
+        "__init__",
+        lineno=new.lineno,
+        endlineno=new.endlineno,
+        parameters=griffe.Parameters(
+            griffe.Parameter("self", kind=first.kind),
+            *parameters,
+        ),
+        returns="None",
+    )
+    init.docstring = _copy_docstring(new, init)
+    cls.set_member("__init__", init)
+
+
 class Reference:
     """Where each object of the package is documented: its public path."""
 
@@ -263,6 +284,8 @@ class BenchbusReference(griffe.Extension):
             if isinstance(obj, griffe.Attribute):
                 _comment_docstring(obj)
                 _register_property(obj)
+            elif isinstance(obj, griffe.Class):
+                _constructor(obj)
         _async_bus(pkg)
         reference = Reference(pkg)
         for obj in _walk(pkg):
