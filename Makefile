@@ -1,5 +1,6 @@
 # One command each: `make demo` installs benchbus and runs its demo on simulated devices,
-# `make test` installs and runs every test, `make lint` every check, `make bench` the
+# `make test` installs and runs every test, `make lint` every check, `make docs` builds the
+# documentation site into site/ (`make docs-serve`: a live preview), `make bench` the
 # benchmark beside minimalmodbus and pymodbus, `make cross` the checks for other systems
 # (Windows: cross-built, run under wine; it installs what it needs).
 #
@@ -16,7 +17,7 @@ endif
 PYTHON := $(VENV)/bin/python
 PIP := $(PYTHON) -m pip install --quiet --editable
 
-.PHONY: install demo test lint fmt example bench cross wheel wheel-smoke
+.PHONY: install demo test lint fmt example bench cross wheel wheel-smoke docs docs-serve
 
 $(VENV)/bin/python:
 	@$(BASE_PYTHON) -m venv $(VENV) >/dev/null 2>&1 || { rm -rf $(VENV); \
@@ -32,7 +33,9 @@ demo: $(VENV)/bin/python
 	$(PIP) ".[demo]"
 	$(PYTHON) -m benchbus demo
 
+# The site's tests render pages in Debian's chromium (headless): installed when missing.
 test: install
+	.ci/need.sh chromium
 	cargo test --quiet
 	$(PYTHON) -m pytest -q
 
@@ -41,12 +44,24 @@ lint: install
 	cargo clippy --all-targets -- -D warnings
 	cargo clippy --all-targets --features python -- -D warnings
 	RUSTDOCFLAGS="-D warnings" cargo doc --no-deps --quiet --features python
-	$(PYTHON) -m ruff check python tests examples bench
-	$(PYTHON) -m ruff format --check python tests examples bench
+	$(PYTHON) -m ruff check python tests examples bench docs_hooks
+	$(PYTHON) -m ruff format --check python tests examples bench docs_hooks
 	$(PYTHON) -m mypy python/benchbus
 	$(PYTHON) -m benchbus._aio_stubgen --check
 	$(PYTHON) -m mypy.stubtest benchbus._core
 	$(PYTHON) -m check_jsonschema --builtin-schema vendor.github-workflows .github/workflows/*.yml
+
+# The documentation site (MkDocs, its sources in docs/), strict: a warning, a broken link or
+# anchor fails it. NO_MKDOCS_2_WARNING silences the theme's notice about MkDocs 2.
+DOCS := NO_MKDOCS_2_WARNING=1 $(PYTHON) -m mkdocs
+docs: $(VENV)/bin/python
+	$(PIP) ".[docs]"
+	$(DOCS) build --strict
+
+# A live preview on http://127.0.0.1:8000, rebuilt as docs/ and the docstrings change.
+docs-serve: $(VENV)/bin/python
+	$(PIP) ".[docs]"
+	$(DOCS) serve --dev-addr 127.0.0.1:8000 --watch python/benchbus --watch docs_hooks
 
 # An abi3 wheel for Linux (cp39-abi3, manylinux2014: glibc 2.17 and later) in dist/, built
 # against an old glibc with zig (PyPI's ziglang), no Docker; maturin audits the tag. maturin
@@ -71,7 +86,7 @@ cross: install
 
 fmt: $(VENV)/bin/python
 	cargo fmt
-	$(PYTHON) -m ruff format python tests examples bench
+	$(PYTHON) -m ruff format python tests examples bench docs_hooks
 
 example: $(VENV)/bin/python
 	$(PIP) ".[sim]"

@@ -1,0 +1,293 @@
+"""A griffe extension for the API reference of the documentation site.
+
+griffe reads benchbus without importing it. Two things it cannot see that way:
+
+- the members ``benchbus.aio.AsyncBus`` makes at import time from the Bus's
+  (``read_coils = _awaitable(Bus.read_coils)``, ``port = _BusProperty(Bus.port)``): they are
+  given the Bus member's signature and docstring here, the methods marked async, as Python's
+  own ``help()`` shows them;
+- the docstrings' reStructuredText: the inline roles (``:class:`Bus```, ``:meth:``, ``:func:``,
+  ``:attr:``, ``:data:``, ``:exc:``, ``:mod:``) become cross-references to the page that
+  documents their target (``[Bus][benchbus.Bus]``), or code where the target has no page; a
+  paragraph ending in ``::`` before its literal block ends in ``:`` as it reads in Sphinx.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from typing import Any
+
+import griffe
+
+#: The modules whose ``__all__`` the reference documents, each name at ``module.name``.
+PUBLIC_MODULES = (
+    "benchbus",
+    "benchbus.aio",
+    "benchbus.sim",
+    "benchbus.qcodes",
+    "benchbus.ophyd",
+    "benchbus.pytest_plugin",
+)
+
+ROLE = re.compile(r":(?:py:)?(class|meth|func|attr|data|exc|mod|obj|const):`([^`]+)`")
+LITERAL_INTRO = re.compile(r"(?m)^([ \t]*)(.*?)[ \t]*::[ \t]*$")
+AWAITABLE = re.compile(r"^_awaitable\(Bus\.(\w+)\)$")
+BUS_PROPERTY = re.compile(r"^_BusProperty\(Bus\.(\w+)\)$")
+
+
+def _target(obj: griffe.Object | griffe.Alias) -> griffe.Object | None:
+    """The object an alias finally points to (None if it leaves the package)."""
+    try:
+        return obj.final_target if obj.is_alias else obj  # type: ignore[union-attr,return-value]
+    except (griffe.AliasResolutionError, griffe.CyclicAliasError):
+        return None
+
+
+def _member(scope: griffe.Object, dotted: str) -> griffe.Object | None:
+    """``dotted`` looked up from ``scope`` (inherited members included), or None."""
+    obj: griffe.Object | None = scope
+    for part in dotted.split("."):
+        if obj is None:
+            return None
+        try:
+            found = obj.all_members.get(part) if obj.is_class else obj.members.get(part)
+        except (griffe.AliasResolutionError, griffe.CyclicAliasError):
+            found = obj.members.get(part)
+        obj = _target(found) if found is not None else None
+    return obj
+
+
+def _copy_docstring(source: griffe.Object, parent: griffe.Object) -> griffe.Docstring | None:
+    doc = source.docstring
+    if doc is None:
+        return None
+    return griffe.Docstring(
+        doc.value,
+        lineno=doc.lineno,
+        endlineno=doc.endlineno,
+        parent=parent,
+        parser=doc.parser,
+        parser_options=doc.parser_options,
+    )
+
+
+def _bus_member(source: griffe.Object, attr: griffe.Attribute, is_async: bool) -> griffe.Object:
+    """An AsyncBus member standing for the Bus's ``source``."""
+    new: griffe.Object
+    if isinstance(source, griffe.Function):
+        new = griffe.Function(
+            attr.name,
+            lineno=attr.lineno,
+            endlineno=attr.endlineno,
+            parameters=source.parameters,
+            returns=source.returns,
+        )
+        labels = set(source.labels)
+    else:
+        annotation = getattr(source, "annotation", None)
+        new = griffe.Attribute(
+            attr.name, lineno=attr.lineno, endlineno=attr.endlineno, annotation=annotation
+        )
+        labels = set(source.labels)
+    if is_async:
+        labels -= {"method descriptor"}
+        labels.add("async")
+    else:  # read through: never set, never deleted
+        labels -= {"writable", "deletable"}
+        labels.add("property")
+    new.labels = labels
+    new.docstring = _copy_docstring(source, new)
+    return new
+
+
+def _async_bus(pkg: griffe.Module) -> None:
+    """Give AsyncBus the members it copies from the Bus at import time."""
+    bus = _member(pkg, "_core.Bus")
+    async_bus = _member(pkg, "aio.AsyncBus")
+    if bus is None or async_bus is None:
+        raise RuntimeError("benchbus._core.Bus or benchbus.aio.AsyncBus not found")
+    for name, member in list(async_bus.members.items()):
+        if not isinstance(member, griffe.Attribute) or member.value is None:
+            continue
+        value = str(member.value)
+        match = AWAITABLE.match(value) or BUS_PROPERTY.match(value)
+        if match is None:
+            continue
+        found = bus.members.get(match.group(1))
+        source = _target(found) if found is not None else None
+        if source is None:
+            raise RuntimeError(f"AsyncBus.{name}: benchbus.Bus has no {match.group(1)}")
+        new = _bus_member(source, member, is_async=value.startswith("_awaitable"))
+        del async_bus.members[name]
+        async_bus.set_member(name, new)
+
+
+def _constructor(cls: griffe.Class) -> None:
+    """A compiled class is made by ``__new__`` (its stub says so): give it an ``__init__``
+    with that signature and docstring, which the class's entry shows as its constructor."""
+    new = cls.members.get("__new__")
+    if "__init__" in cls.all_members or not isinstance(new, griffe.Function):
+        return
+    first, *parameters = list(new.parameters)  # cls, then the constructor's own
+    init = griffe.Function(
+        "__init__",
+        lineno=new.lineno,
+        endlineno=new.endlineno,
+        parameters=griffe.Parameters(
+            griffe.Parameter("self", kind=first.kind),
+            *parameters,
+        ),
+        returns="None",
+    )
+    init.docstring = _copy_docstring(new, init)
+    cls.set_member("__init__", init)
+
+
+class Reference:
+    """Where each object of the package is documented: its public path."""
+
+    def __init__(self, pkg: griffe.Module) -> None:
+        self.pkg = pkg
+        self.public: dict[str, str] = {}  # canonical path -> documented path
+        self.by_name: dict[str, set[str]] = {}  # last component -> documented paths
+        for module_path in PUBLIC_MODULES:
+            module = _member(pkg, module_path.partition(".")[2]) if "." in module_path else pkg
+            if module is None:
+                raise RuntimeError(f"{module_path} not found")
+            for export in module.exports or ():
+                name = str(export)
+                obj = _member(module, name)
+                if obj is not None:
+                    self._add(obj, f"{module_path}.{name}")
+
+    def _add(self, obj: griffe.Object, path: str) -> None:
+        self.public.setdefault(obj.path, path)
+        self.by_name.setdefault(path.rpartition(".")[2], set()).add(path)
+        if obj.is_class:
+            # The members the page shows: public, with a docstring, inherited ones too.
+            for name, member in obj.all_members.items():
+                target = _target(member)
+                if name.startswith("_") or target is None or target.is_class:
+                    continue
+                if target.docstring is not None and target.docstring.value.strip():
+                    self.public.setdefault(target.path, f"{path}.{name}")
+
+    def find(self, scope: griffe.Object, target: str) -> str | None:
+        """The documented path of ``target`` as written in ``scope``'s docstring, or None."""
+        target = target.lstrip(".")
+        if target.startswith("benchbus."):
+            obj = _member(self.pkg, target.partition(".")[2])
+            if obj is not None:
+                return self.public.get(obj.path)
+        obj = None
+        current: griffe.Object | None = scope
+        while current is not None and obj is None:
+            obj = _member(current, target)
+            current = current.parent
+        if obj is not None and obj.path in self.public:
+            return self.public[obj.path]
+        # A name its module does not import (a stub speaking of another module's class).
+        suffix = "." + target
+        found = {p for paths in self.by_name.values() for p in paths if p.endswith(suffix)}
+        found |= {p for p in self.public.values() if p.endswith(suffix)}
+        return found.pop() if len(found) == 1 else None
+
+    def rewrite(self, scope: griffe.Object, text: str) -> str:
+        def role(match: re.Match[str]) -> str:
+            kind, content = match.groups()
+            title = None
+            explicit = re.fullmatch(r"(.*?)\s*<(.+)>", content)
+            if explicit:
+                title, content = explicit.groups()
+            content = content.lstrip("!")
+            short = content.startswith("~")
+            content = content.lstrip("~")
+            bare = content.removesuffix("()")
+            if title is None:
+                title = bare.rpartition(".")[2] if short else bare
+                if kind in ("meth", "func") and not title.endswith("()"):
+                    title += "()"
+            path = None if kind == "mod" and bare == "benchbus" else self.find(scope, bare)
+            if kind == "mod" and path is None and bare in PUBLIC_MODULES:
+                path = bare
+            code = f"`{title}`"
+            return f"[{code}][{path}]" if path else code
+
+        text = ROLE.sub(role, text)
+        return LITERAL_INTRO.sub(_literal_intro, text)
+
+
+def _literal_intro(match: re.Match[str]) -> str:
+    """``text::`` -> ``text:``; a ``::`` alone on its line goes."""
+    indent, text = match.groups()
+    return f"{indent}{text}:" if text.strip() else ""
+
+
+def _comment_docstring(attr: griffe.Attribute) -> None:
+    """An attribute's ``#:`` comment lines above it, as Sphinx reads them, as its docstring."""
+    if attr.docstring is not None or attr.lineno is None or attr.filepath is None:
+        return
+    filepath = attr.filepath[0] if isinstance(attr.filepath, list) else attr.filepath
+    lines = attr.lines_collection[filepath] if filepath in attr.lines_collection else []  # noqa: SIM401 (no .get)
+    comment: list[str] = []
+    number = attr.lineno - 1  # the line above, 1-based
+    while 1 <= number <= len(lines) and lines[number - 1].strip().startswith("#:"):
+        comment.insert(0, lines[number - 1].strip()[2:].removeprefix(" "))
+        number -= 1
+    if comment:
+        attr.docstring = griffe.Docstring(
+            "\n".join(comment), lineno=number + 1, endlineno=attr.lineno - 1, parent=attr
+        )
+
+
+#: The descriptors device classes declare their register-backed properties with:
+#: ``speed = RegisterProperty("speed", to_int, "docstring")``, writable or not.
+REGISTER_PROPERTIES = {"RegisterProperty": True, "MeasuredProperty": False}
+
+
+def _register_property(attr: griffe.Attribute) -> None:
+    """A register-backed property: its docstring is the descriptor's third argument."""
+    if attr.docstring is not None or attr.value is None:
+        return
+    try:
+        call = ast.parse(str(attr.value), mode="eval").body
+    except SyntaxError:
+        return
+    if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)):
+        return
+    writable = REGISTER_PROPERTIES.get(call.func.id)
+    docs = [k.value for k in call.keywords if k.arg == "doc"] + call.args[2:3]
+    if writable is None or not docs or not isinstance(docs[0], ast.Constant):
+        return
+    attr.docstring = griffe.Docstring(
+        str(docs[0].value), lineno=attr.lineno, endlineno=attr.endlineno, parent=attr
+    )
+    attr.labels |= {"property", "writable"} if writable else {"property"}
+    attr.value = None  # the descriptor, not a value a reader can use
+
+
+def _walk(obj: griffe.Object) -> Any:
+    yield obj
+    for member in obj.members.values():
+        if not member.is_alias:
+            yield from _walk(member)  # type: ignore[arg-type]
+
+
+class BenchbusReference(griffe.Extension):
+    """The extension mkdocs.yml names (``extensions:`` of the Python handler)."""
+
+    def on_package(self, *, pkg: griffe.Module, **kwargs: Any) -> None:
+        if pkg.name != "benchbus":
+            return
+        for obj in _walk(pkg):
+            if isinstance(obj, griffe.Attribute):
+                _comment_docstring(obj)
+                _register_property(obj)
+            elif isinstance(obj, griffe.Class):
+                _constructor(obj)
+        _async_bus(pkg)
+        reference = Reference(pkg)
+        for obj in _walk(pkg):
+            if obj.docstring is not None:
+                obj.docstring.value = reference.rewrite(obj, obj.docstring.value)

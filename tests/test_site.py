@@ -1,0 +1,486 @@
+"""The documentation site: built with ``mkdocs build --strict`` once per session, then checked
+like code. Every public name has a docstring and an entry; the CLI reference covers the
+whole argument parser; no page is blank; Debian's chromium renders pages with their
+navigation and code blocks."""
+
+from __future__ import annotations
+
+import argparse
+import contextlib
+import functools
+import html
+import http.server
+import importlib
+import importlib.util
+import inspect
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import threading
+import time
+import types
+import zlib
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+import benchbus
+from benchbus.cli import build_parser
+
+ROOT = Path(__file__).resolve().parent.parent
+HOOKS = ROOT / "docs_hooks"
+
+#: The public modules: every name of their ``__all__`` has a docstring and a page.
+PUBLIC_MODULES = (
+    "benchbus",
+    "benchbus.aio",
+    "benchbus.sim",
+    "benchbus.qcodes",
+    "benchbus.ophyd",
+    "benchbus.exceptions",
+    "benchbus.pytest_plugin",
+)
+
+
+@dataclass
+class Build:
+    """One ``mkdocs build --strict``: its site directory, exit status, output and duration."""
+
+    site: Path
+    returncode: int
+    output: str
+    seconds: float
+
+
+def build_site(config: Path, site: Path) -> Build:
+    """Build the site of ``config`` into ``site``, strictly, as ``make docs`` does."""
+    env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
+    env["PYTHONPATH"] = os.pathsep.join(filter(None, [str(ROOT / "python"), env.get("PYTHONPATH")]))
+    command = [sys.executable, "-m", "mkdocs", "build", "--strict", "-f", str(config)]
+    start = time.monotonic()
+    done = subprocess.run(
+        [*command, "-d", str(site)],
+        env=env,
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
+    seconds = time.monotonic() - start
+    return Build(site, done.returncode, done.stdout + done.stderr, seconds)
+
+
+@pytest.fixture(scope="session")
+def site(tmp_path_factory: pytest.TempPathFactory) -> Build:
+    """The site, built once for the session."""
+    built = build_site(ROOT / "mkdocs.yml", tmp_path_factory.mktemp("site") / "site")
+    print(f"mkdocs build --strict: {built.seconds:.1f} s", file=sys.stderr)
+    return built
+
+
+def built(site: Build) -> Path:
+    """The site directory, after checking that the build passed."""
+    assert site.returncode == 0, f"mkdocs build --strict failed:\n{site.output}"
+    return site.site
+
+
+# ---- the strict build ----------------------------------------------------------------------------
+
+
+def test_strict_build_passes_without_a_warning(site: Build) -> None:
+    path = built(site)
+    assert "WARNING" not in site.output, site.output
+    # Material's notice about MkDocs 2 is silenced, so that a real warning stands out.
+    assert "end of life" not in site.output, site.output
+    assert (path / "index.html").is_file()
+    assert (path / "objects.inv").is_file()
+
+
+def copy_of_the_docs(tmp_path: Path) -> Path:
+    """A copy of the site's sources (docs/ copied, the rest linked), to break on purpose."""
+    tmp_path.mkdir()
+    for name in ("docs_hooks", "python", "CHANGELOG.md", "CONTRIBUTING.md"):
+        (tmp_path / name).symlink_to(ROOT / name)
+    shutil.copy(ROOT / "mkdocs.yml", tmp_path)
+    shutil.copytree(ROOT / "docs", tmp_path / "docs")
+    return tmp_path
+
+
+@pytest.mark.parametrize(
+    ("link", "complaint"),
+    [
+        ("[a page](no-such-page.md)", "no-such-page.md"),
+        ("[an anchor](getting-started.md#no-such-anchor)", "no-such-anchor"),
+        ("[an object][benchbus.NoSuchName]", "benchbus.NoSuchName"),
+    ],
+    ids=["page", "anchor", "api-object"],
+)
+def test_a_broken_link_fails_the_build(tmp_path: Path, link: str, complaint: str) -> None:
+    copy = copy_of_the_docs(tmp_path / "src")
+    index = copy / "docs" / "index.md"
+    index.write_text(index.read_text("utf-8") + f"\nSee {link}.\n", "utf-8")
+    broken = build_site(copy / "mkdocs.yml", tmp_path / "site")
+    assert broken.returncode != 0, broken.output
+    assert complaint in broken.output, broken.output
+
+
+# ---- every public name: a docstring and an entry -------------------------------------------------
+
+
+def read_inventory(path: Path) -> dict[str, str]:
+    """A Sphinx inventory (version 2, as mkdocstrings writes objects.inv): name -> URI."""
+    data = path.read_bytes()
+    header = data.split(b"\n", 4)
+    assert header[0] == b"# Sphinx inventory version 2", header[0]
+    assert b"zlib" in header[3], header[3]
+    entries = {}
+    for line in zlib.decompress(header[4]).decode("utf-8").splitlines():
+        match = re.fullmatch(r"(\S+)\s+\S+:\S+\s+-?\d+\s+(\S*)\s+.*", line)
+        assert match, f"not an inventory line: {line!r}"
+        name, uri = match.groups()
+        entries[name] = uri[:-1] + name if uri.endswith("$") else uri
+    return entries
+
+
+def own_docstring(obj: Any) -> str | None:
+    """The docstring ``obj`` has itself (a class's, not one inherited from a base)."""
+    doc = vars(obj).get("__doc__") if inspect.isclass(obj) else getattr(obj, "__doc__", None)
+    return doc if isinstance(doc, str) and doc.strip() else None
+
+
+def entry_text(page: str, anchor: str) -> str:
+    """The text of the documentation under the heading ``anchor`` of ``page`` (the object's
+    own docstring, not its members')."""
+    start = page.find(f'id="{anchor}"')
+    if start < 0:
+        return ""
+    following = re.compile(r"<h[1-6][ >]").search(page, start)  # the next object's heading
+    contents = page.find('class="doc doc-contents', start)
+    if contents < 0 or (following and following.start() < contents):
+        return ""
+    contents = page.index(">", contents) + 1
+    end = re.compile(r'<h[1-6][ >]|<div class="doc doc-children').search(page, contents)
+    text = re.sub(r"<[^>]+>", " ", page[contents : end.start() if end else len(page)])
+    return " ".join(html.unescape(text).split())
+
+
+def undocumented(
+    modules: Iterable[types.ModuleType], inventory: dict[str, str], site: Path
+) -> list[str]:
+    """What is wrong with the reference of ``modules``: a public name without a docstring,
+    without an entry in the inventory, or whose entry's page lacks it."""
+    problems = []
+    pages: dict[Path, str] = {}
+    for module in modules:
+        for name in module.__all__:
+            path = f"{module.__name__}.{name}"
+            obj = getattr(module, name, None)
+            if (inspect.isclass(obj) or inspect.isroutine(obj) or inspect.ismodule(obj)) and (
+                own_docstring(obj) is None
+            ):
+                problems.append(f"{path}: no docstring")
+            uri = inventory.get(path)
+            if uri is None:
+                problems.append(f"{path}: no entry in the site's objects.inv")
+                continue
+            file, _, anchor = uri.partition("#")
+            page_path = (
+                site / file / "index.html" if file.endswith("/") or not file else site / file
+            )
+            if not page_path.is_file():
+                problems.append(f"{path}: its page {file} does not exist")
+                continue
+            page = pages.setdefault(page_path, page_path.read_text("utf-8"))
+            if f'id="{anchor}"' not in page:
+                problems.append(f"{path}: {file} has no #{anchor}")
+            elif not inspect.ismodule(obj) and not entry_text(page, anchor):
+                problems.append(f"{path}: its entry in {file} has no text (no docstring)")
+    return problems
+
+
+def public_modules() -> list[types.ModuleType]:
+    return [importlib.import_module(name) for name in PUBLIC_MODULES]
+
+
+def test_every_public_name_has_a_docstring_and_a_page(site: Build) -> None:
+    path = built(site)
+    inventory = read_inventory(path / "objects.inv")
+    modules = public_modules()
+    assert sum(len(m.__all__) for m in modules) > 100
+    assert undocumented(modules, inventory, path) == []
+
+
+def test_a_name_without_docstring_or_page_is_found(
+    site: Build, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    path = built(site)
+    inventory = read_inventory(path / "objects.inv")
+
+    class Undocumented:
+        pass
+
+    def crc16(data: bytes) -> int:
+        return 0
+
+    import benchbus.sim
+
+    monkeypatch.setattr(benchbus.sim, "Undocumented", Undocumented, raising=False)
+    monkeypatch.setattr(benchbus.sim, "__all__", [*benchbus.sim.__all__, "Undocumented"])
+    monkeypatch.setattr(benchbus, "crc16", crc16)  # documented, but now without a docstring
+    problems = undocumented([benchbus, benchbus.sim], inventory, path)
+    assert problems == [
+        "benchbus.crc16: no docstring",
+        "benchbus.sim.Undocumented: no docstring",
+        "benchbus.sim.Undocumented: no entry in the site's objects.inv",
+    ]
+    # A data entry whose page shows no text for it is found too.
+    page = path / inventory["benchbus.sim.FAULT_KINDS"].partition("#")[0] / "index.html"
+    text = page.read_text("utf-8")
+    assert entry_text(text, "benchbus.sim.FAULT_KINDS")
+    assert not entry_text(text, "benchbus.sim.NoSuchAnchor")
+
+
+def test_async_bus_methods_are_documented_from_the_bus(site: Build) -> None:
+    """AsyncBus makes its methods from the Bus's at import time: each has its entry, marked
+    async, with the Bus method's parameters and docstring."""
+    path = built(site)
+    inventory = read_inventory(path / "objects.inv")
+    page = (path / "reference" / "aio" / "index.html").read_text("utf-8")
+    bus_page = (path / "reference" / "benchbus" / "index.html").read_text("utf-8")
+    for name in ("read_holding_registers", "write_register", "scan", "reopen"):
+        assert f"benchbus.aio.AsyncBus.{name}" in inventory
+        # The compiled Bus's method, from its stubs; the AsyncBus's says the same.
+        text = entry_text(bus_page, f"benchbus.Bus.{name}")
+        assert text
+        assert entry_text(page, f"benchbus.aio.AsyncBus.{name}") == text
+        start = page.find(f'id="benchbus.aio.AsyncBus.{name}"')
+        heading = page[start : page.find("</h", start)]
+        assert "async" in heading
+    # The Bus method's parameters, in the signature under the heading.
+    start = page.find('id="benchbus.aio.AsyncBus.read_holding_registers"')
+    signature = page[start : page.find("doc-contents", start)]
+    parameters = list(inspect.signature(benchbus.Bus.read_holding_registers).parameters)
+    assert parameters[0] == "self"
+    for parameter in parameters[1:]:
+        assert f">{parameter}<" in signature, parameter
+    # The properties read through to the Bus's, and a drive's register-backed properties.
+    assert "benchbus.aio.AsyncBus.port" in inventory
+    assert entry_text(page, "benchbus.aio.AsyncBus.port")
+    assert "benchbus.Drive.speed_setpoint" in inventory
+    # A compiled class's constructor (its stub's __new__) is the class's signature.
+    start = bus_page.find('id="benchbus.Bus"')
+    signature = bus_page[start : bus_page.find("doc-contents", start)]
+    for parameter in inspect.signature(benchbus.Bus).parameters:
+        assert f">{parameter}<" in signature, parameter
+
+
+def test_no_rest_roles_are_left_and_they_link(site: Build) -> None:
+    path = built(site)
+    roles = re.compile(r":(?:py:)?(?:class|meth|func|attr|data|exc|mod|obj|const):`")
+    for page in path.rglob("*.html"):
+        text = page.read_text("utf-8")
+        assert not roles.search(text), f"{page.relative_to(path)}: {roles.search(text)}"
+    aio = (path / "reference" / "aio" / "index.html").read_text("utf-8")
+    # ":class:`benchbus.Bus`" in benchbus.aio's docstring: a link to the Bus's entry.
+    assert 'href="../benchbus/#benchbus.Bus"' in aio
+
+
+# ---- the CLI reference ---------------------------------------------------------------------------
+
+
+def parsers(parser: argparse.ArgumentParser) -> Iterator[argparse.ArgumentParser]:
+    """``parser`` and every sub-command's parser under it."""
+    yield parser
+    for action in parser._actions:
+        if isinstance(action, argparse._SubParsersAction):
+            for sub in action.choices.values():
+                yield from parsers(sub)
+
+
+def section(page: str, anchor: str) -> str:
+    """The text of ``page`` from the heading ``anchor`` to the next command's heading."""
+    start = page.find(f'id="{anchor}"')
+    assert start >= 0, f"no heading #{anchor} in the CLI reference"
+    following = re.compile(r'<h[2-6] id="benchbus-')
+    match = following.search(page, start + 1)
+    text = re.sub(r"<[^>]+>", "", page[start : match.start() if match else len(page)])
+    return html.unescape(text)
+
+
+def test_the_cli_reference_has_every_command_and_option(site: Build) -> None:
+    page = (built(site) / "reference" / "cli" / "index.html").read_text("utf-8")
+    count = 0
+    for parser in parsers(build_parser()):
+        text = section(page, parser.prog.replace(" ", "-"))
+        count += 1
+        assert parser.format_usage().split()[1] in text
+        if parser.description:
+            assert " ".join(parser.description.split()) in " ".join(text.split())
+        for action in parser._actions:
+            if action.help == argparse.SUPPRESS or isinstance(action, argparse._SubParsersAction):
+                continue
+            for option in action.option_strings:
+                assert option in text, f"{parser.prog}: {option} missing"
+            if action.help:
+                first = action.help.split("%")[0].split()[:4]
+                assert " ".join(first) in " ".join(text.split()), (parser.prog, action.help)
+    assert count > 20  # the commands and the sub-commands of drive, pbl, j2, profile
+
+
+def test_the_cli_reference_follows_the_parser(monkeypatch: pytest.MonkeyPatch) -> None:
+    """An option added to the parser is in the next build's page."""
+    spec = importlib.util.spec_from_file_location("cli_reference", HOOKS / "cli_reference.py")
+    assert spec is not None and spec.loader is not None
+    cli_reference = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(cli_reference)
+
+    def with_new_option() -> argparse.ArgumentParser:
+        parser = build_parser()
+        (read,) = [p for p in parsers(parser) if p.prog == "benchbus read"]
+        read.add_argument("--brand-new", metavar="X", help="an option made a moment ago")
+        return parser
+
+    page = types.SimpleNamespace(file=types.SimpleNamespace(src_uri=cli_reference.PAGE))
+    markdown = f"# Command line\n\n{cli_reference.MARKER}\n"
+    before = cli_reference.on_page_markdown(markdown, page=page)
+    assert "--brand-new" not in before
+    monkeypatch.setattr("benchbus.cli.build_parser", with_new_option)
+    after = cli_reference.on_page_markdown(markdown, page=page)
+    assert "`--brand-new X` | an option made a moment ago |" in after
+    with pytest.raises(ValueError, match="marker"):
+        cli_reference.on_page_markdown("# Command line\n", page=page)
+
+
+# ---- no blank page -------------------------------------------------------------------------------
+
+
+def main_text(page: str) -> str:
+    """The text of a page's main content (Material's article), its title and permalinks
+    left out."""
+    match = re.search(r'<article class="md-content__inner md-typeset">(.*?)</article>', page, re.S)
+    if match is None:
+        return ""
+    content = re.sub(r"<h1.*?</h1>", " ", match.group(1), flags=re.S)
+    content = re.sub(r"<[^>]+>", " ", content)
+    return " ".join(html.unescape(content).replace("¶", " ").split())
+
+
+def test_no_page_is_blank(site: Build) -> None:
+    path = built(site)
+    pages = sorted(set(path.rglob("*.html")) - {path / "404.html"})  # a title, by design
+    assert len(pages) > 20
+    blank = [str(p.relative_to(path)) for p in pages if len(main_text(p.read_text("utf-8"))) < 80]
+    assert blank == [], f"pages without content: {blank}"
+
+
+def test_a_blank_page_is_found() -> None:
+    title_only = '<article class="md-content__inner md-typeset"><h1 id="x">Drives</h1></article>'
+    assert main_text(title_only) == ""
+    assert main_text("<html><body>no article</body></html>") == ""
+    assert main_text(title_only.replace("</h1>", "</h1><p>Some text.</p>")) == "Some text."
+
+
+# ---- chromium ------------------------------------------------------------------------------------
+
+
+def chromium() -> str:
+    for name in ("chromium", "chromium-browser"):
+        found = shutil.which(name)
+        if found:
+            return found
+    pytest.fail(
+        "chromium is not installed: `make test` installs it (.ci/need.sh), "
+        "or run `apt-get install chromium` (Debian's package)"
+    )
+
+
+@contextlib.contextmanager
+def serving(directory: Path) -> Iterator[str]:
+    """``directory`` served over HTTP on loopback, from a thread: its base URL."""
+
+    class Quiet(http.server.SimpleHTTPRequestHandler):
+        def log_message(self, format: str, *args: Any) -> None:
+            pass
+
+    handler = functools.partial(Quiet, directory=str(directory))
+    server = http.server.ThreadingHTTPServer(("127.0.0.1", 0), handler)
+    thread = threading.Thread(target=server.serve_forever, daemon=True)
+    thread.start()
+    try:
+        yield f"http://127.0.0.1:{server.server_address[1]}/"
+    finally:
+        server.shutdown()
+        server.server_close()
+        thread.join(5)
+
+
+def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
+    """The DOM of ``url`` once headless chromium has rendered it (scripts run). chromium and
+    every process it starts run in a process group of their own, killed afterwards."""
+    command = [chromium(), "--headless", "--disable-gpu", "--no-first-run"]
+    command += ["--no-default-browser-check", f"--user-data-dir={profile}"]
+    command += ["--virtual-time-budget=5000", "--dump-dom", url]
+    if os.geteuid() == 0:
+        command.insert(1, "--no-sandbox")  # chromium refuses to run as root with its sandbox
+    process = subprocess.Popen(
+        command,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        start_new_session=True,
+    )
+    try:
+        out, err = process.communicate(timeout=timeout)
+    except subprocess.TimeoutExpired:
+        out, err = "", f"chromium took more than {timeout} s"
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.killpg(process.pid, signal.SIGKILL)
+        process.wait()
+    assert process.returncode == 0 or out, f"chromium failed on {url}: {err[-2000:]}"
+    return out
+
+
+@pytest.mark.timeout(240)
+@pytest.mark.parametrize(
+    ("page", "title"),
+    [("", "benchbus"), ("reference/aio/", "benchbus.aio - benchbus")],
+    ids=["home", "api"],
+)
+def test_chromium_renders_the_page(site: Build, tmp_path: Path, page: str, title: str) -> None:
+    path = built(site)
+    before = set(os.listdir("/proc"))
+    with serving(path) as base:
+        dom = dump_dom(base + page, tmp_path / "profile")
+    assert re.search(r"<title>\s*" + re.escape(title) + r"\s*</title>", dom), dom[:2000]
+    nav = re.search(r'<nav class="md-nav md-nav--primary".*?</nav>\s*</div>\s*</div>', dom, re.S)
+    assert nav, "no Material navigation in the rendered page"
+    for entry in ("Getting started", "Concepts", "Command line", "benchbus.sim", "Changelog"):
+        assert entry in nav.group(0), f"navigation lacks {entry!r}"
+    codes = re.findall(r"<pre[^>]*>.*?<code[^>]*>(.*?)</code>", dom, re.S)
+    texts = [html.unescape(re.sub(r"<[^>]+>", "", code)).strip() for code in codes]
+    assert any(texts), "no code block with content"
+    # Material's scripts ran (its bundle marks the document).
+    assert re.search(r'<html[^>]*class="[^"]*js-focus-visible', dom), dom[:300]
+    # No chromium process is left: none of the processes started meanwhile remain.
+    started = {int(p) for p in set(os.listdir("/proc")) - before if p.isdigit()}
+    deadline = time.monotonic() + 5
+    while (alive := [p for p in started if chromium_process(p)]) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert alive == [], f"chromium processes left behind: {alive}"
+
+
+def chromium_process(pid: int) -> bool:
+    """Whether ``pid`` is a live (not zombie) chromium process."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return False
+    name, state = re.match(r"\d+ \((.*)\) (\S)", stat).groups()  # type: ignore[union-attr]
+    return "chrom" in name and state != "Z"
