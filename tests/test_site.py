@@ -105,7 +105,7 @@ def test_strict_build_passes_without_a_warning(site: Build) -> None:
 def copy_of_the_docs(tmp_path: Path) -> Path:
     """A copy of the site's sources (docs/ copied, the rest linked), to break on purpose."""
     tmp_path.mkdir()
-    for name in ("docs_hooks", "python", "CHANGELOG.md", "CONTRIBUTING.md"):
+    for name in ("docs_hooks", "python", "README.md", "CHANGELOG.md", "CONTRIBUTING.md"):
         (tmp_path / name).symlink_to(ROOT / name)
     shutil.copy(ROOT / "mkdocs.yml", tmp_path)
     shutil.copytree(ROOT / "docs", tmp_path / "docs")
