@@ -29,9 +29,18 @@ def on_page_markdown(markdown: str, *, page: Any, **kwargs: Any) -> str:
         raise ValueError(f"{PAGE} lacks the marker {MARKER} the CLI reference goes in")
     from benchbus.cli import build_parser
 
+    return markdown.replace(MARKER, reference(build_parser()))
+
+
+def reference(parser: argparse.ArgumentParser) -> str:
+    """The Markdown of ``parser`` and of every sub-command under it, as plain text: Python
+    3.14's parsers colour their usage and help when stdout is a terminal or FORCE_COLOR is
+    set, which would put escape codes into the page."""
+    for each in _parsers(parser):
+        if hasattr(each, "color"):
+            setattr(each, "color", False)  # noqa: B010 (Python 3.14's attribute)
     with _columns(WIDTH):
-        text = "\n".join(_parser(build_parser(), level=2, child_level=2))
-    return markdown.replace(MARKER, text)
+        return "\n".join(_parser(parser, level=2, child_level=2))
 
 
 @contextlib.contextmanager
@@ -52,7 +61,15 @@ def _text(value: str) -> str:
     return re.sub(r"([\\`*_\[\]|#])", r"\\\1", html.escape(" ".join(value.split()), quote=False))
 
 
+def _parsers(parser: argparse.ArgumentParser) -> Iterator[argparse.ArgumentParser]:
+    """``parser`` and every sub-command's parser under it."""
+    yield parser
+    for sub in _subcommands(parser).values():
+        yield from _parsers(sub)
+
+
 def _subcommands(parser: argparse.ArgumentParser) -> dict[str, argparse.ArgumentParser]:
+    """The sub-commands of ``parser`` by name (none: empty)."""
     for action in parser._actions:
         if isinstance(action, argparse._SubParsersAction):
             return dict(action.choices)
