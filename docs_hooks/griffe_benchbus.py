@@ -20,13 +20,15 @@ from typing import Any
 
 import griffe
 
-#: The modules whose ``__all__`` the reference documents, each name at ``module.name``.
+#: The public modules: the reference documents each (``:mod:`` links to it) and every name
+#: of its ``__all__``, at ``module.name``.
 PUBLIC_MODULES = (
     "benchbus",
     "benchbus.aio",
     "benchbus.sim",
     "benchbus.qcodes",
     "benchbus.ophyd",
+    "benchbus.exceptions",
     "benchbus.pytest_plugin",
 )
 
@@ -150,7 +152,6 @@ class Reference:
     def __init__(self, pkg: griffe.Module) -> None:
         self.pkg = pkg
         self.public: dict[str, str] = {}  # canonical path -> documented path
-        self.by_name: dict[str, set[str]] = {}  # last component -> documented paths
         for module_path in PUBLIC_MODULES:
             module = _member(pkg, module_path.partition(".")[2]) if "." in module_path else pkg
             if module is None:
@@ -162,8 +163,9 @@ class Reference:
                     self._add(obj, f"{module_path}.{name}")
 
     def _add(self, obj: griffe.Object, path: str) -> None:
-        self.public.setdefault(obj.path, path)
-        self.by_name.setdefault(path.rpartition(".")[2], set()).add(path)
+        if obj.path in self.public:  # documented under an earlier module's name
+            return
+        self.public[obj.path] = path
         if obj.is_class:
             # The members the page shows: public, with a docstring, inherited ones too.
             for name, member in obj.all_members.items():
@@ -189,8 +191,7 @@ class Reference:
             return self.public[obj.path]
         # A name its module does not import (a stub speaking of another module's class).
         suffix = "." + target
-        found = {p for paths in self.by_name.values() for p in paths if p.endswith(suffix)}
-        found |= {p for p in self.public.values() if p.endswith(suffix)}
+        found = {p for p in self.public.values() if p.endswith(suffix)}
         return found.pop() if len(found) == 1 else None
 
     def rewrite(self, scope: griffe.Object, text: str) -> str:
@@ -208,9 +209,10 @@ class Reference:
                 title = bare.rpartition(".")[2] if short else bare
                 if kind in ("meth", "func") and not title.endswith("()"):
                     title += "()"
-            path = None if kind == "mod" and bare == "benchbus" else self.find(scope, bare)
-            if kind == "mod" and path is None and bare in PUBLIC_MODULES:
-                path = bare
+            if kind == "mod":  # a module's entry is at its name; a private one has none
+                path = bare if bare in PUBLIC_MODULES else None
+            else:
+                path = self.find(scope, bare)
             code = f"`{title}`"
             return f"[{code}][{path}]" if path else code
 

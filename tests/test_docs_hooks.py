@@ -8,6 +8,7 @@ import importlib.util
 import types
 from pathlib import Path
 
+import griffe
 import pytest
 
 from benchbus.cli import build_parser
@@ -54,3 +55,50 @@ def test_the_cli_reference_has_no_colour(monkeypatch: pytest.MonkeyPatch) -> Non
     assert "usage: tool go [-h] where" in text
     # benchbus's own parser (argparse's colours where it has them: Python 3.14).
     assert "\x1b" not in cli_reference.reference(build_parser())
+
+
+# ---- the API reference (griffe) ------------------------------------------------------------------
+
+griffe_benchbus = hook("griffe_benchbus")
+PYTHON = HOOKS.parent / "python"
+
+
+@pytest.fixture(scope="module")
+def api() -> griffe.Module:
+    """benchbus as the site's API reference reads it: from its sources and stubs, with the
+    extension."""
+    extensions = griffe.load_extensions(griffe_benchbus.BenchbusReference())
+    loader = griffe.GriffeLoader(
+        extensions=extensions,
+        search_paths=[str(PYTHON)],
+        docstring_parser=griffe.Parser.sphinx,
+        allow_inspection=False,
+    )
+    pkg = loader.load("benchbus")
+    assert isinstance(pkg, griffe.Module)
+    return pkg
+
+
+def test_every_public_module_has_its_link(api: griffe.Module) -> None:
+    reference = griffe_benchbus.Reference(api)
+    modules = ":mod:`benchbus.exceptions`, :mod:`benchbus.sim`, :mod:`benchbus._recognise`"
+    assert reference.rewrite(api, modules) == (
+        "[`benchbus.exceptions`][benchbus.exceptions], [`benchbus.sim`][benchbus.sim], "
+        "`benchbus._recognise`"
+    )
+    # The exceptions are documented once, at benchbus's names, from anywhere.
+    display = api["_display"]
+    for scope in (api, api["exceptions"], display):
+        text = reference.rewrite(scope, ":exc:`PortError`")
+        assert text == "[`PortError`][benchbus.PortError]", scope.path
+    assert "PortError" not in display.members  # found by its name alone
+
+
+def test_the_public_modules_are_each_on_a_page() -> None:
+    directives = {
+        line.removeprefix(":::").strip()
+        for page in (HOOKS.parent / "docs" / "reference").glob("*.md")
+        for line in page.read_text("utf-8").splitlines()
+        if line.startswith(":::")
+    }
+    assert set(griffe_benchbus.PUBLIC_MODULES) <= directives
