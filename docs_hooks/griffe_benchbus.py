@@ -220,6 +220,24 @@ class Reference:
         return LITERAL_INTRO.sub(_literal_intro, text)
 
 
+def unindented_literals(text: str) -> list[int]:
+    """The lines (1-based) of ``text`` that end in ``::`` without the indented literal block
+    reStructuredText expects after them (a block at the same indent reads as a paragraph)."""
+    lines = text.splitlines()
+    found = []
+    for number, line in enumerate(lines, 1):
+        if not LITERAL_INTRO.fullmatch(line):
+            continue
+        following = next((rest for rest in lines[number:] if rest.strip()), None)
+        if following is None or _indent(following) <= _indent(line):
+            found.append(number)
+    return found
+
+
+def _indent(line: str) -> int:
+    return len(line) - len(line.lstrip())
+
+
 def _literal_intro(match: re.Match[str]) -> str:
     """``text::`` -> ``text:``; a ``::`` alone on its line goes."""
     indent, text = match.groups()
@@ -292,4 +310,12 @@ class BenchbusReference(griffe.Extension):
         reference = Reference(pkg)
         for obj in _walk(pkg):
             if obj.docstring is not None:
+                for line in unindented_literals(obj.docstring.value):
+                    # A warning fails the strict build (mkdocstrings logs griffe's).
+                    griffe.logger.warning(
+                        "%s: docstring line %d ends in '::' but no indented block follows: "
+                        "indent the example under it",
+                        obj.path,
+                        line,
+                    )
                 obj.docstring.value = reference.rewrite(obj, obj.docstring.value)

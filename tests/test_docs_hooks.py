@@ -4,8 +4,11 @@ packages griffe reads from a temporary directory."""
 from __future__ import annotations
 
 import argparse
+import importlib
 import importlib.util
+import inspect
 import types
+from collections.abc import Iterator
 from pathlib import Path
 
 import griffe
@@ -102,3 +105,34 @@ def test_the_public_modules_are_each_on_a_page() -> None:
         if line.startswith(":::")
     }
     assert set(griffe_benchbus.PUBLIC_MODULES) <= directives
+
+
+def test_a_literal_block_that_is_not_indented_is_found() -> None:
+    find = griffe_benchbus.unindented_literals
+    assert find("An example::\n\n    bus.scan()\n") == []
+    assert find("An example::\n\nbus.scan()\n") == [1]
+    assert find("Text.\n\n    Nested::\n\n    same indent\n\nMore::\n") == [3, 7]
+    assert find("Tight::\n        bus.scan()\nThe ``a::b`` form.\n") == []
+
+
+def docstrings(module: types.ModuleType) -> Iterator[tuple[str, str]]:
+    """The docstrings of ``module``'s public names and of their members, as Python keeps
+    them (indentation after the first line removed)."""
+    for name in module.__all__:
+        obj = getattr(module, name)
+        members = vars(obj).items() if inspect.isclass(obj) else ()
+        for path, each in [(name, obj), *((f"{name}.{m}", v) for m, v in members)]:
+            documented = inspect.isroutine(each) or inspect.isclass(each)
+            doc = inspect.getdoc(each) if documented or isinstance(each, property) else None
+            if doc:
+                yield f"{module.__name__}.{path}", doc
+
+
+def test_every_literal_block_of_the_docstrings_is_indented() -> None:
+    found = [
+        (path, line)
+        for name in griffe_benchbus.PUBLIC_MODULES
+        for path, doc in docstrings(importlib.import_module(name))
+        for line in griffe_benchbus.unindented_literals(doc)
+    ]
+    assert found == []

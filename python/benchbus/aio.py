@@ -785,11 +785,12 @@ class AsyncDevice(Generic[D]):
 
 
 class Drive(AsyncDevice[_SyncDrive], DriveMembers):
-    """:class:`benchbus.Drive` for asyncio (see :class:`AsyncDevice`)::
+    """:class:`benchbus.Drive` for asyncio (see :class:`AsyncDevice`). For
+    example::
 
-    async with bb.aio.Drive(bus, unit=1) as drive:
-        await drive.set("speed_setpoint", 1500)
-        await drive.forward()
+        async with bb.aio.Drive(bus, unit=1) as drive:
+            await drive.set("speed_setpoint", 1500)
+            await drive.forward()
     """
 
     SYNC = _SyncDrive
