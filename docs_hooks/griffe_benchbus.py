@@ -151,7 +151,8 @@ class Reference:
 
     def __init__(self, pkg: griffe.Module) -> None:
         self.pkg = pkg
-        self.public: dict[str, str] = {}  # canonical path -> documented path
+        self.public: dict[str, str] = {}  # canonical path -> (first) documented path
+        self.documented: set[str] = set()  # every documented path, inherited members too
         for module_path in PUBLIC_MODULES:
             module = _member(pkg, module_path.partition(".")[2]) if "." in module_path else pkg
             if module is None:
@@ -166,6 +167,7 @@ class Reference:
         if obj.path in self.public:  # documented under an earlier module's name
             return
         self.public[obj.path] = path
+        self.documented.add(path)
         if obj.is_class:
             # The members the page shows: public, with a docstring, inherited ones too.
             for name, member in obj.all_members.items():
@@ -174,6 +176,7 @@ class Reference:
                     continue
                 if target.docstring is not None and target.docstring.value.strip():
                     self.public.setdefault(target.path, f"{path}.{name}")
+                    self.documented.add(f"{path}.{name}")
 
     def find(self, scope: griffe.Object, target: str) -> str | None:
         """The documented path of ``target`` as written in ``scope``'s docstring, or None."""
@@ -185,6 +188,11 @@ class Reference:
         obj = None
         current: griffe.Object | None = scope
         while current is not None and obj is None:
+            # A member of the class being documented: its entry on that class's page, not
+            # the entry of the first class that shows the same (inherited) member.
+            here = self.public.get(current.path) if current.is_class else None
+            if here is not None and f"{here}.{target}" in self.documented:
+                return f"{here}.{target}"
             obj = _member(current, target)
             current = current.parent
         if obj is not None and obj.path in self.public:

@@ -136,3 +136,19 @@ def test_every_literal_block_of_the_docstrings_is_indented() -> None:
         for line in griffe_benchbus.unindented_literals(doc)
     ]
     assert found == []
+
+
+def test_a_member_links_to_the_entry_of_the_class_being_documented(api: griffe.Module) -> None:
+    """An inherited member is shown on each subclass's page: a role in a class's docstring
+    (or in one of its own members') links to that class's entry of it."""
+    reference = griffe_benchbus.Reference(api)
+    pbl = griffe_benchbus._member(api, "PblDrive")
+    device = griffe_benchbus._member(api, "sim.RegisterDevice")
+    assert reference.rewrite(pbl, ":meth:`close`") == "[`close()`][benchbus.PblDrive.close]"
+    assert reference.rewrite(device, ":attr:`max_read`") == (
+        "[`max_read`][benchbus.sim.RegisterDevice.max_read]"
+    )
+    sim_device = griffe_benchbus._member(api, "sim.SimDevice")
+    assert reference.rewrite(sim_device["read_holding"], ":attr:`max_read`") == (
+        "[`max_read`][benchbus.sim.SimDevice.max_read]"
+    )
