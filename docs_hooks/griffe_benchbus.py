@@ -252,12 +252,11 @@ def _literal_intro(match: re.Match[str]) -> str:
     return f"{indent}{text}:" if text.strip() else ""
 
 
-def _comment_docstring(attr: griffe.Attribute) -> None:
-    """An attribute's ``#:`` comment lines above it, as Sphinx reads them, as its docstring."""
-    if attr.docstring is not None or attr.lineno is None or attr.filepath is None:
+def _comment_docstring(attr: griffe.Attribute, lines: list[str]) -> None:
+    """An attribute's ``#:`` comment lines above it (``lines``: its file's), as Sphinx reads
+    them, as its docstring."""
+    if attr.docstring is not None or attr.lineno is None:
         return
-    filepath = attr.filepath[0] if isinstance(attr.filepath, list) else attr.filepath
-    lines = attr.lines_collection[filepath] if filepath in attr.lines_collection else []  # noqa: SIM401 (no .get)
     comment: list[str] = []
     number = attr.lineno - 1  # the line above, 1-based
     while 1 <= number <= len(lines) and lines[number - 1].strip().startswith("#:"):
@@ -302,18 +301,59 @@ def _walk(obj: griffe.Object) -> Any:
             yield from _walk(member)  # type: ignore[arg-type]
 
 
+#: The enum classes of the standard library; a class deriving from one is an enum.
+ENUM_BASES = frozenset({"enum.Enum", "enum.IntEnum", "enum.StrEnum", "enum.Flag", "enum.IntFlag"})
+
+
+def _is_enum(cls: griffe.Class) -> bool:
+    """Whether ``cls`` derives from one of :data:`ENUM_BASES`."""
+    if any(isinstance(b, griffe.Expr) and b.canonical_path in ENUM_BASES for b in cls.bases):
+        return True
+    return any(isinstance(b, griffe.Class) and _is_enum(b) for b in cls.resolved_bases)
+
+
+def _enum_members(cls: griffe.Class) -> None:
+    """An enum's members, which have no docstring of their own: their value as one, so that
+    the class's entry lists them."""
+    if not _is_enum(cls):
+        return
+    for name, member in cls.members.items():
+        if (
+            isinstance(member, griffe.Attribute)
+            and not name.startswith("_")
+            and member.value is not None
+            and member.docstring is None
+        ):
+            member.docstring = griffe.Docstring(
+                f"Value: ``{member.value}``.",
+                lineno=member.lineno,
+                endlineno=member.endlineno,
+                parent=member,
+            )
+
+
 class BenchbusReference(griffe.Extension):
     """The extension mkdocs.yml names (``extensions:`` of the Python handler)."""
+
+    def on_attribute_instance(
+        self, *, node: Any, attr: griffe.Attribute, agent: Any, **kwargs: Any
+    ) -> None:
+        """An attribute's ``#:`` comment, read as griffe meets its first assignment: griffe
+        keeps that docstring through later ones (``self.x = ...`` in ``__init__``)."""
+        if isinstance(agent, griffe.Visitor):
+            collection, path = agent.lines_collection, agent.filepath
+            lines = collection[path] if path in collection else agent.code.splitlines()
+            _comment_docstring(attr, lines)
 
     def on_package(self, *, pkg: griffe.Module, **kwargs: Any) -> None:
         if pkg.name != "benchbus":
             return
         for obj in _walk(pkg):
             if isinstance(obj, griffe.Attribute):
-                _comment_docstring(obj)
                 _register_property(obj)
             elif isinstance(obj, griffe.Class):
                 _constructor(obj)
+                _enum_members(obj)
         _async_bus(pkg)
         reference = Reference(pkg)
         for obj in _walk(pkg):

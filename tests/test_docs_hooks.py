@@ -152,3 +152,45 @@ def test_a_member_links_to_the_entry_of_the_class_being_documented(api: griffe.M
     assert reference.rewrite(sim_device["read_holding"], ":attr:`max_read`") == (
         "[`max_read`][benchbus.sim.SimDevice.max_read]"
     )
+
+
+THING = """
+import enum
+
+class Colour(enum.IntEnum):
+    RED = 1
+    _hidden = 2
+
+class Plain:
+    RED = 1
+
+class Thing:
+    #: Its size.
+    size: int
+
+    def __init__(self) -> None:
+        self.size = 3
+        #: Its name.
+        self.name = "x"
+        self.other = None
+"""
+
+
+def test_comments_and_enum_members_become_docstrings(api: griffe.Module) -> None:
+    extensions = griffe.load_extensions(griffe_benchbus.BenchbusReference())
+    with griffe.temporary_visited_module(THING, extensions=extensions) as module:
+        for cls in ("Colour", "Plain"):
+            griffe_benchbus._enum_members(module[cls])
+        assert module["Colour.RED"].docstring.value == "Value: ``1``."
+        assert module["Colour._hidden"].docstring is None
+        assert module["Plain.RED"].docstring is None  # not an enum
+        # The #: comment of an attribute assigned again in __init__ is kept.
+        assert module["Thing.size"].docstring.value == "Its size."
+        assert module["Thing.name"].docstring.value == "Its name."
+        assert module["Thing.other"].docstring is None
+    # benchbus's: an enum deriving from the package's own enum base, a str enum, and an
+    # attribute declared with its comment and set in __init__.
+    assert api["_drive.DriveState.FORWARD"].docstring.value == "Value: ``1``."
+    assert api["_drive.Model.BLD2"].docstring.value == "Value: ``'BLD2'``."
+    enums = api["_profile.Device.enums"].docstring
+    assert enums.value == "Each enum register's enum class, by register name."
