@@ -214,3 +214,66 @@ def test_every_public_member_has_a_docstring_for_the_reference(api: griffe.Modul
                 if found is None or found.docstring is None or not found.docstring.value.strip():
                     missing.append(f"{name}.{export}.{member}")
     assert missing == []
+
+
+def markdown_table_cells(markdown: str, row_start: str) -> list[str]:
+    """The cells of the table row of ``markdown`` that starts with ``row_start``, as
+    Python-Markdown (MkDocs's) renders them."""
+    import markdown as md
+
+    (row,) = [line for line in markdown.splitlines() if line.startswith(row_start)]
+    table = "| a | b | c |\n| --- | --- | --- |\n" + row
+    html = md.markdown(table, extensions=["tables"])
+    return html.split("<td>")[1:]
+
+
+def test_the_cli_reference_takes_what_argparse_allows(monkeypatch: pytest.MonkeyPatch) -> None:
+    parser = argparse.ArgumentParser(prog="tool")
+    parser.add_argument("--how", default=print, help="a function as default")
+    parser.add_argument("--empty", default="", help="an empty default")
+    parser.add_argument("--quote", default="a`b", help="a backtick in the default")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND")
+    remove = commands.add_parser("remove", aliases=["rm", "del"], description="Remove a thing.")
+    remove.add_argument("mode", choices=["fast", "slow"], help="a positional with choices")
+    remove.add_argument("what", help="a positional without metavar")
+    remove.add_argument("count", nargs="?", type=int, default=5, help="may be left out")
+    text = cli_reference.reference(parser)
+    # A sub-command with aliases: one section, its aliases said in the list.
+    assert text.count("## tool remove {#tool-remove}") == 1
+    assert "- [`remove`](#tool-remove) (also `rm`, `del`): Remove a thing." in text
+    assert "## tool {#tool}" in text
+    # Positionals named as --help names them.
+    assert "| `{fast,slow}` | a positional with choices |  |" in text
+    assert "| `what` | a positional without metavar |  |" in text
+    assert "| `count` | may be left out | `5` |" in text
+    # Defaults: a function's repr (its address changes every run) left out, the empty
+    # string shown as such, a backtick kept inside its code span.
+    assert "| `--how HOW` | a function as default |  |" in text
+    assert '| `--empty EMPTY` | an empty default | `""` |' in text
+    quote = markdown_table_cells(text, "| `--quote")
+    assert len(quote) == 3
+    assert quote[2].startswith("<code>a`b</code>"), quote
+    assert cli_reference.reference(parser) == text
+
+
+def test_each_build_reads_the_parser_afresh(monkeypatch: pytest.MonkeyPatch) -> None:
+    """``mkdocs serve`` rebuilds in one process: a change to a command's help is in the
+    next build, not the help of the module imported for the first one."""
+    import sys
+
+    import benchbus
+    import benchbus.cli.read
+
+    names = [n for n in sys.modules if n == "benchbus.cli" or n.startswith("benchbus.cli.")]
+    for name in names:  # put back afterwards, as the other tests imported them
+        monkeypatch.setitem(sys.modules, name, sys.modules[name])
+    monkeypatch.setattr(benchbus, "cli", sys.modules["benchbus.cli"])
+    monkeypatch.setattr(benchbus.cli.read, "HELP", "help from before the sources changed")
+    page = types.SimpleNamespace(file=types.SimpleNamespace(src_uri=cli_reference.PAGE))
+    cli_reference.on_pre_build(config=None)
+    text = cli_reference.on_page_markdown(cli_reference.MARKER, page=page)
+    assert "benchbus read" in text
+    assert "from before the sources changed" not in text
+    assert sys.modules["benchbus.cli.read"].HELP not in ("help from before the sources changed",)
+    for name in [n for n in sys.modules if n.startswith("benchbus.cli.") and n not in names]:
+        monkeypatch.delitem(sys.modules, name)
