@@ -59,6 +59,7 @@ def reference(parser: argparse.ArgumentParser) -> str:
 
 @contextlib.contextmanager
 def _columns(width: int) -> Iterator[None]:
+    """$COLUMNS set to ``width`` meanwhile (argparse wraps usage at it), then put back."""
     old = os.environ.get("COLUMNS")
     os.environ["COLUMNS"] = str(width)
     try:

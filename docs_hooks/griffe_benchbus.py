@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import ast
 import re
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 import griffe
@@ -61,6 +62,7 @@ def _member(scope: griffe.Object, dotted: str) -> griffe.Object | None:
 
 
 def _copy_docstring(source: griffe.Object, parent: griffe.Object) -> griffe.Docstring | None:
+    """A copy of ``source``'s docstring for ``parent`` (None if it has none)."""
     doc = source.docstring
     if doc is None:
         return None
@@ -74,6 +76,17 @@ def _copy_docstring(source: griffe.Object, parent: griffe.Object) -> griffe.Docs
     )
 
 
+def _copy_parameters(parameters: Iterable[griffe.Parameter]) -> list[griffe.Parameter]:
+    """Copies of ``parameters`` for another function: griffe points each parameter at the
+    function given it, so sharing them would move the source's to the copy."""
+    return [
+        griffe.Parameter(
+            p.name, annotation=p.annotation, kind=p.kind, default=p.default, docstring=p.docstring
+        )
+        for p in parameters
+    ]
+
+
 def _bus_member(source: griffe.Object, attr: griffe.Attribute, is_async: bool) -> griffe.Object:
     """An AsyncBus member standing for the Bus's ``source``."""
     new: griffe.Object
@@ -82,16 +95,15 @@ def _bus_member(source: griffe.Object, attr: griffe.Attribute, is_async: bool) -
             attr.name,
             lineno=attr.lineno,
             endlineno=attr.endlineno,
-            parameters=source.parameters,
+            parameters=griffe.Parameters(*_copy_parameters(source.parameters)),
             returns=source.returns,
         )
-        labels = set(source.labels)
     else:
         annotation = getattr(source, "annotation", None)
         new = griffe.Attribute(
             attr.name, lineno=attr.lineno, endlineno=attr.endlineno, annotation=annotation
         )
-        labels = set(source.labels)
+    labels = set(source.labels)
     if is_async:
         labels -= {"method descriptor"}
         labels.add("async")
@@ -138,7 +150,7 @@ def _constructor(cls: griffe.Class) -> None:
         endlineno=new.endlineno,
         parameters=griffe.Parameters(
             griffe.Parameter("self", kind=first.kind),
-            *parameters,
+            *_copy_parameters(parameters),
         ),
         returns="None",
     )
@@ -203,12 +215,17 @@ class Reference:
         return found.pop() if len(found) == 1 else None
 
     def rewrite(self, scope: griffe.Object, text: str) -> str:
+        """``text``, a docstring of ``scope``, with its roles as links to the entries of
+        their targets (code where there is none, or where the target starts with ``!``) and
+        its ``::`` as ``:``."""
+
         def role(match: re.Match[str]) -> str:
             kind, content = match.groups()
             title = None
             explicit = re.fullmatch(r"(.*?)\s*<(.+)>", content)
             if explicit:
                 title, content = explicit.groups()
+            unlinked = content.startswith("!")  # Sphinx's way to say: no link
             content = content.lstrip("!")
             short = content.startswith("~")
             content = content.lstrip("~")
@@ -217,7 +234,9 @@ class Reference:
                 title = bare.rpartition(".")[2] if short else bare
                 if kind in ("meth", "func") and not title.endswith("()"):
                     title += "()"
-            if kind == "mod":  # a module's entry is at its name; a private one has none
+            if unlinked:
+                path = None
+            elif kind == "mod":  # a module's entry is at its name; a private one has none
                 path = bare if bare in PUBLIC_MODULES else None
             else:
                 path = self.find(scope, bare)
@@ -294,7 +313,8 @@ def _register_property(attr: griffe.Attribute) -> None:
     attr.value = None  # the descriptor, not a value a reader can use
 
 
-def _walk(obj: griffe.Object) -> Any:
+def _walk(obj: griffe.Object) -> Iterator[griffe.Object]:
+    """``obj`` and every object under it, aliases left out."""
     yield obj
     for member in obj.members.values():
         if not member.is_alias:
@@ -346,6 +366,8 @@ class BenchbusReference(griffe.Extension):
             _comment_docstring(attr, lines)
 
     def on_package(self, *, pkg: griffe.Module, **kwargs: Any) -> None:
+        """Complete benchbus's objects (constructors, register-backed properties, enum
+        members, AsyncBus's members), then rewrite every docstring's roles as links."""
         if pkg.name != "benchbus":
             return
         for obj in _walk(pkg):

@@ -277,3 +277,22 @@ def test_each_build_reads_the_parser_afresh(monkeypatch: pytest.MonkeyPatch) -> 
     assert sys.modules["benchbus.cli.read"].HELP not in ("help from before the sources changed",)
     for name in [n for n in sys.modules if n.startswith("benchbus.cli.") and n not in names]:
         monkeypatch.delitem(sys.modules, name)
+
+
+def test_async_bus_members_have_parameters_of_their_own(api: griffe.Module) -> None:
+    """AsyncBus's methods are made from the Bus's: the Bus keeps its own parameters."""
+    bus = griffe_benchbus._member(api, "_core.Bus")
+    async_bus = griffe_benchbus._member(api, "aio.AsyncBus")
+    for owner, name in ((bus, "read_holding_registers"), (async_bus, "read_holding_registers")):
+        method = owner.members[name]
+        assert [p.name for p in method.parameters][:3] == ["self", "unit", "address"]
+        assert all(p.function is method for p in method.parameters), owner.path
+    # A compiled class's constructor, made from its __new__, which keeps its own too.
+    new = bus.members["__new__"]
+    assert all(p.function is new for p in new.parameters)
+
+
+def test_an_exclamation_mark_suppresses_the_link(api: griffe.Module) -> None:
+    reference = griffe_benchbus.Reference(api)
+    assert reference.rewrite(api, ":meth:`!Bus.close`") == "`Bus.close()`"
+    assert reference.rewrite(api, ":meth:`Bus.close`") == "[`Bus.close()`][benchbus.Bus.close]"
