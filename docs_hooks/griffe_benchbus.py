@@ -127,6 +127,11 @@ def _async_bus(pkg: griffe.Module) -> None:
         value = str(member.value)
         match = AWAITABLE.match(value) or BUS_PROPERTY.match(value)
         if match is None:
+            if re.search(r"\b(_awaitable|_BusProperty)\b", value):
+                raise RuntimeError(
+                    f"AsyncBus.{name} = {value}: made from the Bus in a form this extension"
+                    " does not read (it reads `_awaitable(Bus.name)`, `_BusProperty(Bus.name)`)"
+                )
             continue
         found = bus.members.get(match.group(1))
         source = _target(found) if found is not None else None

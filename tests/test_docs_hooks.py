@@ -296,3 +296,43 @@ def test_an_exclamation_mark_suppresses_the_link(api: griffe.Module) -> None:
     reference = griffe_benchbus.Reference(api)
     assert reference.rewrite(api, ":meth:`!Bus.close`") == "`Bus.close()`"
     assert reference.rewrite(api, ":meth:`Bus.close`") == "[`Bus.close()`][benchbus.Bus.close]"
+
+
+def test_every_async_bus_member_made_from_the_bus_is_documented(api: griffe.Module) -> None:
+    """Each AsyncBus method that is a coroutine at run time is an async method in the
+    reference, and each property a property, whatever their number."""
+    from benchbus.aio import AsyncBus
+
+    async_bus = griffe_benchbus._member(api, "aio.AsyncBus")
+    coroutines = properties = 0
+    for name in dir(AsyncBus):
+        if name.startswith("_"):
+            continue
+        member = async_bus.all_members.get(name)
+        assert member is not None, name
+        value = inspect.getattr_static(AsyncBus, name)
+        if inspect.iscoroutinefunction(getattr(AsyncBus, name)):
+            coroutines += 1
+            assert "async" in member.labels, name
+        elif type(value).__name__ == "_BusProperty":
+            properties += 1
+            assert "property" in member.labels, name
+            assert member.docstring is not None and member.docstring.value.strip(), name
+    assert coroutines > 20 and properties > 3
+
+
+def test_a_member_made_in_another_form_stops_the_build(tmp_path: Path) -> None:
+    package = tmp_path / "benchbus"
+    package.mkdir()
+    (package / "__init__.py").write_text("")
+    bus = "class Bus:\n    def scan(self) -> None:\n        '''Scan.'''\n"
+    (package / "_core.py").write_text(bus)
+    aio = "from benchbus._core import Bus\nclass AsyncBus:\n    scan = {}\n"
+    (package / "aio.py").write_text(aio.format("_awaitable(Bus.scan)"))
+    loaded = griffe.load("benchbus", search_paths=[str(tmp_path)])
+    griffe_benchbus._async_bus(loaded)
+    assert "async" in loaded["aio.AsyncBus.scan"].labels
+    (package / "aio.py").write_text(aio.format("_awaitable(Bus.scan, timeout=1)"))
+    loaded = griffe.load("benchbus", search_paths=[str(tmp_path)])
+    with pytest.raises(RuntimeError, match=r"AsyncBus.scan = _awaitable\(Bus.scan, timeout=1\)"):
+        griffe_benchbus._async_bus(loaded)
