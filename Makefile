@@ -47,6 +47,7 @@ lint: install
 	$(PYTHON) -m ruff check python tests examples bench docs_hooks
 	$(PYTHON) -m ruff format --check python tests examples bench docs_hooks
 	$(PYTHON) -m mypy python/benchbus
+	$(PYTHON) -m mypy docs_hooks
 	$(PYTHON) -m benchbus._aio_stubgen --check
 	$(PYTHON) -m mypy.stubtest benchbus._core
 	$(PYTHON) -m check_jsonschema --builtin-schema vendor.github-workflows .github/workflows/*.yml

@@ -16,17 +16,20 @@ from __future__ import annotations
 
 import ast
 import re
+from collections.abc import Iterable, Iterator
 from typing import Any
 
 import griffe
 
-#: The modules whose ``__all__`` the reference documents, each name at ``module.name``.
+#: The public modules: the reference documents each (``:mod:`` links to it) and every name
+#: of its ``__all__``, at ``module.name``.
 PUBLIC_MODULES = (
     "benchbus",
     "benchbus.aio",
     "benchbus.sim",
     "benchbus.qcodes",
     "benchbus.ophyd",
+    "benchbus.exceptions",
     "benchbus.pytest_plugin",
 )
 
@@ -59,6 +62,7 @@ def _member(scope: griffe.Object, dotted: str) -> griffe.Object | None:
 
 
 def _copy_docstring(source: griffe.Object, parent: griffe.Object) -> griffe.Docstring | None:
+    """A copy of ``source``'s docstring for ``parent`` (None if it has none)."""
     doc = source.docstring
     if doc is None:
         return None
@@ -72,6 +76,17 @@ def _copy_docstring(source: griffe.Object, parent: griffe.Object) -> griffe.Docs
     )
 
 
+def _copy_parameters(parameters: Iterable[griffe.Parameter]) -> list[griffe.Parameter]:
+    """Copies of ``parameters`` for another function: griffe points each parameter at the
+    function given it, so sharing them would move the source's to the copy."""
+    return [
+        griffe.Parameter(
+            p.name, annotation=p.annotation, kind=p.kind, default=p.default, docstring=p.docstring
+        )
+        for p in parameters
+    ]
+
+
 def _bus_member(source: griffe.Object, attr: griffe.Attribute, is_async: bool) -> griffe.Object:
     """An AsyncBus member standing for the Bus's ``source``."""
     new: griffe.Object
@@ -80,16 +95,15 @@ def _bus_member(source: griffe.Object, attr: griffe.Attribute, is_async: bool) -
             attr.name,
             lineno=attr.lineno,
             endlineno=attr.endlineno,
-            parameters=source.parameters,
+            parameters=griffe.Parameters(*_copy_parameters(source.parameters)),
             returns=source.returns,
         )
-        labels = set(source.labels)
     else:
         annotation = getattr(source, "annotation", None)
         new = griffe.Attribute(
             attr.name, lineno=attr.lineno, endlineno=attr.endlineno, annotation=annotation
         )
-        labels = set(source.labels)
+    labels = set(source.labels)
     if is_async:
         labels -= {"method descriptor"}
         labels.add("async")
@@ -113,6 +127,11 @@ def _async_bus(pkg: griffe.Module) -> None:
         value = str(member.value)
         match = AWAITABLE.match(value) or BUS_PROPERTY.match(value)
         if match is None:
+            if re.search(r"\b(_awaitable|_BusProperty)\b", value):
+                raise RuntimeError(
+                    f"AsyncBus.{name} = {value}: made from the Bus in a form this extension"
+                    " does not read (it reads `_awaitable(Bus.name)`, `_BusProperty(Bus.name)`)"
+                )
             continue
         found = bus.members.get(match.group(1))
         source = _target(found) if found is not None else None
@@ -136,7 +155,7 @@ def _constructor(cls: griffe.Class) -> None:
         endlineno=new.endlineno,
         parameters=griffe.Parameters(
             griffe.Parameter("self", kind=first.kind),
-            *parameters,
+            *_copy_parameters(parameters),
         ),
         returns="None",
     )
@@ -149,8 +168,8 @@ class Reference:
 
     def __init__(self, pkg: griffe.Module) -> None:
         self.pkg = pkg
-        self.public: dict[str, str] = {}  # canonical path -> documented path
-        self.by_name: dict[str, set[str]] = {}  # last component -> documented paths
+        self.public: dict[str, str] = {}  # canonical path -> (first) documented path
+        self.documented: set[str] = set()  # every documented path, inherited members too
         for module_path in PUBLIC_MODULES:
             module = _member(pkg, module_path.partition(".")[2]) if "." in module_path else pkg
             if module is None:
@@ -162,8 +181,10 @@ class Reference:
                     self._add(obj, f"{module_path}.{name}")
 
     def _add(self, obj: griffe.Object, path: str) -> None:
-        self.public.setdefault(obj.path, path)
-        self.by_name.setdefault(path.rpartition(".")[2], set()).add(path)
+        if obj.path in self.public:  # documented under an earlier module's name
+            return
+        self.public[obj.path] = path
+        self.documented.add(path)
         if obj.is_class:
             # The members the page shows: public, with a docstring, inherited ones too.
             for name, member in obj.all_members.items():
@@ -172,6 +193,7 @@ class Reference:
                     continue
                 if target.docstring is not None and target.docstring.value.strip():
                     self.public.setdefault(target.path, f"{path}.{name}")
+                    self.documented.add(f"{path}.{name}")
 
     def find(self, scope: griffe.Object, target: str) -> str | None:
         """The documented path of ``target`` as written in ``scope``'s docstring, or None."""
@@ -183,23 +205,32 @@ class Reference:
         obj = None
         current: griffe.Object | None = scope
         while current is not None and obj is None:
+            # A member of the class being documented: its entry on that class's page, not
+            # the entry of the first class that shows the same (inherited) member.
+            here = self.public.get(current.path) if current.is_class else None
+            if here is not None and f"{here}.{target}" in self.documented:
+                return f"{here}.{target}"
             obj = _member(current, target)
             current = current.parent
         if obj is not None and obj.path in self.public:
             return self.public[obj.path]
         # A name its module does not import (a stub speaking of another module's class).
         suffix = "." + target
-        found = {p for paths in self.by_name.values() for p in paths if p.endswith(suffix)}
-        found |= {p for p in self.public.values() if p.endswith(suffix)}
+        found = {p for p in self.public.values() if p.endswith(suffix)}
         return found.pop() if len(found) == 1 else None
 
     def rewrite(self, scope: griffe.Object, text: str) -> str:
+        """``text``, a docstring of ``scope``, with its roles as links to the entries of
+        their targets (code where there is none, or where the target starts with ``!``) and
+        its ``::`` as ``:``."""
+
         def role(match: re.Match[str]) -> str:
             kind, content = match.groups()
             title = None
             explicit = re.fullmatch(r"(.*?)\s*<(.+)>", content)
             if explicit:
                 title, content = explicit.groups()
+            unlinked = content.startswith("!")  # Sphinx's way to say: no link
             content = content.lstrip("!")
             short = content.startswith("~")
             content = content.lstrip("~")
@@ -208,14 +239,35 @@ class Reference:
                 title = bare.rpartition(".")[2] if short else bare
                 if kind in ("meth", "func") and not title.endswith("()"):
                     title += "()"
-            path = None if kind == "mod" and bare == "benchbus" else self.find(scope, bare)
-            if kind == "mod" and path is None and bare in PUBLIC_MODULES:
-                path = bare
+            if unlinked:
+                path = None
+            elif kind == "mod":  # a module's entry is at its name; a private one has none
+                path = bare if bare in PUBLIC_MODULES else None
+            else:
+                path = self.find(scope, bare)
             code = f"`{title}`"
             return f"[{code}][{path}]" if path else code
 
         text = ROLE.sub(role, text)
         return LITERAL_INTRO.sub(_literal_intro, text)
+
+
+def unindented_literals(text: str) -> list[int]:
+    """The lines (1-based) of ``text`` that end in ``::`` without the indented literal block
+    reStructuredText expects after them (a block at the same indent reads as a paragraph)."""
+    lines = text.splitlines()
+    found = []
+    for number, line in enumerate(lines, 1):
+        if not LITERAL_INTRO.fullmatch(line):
+            continue
+        following = next((rest for rest in lines[number:] if rest.strip()), None)
+        if following is None or _indent(following) <= _indent(line):
+            found.append(number)
+    return found
+
+
+def _indent(line: str) -> int:
+    return len(line) - len(line.lstrip())
 
 
 def _literal_intro(match: re.Match[str]) -> str:
@@ -224,12 +276,11 @@ def _literal_intro(match: re.Match[str]) -> str:
     return f"{indent}{text}:" if text.strip() else ""
 
 
-def _comment_docstring(attr: griffe.Attribute) -> None:
-    """An attribute's ``#:`` comment lines above it, as Sphinx reads them, as its docstring."""
-    if attr.docstring is not None or attr.lineno is None or attr.filepath is None:
+def _comment_docstring(attr: griffe.Attribute, lines: list[str]) -> None:
+    """An attribute's ``#:`` comment lines above it (``lines``: its file's), as Sphinx reads
+    them, as its docstring."""
+    if attr.docstring is not None or attr.lineno is None:
         return
-    filepath = attr.filepath[0] if isinstance(attr.filepath, list) else attr.filepath
-    lines = attr.lines_collection[filepath] if filepath in attr.lines_collection else []  # noqa: SIM401 (no .get)
     comment: list[str] = []
     number = attr.lineno - 1  # the line above, 1-based
     while 1 <= number <= len(lines) and lines[number - 1].strip().startswith("#:"):
@@ -267,27 +318,79 @@ def _register_property(attr: griffe.Attribute) -> None:
     attr.value = None  # the descriptor, not a value a reader can use
 
 
-def _walk(obj: griffe.Object) -> Any:
+def _walk(obj: griffe.Object) -> Iterator[griffe.Object]:
+    """``obj`` and every object under it, aliases left out."""
     yield obj
     for member in obj.members.values():
         if not member.is_alias:
             yield from _walk(member)  # type: ignore[arg-type]
 
 
+#: The enum classes of the standard library; a class deriving from one is an enum.
+ENUM_BASES = frozenset({"enum.Enum", "enum.IntEnum", "enum.StrEnum", "enum.Flag", "enum.IntFlag"})
+
+
+def _is_enum(cls: griffe.Class) -> bool:
+    """Whether ``cls`` derives from one of :data:`ENUM_BASES`."""
+    if any(isinstance(b, griffe.Expr) and b.canonical_path in ENUM_BASES for b in cls.bases):
+        return True
+    return any(isinstance(b, griffe.Class) and _is_enum(b) for b in cls.resolved_bases)
+
+
+def _enum_members(cls: griffe.Class) -> None:
+    """An enum's members, which have no docstring of their own: their value as one, so that
+    the class's entry lists them."""
+    if not _is_enum(cls):
+        return
+    for name, member in cls.members.items():
+        if (
+            isinstance(member, griffe.Attribute)
+            and not name.startswith("_")
+            and member.value is not None
+            and member.docstring is None
+        ):
+            member.docstring = griffe.Docstring(
+                f"Value: ``{member.value}``.",
+                lineno=member.lineno,
+                endlineno=member.endlineno,
+                parent=member,
+            )
+
+
 class BenchbusReference(griffe.Extension):
     """The extension mkdocs.yml names (``extensions:`` of the Python handler)."""
 
+    def on_attribute_instance(
+        self, *, node: Any, attr: griffe.Attribute, agent: Any, **kwargs: Any
+    ) -> None:
+        """An attribute's ``#:`` comment, read as griffe meets its first assignment: griffe
+        keeps that docstring through later ones (``self.x = ...`` in ``__init__``)."""
+        if isinstance(agent, griffe.Visitor):
+            collection, path = agent.lines_collection, agent.filepath
+            lines = collection[path] if path in collection else agent.code.splitlines()
+            _comment_docstring(attr, lines)
+
     def on_package(self, *, pkg: griffe.Module, **kwargs: Any) -> None:
+        """Complete benchbus's objects (constructors, register-backed properties, enum
+        members, AsyncBus's members), then rewrite every docstring's roles as links."""
         if pkg.name != "benchbus":
             return
         for obj in _walk(pkg):
             if isinstance(obj, griffe.Attribute):
-                _comment_docstring(obj)
                 _register_property(obj)
             elif isinstance(obj, griffe.Class):
                 _constructor(obj)
+                _enum_members(obj)
         _async_bus(pkg)
         reference = Reference(pkg)
         for obj in _walk(pkg):
             if obj.docstring is not None:
+                for line in unindented_literals(obj.docstring.value):
+                    # A warning fails the strict build (mkdocstrings logs griffe's).
+                    griffe.logger.warning(
+                        "%s: docstring line %d ends in '::' but no indented block follows: "
+                        "indent the example under it",
+                        obj.path,
+                        line,
+                    )
                 obj.docstring.value = reference.rewrite(obj, obj.docstring.value)

@@ -44,9 +44,13 @@ class Finding:
     was found and ``fix`` what to do about it (None when there is nothing to do).
     """
 
+    #: What was checked: ``port``, ``permission``, ``usb``, ``latency-timer``, ...
     name: str
+    #: One of :data:`VERDICTS`.
     verdict: Verdict
+    #: What was found.
     message: str
+    #: What to do about it (None when there is nothing to do).
     fix: str | None = None
 
     def __str__(self) -> str:

@@ -132,7 +132,9 @@ class Model(str, enum.Enum):
 class Fault:
     """A drive fault: its code (0x2102) and name ("unknown fault 0xNN" when unnamed)."""
 
+    #: The fault code, from 0x2102.
     code: int
+    #: Its name ("unknown fault 0xNN" when unnamed).
     name: str
 
     def __str__(self) -> str:

@@ -219,6 +219,7 @@ class Gateway:
         """
         if not isinstance(bus, Bus):
             raise TypeError(f"bus must be a benchbus.Bus, not {type(bus).__name__}")
+        #: The Bus the gateway forwards requests to.
         self.bus = bus
         self._listen = parse_listen(listen)
         self._intervals: dict[int, float] = {}

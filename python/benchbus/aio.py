@@ -785,31 +785,36 @@ class AsyncDevice(Generic[D]):
 
 
 class Drive(AsyncDevice[_SyncDrive], DriveMembers):
-    """:class:`benchbus.Drive` for asyncio (see :class:`AsyncDevice`)::
+    """:class:`benchbus.Drive` for asyncio (see :class:`AsyncDevice`). For
+    example::
 
-    async with bb.aio.Drive(bus, unit=1) as drive:
-        await drive.set("speed_setpoint", 1500)
-        await drive.forward()
+        async with bb.aio.Drive(bus, unit=1) as drive:
+            await drive.set("speed_setpoint", 1500)
+            await drive.forward()
     """
 
+    #: The synchronous class this one wraps.
     SYNC = _SyncDrive
 
 
 class PblDrive(AsyncDevice[_SyncPblDrive], PblDriveMembers):
     """:class:`benchbus.PblDrive` for asyncio (see :class:`AsyncDevice`)."""
 
+    #: The synchronous class this one wraps.
     SYNC = _SyncPblDrive
 
 
 class J2Controller(AsyncDevice[_SyncJ2Controller], J2ControllerMembers):
     """:class:`benchbus.J2Controller` for asyncio (see :class:`AsyncDevice`)."""
 
+    #: The synchronous class this one wraps.
     SYNC = _SyncJ2Controller
 
 
 class Instrument(AsyncDevice[_SyncInstrument], InstrumentMembers):
     """:class:`benchbus.Instrument` for asyncio (see :class:`AsyncDevice`)."""
 
+    #: The synchronous class this one wraps.
     SYNC = _SyncInstrument
 
 
@@ -821,6 +826,7 @@ class Device(AsyncDevice[_SyncDevice], DeviceMembers):
         print(await dev.read("temperature"), await dev.humidity)
     """
 
+    #: The synchronous class this one wraps.
     SYNC = _SyncDevice
 
     if TYPE_CHECKING:  # the profile's registers, which no class declares

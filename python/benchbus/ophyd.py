@@ -308,9 +308,12 @@ if _MISSING is None:
             """The backend of ``register`` of ``device``; ``source`` names it in
             descriptors."""
             super().__init__(datatype(register))
+            #: The async device whose register this backend reads and writes.
             self.device = device
+            #: The profile's register.
             self.register = register
             self._source = source
+            #: Seconds between reads while a callback is subscribed.
             self.poll_period = poll_period
             self._setpoint: Any = None
             self._callback: Callback[Reading[Any]] | None = None
@@ -330,6 +333,7 @@ if _MISSING is None:
                 metadata["precision"] = round(-math.log10(register.scale))
             if isinstance(kind, type) and issubclass(kind, SubsetEnum):
                 metadata["choices"] = [m.value for m in kind]
+            #: The signal's metadata: units, limits, precision, choices.
             self.metadata = metadata
 
         def source(self, name: str, read: bool) -> str:

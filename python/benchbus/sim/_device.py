@@ -39,15 +39,25 @@ class SimException(Exception):
     meanings, e.g. 0x08 "not changeable while running" on a BLD drive).
     """
 
+    #: Exception 1: the unit does not answer this function code.
     ILLEGAL_FUNCTION = 0x01
+    #: Exception 2: an address the unit does not have.
     ILLEGAL_DATA_ADDRESS = 0x02
+    #: Exception 3: a value (or a quantity) the unit refuses.
     ILLEGAL_DATA_VALUE = 0x03
+    #: Exception 4: the unit failed while acting on the request.
     SERVER_DEVICE_FAILURE = 0x04
+    #: Exception 5: accepted, but it will take long.
     ACKNOWLEDGE = 0x05
+    #: Exception 6: busy with a long command; ask again later.
     SERVER_DEVICE_BUSY = 0x06
+    #: Exception 7: the unit cannot carry out the request.
     NEGATIVE_ACKNOWLEDGE = 0x07
+    #: Exception 8: a parity error in the unit's memory.
     MEMORY_PARITY_ERROR = 0x08
+    #: Exception 0x0A: the gateway has no path to the unit.
     GATEWAY_PATH_UNAVAILABLE = 0x0A
+    #: Exception 0x0B: the unit behind the gateway did not answer.
     GATEWAY_TARGET_FAILED = 0x0B
 
     def __init__(self, code: int) -> None:
@@ -55,6 +65,7 @@ class SimException(Exception):
         if isinstance(code, bool) or not isinstance(code, int) or not 1 <= code <= 0xFF:
             raise ValueError(f"a Modbus exception code is 1..255, not {code!r}")
         super().__init__(f"Modbus exception code {code:#04x}")
+        #: The exception code the reply carries.
         self.code: int = code
 
 
@@ -286,6 +297,7 @@ class RegisterDevice(SimDevice):
     :attr:`SimDevice.additional_data`, which may be set at any time.
     """
 
+    #: The function codes a register device answers: every standard one.
     functions = STANDARD_FUNCTIONS
 
     #: Exception code answered to a write that touches a read-only register.
@@ -330,7 +342,9 @@ class RegisterDevice(SimDevice):
         self.coils: list[bool] = _bits(coils)
         #: The discrete inputs (0x02): 65536 bools.
         self.discrete_inputs: list[bool] = _bits(discrete_inputs)
+        #: The identification objects (0x2B / 0x0E) by object id, or None: not answered.
         self.identity = dict(identity) if identity is not None else None
+        #: The holding registers a write to answers :attr:`readonly_code`.
         self.readonly: set[int] = set(readonly)
         for address in self.readonly:
             _check_address(address)

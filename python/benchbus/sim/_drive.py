@@ -185,8 +185,18 @@ class DriveDevice(ClockedModel, SimDevice):
 
     #: The models this class simulates.
     MODELS = ("BLD2", "BLD3H", "C20")
-    #: Values of register 0x2100 (drive state).
-    FORWARD, REVERSE, STOPPED, FAULT, OFF, BRAKING = 1, 2, 3, 4, 5, 6
+    #: Register 0x2100 (drive state): running forward.
+    FORWARD = 1
+    #: Register 0x2100: running in reverse.
+    REVERSE = 2
+    #: Register 0x2100: stopped.
+    STOPPED = 3
+    #: Register 0x2100: in fault.
+    FAULT = 4
+    #: Register 0x2100: off.
+    OFF = 5
+    #: Register 0x2100: braking.
+    BRAKING = 6
     #: The jog speed, rpm.
     JOG_SPEED = 300
     #: Register 0x300A: software version x 0.01 (101 = 1.01).

@@ -303,7 +303,10 @@ class J2Device(ClockedModel, SimDevice):
     TUNED: Mapping[str, float] = MappingProxyType(dict(_TUNED))
     #: Most registers one read or write may carry (the manual's 16).
     MAX_REGISTERS = _MAX_REGISTERS
-    max_read = max_write = _MAX_REGISTERS
+    #: Most registers one read may carry: :attr:`MAX_REGISTERS`.
+    max_read = _MAX_REGISTERS
+    #: Most registers one write may carry: :attr:`MAX_REGISTERS`.
+    max_write = _MAX_REGISTERS
     #: Process gain: temperature rise over ambient at 100 % output, degrees.
     GAIN = 400.0
     #: Process time constant, seconds.

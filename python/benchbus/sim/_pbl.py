@@ -202,12 +202,15 @@ class PblDevice(ClockedModel, SimDevice):
     )
     #: Number of parameters: addresses 0..222.
     PARAMETERS = _PARAMETERS
-    #: Most parameters one read asks for / one write carries: the manual's frame holds at
-    #: most 123 data bytes.
-    max_read, max_write = 61, 59
-    #: Motor current just above 0 rpm and at :attr:`FULL_SPEED`, A (linear between, 0 at
+    #: Most parameters one read asks for: the manual's frame holds at most 123 data bytes.
+    max_read = 61
+    #: Most parameters one write carries (as :attr:`max_read`).
+    max_write = 59
+    #: Motor current just above 0 rpm, A (linear up to :attr:`FULL_SPEED_CURRENT`, 0 at
     #: rest; registers 9 and 53 show it rounded to whole amperes).
-    NO_LOAD_CURRENT, FULL_SPEED_CURRENT = 0.5, 5.0
+    NO_LOAD_CURRENT = 0.5
+    #: Motor current at :attr:`FULL_SPEED`, A.
+    FULL_SPEED_CURRENT = 5.0
     #: Speed at which the current model reaches :attr:`FULL_SPEED_CURRENT`, rpm.
     FULL_SPEED = 3000.0
     #: Speed at 100 % duty cycle (register 58), rpm.
@@ -230,6 +233,8 @@ class PblDevice(ClockedModel, SimDevice):
         #: Whether a 0x06 write is answered with the standard echo (True) or, as the
         #: manual shows, with the address and a register count of 1 (False).
         self.echo_writes: bool = bool(echo_writes)
+        #: Whether a broadcast (unit 0) is answered with the unit's own address, as the
+        #: manual shows (False: acted on silently, as standard Modbus units do).
         self.answers_broadcast = bool(answers_broadcast)
         #: DC bus voltage, V (registers 13 and 51).
         self.bus_voltage: int = 48

@@ -159,6 +159,7 @@ class ProfileDevice(RegisterDevice):
         """Read the profile at ``path`` and serve it; ``values`` by register name win over
         the profile's ``default`` keys. The limits (``max_read`` ...) given here win over
         the profile's ``[limits]``; see :class:`RegisterDevice`."""
+        #: The profile's path.
         self.path: str = os.fspath(path)
         profile = _load(self.path)
         device = _table(self.path, profile, "device", _DEVICE_KEYS)

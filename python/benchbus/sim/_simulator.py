@@ -120,6 +120,8 @@ class Simulator(Generic[D]):
         """
         if isinstance(devices, SimDevice):
             devices = {1: devices}
+        #: The simulated devices by unit address; a device may be replaced for a unit
+        #: while the simulator runs (the set of units is fixed at :meth:`start`).
         self.devices: dict[int, D] = dict(devices)
         for unit, device in self.devices.items():
             if isinstance(unit, bool) or not isinstance(unit, int) or not 1 <= unit <= 255:
@@ -142,7 +144,9 @@ class Simulator(Generic[D]):
         if log_size < 1:
             raise ValueError(f"log_size must be >= 1, not {log_size}")
         self._network: str | None = network
+        #: The line's baud rate, which sets its character and t3.5 timing.
         self.baudrate: int = baudrate
+        #: Whether the devices act on broadcasts (unit 0).
         self.broadcast: bool = broadcast
         #: Exceptions other than SimException raised by device handlers (each answered with
         #: exception 4), and failures of :meth:`SimDevice.shape_reply` (the reply then goes
