@@ -424,10 +424,11 @@ def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
     """The DOM of ``url`` once headless chromium has rendered it (scripts run). chromium and
     every process it starts run in a process group of their own, killed afterwards."""
     command = [chromium(), "--headless", "--disable-gpu", "--no-first-run"]
-    command += ["--no-default-browser-check", f"--user-data-dir={profile}"]
+    # No sandbox, whoever runs it: chromium refuses its sandbox as root, and where AppArmor
+    # forbids unprivileged user namespaces (Ubuntu 24.04, as GitHub's runners) it finds "No
+    # usable sandbox!". The page is the site just built, served from loopback.
+    command += ["--no-sandbox", "--no-default-browser-check", f"--user-data-dir={profile}"]
     command += ["--virtual-time-budget=5000", "--dump-dom", url]
-    if os.geteuid() == 0:
-        command.insert(1, "--no-sandbox")  # chromium refuses to run as root with its sandbox
     process = subprocess.Popen(
         command,
         stdout=subprocess.PIPE,
