@@ -428,6 +428,9 @@ def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
     # forbids unprivileged user namespaces (Ubuntu 24.04, as GitHub's runners) it finds "No
     # usable sandbox!". The page is the site just built, served from loopback.
     command += ["--no-sandbox", "--no-default-browser-check", f"--user-data-dir={profile}"]
+    # Only loopback resolves: a font or script from another host fails at once, where a
+    # firewall that drops packets would hold the page until the timeout.
+    command += ["--host-resolver-rules=MAP * ~NOTFOUND, EXCLUDE 127.0.0.1"]
     command += ["--virtual-time-budget=5000", "--dump-dom", url]
     process = subprocess.Popen(
         command,
