@@ -280,15 +280,44 @@ def test_async_bus_methods_are_documented_from_the_bus(site: Build) -> None:
         assert f">{parameter}<" in signature, parameter
 
 
+#: A reStructuredText role left in a page, as written (":ref:`x`") or as Markdown renders
+#: its backticks (":ref:<code>x</code>").
+LEFTOVER_ROLE = re.compile(r":[a-z]+(?::[a-z]+)*:(?:`|<code>)")
+
+
+def leftover_roles(site: Path) -> list[str]:
+    """Each reStructuredText role left in the pages of ``site``: ``page: role``."""
+    found = []
+    for page in sorted(site.rglob("*.html")):
+        text = page.read_text("utf-8")
+        found += [f"{page.relative_to(site)}: {m.group(0)}" for m in LEFTOVER_ROLE.finditer(text)]
+    return found
+
+
 def test_no_rest_roles_are_left_and_they_link(site: Build) -> None:
     path = built(site)
-    roles = re.compile(r":(?:py:)?(?:class|meth|func|attr|data|exc|mod|obj|const):`")
-    for page in path.rglob("*.html"):
-        text = page.read_text("utf-8")
-        assert not roles.search(text), f"{page.relative_to(path)}: {roles.search(text)}"
+    assert leftover_roles(path) == []
     aio = (path / "reference" / "aio" / "index.html").read_text("utf-8")
     # ":class:`benchbus.Bus`" in benchbus.aio's docstring: a link to the Bus's entry.
     assert 'href="../benchbus/#benchbus.Bus"' in aio
+
+
+def test_a_leftover_role_is_found(tmp_path: Path) -> None:
+    """Roles the reference does not turn into links (``:ref:``, ``:term:``) in a docstring are
+    found, as Markdown renders them and as written."""
+    copy = copy_of_the_docs(tmp_path / "src")
+    (copy / "python").unlink()
+    shutil.copytree(ROOT / "python" / "benchbus", copy / "python" / "benchbus")
+    aio = copy / "python" / "benchbus" / "aio.py"
+    source = aio.read_text("utf-8")
+    marked = source.replace('"""', '"""See :ref:`wiring` and :term:`slave`, and :class:`Bus`.\n\n', 1)
+    assert marked != source
+    aio.write_text(marked, "utf-8")
+    broken = build_site(copy / "mkdocs.yml", tmp_path / "site")
+    assert broken.returncode == 0, broken.output
+    left = [entry.partition(": ")[2] for entry in leftover_roles(broken.site)]
+    assert left == [":ref:<code>", ":term:<code>"]
+    assert LEFTOVER_ROLE.search("a :py:any:`Bus` as written")
 
 
 # ---- the CLI reference ---------------------------------------------------------------------------
