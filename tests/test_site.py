@@ -36,16 +36,19 @@ from benchbus.cli import build_parser
 ROOT = Path(__file__).resolve().parent.parent
 HOOKS = ROOT / "docs_hooks"
 
-#: The public modules: every name of their ``__all__`` has a docstring and a page.
-PUBLIC_MODULES = (
-    "benchbus",
-    "benchbus.aio",
-    "benchbus.sim",
-    "benchbus.qcodes",
-    "benchbus.ophyd",
-    "benchbus.exceptions",
-    "benchbus.pytest_plugin",
-)
+
+def hook(name: str) -> types.ModuleType:
+    """The module ``docs_hooks/<name>.py``, loaded from its file as MkDocs does."""
+    spec = importlib.util.spec_from_file_location(name, HOOKS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+#: The public modules: every name of their ``__all__`` has a docstring and a page. The
+#: reference's own list, so that the two cannot differ.
+PUBLIC_MODULES: tuple[str, ...] = hook("griffe_benchbus").PUBLIC_MODULES
 
 
 @dataclass
@@ -457,10 +460,7 @@ def test_a_wrong_cli_reference_is_found(site: Build) -> None:
 
 def test_the_cli_reference_follows_the_parser(monkeypatch: pytest.MonkeyPatch) -> None:
     """An option added to the parser is in the next build's page."""
-    spec = importlib.util.spec_from_file_location("cli_reference", HOOKS / "cli_reference.py")
-    assert spec is not None and spec.loader is not None
-    cli_reference = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(cli_reference)
+    cli_reference = hook("cli_reference")
 
     def with_new_option() -> argparse.ArgumentParser:
         parser = build_parser()
