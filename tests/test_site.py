@@ -569,8 +569,41 @@ def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGKILL)
         process.wait()
+    # No chromium process is left: none of its session (whose id is its first process's).
+    deadline = time.monotonic() + 5
+    while (left := session_processes(process.pid)) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    assert left == [], f"chromium processes left behind: {left}"
     assert process.returncode == 0 or out, f"chromium failed on {url}: {err[-2000:]}"
     return out
+
+
+def session_processes(session: int) -> list[int]:
+    """The live (not zombie) processes of the session ``session``."""
+    found = []
+    for entry in filter(str.isdigit, os.listdir("/proc")):
+        try:
+            stat = Path(f"/proc/{entry}/stat").read_text()
+        except OSError:  # gone meanwhile
+            continue
+        # "pid (name) state ppid pgrp session ...", the name possibly holding ") ".
+        state, _ppid, _pgrp, sid = stat[stat.rindex(")") + 2 :].split()[:4]
+        if int(sid) == session and state != "Z":
+            found.append(int(entry))
+    return found
+
+
+def test_the_processes_of_a_session_are_found() -> None:
+    """The leftover check sees the processes of chromium's session, and no other."""
+    process = subprocess.Popen(["sleep", "30"], start_new_session=True)
+    try:
+        assert session_processes(process.pid) == [process.pid]
+        assert os.getpid() not in session_processes(process.pid)
+        assert process.pid not in session_processes(os.getsid(0))
+    finally:
+        process.kill()
+        process.wait()
+    assert session_processes(process.pid) == []
 
 
 @pytest.mark.timeout(240)
@@ -581,7 +614,6 @@ def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
 )
 def test_chromium_renders_the_page(site: Build, tmp_path: Path, page: str, title: str) -> None:
     path = built(site)
-    before = set(os.listdir("/proc"))
     with serving(path) as base:
         dom = dump_dom(base + page, tmp_path / "profile")
     assert re.search(r"<title>\s*" + re.escape(title) + r"\s*</title>", dom), dom[:2000]
@@ -594,19 +626,3 @@ def test_chromium_renders_the_page(site: Build, tmp_path: Path, page: str, title
     assert any(texts), "no code block with content"
     # Material's scripts ran (its bundle marks the document).
     assert re.search(r'<html[^>]*class="[^"]*js-focus-visible', dom), dom[:300]
-    # No chromium process is left: none of the processes started meanwhile remain.
-    started = {int(p) for p in set(os.listdir("/proc")) - before if p.isdigit()}
-    deadline = time.monotonic() + 5
-    while (alive := [p for p in started if chromium_process(p)]) and time.monotonic() < deadline:
-        time.sleep(0.1)
-    assert alive == [], f"chromium processes left behind: {alive}"
-
-
-def chromium_process(pid: int) -> bool:
-    """Whether ``pid`` is a live (not zombie) chromium process."""
-    try:
-        stat = Path(f"/proc/{pid}/stat").read_text()
-    except OSError:
-        return False
-    name, state = re.match(r"\d+ \((.*)\) (\S)", stat).groups()  # type: ignore[union-attr]
-    return "chrom" in name and state != "Z"
