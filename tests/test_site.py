@@ -31,6 +31,7 @@ from typing import Any
 import pytest
 
 import benchbus
+import benchbus.aio
 from benchbus.cli import build_parser
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -169,7 +170,9 @@ def entry_text(page: str, anchor: str) -> str:
         return ""
     contents = page.index(">", contents) + 1
     end = re.compile(r'<h[1-6][ >]|<div class="doc doc-children').search(page, contents)
-    text = re.sub(r"<[^>]+>", " ", page[contents : end.start() if end else len(page)])
+    own = page[contents : end.start() if end else len(page)]
+    own = re.sub(r'<p class="doc doc-class-bases">.*?</p>', " ", own, flags=re.S)  # not its doc
+    text = re.sub(r"<[^>]+>", " ", own)
     return " ".join(html.unescape(text).split())
 
 
@@ -247,6 +250,25 @@ def test_a_name_without_docstring_or_page_is_found(
     text = page.read_text("utf-8")
     assert entry_text(text, "benchbus.sim.FAULT_KINDS")
     assert not entry_text(text, "benchbus.sim.NoSuchAnchor")
+
+
+def test_an_entry_without_text_is_found(site: Build, tmp_path: Path) -> None:
+    """A class entry with no docstring is found, though it still says its bases."""
+    path = built(site)
+    inventory = read_inventory(path / "objects.inv")
+    copy = tmp_path / "site"
+    shutil.copytree(path, copy)
+    aio = copy / "reference" / "aio" / "index.html"
+    page = aio.read_text("utf-8")
+    start = page.index('id="benchbus.aio.Drive"')
+    bases = page.index('<p class="doc doc-class-bases">', start)
+    docstring = page.index("</p>", bases) + len("</p>")
+    children = page.index('<div class="doc doc-children', docstring)
+    assert entry_text(page, "benchbus.aio.Drive").startswith("benchbus.Drive for asyncio")
+    aio.write_text(page[:docstring] + page[children:], "utf-8")
+    assert undocumented([benchbus.aio], inventory, copy) == [
+        "benchbus.aio.Drive: its entry in reference/aio/ has no text (no docstring)"
+    ]
 
 
 #: Public members of public classes that have no entry of their own, on purpose: each with
