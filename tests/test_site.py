@@ -109,8 +109,9 @@ def test_strict_build_passes_without_a_warning(site: Build) -> None:
 def copy_of_the_docs(tmp_path: Path) -> Path:
     """A copy of the site's sources (docs/ copied, the rest linked), to break on purpose."""
     tmp_path.mkdir()
-    for name in ("docs_hooks", "python", "README.md", "CHANGELOG.md", "CONTRIBUTING.md"):
-        (tmp_path / name).symlink_to(ROOT / name)
+    for entry in ROOT.iterdir():  # whatever the pages include, by whatever path
+        if entry.name not in {"docs", "mkdocs.yml", "site", ".venv", "target", ".git"}:
+            (tmp_path / entry.name).symlink_to(entry)
     shutil.copy(ROOT / "mkdocs.yml", tmp_path)
     shutil.copytree(ROOT / "docs", tmp_path / "docs")
     return tmp_path
@@ -132,6 +133,17 @@ def test_a_broken_link_fails_the_build(tmp_path: Path, link: str, complaint: str
     broken = build_site(copy / "mkdocs.yml", tmp_path / "site")
     assert broken.returncode != 0, broken.output
     assert complaint in broken.output, broken.output
+
+
+def test_the_copy_builds_with_a_file_of_the_tree_included(tmp_path: Path) -> None:
+    """The copy the tests above break has every file a page may include (a missing one
+    fails the build), so that they fail for the break they make and no other reason."""
+    copy = copy_of_the_docs(tmp_path / "src")
+    index = copy / "docs" / "index.md"
+    index.write_text(index.read_text("utf-8") + '\n```toml\n--8<-- "Cargo.toml"\n```\n', "utf-8")
+    done = build_site(copy / "mkdocs.yml", tmp_path / "site")
+    assert done.returncode == 0, done.output
+    assert "[package]" in (done.site / "index.html").read_text("utf-8")
 
 
 # ---- every public name: a docstring and an entry -------------------------------------------------
