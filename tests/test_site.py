@@ -52,6 +52,11 @@ def hook(name: str) -> types.ModuleType:
 PUBLIC_MODULES: tuple[str, ...] = hook("griffe_benchbus").PUBLIC_MODULES
 
 
+#: How long one build may take: less than the tests' own timeout (pyproject's
+#: ``[tool.pytest.ini_options] timeout``), so that a slow build fails here, with its output.
+BUILD_TIMEOUT = 100
+
+
 @dataclass
 class Build:
     """One ``mkdocs build --strict``: its site directory, exit status, output and duration."""
@@ -73,7 +78,7 @@ def build_site(config: Path, site: Path) -> Build:
         env=env,
         capture_output=True,
         text=True,
-        timeout=300,
+        timeout=BUILD_TIMEOUT,
         check=False,
     )
     seconds = time.monotonic() - start
@@ -104,6 +109,10 @@ def test_strict_build_passes_without_a_warning(site: Build) -> None:
     assert "end of life" not in site.output, site.output
     assert (path / "index.html").is_file()
     assert (path / "objects.inv").is_file()
+
+
+def test_a_build_times_out_before_the_test(request: pytest.FixtureRequest) -> None:
+    assert 0 < BUILD_TIMEOUT < float(request.config.getini("timeout"))
 
 
 def copy_of_the_docs(tmp_path: Path) -> Path:
