@@ -35,7 +35,7 @@ demo: $(VENV)/bin/python
 
 # The site's tests render pages in Debian's chromium (headless): installed when missing.
 test: install
-	.ci/need.sh chromium
+	.ci/need.sh 'chromium|chromium-browser=chromium'
 	cargo test --quiet
 	$(PYTHON) -m pytest -q
 
