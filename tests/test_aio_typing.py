@@ -348,3 +348,24 @@ def test_mypy_accepts_the_right_uses_and_names_the_wrong_ones(
             assert any(text in message for message in found.get(key, [])), (key, text, stdout)
     assert status == 1  # the errors above, and only those
     print(f"mypy took {took:.1f} s")
+
+
+def test_each_data_attribute_has_its_comment_as_docstring() -> None:
+    """An attribute the async devices serve as it is (``LINE_DEFAULTS``, ``enums``...) carries
+    the ``#:`` comment of its nearest declaration in the sync classes, so that the API
+    reference and editors show it."""
+    stub = ast.parse((ROOT / "python" / "benchbus" / "_aio_members.pyi").read_text("utf-8"))
+    seen = 0
+    for cls in (n for n in stub.body if isinstance(n, ast.ClassDef)):
+        for at, stmt in enumerate(cls.body):
+            if isinstance(stmt, ast.AnnAssign):
+                after = cls.body[at + 1] if at + 1 < len(cls.body) else None
+                assert isinstance(after, ast.Expr), f"{cls.name}.{ast.unparse(stmt.target)}"
+                assert isinstance(after.value, ast.Constant) and after.value.value.strip()
+                seen += 1
+    assert seen >= 11
+    # The drive's own comment, not its base class's.
+    drive = next(n for n in stub.body if isinstance(n, ast.ClassDef) and n.name == "DriveMembers")
+    texts = [ast.unparse(s) for s in drive.body]
+    at = texts.index("LINE_DEFAULTS: LineDefaults")
+    assert texts[at + 1] == repr("Line format and reply timeout when the device opens its own Bus.")

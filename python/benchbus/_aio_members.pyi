@@ -48,11 +48,14 @@ class DeviceMembers:
     """The members of :class:`benchbus.aio.Device`, for type checkers."""
 
     LINE_DEFAULTS: LineDefaults
+    "Line format and reply timeout when the profile says nothing of them."
     SAMPLE_FIELDS: tuple[str, ...] | None
+    "The readable registers :meth:`sample` gives (every readable one but strings)."
 
     async def close(self) -> None:
         """Close the Bus if the device opened it (a shared Bus stays open)."""
     enums: dict[str, type[PrintableIntEnum]]
+    "Each enum register's enum class, by register name."
 
     async def get(self, name: str) -> Any:
         """:meth:`read`, under the name every benchbus device reads a register by."""
@@ -128,7 +131,9 @@ class DriveMembers:
     """The members of :class:`benchbus.aio.Drive`, for type checkers."""
 
     LINE_DEFAULTS: LineDefaults
+    "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
+    "The names :meth:`sample` gives: the fields of :meth:`telemetry`."
 
     @property
     def accel_time(self) -> Coroutine[Any, Any, float]:
@@ -415,7 +420,9 @@ class InstrumentMembers:
     """The members of :class:`benchbus.aio.Instrument`, for type checkers."""
 
     LINE_DEFAULTS: LineDefaults
+    "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
+    "The names :meth:`sample` gives (None: not known in advance), so that a bad ``record(columns=...)`` is refused before anything is sent."
 
     async def close(self) -> None:
         """Close the Bus if the device opened it (a shared Bus stays open)."""
@@ -610,7 +617,9 @@ class J2ControllerMembers:
     """The members of :class:`benchbus.aio.J2Controller`, for type checkers."""
 
     LINE_DEFAULTS: LineDefaults
+    "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
+    "The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``."
 
     @property
     def alarm1(self) -> Coroutine[Any, Any, float]:
@@ -782,7 +791,9 @@ class PblDriveMembers:
     """The members of :class:`benchbus.aio.PblDrive`, for type checkers."""
 
     LINE_DEFAULTS: LineDefaults
+    "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
+    "The names :meth:`sample` gives: parameters 50..54."
 
     @property
     def acceleration(self) -> Coroutine[Any, Any, int]:

@@ -77,6 +77,8 @@ class _Source:
     defined: frozenset[str]
     #: Names it imports: ``{local name: (module, name in it or None for a module)}``.
     imported: dict[str, tuple[str, str | None]]
+    #: Its source lines (for the ``#:`` comments above a declaration).
+    lines: tuple[str, ...] = ()
 
 
 def _top_level(tree: ast.Module) -> list[ast.stmt]:
@@ -102,7 +104,8 @@ def _source(module: str) -> _Source:
         if found is None:
             raise StubError(f"{module} has no source to read declarations from")
         path = Path(found)
-    tree = ast.parse(path.read_text(encoding="utf-8"), filename=str(path))
+    text = path.read_text(encoding="utf-8")
+    tree = ast.parse(text, filename=str(path))
     defined: set[str] = set()
     imported: dict[str, tuple[str, str | None]] = {}
     for stmt in _top_level(tree):
@@ -119,7 +122,7 @@ def _source(module: str) -> _Source:
             for alias in stmt.names:
                 local = alias.asname or alias.name.partition(".")[0]
                 imported[local] = (alias.name if alias.asname else local, None)
-    return _Source(module, tree, frozenset(defined), imported)
+    return _Source(module, tree, frozenset(defined), imported, tuple(text.splitlines()))
 
 
 def _origin(module: str, name: str) -> tuple[str, str | None]:
@@ -325,7 +328,12 @@ def _doc(sync: type, name: str) -> str | None:
     doc = found.__doc__
     if not isinstance(doc, str) or not doc.strip():
         return None
-    # A line too long for the stub (a docstring built of joined strings) is wrapped.
+    return _wrapped(doc)
+
+
+def _wrapped(doc: str) -> str:
+    """``doc`` cleaned as ``help()`` shows it, a line too long for the stub (a docstring
+    built of joined strings, a long comment) wrapped."""
     return "\n".join(
         textwrap.fill(line, _DOC_WIDTH, subsequent_indent=line[: len(line) - len(line.lstrip())])
         if len(line) > _DOC_WIDTH
@@ -334,7 +342,19 @@ def _doc(sync: type, name: str) -> str | None:
     )
 
 
-def _member(sync: type, name: str, imports: _Imports) -> ast.stmt:
+def _comment(klass: type, node: ast.stmt) -> str | None:
+    """The ``#:`` comment lines right above ``node`` in ``klass``'s module: a data
+    attribute's docstring, as Sphinx and the API reference read it."""
+    lines = _source(klass.__module__).lines
+    found: list[str] = []
+    at = node.lineno - 2  # the line above, 0-based
+    while at >= 0 and lines[at].strip().startswith("#:"):
+        found.insert(0, lines[at].strip()[2:].strip())
+        at -= 1
+    return " ".join(found) or None
+
+
+def _member(sync: type, name: str, imports: _Imports) -> ast.stmt | list[ast.stmt]:
     """The declaration of ``name`` on the async device of ``sync``: the rules of
     ``AsyncDevice.__getattr__``."""
     what = f"{sync.__name__}.{name}"
@@ -361,9 +381,9 @@ def _member(sync: type, name: str, imports: _Imports) -> ast.stmt:
     return _property(name, coroutine, doc)
 
 
-def _attribute(sync: type, name: str, imports: _Imports) -> ast.stmt:
+def _attribute(sync: type, name: str, imports: _Imports) -> list[ast.stmt]:
     """A data attribute read as it is: its annotation in the first class that has one,
-    else the type of its value."""
+    else the type of its value; then its ``#:`` comment as its docstring."""
     what = f"{sync.__name__}.{name}"
     try:
         klass, node = _declaration(sync, name, typed=True)
@@ -376,7 +396,13 @@ def _attribute(sync: type, name: str, imports: _Imports) -> ast.stmt:
         if not isinstance(node, ast.AnnAssign):
             raise StubError(f"{what}: not a data attribute")
         annotation = _annotation(node.annotation, klass.__module__, imports, what)
-    return ast.AnnAssign(ast.Name(name), annotation, None, simple=1)
+    declared: list[ast.stmt] = [ast.AnnAssign(ast.Name(name), annotation, None, simple=1)]
+    # The nearest declaration that has a comment (a subclass may set the value alone).
+    comments = (_comment(k, n) for k in sync.__mro__ if (n := _class_body(k).get(name)))
+    doc = next((c for c in comments if c), None)
+    if doc is not None:
+        declared.append(ast.Expr(ast.Constant(doc)))
+    return declared
 
 
 def _public_names(sync: type) -> list[str]:
@@ -424,7 +450,8 @@ def generate() -> str:
         ]
         for name in _public_names(device.SYNC):
             if name not in own:
-                body.append(_member(device.SYNC, name, imports))
+                member = _member(device.SYNC, name, imports)
+                body.extend(member if isinstance(member, list) else [member])
         fields: dict[str, Any] = {
             "name": members,
             "bases": [],
