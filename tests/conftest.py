@@ -4,6 +4,7 @@ the ``benchbus gateway`` command run as a child process."""
 from __future__ import annotations
 
 import contextlib
+import importlib.util
 import os
 import select
 import subprocess
@@ -12,7 +13,9 @@ import termios
 import threading
 import time
 import tty
+import types
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
@@ -135,3 +138,16 @@ def rtu(hexstr: str) -> bytes:
     """The bytes of ``hexstr`` followed by their CRC: an RTU frame."""
     data = bytes.fromhex(hexstr)
     return data + crc(data)
+
+
+#: The site's build hooks (MkDocs hooks and the griffe extension).
+HOOKS = Path(__file__).resolve().parent.parent / "docs_hooks"
+
+
+def hook(name: str) -> types.ModuleType:
+    """The module ``docs_hooks/<name>.py``, loaded from its file as MkDocs loads it."""
+    spec = importlib.util.spec_from_file_location(name, HOOKS / f"{name}.py")
+    assert spec is not None and spec.loader is not None
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module

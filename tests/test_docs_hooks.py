@@ -5,7 +5,6 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import importlib.util
 import inspect
 import types
 from collections.abc import Iterator
@@ -15,18 +14,7 @@ import griffe
 import pytest
 
 from benchbus.cli import build_parser
-
-HOOKS = Path(__file__).resolve().parent.parent / "docs_hooks"
-
-
-def hook(name: str) -> types.ModuleType:
-    """The hook module ``docs_hooks/<name>.py``, loaded as MkDocs loads it."""
-    spec = importlib.util.spec_from_file_location(name, HOOKS / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
+from conftest import HOOKS, hook
 
 cli_reference = hook("cli_reference")
 

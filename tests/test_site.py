@@ -11,7 +11,6 @@ import functools
 import html
 import http.server
 import importlib
-import importlib.util
 import inspect
 import os
 import re
@@ -33,18 +32,9 @@ import pytest
 import benchbus
 import benchbus.aio
 from benchbus.cli import build_parser
+from conftest import hook
 
 ROOT = Path(__file__).resolve().parent.parent
-HOOKS = ROOT / "docs_hooks"
-
-
-def hook(name: str) -> types.ModuleType:
-    """The module ``docs_hooks/<name>.py``, loaded from its file as MkDocs does."""
-    spec = importlib.util.spec_from_file_location(name, HOOKS / f"{name}.py")
-    assert spec is not None and spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
 
 
 #: The public modules: every name of their ``__all__`` has a docstring and a page. The
