@@ -1,5 +1,6 @@
 """Without the ``sim`` extra (pymodbus, pyserial), ``import benchbus.sim``, the command line
-and the pytest plugin all say the same thing: ``pip install 'benchbus[sim]'``.
+and the pytest plugin all say the same thing: ``pip install 'benchbus[sim]'``; without their
+framework, ``benchbus.qcodes`` and ``benchbus.ophyd`` say which extra to install.
 
 Each case runs in a fresh interpreter in which a finder placed first on ``sys.meta_path``
 makes the module look uninstalled (``ModuleNotFoundError``, as Python raises for a module
@@ -109,3 +110,46 @@ def test_the_pytest_plugin_gives_the_same_message(tmp_path: Path) -> None:
     assert done.returncode == 1, done.stdout + done.stderr
     assert f"the simulators need pymodbus and pyserial: {HINT}" in done.stdout
     assert "1 error" in done.stdout
+
+
+@pytest.mark.parametrize(
+    ("module", "hidden", "call", "message"),
+    [
+        (
+            "qcodes",
+            "qcodes",
+            "qcodes.instrument(object(), 'x')",
+            "benchbus.qcodes needs QCoDeS (Python 3.11 or later): pip install 'benchbus[qcodes]'",
+        ),
+        (
+            "ophyd",
+            "ophyd_async",
+            "ophyd.device(object(), 'x')",
+            "benchbus.ophyd needs ophyd-async and Bluesky (Python 3.11 or later): "
+            "pip install 'benchbus[bluesky]'",
+        ),
+    ],
+)
+def test_a_framework_integration_without_its_extra_says_what_to_install(
+    module: str, hidden: str, call: str, message: str
+) -> None:
+    """``benchbus.qcodes`` and ``benchbus.ophyd`` import without their framework (the
+    package imports them all), and say what to install when used."""
+    done = run_python(
+        HIDE.format(module=hidden)
+        + textwrap.dedent(
+            f"""
+            from benchbus import {module}
+            try:
+                {call}
+            except ImportError as exc:
+                print(exc.name, "|", exc)
+            else:
+                print("made")
+            """
+        )
+    )
+    assert done.returncode == 0, done.stderr
+    name, text = done.stdout.strip().split(" | ", 1)
+    assert name == hidden
+    assert text == f"{message} (No module named {hidden!r})"

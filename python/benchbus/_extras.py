@@ -1,9 +1,9 @@
 """What a missing optional extra says, in one place: the simulators' package, the command
-line and the pytest plugin all give this message."""
+line and the pytest plugin give one message, the lab-framework integrations another."""
 
 from __future__ import annotations
 
-__all__ = ["SIM_MODULES", "sim_missing"]
+__all__ = ["SIM_MODULES", "framework_missing", "sim_missing"]
 
 #: The top-level modules the ``sim`` extra installs (pymodbus, pyserial).
 SIM_MODULES = ("pymodbus", "serial")
@@ -21,4 +21,17 @@ def sim_missing(exc: ImportError) -> ModuleNotFoundError | None:
     return ModuleNotFoundError(
         f"the simulators need pymodbus and pyserial: pip install 'benchbus[sim]' ({exc})",
         name=name,
+    )
+
+
+def framework_missing(
+    module: str, needs: str, extra: str, package: str, cause: ImportError
+) -> ImportError:
+    """The error ``module`` (``benchbus.qcodes``, ``benchbus.ophyd``) raises when used
+    without the framework it wraps (``needs``: the import ``package``, installed by the
+    extra ``extra``), which failed to import with ``cause``. Its message says what to
+    install."""
+    return ImportError(
+        f"{module} needs {needs} (Python 3.11 or later): pip install 'benchbus[{extra}]' ({cause})",
+        name=package,
     )

@@ -40,6 +40,7 @@ from collections.abc import AsyncIterator, Callable
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from benchbus._core import CancelToken
+from benchbus._extras import framework_missing
 from benchbus.exceptions import BenchbusError
 
 if TYPE_CHECKING:
@@ -245,10 +246,8 @@ def asynchronous(device: RegisterSource) -> AsyncRegisterDevice:
 def _needs_ophyd() -> None:
     """ImportError saying what to install, when ophyd-async or Bluesky is missing."""
     if _MISSING is not None:
-        raise ImportError(
-            "benchbus.ophyd needs ophyd-async and Bluesky (Python 3.11 or later): "
-            f"pip install 'benchbus[bluesky]' ({_MISSING})",
-            name="ophyd_async",
+        raise framework_missing(
+            "benchbus.ophyd", "ophyd-async and Bluesky", "bluesky", "ophyd_async", _MISSING
         ) from _MISSING
 
 

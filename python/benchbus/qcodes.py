@@ -23,6 +23,8 @@ import math
 from collections.abc import Hashable, Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
+from benchbus._extras import framework_missing
+
 if TYPE_CHECKING:
     from benchbus._core import Profile
     from benchbus._profile import ProfileRegister
@@ -61,10 +63,8 @@ class RegisterDevice(Protocol):
 def _needs_qcodes() -> None:
     """ImportError saying what to install, when QCoDeS is missing."""
     if _MISSING is not None:
-        raise ImportError(
-            "benchbus.qcodes needs QCoDeS (Python 3.11 or later): "
-            f"pip install 'benchbus[qcodes]' ({_MISSING})",
-            name="qcodes",
+        raise framework_missing(
+            "benchbus.qcodes", "QCoDeS", "qcodes", "qcodes", _MISSING
         ) from _MISSING
 
 
