@@ -1,10 +1,10 @@
 //! Line format to wire timing: character time, t1.5 and t3.5 (Modbus over Serial Line V1.02,
 //! 2.5.1.1: above 19200 baud fixed values of 750 us and 1.750 ms are used); precise sleeps to
 //! a monotonic deadline ([`sleep_until`]); the line's silence before a frame
-//! ([`SilenceGuard`]) and the per-unit pacing of writes ([`WritePacing`]); the absolute
-//! deadlines of a polling loop ([`Schedule`]).
+//! ([`SilenceGuard`]), the per-unit pacing of writes ([`WritePacing`]) and each unit's recent
+//! turnaround ([`Turnarounds`]); the absolute deadlines of a polling loop ([`Schedule`]).
 
-use std::collections::HashMap;
+use std::collections::{HashMap, VecDeque};
 use std::time::{Duration, Instant};
 
 /// Parity of the line.
@@ -253,6 +253,119 @@ impl WritePacing {
     }
 }
 
+/// How many of a unit's recent replies its least turnaround is taken over.
+const TURNAROUND_SAMPLES: usize = 16;
+
+/// How many replies must be known before a frame is judged: the first replies of a device
+/// (or of a simulator's code, cold) may be slower than all that follow.
+const TURNAROUND_KNOWN: usize = 4;
+
+/// The least slack a reply may come sooner by than the unit's recent least and still be taken
+/// (the slack is half the least turnaround, and at least this): scheduling and an adapter's
+/// latency make the arrival of a reply later than on the wire, never earlier, but not always
+/// equally late.
+const TURNAROUND_SLACK_FLOOR: Duration = Duration::from_millis(1);
+
+/// How soon each unit has answered lately, to tell its replies from frames that cannot be
+/// one: a copy of an earlier reply, or an earlier request's answer come late. Each function
+/// of a unit is timed apart (a device may write its flash slowly and read at once).
+///
+/// A reply is timed from the request it answers twice: from its start, and from its
+/// reckoned end on the wire (which, on a pseudo-terminal that carries bytes at once, a reply
+/// can precede). Over a unit's last [`TURNAROUND_SAMPLES`] vouched replies to the function the
+/// least of each is kept, once [`TURNAROUND_KNOWN`] have come. A frame that begins sooner than both, by more than the slack (half the least
+/// time from the end, at least [`TURNAROUND_SLACK_FLOOR`]), is too soon to answer the
+/// request: a device does not get much faster from one request to the next, and nothing on
+/// the way (an adapter, a scheduler) makes a reply arrive earlier than it was sent.
+///
+/// Pure bookkeeping: it is told when things happened and never reads a clock.
+#[derive(Debug, Clone, Default)]
+pub struct Turnarounds {
+    units: HashMap<(u8, u8), Recent>,
+}
+
+/// A unit's recent turnarounds, in nanoseconds, newest last (from the end: may be negative).
+#[derive(Debug, Clone, Default)]
+struct Recent {
+    from_start: VecDeque<i128>,
+    from_end: VecDeque<i128>,
+}
+
+impl Turnarounds {
+    /// Nothing known yet: every frame may be an answer.
+    pub fn new() -> Turnarounds {
+        Turnarounds::default()
+    }
+
+    /// Records that `unit`'s reply to a request of `function` sent from `start` to `end`
+    /// (reckoned on the wire) began to arrive at `first`.
+    pub fn answered(
+        &mut self,
+        unit: u8,
+        function: u8,
+        start: Instant,
+        end: Instant,
+        first: Instant,
+    ) {
+        let recent = self.units.entry((unit, function)).or_default();
+        for (samples, since) in [(&mut recent.from_start, start), (&mut recent.from_end, end)] {
+            if samples.len() == TURNAROUND_SAMPLES {
+                samples.pop_front();
+            }
+            samples.push_back(signed_nanos(since, first));
+        }
+    }
+
+    /// Whether a frame from `unit` that began to arrive at `first` came too soon to answer a
+    /// request of `function` sent from `start` to `end`: sooner than the unit's recent
+    /// replies to it by more than the slack, counted from the start and from the end alike.
+    /// Never while too little is known.
+    pub fn too_soon(
+        &self,
+        unit: u8,
+        function: u8,
+        start: Instant,
+        end: Instant,
+        first: Instant,
+    ) -> bool {
+        let Some(recent) = self.units.get(&(unit, function)) else {
+            return false;
+        };
+        if recent.from_start.len() < TURNAROUND_KNOWN {
+            return false;
+        }
+        let (Some(&least_start), Some(&least_end)) =
+            (recent.from_start.iter().min(), recent.from_end.iter().min())
+        else {
+            return false;
+        };
+        let slack = (least_end / 2).max(TURNAROUND_SLACK_FLOOR.as_nanos() as i128);
+        signed_nanos(start, first) < least_start - slack
+            && signed_nanos(end, first) < least_end - slack
+    }
+
+    /// The least time from the start of a request of `function` to `unit`'s reply lately,
+    /// if any is known.
+    pub fn least(&self, unit: u8, function: u8) -> Option<Duration> {
+        let least = self.units.get(&(unit, function))?.from_start.iter().min()?;
+        u64::try_from(*least).ok().map(Duration::from_nanos)
+    }
+
+    /// Forgets what is known of `unit`'s replies to `function`: after a frame thought too
+    /// soon was followed by no other, the device may have become faster.
+    pub fn forget(&mut self, unit: u8, function: u8) {
+        self.units.remove(&(unit, function));
+    }
+}
+
+/// `to - from` in nanoseconds, negative if `to` is earlier.
+fn signed_nanos(from: Instant, to: Instant) -> i128 {
+    match to.checked_duration_since(from) {
+        Some(d) => d.as_nanos() as i128,
+        None => -(from.duration_since(to).as_nanos() as i128),
+    }
+}
+
 /// Sleeps until `deadline` on the monotonic clock; returns at once if it has passed. Never
 /// returns before it, and never spins.
 ///
@@ -468,6 +581,79 @@ pub fn monotonic_now() -> Option<(Instant, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_frame_sooner_than_the_units_recent_replies_is_too_soon() {
+        let ms = Duration::from_millis;
+        let t0 = Instant::now();
+        let mut t = Turnarounds::new();
+        // Nothing known: anything may answer; nor with three replies known.
+        assert!(!t.too_soon(1, 3, t0, t0 + ms(8), t0));
+        for i in 0..3u64 {
+            let start = t0 + ms(100 * i);
+            t.answered(1, 3, start, start + ms(8), start + ms(13));
+        }
+        assert!(!t.too_soon(1, 3, t0 + ms(1000), t0 + ms(1008), t0 + ms(1001)));
+        // A real line at 9600: 8.3 ms of request, 5 ms of turnaround.
+        for i in 0..20u64 {
+            let start = t0 + ms(100 * i);
+            t.answered(1, 3, start, start + ms(8), start + ms(13 + i % 3));
+        }
+        assert_eq!(t.least(1, 3), Some(ms(13)));
+        let start = t0 + ms(10_000);
+        let end = start + ms(8);
+        // Before the request has even ended: a copy, or the last request's answer.
+        assert!(t.too_soon(1, 3, start, end, start + ms(2)));
+        assert!(t.too_soon(1, 3, start, end, end - ms(2)));
+        // Sooner than half its usual turnaround: a copy sent right after the request.
+        assert!(t.too_soon(1, 3, start, end, end + ms(2)));
+        // As soon as usual, a little sooner, or later: an answer.
+        assert!(!t.too_soon(1, 3, start, end, end + ms(5)));
+        assert!(!t.too_soon(1, 3, start, end, end + ms(3)));
+        assert!(!t.too_soon(1, 3, start, end, end + ms(50)));
+        // A long request (a write of many registers) is answered later from its start, never
+        // sooner from its end: still an answer.
+        assert!(!t.too_soon(1, 3, start, start + ms(60), start + ms(65)));
+        // Another unit, or another function, is judged by its own replies only.
+        assert!(!t.too_soon(2, 3, start, end, start + ms(2)));
+        assert!(!t.too_soon(1, 6, start, end, start + ms(2)));
+        t.forget(1, 3);
+        assert!(!t.too_soon(1, 3, start, end, start + ms(2)));
+        assert_eq!(t.least(1, 3), None);
+    }
+
+    #[test]
+    fn on_a_line_without_wire_time_nothing_is_too_soon() {
+        // A pseudo-terminal: the reply comes 0.3 ms after the request starts, before its
+        // reckoned end, whatever its length; the 1 ms floor keeps jitter from counting.
+        let ms = Duration::from_millis;
+        let us = Duration::from_micros;
+        let t0 = Instant::now();
+        let mut t = Turnarounds::new();
+        for i in 0..16u64 {
+            let start = t0 + ms(10 * i);
+            t.answered(1, 3, start, start + ms(8), start + us(300));
+        }
+        let start = t0 + ms(1000);
+        for end in [start + ms(8), start + ms(200)] {
+            assert!(!t.too_soon(1, 3, start, end, start + us(10)));
+            assert!(!t.too_soon(1, 3, start, end, start + us(300)));
+        }
+    }
+
+    #[test]
+    fn the_least_turnaround_is_the_recent_one() {
+        let ms = Duration::from_millis;
+        let t0 = Instant::now();
+        let mut t = Turnarounds::new();
+        t.answered(1, 3, t0, t0, t0 + ms(1));
+        for i in 1..=TURNAROUND_SAMPLES as u64 {
+            let start = t0 + ms(100 * i);
+            t.answered(1, 3, start, start, start + ms(20));
+        }
+        // The 1 ms answer has aged out.
+        assert_eq!(t.least(1, 3), Some(ms(20)));
+    }
 
     fn us(d: Duration) -> f64 {
         d.as_secs_f64() * 1e6
