@@ -28,9 +28,10 @@ use crate::codec::{
     FrameError, Framing, Needed, Reply, Request, Response, BROADCAST,
 };
 use crate::error::{hex, Error, Result};
-use crate::timing::{sleep_until, LineFormat, SilenceGuard, WritePacing};
+use crate::timing::{sleep_until, LineFormat, SilenceGuard, Turnarounds, WritePacing};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
 use crate::transport::{check_line_options, is_lost, open, Framed, Transport};
+use owed::{Ledger, Owed};
 use queue::{Cancel, Queue, Turn};
 pub use queue::{CancelToken, Entered};
 use std::collections::HashMap;
@@ -38,10 +39,12 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
+mod owed;
 mod queue;
 
-/// How many times stale input arriving during the t3.5 wait restarts it before a request.
-const STALE_ROUNDS: u32 = 4;
+/// How many timeouts an owed answer may take after the frame before it (see [`owed`]): the
+/// documented limit of a unit's reply time.
+const OWED_WINDOW: u32 = 3;
 
 /// How many bytes of the request a failed reply must repeat to be taken for its echo (a
 /// whole request if shorter): unit, function, address, and a byte of count or value. Five
@@ -173,6 +176,10 @@ pub struct Stats {
     pub broadcasts: u64,
     /// Times the port was opened again ([`Bus::reopen`], or a reconnect).
     pub reopens: u64,
+    /// Times the line was found out of step and brought back: a frame that came too soon to
+    /// answer its request (a copy, an earlier request's answer) was dropped, or bytes were
+    /// waiting before a request (see [`Bus::send`]).
+    pub resyncs: u64,
 }
 
 /// Opens a Bus's transport from its config: at [`Bus::with_opener`], and again at each
@@ -197,9 +204,10 @@ struct State {
     frames_out: u64,
     silence: SilenceGuard,
     pacing: WritePacing,
-    /// Requests that timed out and whose replies may still arrive (see [`Bus::send`]): at
-    /// most one per unit, dropped once their window has passed.
-    late: Vec<Late>,
+    /// The answers units still owe for attempts that timed out (see [`owed`]).
+    owed: Ledger,
+    /// How soon each unit has answered lately (see [`Turnarounds`]).
+    turnarounds: Turnarounds,
     /// Whether a local echo has come back right on this Bus (see [`Bus::read_echo`]).
     echo_seen: bool,
     stats: Stats,
@@ -217,7 +225,7 @@ pub struct Bus {
     state: Mutex<State>,
     /// The turns on the line: whoever holds one may lock `state` for one attempt.
     queue: Arc<Queue>,
-    /// The number of the next call (see [`Late::call`]).
+    /// The number of the next call (see [`owed::Owed::call`]).
     calls: AtomicU64,
     /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]).
     sequences: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
@@ -276,7 +284,8 @@ impl Bus {
                 frames_out: 0,
                 silence: SilenceGuard::new(),
                 pacing: WritePacing::new(),
-                late: Vec::new(),
+                owed: Ledger::default(),
+                turnarounds: Turnarounds::new(),
                 echo_seen: false,
                 stats: Stats::default(),
                 serving: 0,
@@ -892,7 +901,9 @@ impl Bus {
         };
         let mut port = CallPort::default();
         let mut last_error = None;
-        let mut timed_out = false;
+        // The first of this call's attempts that got no answer: a frame that comes in a later
+        // attempt may be its answer (the same request), so it is timed from there.
+        let mut first_unanswered: Option<Sent> = None;
         for attempt in 0..attempts {
             if attempt > 0 && self.interrupted() {
                 return Err(interrupted(unit, request, attempt));
@@ -912,20 +923,29 @@ impl Bus {
                 st.stats.retries += 1;
             }
             let outcome = self.on_port(&mut st, &mut port, |st| {
-                self.exchange(st, unit, request, &frame, opts, timeout)
+                self.exchange(
+                    st,
+                    unit,
+                    request,
+                    &frame,
+                    opts,
+                    timeout,
+                    &mut first_unanswered,
+                )
             });
-            timed_out |= matches!(outcome, Err(Error::Timeout { .. }));
-            // An attempt timed out, so a reply to it may still come (even when a retry was
-            // then answered: by the first attempt's late reply, perhaps). RTU replies carry no
-            // transaction id, but they name their unit: the next request to the same unit
-            // waits out its window first (see `State::late_until`), and a request to another
-            // unit goes out at once and drops it if it comes (see `attempt`): so it is
-            // recorded at once, for the other callers' attempts between this call's. Within a
-            // call a late reply answers the same request, so retries do not wait. A probe's unit is not asked again, and a late
-            // answer from it would name the wrong unit. Two timeouts: a unit slower than the
-            // timeout may have queued the retry's reply behind the late one.
-            if timed_out && !opts.window_from_start {
-                st.expect_late(unit, request, Instant::now() + timeout * 2);
+            // The attempt timed out, so its answer is owed: it may still come, and a device
+            // that queues requests answers every attempt, one after the other. RTU replies
+            // carry no transaction id, but they name their unit: the next request of another
+            // call to the same unit waits until the owed answers have come or their windows
+            // have passed (see `State::late_until` and `Bus::send`), and a request to another
+            // unit goes out at once and drops them if they come (see `attempt`): so the debt
+            // is recorded at once, for the other callers' attempts between this call's.
+            // Within a call an owed answer answers the same request, so retries do not wait.
+            // A probe's unit is not asked again, and a late answer from it would name the
+            // wrong unit.
+            if matches!(outcome, Err(Error::Timeout { .. })) && !opts.window_from_start {
+                st.owed
+                    .owe(unit, request, call, timeout * OWED_WINDOW, Instant::now());
             }
             let error = match outcome {
                 Err(e) if e.is_retryable() => e,
@@ -945,6 +965,7 @@ impl Bus {
     /// One attempt of a request on the open port, and its checked response, counted in the
     /// stats. A request that is not answered ([`unanswered`]) is sent, and only a garbled
     /// local echo fails it (to be sent again, as a corrupt reply would be).
+    #[allow(clippy::too_many_arguments)]
     fn exchange(
         &self,
         st: &mut State,
@@ -953,13 +974,22 @@ impl Bus {
         frame: &[u8],
         opts: &TxOptions,
         timeout: Duration,
+        earlier: &mut Option<Sent>,
     ) -> Result<Response> {
         let unanswered = unanswered(request, opts);
         let outcome = if unanswered {
             self.send(st, frame, request, timeout)
                 .map(|_| (Reply::Normal(request.assumed_reply()), Vec::new()))
         } else {
-            self.attempt(st, unit, request, frame, timeout, opts.window_from_start)
+            self.attempt(
+                st,
+                unit,
+                request,
+                frame,
+                timeout,
+                opts.window_from_start,
+                earlier,
+            )
         };
         // Late frames the framing told apart and dropped itself (Modbus TCP).
         if let Link::Open(transport) = &mut st.link {
@@ -1007,6 +1037,15 @@ impl Bus {
     }
 
     /// One attempt: drop stale input, wait for silence, send, read the reply by its length.
+    ///
+    /// On a serial line a complete frame of the unit that came too soon after the request to
+    /// answer it ([`Turnarounds::too_soon`]: a copy of an earlier reply, an earlier request's
+    /// answer come late) is dropped and counted as a resync, and the wait for the answer goes
+    /// on; if none follows, the unit's turnarounds are forgotten (it may have become
+    /// faster). `earlier` is this call's first attempt that got no answer, if any: a frame
+    /// may be its answer (the same request), so it is timed from there; this attempt is
+    /// recorded there if it times out.
+    #[allow(clippy::too_many_arguments)]
     fn attempt(
         &self,
         st: &mut State,
@@ -1015,6 +1054,7 @@ impl Bus {
         frame: &[u8],
         timeout: Duration,
         window_from_start: bool,
+        earlier: &mut Option<Sent>,
     ) -> Result<(Reply, Vec<u8>)> {
         let sent_end = self.send(st, frame, request, timeout)?;
         let function = request.function();
@@ -1024,12 +1064,26 @@ impl Bus {
         let State {
             link,
             silence,
-            late,
+            owed,
+            turnarounds,
             stats,
             serving,
             ..
         } = st;
         let transport = self.port(link)?;
+        let serial = transport.is_serial_line();
+        let sent_start = if serial {
+            sent_end
+                .checked_sub(line.frame_time(frame.len()))
+                .unwrap_or(sent_end)
+        } else {
+            sent_end
+        };
+        let this = Sent {
+            start: sent_start,
+            end: sent_end,
+        };
+        let since = earlier.unwrap_or(this);
         // The timeout counts from the start of the request, as in other Modbus masters, so a
         // silent unit costs one timeout per attempt: the device's first character must have
         // arrived by `answer_by` + one character time. The rest of the reply's time on the
@@ -1037,11 +1091,7 @@ impl Bus {
         // rate is not cut off. A request that takes over half the timeout on the wire still
         // leaves the device half the timeout after its end (a probe: only t3.5, the least a
         // compliant device needs before it may start).
-        let serial = transport.is_serial_line();
         let mut answer_by = if serial {
-            let sent_start = sent_end
-                .checked_sub(line.frame_time(frame.len()))
-                .unwrap_or(sent_end);
             let least = if window_from_start {
                 line.t3_5()
             } else {
@@ -1053,46 +1103,69 @@ impl Bus {
                 .max(sent_end + least)
         } else {
             // A Modbus TCP gateway that serves one request at a time answers this one only
-            // after the late one it is still busy with: that time is not this unit's.
-            // (Not this call's own: its retries keep their timeout, as when a call held the line throughout.)
-            let queued = late
-                .iter()
-                .filter(|l| l.call != *serving)
-                .map(|l| l.until)
-                .max()
-                .map_or(Duration::ZERO, |end| {
-                    end.saturating_duration_since(sent_end)
-                });
+            // after the owed ones it is still busy with: that time is not this unit's.
+            // (Not this call's own: its retries keep their timeout, as when a call held the
+            // line throughout.)
+            let queued = owed.until_any(*serving).map_or(Duration::ZERO, |end| {
+                end.saturating_duration_since(sent_end)
+            });
             sent_end + timeout + queued
         };
+        // Whatever the line does (noise, a `:` after every pause in ASCII, frames that are
+        // dropped), the attempt ends by then: its window and the longest frame's wire time.
+        let mut hard_end = answer_by + line.frame_time(self.max_frame());
         // When the last byte of the reply so far arrived: the line is quiet since then.
         let mut last_byte = None;
+        // When the first byte of the frame being read arrived.
+        let mut first_byte = None;
+        // Whether a frame was dropped as too soon in this attempt.
+        let mut dropped_too_soon = false;
+        let mut too_soon_after = None;
         loop {
-            // A late reply from another unit, which timed out earlier, may come first: taken
-            // whole and valid, it is dropped, and the wait for this reply goes on.
-            let other = late_reply_of(late, unit, self.unit_of(&buf));
+            // An owed answer from another unit may come first: taken whole and valid, it is
+            // dropped, and the wait for this reply goes on.
+            let other = owed.of_other_unit(unit, self.unit_of(&buf));
             let needed = match other {
-                Some(l) => self.framing.reply_needed(&l.request, &buf),
+                Some(o) => self.framing.reply_needed(&o.request, &buf),
                 None => self.framing.reply_needed(request, &buf),
             };
             let (want, wait) = match needed {
                 Needed::Complete(n) => {
-                    let Some(l) = other else { break };
-                    if self
-                        .framing
-                        .decode_reply(l.unit, &l.request, &buf[..n])
-                        .is_err()
-                    {
-                        break;
+                    let at = last_byte.unwrap_or_else(Instant::now);
+                    if let Some(o) = other {
+                        if self
+                            .framing
+                            .decode_reply(o.unit, &o.request, &buf[..n])
+                            .is_err()
+                        {
+                            break;
+                        }
+                        let other_unit = o.unit;
+                        log::debug!(target: "benchbus::wire", "owed reply of unit {other_unit} dropped: {}", self.wire_text(&buf[..n]));
+                        owed.frame_from(other_unit, at, true);
+                    } else {
+                        let too_soon = serial
+                            && first_byte.is_some_and(|first| {
+                                turnarounds.too_soon(unit, function, since.start, since.end, first)
+                            })
+                            && self.framing.decode_reply(unit, request, &buf[..n]).is_ok();
+                        if !too_soon {
+                            break;
+                        }
+                        log::debug!(target: "benchbus::wire", "<- unit {unit} too soon for the request (a copy, or an earlier answer), dropped: {}", self.wire_text(&buf[..n]));
+                        stats.resyncs += 1;
+                        dropped_too_soon = true;
+                        too_soon_after =
+                            first_byte.map(|first| first.saturating_duration_since(since.start));
                     }
-                    log::debug!(target: "benchbus::wire", "late reply of unit {} dropped: {}", l.unit, self.wire_text(&buf[..n]));
                     stats.stale_bytes += n as u64;
                     buf.drain(..n);
-                    let at = last_byte.unwrap_or_else(Instant::now);
+                    first_byte = (!buf.is_empty()).then_some(at);
                     silence.busy_until(at);
                     // The line was taken until then; this unit's answer may follow it.
                     if serial {
                         answer_by = answer_by.max(at + line.t3_5());
+                        hard_end = hard_end.max(answer_by + line.frame_time(self.max_frame()));
                     }
                     continue;
                 }
@@ -1124,6 +1197,7 @@ impl Bus {
             let want = want
                 .min(chunk.len())
                 .min(self.max_frame().saturating_sub(buf.len()));
+            let wait = wait.min(hard_end.saturating_duration_since(Instant::now()));
             let n = self.read_within(transport, &mut chunk[..want], wait)?;
             if n == 0 {
                 if matches!(needed, Needed::Unknown | Needed::Silence)
@@ -1140,6 +1214,24 @@ impl Bus {
                 if !buf.is_empty() {
                     log::debug!(target: "benchbus::wire", "<- unit {unit} incomplete: {}", self.wire_text(&buf));
                 }
+                if dropped_too_soon && buf.is_empty() {
+                    // Nothing but the frame thought too soon: it may have been the answer, from
+                    // a device that has become faster, or a copy that hid the request from the
+                    // device. Not a number: a corrupt reply, retried; what is known of the
+                    // unit's pace goes.
+                    let usual = turnarounds.least(unit, function).unwrap_or_default();
+                    turnarounds.forget(unit, function);
+                    let after = too_soon_after.unwrap_or_default();
+                    return Err(frame_error(
+                        unit,
+                        function,
+                        FrameError::TooSoon { after, usual },
+                        Vec::new(),
+                    ));
+                }
+                if earlier.is_none() {
+                    *earlier = Some(this);
+                }
                 // The whole request and more: no reply, however cut short, looks like that.
                 if !self.config.echo && buf.len() > frame.len() && buf.starts_with(frame) {
                     return Err(frame_error(unit, function, FrameError::UnexpectedEcho, buf));
@@ -1152,8 +1244,9 @@ impl Bus {
                     received: buf,
                 });
             }
+            let now = Instant::now();
             buf.extend_from_slice(&chunk[..n]);
-            last_byte = Some(Instant::now());
+            last_byte = Some(now);
             if self.framing == Framing::Ascii {
                 // Characters before the frame's `:` are noise: dropped, so that they do not
                 // take the room of the frame.
@@ -1165,6 +1258,12 @@ impl Bus {
                 };
                 buf.drain(..noise);
                 stats.stale_bytes += noise as u64;
+                if noise > 0 {
+                    first_byte = None;
+                }
+            }
+            if first_byte.is_none() && !buf.is_empty() {
+                first_byte = Some(now);
             }
         }
         // What crossed the wire (over Modbus TCP the MBAP frame), for the log and errors.
@@ -1175,6 +1274,11 @@ impl Bus {
             Ok(reply) => {
                 // The addressed unit answered this request in full: it has stopped talking.
                 silence.reply_ended(at);
+                owed.frame_from(unit, at, false);
+                // Its pace, from an answer that can only be this attempt's.
+                if let (true, None, Some(first)) = (serial, *earlier, first_byte) {
+                    turnarounds.answered(unit, function, this.start, this.end, first);
+                }
                 Ok((reply, shown.unwrap_or(buf)))
             }
             Err(kind) => {
@@ -1204,51 +1308,41 @@ impl Bus {
         let line = self.config.line;
         let transport = self.port(&mut st.link)?;
         let serial = transport.is_serial_line();
-        // After a call to this unit in which an attempt timed out, listen for its late reply
-        // for what is left of its window before sending anything: dropped here, it cannot be
-        // taken for this request's answer. A broadcast waits for every unit's. (The caller
-        // waited out that window before its turn, see `State::late_until`, so this only
-        // forgets the windows that are over.) Over Modbus TCP the transaction id tells a
-        // late reply from the answer (see `attempt`).
+        // Answers another call's attempts to this unit left owed (see [`owed`]): listen for
+        // each, up to its window after the frame before it, before sending anything: dropped
+        // here, none can be taken for this request's answer. A broadcast waits for every
+        // unit's. (The caller waited out most of that without a turn, see
+        // `State::late_until`.) Over Modbus TCP the transaction id tells an owed answer from
+        // the reply (see `attempt`).
         let target = self.unit_of(frame).unwrap_or(BROADCAST);
-        let late = if serial {
-            take_late(&mut st.late, target, st.serving)
-        } else {
-            None
-        };
-        if let Some(until) = late {
-            let mut scratch = [0u8; ascii::MAX_FRAME];
-            // The window was mostly waited out of turn, without the port: listen on it for
-            // at least an end-of-frame silence, which also meets a port lost meanwhile (a
-            // COM port whose far end hung up fails a read, not the stale-input check).
-            let wait = until
-                .saturating_duration_since(Instant::now())
-                .max(self.end_of_frame_silence());
-            // Once it starts, take all of it: until t3.5 of quiet (one frame at most).
-            let mut n = self.read_within(transport, &mut scratch, wait)?;
-            let mut dropped = 0;
-            while n > 0 && dropped < 2 * self.max_frame() {
-                dropped += n;
-                st.silence.busy_until(Instant::now());
-                log::debug!(target: "benchbus::wire", "late reply dropped: {}", self.wire_text(&scratch[..n]));
-                n = self.read_within(transport, &mut scratch, self.end_of_frame_silence())?;
+        if serial {
+            for owed in st.owed.take(target, st.serving) {
+                let dropped = self.drain_owed(transport, &owed)?;
+                st.stats.stale_bytes += dropped as u64;
+                if dropped > 0 {
+                    st.silence.busy_until(Instant::now());
+                }
             }
-            st.stats.stale_bytes += dropped as u64;
         }
         // Stale bytes are traffic: the line is quiet only t3.5 after the last of them, and
-        // bytes that arrive during that wait restart it (a few times at most: a device that
-        // never stops talking does not hold the bus for ever).
-        for round in 0..=STALE_ROUNDS {
+        // bytes that arrive during that wait restart it, for up to the longest frame's time
+        // (a device that never stops talking does not hold the bus for ever). Bytes nobody
+        // expected mean the line was out of step: a resync.
+        let stale_by = Instant::now() + line.frame_time(self.max_frame()) + line.t3_5();
+        let mut resynced = false;
+        for round in 0.. {
             let stale = transport.discard_input().map_err(|e| self.io_error(e))?;
             if !stale.is_empty() {
                 st.stats.stale_bytes += stale.len() as u64;
+                st.stats.resyncs += u64::from(!resynced);
+                resynced = true;
                 st.silence.busy_until(Instant::now());
                 log::debug!(target: "benchbus::wire", "stale input dropped: {}", self.wire_text(&stale));
             } else if round > 0 {
                 break;
             }
             // No t3.5 in ASCII: a frame is told by its `:` and CR LF, not by silence.
-            if !serial || self.framing == Framing::Ascii {
+            if !serial || self.framing == Framing::Ascii || Instant::now() >= stale_by {
                 break;
             }
             st.silence.wait(line.t3_5());
@@ -1274,6 +1368,55 @@ impl Bus {
         }
         st.silence.busy_until(end);
         Ok(end)
+    }
+
+    /// Listens for the answers `owed` still owes, one frame at a time (by the length of an
+    /// answer to its request, or until the line is quiet), each up to its window after the
+    /// one before; returns how many bytes were dropped. Once a window passes with nothing,
+    /// the rest are written off: a unit that answers within three timeouts has answered by
+    /// then.
+    fn drain_owed(&self, transport: &mut Framed, owed: &Owed) -> Result<usize> {
+        let mut scratch = [0u8; ascii::MAX_FRAME];
+        let mut buf = Vec::new();
+        let mut dropped = 0;
+        let mut count = owed.count;
+        let mut until = owed.until;
+        while count > 0 {
+            let wait = match self.framing.reply_needed(&owed.request, &buf) {
+                Needed::Complete(n) => {
+                    log::debug!(target: "benchbus::wire", "owed reply of unit {} dropped: {}", owed.unit, self.wire_text(&buf[..n]));
+                    buf.drain(..n);
+                    dropped += n;
+                    count -= 1;
+                    until = Instant::now() + owed.window;
+                    continue;
+                }
+                Needed::More(_) if !buf.is_empty() => self.within_frame(),
+                Needed::More(_) => until
+                    .saturating_duration_since(Instant::now())
+                    .max(self.end_of_frame_silence()),
+                Needed::Unknown | Needed::Silence => self.end_of_frame_silence(),
+            };
+            let room = (2 * self.max_frame())
+                .saturating_sub(buf.len())
+                .min(scratch.len());
+            let n = self.read_within(transport, &mut scratch[..room], wait)?;
+            if n > 0 {
+                buf.extend_from_slice(&scratch[..n]);
+                continue;
+            }
+            if buf.is_empty() {
+                log::debug!(target: "benchbus::wire", "unit {} owed {count} more replies; none came in time", owed.unit);
+                break;
+            }
+            // Quiet after a frame that is not an answer by its length: taken as one.
+            log::debug!(target: "benchbus::wire", "owed reply of unit {} dropped: {}", owed.unit, self.wire_text(&buf));
+            dropped += buf.len();
+            buf.clear();
+            count -= 1;
+            until = Instant::now() + owed.window;
+        }
+        Ok(dropped + buf.len())
     }
 
     /// Reads back the adapter's local echo of `frame` (of `request`) by `deadline` (the
@@ -1536,23 +1679,20 @@ struct CallPort {
     wrote: bool,
 }
 
-/// A request that timed out: its reply may still arrive until `until`.
-struct Late {
-    unit: u8,
-    request: Request,
-    until: Instant,
-    /// The call that sent it: its own retries do not wait for it (a late reply answers the
-    /// same request).
-    call: u64,
+/// When a request was on the wire (its end reckoned from its length and the baud rate).
+#[derive(Debug, Clone, Copy)]
+struct Sent {
+    start: Instant,
+    end: Instant,
 }
 
 impl State {
-    /// Until when, on a serial line, a late reply from `target` (a broadcast: from any unit)
-    /// to a request of another call than `call` may still come. A request of `call` to
-    /// `target` waits that long, without a turn, so that the late reply cannot pass for its
-    /// answer; meanwhile other callers use the line, and their attempts drop the late reply
-    /// if it comes (see [`Bus::attempt`]); whatever of it is left is dropped before the
-    /// request (see [`Bus::send`]).
+    /// Until when, on a serial line, an answer `target` (a broadcast: any unit) owes to
+    /// another call than `call` may still come. A request of `call` to `target` waits that
+    /// long, without a turn, so that an owed answer cannot pass for its own; meanwhile other
+    /// callers use the line, and their attempts drop the owed answers if they come (see
+    /// [`Bus::attempt`]); whatever is still owed is listened for before the request (see
+    /// [`Bus::send`]).
     fn late_until(&self, target: u8, call: u64) -> Option<Instant> {
         let Link::Open(transport) = &self.link else {
             return None;
@@ -1560,26 +1700,7 @@ impl State {
         if !transport.is_serial_line() {
             return None;
         }
-        let now = Instant::now();
-        self.late
-            .iter()
-            .filter(|l| (target == BROADCAST || l.unit == target) && l.call != call)
-            .map(|l| l.until)
-            .filter(|&until| until > now)
-            .max()
-    }
-
-    /// Records that the reply of `request` to `unit`, sent by the call being served, may
-    /// still arrive until `until`.
-    fn expect_late(&mut self, unit: u8, request: &Request, until: Instant) {
-        let now = Instant::now();
-        self.late.retain(|l| l.unit != unit && l.until > now);
-        self.late.push(Late {
-            unit,
-            request: request.clone(),
-            until,
-            call: self.serving,
-        });
+        self.owed.until(target, call, Instant::now())
     }
 }
 
@@ -1589,25 +1710,6 @@ fn port_message(e: &Error) -> String {
         Error::Port { message, .. } => message.clone(),
         other => other.to_string(),
     }
-}
-
-/// Until when a late reply that could pass for the answer of a request of call `call` to
-/// `target` may come (a broadcast: any unit's), if one still may; those replies are no longer
-/// expected after. The call's own late requests are not waited for (nor taken).
-fn take_late(late: &mut Vec<Late>, target: u8, call: u64) -> Option<Instant> {
-    let now = Instant::now();
-    let (taken, kept): (Vec<Late>, Vec<Late>) = std::mem::take(late)
-        .into_iter()
-        .filter(|l| l.until > now)
-        .partition(|l| (target == BROADCAST || l.unit == target) && l.call != call);
-    *late = kept;
-    taken.iter().map(|l| l.until).max()
-}
-
-/// The late request of another unit than `unit` that `buf`, a reply begun, may answer.
-fn late_reply_of(late: &[Late], unit: u8, first: Option<u8>) -> Option<&Late> {
-    let first = first?;
-    late.iter().find(|l| l.unit == first && l.unit != unit)
 }
 
 /// Whether nothing comes back for `request` but, on a Bus opened with `echo`, its local echo:

@@ -128,6 +128,11 @@ class Stats:
     @property
     def reopens(self) -> int:
         """Times the port was opened again (:meth:`Bus.reopen`, or a reconnect)."""
+    @property
+    def resyncs(self) -> int:
+        """Times the line was found out of step and brought back: a frame that came too
+        soon after a request to answer it (a copy of an earlier reply, an earlier request's
+        answer) was dropped, or bytes nobody expected were waiting before a request."""
     def as_dict(self) -> dict[str, int]:
         """The counters as a dict."""
 

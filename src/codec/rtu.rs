@@ -261,6 +261,20 @@ pub enum FrameError {
          then open the Bus with echo=True"
     )]
     UnexpectedEcho,
+    /// A frame of the addressed unit came sooner after the request than the unit answers
+    /// (a copy of an earlier reply, or an earlier request's answer come late), was dropped,
+    /// and no other followed within the attempt.
+    #[error(
+        "a reply came {after:?} after the request began, sooner than this unit answers \
+         ({usual:?} lately): a copy of an earlier reply or an earlier request's answer, not \
+         taken, and no other reply followed"
+    )]
+    TooSoon {
+        /// When the frame began to arrive, from the start of the request.
+        after: std::time::Duration,
+        /// The unit's least time lately, from the start of a request to its reply.
+        usual: std::time::Duration,
+    },
     /// A Modbus ASCII frame is malformed: a character, its length or its LRC.
     #[error(transparent)]
     Ascii(#[from] super::ascii::AsciiError),

@@ -953,6 +953,7 @@ fn is_refusal(e: &Error) -> bool {
                 | FrameError::Ascii(_)
                 | FrameError::LocalEcho { .. }
                 | FrameError::UnexpectedEcho
+                | FrameError::TooSoon { .. }
         ),
         _ => false,
     }

@@ -627,6 +627,7 @@ struct PyStats {
     stale_bytes: u64,
     broadcasts: u64,
     reopens: u64,
+    resyncs: u64,
 }
 
 impl From<bus::Stats> for PyStats {
@@ -641,6 +642,7 @@ impl From<bus::Stats> for PyStats {
             stale_bytes: s.stale_bytes,
             broadcasts: s.broadcasts,
             reopens: s.reopens,
+            resyncs: s.resyncs,
         }
     }
 }
@@ -674,7 +676,7 @@ impl PyStats {
 }
 
 impl PyStats {
-    fn fields(&self) -> [(&'static str, u64); 9] {
+    fn fields(&self) -> [(&'static str, u64); 10] {
         [
             ("transactions", self.transactions),
             ("retries", self.retries),
@@ -685,6 +687,7 @@ impl PyStats {
             ("stale_bytes", self.stale_bytes),
             ("broadcasts", self.broadcasts),
             ("reopens", self.reopens),
+            ("resyncs", self.resyncs),
         ]
     }
 }
