@@ -165,21 +165,57 @@ fn noise_before_the_colon_is_dropped_and_a_colon_restarts_the_frame() {
 
 #[test]
 fn a_reply_arriving_slowly_character_by_character_is_waited_for() {
-    // 23 characters, one every 15 ms: the whole reply takes far over the 20 ms timeout,
-    // each gap far under the 1 s the serial line spec allows between two characters.
-    let (bus, _) = slow_bus(vec![Act::Reply(REPLY.to_vec())], Duration::from_millis(15));
+    // 23 characters, one every 10 ms: the whole reply takes far over the 20 ms timeout, and
+    // less than the attempt's end (the timeout and the longest frame's wire time, 513
+    // characters at 19200 7E1: 267 ms).
+    let (bus, _) = slow_bus(vec![Act::Reply(REPLY.to_vec())], Duration::from_millis(10));
     let start = Instant::now();
     assert_eq!(read(&bus).unwrap(), [0x022B, 0, 0x64]);
     assert!(
-        start.elapsed() >= Duration::from_millis(300),
+        start.elapsed() >= Duration::from_millis(220),
         "{:?}",
         start.elapsed()
     );
     assert_eq!(bus.stats().timeouts, 0);
 }
 
+/// The end of an attempt on the 19200 7E1 line of `slow_bus`: its 20 ms timeout and the
+/// longest ASCII frame's wire time (513 characters of 10 bits).
+fn attempt_end() -> Duration {
+    Duration::from_millis(20) + Duration::from_micros(513 * 10 * 1_000_000 / 19_200)
+}
+
 #[test]
-fn a_reply_that_stops_mid_frame_times_out_a_second_after_its_last_character() {
+fn a_reply_slower_than_the_attempts_end_times_out_there() {
+    // One character every 15 ms: 345 ms for the reply, past the attempt's end.
+    let (bus, _) = slow_bus(vec![Act::Reply(REPLY.to_vec())], Duration::from_millis(15));
+    let start = Instant::now();
+    let e = read(&bus).unwrap_err();
+    let took = start.elapsed();
+    assert!(matches!(e, Error::Timeout { .. }), "{e}");
+    assert!(
+        took >= attempt_end() - Duration::from_millis(5) && took < Duration::from_millis(340),
+        "{took:?}"
+    );
+}
+
+#[test]
+fn a_colon_after_every_pause_does_not_hold_the_call() {
+    // Each `:` starts a frame again, and each character would extend a 1 s inter-character
+    // wait: 200 of them, 15 ms apart (3 s), end at the attempt's end all the same.
+    let (bus, _) = slow_bus(vec![Act::Reply(vec![b':'; 200])], Duration::from_millis(15));
+    let start = Instant::now();
+    let e = read(&bus).unwrap_err();
+    let took = start.elapsed();
+    assert!(matches!(e, Error::Timeout { .. }), "{e}");
+    assert!(took < attempt_end() + Duration::from_millis(50), "{took:?}");
+}
+
+#[test]
+fn a_reply_that_stops_mid_frame_times_out_at_the_attempts_end() {
+    // A frame begun may pause up to 1 s between characters (serial line spec 2.5.2.1), but
+    // the attempt ends at its timeout and the longest frame's wire time (267 ms at 19200
+    // 7E1).
     let (bus, _) = ascii_bus(vec![Act::Reply(b":110306022B".to_vec())], 0);
     let start = Instant::now();
     let e = read(&bus).unwrap_err();
@@ -188,10 +224,13 @@ fn a_reply_that_stops_mid_frame_times_out_a_second_after_its_last_character() {
         Error::Timeout { received, .. } => assert_eq!(received, b":110306022B"),
         _ => panic!("{e}"),
     }
+    let line = bus.config().line;
+    let end = bus.config().timeout + line.frame_time(ascii::MAX_FRAME);
     assert!(
-        took >= ascii::INTER_CHAR_TIMEOUT && took < Duration::from_millis(1500),
-        "{took:?}"
+        took + Duration::from_millis(5) >= end && took < end + Duration::from_millis(100),
+        "{took:?} for an attempt's end of {end:?}"
     );
+    assert!(took < ascii::INTER_CHAR_TIMEOUT, "{took:?}");
 }
 
 #[test]
