@@ -1,0 +1,206 @@
+"""A Modbus RTU slave on a pseudo-terminal pair that keeps a real line's time, and misbehaves
+in time on request: for the tests of a line that falls out of step.
+
+The library opens :attr:`TimedSlave.port`; the slave serves the other end in a thread. A
+pty carries bytes at once, so the slave reckons the wire itself: a request ends one
+character time a byte after its first byte came (as the master reckons it too), and each
+byte of a reply leaves one character time after the one before, never two frames at once.
+
+What it can do wrong, each a constructor option:
+
+- ``turnaround`` (and ``jitter``, a random extra of up to that much): the time from the end
+  of a request to the start of its reply (a device slower than t3.5 plus the master's own
+  turnaround);
+- ``copy_every`` / ``copy_gap``: every n-th reply is sent a second time, ``copy_gap`` after
+  the end of the first (a repeater, a gateway on the line, a firmware that repeats);
+- ``service``: each unit works on one request at a time, each taking ``service`` seconds
+  from its end (or from the end of the one before, whichever is later), and answers every
+  request it got, in order (a slow device that queues its master's retries).
+
+Register ``a`` of unit ``u`` holds :func:`value` ``(u, a)``, so a reply taken for another
+request's answer shows as a wrong value. Reads (0x03, 0x04) and single writes (0x06, the
+echo) are answered; other units stay silent.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import random
+import select
+import termios
+import threading
+import time
+import tty
+from collections import deque
+from types import TracebackType
+
+
+def value(unit: int, address: int) -> int:
+    """What register ``address`` of ``unit`` holds: different for every address."""
+    return (address * 7 + unit * 1000 + 1) & 0xFFFF
+
+
+def crc(data: bytes) -> bytes:
+    """CRC-16/MODBUS, low byte first."""
+    v = 0xFFFF
+    for b in data:
+        v ^= b
+        for _ in range(8):
+            v = (v >> 1) ^ 0xA001 if v & 1 else v >> 1
+    return v.to_bytes(2, "little")
+
+
+def request_length(buf: bytes | bytearray) -> int | None:
+    """The length of the request at the start of ``buf``, once it can be told."""
+    if len(buf) < 2:
+        return None
+    if buf[1] in (0x03, 0x04, 0x06):
+        return 8
+    return 0  # anything else: dropped
+
+
+class TimedSlave:
+    """A slave on a pty pair that answers in the line's time (see the module's text)."""
+
+    def __init__(
+        self,
+        baud: int = 9600,
+        bits: int = 10,
+        *,
+        turnaround: float = 0.005,
+        jitter: float = 0.0,
+        units: frozenset[int] = frozenset({1}),
+        copy_every: int = 0,
+        copy_gap: float = 0.010,
+        service: float = 0.0,
+    ) -> None:
+        self.char_time = bits / baud
+        #: The turnaround (changed on the fly: the next request's reply takes the new one).
+        self.turnaround = turnaround
+        self.jitter = jitter
+        self._random = random.Random(1)
+        self.units = units
+        self.copy_every = copy_every
+        self.copy_gap = copy_gap
+        self.service = service
+        self.master, self._slave = os.openpty()
+        tty.setraw(self._slave)
+        attrs = termios.tcgetattr(self._slave)
+        attrs[3] &= ~termios.ECHO
+        termios.tcsetattr(self._slave, termios.TCSANOW, attrs)
+        os.set_blocking(self.master, False)
+        self.port = os.ttyname(self._slave)
+        #: Requests as they came: (when the first byte came, the bytes).
+        self.requests: list[tuple[float, bytes]] = []
+        #: Frames sent, the copies among them: (when the first byte left, the bytes).
+        self.sent: list[tuple[float, bytes]] = []
+        self.copies = 0
+        self._out: deque[tuple[float, int]] = deque()  # (when due, byte)
+        self._free_at = 0.0  # when the last scheduled byte ends on the wire
+        self._busy_until: dict[int, float] = {}  # a queuing unit: when it is done with its last
+        self._replies = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+        self._thread.start()
+
+    def __enter__(self) -> TimedSlave:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop serving and close both ends of the pair."""
+        self._stop.set()
+        self._thread.join(5)
+        for fd in (self.master, self._slave):
+            with contextlib.suppress(OSError):
+                os.close(fd)
+
+    def _answer(self, request: bytes) -> bytes | None:
+        if len(request) != 8 or crc(request[:-2]) != request[-2:] or request[0] not in self.units:
+            return None
+        unit, function = request[0], request[1]
+        address = int.from_bytes(request[2:4], "big")
+        count = int.from_bytes(request[4:6], "big")
+        if function == 0x06:
+            return request
+        if not 1 <= count <= 125:
+            pdu = bytes((unit, function | 0x80, 0x03))
+        else:
+            data = b"".join(value(unit, address + i).to_bytes(2, "big") for i in range(count))
+            pdu = bytes((unit, function, len(data))) + data
+        return pdu + crc(pdu)
+
+    def _send(self, frame: bytes, start: float) -> float:
+        """Schedule ``frame`` to start at ``start`` (or when the line is free); its end."""
+        t = max(start, self._free_at)
+        self.sent.append((t, frame))
+        for b in frame:
+            t += self.char_time
+            self._out.append((t, b))
+        self._free_at = t
+        return t
+
+    def _on_request(self, request: bytes, first: float) -> None:
+        self.requests.append((first, request))
+        end = first + len(request) * self.char_time
+        reply = self._answer(request)
+        if reply is None:
+            return
+        if self.service:
+            start = max(end, self._busy_until.get(request[0], 0.0)) + self.service
+            self._busy_until[request[0]] = start
+        else:
+            start = end + self.turnaround + self._random.uniform(0.0, self.jitter)
+        reply_end = self._send(reply, start)
+        self._replies += 1
+        if self.copy_every and self._replies % self.copy_every == 0:
+            self.copies += 1
+            self._send(reply, reply_end + self.copy_gap)
+
+    def _run(self) -> None:
+        buf = bytearray()
+        first = 0.0
+        while not self._stop.is_set():
+            now = time.monotonic()
+            wait = 0.05
+            if self._out:
+                wait = min(wait, max(0.0, self._out[0][0] - now))
+            try:
+                readable = select.select([self.master], [], [], wait)[0]
+            except (OSError, ValueError):
+                return
+            now = time.monotonic()
+            if readable:
+                try:
+                    data = os.read(self.master, 4096)
+                except BlockingIOError:
+                    data = b""
+                except OSError:
+                    return
+                if data and not buf:
+                    first = now
+                buf += data
+                while (n := request_length(buf)) is not None:
+                    if n == 0 or len(buf) < n:
+                        if n == 0:
+                            buf.clear()
+                        break
+                    request, buf = bytes(buf[:n]), buf[n:]
+                    self._on_request(request, first)
+                    first = now
+            due = bytearray()
+            while self._out and self._out[0][0] <= now:
+                due.append(self._out.popleft()[1])
+            if due:
+                try:
+                    os.write(self.master, bytes(due))
+                except OSError:
+                    return
