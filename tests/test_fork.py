@@ -32,7 +32,7 @@ import pytest
 
 import benchbus as bb
 from benchbus import aio
-from benchbus.sim import RegisterDevice, Simulator
+from benchbus.sim import DriveDevice, RegisterDevice, Simulator
 
 # Python 3.12+ warns that forking a process with threads (the simulator's) may deadlock the
 # child: that is the point of these tests, and the child never touches those threads.
@@ -284,6 +284,40 @@ def test_a_child_forked_while_a_thread_is_mid_call_gets_the_error_at_once(
     assert len(outcome) == 1 and isinstance(outcome[0], bb.ResponseTimeout), outcome
     assert sim.request_count == 1, "the child sent requests"
     assert_parent_goes_on(box[0], sim)
+
+
+def test_a_drive_with_a_keepalive_in_a_child_raises_and_closes_at_once() -> None:
+    with Simulator({1: DriveDevice("BLD2")}, baudrate=BAUD) as drive_sim:
+        drives = [bb.Drive(open_bus(drive_sim.port), unit=1)]
+        keepalive = drives[0].keepalive(0.02)
+        parent, port = os.getpid(), drive_sim.port
+
+        def child() -> dict[str, Any]:
+            seen = [
+                failure(lambda: drives[0].speed),
+                failure(lambda: drives[0].forward()),
+                failure(lambda: drives[0].__exit__(None, None, None)),  # sends the stop
+            ]
+            closing = failure(drives[0].close)
+            return {"seen": seen, "closing": closing, "running": keepalive.running}
+
+        report = in_child(child)
+        for seen in report["seen"]:
+            assert_fork_error(seen, parent, port)
+        assert report["closing"][0] == "none"
+        assert report["closing"][2] < AT_ONCE, report["closing"]
+        assert report["running"] is False  # the keepalive thread is the parent's
+        # The parent's keepalive goes on reading, and only the parent's requests came.
+        reads = keepalive.reads
+        deadline = time.monotonic() + 2.0
+        while keepalive.reads < reads + 3 and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert keepalive.running and keepalive.reads >= reads + 3
+        drives[0].close()
+        assert not keepalive.running
+        assert keepalive.errors == 0
+        assert drive_sim.request_count == keepalive.reads
+        drives[0].bus.close()
 
 
 def _mp_child(box: list[bb.Bus], results: Connection) -> None:
