@@ -320,7 +320,8 @@ class Gateway:
         if forked(self.bus):
             clients, self._clients = list(self._clients), {}
             for sock in (server, *clients):
-                sock.close()
+                with contextlib.suppress(OSError):
+                    sock.close()
             return
         self._stopping.set()
         server.close()
