@@ -40,6 +40,7 @@ use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
 mod owed;
+mod owner;
 mod queue;
 
 /// How many timeouts an owed answer may take after the frame before it (see [`owed`]): the
@@ -229,6 +230,8 @@ pub struct Bus {
     calls: AtomicU64,
     /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]).
     sequences: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
+    /// The process that opened the Bus, the only one that may use it (see [`Bus::owned`]).
+    owner: u32,
 }
 
 impl std::fmt::Debug for Bus {
@@ -293,6 +296,7 @@ impl Bus {
             queue: Arc::new(Queue::default()),
             calls: AtomicU64::new(0),
             sequences: Mutex::new(HashMap::new()),
+            owner: std::process::id(),
         }
     }
 
@@ -301,24 +305,34 @@ impl Bus {
         &self.config
     }
 
-    /// A snapshot of the counters.
+    /// A snapshot of the counters (all zero in a process other than the one that opened
+    /// the Bus: see [`Bus::owned`]).
     pub fn stats(&self) -> Stats {
+        if self.owned().is_err() {
+            return Stats::default();
+        }
         self.lock().stats
     }
 
-    /// Whether [`Bus::close`] was called (and no [`Bus::reopen`] since).
+    /// Whether [`Bus::close`] was called (and no [`Bus::reopen`] since); always, in a
+    /// process other than the one that opened the Bus (see [`Bus::owned`]).
     pub fn is_closed(&self) -> bool {
-        matches!(self.lock().link, Link::Closed)
+        self.owned().is_err() || matches!(self.lock().link, Link::Closed)
     }
 
     /// Whether the port was lost (or a reopen failed) and has not been opened again since.
     pub fn is_lost(&self) -> bool {
-        matches!(self.lock().link, Link::Lost(_))
+        self.owned().is_ok() && matches!(self.lock().link, Link::Lost(_))
     }
 
     /// Closes the port; later calls fail with [`Error::Closed`] (a reconnecting Bus does not
-    /// reopen it; [`Bus::reopen`] does). Closing twice is harmless.
+    /// reopen it; [`Bus::reopen`] does). Closing twice is harmless. In a process other than
+    /// the one that opened the Bus, it sends nothing and leaves the port to that process
+    /// (see [`Bus::owned`]).
     pub fn close(&self) {
+        if self.owned().is_err() {
+            return self.let_go();
+        }
         self.lock().link = Link::Closed;
     }
 
@@ -335,6 +349,7 @@ impl Bus {
     /// [`Error::Port`] if the path cannot be opened (absent, in use) or the Bus was given its
     /// transport rather than a way to open it.
     pub fn reopen(&self) -> Result<()> {
+        self.owned()?;
         let Some(mut st) = self.line(&Cancel::default(), |_| None) else {
             return Err(Error::Internal(
                 "no turn on the line without a token".into(),
@@ -797,6 +812,7 @@ impl Bus {
     /// [`Error::Frame`] if the local echo was garbled (not repeated: whether the units got
     /// the write is not known; the turnaround is kept all the same).
     pub fn broadcast(&self, request: &Request) -> Result<()> {
+        self.owned()?;
         if !request.is_echoed_write() {
             return Err(Error::InvalidArgument(format!(
                 "only a write (0x05, 0x06, 0x0F, 0x10, 0x16) can be broadcast, not function \
@@ -881,6 +897,7 @@ impl Bus {
     /// Any [`Error`]: bad arguments before anything is sent, then port, timeout (after the
     /// last attempt), frame or exception; [`Error::Cancelled`], [`Error::Interrupted`].
     pub fn transact(&self, unit: u8, request: &Request, opts: &TxOptions) -> Result<Response> {
+        self.owned()?;
         if !UNITS.contains(&unit) {
             return Err(Error::InvalidArgument(format!(
                 "unit must be 1 to 255, got {unit} (unit 0 is broadcast: use broadcast_write_register)"
@@ -1582,10 +1599,14 @@ impl Bus {
         }
     }
 
-    /// The error every call on a closed bus fails with.
+    /// The error every call on a closed bus fails with (in a process other than the one
+    /// that opened it, [`Error::Forked`]).
     pub(crate) fn closed(&self) -> Error {
-        Error::Closed {
-            port: self.config.port.clone(),
+        match self.owned() {
+            Err(forked) => forked,
+            Ok(()) => Error::Closed {
+                port: self.config.port.clone(),
+            },
         }
     }
 
@@ -1629,8 +1650,13 @@ impl Bus {
     /// Runs `f` while holding this bus's lock for `unit`: a device layer's sequence of
     /// requests that must not interleave with another sequence for the same unit (read AM,
     /// then write MV), whichever device object runs it. Other units and single requests
-    /// are not held up.
+    /// are not held up. In a process other than the one that opened the Bus, `f` runs
+    /// without the lock (a thread of the parent may have held it at the fork), and its
+    /// requests fail with [`Error::Forked`].
     pub fn exclusive<R>(&self, unit: u8, f: impl FnOnce() -> R) -> R {
+        if self.owned().is_err() {
+            return f();
+        }
         let lock = {
             let mut all = self
                 .sequences

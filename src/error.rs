@@ -30,6 +30,25 @@ pub enum Error {
         /// The port's path.
         port: String,
     },
+    /// The Bus was opened by another process: this one got a copy of it by `fork()`
+    /// (Python's `multiprocessing` with its fork start method, a forking server), and with
+    /// it the port's descriptor. Nothing was sent or read, and nothing of the Bus was locked
+    /// (see [`crate::bus::Bus::owned`]).
+    #[error(
+        "port {port}: this Bus was opened by process {owner}; process {here} got it by fork() \
+         and cannot use it (the two would share the port and read each other's replies). \
+         Here, close it and open a new Bus once the parent has closed its own; or start child \
+         processes with multiprocessing's 'spawn' or 'forkserver' method; or serve the line \
+         from the parent through a gateway (benchbus.Gateway) and open Bus(gateway.url) here"
+    )]
+    Forked {
+        /// The port's path.
+        port: String,
+        /// The process that opened the Bus.
+        owner: u32,
+        /// The process that tried to use it.
+        here: u32,
+    },
     /// No (complete) reply in time.
     #[error("unit {unit}, function {function:#04x}: no complete reply within {timeout:?}{}{}", tries(*.attempts), partial(.received))]
     Timeout {

@@ -205,6 +205,14 @@ class Bus:
     ``reconnect=True`` each call tries that itself first. Device objects on the Bus carry on
     after a reopen without being rebuilt. Open a port by a name that comes back when the
     adapter does (``/dev/serial/by-id/...``) for that to work.
+
+    A Bus belongs to the process that opened it. In a child made by ``fork()``
+    (``multiprocessing``'s fork start method, a forking server) every call, :attr:`stats`
+    and :meth:`reopen` raise PortError at once, naming fork and what to do, and send
+    nothing; :meth:`close` and garbage collection there send nothing, raise nothing and
+    leave the parent's port as it was. Open a new Bus in the child once the parent has
+    closed its own, start children with the ``spawn`` or ``forkserver`` method, or serve
+    the line through a :class:`benchbus.Gateway`.
     """
 
     def __new__(
@@ -440,11 +448,18 @@ class Bus:
     @property
     def stats(self) -> Stats:
         """Counters of what happened on this bus."""
+    def _owned(self) -> None:
+        """Internal: PortError in a process other than the one that opened the bus (a
+        child made by fork), saying what to do."""
     def close(self) -> None:
-        """Close the port; further calls raise PortError. Closing twice is harmless."""
+        """Close the port; further calls raise PortError. Closing twice is harmless.
+
+        In a process other than the one that opened the bus (a child made by fork) it sends
+        nothing, raises nothing and leaves the port to the parent."""
     @property
     def closed(self) -> bool:
-        """True once the bus is closed (and not reopened since)."""
+        """True once the bus is closed (and not reopened since), and always in a process
+        other than the one that opened it (a child made by fork)."""
     def reopen(self) -> None:
         """Close the port and open the same path again with the same line format.
 

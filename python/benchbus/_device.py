@@ -31,6 +31,7 @@ from typing import (
 
 from benchbus._core import Bus
 from benchbus._record import Recording, record
+from benchbus.exceptions import PortError
 
 if TYPE_CHECKING:
     from typing_extensions import Self
@@ -47,6 +48,7 @@ __all__ = [
     "as_enum",
     "check_baudrate",
     "did_you_mean",
+    "forked",
     "on_line",
     "to_enum",
     "to_float",
@@ -57,6 +59,17 @@ __all__ = [
 #: Set on a log record whose text is also a note on the exception being raised (a reader
 #: that reports the exception with its notes need not show the record too).
 NOTED = "benchbus_noted"
+
+
+def forked(bus: Bus) -> bool:
+    """Whether this process is not the one that opened ``bus``: a child made by fork, which
+    may neither use it nor close anything of it for its parent (``bus._owned()`` raises
+    the PortError that says so)."""
+    try:
+        bus._owned()
+    except PortError:
+        return True
+    return False
 
 
 def add_note(exc: BaseException, text: str) -> None:

@@ -32,6 +32,7 @@ from types import TracebackType
 
 from benchbus import _mbap
 from benchbus._core import Bus
+from benchbus._device import forked
 from benchbus.exceptions import (
     BenchbusError,
     FrameError,
@@ -196,6 +197,13 @@ class Gateway:
     logger; ``benchbus gateway`` prints it), and ``allow`` (``["192.168.1.0/24", "::1"]``)
     limits who may connect: a connection from elsewhere is closed at once and counted
     (:attr:`GatewayStats.refused`).
+
+    The gateway is how several processes share one line: each opens ``Bus(gw.url)``, a
+    child made by fork included. The gateway itself, like its Bus, belongs to the process
+    that opened the Bus: in a child made by fork, making one, :meth:`start`,
+    :meth:`serve_forever` and :meth:`handle` raise the Bus's PortError at once, and
+    :meth:`stop` only closes that process's copies of the sockets (the parent's listening
+    socket and connections go on).
     """
 
     def __init__(
@@ -219,6 +227,7 @@ class Gateway:
         """
         if not isinstance(bus, Bus):
             raise TypeError(f"bus must be a benchbus.Bus, not {type(bus).__name__}")
+        bus._owned()
         #: The Bus the gateway forwards requests to.
         self.bus = bus
         self._listen = parse_listen(listen)
@@ -261,8 +270,10 @@ class Gateway:
     def start(self) -> Gateway:
         """Listen and serve in background threads; returns at once. Idempotent.
 
-        Raises OSError if the address cannot be bound (in use, not this machine's).
+        Raises OSError if the address cannot be bound (in use, not this machine's), and the
+        Bus's PortError in a child made by fork.
         """
+        self.bus._owned()
         if self._server is not None:
             return self
         host, port = self._listen
@@ -298,9 +309,19 @@ class Gateway:
         A request already on its way finishes first (bounded by the Bus's timeout, retries
         and the unit's write interval), so nothing reaches the line after this returns. The
         Bus stays open: it is the caller's.
+
+        In a child made by fork, it closes that process's copies of the sockets, without
+        shutting the connections down, and waits for nothing: the threads and their locks
+        are the parent's, whose gateway goes on serving.
         """
         server, self._server = self._server, None
         if server is None:
+            return
+        if forked(self.bus):
+            clients, self._clients = list(self._clients), {}
+            for sock in (server, *clients):
+                with contextlib.suppress(OSError):
+                    sock.close()
             return
         self._stopping.set()
         server.close()
@@ -512,8 +533,9 @@ class Gateway:
 
         None for a broadcast and for force listen only (0x08 / 0x04): no reply is due.
         Never raises for what a client sends or what happens on the line: those are
-        exception replies.
+        exception replies. In a child made by fork, raises the Bus's PortError at once.
         """
+        self.bus._owned()
         function = pdu[0] if pdu else 0
         reply: bytes | None = None
         refusal = None

@@ -60,7 +60,7 @@ from benchbus._aio_members import (
     PblDriveMembers,
 )
 from benchbus._core import Bus, CancelToken, _Ticks
-from benchbus._device import BusDevice, did_you_mean
+from benchbus._device import BusDevice, did_you_mean, forked
 from benchbus._drive import Drive as _SyncDrive
 from benchbus._instrument import Instrument as _SyncInstrument
 from benchbus._j2 import J2Controller as _SyncJ2Controller
@@ -401,6 +401,12 @@ class AsyncBus:
     thread returns ``CancelledError`` to its task at once and cancels the call's
     :class:`benchbus.CancelToken`: its attempt on the wire, if any, finishes in the core,
     nothing more is sent for it, and its result is dropped.
+
+    Like a Bus, an AsyncBus belongs to the process that opened it: in a child made by fork
+    (whose worker threads are the parent's, and do not exist there) every call and
+    :meth:`poll` raise the Bus's PortError at once, naming fork and what to do, and
+    :meth:`aclose` sends nothing, raises nothing and leaves the parent's port and threads
+    as they were.
     """
 
     def __init__(
@@ -431,7 +437,9 @@ class AsyncBus:
         return made
 
     async def _run(self, fn: Callable[..., R], *args: Any, **kwargs: Any) -> R:
-        """``fn(*args, **kwargs)`` in a worker thread."""
+        """``fn(*args, **kwargs)`` in a worker thread (in a child made by fork, the Bus's
+        PortError at once: the threads and their locks are the parent's)."""
+        self._bus._owned()
         if self._pool.closed:
             raise PortError(f"{self._bus.port}: the AsyncBus is closed")
         return await self._pool.submit(functools.partial(fn, *args, **kwargs))
@@ -507,6 +515,7 @@ class AsyncBus:
         like any call. A failed read raises from ``__anext__``; iterating again resumes at
         the following deadline.
         """
+        self._bus._owned()
         if self._pool.closed:
             raise PortError(f"{self._bus.port}: the AsyncBus is closed")
         # The sync poll checks the arguments (and a closed port) as Bus.poll does.
@@ -516,7 +525,11 @@ class AsyncBus:
     async def aclose(self) -> None:
         """Refuse new calls, fail the queued ones with PortError (unsent), wait for those
         in threads to finish, close the port and end the threads. Closing twice is
-        harmless; cancelling the wait leaves the closing to go on."""
+        harmless; cancelling the wait leaves the closing to go on. In a child made by fork,
+        only the Bus's close (which sends nothing there)."""
+        if forked(self._bus):
+            self._bus.close()
+            return
         await asyncio.shield(self._pool.close(then=self._bus.close))
 
     async def close(self) -> None:
@@ -755,7 +768,12 @@ class AsyncDevice(Generic[D]):
 
     async def _leave(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the bus's threads (after what is queued, and whatever happens to
-        the awaiting task), then end the threads if they are the device's."""
+        the awaiting task), then end the threads if they are the device's. In a child made
+        by fork, ``fn`` here and now (its calls raise at once there; closing sends
+        nothing), leaving the parent's threads alone."""
+        if forked(self._abus.bus):
+            fn()
+            return
         if self._abus._pool.closed:  # the bus is closing: a thread of its own, off the loop
             await _unstoppable(asyncio.ensure_future(asyncio.to_thread(fn)))
             return

@@ -69,7 +69,9 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
             None => ("BenchbusError", Some(*unit), Some(*function)),
         },
         Error::Cancelled { unit, function, .. } => ("Cancelled", Some(*unit), Some(*function)),
-        Error::Port { .. } | Error::Closed { .. } => ("PortError", None, None),
+        Error::Port { .. } | Error::Closed { .. } | Error::Forked { .. } => {
+            ("PortError", None, None)
+        }
         Error::Timeout { unit, function, .. } => ("ResponseTimeout", Some(*unit), Some(*function)),
         Error::Frame {
             unit,
@@ -1180,19 +1182,29 @@ impl PyBus {
 
     /// Counters of what happened on this bus.
     #[getter]
-    fn stats(&self, py: Python<'_>) -> PyStats {
+    fn stats(&self, py: Python<'_>) -> PyResult<PyStats> {
+        self._owned(py)?;
         // Without the GIL: a call on the line holds the state and may log into Python.
         let bus = Arc::clone(&self.bus);
-        py.detach(move || bus.stats()).into()
+        Ok(py.detach(move || bus.stats()).into())
     }
 
-    /// Closes the port. Further calls raise PortError; closing twice is harmless.
+    /// PortError in a process other than the one that opened the bus (a child made by
+    /// fork), saying what to do; None in that one.
+    fn _owned(&self, py: Python<'_>) -> PyResult<()> {
+        self.bus.owned().map_err(|e| to_pyerr(py, e))
+    }
+
+    /// Closes the port. Further calls raise PortError; closing twice is harmless. In a
+    /// process other than the one that opened the bus (a child made by fork) it sends
+    /// nothing and leaves the port to that process.
     fn close(&self, py: Python<'_>) {
         let bus = Arc::clone(&self.bus);
         py.detach(move || bus.close());
     }
 
-    /// True once the bus is closed (and not reopened since).
+    /// True once the bus is closed (and not reopened since), and in a process other than
+    /// the one that opened it (a child made by fork), which cannot use it.
     #[getter]
     fn closed(&self, py: Python<'_>) -> bool {
         let bus = Arc::clone(&self.bus);
@@ -1314,12 +1326,11 @@ impl PyBus {
     fn __repr__(&self, py: Python<'_>) -> String {
         let bus = Arc::clone(&self.bus);
         let (closed, lost) = py.detach(move || (bus.is_closed(), bus.is_lost()));
-        let state = if closed {
-            ", closed"
-        } else if lost {
-            ", lost"
-        } else {
-            ""
+        let state = match self.bus.owned() {
+            Err(Error::Forked { owner, .. }) => format!(", of process {owner}"),
+            _ if closed => ", closed".into(),
+            _ if lost => ", lost".into(),
+            _ => String::new(),
         };
         let c = self.bus.config();
         format!(

@@ -51,6 +51,11 @@ impl Framed {
         self.pipe.write_all(&out)
     }
 
+    /// Lets go of the transport in a process that did not open it ([`Transport::abandon`]).
+    pub(crate) fn abandon(self) {
+        self.pipe.abandon();
+    }
+
     /// The framing the Bus's frames take on this transport.
     pub(crate) fn framing(&self) -> Framing {
         if self.mbap.is_some() {

@@ -67,6 +67,16 @@ pub trait Transport: Send {
     fn is_serial_line(&self) -> bool {
         true
     }
+
+    /// Lets go of the port in a process that did not open it: a child made by `fork()`,
+    /// whose descriptors are copies of the parent's, sharing the port's settings, its locks
+    /// and the connection with them. Nothing may be sent, and nothing shared changed: only
+    /// this process's copy of the descriptor may be closed. The default leaks the transport
+    /// (its drop never runs), which is always safe; a transport whose drop does more than
+    /// close its descriptor must not run it here.
+    fn abandon(self: Box<Self>) {
+        std::mem::forget(self);
+    }
 }
 
 /// The error of a transport whose port is gone for good (see [`Transport`]).

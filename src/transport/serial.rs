@@ -313,6 +313,18 @@ impl Transport for SerialTransport {
         }
         Ok(stale)
     }
+
+    /// Closes this process's copy of the descriptor and nothing else. The port's own drop
+    /// would first clear the port's exclusive mode (`TIOCNXCL`), which the copies share: the
+    /// parent's port would then be open to others. The `flock` stays with the parent's copy.
+    #[cfg(unix)]
+    fn abandon(self: Box<Self>) {
+        use std::os::fd::{FromRawFd, IntoRawFd, OwnedFd};
+        let fd = self.port.into_raw_fd();
+        // SAFETY: `into_raw_fd` gave up the port's ownership of `fd`, so it is closed once,
+        // here, and not used after.
+        drop(unsafe { OwnedFd::from_raw_fd(fd) });
+    }
 }
 
 #[cfg(test)]
