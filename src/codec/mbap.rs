@@ -35,6 +35,25 @@ pub const LENGTH: RangeInclusive<usize> = 2..=254;
 /// The Modbus protocol id (any other is another protocol on the same port).
 pub const MODBUS_PROTOCOL: u16 = 0;
 
+/// Exception 0x06, server device busy (MODBUS Application Protocol V1.1b3, 7).
+pub const SERVER_DEVICE_BUSY: u8 = 0x06;
+
+/// What the benchbus gateway means by [`SERVER_DEVICE_BUSY`]: it answers a client's first
+/// request with it when every client slot is taken, then closes the connection.
+pub const GATEWAY_FULL: &str = "a benchbus gateway answers this when all its client slots \
+     are taken; try again later or raise --max-clients";
+
+/// The meaning of exception `code` received over Modbus TCP, given what the device's family
+/// makes of it (`meaning`): a 0x06 may come from the device, or from a benchbus gateway
+/// with no client slot free, so its meaning names both ([`GATEWAY_FULL`]).
+pub fn exception_meaning(code: u8, meaning: &str) -> String {
+    if code == SERVER_DEVICE_BUSY {
+        format!("{meaning} ({GATEWAY_FULL})")
+    } else {
+        meaning.to_string()
+    }
+}
+
 /// The MBAP frame of transaction `tid` carrying `adu` (unit id + PDU, of a length in
 /// [`LENGTH`]): transaction id, protocol id 0, length, then `adu`.
 pub fn encode(tid: u16, adu: &[u8]) -> Vec<u8> {
@@ -706,5 +725,18 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn over_modbus_tcp_a_busy_answer_also_says_what_the_gateway_means_by_it() {
+        assert_eq!(
+            exception_meaning(0x06, "server device busy"),
+            "server device busy (a benchbus gateway answers this when all its client slots \
+             are taken; try again later or raise --max-clients)"
+        );
+        assert_eq!(
+            exception_meaning(0x02, "illegal data address"),
+            "illegal data address"
+        );
     }
 }
