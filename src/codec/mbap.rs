@@ -69,6 +69,9 @@ pub fn encode(tid: u16, adu: &[u8]) -> Vec<u8> {
 /// PDU`).
 pub const LENGTH_FIELD: usize = 2;
 
+// The longest reply so read fits in the longest frame the Bus reads (an RTU frame's 256).
+const _: () = assert!(LENGTH_FIELD + *LENGTH.end() <= rtu::MAX_ADU);
+
 /// How many more bytes a reply needs, given the bytes `buf` of it received so far, as a
 /// [`Session`] hands them out: `length | unit | PDU`. The length field alone tells:
 /// [`Needed::More`] until it and the bytes it counts have come, then [`Needed::Complete`];
