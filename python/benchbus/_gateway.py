@@ -447,8 +447,7 @@ class Gateway:
                 )
             if full:
                 log.warning(
-                    "gateway: %d clients, none idle or slow: %s refused (0x06, server device "
-                    "busy)",
+                    "gateway: %d clients, none idle or slow: %s refused (0x06, server device busy)",
                     self._max_clients,
                     peer,
                 )
@@ -596,11 +595,10 @@ class Gateway:
         client to read the answer and close first."""
         try:
             request = _recv_request(client, time.monotonic() + self._frame_timeout)
-            if request is not None and request[1] and request[0].protocol == 0:
-                header, pdu = request
-                if header.unit != 0:
-                    busy = bytes([(pdu[0] | 0x80) & 0xFF, SERVER_DEVICE_BUSY])
-                    client.sendall(_mbap.frame(header.transaction, header.unit, busy))
+            header, pdu = request or (None, None)
+            if header is not None and pdu and header.protocol == 0 and header.unit != 0:
+                busy = bytes([(pdu[0] | 0x80) & 0xFF, SERVER_DEVICE_BUSY])
+                client.sendall(_mbap.frame(header.transaction, header.unit, busy))
             client.shutdown(socket.SHUT_WR)
             # Read what else it sent until it closes: a socket closed with bytes unread
             # resets the connection, which can cost the client the answer.
@@ -864,9 +862,7 @@ class _Unsupported(Exception):
     """A function code no request has: 0, or 0x80 and up (those of exception replies)."""
 
 
-def _recv_request(
-    sock: socket.socket, deadline: float
-) -> tuple[_mbap.Header, bytes | None] | None:
+def _recv_request(sock: socket.socket, deadline: float) -> tuple[_mbap.Header, bytes | None] | None:
     """The next request from ``sock``, whole by ``deadline`` (``time.monotonic()``): its
     header and PDU, or its header and None when its length is out of range (the rest is
     not read: the stream is out of step). None when the client closed first. Raises
