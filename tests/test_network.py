@@ -1,4 +1,4 @@
-"""Networks (issue 10): the full device APIs over ``tcp://`` (Modbus TCP to a gateway) and
+"""Networks: the full device APIs over ``tcp://`` (Modbus TCP to a gateway) and
 ``rtu+tcp://`` (RTU frames to a serial device server), against pymodbus TCP servers with the
 device simulators behind them; refused, reset and slow gateways; and the benchbus gateway
 shared by several client processes at once.
