@@ -527,7 +527,8 @@ def test_slowloris_clients_are_dropped_by_their_frame_deadline_and_a_newcomer_is
             time.sleep(0.2)
         assert sorted(dropped_after) == [0, 1], "the slow clients were never dropped"
         # By the deadline counted from each one's first byte (with some latitude).
-        assert all(frame_timeout <= t < frame_timeout + 0.6 for t in dropped_after.values()), dropped_after
+        late = frame_timeout + 1.0
+        assert all(frame_timeout <= t < late for t in dropped_after.values()), dropped_after
         assert gw.stats.slow_closed == 2
         with connect(gw) as newcomer:
             assert ask(newcomer, 2, READ) == bytes.fromhex("03 02 00 00")
