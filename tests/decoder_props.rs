@@ -1,7 +1,7 @@
 //! Property tests: no bytes, however wrong, make the decoder panic or read out of bounds,
 //! and the incremental decoder always agrees with the one-shot decoder.
 
-use benchbus::codec::{decode_reply, encode_request, reply_needed, Needed, Request};
+use benchbus::codec::{decode_reply, encode_request, reply_needed, Framing, Needed, Request};
 use proptest::prelude::*;
 
 fn any_request() -> impl Strategy<Value = Request> {
@@ -97,6 +97,28 @@ proptest! {
         let _ = decode_reply(unit, &req, &frame);
         if let Needed::Complete(n) = reply_needed(&req, &frame) {
             let _ = decode_reply(unit, &req, &frame[..n]);
+        }
+    }
+
+    #[test]
+    fn modbus_tcp_replies_never_panic_and_are_read_whole(req in any_request(),
+                                                         unit in any::<u8>(),
+                                                         bytes in prop::collection::vec(any::<u8>(), 0..300)) {
+        // A reply as the Modbus TCP session hands it out: `length | unit | PDU`.
+        let _ = Framing::Mbap.decode_reply(unit, &req, &bytes);
+        let mut buf = Vec::new();
+        for b in &bytes {
+            match Framing::Mbap.reply_needed(&req, &buf) {
+                Needed::Complete(n) => {
+                    // By the length field alone: every byte it counts, no more.
+                    prop_assert_eq!(n, 2 + usize::from(u16::from_be_bytes([buf[0], buf[1]])));
+                    let _ = Framing::Mbap.decode_reply(unit, &req, &buf[..n]);
+                    break;
+                }
+                Needed::More(n) => prop_assert!(n > 0 && buf.len() + n <= 256),
+                Needed::Unknown | Needed::Silence => break,
+            }
+            buf.push(*b);
         }
     }
 

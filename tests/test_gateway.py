@@ -10,6 +10,7 @@ from __future__ import annotations
 import contextlib
 import logging
 import os
+import select
 import socket
 import struct
 import subprocess
@@ -400,7 +401,7 @@ def test_a_new_client_takes_the_place_of_the_longest_idle_one(
         assert (stats.connections, stats.idle_closed, stats.refused) == (3, 1, 0)
 
 
-def test_a_client_in_the_middle_of_a_request_is_never_dropped(
+def test_a_request_that_just_began_is_not_dropped_and_the_newcomer_is_answered_busy(
     sim: Simulator[RegisterDevice | J2Device],
 ) -> None:
     with (
@@ -409,12 +410,148 @@ def test_a_client_in_the_middle_of_a_request_is_never_dropped(
         connect(gw) as first,
     ):
         request = struct.pack(">HHHB", 1, 0, len(READ) + 1, 2) + READ
-        first.sendall(request[:3])  # half a header: a request under way
+        first.sendall(request[:3])  # half a header: a request under way, for under 1 s
         with connect(gw) as second:
+            assert ask(second, 2, READ, tid=9) == bytes([0x83, 0x06])  # server device busy
             assert closed(second)
         first.sendall(request[3:])
         assert recv(first, 11)[7:] == bytes.fromhex("03 02 00 00")
-        assert (gw.stats.connections, gw.stats.refused, gw.stats.idle_closed) == (1, 1, 0)
+        stats = gw.stats
+        assert (stats.connections, stats.refused, stats.idle_closed, stats.slow_closed) == (
+            1,
+            1,
+            0,
+            0,
+        )
+        assert stats.requests == 1  # the refused request never reached the line
+    assert len(sim.requests) == 1
+
+
+def occupied(
+    sim: Simulator[RegisterDevice | J2Device], gw: bb.Gateway, client: socket.socket
+) -> None:
+    """Make ``client`` busy being served: it asks absent unit 9, which the gateway's Bus
+    waits its timeout for; returns once the request is on the line."""
+    client.sendall(struct.pack(">HHHB", 1, 0, len(READ) + 1, 9) + READ)
+    deadline = time.monotonic() + 2.0
+    while not any(frame[0] == 9 for frame in sim.requests):
+        assert time.monotonic() < deadline, "the request did not reach the line"
+        time.sleep(0.005)
+
+
+def test_a_client_beyond_max_clients_gets_server_device_busy_then_the_close(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    with (
+        bb.Bus(sim.port, timeout=2.0, retries=0) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", max_clients=1) as gw,
+        connect(gw) as first,
+    ):
+        occupied(sim, gw, first)  # the only slot, serving a request: never dropped
+        for tid, unit, pdu in [(0x0102, 2, READ), (0x0304, 1, bytes.fromhex("06 0000 0001"))]:
+            with connect(gw) as newcomer:
+                newcomer.sendall(struct.pack(">HHHB", tid, 0, len(pdu) + 1, unit) + pdu)
+                # The whole MBAP frame: the request's transaction id and unit, function |
+                # 0x80, code 6; then the gateway closes the connection.
+                answer = struct.pack(">HHHB", tid, 0, 3, unit) + bytes([pdu[0] | 0x80, 6])
+                assert recv(newcomer, len(answer)) == answer
+                assert closed(newcomer)
+        assert recv(first, 9)[7:] == bytes([0x83, 0x0B])  # served in full meanwhile
+        assert (gw.stats.refused, gw.stats.connections) == (2, 1)
+    assert [frame[0] for frame in sim.requests] == [9]
+
+
+def test_benchbus_raises_server_device_busy_saying_the_gateway_is_full(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    with (
+        bb.Bus(sim.port, timeout=2.0, retries=0) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", max_clients=1) as gw,
+        connect(gw) as first,
+    ):
+        occupied(sim, gw, first)
+        with bb.Bus(gw.url, timeout=1.0, retries=0) as client:
+            with pytest.raises(bb.ModbusException) as info:
+                client.read_holding_registers(2, 0, 1)
+            assert not isinstance(info.value, bb.GatewayError)
+            assert (info.value.unit, info.value.function, info.value.code) == (2, 3, 6)
+            assert info.value.meaning.startswith("server device busy (")
+            assert "all its client slots are taken" in info.value.meaning
+            assert "--max-clients" in str(info.value)
+            # Then the gateway closed the connection: a lost port, as after any close.
+            with pytest.raises(bb.PortError, match="closed"):
+                client.read_holding_registers(2, 0, 1)
+        # A device's 0x06 says what its manual says, and the gateway's reading too.
+        with bb.Bus(gw.url, timeout=1.0, retries=0) as client:
+            with pytest.raises(bb.ModbusException) as info:
+                bb.Drive(client, unit=1).speed_setpoint = 1000
+            assert info.value.code == 6
+            assert info.value.meaning.startswith("frame error (length or CRC) (")
+            assert "all its client slots are taken" in info.value.meaning
+
+
+def gone(client: socket.socket) -> bool:
+    """Whether the gateway has closed (or reset) ``client``; does not wait."""
+    if not select.select([client], [], [], 0)[0]:
+        return False  # nothing waiting, not even the end: still open
+    try:
+        return client.recv(16) == b""
+    except ConnectionResetError:
+        return True
+
+
+def test_slowloris_clients_are_dropped_by_their_frame_deadline_and_a_newcomer_is_served(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    frame_timeout = 0.5
+    request = struct.pack(">HHHB", 1, 0, len(READ) + 1, 2) + READ
+    with (
+        bb.Bus(sim.port, timeout=TIMEOUT) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", max_clients=2, frame_timeout=frame_timeout) as gw,
+        connect(gw) as slow1,
+        connect(gw) as slow2,
+    ):
+        accepted(gw, 2)
+        # One byte every 0.2 s each: never silent for long, never a whole request in time.
+        started = time.monotonic()
+        dropped_after: dict[int, float] = {}
+        for at in range(len(request)):
+            for n, slow in enumerate((slow1, slow2)):
+                if n not in dropped_after and gone(slow):
+                    dropped_after[n] = time.monotonic() - started
+            if len(dropped_after) == 2:
+                break
+            for n, slow in enumerate((slow1, slow2)):
+                if n not in dropped_after:
+                    slow.sendall(request[at : at + 1])
+            time.sleep(0.2)
+        assert sorted(dropped_after) == [0, 1], "the slow clients were never dropped"
+        # By the deadline counted from each one's first byte (with some latitude).
+        late = frame_timeout + 1.0
+        assert all(frame_timeout <= t < late for t in dropped_after.values()), dropped_after
+        assert gw.stats.slow_closed == 2
+        with connect(gw) as newcomer:
+            assert ask(newcomer, 2, READ) == bytes.fromhex("03 02 00 00")
+        assert (gw.stats.connections, gw.stats.refused) == (3, 0)
+    assert len(sim.requests) == 1
+
+
+def test_when_full_a_client_slow_to_send_its_request_makes_room_for_a_newcomer(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    request = struct.pack(">HHHB", 1, 0, len(READ) + 1, 2) + READ
+    with (
+        bb.Bus(sim.port, timeout=TIMEOUT) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", max_clients=1) as gw,  # frame timeout: 5 s
+        connect(gw) as slow,
+    ):
+        slow.sendall(request[:3])
+        time.sleep(1.2)  # arriving for over a second, within its frame timeout
+        with connect(gw) as newcomer:
+            assert ask(newcomer, 2, READ) == bytes.fromhex("03 02 00 00")
+        assert closed(slow)
+        stats = gw.stats
+        assert (stats.slow_closed, stats.refused, stats.connections) == (1, 0, 2)
 
 
 def test_thirty_two_silent_connections_do_not_lock_out_the_next(
@@ -517,6 +654,12 @@ def test_gateway_arguments_are_checked(sim: Simulator[RegisterDevice | J2Device]
                 bb.Gateway(bus, idle_timeout=bad_timeout)
         with pytest.raises(TypeError, match="idle_timeout"):
             bb.Gateway(bus, idle_timeout="60")  # type: ignore[arg-type]
+        for bad_timeout in (0, -1.0, float("nan"), float("inf")):
+            with pytest.raises(ValueError, match="frame_timeout"):
+                bb.Gateway(bus, frame_timeout=bad_timeout)
+        for wrong in ("5", None, True):
+            with pytest.raises(TypeError, match="frame_timeout"):
+                bb.Gateway(bus, frame_timeout=wrong)  # type: ignore[arg-type]
         for bad_allow, message in [
             (["10.0.0.1/33"], "ADDR/BITS"),
             (["10.0.0.5/24"], r"host bits set: the network is 10\.0\.0\.0/24"),
@@ -559,6 +702,7 @@ def test_the_gateway_command(sim: Simulator[RegisterDevice | J2Device]) -> None:
         (["--allow", "10.0.0.5/24"], "host bits set: the network is 10.0.0.0/24"),
         (["--allow", "127.0.0.1", "--allow", "10.0.0.0/40"], "ADDR/BITS"),
         (["--idle-timeout", "0"], "> 0"),
+        (["--frame-timeout", "0"], "> 0"),
         (["--max-clients", "0"], "max-clients"),
     ],
 )
@@ -572,6 +716,19 @@ def test_gateway_command_usage_errors(args: list[str], message: str) -> None:
     assert result.returncode == 2
     assert message in result.stderr
     assert len(result.stderr.splitlines()) == 1, result.stderr
+
+
+def test_the_gateway_command_keeps_its_frame_timeout(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    with gateway_command(sim.port, "--frame-timeout", "0.3") as (url, _):
+        host, port = url[len("tcp://") :].rsplit(":", 1)
+        with socket.create_connection((host, int(port)), timeout=2.0) as client:
+            assert ask(client, 1, bytes.fromhex("03 30 06 00 01")) == bytes.fromhex("03 02 05 AA")
+            client.sendall(bytes.fromhex("00 02 00 00"))  # the start of a request, no more
+            started = time.monotonic()
+            assert closed(client)
+            assert 0.25 < time.monotonic() - started < 1.5
 
 
 def test_the_gateway_command_limits_and_warns(sim: Simulator[RegisterDevice | J2Device]) -> None:

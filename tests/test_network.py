@@ -1,4 +1,4 @@
-"""Networks (issue 10): the full device APIs over ``tcp://`` (Modbus TCP to a gateway) and
+"""Networks: the full device APIs over ``tcp://`` (Modbus TCP to a gateway) and
 ``rtu+tcp://`` (RTU frames to a serial device server), against pymodbus TCP servers with the
 device simulators behind them; refused, reset and slow gateways; and the benchbus gateway
 shared by several client processes at once.
@@ -7,10 +7,12 @@ shared by several client processes at once.
 from __future__ import annotations
 
 import logging
+import socket
 import struct
 import subprocess
 import sys
 import textwrap
+import threading
 import time
 from collections.abc import Iterator
 
@@ -185,6 +187,55 @@ def test_over_modbus_tcp_the_log_and_errors_show_the_bytes_on_the_network(
     assert info.value.frame == "00 02 00 00 00 03 02 83 02"
     replies = [m[3:] for m in (r.getMessage() for r in caplog.records) if m.startswith("<- ")]
     assert replies == ["00 01 00 00 00 05 02 03 02 00 01", "00 02 00 00 00 03 02 83 02"]
+
+
+def hostile_server(replies: list[bytes]) -> tuple[int, threading.Thread, list[bytes]]:
+    """A one-connection Modbus TCP server on 127.0.0.1 that answers each request it reads
+    with the next of ``replies`` (its transaction id put in the first two bytes): its port,
+    its thread, and the requests it read. Every wait is bounded (2 s)."""
+    server = socket.create_server(("127.0.0.1", 0))
+    server.settimeout(2.0)
+    requests: list[bytes] = []
+
+    def serve() -> None:
+        with server, server.accept()[0] as conn:
+            conn.settimeout(2.0)
+            for reply in replies:
+                request = b""
+                while len(request) < 12:  # a read of holding registers: 12 bytes
+                    chunk = conn.recv(12 - len(request))
+                    if not chunk:
+                        return
+                    request += chunk
+                requests.append(request)
+                conn.sendall(request[:2] + reply[2:])
+            conn.recv(1)  # until the client closes (or 2 s)
+
+    thread = threading.Thread(target=serve, daemon=True)
+    thread.start()
+    return server.getsockname()[1], thread, requests
+
+
+def test_a_reply_whose_length_counts_extra_bytes_is_a_frame_error_and_the_next_is_read() -> None:
+    port, thread, requests = hostile_server(
+        [
+            # length 7: unit 01 | 03 02 12 34, then two bytes the reply does not have.
+            bytes.fromhex("0000 0000 0007 01 03 02 1234 5678"),
+            bytes.fromhex("0000 0000 0005 01 03 02 0042"),
+        ]
+    )
+    with bb.Bus(f"tcp://127.0.0.1:{port}", timeout=1.0, retries=0) as bus:
+        with pytest.raises(bb.FrameError, match="MBAP length 7 counts 2 bytes more") as info:
+            bus.read_holding_registers(1, 0, 1)
+        assert not isinstance(info.value, bb.CrcError)
+        # The whole frame as it came, the extra bytes with it.
+        assert info.value.frame == "00 01 00 00 00 07 01 03 02 12 34 56 78"
+        # They went with their frame: the next call, on the same connection, reads its own.
+        assert bus.read_holding_registers(1, 0, 1) == [0x42]
+        stats = bus.stats
+        assert (stats.frame_errors, stats.stale_bytes, stats.transactions) == (1, 0, 1)
+    thread.join(5.0)
+    assert [r[:2] for r in requests] == [b"\x00\x01", b"\x00\x02"]
 
 
 def test_scan_and_identification_over_the_network(

@@ -3,7 +3,7 @@
 //! (`rtu+tcp://`). Every socket wait in the fake gateway is bounded by `BOUND`.
 
 use benchbus::bus::{Bus, BusConfig, TxOptions};
-use benchbus::codec::crc16;
+use benchbus::codec::{crc16, FrameError};
 use benchbus::timing::{LineFormat, Parity};
 use benchbus::transport::is_lost;
 use benchbus::Error;
@@ -422,6 +422,44 @@ fn out_of_step_stream_is_lost_not_misread() {
     assert!(e.to_string().contains("out of step"), "{e}");
     assert!(bus.is_lost());
     assert_eq!(join(server), request(1));
+}
+
+#[test]
+fn a_length_that_counts_extra_bytes_is_a_frame_error_and_the_next_call_is_in_step() {
+    let (l, port) = listener();
+    let server = thread::spawn(move || {
+        let mut s = accept(&l);
+        let first = recv(&mut s, 12);
+        // tid 00 01 | protocol 00 00 | length 00 07 | unit 01 | 03 02 12 34 | 56 78: the
+        // length counts two bytes more than a one-register reply has.
+        let mut padded = one_register(0x1234);
+        padded.extend_from_slice(&[0x56, 0x78]);
+        s.write_all(&mbap(1, &padded)).unwrap();
+        let second = recv(&mut s, 12);
+        s.write_all(&mbap(2, &one_register(0x0042))).unwrap();
+        (first, second)
+    });
+    let bus = Bus::open(config(&format!("tcp://127.0.0.1:{port}"), 1000, 0)).unwrap();
+    match read(&bus) {
+        Err(Error::Frame {
+            unit: 1,
+            function: 3,
+            kind: FrameError::Length(message),
+            frame,
+        }) => {
+            assert!(message.contains("2 bytes more"), "{message}");
+            // The whole frame, extra bytes and all, as it crossed the network.
+            let mut padded = one_register(0x1234);
+            padded.extend_from_slice(&[0x56, 0x78]);
+            assert_eq!(frame, mbap(1, &padded));
+        }
+        other => panic!("{other:?}"),
+    }
+    // The extra bytes went with their frame: the next call reads its own reply.
+    assert_eq!(read(&bus).unwrap(), vec![0x0042]);
+    assert_eq!(join(server), (request(1), request(2)));
+    let s = bus.stats();
+    assert_eq!((s.frame_errors, s.stale_bytes, s.transactions), (1, 0, 1));
 }
 
 #[test]

@@ -49,14 +49,26 @@ log = logging.getLogger("benchbus.gateway")
 ILLEGAL_FUNCTION = 0x01
 ILLEGAL_DATA_VALUE = 0x03
 SERVER_DEVICE_FAILURE = 0x04
+#: Server device busy: the answer to a client that came when every client slot was taken.
+SERVER_DEVICE_BUSY = 0x06
 PATH_UNAVAILABLE = 0x0A
 TARGET_FAILED = 0x0B
 
 MAX_PDU = _mbap.MAX_PDU
-#: How long a client may stay silent mid-frame before its connection is dropped.
+#: How long a request may take to arrive whole, counted from its first byte, by default,
+#: before the connection is dropped.
 FRAME_TIMEOUT = 5.0
 #: How long a client may stay silent between requests, by default, before it is dropped.
 IDLE_TIMEOUT = 60.0
+#: When every client slot is taken, a client whose request has been arriving for longer
+#: than this (seconds) is dropped to make room for a new client.
+SLOW_REQUEST = 1.0
+#: How long a refused client's connection stays open after its 0x06 answer, for the client
+#: to read it (and close first) before the gateway closes it.
+_REFUSAL_LINGER = 1.0
+#: The most refused clients answered at once (a thread each, for a moment); past them a
+#: newcomer is closed at once.
+_MOST_REFUSING = 32
 _MEI_DEVICE_ID = 0x0E
 
 
@@ -133,12 +145,17 @@ class GatewayStats:
     gateway_exceptions: int = 0
     #: Frames dropped: a protocol id other than 0, a length out of range.
     bad_frames: int = 0
-    #: Connections closed as soon as accepted: from an address ``allow`` leaves out, or
-    #: while every one of ``max_clients`` was in the middle of a request.
+    #: Connections turned away: from an address ``allow`` leaves out (closed at once), or
+    #: that came while ``max_clients`` were connected, none idle or slow to send its
+    #: request (their first request answered 0x06, server device busy, then closed).
     refused: int = 0
     #: Connections closed for being idle: silent for ``idle_timeout``, or the longest idle
     #: one when a new client came and ``max_clients`` were connected.
     idle_closed: int = 0
+    #: Connections closed for a request that came too slowly: not whole within
+    #: ``frame_timeout`` of its first byte, or, when a new client came and ``max_clients``
+    #: were connected, none of them idle, still arriving after ``SLOW_REQUEST`` (1 s).
+    slow_closed: int = 0
 
 
 @dataclasses.dataclass
@@ -147,8 +164,11 @@ class _Client:
 
     #: ``time.monotonic()`` when it connected or its last request was answered.
     idle_since: float
-    #: Whether a request of it is being read or served (it is then never dropped).
+    #: Whether a request of it is being read or served (it is then not idle).
     busy: bool = False
+    #: ``time.monotonic()`` when the first byte of the request being read came; None when
+    #: no request is arriving (idle, or its request is whole and being served: never dropped).
+    arriving_since: float | None = None
 
 
 class Gateway:
@@ -187,10 +207,16 @@ class Gateway:
     Give clients ``timeout=1.0`` (or more) and ``retries=0``: over TCP nothing is lost on the
     way, and a repeated request only queues behind the first.
 
-    Connections: a client silent for ``idle_timeout`` seconds between requests is dropped;
-    when ``max_clients`` are connected, a new client takes the place of the one idle the
-    longest (a client in the middle of a request is never dropped; a new one is refused
-    only when every one is). A client opened with ``reconnect=True`` does not notice.
+    Connections: a client silent for ``idle_timeout`` seconds between requests is dropped,
+    and so is one whose request does not arrive whole within ``frame_timeout`` seconds of
+    its first byte. When ``max_clients`` are connected, a new client takes the place of the
+    one idle the longest, or, if none is idle, of the one whose request has been arriving
+    the longest, if for over ``SLOW_REQUEST`` (1 s); a request that has arrived whole is
+    always served. Failing both, the new client is refused: its first request (if whole
+    within ``frame_timeout`` of connecting) is answered exception 0x06, server device busy,
+    and the connection closed; benchbus's own client raises :class:`ModbusException` 0x06,
+    whose meaning says so. A client opened with ``reconnect=True`` does not notice being
+    dropped while idle.
 
     Modbus TCP has no authentication: whoever reaches the port drives the devices on the
     line. Listening on an address other than loopback logs a warning (``benchbus.gateway``
@@ -215,15 +241,18 @@ class Gateway:
         max_clients: int = 32,
         idle_timeout: float | None = IDLE_TIMEOUT,
         allow: str | Iterable[str] | None = None,
+        frame_timeout: float = FRAME_TIMEOUT,
     ) -> None:
         """Serve ``bus``'s units on ``listen`` (``HOST:PORT``; port 0: any free port).
 
         Nothing listens until :meth:`start` (or ``with``). At most ``max_clients``
-        connections are served at once (a new one replaces the longest idle); one silent
-        for ``idle_timeout`` seconds between requests is closed (None: never). ``allow``:
-        the addresses (``ADDR`` or ``ADDR/BITS``, IPv4 or IPv6) that may connect; None:
-        any. Raises ValueError for a bad address, network, interval, limit or timeout,
-        TypeError for a ``bus`` that is not a :class:`Bus`.
+        connections are served at once (a new one replaces the longest idle, else the
+        slowest to send its request; failing both it is answered 0x06 and closed); one
+        silent for ``idle_timeout`` seconds between requests is closed (None: never), and
+        one whose request has not arrived whole ``frame_timeout`` seconds after its first
+        byte. ``allow``: the addresses (``ADDR`` or ``ADDR/BITS``, IPv4 or IPv6) that may
+        connect; None: any. Raises ValueError for a bad address, network, interval, limit
+        or timeout, TypeError for a ``bus`` that is not a :class:`Bus`.
         """
         if not isinstance(bus, Bus):
             raise TypeError(f"bus must be a benchbus.Bus, not {type(bus).__name__}")
@@ -250,6 +279,11 @@ class Gateway:
         if idle_timeout is not None and not (idle_timeout > 0 and math.isfinite(idle_timeout)):
             raise ValueError(f"idle_timeout must be > 0 seconds (or None), not {idle_timeout}")
         self._idle_timeout = None if idle_timeout is None else float(idle_timeout)
+        if isinstance(frame_timeout, bool) or not isinstance(frame_timeout, (int, float)):
+            raise TypeError(f"frame_timeout must be seconds, not {frame_timeout!r}")
+        if not (frame_timeout > 0 and math.isfinite(frame_timeout)):
+            raise ValueError(f"frame_timeout must be > 0 seconds, not {frame_timeout}")
+        self._frame_timeout = float(frame_timeout)
         if isinstance(allow, str):
             allow = [allow]
         self._allow = None if allow is None else [parse_allow(a) for a in allow]
@@ -261,6 +295,8 @@ class Gateway:
         self._server: socket.socket | None = None
         self._address: tuple[str, int] | None = None
         self._clients: dict[socket.socket, _Client] = {}
+        #: Connections being refused (their first request answered 0x06), under the lock.
+        self._refusing: set[socket.socket] = set()
         self._threads: list[threading.Thread] = []
         self._acceptor: threading.Thread | None = None
         self._stopping = threading.Event()
@@ -327,12 +363,12 @@ class Gateway:
         server.close()
         bus = self.bus
         longest_call = bus.timeout * (bus.retries + 1) + max(self._intervals.values(), default=0)
-        deadline = time.monotonic() + longest_call + FRAME_TIMEOUT
+        deadline = time.monotonic() + longest_call + self._frame_timeout
         # Once the acceptor has ended, no client joins the lists below behind our back.
         if self._acceptor is not None:
             self._acceptor.join(max(0.0, deadline - time.monotonic()))
         with self._stats_lock:
-            clients = list(self._clients)
+            clients = [*self._clients, *self._refusing]
         for client in clients:
             with contextlib.suppress(OSError):
                 client.shutdown(socket.SHUT_RDWR)
@@ -418,20 +454,28 @@ class Gateway:
             with self._stats_lock:
                 dropped = self._make_room()
                 full = len(self._clients) >= self._max_clients
+                answered = full and len(self._refusing) < _MOST_REFUSING
                 if full:
                     self._stats.refused += 1
+                    if answered:
+                        self._refusing.add(client)
                 else:
                     self._stats.connections += 1
                     self._clients[client] = _Client(time.monotonic())
             if dropped is not None:
                 log.info(
-                    "gateway: %d clients: the longest idle closed for %s", self._max_clients, peer
+                    "gateway: %d clients: the %s closed for %s", self._max_clients, dropped, peer
                 )
             if full:
                 log.warning(
-                    "gateway: %d clients, each mid-request: %s refused", self._max_clients, peer
+                    "gateway: %d clients, none idle or slow: %s refused (0x06, server device busy)",
+                    self._max_clients,
+                    peer,
                 )
-                client.close()
+                if answered:
+                    self._spawn(self._refuse, f"benchbus-gateway-refuse-{peer[1]}", client)
+                else:
+                    client.close()
                 continue
             log.debug("gateway: client %s connected", peer)
             self._spawn(self._serve_client, f"benchbus-gateway-{peer[1]}", client)
@@ -444,40 +488,60 @@ class Gateway:
             address = address.ipv4_mapped  # an IPv4 client of a dual-stack socket
         return any(address in network for network in self._allow)
 
-    def _make_room(self) -> socket.socket | None:
-        """When ``max_clients`` are connected, close the one idle the longest and return it;
-        None if there is room, or every client is in the middle of a request (call with the
-        lock held)."""
+    def _make_room(self) -> str | None:
+        """When ``max_clients`` are connected, close the one idle the longest, else the one
+        whose request has been arriving the longest, if for over ``SLOW_REQUEST``; say which
+        it was ("longest idle client", ...). None if there is room, or no client may
+        be dropped: each is serving a request, or receiving one that began less than
+        ``SLOW_REQUEST`` ago (call with the lock held)."""
         if len(self._clients) < self._max_clients:
             return None
         # A request whose first bytes wait unread is a request under way: not idle.
         idle = [(c.idle_since, s) for s, c in self._clients.items() if not c.busy]
         idle = [(since, s) for since, s in idle if not _readable(s)]
-        if not idle:
+        slow_since = time.monotonic() - SLOW_REQUEST
+        slow = [
+            (c.arriving_since, s)
+            for s, c in self._clients.items()
+            if c.arriving_since is not None and c.arriving_since < slow_since
+        ]
+        if idle:
+            _, sock = min(idle, key=lambda pair: pair[0])
+            self._stats.idle_closed += 1
+            which = "longest idle client"
+        elif slow:
+            _, sock = min(slow, key=lambda pair: pair[0])
+            self._stats.slow_closed += 1
+            which = "client slowest to send its request"
+        else:
             return None
-        _, sock = min(idle, key=lambda pair: pair[0])
         del self._clients[sock]
-        self._stats.idle_closed += 1
         with contextlib.suppress(OSError):
             sock.shutdown(socket.SHUT_RDWR)  # its thread sees the end and closes it
-        return sock
+        return which
 
     def _serve_client(self, client: socket.socket) -> None:
         try:
             client.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            while not self._stopping.is_set() and self._next_request(client):
-                data = _recv_exactly(client, _mbap.HEADER_SIZE)
-                if data is None:
+            while not self._stopping.is_set():
+                deadline = self._next_request(client)
+                if deadline is None:
                     return
-                header = _mbap.Header.parse(data)
-                if not header.length_ok:
+                try:
+                    request = _recv_request(client, deadline)
+                except TimeoutError:
+                    self._too_slow(client)
+                    return
+                if request is None:
+                    return
+                header, pdu = request
+                if not self._arrived(client):
+                    return  # dropped while it arrived, to make room
+                if pdu is None:
                     self._count(bad_frames=1)
                     log.warning(
                         "gateway: MBAP length %d out of range; connection dropped", header.length
                     )
-                    return
-                pdu = _recv_exactly(client, header.length - 1)
-                if pdu is None:
                     return
                 if header.protocol != 0:
                     self._count(bad_frames=1)
@@ -486,6 +550,7 @@ class Gateway:
                     return
                 reply = self.handle(header.unit, pdu)
                 if reply is not None:
+                    client.settimeout(self._frame_timeout)  # for a client that stops reading
                     client.sendall(_mbap.frame(header.transaction, header.unit, reply))
         except OSError as exc:
             log.debug("gateway: client connection ended: %s", exc)
@@ -494,32 +559,81 @@ class Gateway:
                 self._clients.pop(client, None)
             client.close()
 
-    def _next_request(self, client: socket.socket) -> bool:
-        """Wait, idle, for the first byte of the client's next request; then mark it busy.
-        False when the client closed, was silent for ``idle_timeout`` or was dropped."""
+    def _next_request(self, client: socket.socket) -> float | None:
+        """Wait, idle, for the first byte of the client's next request; then mark it busy
+        and arriving, and return the ``time.monotonic()`` by which it must have arrived
+        whole. None when the client closed, was silent for ``idle_timeout`` or was dropped."""
         with self._stats_lock:
             state = self._clients.get(client)
             if state is None:
-                return False
+                return None
             if state.busy:  # its request was answered: idle from now
                 state.busy, state.idle_since = False, time.monotonic()
         client.settimeout(self._idle_timeout)
         try:
             # Peeked, not read: while the byte waits, the client is not taken for idle.
             if not client.recv(1, socket.MSG_PEEK):
-                return False
+                return None
         except TimeoutError:
             with self._stats_lock:
                 if self._clients.pop(client, None) is not None:
                     self._stats.idle_closed += 1
             log.debug("gateway: a client idle for %g s closed", self._idle_timeout)
-            return False
+            return None
+        with self._stats_lock:
+            state = self._clients.get(client)
+            if state is None:
+                return None
+            state.busy = True
+            state.arriving_since = time.monotonic()
+            return state.arriving_since + self._frame_timeout
+
+    def _too_slow(self, client: socket.socket) -> None:
+        """Drop a client whose request did not arrive whole within ``frame_timeout`` of its
+        first byte (its thread then closes it)."""
+        with self._stats_lock:
+            if self._clients.pop(client, None) is not None:
+                self._stats.slow_closed += 1
+        log.info(
+            "gateway: a request not whole %g s after its first byte: connection dropped",
+            self._frame_timeout,
+        )
+
+    def _arrived(self, client: socket.socket) -> bool:
+        """Mark the client's request as arrived whole (from now on it is served, never
+        dropped); False if the client was dropped meanwhile."""
         with self._stats_lock:
             state = self._clients.get(client)
             if state is None:
                 return False
-            state.busy = True
-        return True
+            state.arriving_since = None
+            return True
+
+    def _refuse(self, client: socket.socket) -> None:
+        """Answer a client that came when every slot was taken: its first request, if it
+        arrives whole within ``frame_timeout``, gets exception 0x06 (server device busy;
+        none for a broadcast), then the connection is closed, after a short wait for the
+        client to read the answer and close first."""
+        try:
+            request = _recv_request(client, time.monotonic() + self._frame_timeout)
+            header, pdu = request or (None, None)
+            if header is not None and pdu and header.protocol == 0 and header.unit != 0:
+                busy = bytes([(pdu[0] | 0x80) & 0xFF, SERVER_DEVICE_BUSY])
+                client.sendall(_mbap.frame(header.transaction, header.unit, busy))
+            client.shutdown(socket.SHUT_WR)
+            # Read what else it sent until it closes: a socket closed with bytes unread
+            # resets the connection, which can cost the client the answer.
+            linger = time.monotonic() + _REFUSAL_LINGER
+            while (left := linger - time.monotonic()) > 0:
+                client.settimeout(left)
+                if not client.recv(4096):
+                    break
+        except OSError as exc:  # TimeoutError included: it was slow, or did not close
+            log.debug("gateway: refused client: %s", exc)
+        finally:
+            with self._stats_lock:
+                self._refusing.discard(client)
+            client.close()
 
     def _count(self, **counts: int) -> None:
         with self._stats_lock:
@@ -770,16 +884,32 @@ class _Unsupported(Exception):
     """A function code no request has: 0, or 0x80 and up (those of exception replies)."""
 
 
-def _recv_exactly(sock: socket.socket, n: int) -> bytes | None:
-    """``n`` bytes from ``sock``; None when the client closed or stalled mid-frame (silent
-    for FRAME_TIMEOUT)."""
+def _recv_request(sock: socket.socket, deadline: float) -> tuple[_mbap.Header, bytes | None] | None:
+    """The next request from ``sock``, whole by ``deadline`` (``time.monotonic()``): its
+    header and PDU, or its header and None when its length is out of range (the rest is
+    not read: the stream is out of step). None when the client closed first. Raises
+    TimeoutError once ``deadline`` passes, however the bytes trickle in, and OSError."""
+    data = _recv_exactly(sock, _mbap.HEADER_SIZE, deadline)
+    if data is None:
+        return None
+    header = _mbap.Header.parse(data)
+    if not header.length_ok:
+        return header, None
+    pdu = _recv_exactly(sock, header.length - 1, deadline)
+    return None if pdu is None else (header, pdu)
+
+
+def _recv_exactly(sock: socket.socket, n: int, deadline: float) -> bytes | None:
+    """``n`` bytes from ``sock`` by ``deadline`` (``time.monotonic()``); None when the client
+    closed first. Raises TimeoutError once the deadline passes: one deadline for them all,
+    not one per ``recv``."""
     buf = b""
-    sock.settimeout(FRAME_TIMEOUT)
     while len(buf) < n:
-        try:
-            chunk = sock.recv(n - len(buf))
-        except TimeoutError:
-            return None
+        left = deadline - time.monotonic()
+        if left <= 0:
+            raise TimeoutError(f"{len(buf)} of {n} bytes by the deadline")
+        sock.settimeout(left)
+        chunk = sock.recv(n - len(buf))
         if not chunk:
             return None
         buf += chunk

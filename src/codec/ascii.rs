@@ -6,8 +6,8 @@
 //! sum of unit and PDU bytes). The LRC is one byte, sent as two hex characters.
 //!
 //! The unit | PDU inside a frame is the same as in RTU, so the PDU-level rules (how long a
-//! reply is, how it decodes) are those of [`Framing::Mbap`], which handles `unit | PDU` with
-//! no trailer; this module puts the hex text around them:
+//! reply is, how it decodes) are RTU's for `unit | PDU` with no CRC; this module puts the
+//! hex text around them:
 //!
 //! - [`encode`] / [`encode_request`]: a whole frame to send;
 //! - [`seen`] and [`complete`]: where the first frame in received characters begins and
@@ -18,7 +18,7 @@
 //! - [`Receiver`]: an incremental receiver that is fed characters and hands out each
 //!   frame's `unit | PDU` (or why it was rejected), counting the characters outside frames.
 
-use super::{FrameError, Framing, Needed, Reply, Request};
+use super::{rtu, FrameError, Framing, Needed, Reply, Request};
 use std::time::Duration;
 
 /// The character that begins a frame.
@@ -246,7 +246,7 @@ pub fn unit_of(buf: &[u8]) -> Option<u8> {
 /// How many more characters a reply to `request` needs, given the characters `buf`
 /// received so far (noise before the `:` included): [`Needed::Complete`] with the index
 /// just past the LF once the frame has ended; else [`Needed::More`] by the reply's length
-/// as far as its `unit | PDU` tells it ([`Framing::reply_needed`]), and at least its LRC and
+/// as far as its `unit | PDU` tells it (as [`rtu::reply_needed`] reads it), and at least its LRC and
 /// CR LF; [`Needed::Unknown`] once it is too long to be a frame.
 ///
 /// Reading exactly the characters asked never reads past the end of the frame, which ends
@@ -254,9 +254,7 @@ pub fn unit_of(buf: &[u8]) -> Option<u8> {
 /// function, a byte count the request does not call for) is still read to its end, two
 /// characters at a time at least.
 pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
-    needed_by(buf, |unit_pdu| {
-        Framing::Mbap.reply_needed(request, unit_pdu)
-    })
+    needed_by(buf, |unit_pdu| rtu::unit_pdu_needed(request, unit_pdu))
 }
 
 /// [`reply_needed`] with the `unit | PDU` lengths given by `pdu_needed`.
@@ -290,7 +288,7 @@ fn needed_by(buf: &[u8], pdu_needed: impl Fn(&[u8]) -> Needed) -> Needed {
 
 /// Decodes the reply to `request` from `unit` in `buf`, characters as received: the first
 /// frame in it ([`seen`]; noise before its `:` is skipped), its framing checked
-/// ([`decode`]), then its `unit | PDU` as [`Framing::decode_reply`] checks it.
+/// ([`decode`]), then its `unit | PDU` as [`rtu::decode_reply`] checks it (without a CRC).
 ///
 /// # Errors
 /// The framing's [`AsciiError`] (no whole frame in `buf` is [`AsciiError::Incomplete`],
@@ -304,7 +302,7 @@ where
         return Err(AsciiError::Incomplete(buf.len()).into());
     };
     let unit_pdu = unit_pdu?;
-    Ok(Framing::Mbap.decode_reply(unit, request, &unit_pdu)?)
+    Ok(rtu::decode_unit_pdu(unit, request, &unit_pdu)?)
 }
 
 /// An incremental ASCII receiver: fed the characters of a line as they come, it hands out

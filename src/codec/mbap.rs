@@ -4,13 +4,19 @@
 //! MODBUS Messaging on TCP/IP Implementation Guide V1.0b, 3.1.3 (MBAP header: transaction
 //! id, protocol id 0, length = the bytes that follow it, unit id; 7 bytes).
 //!
-//! The Bus builds requests and reads replies as `unit | PDU` plus the framing's trailer
+//! The Bus builds requests as `unit | PDU` plus the framing's trailer
 //! ([`super::Framing`]): over Modbus TCP there is no trailer, TCP checks the bytes. A
 //! [`Session`] is what sits between those and the bytes of a Modbus TCP connection: a
 //! request gets an MBAP header (the next transaction id) in front; received bytes are cut
 //! into whole MBAP frames, only the reply to the awaited transaction is kept, and it is
-//! handed back as `unit | PDU`. Like the rest of the codec it touches no port and no clock.
+//! handed back from its length field on, `length | unit | PDU` (the transaction and protocol
+//! ids are the session's business). The Bus reads that by its length ([`reply_needed`]), so
+//! a frame is always taken whole, and [`decode_reply`] checks that the length counts exactly
+//! the reply the request calls for. Like the rest of the codec it touches no port and no
+//! clock.
 
+use super::rtu::{self, FrameError, Needed, Reply};
+use super::Request;
 use std::collections::VecDeque;
 use std::ops::RangeInclusive;
 
@@ -29,6 +35,25 @@ pub const LENGTH: RangeInclusive<usize> = 2..=254;
 /// The Modbus protocol id (any other is another protocol on the same port).
 pub const MODBUS_PROTOCOL: u16 = 0;
 
+/// Exception 0x06, server device busy (MODBUS Application Protocol V1.1b3, 7).
+pub const SERVER_DEVICE_BUSY: u8 = 0x06;
+
+/// What the benchbus gateway means by [`SERVER_DEVICE_BUSY`]: it answers a client's first
+/// request with it when every client slot is taken, then closes the connection.
+pub const GATEWAY_FULL: &str = "a benchbus gateway answers this when all its client slots \
+     are taken; try again later or raise --max-clients";
+
+/// The meaning of exception `code` received over Modbus TCP, given what the device's family
+/// makes of it (`meaning`): a 0x06 may come from the device, or from a benchbus gateway
+/// with no client slot free, so its meaning names both ([`GATEWAY_FULL`]).
+pub fn exception_meaning(code: u8, meaning: &str) -> String {
+    if code == SERVER_DEVICE_BUSY {
+        format!("{meaning} ({GATEWAY_FULL})")
+    } else {
+        meaning.to_string()
+    }
+}
+
 /// The MBAP frame of transaction `tid` carrying `adu` (unit id + PDU, of a length in
 /// [`LENGTH`]): transaction id, protocol id 0, length, then `adu`.
 pub fn encode(tid: u16, adu: &[u8]) -> Vec<u8> {
@@ -38,6 +63,71 @@ pub fn encode(tid: u16, adu: &[u8]) -> Vec<u8> {
     out.extend_from_slice(&(adu.len() as u16).to_be_bytes());
     out.extend_from_slice(adu);
     out
+}
+
+/// Bytes of the length field, which begins a reply as the Bus reads it (`length | unit |
+/// PDU`).
+pub const LENGTH_FIELD: usize = 2;
+
+// The longest reply so read fits in the longest frame the Bus reads (an RTU frame's 256).
+const _: () = assert!(LENGTH_FIELD + *LENGTH.end() <= rtu::MAX_ADU);
+
+/// How many more bytes a reply needs, given the bytes `buf` of it received so far, as a
+/// [`Session`] hands them out: `length | unit | PDU`. The length field alone tells:
+/// [`Needed::More`] until it and the bytes it counts have come, then [`Needed::Complete`];
+/// [`Needed::Unknown`] for a length outside [`LENGTH`] (which a session never hands out).
+pub fn reply_needed(buf: &[u8]) -> Needed {
+    let Some((field, _)) = buf.split_first_chunk::<LENGTH_FIELD>() else {
+        return Needed::More(LENGTH_FIELD - buf.len());
+    };
+    let length = usize::from(u16::from_be_bytes(*field));
+    if !LENGTH.contains(&length) {
+        return Needed::Unknown;
+    }
+    let total = LENGTH_FIELD + length;
+    match total.checked_sub(buf.len()) {
+        Some(more) if more > 0 => Needed::More(more),
+        _ => Needed::Complete(total),
+    }
+}
+
+/// Decodes a complete reply `frame` (`length | unit | PDU`, as [`reply_needed`] measured it)
+/// to `request` sent to `unit`: its `unit | PDU` as an RTU reply without a CRC is checked
+/// (unit, function, byte count, length, in [`rtu::decode_reply`]'s order), and its length
+/// must count exactly the bytes that reply has. A raw request's reply of no known length
+/// ([`Request::Raw`] without `reply_length`) is all the length counts.
+///
+/// # Errors
+/// [`FrameError`] saying what is wrong: [`FrameError::Length`] for a length that counts more
+/// bytes than the reply has (the extra bytes are never taken for part of it) or fewer.
+pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, FrameError> {
+    let Some((field, unit_pdu)) = frame.split_first_chunk::<LENGTH_FIELD>() else {
+        return Err(FrameError::TooShort(frame.len()));
+    };
+    let length = usize::from(u16::from_be_bytes(*field));
+    if unit_pdu.len() != length {
+        return Err(FrameError::Length(format!(
+            "MBAP length {length}, but {} bytes follow it",
+            unit_pdu.len()
+        )));
+    }
+    match rtu::unit_pdu_needed(request, unit_pdu) {
+        // The reply ends before the bytes the length counts do: what is wrong within it is
+        // told first (another unit, a byte count...), else the length.
+        Needed::Complete(reply) if reply < length => {
+            rtu::decode_unit_pdu(unit, request, unit_pdu.get(..reply).unwrap_or(unit_pdu))?;
+            let extra = length - reply;
+            Err(FrameError::Length(format!(
+                "MBAP length {length} counts {extra} byte{} more than the reply to function \
+                 {:#04x} has (unit + PDU: {reply} bytes)",
+                if extra == 1 { "" } else { "s" },
+                request.function()
+            )))
+        }
+        // The same length, one too short (the decoder says what is missing), or a reply of
+        // no known length: its checks tell.
+        _ => rtu::decode_unit_pdu(unit, request, unit_pdu),
+    }
 }
 
 /// A whole MBAP frame taken apart.
@@ -114,7 +204,7 @@ pub struct Session {
     awaited: Option<u16>,
     /// Bytes received that do not yet make a whole MBAP frame.
     raw: Vec<u8>,
-    /// The awaited reply's unit + PDU, as much of it as has not been read yet.
+    /// The awaited reply's `length | unit | PDU`, as much of it as has not been read yet.
     ready: VecDeque<u8>,
     /// Bytes of frames dropped (late replies, other protocols) since last asked.
     dropped: u64,
@@ -151,19 +241,20 @@ impl Session {
         Some(encode(tid, adu))
     }
 
-    /// The MBAP frame that carries `unit | PDU` (`adu`): as a request (`sent`) it takes the
-    /// next transaction id, as a reply the last request's. None for a length outside
-    /// [`LENGTH`].
-    pub fn shown(&self, adu: &[u8], sent: bool) -> Option<Vec<u8>> {
-        if !LENGTH.contains(&adu.len()) {
-            return None;
+    /// The MBAP frame that carries `frame` as it crossed the connection: a request (`sent`),
+    /// `unit | PDU`, under the next transaction id (None for a length outside [`LENGTH`]); a
+    /// reply as the session handed it out, `length | unit | PDU`, under the last request's.
+    pub fn shown(&self, frame: &[u8], sent: bool) -> Option<Vec<u8>> {
+        if sent {
+            return LENGTH
+                .contains(&frame.len())
+                .then(|| encode(self.next_tid, frame));
         }
-        let tid = if sent {
-            self.next_tid
-        } else {
-            self.next_tid.wrapping_sub(1)
-        };
-        Some(encode(tid, adu))
+        let mut out = Vec::with_capacity(PREFIX - LENGTH_FIELD + frame.len());
+        out.extend_from_slice(&self.next_tid.wrapping_sub(1).to_be_bytes());
+        out.extend_from_slice(&MODBUS_PROTOCOL.to_be_bytes());
+        out.extend_from_slice(frame);
+        Some(out)
     }
 
     /// Takes bytes received from the connection.
@@ -185,8 +276,8 @@ impl Session {
         Ok(dropped)
     }
 
-    /// Copies the awaited reply's next bytes (unit + PDU) into `buf`: how many (0 if none are
-    /// ready).
+    /// Copies the awaited reply's next bytes (`length | unit | PDU`) into `buf`: how many (0
+    /// if none are ready).
     pub fn read(&mut self, buf: &mut [u8]) -> usize {
         let n = buf.len().min(self.ready.len());
         for (slot, byte) in buf.iter_mut().zip(self.ready.drain(..n)) {
@@ -238,8 +329,8 @@ impl Session {
         Ok(Some(std::mem::replace(&mut self.raw, rest)))
     }
 
-    /// Takes a whole MBAP frame: the awaited reply's unit + PDU goes to `ready`; anything
-    /// else is dropped (and returned).
+    /// Takes a whole MBAP frame: the awaited reply goes to `ready` from its length field on
+    /// (`length | unit | PDU`); anything else is dropped (and returned).
     fn accept(&mut self, frame: &[u8]) -> Option<Dropped> {
         let header = decode(frame)?;
         if header.protocol != MODBUS_PROTOCOL {
@@ -258,7 +349,8 @@ impl Session {
             });
         }
         self.awaited = None;
-        self.ready.extend(header.adu);
+        self.ready
+            .extend(frame.get(PREFIX - LENGTH_FIELD..).unwrap_or_default());
         None
     }
 }
@@ -324,8 +416,11 @@ mod tests {
         let mut s = Session::new();
         assert_eq!(s.shown(&READ, true).as_deref(), Some(&MBAP_READ[..]));
         assert_eq!(s.request(&READ).as_deref(), Some(&MBAP_READ[..]));
-        // As a reply, the shown frame takes the last request's id.
-        assert_eq!(s.shown(&READ, false).as_deref(), Some(&MBAP_READ[..]));
+        // As a reply (from its length field on), the shown frame takes the last request's id.
+        assert_eq!(
+            s.shown(&MBAP_REPLY[4..], false).as_deref(),
+            Some(&MBAP_REPLY[..])
+        );
         let second = s.request(&READ).unwrap();
         assert_eq!(&second[..2], &[0x00, 0x02]);
         // Unit + function code at least, unit + the longest PDU at most.
@@ -345,7 +440,7 @@ mod tests {
     }
 
     #[test]
-    fn the_awaited_reply_comes_back_as_unit_and_pdu_in_pieces() {
+    fn the_awaited_reply_comes_back_from_its_length_on_in_pieces() {
         let mut s = Session::new();
         s.request(&READ).unwrap();
         s.receive(&MBAP_REPLY[..4]);
@@ -355,9 +450,9 @@ mod tests {
         assert_eq!(s.take_frames(), Ok(vec![]));
         let mut two = [0u8; 2];
         assert_eq!(s.read(&mut two), 2);
-        assert_eq!(two, [0x01, 0x03]);
-        // unit 01 | 03 02 12 34, and no CRC: TCP carries none.
-        assert_eq!(read_all(&mut s), [0x02, 0x12, 0x34]);
+        assert_eq!(two, [0x00, 0x05]);
+        // length 00 05 | unit 01 | 03 02 12 34, and no CRC: TCP carries none.
+        assert_eq!(read_all(&mut s), [0x01, 0x03, 0x02, 0x12, 0x34]);
         assert_eq!(s.take_dropped(), 0);
     }
 
@@ -398,7 +493,7 @@ mod tests {
         );
         assert_eq!(s.take_dropped(), 33);
         assert_eq!(s.take_dropped(), 0);
-        assert_eq!(read_all(&mut s), [0x01, 0x03, 0x02, 0x12, 0x34]);
+        assert_eq!(read_all(&mut s), MBAP_REPLY[4..]);
     }
 
     #[test]
@@ -424,7 +519,7 @@ mod tests {
         let mut received = MBAP_REPLY.to_vec();
         received.extend_from_slice(&MBAP_REPLY[..3]);
         let stale = s.discard(&received).unwrap();
-        let mut want = vec![0x03, 0x02, 0x12, 0x34];
+        let mut want = MBAP_REPLY[5..].to_vec();
         want.extend_from_slice(&MBAP_REPLY);
         assert_eq!(stale, want);
         // The beginning's rest completes a frame, which answers nothing awaited.
@@ -433,5 +528,218 @@ mod tests {
             s.take_frames().unwrap().as_slice(),
             [Dropped::Late { awaited: None, .. }]
         ));
+    }
+
+    const READ_ONE: Request = Request::ReadHoldingRegisters {
+        address: 0,
+        count: 1,
+    };
+
+    /// Golden: the reply to `READ` as a gateway that pads it sends it, transaction 1:
+    /// tid 00 01 | protocol 00 00 | length 00 07 (two bytes more than the reply) |
+    /// unit 01 | PDU 03 02 12 34 | extra 00 00.
+    const MBAP_PADDED: [u8; 13] = [
+        0x00, 0x01, 0x00, 0x00, 0x00, 0x07, 0x01, 0x03, 0x02, 0x12, 0x34, 0x00, 0x00,
+    ];
+
+    #[test]
+    fn a_reply_is_read_by_its_length_field_and_taken_whole() {
+        let mut s = Session::new();
+        s.request(&READ).unwrap();
+        s.receive(&MBAP_PADDED);
+        s.take_frames().unwrap();
+        let mut got = Vec::new();
+        // As the Bus reads: exactly what reply_needed asks for, until it is complete.
+        while let Needed::More(n) = reply_needed(&got) {
+            let mut chunk = vec![0u8; n];
+            assert_eq!(s.read(&mut chunk), n);
+            got.extend_from_slice(&chunk);
+        }
+        assert_eq!(reply_needed(&got), Needed::Complete(9));
+        // Nothing of the frame is left over for the next request.
+        assert_eq!(got, MBAP_PADDED[4..]);
+        assert_eq!(read_all(&mut s), Vec::<u8>::new());
+        assert_eq!(s.discard(&[]), Ok(vec![]));
+        // And the errors show the frame as it crossed the network.
+        assert_eq!(s.shown(&got, false).as_deref(), Some(&MBAP_PADDED[..]));
+    }
+
+    #[test]
+    fn a_length_that_counts_more_or_fewer_bytes_than_the_reply_is_a_frame_error() {
+        let exact = &MBAP_REPLY[4..];
+        assert_eq!(
+            decode_reply(1, &READ_ONE, exact),
+            Ok(Reply::Normal(super::super::Response::Registers(vec![
+                0x1234
+            ])))
+        );
+        // Two bytes more: never a value, however good its first bytes.
+        assert_eq!(
+            decode_reply(1, &READ_ONE, &MBAP_PADDED[4..]),
+            Err(FrameError::Length(
+                "MBAP length 7 counts 2 bytes more than the reply to function 0x03 has \
+                 (unit + PDU: 5 bytes)"
+                    .into()
+            ))
+        );
+        // An exception reply with a byte more.
+        assert!(matches!(
+            decode_reply(1, &READ_ONE, &[0x00, 0x04, 0x01, 0x83, 0x02, 0x00]),
+            Err(FrameError::Length(m)) if m.contains("1 byte more")
+        ));
+        // What is wrong within the reply is told first: here the unit.
+        let mut other_unit = MBAP_PADDED[4..].to_vec();
+        other_unit[2] = 9;
+        assert_eq!(
+            decode_reply(1, &READ_ONE, &other_unit),
+            Err(FrameError::WrongUnit {
+                expected: 1,
+                received: 9
+            })
+        );
+        // A byte fewer than the byte count says: the length is short of the reply.
+        assert!(matches!(
+            decode_reply(1, &READ_ONE, &[0x00, 0x04, 0x01, 0x03, 0x02, 0x12]),
+            Err(FrameError::Length(_))
+        ));
+        // A length field the bytes after it do not match.
+        assert!(matches!(
+            decode_reply(1, &READ_ONE, &MBAP_PADDED[4..11]),
+            Err(FrameError::Length(m)) if m == "MBAP length 7, but 5 bytes follow it"
+        ));
+        assert_eq!(
+            decode_reply(1, &READ_ONE, &[0x00]),
+            Err(FrameError::TooShort(1))
+        );
+        // A raw request's reply of no known length is all the length counts.
+        let raw = Request::Raw {
+            function: 0x41,
+            data: vec![],
+            reply_length: None,
+        };
+        assert_eq!(
+            decode_reply(1, &raw, &[0x00, 0x05, 0x01, 0x41, 0xAA, 0xBB, 0xCC]),
+            Ok(Reply::Normal(super::super::Response::Raw(vec![
+                0xAA, 0xBB, 0xCC
+            ])))
+        );
+        let sized = Request::Raw {
+            function: 0x41,
+            data: vec![],
+            reply_length: Some(2),
+        };
+        assert!(matches!(
+            decode_reply(1, &sized, &[0x00, 0x05, 0x01, 0x41, 0xAA, 0xBB, 0xCC]),
+            Err(FrameError::Length(m)) if m.contains("1 byte more")
+        ));
+    }
+
+    #[test]
+    fn reply_needed_goes_by_the_length_field_alone() {
+        assert_eq!(reply_needed(&[]), Needed::More(2));
+        assert_eq!(reply_needed(&[0x00]), Needed::More(1));
+        assert_eq!(reply_needed(&[0x00, 0x07]), Needed::More(7));
+        assert_eq!(reply_needed(&MBAP_PADDED[4..10]), Needed::More(3));
+        assert_eq!(reply_needed(&MBAP_PADDED[4..]), Needed::Complete(9));
+        assert_eq!(reply_needed(&[0x00, 0x01]), Needed::Unknown);
+        assert_eq!(reply_needed(&[0x00, 0xFF]), Needed::Unknown);
+        assert_eq!(reply_needed(&[0xFF, 0xFF, 0x01]), Needed::Unknown);
+    }
+
+    #[test]
+    fn every_reply_shape_takes_its_exact_length_only() {
+        use super::super::pdu::Request as R;
+        // (request, its reply's unit + PDU): each shape the decoder knows.
+        let cases: Vec<(R, Vec<u8>)> = vec![
+            (READ_ONE, vec![1, 0x03, 0x02, 0x12, 0x34]),
+            (
+                R::WriteSingleRegister {
+                    address: 1,
+                    value: 2,
+                },
+                vec![1, 0x06, 0x00, 0x01, 0x00, 0x02],
+            ),
+            (
+                R::WriteMultipleRegisters {
+                    address: 1,
+                    values: vec![7, 8],
+                },
+                vec![1, 0x10, 0x00, 0x01, 0x00, 0x02],
+            ),
+            (
+                R::ReadCoils {
+                    address: 0,
+                    count: 9,
+                },
+                vec![1, 0x01, 0x02, 0xFF, 0x01],
+            ),
+            (
+                R::MaskWriteRegister {
+                    address: 4,
+                    and_mask: 0xF2,
+                    or_mask: 0x25,
+                },
+                vec![1, 0x16, 0x00, 0x04, 0x00, 0xF2, 0x00, 0x25],
+            ),
+            (R::ReadExceptionStatus, vec![1, 0x07, 0x6D]),
+            (
+                R::Diagnostics {
+                    sub_function: 0,
+                    data: vec![0xA5],
+                },
+                vec![1, 0x08, 0x00, 0x00, 0xA5],
+            ),
+            (R::ReportServerId, vec![1, 0x11, 0x02, 0x0A, 0xFF]),
+            (
+                R::ReadDeviceIdentification {
+                    read_code: 1,
+                    object_id: 0,
+                },
+                vec![
+                    1, 0x2B, 0x0E, 0x01, 0x01, 0x00, 0x00, 0x01, 0x00, 0x02, b'A', b'B',
+                ],
+            ),
+            (READ_ONE, vec![1, 0x83, 0x02]),
+        ];
+        let framed = |unit_pdu: &[u8]| {
+            let mut out = (unit_pdu.len() as u16).to_be_bytes().to_vec();
+            out.extend_from_slice(unit_pdu);
+            out
+        };
+        for (request, reply) in &cases {
+            let exact = framed(reply);
+            assert_eq!(reply_needed(&exact), Needed::Complete(exact.len()));
+            assert!(decode_reply(1, request, &exact).is_ok(), "{request:?}");
+            for extra in 1..=3 {
+                let mut padded = reply.clone();
+                padded.extend(std::iter::repeat_n(0, extra));
+                assert!(
+                    matches!(
+                        decode_reply(1, request, &framed(&padded)),
+                        Err(FrameError::Length(m)) if m.contains("more than the reply")
+                    ),
+                    "{request:?} + {extra}"
+                );
+            }
+            for short in 1..reply.len() - 1 {
+                assert!(
+                    decode_reply(1, request, &framed(&reply[..short])).is_err(),
+                    "{request:?} cut to {short}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn over_modbus_tcp_a_busy_answer_also_says_what_the_gateway_means_by_it() {
+        assert_eq!(
+            exception_meaning(0x06, "server device busy"),
+            "server device busy (a benchbus gateway answers this when all its client slots \
+             are taken; try again later or raise --max-clients)"
+        );
+        assert_eq!(
+            exception_meaning(0x02, "illegal data address"),
+            "illegal data address"
+        );
     }
 }

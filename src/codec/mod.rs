@@ -18,14 +18,17 @@ pub use rtu::{
     Needed, Reply, BROADCAST,
 };
 
-/// What frames cross a connection. The Bus builds and reads `unit | PDU` and the framing's
-/// trailer: RTU frames go to the wire as they are, and over Modbus TCP the [`mbap`] session
-/// puts the MBAP header in place of the unit (no CRC: TCP checks the bytes).
+/// What frames cross a connection. The Bus builds `unit | PDU` and the framing's trailer:
+/// RTU frames go to the wire as they are, and over Modbus TCP the [`mbap`] session puts the
+/// MBAP header in front (no CRC: TCP checks the bytes). It reads replies the same way, but
+/// over Modbus TCP from the MBAP length field on (`length | unit | PDU`, [`mbap::reply_needed`]),
+/// as the session hands them out: the length says where the frame ends, and is checked
+/// against the reply the request calls for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Framing {
     /// RTU frames (unit, PDU, CRC), byte for byte: a serial line, or RTU over TCP.
     Rtu,
-    /// Modbus TCP: MBAP header + PDU ([`mbap`]).
+    /// Modbus TCP: MBAP header + PDU ([`mbap`]); a reply as `length | unit | PDU`.
     Mbap,
     /// Modbus ASCII frames (`:`, hex, LRC, CR LF; [`ascii`]) on a serial line.
     Ascii,
@@ -52,8 +55,9 @@ impl Framing {
     /// [`reply_needed`] for a reply in this framing.
     pub fn reply_needed(self, request: &Request, buf: &[u8]) -> Needed {
         match self {
+            Framing::Rtu => rtu::reply_needed(request, buf),
+            Framing::Mbap => mbap::reply_needed(buf),
             Framing::Ascii => ascii::reply_needed(request, buf),
-            _ => rtu::needed_in(self, request, buf),
         }
     }
 
@@ -68,8 +72,9 @@ impl Framing {
         frame: &[u8],
     ) -> Result<Reply, FrameError> {
         match self {
+            Framing::Rtu => rtu::decode_reply(unit, request, frame),
+            Framing::Mbap => mbap::decode_reply(unit, request, frame),
             Framing::Ascii => ascii::decode_reply(unit, request, frame),
-            _ => rtu::decode_in(self, unit, request, frame),
         }
     }
 }
@@ -84,7 +89,7 @@ mod tests {
     };
 
     #[test]
-    fn over_modbus_tcp_requests_and_replies_are_unit_and_pdu_without_a_crc() {
+    fn over_modbus_tcp_requests_are_unit_and_pdu_and_replies_come_from_the_length_on() {
         assert_eq!(
             Framing::Mbap.encode_request(1, &READ_ONE),
             [0x01, 0x03, 0x00, 0x00, 0x00, 0x01]
@@ -93,40 +98,42 @@ mod tests {
             Framing::Rtu.encode_request(1, &READ_ONE),
             [0x01, 0x03, 0x00, 0x00, 0x00, 0x01, 0x84, 0x0A]
         );
-        let reply = [0x01, 0x03, 0x02, 0x12, 0x34];
+        // length 00 05 | unit 01 | 03 02 12 34: no CRC, TCP carries none.
+        let reply = [0x00, 0x05, 0x01, 0x03, 0x02, 0x12, 0x34];
+        assert_eq!(Framing::Mbap.reply_needed(&READ_ONE, &[]), Needed::More(2));
         assert_eq!(
             Framing::Mbap.reply_needed(&READ_ONE, &reply[..3]),
-            Needed::More(2)
+            Needed::More(4)
         );
         assert_eq!(
             Framing::Mbap.reply_needed(&READ_ONE, &reply),
-            Needed::Complete(5)
-        );
-        assert_eq!(
-            Framing::Rtu.reply_needed(&READ_ONE, &reply),
-            Needed::More(2)
+            Needed::Complete(7)
         );
         assert_eq!(
             Framing::Mbap.decode_reply(1, &READ_ONE, &reply),
             Ok(Reply::Normal(Response::Registers(vec![0x1234])))
         );
-        // The same bytes as an RTU frame end in a CRC that is not there.
+        // unit | PDU is read as in RTU, where it ends in a CRC that is not there.
+        assert_eq!(
+            Framing::Rtu.reply_needed(&READ_ONE, &reply[2..]),
+            Needed::More(2)
+        );
         assert!(matches!(
-            Framing::Rtu.decode_reply(1, &READ_ONE, &reply),
+            Framing::Rtu.decode_reply(1, &READ_ONE, &reply[2..]),
             Err(FrameError::Crc { .. })
         ));
     }
 
     #[test]
     fn over_modbus_tcp_an_exception_is_three_bytes_and_the_longest_pdu_holds() {
-        let exception = [0x01, 0x83, 0x02];
+        let exception = [0x00, 0x03, 0x01, 0x83, 0x02];
         assert_eq!(
             Framing::Mbap.reply_needed(&READ_ONE, &exception[..2]),
-            Needed::More(1)
+            Needed::More(3)
         );
         assert_eq!(
             Framing::Mbap.reply_needed(&READ_ONE, &exception),
-            Needed::Complete(3)
+            Needed::Complete(5)
         );
         assert_eq!(
             Framing::Mbap.decode_reply(1, &READ_ONE, &exception),
@@ -136,7 +143,7 @@ mod tests {
             })
         );
         assert_eq!(
-            Framing::Mbap.decode_reply(1, &READ_ONE, &exception[..2]),
+            Framing::Mbap.decode_reply(1, &READ_ONE, &[0x00, 0x02, 0x01, 0x83]),
             Err(FrameError::TooShort(2))
         );
         // 125 registers: unit, function, count, 250 bytes = 253, within an MBAP length.
@@ -145,12 +152,16 @@ mod tests {
             count: 125,
         };
         assert_eq!(
-            Framing::Mbap.reply_needed(&most, &[0x01, 0x03, 250]),
+            Framing::Mbap.reply_needed(&most, &[0x00, 253, 0x01, 0x03, 250]),
             Needed::More(250)
         );
         assert_eq!(
             Framing::Rtu.reply_needed(&most, &[0x01, 0x03, 250]),
             Needed::More(252)
+        );
+        assert_eq!(
+            Framing::Mbap.reply_needed(&most, &[0x00, 254]),
+            Needed::More(254)
         );
     }
 }

@@ -75,12 +75,17 @@ pub enum Needed {
 /// Identification reply is walked object by object; a raw request's reply is its
 /// `reply_length` after the function code, or read until the line is silent.
 pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
-    needed_in(Framing::Rtu, request, buf)
+    needed_in(CRC_LEN, request, buf)
 }
 
-/// [`reply_needed`] for a reply in `framing`: `unit | PDU` and the framing's trailer.
-pub(super) fn needed_in(framing: Framing, request: &Request, buf: &[u8]) -> Needed {
-    let trailer = framing.trailer();
+/// [`reply_needed`] for `unit | PDU` with no trailer: the reply inside an ASCII frame or an
+/// MBAP frame.
+pub(super) fn unit_pdu_needed(request: &Request, buf: &[u8]) -> Needed {
+    needed_in(0, request, buf)
+}
+
+/// [`reply_needed`] for `unit | PDU` followed by `trailer` bytes (the CRC's 2, or none).
+fn needed_in(trailer: usize, request: &Request, buf: &[u8]) -> Needed {
     // unit, function | 0x80, code.
     let exception = 3 + trailer;
     if buf.len() < 2 {
@@ -311,32 +316,36 @@ pub fn check_header(unit: u8, request: &Request, buf: &[u8]) -> Result<(), Frame
 /// # Errors
 /// [`FrameError`] saying what is wrong with the frame.
 pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, FrameError> {
-    decode_in(Framing::Rtu, unit, request, frame)
+    decode_in(true, unit, request, frame)
 }
 
-/// [`decode_reply`] for a reply in `framing` (over Modbus TCP `unit | PDU`, no CRC: TCP
-/// checks the bytes).
-pub(super) fn decode_in(
-    framing: Framing,
+/// [`decode_reply`] for `unit | PDU` with no CRC: the reply inside an ASCII frame (its LRC
+/// checked already) or an MBAP frame (TCP checks the bytes).
+pub(super) fn decode_unit_pdu(
     unit: u8,
     request: &Request,
     frame: &[u8],
 ) -> Result<Reply, FrameError> {
-    if frame.len() < 3 + framing.trailer() {
+    decode_in(false, unit, request, frame)
+}
+
+/// [`decode_reply`] for `unit | PDU`, followed by its CRC if `crc`.
+fn decode_in(crc: bool, unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, FrameError> {
+    let trailer = if crc { CRC_LEN } else { 0 };
+    if frame.len() < 3 + trailer {
         return Err(FrameError::TooShort(frame.len()));
     }
     check_header(unit, request, frame)?;
-    let body = match framing {
-        Framing::Rtu => {
-            let (body, crc) = frame.split_at(frame.len() - CRC_LEN);
-            let received = u16::from_le_bytes([crc[0], crc[1]]);
-            let computed = crc16(body);
-            if computed != received {
-                return Err(FrameError::Crc { computed, received });
-            }
-            body
+    let body = if crc {
+        let (body, crc) = frame.split_at(frame.len() - CRC_LEN);
+        let received = u16::from_le_bytes([crc[0], crc[1]]);
+        let computed = crc16(body);
+        if computed != received {
+            return Err(FrameError::Crc { computed, received });
         }
-        Framing::Mbap | Framing::Ascii => frame,
+        body
+    } else {
+        frame
     };
     if body[0] != unit {
         return Err(FrameError::WrongUnit {

@@ -21,10 +21,11 @@ use crate::codec::pdu::{
     MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT, MAX_WRITE_BITS,
     MAX_WRITE_COUNT,
 };
-use crate::codec::{Echo, FrameError};
+use crate::codec::{mbap, Echo, FrameError, Framing};
 use crate::device::Device;
 use crate::error::{hex, Error};
 use crate::timing::{LineFormat, Parity};
+use crate::transport::parse_endpoint;
 use crate::transport::tuning::Rs485;
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -145,13 +146,40 @@ fn member<'py>(
     }
 }
 
-/// Runs `f` on a device core with the GIL released; its error as the Python exception.
-fn on_wire<D: Send + Sync, T: Send>(
+/// What a wire call runs on: a Bus, or a device on one.
+trait OnBus: Send + Sync {
+    /// The Bus its calls go over (None: no Bus, for the test hook `_panic_on_wire`).
+    fn on_bus(&self) -> Option<&bus::Bus>;
+}
+
+impl OnBus for bus::Bus {
+    fn on_bus(&self) -> Option<&bus::Bus> {
+        Some(self)
+    }
+}
+
+impl<D: Device> OnBus for D {
+    fn on_bus(&self) -> Option<&bus::Bus> {
+        Some(self.bus())
+    }
+}
+
+impl OnBus for () {
+    fn on_bus(&self) -> Option<&bus::Bus> {
+        None
+    }
+}
+
+/// Runs `f` on a device core (or a Bus) with the GIL released; its error as the Python
+/// exception. An exception reply that came over Modbus TCP is worded for it
+/// ([`mbap::exception_meaning`]: a 0x06 may be a benchbus gateway's).
+fn on_wire<D: OnBus, T: Send>(
     py: Python<'_>,
     device: &Arc<D>,
     f: impl FnOnce(&D) -> crate::Result<T> + Send,
 ) -> PyResult<T> {
     let device = Arc::clone(device);
+    let on = Arc::clone(&device);
     let result = py.detach(move || crate::error::guarded(|| f(&device)));
     // A Ctrl-C that lands while the wire log calls into Python (pyo3-log, from the detached
     // thread) can leave the KeyboardInterrupt set: raise it, rather than return a value
@@ -159,7 +187,30 @@ fn on_wire<D: Send + Sync, T: Send>(
     if let Some(pending) = PyErr::take(py) {
         return Err(pending);
     }
-    result.map_err(|e| to_pyerr(py, e))
+    result.map_err(|e| to_pyerr(py, over_modbus_tcp(on.on_bus(), e)))
+}
+
+/// `err`, with the meaning of an exception reply worded for Modbus TCP if `bus` speaks it.
+fn over_modbus_tcp(bus: Option<&bus::Bus>, err: Error) -> Error {
+    let tcp = bus.is_some_and(|b| {
+        parse_endpoint(&b.config().port).is_ok_and(|e| e.framing() == Framing::Mbap)
+    });
+    match err {
+        Error::Exception {
+            unit,
+            function,
+            code,
+            meaning,
+            frame,
+        } if tcp => Error::Exception {
+            unit,
+            function,
+            code,
+            meaning: mbap::exception_meaning(code, &meaning),
+            frame,
+        },
+        other => other,
+    }
 }
 
 /// A device core, once its Python object is attached to a Bus: what every device binding

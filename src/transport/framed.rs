@@ -1,6 +1,7 @@
 //! A byte pipe and the framing its endpoint speaks: what the Bus writes its requests to and
 //! reads its replies from. RTU framing passes the bytes through; Modbus TCP puts the codec's
-//! MBAP [`Session`] between them (`unit | PDU`) and the pipe.
+//! MBAP [`Session`] between them and the pipe (requests `unit | PDU`, replies from their
+//! MBAP length field on: `length | unit | PDU`).
 
 use super::{parse_endpoint, port_lost, Transport};
 use crate::codec::mbap::{Dropped, Session};
@@ -67,8 +68,9 @@ impl Framed {
 
     /// Reads at most `buf.len()` bytes of the reply (in this framing), waiting at most `timeout`
     /// for the first; Ok(0) when nothing came. Over Modbus TCP whole MBAP frames are taken
-    /// and only the awaited reply's bytes are handed out; frames that keep coming but are
-    /// all dropped do not hold the read past its deadline.
+    /// and only the awaited reply's bytes are handed out, from its length field on (so the
+    /// Bus reads the frame by its length, whole: see [`crate::codec::mbap::reply_needed`]);
+    /// frames that keep coming but are all dropped do not hold the read past its deadline.
     pub(crate) fn read(&mut self, buf: &mut [u8], timeout: Duration) -> io::Result<usize> {
         let Some((session, peer)) = &mut self.mbap else {
             return self.pipe.read(buf, timeout);

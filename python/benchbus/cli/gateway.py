@@ -6,7 +6,7 @@ import argparse
 from collections.abc import Callable
 
 import benchbus as bb
-from benchbus._gateway import IDLE_TIMEOUT, parse_allow, parse_listen
+from benchbus._gateway import FRAME_TIMEOUT, IDLE_TIMEOUT, SLOW_REQUEST, parse_allow, parse_listen
 from benchbus.cli._args import Parser, integer, number, seconds
 from benchbus.cli._errors import CliError
 from benchbus.cli._line import bus_options_of, open_bus, stopbits_of
@@ -50,6 +50,7 @@ def run(args: argparse.Namespace) -> int:
             max_clients=args.max_clients,
             idle_timeout=args.idle_timeout,
             allow=args.allow,
+            frame_timeout=args.frame_timeout,
         )
         try:
             gateway.start()
@@ -75,7 +76,10 @@ EPILOG = (
     "one at a time, with this command's timeout and retries; a unit that does not answer "
     "comes back to the client as exception 0x0B, a lost port as 0x0A (the port is "
     "reopened at the next request). Forwards every function, each reply as the unit sent "
-    "it. For one machine; for a line shared across a network, use a dedicated gateway "
+    "it. A client that comes when every --max-clients slot is taken (none idle, none slow "
+    "to send its request) has its first request answered exception 0x06 (server device "
+    "busy), then is closed. For one machine; for a line shared across a network, use a "
+    "dedicated gateway "
     "(mbusd). "
     "Modbus TCP has no authentication: listening beyond loopback prints a warning; "
     "--allow limits who may connect."
@@ -111,11 +115,22 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         "when --max-clients are connected, a new one replaces the longest idle",
     )
     parser.add_argument(
+        "--frame-timeout",
+        type=seconds,
+        default=FRAME_TIMEOUT,
+        metavar="S",
+        help="close a client whose request has not arrived whole S seconds after its first "
+        f"byte (default {FRAME_TIMEOUT:g}); when --max-clients are connected and none is "
+        f"idle, a new one replaces the one whose request has been arriving over "
+        f"{SLOW_REQUEST:g} s",
+    )
+    parser.add_argument(
         "--max-clients",
         type=integer(1, 10_000, "max-clients"),
         default=32,
         metavar="N",
-        help="clients served at once (default 32)",
+        help="clients served at once (default 32); one more is answered 0x06 (server "
+        "device busy) and closed",
     )
     parser.add_argument(
         "--allow",
