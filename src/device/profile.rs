@@ -185,19 +185,44 @@ type Fail = Box<ProfileError>;
 type Owners = Vec<(usize, Option<u8>)>;
 type Parsed<T> = std::result::Result<T, Fail>;
 
-/// Where the parser is: the file's name and text, to turn spans into lines.
+/// Where each line of a file starts, to turn a byte offset into its line by a binary search
+/// (counting the newlines before every key instead made loading quadratic in the file's
+/// size).
+struct Lines {
+    starts: Vec<usize>,
+}
+
+impl Lines {
+    fn new(text: &str) -> Lines {
+        let newlines = text.bytes().enumerate().filter(|(_, b)| *b == b'\n');
+        let starts = std::iter::once(0)
+            .chain(newlines.map(|(at, _)| at + 1))
+            .collect();
+        Lines { starts }
+    }
+
+    /// The line (from 1) of the byte at `offset`.
+    fn line(&self, offset: usize) -> usize {
+        self.starts.partition_point(|start| *start <= offset)
+    }
+}
+
+/// Where the parser is: the file's name and lines, to turn spans into lines.
 struct Source<'a> {
     path: &'a str,
-    text: &'a str,
+    lines: &'a Lines,
 }
 
 impl Source<'_> {
+    /// The line (from 1) of the byte at `offset`.
+    fn line(&self, offset: usize) -> usize {
+        self.lines.line(offset)
+    }
+
     fn fail(&self, span: Range<usize>, key: &str, message: impl Into<String>) -> Fail {
-        let start = span.start.min(self.text.len());
-        let line = self.text.get(..start).unwrap_or("").matches('\n').count() + 1;
         Box::new(ProfileError {
             path: self.path.to_string(),
-            line,
+            line: self.line(span.start),
             key: key.to_string(),
             message: message.into(),
         })
@@ -420,7 +445,11 @@ impl Profile {
     /// # Errors
     /// A [`ProfileError`] for the first mistake in it.
     pub fn parse(path: &str, text: &str) -> Result<Profile, Box<ProfileError>> {
-        let src = Source { path, text };
+        let lines = Lines::new(text);
+        let src = Source {
+            path,
+            lines: &lines,
+        };
         let root = DeTable::parse(text).map_err(|e| {
             let span = e.span().unwrap_or(0..0);
             src.fail(span, "", e.message().trim().to_string())
@@ -623,7 +652,7 @@ fn registers(top: &Section<'_, '_, '_>) -> Parsed<Vec<ProfileRegister>> {
 
 fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
     s.known(REGISTER_KEYS)?;
-    let line = s.src.fail(s.span.clone(), "", "").line;
+    let line = s.src.line(s.span.start);
     let name = s
         .string("name")?
         .ok_or_else(|| s.fail("name", s.span.clone(), "missing (required)"))?;
@@ -1412,6 +1441,15 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             3,
             "register[0].length",
         );
+    }
+
+    #[test]
+    fn an_offset_is_on_the_line_it_is_in() {
+        let lines = Lines::new("ab\n\ncd\n");
+        let found: Vec<usize> = (0..=8).map(|at| lines.line(at)).collect();
+        // a b \n | \n | c d \n | the end
+        assert_eq!(found, vec![1, 1, 1, 2, 3, 3, 3, 4, 4]);
+        assert_eq!(Lines::new("").line(0), 1);
     }
 
     #[test]
