@@ -902,7 +902,9 @@ fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
     if table.is_empty() {
         return Err(s.fail("enum", span, "must name at least one member"));
     }
-    let mut out: Vec<(i128, String)> = Vec::new();
+    let mut out: Vec<(i128, String)> = Vec::with_capacity(table.len());
+    let mut numbers: HashSet<i128> = HashSet::with_capacity(table.len());
+    let mut names: HashSet<&str> = HashSet::with_capacity(table.len());
     for (key, value) in table.iter() {
         let text: &str = key.get_ref();
         let key_name = format!("enum.{text}");
@@ -925,10 +927,8 @@ fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
                 format!("{member:?} is not a Python identifier"),
             ));
         }
-        if out
-            .iter()
-            .any(|(n, m)| *n == number || m == member.as_ref())
-        {
+        let new_number = numbers.insert(number);
+        if !names.insert(member.as_ref()) || !new_number {
             return Err(s.fail(
                 &key_name,
                 key.span(),
@@ -1336,6 +1336,12 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             &format!("{R}enum = {{ 0 = \"off\", 1 = \"off\" }}\n"),
             6,
             "register[0].enum.1",
+        );
+        // The same number written twice.
+        fails(
+            &format!("{R}enum = {{ 0 = \"off\", 0x0 = \"on\" }}\n"),
+            6,
+            "register[0].enum.0x0",
         );
         fails(&format!("{R}enum = {{ 0 = 1 }}\n"), 6, "register[0].enum.0");
         fails(
