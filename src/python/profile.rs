@@ -24,6 +24,9 @@ const ROWS: &str = "benchbus._profile";
 #[pyclass(frozen, module = "benchbus._core", name = "Profile")]
 pub(super) struct PyProfile {
     profile: Arc<Profile>,
+    /// The registers' indices in the order of their names: a name is found by a binary
+    /// search (a scan for each name made reading every register quadratic).
+    by_name: Vec<usize>,
     path: String,
     /// Comment lines for the top of the file `to_toml` writes ("" for none).
     note: String,
@@ -50,6 +53,14 @@ fn family_line(py: Python<'_>, key: &str) -> PyResult<LineSettings> {
         framing: line.getattr("framing")?.extract()?,
         bytesize: line.getattr("bytesize")?.extract()?,
     })
+}
+
+/// The name of the register at `index` ("" for none).
+fn name_at(profile: &Profile, index: usize) -> &str {
+    profile
+        .registers
+        .get(index)
+        .map_or("", |r| r.register.name.as_str())
 }
 
 /// The `benchbus.ProfileError` of `err`.
@@ -140,16 +151,32 @@ impl PyProfile {
         loaded: Result<Profile, Box<ProfileError>>,
     ) -> PyResult<Self> {
         let profile = loaded.map_err(|e| profile_error(py, &e))?;
-        Ok(PyProfile {
+        Ok(PyProfile::made(profile, path, String::new()))
+    }
+
+    fn made(profile: Profile, path: String, note: String) -> PyProfile {
+        let mut by_name: Vec<usize> = (0..profile.registers.len()).collect();
+        by_name.sort_unstable_by(|a, b| name_at(&profile, *a).cmp(name_at(&profile, *b)));
+        PyProfile {
             profile: Arc::new(profile),
+            by_name,
             path,
-            note: String::new(),
-        })
+            note,
+        }
+    }
+
+    /// The index of the register called `name`, if there is one.
+    fn find(&self, name: &str) -> Option<usize> {
+        let at = self
+            .by_name
+            .binary_search_by(|i| name_at(&self.profile, *i).cmp(name))
+            .ok()?;
+        self.by_name.get(at).copied()
     }
 
     /// The register called `name`, or ValueError naming the profile.
     fn index(&self, name: &str) -> PyResult<usize> {
-        self.profile.index(name).ok_or_else(|| {
+        self.find(name).ok_or_else(|| {
             PyValueError::new_err(format!("{} has no register {name:?}", self.profile.name))
         })
     }
@@ -222,11 +249,11 @@ impl PyProfile {
             )));
         };
         profile.line = family_line(py, key)?;
-        Ok(PyProfile {
-            profile: Arc::new(profile),
-            path: format!("<{key}>"),
-            note: note.to_string(),
-        })
+        Ok(PyProfile::made(
+            profile,
+            format!("<{key}>"),
+            note.to_string(),
+        ))
     }
 
     /// The profile as a TOML file that reads back as the same profile (a built-in family's
@@ -299,8 +326,7 @@ impl PyProfile {
     /// The register called `name` (KeyError if there is none).
     fn __getitem__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
         let r = self
-            .profile
-            .index(name)
+            .find(name)
             .and_then(|i| self.profile.registers.get(i))
             .ok_or_else(|| PyKeyError::new_err(name.to_string()))?;
         self.row(py, r)
@@ -308,7 +334,7 @@ impl PyProfile {
 
     /// Whether a register is called `name`.
     fn __contains__(&self, name: &str) -> bool {
-        self.profile.index(name).is_some()
+        self.find(name).is_some()
     }
 
     /// How many registers.
