@@ -9,6 +9,7 @@ use crate::device::profile::{
 };
 use crate::device::profiled::ProfiledDevice;
 use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyModule, PyString, PyTuple};
 use std::path::PathBuf;
@@ -181,7 +182,18 @@ impl PyProfile {
         })
     }
 
-    fn row<'py>(&self, py: Python<'py>, r: &ProfileRegister) -> PyResult<Bound<'py, PyAny>> {
+    /// The ``ProfileRegister`` class rows are made of.
+    fn row_type(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+        PyModule::import(py, ROWS)?.getattr("ProfileRegister")
+    }
+
+    /// The register `r` as a ``ProfileRegister`` (`row_type`: that class, looked up once for
+    /// many rows: an import for each made a profile's rows slow).
+    fn row<'py>(
+        py: Python<'py>,
+        row_type: &Bound<'py, PyAny>,
+        r: &ProfileRegister,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let reg = &r.register;
         let (bit, length) = match r.value {
             ValueType::Bool { bit } => (bit, None),
@@ -198,24 +210,24 @@ impl PyProfile {
             Some(v) => to_object(py, v)?,
         };
         let kwargs = PyDict::new(py);
-        kwargs.set_item("name", reg.name.as_str())?;
-        kwargs.set_item("address", reg.address)?;
-        kwargs.set_item("table", table_name(r.table))?;
-        kwargs.set_item("type", r.value.name())?;
-        kwargs.set_item("bit", bit)?;
-        kwargs.set_item("length", length)?;
-        kwargs.set_item("order", r.layout.name())?;
-        kwargs.set_item("scale", reg.scale)?;
-        kwargs.set_item("offset", r.offset)?;
-        kwargs.set_item("unit", reg.unit.as_str())?;
-        kwargs.set_item("access", access_name(reg.access))?;
-        kwargs.set_item("min", number.then_some(reg.range.0))?;
-        kwargs.set_item("max", number.then_some(reg.range.1))?;
-        kwargs.set_item("enum", members)?;
-        kwargs.set_item("default", default)?;
-        kwargs.set_item("description", r.description.as_str())?;
-        kwargs.set_item("line", r.line)?;
-        public(py, ROWS, "ProfileRegister", (), Some(&kwargs))
+        kwargs.set_item(intern!(py, "name"), reg.name.as_str())?;
+        kwargs.set_item(intern!(py, "address"), reg.address)?;
+        kwargs.set_item(intern!(py, "table"), table_name(r.table))?;
+        kwargs.set_item(intern!(py, "type"), r.value.name())?;
+        kwargs.set_item(intern!(py, "bit"), bit)?;
+        kwargs.set_item(intern!(py, "length"), length)?;
+        kwargs.set_item(intern!(py, "order"), r.layout.name())?;
+        kwargs.set_item(intern!(py, "scale"), reg.scale)?;
+        kwargs.set_item(intern!(py, "offset"), r.offset)?;
+        kwargs.set_item(intern!(py, "unit"), reg.unit.as_str())?;
+        kwargs.set_item(intern!(py, "access"), access_name(reg.access))?;
+        kwargs.set_item(intern!(py, "min"), number.then_some(reg.range.0))?;
+        kwargs.set_item(intern!(py, "max"), number.then_some(reg.range.1))?;
+        kwargs.set_item(intern!(py, "enum"), members)?;
+        kwargs.set_item(intern!(py, "default"), default)?;
+        kwargs.set_item(intern!(py, "description"), r.description.as_str())?;
+        kwargs.set_item(intern!(py, "line"), r.line)?;
+        row_type.call((), Some(&kwargs))
     }
 }
 
@@ -314,11 +326,12 @@ impl PyProfile {
     /// Every register as a ``ProfileRegister``, in the file's order.
     #[getter]
     fn registers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let row_type = PyProfile::row_type(py)?;
         let rows = self
             .profile
             .registers
             .iter()
-            .map(|r| self.row(py, r))
+            .map(|r| PyProfile::row(py, &row_type, r))
             .collect::<PyResult<Vec<_>>>()?;
         PyTuple::new(py, rows)
     }
@@ -329,7 +342,7 @@ impl PyProfile {
             .find(name)
             .and_then(|i| self.profile.registers.get(i))
             .ok_or_else(|| PyKeyError::new_err(name.to_string()))?;
-        self.row(py, r)
+        PyProfile::row(py, &PyProfile::row_type(py)?, r)
     }
 
     /// Whether a register is called `name`.
