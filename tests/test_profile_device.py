@@ -108,6 +108,21 @@ def test_sensor_enum_by_member_name_and_number(sensor: Rig) -> None:
     assert model.value("baud") == "b9600"
 
 
+def test_enums_are_a_mapping_each_class_made_once(sensor: Rig) -> None:
+    _, dev, _ = sensor
+    assert list(dev.enums) == ["baud"] and len(dev.enums) == 1
+    assert "baud" in dev.enums and "temperature" not in dev.enums
+    assert dev.enums.get("temperature") is None
+    with pytest.raises(KeyError):
+        dev.enums["temperature"]
+    baud = dev.enums["baud"]
+    assert dev.enums["baud"] is baud and dict(dev.enums) == {"baud": baud}
+    assert repr(dev.enums) == f"{{'baud': {baud!r}}}"
+    # Another device of the same profile reads the same class, so members compare alike.
+    other = bb.Device.from_profile(SENSOR, dev.bus, unit=2)
+    assert other.enums["baud"] is baud
+
+
 def test_sensor_checks_before_sending(sensor: Rig) -> None:
     sim, dev, model = sensor
     before = len(sim.requests)
