@@ -123,6 +123,31 @@ def test_enums_are_a_mapping_each_class_made_once(sensor: Rig) -> None:
     assert other.enums["baud"] is baud
 
 
+def test_enum_members_named_like_an_enums_own_attributes_work(tmp_path: Path) -> None:
+    path = tmp_path / "fine.toml"
+    path.write_text(
+        '[device]\nname = "fine"\n[[register]]\nname = "mode"\naddress = 1\n'
+        'enum = { 0 = "name_1", 1 = "name", 2 = "value", 3 = "_9600", 4 = "_Mod__e" }\n'
+    )
+    model = ProfileDevice(path)
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, baudrate=9600, timeout=0.5) as bus:
+        dev = bb.Device.from_profile(path, bus, unit=1)
+        mode = dev.enums["mode"]
+        assert [(m.name, m.value) for m in mode] == [
+            ("name_1", 0),
+            ("name", 1),
+            ("value", 2),
+            ("_9600", 3),
+            ("_Mod__e", 4),
+        ]
+        assert dev.mode is mode["name_1"]
+        dev.mode = "value"
+        assert dev.mode is mode["value"] and model.value("mode") == "value"
+        dev.mode = mode["_9600"]
+        assert dev.mode == 3 and str(dev.mode) == "Mode._9600"
+        assert sim.errors == []
+
+
 def test_sensor_checks_before_sending(sensor: Rig) -> None:
     sim, dev, model = sensor
     before = len(sim.requests)

@@ -242,6 +242,47 @@ def test_every_mistake_is_a_profile_error(tmp_path: Path, body: str, line: int, 
     assert str(err).startswith(f"{path}:{line}: {key}: ")
 
 
+#: Enum member names Python's enum keeps for itself, one of each kind: sunder names of
+#: Enum's own and another, dunder names of Python's and another, the method every class has,
+#: and a private name of the register's enum class (``op_mode`` gives ``OpMode``).
+RESERVED_MEMBERS = [
+    ("_missing_", "_sunder_"),
+    ("_generate_next_value_", "_sunder_"),
+    ("_colour_", "_sunder_"),
+    ("__init__", "__dunder__"),
+    ("__colour__", "__dunder__"),
+    ("mro", "method of every Python class"),
+    ("_OpMode__fast", "private name of the enum OpMode"),
+]
+
+
+@pytest.mark.parametrize(("member", "kind"), RESERVED_MEMBERS)
+def test_an_enum_member_python_keeps_for_itself_is_a_profile_error(
+    tmp_path: Path, member: str, kind: str
+) -> None:
+    register = '[[register]]\nname = "op_mode"\naddress = 1\n\n[register.enum]\n0 = "off"\n'
+    path = write(tmp_path, f'{HEAD}{register}1 = "{member}"\n')  # the member on line 9
+    with pytest.raises(bb.ProfileError) as raised:
+        bb.Profile(path)
+    err = raised.value
+    assert (err.path, err.line, err.key) == (str(path), 9, "register[0].enum.1")
+    assert str(err).startswith(f'{path}:9: register[0].enum.1: "{member}" is a')
+    assert kind in str(err)
+
+
+@pytest.mark.parametrize("register", ["op_mode", "mode", "mode_2", "a__b", "x1_y"])
+def test_the_private_names_refused_are_those_of_the_class_python_makes(register: str) -> None:
+    from benchbus._profile import _camel
+
+    def text(member: str) -> str:
+        return f'{HEAD}[[register]]\nname = "{register}"\naddress = 1\nenum = {{ 1 = "{member}" }}'
+
+    with pytest.raises(bb.ProfileError, match="private name"):
+        bb.Profile.parse(text(f"_{_camel(register)}__fast"))
+    # Another class's private name is a name like any other.
+    assert bb.Profile.parse(text("_Other__fast"))[register].enum[1] == "_Other__fast"
+
+
 def test_a_file_that_is_not_toml_names_its_line(tmp_path: Path) -> None:
     path = write(tmp_path, HEAD + "[[register]]\nname = \n")
     with pytest.raises(bb.ProfileError) as raised:

@@ -142,7 +142,8 @@ def profile_line(profile: Profile) -> LineDefaults:
 
 
 def _camel(name: str) -> str:
-    """``op_mode`` -> ``OpMode``."""
+    """``op_mode`` -> ``OpMode``: the name of a register's enum class. The core's
+    ``enum_class_name`` gives the same, to refuse the class's private names as members."""
     return "".join(part[:1].upper() + part[1:] for part in name.split("_"))
 
 

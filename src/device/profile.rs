@@ -47,6 +47,75 @@ const PYTHON_KEYWORDS: &[&str] = &[
     "with", "yield",
 ];
 
+/// Names Python's `enum` refuses as members of an enum class, beyond the `_sunder_` and
+/// `__dunder__` names [`enum_member_refusal`] refuses by their form: `mro`, the method every
+/// class has ("invalid enum member name").
+pub const ENUM_RESERVED_NAMES: &[&str] = &["mro"];
+
+/// The name of the enum class Python makes for the enum register `register`: its words,
+/// capitalised, joined (`op_mode` gives `OpMode`), as `benchbus._profile` names it.
+pub fn enum_class_name(register: &str) -> String {
+    register
+        .split('_')
+        .flat_map(|word| {
+            let mut chars = word.chars();
+            chars
+                .next()
+                .map(|c| c.to_ascii_uppercase())
+                .into_iter()
+                .chain(chars)
+        })
+        .collect()
+}
+
+/// Why Python's `enum` cannot take `member` as a member of the enum class `class`, or None
+/// for a name it takes. These are Python's rules (`enum.py`, 3.9 to 3.13), each of which
+/// either fails the class's creation or leaves the name out of its members:
+///
+/// - a `_sunder_` name (one underscore each side: `_missing_`, `_generate_next_value_`,
+///   `_order_`, and any other: Enum keeps them for itself);
+/// - a `__dunder__` name (two underscores each side: Python's special names, `__init__`);
+/// - one of [`ENUM_RESERVED_NAMES`] (`mro`);
+/// - a private name of the class (`_Mode__fast` in `Mode`), which Python 3.11 and later
+///   do not make a member, and the bare `_Mode__`, on which 3.9's enum fails.
+///
+/// Names such as `name`, `value`, `_9600` or `name_1` are members like any other.
+pub fn enum_member_refusal(class: &str, member: &str) -> Option<String> {
+    let private = format!("_{class}__");
+    if wrapped(member, 1) {
+        Some(format!(
+            "{member:?} is a _sunder_ name, which Python's enum keeps for itself"
+        ))
+    } else if wrapped(member, 2) {
+        Some(format!(
+            "{member:?} is a __dunder__ name, one of Python's special names"
+        ))
+    } else if ENUM_RESERVED_NAMES.contains(&member) {
+        Some(format!(
+            "{member:?} is a method of every Python class, which an enum member may not shadow"
+        ))
+    } else if member.starts_with(&private)
+        && (member.len() == private.len() || !member.ends_with("__"))
+    {
+        Some(format!(
+            "{member:?} is a private name of the enum {class}, which Python does not make a member"
+        ))
+    } else {
+        None
+    }
+}
+
+/// Whether `name` has `n` underscores each side and no more: a `_sunder_` name for 1, a
+/// `__dunder__` name for 2, as Python's `enum.py` tells them.
+fn wrapped(name: &str, n: usize) -> bool {
+    let bar = "__".get(..n).unwrap_or_default();
+    name.len() > 2 * n
+        && name
+            .strip_prefix(bar)
+            .and_then(|rest| rest.strip_suffix(bar))
+            .is_some_and(|inner| !inner.starts_with('_') && !inner.ends_with('_'))
+}
+
 /// A mistake in a profile file: where it is and what is wrong.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{path}:{line}: {}{message}", if .key.is_empty() { String::new() } else { format!("{}: ", .key) })]
@@ -845,7 +914,7 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         None => (0.0, 0.0),
     };
     let members = match kind {
-        Some(kind) => members(s, kind)?,
+        Some(kind) => members(s, kind, &enum_class_name(name))?,
         None => Vec::new(),
     };
     if !members.is_empty() && (scale != 1.0 || offset != 0.0) {
@@ -991,7 +1060,8 @@ fn range(s: &Section<'_, '_, '_>, kind: Kind, scale: f64, offset: f64) -> Parsed
     Ok((min, max))
 }
 
-fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
+/// The enum of a register whose enum class is `class` (see [`enum_class_name`]).
+fn members(s: &Section<'_, '_, '_>, kind: Kind, class: &str) -> Parsed<Vec<(i128, String)>> {
     let span = s.span_of("enum");
     let table = match s.get("enum").map(Spanned::get_ref) {
         None => return Ok(Vec::new()),
@@ -1032,6 +1102,9 @@ fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
                 value.span(),
                 format!("{member:?} is not a Python identifier"),
             ));
+        }
+        if let Some(refusal) = enum_member_refusal(class, member) {
+            return Err(s.fail(&key_name, value.span(), refusal));
         }
         let new_number = numbers.insert(number);
         if !names.insert(member.as_ref()) || !new_number {
@@ -1449,6 +1522,22 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             6,
             "register[0].enum.0x0",
         );
+        // Names Python's enum keeps for itself, on the member's own line.
+        for reserved in [
+            "_missing_",
+            "_generate_next_value_",
+            "_x_",
+            "__init__",
+            "__x__",
+            "mro",
+            "_A__x",
+        ] {
+            fails(
+                &format!("{R}[register.enum]\n0 = \"ok\"\n1 = \"{reserved}\"\n"),
+                8,
+                "register[0].enum.1",
+            );
+        }
         fails(&format!("{R}enum = {{ 0 = 1 }}\n"), 6, "register[0].enum.0");
         fails(
             &format!("{R}type = \"f32\"\nenum = {{ 0 = \"off\" }}\n"),
@@ -1625,6 +1714,52 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
         }
         let first = Profile::parse("d.toml", &repeated).map_err(|e| e.key);
         assert_eq!(first.err().as_deref(), Some("device.name"));
+    }
+
+    #[test]
+    fn the_names_pythons_enum_refuses() {
+        let refused = |member: &str| enum_member_refusal("OpMode", member).is_some();
+        for name in [
+            "_missing_",
+            "_ignore_",
+            "_a_b_",
+            "__init__",
+            "__x__",
+            "mro",
+            "_OpMode__x",
+            "_OpMode___x",
+            "_OpMode__",
+        ] {
+            assert!(refused(name), "{name}");
+        }
+        // As Python's enum.py draws the lines: neither one nor two underscores each side.
+        for name in [
+            "name",
+            "value",
+            "name_1",
+            "_9600",
+            "_x",
+            "x_",
+            "_",
+            "__",
+            "___",
+            "____",
+            "__a_",
+            "_a__",
+            "___x___",
+            "_OpMode____",
+            "_OpMode__x__",
+            "_Mode__x",
+            "_opmode__x",
+            "mro_",
+        ] {
+            assert!(!refused(name), "{name}");
+        }
+        assert_eq!(enum_class_name("op_mode"), "OpMode");
+        assert_eq!(enum_class_name("mode_2x"), "Mode2x");
+        assert_eq!(enum_class_name("a__b"), "AB");
+        let e = error(&format!("{R}enum = {{ 0 = \"_A__slow\" }}\n"));
+        assert!(e.message.contains("enum A"), "{e}");
     }
 
     #[test]
