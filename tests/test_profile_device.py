@@ -10,6 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from test_profile_parse import big_profile
 
 import benchbus as bb
 from benchbus.sim import ProfileDevice, Simulator
@@ -341,3 +342,20 @@ def test_the_device_opens_its_own_port_at_the_profiles_line() -> None:
             assert dev.humidity == pytest.approx(45.0)
             bus = dev.bus
         assert bus.closed
+
+
+def test_a_device_of_every_address_samples_every_register(tmp_path: Path) -> None:
+    # 65,536 registers, 3.5 MB: made a device and read in 525 requests of 125.
+    path = tmp_path / "big.toml"
+    path.write_text(big_profile(65_536))
+    model = ProfileDevice(path, values={"r00000": "on", "r32769": 5, "r65535": 7})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, baudrate=9600, timeout=0.5) as bus:
+        dev = bb.Device.from_profile(path, bus, unit=1)
+        assert dev.SAMPLE_FIELDS is not None and len(dev.SAMPLE_FIELDS) == 65_536
+        before = len(sim.requests)
+        values = dev.sample()
+        assert len(sim.requests) - before == 525
+        assert list(values) == list(dev.SAMPLE_FIELDS)
+        assert values["r00000"] is dev.enums["r00000"].on and values["r00016"] == 0
+        assert (values["r32769"], values["r65535"], dev.r65535) == (5, 7, 7)
+        assert sim.errors == []
