@@ -573,6 +573,9 @@ impl Profile {
     /// what they should (the cut is made without parsing): the caller then reads it whole.
     fn parse_in_runs(path: &str, text: &str, lines: &Lines) -> Option<Profile> {
         let pieces = Pieces::new(text);
+        if pieces.len() != text.len() {
+            return None;
+        }
         let src = Source {
             path,
             lines,

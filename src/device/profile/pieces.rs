@@ -67,6 +67,11 @@ impl<'t> Pieces<'t> {
         pieces
     }
 
+    /// How much text the pieces hold: the text's length, unless a piece was lost.
+    pub fn len(&self) -> usize {
+        self.rest.len() + self.runs.iter().map(|(_, run)| run.len()).sum::<usize>()
+    }
+
     /// Adds `range` of `text` to the rest.
     fn keep(&mut self, text: &str, range: Range<usize>) {
         if let Some(piece) = text.get(range.clone()).filter(|p| !p.is_empty()) {
@@ -193,6 +198,7 @@ mod tests {
         assert!(pieces.runs.len() > 1, "{}", pieces.runs.len());
         let joined: String = pieces.runs.iter().map(|(_, run)| *run).collect();
         assert_eq!(joined, many);
+        assert_eq!(pieces.len(), text.len());
         for (at, run) in &pieces.runs {
             assert!(run.starts_with("[[register]]"));
             assert_eq!(text.get(*at..*at + run.len()), Some(*run));
