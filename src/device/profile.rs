@@ -94,11 +94,15 @@ pub fn enum_member_refusal(class: &str, member: &str) -> Option<String> {
         Some(format!(
             "{member:?} is a method of every Python class, which an enum member may not shadow"
         ))
-    } else if member.starts_with(&private)
-        && (member.len() == private.len() || !member.ends_with("__"))
-    {
+    } else if member == private {
         Some(format!(
-            "{member:?} is a private name of the enum {class}, which Python does not make a member"
+            "{member:?} is the prefix of the private names of the enum {class}, which \
+             Python 3.9's enum cannot take"
+        ))
+    } else if member.starts_with(&private) && !member.ends_with("__") {
+        Some(format!(
+            "{member:?} is a private name of the enum {class}, which Python 3.11 and later \
+             do not make a member"
         ))
     } else {
         None
