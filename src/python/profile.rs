@@ -188,7 +188,8 @@ impl PyProfile {
     }
 
     /// The register `r` as a ``ProfileRegister`` (`row_type`: that class, looked up once for
-    /// many rows: an import for each made a profile's rows slow).
+    /// many rows). The keywords' names are interned: Python then matches them to the
+    /// parameters by identity, where new strings were compared by their text.
     fn row<'py>(
         py: Python<'py>,
         row_type: &Bound<'py, PyAny>,
