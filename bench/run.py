@@ -847,6 +847,80 @@ def scenario_k(res: Results, plan: Plan, name: str) -> None:
             res.add(key, name, "requests < t3.5 after a reply", "", float(early))
 
 
+def big_profile(registers: int) -> str:
+    """A profile of ``registers`` holding registers at addresses 0 up, named ``r00000`` up:
+    every 16th an enum, every other 4th a scaled i16 with a unit (65,536 take 3.6 MB)."""
+    out = ['[device]\nname = "big"\n']
+    for i in range(registers):
+        out.append(f'\n[[register]]\nname = "r{i:05d}"\naddress = {i}\n')
+        if i % 16 == 0:
+            out.append('enum = { 0 = "off", 1 = "on" }\n')
+        elif i % 4 == 0:
+            out.append('type = "i16"\nscale = 0.1\nunit = "degC"\n')
+    return "".join(out)
+
+
+#: Each step (l) times, run in a child process of its own: what happens before ``t0`` (the
+#: imports, a pseudo-terminal for the device's Bus, the profile for ``to_toml``) is not
+#: counted; the peak is the memory the step added to the process (its largest resident set).
+PROFILE_STEPS = {
+    "bb.Profile": "len(bb.Profile(path))",
+    "Device.from_profile": "bb.Device.from_profile(path, bus).SAMPLE_FIELDS",
+    "benchbus profile check": "main(['profile', 'check', path])",
+    "sim.ProfileDevice": "ProfileDevice(path)",
+    "Profile.to_toml": "loaded.to_toml()",
+}
+_PROFILE_STEP = """
+import contextlib, json, os, resource, sys, time
+import benchbus as bb
+from benchbus.cli import main
+from benchbus.sim import ProfileDevice
+path, step = sys.argv[1], sys.argv[2]
+loaded = bb.Profile(path) if step == "loaded.to_toml()" else None
+_, end = os.openpty()
+bus = bb.Bus(os.ttyname(end))
+with open(os.devnull, "w") as devnull, contextlib.redirect_stdout(devnull):
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+    t0 = time.perf_counter()
+    eval(step)
+    seconds = time.perf_counter() - t0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss - before
+print(json.dumps({"seconds": seconds, "peak": peak * 1024}))
+"""
+
+
+#: The profiles (l) loads, by register count: (quick run, full run).
+PROFILE_SIZES = {False: (1_000, 4_096), True: (16_000, 65_536)}
+
+
+def profile_scenario(registers: int) -> str:
+    """(l)'s scenario for a profile of ``registers``."""
+    return f"l: a profile of {registers:,} registers"
+
+
+def scenario_l(res: Results, plan: Plan, name: str) -> None:
+    """(l) a profile of 16,000 and of 65,536 registers (a 3.6 MB file; 1,000 and 4,096 in a
+    quick run): loaded, made a device, checked by ``benchbus profile check``, simulated and
+    written back, each step's time and peak memory (benchbus alone: the peers read no
+    profiles)."""
+    import tempfile
+
+    if name != "benchbus":
+        return
+    with tempfile.TemporaryDirectory() as folder:
+        for registers in PROFILE_SIZES[plan is FULL]:
+            path = Path(folder) / f"big{registers}.toml"
+            path.write_text(big_profile(registers), encoding="utf-8")
+            key = profile_scenario(registers)
+            for step, code in PROFILE_STEPS.items():
+                for _ in range(plan.repeats):
+                    argv = [sys.executable, "-c", _PROFILE_STEP, str(path), code]
+                    done = subprocess.run(argv, capture_output=True, text=True, check=True)
+                    figures = json.loads(done.stdout.splitlines()[-1])
+                    res.add(key, name, step, "s", figures["seconds"])
+                    res.add(key, name, f"{step}: peak memory", "MB", figures["peak"] / 1e6)
+
+
 SCENARIOS = {
     "a": scenario_a,
     "b": scenario_b,
@@ -859,6 +933,7 @@ SCENARIOS = {
     "i": scenario_i,
     "j": scenario_j,
     "k": scenario_k,
+    "l": scenario_l,
 }
 
 
@@ -997,6 +1072,40 @@ def targets(res: Results) -> list[dict[str, Any]]:
     return out
 
 
+def profile_targets(res: Results) -> list[dict[str, Any]]:
+    """(l)'s targets: 65,536 registers loaded and made a device in well under 2 s; each
+    step's time and memory linear in the registers (judged on the two sizes run: 65,536 is
+    4.1 times 16,000, and a quadratic step would take 17 times as long)."""
+    out: list[dict[str, Any]] = []
+
+    def judge(name: str, value: float, goal: str, ok: bool) -> None:
+        out.append({"target": name, "benchbus": value, "goal": goal, "met": bool(ok)})
+
+    for small, big in PROFILE_SIZES.values():
+        smaller, bigger = profile_scenario(small), profile_scenario(big)
+        if (bigger, "bb.Profile", "benchbus") not in res.figures:
+            continue
+        linear = big / small
+        for step in list(PROFILE_STEPS)[:-1]:  # to_toml takes milliseconds and no new memory
+            for metric in (step, f"{step}: peak memory"):
+                low = res.median(smaller, metric, "benchbus")
+                ratio = res.median(bigger, metric, "benchbus") / low if low > 0 else math.nan
+                goal = f"<= {1.5 * linear:.1f} (linear: {linear:.1f})"
+                judge(
+                    f"(l) {metric}: {big:,} / {small:,} registers",
+                    ratio,
+                    goal,
+                    ratio <= 1.5 * linear,
+                )
+        if big == 65_536:
+            for step in ("bb.Profile", "Device.from_profile"):
+                seconds = res.median(bigger, step, "benchbus")
+                judge(
+                    f"(l) {big:,} registers: {step} [s]", seconds, "< 1 (well under 2)", seconds < 1
+                )
+    return out
+
+
 def table(res: Results) -> str:
     """One row per scenario and metric; per library the median and (min..max)."""
     head = ["scenario", "metric", *LIBRARIES]
@@ -1059,10 +1168,13 @@ def main(argv: list[str] | None = None) -> int:
         "figures": [fig.summary() for fig in res.figures.values()],
     }
     print(table(res))
+    judged = profile_targets(res)
     if set(args.only) >= set("abcdegh") and set(libraries) >= set(LIBRARIES):
-        report["targets"] = targets(res)
+        judged = targets(res) + judged
+    if judged:
+        report["targets"] = judged
         print()
-        for t in report["targets"]:
+        for t in judged:
             mark = "met " if t["met"] else "MISS"
             print(f"{mark} {t['target']}: {fmt(t['benchbus'])} (goal {t['goal']})")
     text = json.dumps(report, indent=1)

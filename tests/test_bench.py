@@ -121,12 +121,16 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
     assert limits["115200 8E1"] == pytest.approx(314.2, abs=0.05)
     figures = report["figures"]
     scenarios = {f["scenario"][0] for f in figures}
-    assert scenarios == set("abcdefghijk")
+    assert scenarios == set("abcdefghijkl")
     for letter in "abcdefghijk":
         libraries = {f["library"] for f in figures if f["scenario"][0] == letter}
         # minimalmodbus has no asyncio client for (j) and (k).
         everyone = {"benchbus", "pymodbus"} | ({"minimalmodbus"} if letter < "j" else set())
         assert libraries == everyone, letter
+    # (l) loads profiles, which only benchbus reads: every step, timed and its memory.
+    loads = {f["metric"] for f in figures if f["scenario"][0] == "l"}
+    assert loads == {m for step in bench_run.PROFILE_STEPS for m in (step, f"{step}: peak memory")}
+    assert {f["library"] for f in figures if f["scenario"][0] == "l"} == {"benchbus"}
     early_by = {
         (f["scenario"], f["library"]): f["max"]
         for f in figures
@@ -144,7 +148,7 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
     judged = {t["target"].split(")")[0] + ")" for t in report["targets"]}
     early = [f for f in figures if f["metric"] == "requests < t3.5 after a reply"]
     assert {f["library"] for f in early} == {"benchbus", "minimalmodbus", "pymodbus"}
-    assert judged == {f"({x})" for x in "abcdeghijk"}
+    assert judged == {f"({x})" for x in "abcdeghijkl"}
     assert all(v == 0 for (scenario, lib), v in early_by.items() if lib == "benchbus")
     assert all(isinstance(t["met"], bool) for t in report["targets"])
     assert "benchbus" in proc.stdout and "ratio to wire limit" in proc.stdout

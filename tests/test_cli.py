@@ -671,6 +671,16 @@ def test_profile_check_prints_the_table_and_refuses_a_mistake_with_its_line(
     assert "No such file" in one_line_error(run("profile", "check", tmp_path / "none.toml"), 2)
 
 
+def test_profile_check_refuses_an_enum_member_python_keeps_for_itself(tmp_path: Path) -> None:
+    bad = tmp_path / "enum.toml"
+    bad.write_text(
+        '[device]\nname = "x"\n[[register]]\nname = "mode"\naddress = 1\n'
+        'enum = { 0 = "off", 1 = "_missing_" }\n'
+    )
+    message = one_line_error(run("profile", "check", bad), 2)
+    assert f'{bad}:6: register[0].enum.1: "_missing_" is a _sunder_ name' in message
+
+
 def test_profile_export_writes_a_family_as_a_profile_that_reads_back(tmp_path: Path) -> None:
     text = run("profile", "export", "j2")
     lines = ok(text)

@@ -10,6 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from test_profile_parse import big_profile
 
 import benchbus as bb
 from benchbus.sim import ProfileDevice, Simulator
@@ -106,6 +107,46 @@ def test_sensor_enum_by_member_name_and_number(sensor: Rig) -> None:
     assert sim.requests[-1] == frame(0x06, 0x01, 0x02, 0x00, 0x01)
     dev.write("baud", 0)
     assert model.value("baud") == "b9600"
+
+
+def test_enums_are_a_mapping_each_class_made_once(sensor: Rig) -> None:
+    _, dev, _ = sensor
+    assert list(dev.enums) == ["baud"] and len(dev.enums) == 1
+    assert "baud" in dev.enums and "temperature" not in dev.enums
+    assert dev.enums.get("temperature") is None
+    with pytest.raises(KeyError):
+        dev.enums["temperature"]
+    baud = dev.enums["baud"]
+    assert dev.enums["baud"] is baud and dict(dev.enums) == {"baud": baud}
+    assert repr(dev.enums) == f"{{'baud': {baud!r}}}"
+    # Another device of the same profile reads the same class, so members compare alike.
+    other = bb.Device.from_profile(SENSOR, dev.bus, unit=2)
+    assert other.enums["baud"] is baud
+
+
+def test_enum_members_named_like_an_enums_own_attributes_work(tmp_path: Path) -> None:
+    path = tmp_path / "fine.toml"
+    path.write_text(
+        '[device]\nname = "fine"\n[[register]]\nname = "mode"\naddress = 1\n'
+        'enum = { 0 = "name_1", 1 = "name", 2 = "value", 3 = "_9600", 4 = "_Mod__e" }\n'
+    )
+    model = ProfileDevice(path)
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, baudrate=9600, timeout=0.5) as bus:
+        dev = bb.Device.from_profile(path, bus, unit=1)
+        mode = dev.enums["mode"]
+        assert [(m.name, m.value) for m in mode] == [
+            ("name_1", 0),
+            ("name", 1),
+            ("value", 2),
+            ("_9600", 3),
+            ("_Mod__e", 4),
+        ]
+        assert dev.mode is mode["name_1"]
+        dev.mode = "value"
+        assert dev.mode is mode["value"] and model.value("mode") == "value"
+        dev.mode = mode["_9600"]
+        assert dev.mode == 3 and str(dev.mode) == "Mode._9600"
+        assert sim.errors == []
 
 
 def test_sensor_checks_before_sending(sensor: Rig) -> None:
@@ -301,3 +342,20 @@ def test_the_device_opens_its_own_port_at_the_profiles_line() -> None:
             assert dev.humidity == pytest.approx(45.0)
             bus = dev.bus
         assert bus.closed
+
+
+def test_a_device_of_every_address_samples_every_register(tmp_path: Path) -> None:
+    # 65,536 registers, 3.5 MB: made a device and read in 525 requests of 125.
+    path = tmp_path / "big.toml"
+    path.write_text(big_profile(65_536))
+    model = ProfileDevice(path, values={"r00000": "on", "r32769": 5, "r65535": 7})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, baudrate=9600, timeout=0.5) as bus:
+        dev = bb.Device.from_profile(path, bus, unit=1)
+        assert dev.SAMPLE_FIELDS is not None and len(dev.SAMPLE_FIELDS) == 65_536
+        before = len(sim.requests)
+        values = dev.sample()
+        assert len(sim.requests) - before == 525
+        assert list(values) == list(dev.SAMPLE_FIELDS)
+        assert values["r00000"] is dev.enums["r00000"].on and values["r00016"] == 0
+        assert (values["r32769"], values["r65535"], dev.r65535) == (5, 7, 7)
+        assert sim.errors == []

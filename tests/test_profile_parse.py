@@ -242,6 +242,47 @@ def test_every_mistake_is_a_profile_error(tmp_path: Path, body: str, line: int, 
     assert str(err).startswith(f"{path}:{line}: {key}: ")
 
 
+#: Enum member names Python's enum keeps for itself, one of each kind: sunder names of
+#: Enum's own and another, dunder names of Python's and another, the method every class has,
+#: and a private name of the register's enum class (``op_mode`` gives ``OpMode``).
+RESERVED_MEMBERS = [
+    ("_missing_", "_sunder_"),
+    ("_generate_next_value_", "_sunder_"),
+    ("_colour_", "_sunder_"),
+    ("__init__", "__dunder__"),
+    ("__colour__", "__dunder__"),
+    ("mro", "method of every Python class"),
+    ("_OpMode__fast", "private name of the enum OpMode"),
+]
+
+
+@pytest.mark.parametrize(("member", "kind"), RESERVED_MEMBERS)
+def test_an_enum_member_python_keeps_for_itself_is_a_profile_error(
+    tmp_path: Path, member: str, kind: str
+) -> None:
+    register = '[[register]]\nname = "op_mode"\naddress = 1\n\n[register.enum]\n0 = "off"\n'
+    path = write(tmp_path, f'{HEAD}{register}1 = "{member}"\n')  # the member on line 9
+    with pytest.raises(bb.ProfileError) as raised:
+        bb.Profile(path)
+    err = raised.value
+    assert (err.path, err.line, err.key) == (str(path), 9, "register[0].enum.1")
+    assert str(err).startswith(f'{path}:9: register[0].enum.1: "{member}" is a')
+    assert kind in str(err)
+
+
+@pytest.mark.parametrize("register", ["op_mode", "mode", "mode_2", "a__b", "x1_y"])
+def test_the_private_names_refused_are_those_of_the_class_python_makes(register: str) -> None:
+    from benchbus._profile import _camel
+
+    def text(member: str) -> str:
+        return f'{HEAD}[[register]]\nname = "{register}"\naddress = 1\nenum = {{ 1 = "{member}" }}'
+
+    with pytest.raises(bb.ProfileError, match="private name"):
+        bb.Profile.parse(text(f"_{_camel(register)}__fast"))
+    # Another class's private name is a name like any other.
+    assert bb.Profile.parse(text("_Other__fast"))[register].enum[1] == "_Other__fast"
+
+
 def test_a_file_that_is_not_toml_names_its_line(tmp_path: Path) -> None:
     path = write(tmp_path, HEAD + "[[register]]\nname = \n")
     with pytest.raises(bb.ProfileError) as raised:
@@ -260,3 +301,50 @@ def test_a_missing_file(tmp_path: Path) -> None:
 def test_the_path_must_be_a_path() -> None:
     with pytest.raises(TypeError):
         bb.Profile(3)  # type: ignore[arg-type]
+
+
+def big_profile(registers: int) -> str:
+    """``registers`` holding registers at 0 up, named ``r00000`` up, five lines each after
+    two of [device] (the header on the second): every 16th an enum, the others with a unit
+    (every 4th "degC"). bench/run.py's scenario (l) times profiles like it."""
+    out = ['[device]\nname = "big"\n']
+    for i in range(registers):
+        out.append(f'\n[[register]]\nname = "r{i:05d}"\naddress = {i}\n')
+        if i % 16 == 0:
+            out.append('enum = { 0 = "off", 1 = "on" }\n')
+        else:
+            out.append(f'unit = "{"degC" if i % 4 == 0 else ""}"\n')
+    return "".join(out)
+
+
+def test_a_profile_of_every_address_loads_every_register(tmp_path: Path) -> None:
+    # 65,536 registers: the whole address space of a table, 3.5 MB. Loading is linear in
+    # the registers (bench/run.py's scenario (l) measures it; it was quadratic).
+    path = write(tmp_path, big_profile(65_536))
+    profile = bb.Profile(path)
+    rows = profile.registers
+    assert len(profile) == len(rows) == 65_536
+    first, last = rows[0], rows[-1]
+    assert (first.name, first.address, first.line) == ("r00000", 0, 4)
+    assert (last.name, last.address, last.line) == ("r65535", 65_535, 4 + 5 * 65_535)
+    assert first.enum == {0: "off", 1: "on"} and last.enum == {} and last.unit == ""
+    assert [r.address for r in rows] == list(range(65_536))
+    assert profile["r65532"].unit == "degC" and profile["r65520"].enum == {0: "off", 1: "on"}
+    assert "r65535" in profile and "r65536" not in profile
+    # One request for each 125 registers, in address order.
+    plan = profile.plan([r.name for r in reversed(rows)])
+    assert len(plan) == 525 and plan[0][:3] == ("holding", 0, 125)
+    assert plan[-1][:3] == ("holding", 65_500, 36) and plan[-1][3][-1] == "r65535"
+    # Written back, it reads the same.
+    again = bb.Profile.parse(profile.to_toml(), "again.toml")
+    assert [r._replace(line=0) for r in again.registers] == [r._replace(line=0) for r in rows]
+
+
+def test_a_mistake_at_the_end_of_a_big_profile_names_its_line(tmp_path: Path) -> None:
+    text = big_profile(20_000) + '[[register]]\nname = "r00007"\naddress = 20000\n'
+    path = write(tmp_path, text)
+    with pytest.raises(bb.ProfileError) as raised:
+        bb.Profile(path)
+    err = raised.value
+    assert (err.line, err.key) == (4 + 5 * 20_000, "register[20000].name")
+    assert "duplicate name" in str(err)

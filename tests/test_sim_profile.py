@@ -274,6 +274,7 @@ address = 1
         ('[[register]]\nname = "b"\naddress = 9\ntable = "input"\naccess = "rw"\n', "read-only"),
         ('[[register]]\nname = "b"\naddress = 9\ncolour = 1\n', "colour"),
         ('[[register]]\nname = "b"\naddress = 9\nenum = { x = "on" }\n', "enum key"),
+        ('[[register]]\nname = "b"\naddress = 9\nenum = { 0 = "on", 1 = "on" }\n', "twice"),
         ('[[register]]\nname = "b"\naddress = 9\nmin = 5\nmax = 1\n', "above max"),
         ('[[register]]\nname = "b"\naddress = 9\nmax = 10\ndefault = 11\n', "default"),
         ('[[register]]\nname = "b"\naddress = 9\ntype = "string"\n', "length"),

@@ -54,7 +54,7 @@ class DeviceMembers:
 
     async def close(self) -> None:
         """Close the Bus if the device opened it (a shared Bus stays open)."""
-    enums: dict[str, type[PrintableIntEnum]]
+    enums: Mapping[str, type[PrintableIntEnum]]
     "Each enum register's enum class, by register name."
 
     async def get(self, name: str) -> Any:

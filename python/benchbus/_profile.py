@@ -10,6 +10,8 @@ from __future__ import annotations
 
 import functools
 import os
+import threading
+from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from benchbus._core import Bus, Profile, ProfileCore
@@ -140,7 +142,8 @@ def profile_line(profile: Profile) -> LineDefaults:
 
 
 def _camel(name: str) -> str:
-    """``op_mode`` -> ``OpMode``."""
+    """``op_mode`` -> ``OpMode``: the name of a register's enum class. The core's
+    ``enum_class_name`` gives the same, to refuse the class's private names as members."""
     return "".join(part[:1].upper() + part[1:] for part in name.split("_"))
 
 
@@ -149,6 +152,48 @@ def _enum(name: str, members: tuple[tuple[str, int], ...]) -> type[PrintableIntE
     """The enum of a register called ``name`` (one class per definition)."""
     made: type[PrintableIntEnum] = PrintableIntEnum(_camel(name), members)  # type: ignore[call-arg, arg-type, assignment]
     return made
+
+
+#: Held while an enum class is made, so that threads sharing a device get the same class.
+_MAKING = threading.Lock()
+
+
+class _Enums(Mapping[str, type[PrintableIntEnum]]):
+    """A device's enum classes by register name, each made when first asked for: a class
+    costs about 0.1 ms and 3 KB, and a profile may have thousands of enum registers."""
+
+    def __init__(self, members: dict[str, dict[int, str]]) -> None:
+        """The enums of the registers ``members`` names, each ``{number: name}``."""
+        self._members = members
+        self._made: dict[str, type[PrintableIntEnum]] = {}
+
+    def __getitem__(self, name: str) -> type[PrintableIntEnum]:
+        """The enum class of the register ``name`` (KeyError for a register without one)."""
+        made = self._made.get(name)
+        if made is None:
+            members = self._members[name]
+            with _MAKING:
+                made = self._made.get(name)
+                if made is None:
+                    made = _enum(name, tuple((member, n) for n, member in members.items()))
+                    self._made[name] = made
+        return made
+
+    def __contains__(self, name: object) -> bool:
+        """Whether the register ``name`` has an enum."""
+        return name in self._members
+
+    def __iter__(self) -> Iterator[str]:
+        """The enum registers' names, in the profile's order."""
+        return iter(self._members)
+
+    def __len__(self) -> int:
+        """How many registers have an enum."""
+        return len(self._members)
+
+    def __repr__(self) -> str:
+        """As a dict of the classes shows."""
+        return repr(dict(self.items()))
 
 
 def as_profile(profile: Profile | str | os.PathLike[str]) -> Profile:
@@ -196,7 +241,7 @@ class Device(ProfileCore, BusDevice):
     #: Line format and reply timeout when the profile says nothing of them.
     LINE_DEFAULTS = PROFILE_LINE
     #: Each enum register's enum class, by register name.
-    enums: dict[str, type[PrintableIntEnum]]
+    enums: Mapping[str, type[PrintableIntEnum]]
     #: The readable registers :meth:`sample` gives (every readable one but strings).
     SAMPLE_FIELDS: tuple[str, ...] | None
 
@@ -211,14 +256,9 @@ class Device(ProfileCore, BusDevice):
     ) -> None:
         """The device ``profile`` describes at ``unit``; see :meth:`from_profile`."""
         checked = as_profile(profile)
-        self.enums = {
-            r.name: _enum(r.name, tuple((member, n) for n, member in r.enum.items()))
-            for r in checked.registers
-            if r.enum
-        }
-        self.SAMPLE_FIELDS = tuple(
-            r.name for r in checked.registers if r.access != "w" and r.type != "string"
-        )
+        rows = checked.registers
+        self.enums = _Enums({r.name: r.enum for r in rows if r.enum})
+        self.SAMPLE_FIELDS = tuple(r.name for r in rows if r.access != "w" and r.type != "string")
         self._on_line(
             port_or_bus,
             unit,

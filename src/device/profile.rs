@@ -6,10 +6,13 @@
 
 use super::value::{Kind, Layout};
 use super::{Access, Register, Table};
+use pieces::Pieces;
 use std::collections::{BTreeMap, HashSet};
 use std::ops::Range;
 use toml::de::{DeTable, DeValue};
 use toml::Spanned;
+
+mod pieces;
 
 /// Names a profile register may not take: the members every profile device has.
 pub const RESERVED_NAMES: &[&str] = &[
@@ -43,6 +46,79 @@ const PYTHON_KEYWORDS: &[&str] = &[
     "in", "is", "lambda", "nonlocal", "not", "or", "pass", "raise", "return", "try", "while",
     "with", "yield",
 ];
+
+/// Names Python's `enum` refuses as members of an enum class, beyond the `_sunder_` and
+/// `__dunder__` names [`enum_member_refusal`] refuses by their form: `mro`, the method every
+/// class has ("invalid enum member name").
+pub const ENUM_RESERVED_NAMES: &[&str] = &["mro"];
+
+/// The name of the enum class Python makes for the enum register `register`: its words,
+/// capitalised, joined (`op_mode` gives `OpMode`), as `benchbus._profile` names it.
+pub fn enum_class_name(register: &str) -> String {
+    register
+        .split('_')
+        .flat_map(|word| {
+            let mut chars = word.chars();
+            chars
+                .next()
+                .map(|c| c.to_ascii_uppercase())
+                .into_iter()
+                .chain(chars)
+        })
+        .collect()
+}
+
+/// Why Python's `enum` cannot take `member` as a member of the enum class `class`, or None
+/// for a name it takes. These are Python's rules (`enum.py`, 3.9 to 3.13), each of which
+/// either fails the class's creation or leaves the name out of its members:
+///
+/// - a `_sunder_` name (one underscore each side: `_missing_`, `_generate_next_value_`,
+///   `_order_`, and any other: Enum keeps them for itself);
+/// - a `__dunder__` name (two underscores each side: Python's special names, `__init__`);
+/// - one of [`ENUM_RESERVED_NAMES`] (`mro`);
+/// - a private name of the class (`_Mode__fast` in `Mode`), which Python 3.11 and later
+///   do not make a member, and the bare `_Mode__`, on which 3.9's enum fails.
+///
+/// Names such as `name`, `value`, `_9600` or `name_1` are members like any other.
+pub fn enum_member_refusal(class: &str, member: &str) -> Option<String> {
+    let private = format!("_{class}__");
+    if wrapped(member, 1) {
+        Some(format!(
+            "{member:?} is a _sunder_ name, which Python's enum keeps for itself"
+        ))
+    } else if wrapped(member, 2) {
+        Some(format!(
+            "{member:?} is a __dunder__ name, one of Python's special names"
+        ))
+    } else if ENUM_RESERVED_NAMES.contains(&member) {
+        Some(format!(
+            "{member:?} is a method of every Python class, which an enum member may not shadow"
+        ))
+    } else if member == private {
+        Some(format!(
+            "{member:?} is the prefix of the private names of the enum {class}, which \
+             Python 3.9's enum cannot take"
+        ))
+    } else if member.starts_with(&private) && !member.ends_with("__") {
+        Some(format!(
+            "{member:?} is a private name of the enum {class}, which Python 3.11 and later \
+             do not make a member"
+        ))
+    } else {
+        None
+    }
+}
+
+/// Whether `name` has `n` underscores each side and no more: a `_sunder_` name for 1, a
+/// `__dunder__` name for 2, as Python's `enum.py` tells them.
+fn wrapped(name: &str, n: usize) -> bool {
+    let bar = "__".get(..n).unwrap_or_default();
+    name.len() > 2 * n
+        && name
+            .strip_prefix(bar)
+            .and_then(|rest| rest.strip_suffix(bar))
+            .is_some_and(|inner| !inner.starts_with('_') && !inner.ends_with('_'))
+}
 
 /// A mistake in a profile file: where it is and what is wrong.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
@@ -181,23 +257,54 @@ pub struct Profile {
 }
 
 type Fail = Box<ProfileError>;
-/// The registers that take one address: (index in the file, bit or None).
-type Owners = Vec<(usize, Option<u8>)>;
 type Parsed<T> = std::result::Result<T, Fail>;
 
-/// Where the parser is: the file's name and text, to turn spans into lines.
+/// Where each line of a file starts, to turn a byte offset into its line by a binary search
+/// (counting the newlines before every key instead made loading quadratic in the file's
+/// size).
+struct Lines {
+    starts: Vec<usize>,
+}
+
+impl Lines {
+    fn new(text: &str) -> Lines {
+        let newlines = text.bytes().enumerate().filter(|(_, b)| *b == b'\n');
+        let starts = std::iter::once(0)
+            .chain(newlines.map(|(at, _)| at + 1))
+            .collect();
+        Lines { starts }
+    }
+
+    /// The line (from 1) of the byte at `offset`.
+    fn line(&self, offset: usize) -> usize {
+        self.starts.partition_point(|start| *start <= offset)
+    }
+}
+
+/// Where the parser is: the file's name and lines, to turn spans into lines.
 struct Source<'a> {
     path: &'a str,
-    text: &'a str,
+    lines: &'a Lines,
+    /// Where the text parsed lies in the file: (offset in the text, offset in the file) of
+    /// each of its pieces, ascending (`[(0, 0)]` for the whole file).
+    at: &'a [(usize, usize)],
 }
 
 impl Source<'_> {
+    /// The line (from 1) of the byte at `offset` of the text parsed.
+    fn line(&self, offset: usize) -> usize {
+        let piece = self.at.partition_point(|(from, _)| *from <= offset);
+        let in_file = match piece.checked_sub(1).and_then(|p| self.at.get(p)) {
+            Some((from, to)) => to + (offset - from),
+            None => offset,
+        };
+        self.lines.line(in_file)
+    }
+
     fn fail(&self, span: Range<usize>, key: &str, message: impl Into<String>) -> Fail {
-        let start = span.start.min(self.text.len());
-        let line = self.text.get(..start).unwrap_or("").matches('\n').count() + 1;
         Box::new(ProfileError {
             path: self.path.to_string(),
-            line,
+            line: self.line(span.start),
             key: key.to_string(),
             message: message.into(),
         })
@@ -420,7 +527,23 @@ impl Profile {
     /// # Errors
     /// A [`ProfileError`] for the first mistake in it.
     pub fn parse(path: &str, text: &str) -> Result<Profile, Box<ProfileError>> {
-        let src = Source { path, text };
+        let lines = Lines::new(text);
+        // The registers a run at a time where the file allows it: the whole file's TOML
+        // tree takes about 45 bytes for each byte of the file. A file with a mistake is read
+        // whole, so that its mistake is the one reading it whole finds first.
+        match Profile::parse_in_runs(path, text, &lines) {
+            Some(profile) => Ok(profile),
+            None => Profile::parse_whole(path, text, &lines),
+        }
+    }
+
+    /// The profile `text` read as one TOML document.
+    fn parse_whole(path: &str, text: &str, lines: &Lines) -> Parsed<Profile> {
+        let src = Source {
+            path,
+            lines,
+            at: &[(0, 0)],
+        };
         let root = DeTable::parse(text).map_err(|e| {
             let span = e.span().unwrap_or(0..0);
             src.fail(span, "", e.message().trim().to_string())
@@ -431,6 +554,88 @@ impl Profile {
             prefix: String::new(),
             span: root.span(),
         };
+        Profile::checked(path, &top, || {
+            let mut registers = RegisterSet::default();
+            match top.get("register").map(|v| (v.get_ref(), v.span())) {
+                None => {}
+                Some((DeValue::Array(items), _)) => registers.add(&top, items)?,
+                Some((other, span)) => {
+                    return Err(src.fail(
+                        span,
+                        "register",
+                        wrong("an array of tables ([[register]])", other),
+                    ))
+                }
+            }
+            Ok(registers.out)
+        })
+    }
+
+    /// The profile `text` read as [`Pieces`]: the tables other than the registers as one
+    /// TOML document, then the registers a run of tables at a time, each run's tree dropped
+    /// before the next is read. None for a file with a mistake, or whose pieces do not hold
+    /// what they should (the cut is made without parsing): the caller then reads it whole.
+    fn parse_in_runs(path: &str, text: &str, lines: &Lines) -> Option<Profile> {
+        let pieces = Pieces::new(text);
+        if pieces.len() != text.len() {
+            return None;
+        }
+        let src = Source {
+            path,
+            lines,
+            at: &pieces.rest_at,
+        };
+        let root = DeTable::parse(&pieces.rest).ok()?;
+        let top = Section {
+            src: &src,
+            table: root.get_ref(),
+            prefix: String::new(),
+            span: root.span(),
+        };
+        if top.get("register").is_some() {
+            return None;
+        }
+        Profile::checked(path, &top, || {
+            let mut registers = RegisterSet::default();
+            for (start, run) in &pieces.runs {
+                let at = [(0, *start)];
+                let run_src = Source {
+                    path,
+                    lines,
+                    at: &at,
+                };
+                let cut_wrong = || run_src.fail(0..0, "register", "the cut was wrong");
+                let run_root = DeTable::parse(run).map_err(|_| cut_wrong())?;
+                // A run holds registers only, else the cut was wrong.
+                let mut entries = run_root.get_ref().iter();
+                let (Some((key, value)), None) = (entries.next(), entries.next()) else {
+                    return Err(cut_wrong());
+                };
+                let (DeValue::Array(items), "register") = (value.get_ref(), key.get_ref().as_ref())
+                else {
+                    return Err(cut_wrong());
+                };
+                let run_top = Section {
+                    src: &run_src,
+                    table: run_root.get_ref(),
+                    prefix: String::new(),
+                    span: run_root.span(),
+                };
+                registers.add(&run_top, items)?;
+            }
+            Ok(registers.out)
+        })
+        .ok()
+    }
+
+    /// The profile of the file whose top table is `top`: its sections checked, then its
+    /// `registers` read, then their widths.
+    fn checked(
+        path: &str,
+        top: &Section<'_, '_, '_>,
+        registers: impl FnOnce() -> Parsed<Vec<ProfileRegister>>,
+    ) -> Parsed<Profile> {
+        let src = top.src;
         for (key, _) in top.table.iter() {
             if !TOP_KEYS.contains(&key.get_ref().as_ref()) {
                 return Err(src.fail(
@@ -440,7 +645,7 @@ impl Profile {
                 ));
             }
         }
-        let device = sub(&top, "device")?
+        let device = sub(top, "device")?
             .ok_or_else(|| src.fail(0..0, "device", "missing [device] with its name"))?;
         device.known(DEVICE_KEYS)?;
         let name = device
@@ -450,21 +655,20 @@ impl Profile {
             return Err(device.fail("name", device.span_of("name"), "must not be empty"));
         }
         let description = device.string("description")?.unwrap_or("").to_string();
-        let line = match sub(&top, "line")? {
+        let line = match sub(top, "line")? {
             Some(s) => line_settings(&s)?,
             None => LineSettings::default(),
         };
-        let limits = match sub(&top, "limits")? {
+        let limits = match sub(top, "limits")? {
             Some(s) => limits(&s)?,
             None => Limits::default(),
         };
-        let registers = registers(&top)?;
         let profile = Profile {
             name: name.to_string(),
             description,
             line,
             limits,
-            registers,
+            registers: registers()?,
         };
         profile.check_widths(path)?;
         Ok(profile)
@@ -559,71 +763,78 @@ fn limits(s: &Section<'_, '_, '_>) -> Parsed<Limits> {
     })
 }
 
-fn registers(top: &Section<'_, '_, '_>) -> Parsed<Vec<ProfileRegister>> {
-    let items = match top.get("register").map(|v| (v.get_ref(), v.span())) {
-        None => return Ok(Vec::new()),
-        Some((DeValue::Array(a), _)) => a,
-        Some((other, span)) => {
-            return Err(top.src.fail(
-                span,
-                "register",
-                wrong("an array of tables ([[register]])", other),
-            ))
-        }
-    };
-    let mut out: Vec<ProfileRegister> = Vec::new();
-    let mut names: HashSet<String> = HashSet::new();
-    // Per table: the registers (or bits) taken, by address: (owner index, bit or None).
-    let mut taken: BTreeMap<(u8, u32), Owners> = BTreeMap::new();
-    for (index, item) in items.iter().enumerate() {
-        let prefix = format!("register[{index}]");
-        let DeValue::Table(table) = item.get_ref() else {
-            return Err(top.src.fail(item.span(), &prefix, "must be a table"));
-        };
-        let s = Section {
-            src: top.src,
-            table,
-            prefix,
-            span: item.span(),
-        };
-        let reg = register(&s)?;
-        if !names.insert(reg.register.name.clone()) {
-            return Err(s.fail(
-                "name",
-                s.span_of("name"),
-                format!("duplicate name {:?}", reg.register.name),
-            ));
-        }
-        let table_id = reg.table as u8;
-        let bit = match reg.value {
-            ValueType::Bool { bit } => bit,
-            _ => None,
-        };
-        for address in
-            u32::from(reg.register.address)..u32::from(reg.register.address) + reg.value.width()
-        {
-            let owners = taken.entry((table_id, address)).or_default();
-            for (other, other_bit) in owners.iter() {
-                let shared = matches!((bit, other_bit), (Some(a), Some(b)) if a != *b);
-                if !shared {
-                    let other_name = out.get(*other).map_or("", |r| r.register.name.as_str());
+/// The registers read so far, and what a register read next must not repeat.
+#[derive(Default)]
+struct RegisterSet {
+    out: Vec<ProfileRegister>,
+    names: HashSet<String>,
+    /// The addresses taken, each (table, address, bit or [`WHOLE`]) with the index in the
+    /// file of the register that takes it.
+    taken: BTreeMap<(u8, u32, u8), usize>,
+}
+
+/// In [`RegisterSet::taken`], for a register taken whole (not one of its bits).
+const WHOLE: u8 = 16;
+
+impl RegisterSet {
+    /// Checks the `[[register]]` tables `items` of the document `top`, and adds them.
+    fn add(&mut self, top: &Section<'_, '_, '_>, items: &[Spanned<DeValue<'_>>]) -> Parsed<()> {
+        self.out.reserve(items.len());
+        for item in items {
+            let index = self.out.len();
+            let prefix = format!("register[{index}]");
+            let DeValue::Table(table) = item.get_ref() else {
+                return Err(top.src.fail(item.span(), &prefix, "must be a table"));
+            };
+            let s = Section {
+                src: top.src,
+                table,
+                prefix,
+                span: item.span(),
+            };
+            let reg = register(&s)?;
+            if !self.names.insert(reg.register.name.clone()) {
+                return Err(s.fail(
+                    "name",
+                    s.span_of("name"),
+                    format!("duplicate name {:?}", reg.register.name),
+                ));
+            }
+            let table_id = reg.table as u8;
+            let bit = match reg.value {
+                ValueType::Bool { bit } => bit,
+                _ => None,
+            };
+            let first = u32::from(reg.register.address);
+            for address in first..first + reg.value.width() {
+                // A bit shares its register with other bits only.
+                let at = |b: u8| (table_id, address, b);
+                let other = match bit {
+                    None => self.taken.range(at(0)..=at(WHOLE)).map(|(_, i)| *i).min(),
+                    Some(b) => [at(b), at(WHOLE)]
+                        .iter()
+                        .filter_map(|k| self.taken.get(k).copied())
+                        .min(),
+                };
+                if let Some(other) = other {
+                    let other_name = self.out.get(other).map_or("", |r| r.register.name.as_str());
                     return Err(s.fail(
                         "address",
                         s.span_of("address"),
                         format!("{address:#06x} overlaps {other_name:?}"),
                     ));
                 }
+                self.taken.insert(at(bit.unwrap_or(WHOLE)), index);
             }
-            owners.push((index, bit));
+            self.out.push(reg);
         }
-        out.push(reg);
+        Ok(())
     }
-    Ok(out)
 }
 
 fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
     s.known(REGISTER_KEYS)?;
-    let line = s.src.fail(s.span.clone(), "", "").line;
+    let line = s.src.line(s.span.start);
     let name = s
         .string("name")?
         .ok_or_else(|| s.fail("name", s.span.clone(), "missing (required)"))?;
@@ -710,7 +921,7 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         None => (0.0, 0.0),
     };
     let members = match kind {
-        Some(kind) => members(s, kind)?,
+        Some(kind) => members(s, kind, &enum_class_name(name))?,
         None => Vec::new(),
     };
     if !members.is_empty() && (scale != 1.0 || offset != 0.0) {
@@ -856,7 +1067,8 @@ fn range(s: &Section<'_, '_, '_>, kind: Kind, scale: f64, offset: f64) -> Parsed
     Ok((min, max))
 }
 
-fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
+/// The enum of a register whose enum class is `class` (see [`enum_class_name`]).
+fn members(s: &Section<'_, '_, '_>, kind: Kind, class: &str) -> Parsed<Vec<(i128, String)>> {
     let span = s.span_of("enum");
     let table = match s.get("enum").map(Spanned::get_ref) {
         None => return Ok(Vec::new()),
@@ -873,7 +1085,9 @@ fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
     if table.is_empty() {
         return Err(s.fail("enum", span, "must name at least one member"));
     }
-    let mut out: Vec<(i128, String)> = Vec::new();
+    let mut out: Vec<(i128, String)> = Vec::with_capacity(table.len());
+    let mut numbers: HashSet<i128> = HashSet::with_capacity(table.len());
+    let mut names: HashSet<&str> = HashSet::with_capacity(table.len());
     for (key, value) in table.iter() {
         let text: &str = key.get_ref();
         let key_name = format!("enum.{text}");
@@ -896,10 +1110,11 @@ fn members(s: &Section<'_, '_, '_>, kind: Kind) -> Parsed<Vec<(i128, String)>> {
                 format!("{member:?} is not a Python identifier"),
             ));
         }
-        if out
-            .iter()
-            .any(|(n, m)| *n == number || m == member.as_ref())
-        {
+        if let Some(refusal) = enum_member_refusal(class, member) {
+            return Err(s.fail(&key_name, value.span(), refusal));
+        }
+        let new_number = numbers.insert(number);
+        if !names.insert(member.as_ref()) || !new_number {
             return Err(s.fail(
                 &key_name,
                 key.span(),
@@ -1308,6 +1523,28 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             6,
             "register[0].enum.1",
         );
+        // The same number written twice.
+        fails(
+            &format!("{R}enum = {{ 0 = \"off\", 0x0 = \"on\" }}\n"),
+            6,
+            "register[0].enum.0x0",
+        );
+        // Names Python's enum keeps for itself, on the member's own line.
+        for reserved in [
+            "_missing_",
+            "_generate_next_value_",
+            "_x_",
+            "__init__",
+            "__x__",
+            "mro",
+            "_A__x",
+        ] {
+            fails(
+                &format!("{R}[register.enum]\n0 = \"ok\"\n1 = \"{reserved}\"\n"),
+                8,
+                "register[0].enum.1",
+            );
+        }
         fails(&format!("{R}enum = {{ 0 = 1 }}\n"), 6, "register[0].enum.0");
         fails(
             &format!("{R}type = \"f32\"\nenum = {{ 0 = \"off\" }}\n"),
@@ -1412,6 +1649,133 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             3,
             "register[0].length",
         );
+    }
+
+    /// `text` read a run of registers at a time, and read whole.
+    fn both_ways(text: &str) -> (Option<Profile>, Parsed<Profile>) {
+        let lines = Lines::new(text);
+        (
+            Profile::parse_in_runs("d.toml", text, &lines),
+            Profile::parse_whole("d.toml", text, &lines),
+        )
+    }
+
+    #[test]
+    fn read_in_runs_a_profile_is_the_one_read_whole() {
+        let register = |n: usize| {
+            format!(
+                "\n[[register]] # {n}\nname = \"r{n}\"\naddress = {n}\n\
+                 description = \"\"\"\n[[register]]\"\"\"\n[register.enum]\n0 = \"off\"\n"
+            )
+        };
+        let many: String = (0..3000).map(register).collect();
+        let texts = [
+            EXAMPLE.to_string(),
+            format!("[device]\nname = \"d\"\n{many}"),
+            // Sections after the registers, and keys before any section.
+            format!("[limits]\nmax_read = 9\n{many}[device]\nname = \"d\"\n"),
+        ];
+        for text in &texts {
+            let (runs, whole) = both_ways(text);
+            let whole = whole.map_err(|e| e.to_string());
+            assert!(whole.is_ok(), "{whole:?}");
+            assert_eq!(runs.ok_or_else(|| "read whole".to_string()), whole);
+        }
+        // Eight lines a register, after two of [limits]: its header on its second.
+        let (runs, _) = both_ways(&texts[2]);
+        let last = runs.as_ref().and_then(|p| p.registers.last());
+        assert_eq!(last.map(|r| r.line), Some(3 + 8 * 2999 + 1));
+        assert_eq!(runs.map(|p| p.limits.max_read), Some(Some(9)));
+    }
+
+    #[test]
+    fn a_file_the_runs_cannot_hold_is_read_whole() {
+        let text = "[device]\nname = \"d\"\n";
+        let register = "[[register]]\nname = \"a\"\naddress = 1\n";
+        for other in [
+            // A part of the register above after another section.
+            format!("{register}[line]\nbaudrate = 9600\n[register.enum]\n0 = \"off\"\n"),
+            // The registers as an array of inline tables, or a quoted key.
+            "register = [{ name = \"a\", address = 1 }]\n".to_string(),
+            "[[\"register\"]]\nname = \"a\"\naddress = 1\n".to_string(),
+            // What looks like a header, inside a register's array over several lines.
+            format!("{register}x = [\n[[register]]\n]\n"),
+        ] {
+            let text = format!("{text}{other}");
+            let (runs, whole) = both_ways(&text);
+            assert!(runs.is_none(), "{text}");
+            assert_eq!(
+                Profile::parse("d.toml", &text).map_err(|e| e.to_string()),
+                whole.map_err(|e| e.to_string())
+            );
+        }
+        // A file with a mistake is read whole: its first mistake, wherever it is, is the one
+        // reported (here the [device] without a name before the repeated register).
+        let repeated = format!("[device]\n{register}{register}");
+        let late_typo = format!("{text}{register}[[register]]\nname = \n");
+        let bad_rest = format!("{text}{register}[limits]\nmax_read = 0\n");
+        for bad in [&repeated, &late_typo, &bad_rest] {
+            let (runs, whole) = both_ways(bad);
+            assert!(runs.is_none(), "{bad}");
+            assert_eq!(Profile::parse("d.toml", bad).err(), whole.err());
+        }
+        let first = Profile::parse("d.toml", &repeated).map_err(|e| e.key);
+        assert_eq!(first.err().as_deref(), Some("device.name"));
+    }
+
+    #[test]
+    fn the_names_pythons_enum_refuses() {
+        let refused = |member: &str| enum_member_refusal("OpMode", member).is_some();
+        for name in [
+            "_missing_",
+            "_ignore_",
+            "_a_b_",
+            "__init__",
+            "__x__",
+            "mro",
+            "_OpMode__x",
+            "_OpMode___x",
+            "_OpMode__",
+        ] {
+            assert!(refused(name), "{name}");
+        }
+        // As Python's enum.py draws the lines: neither one nor two underscores each side.
+        for name in [
+            "name",
+            "value",
+            "name_1",
+            "_9600",
+            "_x",
+            "x_",
+            "_",
+            "__",
+            "___",
+            "____",
+            "__a_",
+            "_a__",
+            "___x___",
+            "_OpMode____",
+            "_OpMode__x__",
+            "_Mode__x",
+            "_opmode__x",
+            "mro_",
+        ] {
+            assert!(!refused(name), "{name}");
+        }
+        assert_eq!(enum_class_name("op_mode"), "OpMode");
+        assert_eq!(enum_class_name("mode_2x"), "Mode2x");
+        assert_eq!(enum_class_name("a__b"), "AB");
+        let e = error(&format!("{R}enum = {{ 0 = \"_A__slow\" }}\n"));
+        assert!(e.message.contains("enum A"), "{e}");
+    }
+
+    #[test]
+    fn an_offset_is_on_the_line_it_is_in() {
+        let lines = Lines::new("ab\n\ncd\n");
+        let found: Vec<usize> = (0..=8).map(|at| lines.line(at)).collect();
+        // a b \n | \n | c d \n | the end
+        assert_eq!(found, vec![1, 1, 1, 2, 3, 3, 3, 4, 4]);
+        assert_eq!(Lines::new("").line(0), 1);
     }
 
     #[test]

@@ -8,6 +8,7 @@ use super::{fmt_num, unit_suffix, Access, Device, Station, Table};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
 use crate::error::{Error, Result};
+use std::collections::HashMap;
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -32,7 +33,8 @@ impl Block {
 }
 
 impl Profile {
-    /// The index of the register called `name`.
+    /// The index of the register called `name`, by a scan of the registers (to look up
+    /// many names, map them once).
     pub fn index(&self, name: &str) -> Option<usize> {
         self.registers.iter().position(|r| r.register.name == name)
     }
@@ -353,7 +355,9 @@ impl ProfiledDevice {
                 )));
             }
         }
-        let mut values: Vec<Option<ProfileValue>> = vec![None; self.profile.registers.len()];
+        // Only those asked for, by index (a slot for every register of the profile made each
+        // read cost the profile's length).
+        let mut values: HashMap<usize, ProfileValue> = HashMap::with_capacity(indices.len());
         for block in self.profile.plan(indices) {
             let words: Vec<u16> = if block.table.holds_bits() {
                 self.station
@@ -372,16 +376,15 @@ impl ProfiledDevice {
                 let own = words
                     .get(from..to)
                     .ok_or_else(|| self.station.short_reply())?;
-                values[*i] = Some(r.decode(own)?);
+                values.insert(*i, r.decode(own)?);
             }
         }
         indices
             .iter()
             .map(|i| {
                 values
-                    .get(*i)
+                    .get(i)
                     .cloned()
-                    .flatten()
                     .ok_or_else(|| Error::InvalidArgument(format!("no register {i}")))
             })
             .collect()

@@ -9,6 +9,7 @@ use crate::device::profile::{
 };
 use crate::device::profiled::ProfiledDevice;
 use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyModule, PyString, PyTuple};
 use std::path::PathBuf;
@@ -24,6 +25,9 @@ const ROWS: &str = "benchbus._profile";
 #[pyclass(frozen, module = "benchbus._core", name = "Profile")]
 pub(super) struct PyProfile {
     profile: Arc<Profile>,
+    /// The registers' indices in the order of their names: a name is found by a binary
+    /// search (a scan for each name made reading every register quadratic).
+    by_name: Vec<usize>,
     path: String,
     /// Comment lines for the top of the file `to_toml` writes ("" for none).
     note: String,
@@ -50,6 +54,14 @@ fn family_line(py: Python<'_>, key: &str) -> PyResult<LineSettings> {
         framing: line.getattr("framing")?.extract()?,
         bytesize: line.getattr("bytesize")?.extract()?,
     })
+}
+
+/// The name of the register at `index` ("" for none).
+fn name_at(profile: &Profile, index: usize) -> &str {
+    profile
+        .registers
+        .get(index)
+        .map_or("", |r| r.register.name.as_str())
 }
 
 /// The `benchbus.ProfileError` of `err`.
@@ -140,21 +152,49 @@ impl PyProfile {
         loaded: Result<Profile, Box<ProfileError>>,
     ) -> PyResult<Self> {
         let profile = loaded.map_err(|e| profile_error(py, &e))?;
-        Ok(PyProfile {
+        Ok(PyProfile::made(profile, path, String::new()))
+    }
+
+    fn made(profile: Profile, path: String, note: String) -> PyProfile {
+        let mut by_name: Vec<usize> = (0..profile.registers.len()).collect();
+        by_name.sort_unstable_by(|a, b| name_at(&profile, *a).cmp(name_at(&profile, *b)));
+        PyProfile {
             profile: Arc::new(profile),
+            by_name,
             path,
-            note: String::new(),
-        })
+            note,
+        }
+    }
+
+    /// The index of the register called `name`, if there is one.
+    fn find(&self, name: &str) -> Option<usize> {
+        let at = self
+            .by_name
+            .binary_search_by(|i| name_at(&self.profile, *i).cmp(name))
+            .ok()?;
+        self.by_name.get(at).copied()
     }
 
     /// The register called `name`, or ValueError naming the profile.
     fn index(&self, name: &str) -> PyResult<usize> {
-        self.profile.index(name).ok_or_else(|| {
+        self.find(name).ok_or_else(|| {
             PyValueError::new_err(format!("{} has no register {name:?}", self.profile.name))
         })
     }
 
-    fn row<'py>(&self, py: Python<'py>, r: &ProfileRegister) -> PyResult<Bound<'py, PyAny>> {
+    /// The ``ProfileRegister`` class rows are made of.
+    fn row_type(py: Python<'_>) -> PyResult<Bound<'_, PyAny>> {
+        PyModule::import(py, ROWS)?.getattr("ProfileRegister")
+    }
+
+    /// The register `r` as a ``ProfileRegister`` (`row_type`: that class, looked up once for
+    /// many rows). The keywords' names are interned: Python then matches them to the
+    /// parameters by identity, where new strings were compared by their text.
+    fn row<'py>(
+        py: Python<'py>,
+        row_type: &Bound<'py, PyAny>,
+        r: &ProfileRegister,
+    ) -> PyResult<Bound<'py, PyAny>> {
         let reg = &r.register;
         let (bit, length) = match r.value {
             ValueType::Bool { bit } => (bit, None),
@@ -171,24 +211,24 @@ impl PyProfile {
             Some(v) => to_object(py, v)?,
         };
         let kwargs = PyDict::new(py);
-        kwargs.set_item("name", reg.name.as_str())?;
-        kwargs.set_item("address", reg.address)?;
-        kwargs.set_item("table", table_name(r.table))?;
-        kwargs.set_item("type", r.value.name())?;
-        kwargs.set_item("bit", bit)?;
-        kwargs.set_item("length", length)?;
-        kwargs.set_item("order", r.layout.name())?;
-        kwargs.set_item("scale", reg.scale)?;
-        kwargs.set_item("offset", r.offset)?;
-        kwargs.set_item("unit", reg.unit.as_str())?;
-        kwargs.set_item("access", access_name(reg.access))?;
-        kwargs.set_item("min", number.then_some(reg.range.0))?;
-        kwargs.set_item("max", number.then_some(reg.range.1))?;
-        kwargs.set_item("enum", members)?;
-        kwargs.set_item("default", default)?;
-        kwargs.set_item("description", r.description.as_str())?;
-        kwargs.set_item("line", r.line)?;
-        public(py, ROWS, "ProfileRegister", (), Some(&kwargs))
+        kwargs.set_item(intern!(py, "name"), reg.name.as_str())?;
+        kwargs.set_item(intern!(py, "address"), reg.address)?;
+        kwargs.set_item(intern!(py, "table"), table_name(r.table))?;
+        kwargs.set_item(intern!(py, "type"), r.value.name())?;
+        kwargs.set_item(intern!(py, "bit"), bit)?;
+        kwargs.set_item(intern!(py, "length"), length)?;
+        kwargs.set_item(intern!(py, "order"), r.layout.name())?;
+        kwargs.set_item(intern!(py, "scale"), reg.scale)?;
+        kwargs.set_item(intern!(py, "offset"), r.offset)?;
+        kwargs.set_item(intern!(py, "unit"), reg.unit.as_str())?;
+        kwargs.set_item(intern!(py, "access"), access_name(reg.access))?;
+        kwargs.set_item(intern!(py, "min"), number.then_some(reg.range.0))?;
+        kwargs.set_item(intern!(py, "max"), number.then_some(reg.range.1))?;
+        kwargs.set_item(intern!(py, "enum"), members)?;
+        kwargs.set_item(intern!(py, "default"), default)?;
+        kwargs.set_item(intern!(py, "description"), r.description.as_str())?;
+        kwargs.set_item(intern!(py, "line"), r.line)?;
+        row_type.call((), Some(&kwargs))
     }
 }
 
@@ -222,11 +262,11 @@ impl PyProfile {
             )));
         };
         profile.line = family_line(py, key)?;
-        Ok(PyProfile {
-            profile: Arc::new(profile),
-            path: format!("<{key}>"),
-            note: note.to_string(),
-        })
+        Ok(PyProfile::made(
+            profile,
+            format!("<{key}>"),
+            note.to_string(),
+        ))
     }
 
     /// The profile as a TOML file that reads back as the same profile (a built-in family's
@@ -287,11 +327,12 @@ impl PyProfile {
     /// Every register as a ``ProfileRegister``, in the file's order.
     #[getter]
     fn registers<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        let row_type = PyProfile::row_type(py)?;
         let rows = self
             .profile
             .registers
             .iter()
-            .map(|r| self.row(py, r))
+            .map(|r| PyProfile::row(py, &row_type, r))
             .collect::<PyResult<Vec<_>>>()?;
         PyTuple::new(py, rows)
     }
@@ -299,16 +340,15 @@ impl PyProfile {
     /// The register called `name` (KeyError if there is none).
     fn __getitem__<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
         let r = self
-            .profile
-            .index(name)
+            .find(name)
             .and_then(|i| self.profile.registers.get(i))
             .ok_or_else(|| PyKeyError::new_err(name.to_string()))?;
-        self.row(py, r)
+        PyProfile::row(py, &PyProfile::row_type(py)?, r)
     }
 
     /// Whether a register is called `name`.
     fn __contains__(&self, name: &str) -> bool {
-        self.profile.index(name).is_some()
+        self.find(name).is_some()
     }
 
     /// How many registers.

@@ -467,6 +467,7 @@ def _register(path: str, index: int, row: dict[str, Any]) -> _Register:
         if not isinstance(enum, dict) or not enum:
             raise fail('enum must be a table { number = "name" }')
         members = {}
+        named: set[str] = set()
         for key, member in enum.items():
             try:
                 number = int(key, 0)
@@ -474,9 +475,10 @@ def _register(path: str, index: int, row: dict[str, Any]) -> _Register:
                 raise fail(f"enum key {key!r} is not a number") from None
             if not isinstance(member, str) or not member.isidentifier():
                 raise fail(f"enum member {member!r} is not a Python identifier")
-            if member in members.values():
+            if member in named:
                 raise fail(f"enum member {member!r} is used twice")
             members[number] = member
+            named.add(member)
     bit = row.get("bit")
     if bit is not None:
         if kind != "bool" or table in _BIT_TABLES:
