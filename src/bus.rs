@@ -179,7 +179,7 @@ pub struct Stats {
     pub reopens: u64,
     /// Times the line was found out of step and brought back: a frame that came too soon to
     /// answer its request (a copy, an earlier request's answer) was dropped, or bytes were
-    /// waiting before a request (see [`Bus::send`]).
+    /// waiting before a request.
     pub resyncs: u64,
 }
 
@@ -1058,8 +1058,9 @@ impl Bus {
     /// On a serial line a complete frame of the unit that came too soon after the request to
     /// answer it ([`Turnarounds::too_soon`]: a copy of an earlier reply, an earlier request's
     /// answer come late) is dropped and counted as a resync, and the wait for the answer goes
-    /// on; if none follows, the unit's turnarounds are forgotten (it may have become
-    /// faster). `earlier` is this call's first attempt that got no answer, if any: a frame
+    /// on; if none follows, the attempt fails with [`FrameError::TooSoon`] (retried) and the
+    /// unit's turnarounds are forgotten (it may have become faster). `earlier` is this
+    /// call's first attempt that got no answer, if any: a frame
     /// may be its answer (the same request), so it is timed from there; this attempt is
     /// recorded there if it times out.
     #[allow(clippy::too_many_arguments)]

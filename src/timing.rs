@@ -272,11 +272,11 @@ const TURNAROUND_SLACK_FLOOR: Duration = Duration::from_millis(1);
 ///
 /// A reply is timed from the request it answers twice: from its start, and from its
 /// reckoned end on the wire (which, on a pseudo-terminal that carries bytes at once, a reply
-/// can precede). Over a unit's last [`TURNAROUND_SAMPLES`] vouched replies to the function the
-/// least of each is kept, once [`TURNAROUND_KNOWN`] have come. A frame that begins sooner than both, by more than the slack (half the least
-/// time from the end, at least [`TURNAROUND_SLACK_FLOOR`]), is too soon to answer the
-/// request: a device does not get much faster from one request to the next, and nothing on
-/// the way (an adapter, a scheduler) makes a reply arrive earlier than it was sent.
+/// can precede). Over the last 16 vouched replies of a unit to a function the least of each
+/// is kept, once 4 have come. A frame that begins sooner than both, by more than the slack
+/// (half the least time from the end, at least 1 ms), is too soon to answer the request: a
+/// device does not get much faster from one request to the next, and nothing on the way (an
+/// adapter, a scheduler) makes a reply arrive earlier than it was sent.
 ///
 /// Pure bookkeeping: it is told when things happened and never reads a clock.
 #[derive(Debug, Clone, Default)]
