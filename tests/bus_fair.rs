@@ -211,7 +211,13 @@ fn a_late_reply_arriving_in_another_callers_attempt_is_dropped_there() {
     }
     slow.join().unwrap();
     let stats = bus.stats();
-    assert!(calls > 20, "{calls}");
+    // The line is fair: unit 1 is served between any two of unit 5's attempts, each of
+    // which waits a timeout.
+    let slow_attempts = line.sent_to(5);
+    assert!(
+        calls + 1 >= slow_attempts && calls >= 10,
+        "{calls} calls of unit 1 for {slow_attempts} attempts of unit 5"
+    );
     // Unit 5's late replies were dropped whole, never taken for unit 1's.
     assert_eq!((stats.frame_errors, stats.crc_errors), (0, 0));
     assert!(stats.stale_bytes >= 7, "{stats:?}");
