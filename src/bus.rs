@@ -890,9 +890,10 @@ impl Bus {
     /// Each attempt has its own turn on the line: a retry waits at the back of the queue,
     /// behind the callers that asked meanwhile. A paced write waits for its interval, and a
     /// request to a unit that still owes answers to another call's timed-out attempts waits
-    /// for them (up to three timeouts each), without a turn while it can. A frame that comes too soon to
-    /// answer an attempt is dropped ([`Turnarounds`]). Under a cancelled [`CancelToken`]
-    /// the call starts no further attempt and fails with [`Error::Cancelled`].
+    /// for them (up to three timeouts each), without a turn while it can. A frame that
+    /// comes too soon to answer an attempt is dropped ([`Turnarounds`]). Under a cancelled
+    /// [`CancelToken`] the call starts no further attempt and fails with
+    /// [`Error::Cancelled`].
     ///
     /// # Errors
     /// Any [`Error`]: bad arguments before anything is sent, then port, timeout (after the
