@@ -1824,3 +1824,103 @@ fn bits(response: Response) -> std::result::Result<Vec<bool>, Response> {
         other => Err(other),
     }
 }
+
+/// The functions of the specification's sections 6.9, 6.10, 6.14, 6.15 and 6.18: the comm
+/// event counter and log, file records and the FIFO queue.
+impl Bus {
+    /// The status word (0xFFFF: a program command is still being processed, 0x0000: not)
+    /// and the event counter (0x0B, a serial line function: over Modbus TCP it goes to the
+    /// unit behind the gateway like any other).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn get_comm_event_counter(&self, unit: u8, opts: &TxOptions) -> Result<(u16, u16)> {
+        self.ask(unit, &Request::GetCommEventCounter, opts, |r| match r {
+            Response::CommEventCounter {
+                status,
+                event_count,
+            } => Ok((status, event_count)),
+            other => Err(other),
+        })
+    }
+
+    /// The status word, the event counter, the message counter and the events (0 to 64
+    /// bytes, the newest first) (0x0C, a serial line function, sent over Modbus TCP as
+    /// [`Bus::get_comm_event_counter`] is).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn get_comm_event_log(
+        &self,
+        unit: u8,
+        opts: &TxOptions,
+    ) -> Result<(u16, u16, u16, Vec<u8>)> {
+        self.ask(unit, &Request::GetCommEventLog, opts, |r| match r {
+            Response::CommEventLog {
+                status,
+                event_count,
+                message_count,
+                events,
+            } => Ok((status, event_count, message_count, events)),
+            other => Err(other),
+        })
+    }
+
+    /// Reads file records (0x14): for each group `(file, record, length)`, `length`
+    /// registers from record `record` (0..=0x270F) of file `file` (1..=0xFFFF); one list of
+    /// registers per group. At least one group; the request and its reply must fit a PDU.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a group out of range, before anything
+    /// is sent.
+    pub fn read_file_record(
+        &self,
+        unit: u8,
+        groups: &[(u16, u16, u16)],
+        opts: &TxOptions,
+    ) -> Result<Vec<Vec<u16>>> {
+        let request = Request::ReadFileRecord {
+            groups: groups.to_vec(),
+        };
+        self.ask(unit, &request, opts, |r| match r {
+            Response::FileRecords(records) => Ok(records),
+            other => Err(other),
+        })
+    }
+
+    /// Writes file records (0x15): for each group `(file, record, values)`, `values` from
+    /// record `record` (0..=0x270F) of file `file` (1..=0xFFFF); the reply must echo the
+    /// request. At least one group, each with a value or more; the request must fit a PDU.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a group out of range, before anything
+    /// is sent.
+    pub fn write_file_record(
+        &self,
+        unit: u8,
+        groups: &[(u16, u16, Vec<u16>)],
+        opts: &TxOptions,
+    ) -> Result<()> {
+        let request = Request::WriteFileRecord {
+            groups: groups.to_vec(),
+        };
+        self.transact(unit, &request, opts).map(|_| ())
+    }
+
+    /// The values queued in the FIFO whose count register is at `address` (0x18), oldest
+    /// first: at most 31 (a reply with more is a frame error).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_fifo_queue(&self, unit: u8, address: u16, opts: &TxOptions) -> Result<Vec<u16>> {
+        self.ask(
+            unit,
+            &Request::ReadFifoQueue { address },
+            opts,
+            |r| match r {
+                Response::FifoQueue(values) => Ok(values),
+                other => Err(other),
+            },
+        )
+    }
+}

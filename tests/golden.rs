@@ -97,8 +97,39 @@ fn request(r: &Value) -> Request {
             sub_function: num(r, "sub_function") as u16,
             data: bytes_of(r, "data"),
         },
+        "get_comm_event_counter" => Request::GetCommEventCounter,
+        "get_comm_event_log" => Request::GetCommEventLog,
+        "read_file_record" => Request::ReadFileRecord {
+            groups: groups(r)
+                .iter()
+                .map(|g| {
+                    let n = |i: usize| g[i].as_u64().expect("group field") as u16;
+                    (n(0), n(1), n(2))
+                })
+                .collect(),
+        },
+        "write_file_record" => Request::WriteFileRecord {
+            groups: groups(r)
+                .iter()
+                .map(|g| {
+                    let n = |i: usize| g[i].as_u64().expect("group field") as u16;
+                    let values = g[2].as_array().expect("group values");
+                    let values = values.iter().map(|x| x.as_u64().expect("value") as u16);
+                    (n(0), n(1), values.collect())
+                })
+                .collect(),
+        },
+        "read_fifo_queue" => Request::ReadFifoQueue {
+            address: num(r, "address") as u16,
+        },
         other => panic!("unknown function {other}"),
     }
+}
+
+fn groups(r: &Value) -> &Vec<Value> {
+    r["groups"]
+        .as_array()
+        .unwrap_or_else(|| panic!("groups missing in {r}"))
 }
 
 #[test]
@@ -123,7 +154,7 @@ fn every_vector_encodes_and_decodes_as_the_manual_says() {
         .collect();
     assert_eq!(
         spec.into_iter().collect::<Vec<_>>(),
-        [0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x16, 0x17]
+        [0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0B, 0x0C, 0x0F, 0x14, 0x15, 0x16, 0x17, 0x18]
     );
     for v in vectors {
         let id = v["id"].as_str().expect("id");
@@ -208,6 +239,38 @@ fn every_vector_encodes_and_decodes_as_the_manual_says() {
                         sub_function: num(result, "sub_function") as u16,
                         data: bytes_of(result, "data"),
                     },
+                    "comm_event_counter" => Response::CommEventCounter {
+                        status: num(result, "status") as u16,
+                        event_count: num(result, "event_count") as u16,
+                    },
+                    "comm_event_log" => Response::CommEventLog {
+                        status: num(result, "status") as u16,
+                        event_count: num(result, "event_count") as u16,
+                        message_count: num(result, "message_count") as u16,
+                        events: bytes_of(result, "events"),
+                    },
+                    "file_records" => Response::FileRecords(
+                        result["records"]
+                            .as_array()
+                            .expect("records")
+                            .iter()
+                            .map(|g| {
+                                let g = g.as_array().expect("record group");
+                                g.iter()
+                                    .map(|x| x.as_u64().expect("value") as u16)
+                                    .collect()
+                            })
+                            .collect(),
+                    ),
+                    // The echo: the request's PDU after its function code.
+                    "file_record_echo" => Response::FileRecordEcho(
+                        hex(r["frame"].as_str().expect("frame"))[2..]
+                            .split_last_chunk::<2>()
+                            .expect("crc")
+                            .0
+                            .to_vec(),
+                    ),
+                    "fifo" => Response::FifoQueue(registers(result)),
                     other => panic!("{id}: unknown kind {other}"),
                 };
                 assert_eq!(resp, expected, "{id}");

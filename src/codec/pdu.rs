@@ -5,7 +5,9 @@
 //! 6.4 read input registers, 6.5 write single coil, 6.6 write single register, 6.7 read
 //! exception status, 6.8 diagnostics, 6.11 write multiple coils, 6.12 write multiple
 //! registers, 6.13 report server id, 6.16 mask write register, 6.17 read/write multiple
-//! registers, 6.21 read device identification; section 7 exception responses.
+//! registers, 6.21 read device identification; 6.9 get comm event counter, 6.10 get comm
+//! event log, 6.14 read file record, 6.15 write file record, 6.18 read FIFO queue; section
+//! 7 exception responses.
 
 use std::collections::BTreeMap;
 
@@ -23,6 +25,16 @@ pub const WRITE_SINGLE_COIL: u8 = 0x05;
 pub const READ_EXCEPTION_STATUS: u8 = 0x07;
 /// Function 0x08, Diagnostics (spec 6.8, serial line only).
 pub const DIAGNOSTICS: u8 = 0x08;
+/// Function 0x0B, Get Comm Event Counter (spec 6.9, serial line only).
+pub const GET_COMM_EVENT_COUNTER: u8 = 0x0B;
+/// Function 0x0C, Get Comm Event Log (spec 6.10, serial line only).
+pub const GET_COMM_EVENT_LOG: u8 = 0x0C;
+/// Function 0x14, Read File Record (spec 6.14).
+pub const READ_FILE_RECORD: u8 = 0x14;
+/// Function 0x15, Write File Record (spec 6.15).
+pub const WRITE_FILE_RECORD: u8 = 0x15;
+/// Function 0x18, Read FIFO Queue (spec 6.18).
+pub const READ_FIFO_QUEUE: u8 = 0x18;
 /// Function 0x0F, Write Multiple Coils (spec 6.11).
 pub const WRITE_MULTIPLE_COILS: u8 = 0x0F;
 /// Function 0x11, Report Server ID (spec 6.13, serial line only).
@@ -56,6 +68,15 @@ pub const DIAG_RETURN_QUERY_DATA: u16 = 0x0000;
 /// Diagnostics sub-function 0x04, Force Listen Only Mode: the device answers nothing, to
 /// this or any later request, until a restart (sub-function 0x01).
 pub const DIAG_FORCE_LISTEN_ONLY: u16 = 0x0004;
+/// The reference type of every file record group (spec 6.14, 6.15: it must be 6).
+pub const FILE_REFERENCE_TYPE: u8 = 6;
+/// Highest record number in a file (spec 6.14, 6.15: records 0 to 9999, 0x0000 to
+/// 0x270F).
+pub const MAX_FILE_RECORD: u16 = 0x270F;
+/// Most values a FIFO queue holds, and so a 0x18 reply carries (spec 6.18: 31).
+pub const MAX_FIFO_COUNT: u16 = 31;
+/// Most events a 0x0C reply carries (spec 6.10: 0 to 64 bytes, one an event).
+pub const MAX_COMM_EVENTS: usize = 64;
 /// Most bytes a PDU holds (spec 4.1: 253, the longest RTU frame but unit and CRC).
 pub const MAX_PDU: usize = 253;
 /// Most data bytes after the function code, in a request or a reply.
@@ -161,6 +182,27 @@ pub enum Request {
     },
     /// 0x11: report server id.
     ReportServerId,
+    /// 0x0B: the device's status word and event counter.
+    GetCommEventCounter,
+    /// 0x0C: the device's status word, event and message counters and its event log.
+    GetCommEventLog,
+    /// 0x14: read records from files, one group per `(file, record, length)`: `length`
+    /// registers (1 or more) from record `record` (0..=0x270F) of file `file` (1..=0xFFFF).
+    ReadFileRecord {
+        /// The groups, one or more; the request and its reply fit a PDU.
+        groups: Vec<(u16, u16, u16)>,
+    },
+    /// 0x15: write records to files, one group per `(file, record, values)`; the reply
+    /// echoes the request.
+    WriteFileRecord {
+        /// The groups, one or more, each with one value or more; the request fits a PDU.
+        groups: Vec<(u16, u16, Vec<u16>)>,
+    },
+    /// 0x18: the values queued in the FIFO whose count register is at `address`.
+    ReadFifoQueue {
+        /// FIFO pointer address (the count register).
+        address: u16,
+    },
     /// Any function code 1..=127 with its data as given: vendor functions, file records.
     Raw {
         /// Function code, 1..=127.
@@ -200,6 +242,10 @@ pub enum RequestError {
         "function must be 1 to 127 (0x01 to 0x7F; 0x80 and up are exception replies), got {0}"
     )]
     Function(u8),
+    /// A file record group outside the spec's ranges (file 1..=0xFFFF, record
+    /// 0..=0x270F, at least one register, none past record 0x270F), or no group.
+    #[error("{0}")]
+    FileRecord(String),
     /// More data than a PDU holds.
     #[error("{what} must be at most {max} bytes, got {len}")]
     DataLength {
@@ -230,6 +276,11 @@ impl Request {
             Request::ReadExceptionStatus => READ_EXCEPTION_STATUS,
             Request::Diagnostics { .. } => DIAGNOSTICS,
             Request::ReportServerId => REPORT_SERVER_ID,
+            Request::GetCommEventCounter => GET_COMM_EVENT_COUNTER,
+            Request::GetCommEventLog => GET_COMM_EVENT_LOG,
+            Request::ReadFileRecord { .. } => READ_FILE_RECORD,
+            Request::WriteFileRecord { .. } => WRITE_FILE_RECORD,
+            Request::ReadFifoQueue { .. } => READ_FIFO_QUEUE,
             Request::Raw { function, .. } => *function,
         }
     }
@@ -259,6 +310,10 @@ impl Request {
                 | Request::ReadExceptionStatus
                 | Request::ReportServerId
                 | Request::Diagnostics { .. }
+                | Request::GetCommEventCounter
+                | Request::GetCommEventLog
+                | Request::ReadFileRecord { .. }
+                | Request::ReadFifoQueue { .. }
         )
     }
 
@@ -275,8 +330,9 @@ impl Request {
         )
     }
 
-    /// The byte count a read reply must carry (0x01, 0x02, 0x03, 0x04, 0x17), known from
-    /// the request.
+    /// The byte count a read reply must carry (0x01, 0x02, 0x03, 0x04, 0x17, and 0x14: a
+    /// length and reference type, then the registers, for each group), known from the
+    /// request.
     pub fn reply_byte_count(&self) -> Option<usize> {
         match self {
             Request::ReadHoldingRegisters { count, .. }
@@ -287,6 +343,12 @@ impl Request {
             Request::ReadCoils { count, .. } | Request::ReadDiscreteInputs { count, .. } => {
                 Some(usize::from(*count).div_ceil(8))
             }
+            Request::ReadFileRecord { groups } => Some(
+                groups
+                    .iter()
+                    .map(|&(_, _, length)| 2 + 2 * usize::from(length))
+                    .sum(),
+            ),
             _ => None,
         }
     }
@@ -366,7 +428,39 @@ impl Request {
             Request::WriteSingleCoil { .. }
             | Request::MaskWriteRegister { .. }
             | Request::ReadExceptionStatus
-            | Request::ReportServerId => Ok(()),
+            | Request::ReportServerId
+            | Request::GetCommEventCounter
+            | Request::GetCommEventLog
+            | Request::ReadFifoQueue { .. } => Ok(()),
+            Request::ReadFileRecord { groups } => {
+                if groups.is_empty() {
+                    return Err(no_group());
+                }
+                for &(file, record, length) in groups {
+                    file_group(file, record, usize::from(length))?;
+                }
+                // function, byte count, then 7 bytes a group.
+                data_within(
+                    "read file record request",
+                    1 + 7 * groups.len(),
+                    MAX_PDU_DATA,
+                )?;
+                let reply = 1 + self.reply_byte_count().unwrap_or(0);
+                data_within("read file record reply", reply, MAX_PDU_DATA)
+            }
+            Request::WriteFileRecord { groups } => {
+                if groups.is_empty() {
+                    return Err(no_group());
+                }
+                for (file, record, values) in groups {
+                    file_group(*file, *record, values.len())?;
+                }
+                data_within(
+                    "write file record request",
+                    1 + file_groups_len(groups),
+                    MAX_PDU_DATA,
+                )
+            }
             Request::WriteMultipleCoils { address, values } => {
                 span(*address, values.len(), MAX_WRITE_BITS)
             }
@@ -459,7 +553,28 @@ impl Request {
                 out.push((count * 2) as u8);
                 words(out, values);
             }
-            Request::ReadExceptionStatus | Request::ReportServerId => {}
+            Request::ReadExceptionStatus
+            | Request::ReportServerId
+            | Request::GetCommEventCounter
+            | Request::GetCommEventLog => {}
+            Request::ReadFileRecord { groups } => {
+                // validate() bounds the groups to 35, so the byte count fits a byte.
+                out.push(u8::try_from(7 * groups.len()).unwrap_or(u8::MAX));
+                for &(file, record, length) in groups {
+                    out.push(FILE_REFERENCE_TYPE);
+                    words(out, &[file, record, length]);
+                }
+            }
+            Request::WriteFileRecord { groups } => {
+                // validate() bounds the request to a PDU, so the byte count fits a byte.
+                out.push(u8::try_from(file_groups_len(groups)).unwrap_or(u8::MAX));
+                for (file, record, values) in groups {
+                    out.push(FILE_REFERENCE_TYPE);
+                    words(out, &[*file, *record, count_of(values.len())]);
+                    words(out, values);
+                }
+            }
+            Request::ReadFifoQueue { address } => words(out, &[*address]),
             Request::Diagnostics { sub_function, data } => {
                 words(out, &[*sub_function]);
                 out.extend_from_slice(data);
@@ -474,6 +589,41 @@ fn words(out: &mut Vec<u8>, values: &[u16]) {
     for v in values {
         out.extend_from_slice(&v.to_be_bytes());
     }
+}
+
+/// Bytes the groups of a 0x15 request take after its byte count: reference type, file,
+/// record and length (7), then the values, for each.
+fn file_groups_len(groups: &[(u16, u16, Vec<u16>)]) -> usize {
+    groups.iter().map(|(_, _, v)| 7 + 2 * v.len()).sum()
+}
+
+fn no_group() -> RequestError {
+    RequestError::FileRecord("at least one file record group is needed".into())
+}
+
+/// Checks one file record group: file 1..=0xFFFF, record 0..=0x270F, 1 register or more,
+/// none past record 0x270F (spec 6.14, 6.15).
+fn file_group(file: u16, record: u16, length: usize) -> Result<(), RequestError> {
+    let bad = |why: String| Err(RequestError::FileRecord(why));
+    if file == 0 {
+        return bad("file must be 1 to 65535 (0x0001 to 0xFFFF), got 0".into());
+    }
+    if record > MAX_FILE_RECORD {
+        return bad(format!(
+            "record must be 0 to 9999 (0x0000 to 0x270F), got {record}"
+        ));
+    }
+    if length == 0 {
+        return bad(format!(
+            "file {file} record {record}: length must be at least 1"
+        ));
+    }
+    if usize::from(record) + length > usize::from(MAX_FILE_RECORD) + 1 {
+        return bad(format!(
+            "file {file}: {length} registers from record {record} run past record 9999"
+        ));
+    }
+    Ok(())
 }
 
 /// A length already bounded by validate() as a u16 count.
@@ -575,6 +725,31 @@ pub enum Response {
     /// 0x11: the data field after the byte count, as the device sent it (server id, run
     /// indicator and whatever else the device puts there).
     ServerId(Vec<u8>),
+    /// 0x0B: the status word (0xFFFF busy, 0x0000 not) and the event counter.
+    CommEventCounter {
+        /// Status word.
+        status: u16,
+        /// Event counter.
+        event_count: u16,
+    },
+    /// 0x0C: the status word, the counters and the events (newest first).
+    CommEventLog {
+        /// Status word.
+        status: u16,
+        /// Event counter.
+        event_count: u16,
+        /// Message counter.
+        message_count: u16,
+        /// The events, one byte each, 0 to 64 of them.
+        events: Vec<u8>,
+    },
+    /// 0x14: the registers read, one list per group of the request.
+    FileRecords(Vec<Vec<u16>>),
+    /// 0x15: the data the device sent back after the function code (the request's, if it
+    /// echoed it).
+    FileRecordEcho(Vec<u8>),
+    /// 0x18: the values queued, oldest first, at most 31.
+    FifoQueue(Vec<u16>),
     /// A raw request's reply: the bytes after the function code.
     Raw(Vec<u8>),
 }

@@ -6,7 +6,7 @@
 
 use super::pdu::{
     coil_word, unpack_bits, DeviceIdentification, Request, Response, DIAG_RETURN_QUERY_DATA,
-    MEI_READ_DEVICE_ID,
+    FILE_REFERENCE_TYPE, MAX_COMM_EVENTS, MAX_FIFO_COUNT, MEI_READ_DEVICE_ID,
 };
 use super::Framing;
 use crate::error::hex;
@@ -71,7 +71,10 @@ pub enum Needed {
 /// An exception reply is known after two bytes (5 bytes long), for every function; a read
 /// reply (0x01..0x04, 0x17) after three (its byte count, which must be the request's), as a
 /// Report Server ID reply (0x11, any byte count); 0x05, 0x06, 0x0F and 0x10 replies are 8
-/// bytes, 0x16 10, 0x07 5, a Diagnostics reply (0x08) the request's length; a Read Device
+/// bytes, 0x16 10, 0x07 5, 0x0B 8, a Diagnostics reply (0x08) and a Write File Record
+/// reply (0x15) the request's length; a Read File Record reply (0x14) by its byte count,
+/// which must be the request's, a Get Comm Event Log reply (0x0C) by its byte count and a
+/// Read FIFO Queue reply (0x18) by its two-byte byte count; a Read Device
 /// Identification reply is walked object by object; a raw request's reply is its
 /// `reply_length` after the function code, or read until the line is silent.
 pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
@@ -112,6 +115,8 @@ fn needed_in(trailer: usize, request: &Request, buf: &[u8]) -> Needed {
             | Request::ReadCoils { .. }
             | Request::ReadDiscreteInputs { .. }
             | Request::ReadWriteRegisters { .. }
+            | Request::ReadFileRecord { .. }
+            | Request::GetCommEventLog
             | Request::ReportServerId => match buf.get(2) {
                 None => return Needed::More(exception - buf.len()),
                 // Not the length this request's reply has: see `check_header`.
@@ -130,6 +135,18 @@ fn needed_in(trailer: usize, request: &Request, buf: &[u8]) -> Needed {
             | Request::WriteMultipleCoils { .. } => 6,
             Request::MaskWriteRegister { .. } => 8,
             Request::ReadExceptionStatus => 3,
+            Request::GetCommEventCounter => 6,
+            // The echo: byte count and groups, as sent.
+            Request::WriteFileRecord { .. } => {
+                let mut pdu = Vec::new();
+                request.encode(&mut pdu);
+                1 + pdu.len()
+            }
+            // A byte count of two bytes, then the FIFO count and the values.
+            Request::ReadFifoQueue { .. } => match buf.get(2..4) {
+                Some(&[hi, lo]) => 4 + usize::from(u16::from_be_bytes([hi, lo])),
+                _ => return Needed::More(4 + trailer - buf.len()),
+            },
             Request::Diagnostics { data, .. } => 4 + data.len(),
             Request::Raw {
                 reply_length: Some(n),
@@ -395,6 +412,20 @@ fn decode_in(crc: bool, unit: u8, request: &Request, frame: &[u8]) -> Result<Rep
             Response::Bits(unpack_bits(bytes.0, usize::from(*count)))
         }
         Request::ReportServerId => Response::ServerId(counted(data, None)?.0.to_vec()),
+        Request::GetCommEventCounter => {
+            let [status, event_count] = fixed_words(data)?;
+            Response::CommEventCounter {
+                status,
+                event_count,
+            }
+        }
+        Request::GetCommEventLog => decode_event_log(counted(data, None)?.0)?,
+        Request::ReadFileRecord { groups } => {
+            let bytes = counted(data, request.reply_byte_count())?;
+            Response::FileRecords(decode_file_records(bytes.0, groups)?)
+        }
+        Request::WriteFileRecord { .. } => Response::FileRecordEcho(data.to_vec()),
+        Request::ReadFifoQueue { .. } => Response::FifoQueue(decode_fifo(data)?),
         Request::WriteSingleRegister { .. } => {
             let [address, value] = fixed_words(data)?;
             Response::WriteSingleRegister { address, value }
@@ -482,6 +513,98 @@ fn fixed_words<const N: usize>(data: &[u8]) -> Result<[u16; N], FrameError> {
 
 fn data_length(got: usize, expected: usize) -> FrameError {
     FrameError::Length(format!("{got} data bytes, expected {expected}"))
+}
+
+/// The data of a Get Comm Event Log reply after its byte count: status, event count and
+/// message count (2 bytes each), then 0 to 64 events (spec 6.10).
+fn decode_event_log(data: &[u8]) -> Result<Response, FrameError> {
+    match data {
+        [s0, s1, e0, e1, m0, m1, events @ ..] if events.len() <= MAX_COMM_EVENTS => {
+            Ok(Response::CommEventLog {
+                status: u16::from_be_bytes([*s0, *s1]),
+                event_count: u16::from_be_bytes([*e0, *e1]),
+                message_count: u16::from_be_bytes([*m0, *m1]),
+                events: events.to_vec(),
+            })
+        }
+        _ => Err(FrameError::Length(format!(
+            "comm event log of {} bytes: 6 to {} expected",
+            data.len(),
+            6 + MAX_COMM_EVENTS
+        ))),
+    }
+}
+
+/// The registers of a Read File Record reply's groups (after the byte count), one list
+/// per group of the request: each group's length byte must be 1 + twice the registers
+/// asked, and its reference type 6 (spec 6.14).
+fn decode_file_records(
+    mut data: &[u8],
+    groups: &[(u16, u16, u16)],
+) -> Result<Vec<Vec<u16>>, FrameError> {
+    let mut out = Vec::with_capacity(groups.len());
+    for (i, &(file, record, length)) in groups.iter().enumerate() {
+        let want = 1 + 2 * usize::from(length);
+        let bad = |what: String| {
+            FrameError::Length(format!(
+                "file record group {i} (file {file} record {record}): {what}"
+            ))
+        };
+        let Some((&[len, reference], rest)) = data.split_first_chunk::<2>() else {
+            return Err(bad("missing".into()));
+        };
+        if usize::from(len) != want {
+            return Err(bad(format!("length {len}, expected {want}")));
+        }
+        if reference != FILE_REFERENCE_TYPE {
+            return Err(bad(format!("reference type {reference}, expected 6")));
+        }
+        let Some((values, tail)) = rest.split_at_checked(want - 1) else {
+            return Err(bad("cut short".into()));
+        };
+        out.push(
+            values
+                .chunks_exact(2)
+                .map(|c| u16::from_be_bytes([c[0], c[1]]))
+                .collect(),
+        );
+        data = tail;
+    }
+    if !data.is_empty() {
+        return Err(FrameError::Length(format!(
+            "{} bytes after the file record groups",
+            data.len()
+        )));
+    }
+    Ok(out)
+}
+
+/// The values of a Read FIFO Queue reply: byte count (2 bytes), FIFO count (2 bytes, at
+/// most 31), then that many registers (spec 6.18).
+fn decode_fifo(data: &[u8]) -> Result<Vec<u16>, FrameError> {
+    let bad = |what: String| FrameError::Length(format!("FIFO queue: {what}"));
+    let Some((&[b0, b1, c0, c1], values)) = data.split_first_chunk::<4>() else {
+        return Err(bad(format!(
+            "{} data bytes, at least 4 expected",
+            data.len()
+        )));
+    };
+    let byte_count = usize::from(u16::from_be_bytes([b0, b1]));
+    let count = u16::from_be_bytes([c0, c1]);
+    if count > MAX_FIFO_COUNT {
+        return Err(bad(format!("count {count}, more than {MAX_FIFO_COUNT}")));
+    }
+    let count = usize::from(count);
+    if byte_count != 2 + 2 * count || values.len() != 2 * count {
+        return Err(bad(format!(
+            "byte count {byte_count} with count {count} and {} value bytes",
+            values.len()
+        )));
+    }
+    Ok(values
+        .chunks_exact(2)
+        .map(|c| u16::from_be_bytes([c[0], c[1]]))
+        .collect())
 }
 
 /// Parses the data of a Read Device Identification reply (after the function code).
@@ -623,6 +746,15 @@ pub fn check_echo(request: &Request, response: &Response, echo: Echo) -> Result<
                     format!("sub-function {sub_function:#06x} data {}", hex(data)),
                     format!("sub-function {s:#06x} data {}", hex(d)),
                 );
+            }
+            Ok(())
+        }
+        (Request::WriteFileRecord { .. }, Response::FileRecordEcho(received)) => {
+            let mut pdu = Vec::new();
+            request.encode(&mut pdu);
+            let sent = pdu.get(1..).unwrap_or_default();
+            if received.as_slice() != sent {
+                return mismatch(hex(sent), hex(received));
             }
             Ok(())
         }
@@ -804,5 +936,100 @@ mod tests {
             wrong.to_string(),
             "reply byte count 1, but the request asked for 2 bytes"
         );
+    }
+
+    fn framed(body: &str) -> Vec<u8> {
+        let mut f = hex(body);
+        f.extend(crc16(&f).to_le_bytes());
+        f
+    }
+
+    #[test]
+    fn file_record_limits_are_checked_before_sending() {
+        let read = |groups: Vec<(u16, u16, u16)>| Request::ReadFileRecord { groups }.validate();
+        assert!(read(vec![(1, 0, 1), (0xFFFF, 0x270F, 1)]).is_ok());
+        assert!(read(vec![]).is_err());
+        assert!(read(vec![(0, 0, 1)]).is_err());
+        assert!(read(vec![(1, 0x2710, 1)]).is_err());
+        assert!(read(vec![(1, 0, 0)]).is_err());
+        assert!(read(vec![(1, 0x270F, 2)]).is_err());
+        // 35 groups fill a request (2 + 35 * 7 = 247 bytes), 36 do not.
+        assert!(read(vec![(1, 0, 1); 35]).is_ok());
+        assert!(read(vec![(1, 0, 1); 36]).is_err());
+        // The reply: 2 + (2 + 2 * 124) = 252 bytes fits a PDU, a register more does not.
+        assert!(read(vec![(1, 0, 124)]).is_ok());
+        assert!(read(vec![(1, 0, 125)]).is_err());
+        let write =
+            |groups: Vec<(u16, u16, Vec<u16>)>| Request::WriteFileRecord { groups }.validate();
+        assert!(write(vec![(1, 0, vec![1])]).is_ok());
+        assert!(write(vec![]).is_err());
+        assert!(write(vec![(0, 0, vec![1])]).is_err());
+        assert!(write(vec![(1, 0x2710, vec![1])]).is_err());
+        assert!(write(vec![(1, 0, vec![])]).is_err());
+        // 2 + 7 + 2 * 122 = 253 bytes is a whole PDU; one value more is not.
+        assert!(write(vec![(1, 0, vec![0; 122])]).is_ok());
+        assert!(write(vec![(1, 0, vec![0; 123])]).is_err());
+    }
+
+    #[test]
+    fn fifo_reply_over_31_values_is_a_frame_error() {
+        let req = Request::ReadFifoQueue { address: 0x04DE };
+        let mut body = String::from("01 18 00 42 00 20");
+        for _ in 0..32 {
+            body.push_str(" 00 01");
+        }
+        let f = framed(&body);
+        assert_eq!(reply_needed(&req, &f[..3]), Needed::More(3));
+        assert_eq!(reply_needed(&req, &f), Needed::Complete(f.len()));
+        assert!(
+            matches!(decode_reply(1, &req, &f), Err(FrameError::Length(m)) if m.contains("32"))
+        );
+        let empty = framed("01 18 00 02 00 00");
+        assert_eq!(
+            decode_reply(1, &req, &empty),
+            Ok(Reply::Normal(Response::FifoQueue(vec![])))
+        );
+        // A byte count that disagrees with the FIFO count.
+        assert!(decode_reply(1, &req, &framed("01 18 00 04 00 02 00 01")).is_err());
+    }
+
+    #[test]
+    fn file_record_reply_must_answer_each_group() {
+        let req = Request::ReadFileRecord {
+            groups: vec![(4, 1, 1)],
+        };
+        assert_eq!(
+            decode_reply(1, &req, &framed("01 14 04 03 06 00 2A")),
+            Ok(Reply::Normal(Response::FileRecords(vec![vec![42]])))
+        );
+        // Another reference type, or a byte count another request would get.
+        assert!(decode_reply(1, &req, &framed("01 14 04 03 07 00 2A")).is_err());
+        assert_eq!(
+            reply_needed(&req, &framed("01 14 06 05 06 00 2A 00 2B")),
+            Needed::Unknown
+        );
+        let write = Request::WriteFileRecord {
+            groups: vec![(4, 7, vec![0x06AF])],
+        };
+        let echo = framed("01 15 09 06 00 04 00 07 00 01 06 AF");
+        assert_eq!(reply_needed(&write, &echo), Needed::Complete(echo.len()));
+        let Ok(Reply::Normal(resp)) = decode_reply(1, &write, &echo) else {
+            panic!("not decoded");
+        };
+        assert!(check_echo(&write, &resp, Echo::Strict).is_ok());
+        let other = framed("01 15 09 06 00 04 00 07 00 01 06 AE");
+        let Ok(Reply::Normal(resp)) = decode_reply(1, &write, &other) else {
+            panic!("not decoded");
+        };
+        assert!(check_echo(&write, &resp, Echo::Strict).is_err());
+    }
+
+    #[test]
+    fn comm_event_log_is_read_by_its_byte_count() {
+        let req = Request::GetCommEventLog;
+        let f = framed("01 0C 08 00 00 01 08 01 21 20 00");
+        assert_eq!(reply_needed(&req, &f[..3]), Needed::More(10));
+        assert_eq!(reply_needed(&req, &f), Needed::Complete(f.len()));
+        assert!(decode_reply(1, &req, &framed("01 0C 04 00 00 01 08")).is_err());
     }
 }
