@@ -128,6 +128,11 @@ def test_every_awaitable_method_against_the_simulator(sim: Simulator[RegisterDev
             assert await bus.read_exception_status(1) == device.exception_status
             assert await bus.diagnostics(1, 0, b"\xa5\x37") == b"\xa5\x37"
             assert isinstance(await bus.report_server_id(1), bytes)
+            assert await bus.get_comm_event_counter(1) == bb.CommEventCounter(0, 0)
+            assert await bus.get_comm_event_log(1) == bb.CommEventLog(0, 0, 0, b"")
+            await bus.write_file_record(1, [(7, 100, [11, 12])])
+            assert await bus.read_file_record(1, [(7, 101, 1), (7, 100, 2)]) == [[12], [11, 12]]
+            assert await bus.read_fifo_queue(1, 11) == [2]  # 11..13 hold 1, 2, 3: one value
             assert await bus.request(1, 3, b"\x00\x00\x00\x02", reply_length=5) == (
                 b"\x04\x00\x07\x00\x08"
             )

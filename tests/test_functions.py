@@ -345,3 +345,93 @@ def test_the_gil_is_released_while_a_new_function_waits(slave: ScriptedSlave) ->
     # About 300 and 200 ticks of 1 ms: the GIL held would give none.
     assert during_read > 50
     assert ticks - during_read > 30
+
+
+# ---- comm event counter and log, file records, FIFO queue (0x0B, 0x0C, 0x14, 0x15, 0x18) ----
+
+
+@pytest.mark.parametrize("network", [None, "tcp", "rtu+tcp"])
+def test_the_counters_files_and_fifo_against_the_simulator(network: str | None) -> None:
+    from benchbus.sim import RegisterDevice, Simulator
+
+    device = RegisterDevice({0x04DE: 2, 0x04DF: 0x01B8, 0x04E0: 0x1284})
+    device.comm_event_count, device.comm_message_count = 264, 289
+    device.comm_events = b"\x20\x00"
+    with Simulator(device, network=network) as sim, bb.Bus(sim.port, timeout=1.0) as bus:
+        counter = bus.get_comm_event_counter(1)
+        assert counter == bb.CommEventCounter(status=0, event_count=264)
+        device.comm_busy = True
+        assert bus.get_comm_event_counter(1).status == 0xFFFF
+        log = bus.get_comm_event_log(1)
+        assert log == bb.CommEventLog(0xFFFF, 264, 289, b"\x20\x00")
+        assert isinstance(log.events, bytes)
+        bus.write_file_record(1, [(4, 7, [0x06AF, 0x04BE, 0x100D]), (3, 0x270F, [9])])
+        assert device.files[4][7:10] == [0x06AF, 0x04BE, 0x100D]
+        assert bus.read_file_record(1, [(4, 6, 5), (3, 0x270F, 1)]) == [
+            [0, 0x06AF, 0x04BE, 0x100D, 0],
+            [9],
+        ]
+        assert bus.read_fifo_queue(1, 0x04DE) == [0x01B8, 0x1284]
+        device.registers[0x100] = 31
+        device.registers[0x101 : 0x101 + 31] = range(31)
+        assert bus.read_fifo_queue(1, 0x100) == list(range(31))
+        # Over 31: the unit's exception 3, as the specification has it.
+        device.registers[0x100] = 32
+        with pytest.raises(bb.ModbusException) as e:
+            bus.read_fifo_queue(1, 0x100)
+        assert (e.value.function, e.value.code) == (0x18, 3)
+        # A reference past the last record: the unit's exception 2.
+        with pytest.raises(bb.ModbusException) as e:
+            bus.request(1, 0x14, bytes.fromhex("07 06 00 04 27 10 00 01"))
+        assert e.value.code == 2
+
+
+def test_a_fifo_reply_of_more_than_31_values_is_a_frame_error(slave: ScriptedSlave) -> None:
+    values = " 00 2A" * 32
+    with bb.Bus(slave.port, timeout=0.3, retries=0) as bus:
+        slave.expect(6, rtu("01 18 00 42 00 20" + values))
+        with pytest.raises(bb.FrameError, match="count 32"):
+            bus.read_fifo_queue(1, 0x04DE)
+        slave.join()
+    assert slave.received[0] == rtu("01 18 04 DE")
+
+
+def test_a_write_file_record_reply_must_echo_the_request(slave: ScriptedSlave) -> None:
+    with bb.Bus(slave.port, timeout=0.3, retries=0) as bus:
+        slave.expect(14, rtu("01 15 09 06 00 04 00 07 00 01 06 AE"))
+        with pytest.raises(bb.FrameError, match="not echoed"):
+            bus.write_file_record(1, [(4, 7, [0x06AF])])
+        slave.join()
+
+
+def test_a_read_file_record_reply_must_answer_every_group(slave: ScriptedSlave) -> None:
+    with bb.Bus(slave.port, timeout=0.3, retries=0) as bus:
+        # Asked 2 registers of each of two files; the reply's byte count is for one group.
+        slave.expect(19, rtu("01 14 06 05 06 0D FE 00 20"))
+        with pytest.raises(bb.FrameError):
+            bus.read_file_record(1, [(4, 1, 2), (3, 9, 2)])
+        slave.join()
+
+
+def test_file_record_limits_send_nothing(slave: ScriptedSlave) -> None:
+    with bb.Bus(slave.port, timeout=0.2, retries=0) as bus:
+        for bad in (
+            lambda: bus.read_file_record(1, []),
+            lambda: bus.read_file_record(1, [(0, 0, 1)]),
+            lambda: bus.read_file_record(1, [(1, 0x2710, 1)]),
+            lambda: bus.read_file_record(1, [(1, 0, 1)] * 36),
+            lambda: bus.read_file_record(1, [(1, 0, 125)]),
+            lambda: bus.write_file_record(1, [(1, 0, [0] * 123)]),
+            lambda: bus.write_file_record(1, [(0xFFFF, 0x270F, [1, 2])]),
+            lambda: bus.read_fifo_queue(1, 0x10000),
+        ):
+            with pytest.raises(ValueError):
+                bad()
+        # At the limits: sent (and unanswered here).
+        slave.expect(250, None)
+        with pytest.raises(bb.ResponseTimeout):
+            bus.read_file_record(1, [(1, 0, 1)] * 35)
+        assert bus.stats.timeouts == 1
+    slave.join()
+    # Only the request at the limits went out: 1 + 1 + 1 + 35 * 7 + 2 bytes.
+    assert [len(f) for f in slave.received] == [250]

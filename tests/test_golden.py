@@ -48,6 +48,14 @@ def call(bus: bb.Bus, unit: int, req: dict[str, Any], lenient: bool) -> Any:
         return bus.read_exception_status(unit)
     if fn == "diagnostics":
         return bus.diagnostics(unit, req["sub_function"], frame(req["data"]))
+    if fn in ("get_comm_event_counter", "get_comm_event_log"):
+        return getattr(bus, fn)(unit)
+    if fn == "read_file_record":
+        return bus.read_file_record(unit, [tuple(g) for g in req["groups"]])
+    if fn == "write_file_record":
+        return bus.write_file_record(unit, [tuple(g) for g in req["groups"]])
+    if fn == "read_fifo_queue":
+        return bus.read_fifo_queue(unit, req["address"])
     raise AssertionError(f"unknown function {fn}")
 
 
@@ -64,7 +72,22 @@ def test_every_manual_is_covered() -> None:
 def test_every_function_the_specification_gives_an_example_of_is_covered() -> None:
     spec = [v for v in VECTORS if v["source"].startswith(SPEC)]
     functions = {bytes.fromhex(v["request"]["frame"])[1] for v in spec}
-    assert functions == {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x16, 0x17}
+    assert functions == {
+        0x01,
+        0x02,
+        0x04,
+        0x05,
+        0x07,
+        0x08,
+        0x0B,
+        0x0C,
+        0x0F,
+        0x14,
+        0x15,
+        0x16,
+        0x17,
+        0x18,
+    }
     # The specification's PDUs, sent to unit 1 with the serial line's CRC.
     assert all(v["unit"] == 1 and v["crc"] == "computed" for v in spec)
 
@@ -101,6 +124,21 @@ def test_vector_on_the_wire(slave: ScriptedSlave, v: dict[str, Any]) -> None:
                 assert got == result["status"]
             elif kind == "diagnostics":
                 assert got == frame(result["data"])
+            elif kind == "comm_event_counter":
+                assert got == bb.CommEventCounter(result["status"], result["event_count"])
+                assert (got.status, got.event_count) == (result["status"], result["event_count"])
+            elif kind == "comm_event_log":
+                assert isinstance(got, bb.CommEventLog)
+                assert got == (
+                    result["status"],
+                    result["event_count"],
+                    result["message_count"],
+                    frame(result["events"]),
+                )
+            elif kind == "file_records":
+                assert got == result["records"]
+            elif kind == "fifo":
+                assert got == result["values"]
             else:
                 assert got is None
         slave.join()

@@ -109,6 +109,40 @@ def _registers_15_17(dev: RegisterDevice) -> None:
     assert dev.registers[14:17] == [0x00FF, 0x00FF, 0x00FF]
 
 
+def _busy_264_events(dev: RegisterDevice) -> None:
+    # 6.9: "the status word FF FF hex indicates that a program function is still in progress
+    # in the remote device. The event count shows that 264 (01 08 hex) events have been
+    # counted by the device."
+    dev.comm_busy, dev.comm_event_count = True, 0x0108
+
+
+def _event_log(dev: RegisterDevice) -> None:
+    # 6.10: status 00 00 (not busy), event count 264, message count 289 (01 21 hex), and two
+    # events, the newest first: 20 hex (the device entered the listen only mode) and 00 hex
+    # (a communication restart).
+    dev.comm_event_count, dev.comm_message_count, dev.comm_events = 0x0108, 0x0121, b"\x20\x00"
+
+
+def _files_4_and_3(dev: RegisterDevice) -> None:
+    # 6.14: file 4 records 1..2 hold 0D FE, 00 20; file 3 records 9..10 hold 33 CD, 00 40.
+    dev.files[4][1:3] = [0x0DFE, 0x0020]
+    dev.files[3][9:11] = [0x33CD, 0x0040]
+
+
+def _file_4_records_7_9(dev: RegisterDevice) -> None:
+    assert dev.files[4][7:10] == [0x06AF, 0x04BE, 0x100D]
+    assert dev.files[4][6] == dev.files[4][10] == 0
+
+
+def _fifo_at_04de(dev: RegisterDevice) -> None:
+    # 6.18: the FIFO at pointer address 04DE hex holds two registers, 01 B8 and 12 84.
+    dev.registers[0x04DE : 0x04DE + 3] = [2, 0x01B8, 0x1284]
+
+
+def _fifo_kept(dev: RegisterDevice) -> None:
+    assert dev.registers[0x04DE : 0x04DE + 3] == [2, 0x01B8, 0x1284]  # read, not cleared
+
+
 EXAMPLES = {
     "0x01 read coils": Example("01 00 13 00 13", "01 03 CD 6B 05", _coils_20_38),
     "0x02 read discrete inputs": Example("02 00 C4 00 16", "02 03 AC DB 35", _inputs_197_218),
@@ -116,6 +150,8 @@ EXAMPLES = {
     "0x05 write single coil": Example("05 00 AC FF 00", "05 00 AC FF 00", after=_coil_173_on),
     "0x07 read exception status": Example("07", "07 6D", _set_status),
     "0x08 return query data": Example("08 00 00 A5 37", "08 00 00 A5 37"),
+    "0x0B get comm event counter": Example("0B", "0B FF FF 01 08", _busy_264_events),
+    "0x0C get comm event log": Example("0C", "0C 08 00 00 01 08 01 21 20 00", _event_log),
     "0x0F write multiple coils": Example(
         "0F 00 13 00 0A 02 CD 01", "0F 00 13 00 0A", after=_coils_20_29
     ),
@@ -127,6 +163,19 @@ EXAMPLES = {
         "17 0C 00 FE 0A CD 00 01 00 03 00 0D 00 FF",
         _registers_4_9,
         _registers_15_17,
+    ),
+    "0x14 read file record": Example(
+        "14 0E 06 00 04 00 01 00 02 06 00 03 00 09 00 02",
+        "14 0C 05 06 0D FE 00 20 05 06 33 CD 00 40",
+        _files_4_and_3,
+    ),
+    "0x15 write file record": Example(
+        "15 0D 06 00 04 00 07 00 03 06 AF 04 BE 10 0D",
+        "15 0D 06 00 04 00 07 00 03 06 AF 04 BE 10 0D",
+        after=_file_4_records_7_9,
+    ),
+    "0x18 read fifo queue": Example(
+        "18 04 DE", "18 00 06 00 02 01 B8 12 84", _fifo_at_04de, _fifo_kept
     ),
 }
 
@@ -316,10 +365,20 @@ def exception_of(client: Client, request: str) -> bytes:
         ("01 08 00 0A 00 00", 1),
         # Restart communications takes 0000 or FF00 only: 3.
         ("01 08 00 01 12 34", 3),
+        # File records: a byte count out of 0x07..0xF5 (read) or 0x09..0xFB (write), or not
+        # the data's, 3; a reference type other than 6, file 0, a record past 0x270F, 2.
+        ("01 14 00", 3),
+        ("01 14 08 06 00 04 00 01 00 01 00", 3),
+        ("01 15 07 06 00 04 00 01 00 01", 3),
+        ("01 14 07 07 00 04 00 01 00 01", 2),
+        ("01 14 07 06 00 00 00 01 00 01", 2),
+        ("01 14 07 06 00 04 27 0F 00 02", 2),
+        ("01 15 09 06 00 04 27 10 00 01 00 2A", 2),
+        # A FIFO of more than 31 values (its count register, 0x0010, says 0x00F0): 3.
+        ("01 18 00 10", 3),
         # Functions no RegisterDevice serves: 1.
-        ("01 14 00 00 00 01", 1),
         ("01 41 00", 1),
-        ("01 18 00 00", 1),
+        ("01 09 00 00", 1),
     ],
 )
 def test_bad_requests_get_the_specs_exception(
@@ -620,7 +679,23 @@ def test_the_line_cuts_the_new_frames_by_their_length() -> None:
         assert (request_length(request), reply_length(reply)) == expected, example.request
     assert request_length(frame("01 11")) == 4
     assert reply_length(frame("01 11 03 49 44 00")) == 8
-    assert {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x11, 0x16, 0x17} == FUNCTIONS
+    assert {
+        0x01,
+        0x02,
+        0x04,
+        0x05,
+        0x07,
+        0x08,
+        0x0B,
+        0x0C,
+        0x0F,
+        0x11,
+        0x14,
+        0x15,
+        0x16,
+        0x17,
+        0x18,
+    } == FUNCTIONS
     assert STANDARD_FUNCTIONS == BASIC_FUNCTIONS | FUNCTIONS == RegisterDevice.functions
     assert BASIC_FUNCTIONS == {0x03, 0x06, 0x10, 0x2B} == SimDevice.functions
 

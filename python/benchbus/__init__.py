@@ -68,6 +68,7 @@ from benchbus._pbl import (
 )
 from benchbus._profile import Device, ProfileLimits, ProfileLine, ProfileRegister
 from benchbus._record import Recording
+from benchbus._results import CommEventCounter, CommEventLog
 from benchbus._wirelog import enable_wire_log
 from benchbus.exceptions import (
     BenchbusError,
@@ -88,6 +89,8 @@ __all__ = [
     "C20ControlMode",
     "CancelToken",
     "Cancelled",
+    "CommEventCounter",
+    "CommEventLog",
     "CommandSource",
     "ControlMode",
     "CrcError",

@@ -12,6 +12,7 @@ from benchbus._instrument import Identification
 from benchbus._j2 import J2Parameter, J2Status, Limits, Pid
 from benchbus._pbl import Direction, PblParameter, PblStatus, PblTelemetry
 from benchbus._profile import ProfileLimits, ProfileLine, ProfileRegister
+from benchbus._results import CommEventCounter, CommEventLog
 
 #: Which register (word order) or which byte of a register (byte order) of a multi-register
 #: value comes first: "big" the most significant (the Modbus convention), "little" the least.
@@ -343,6 +344,41 @@ class Bus:
         """The data field of the unit's Report Server ID reply (function 0x11), after its
         byte count, as the device sent it (its layout is the device's: typically an id, a
         run indicator 0x00 / 0xFF, then free text)."""
+    def get_comm_event_counter(self, unit: int) -> CommEventCounter:
+        """The unit's status word (0xFFFF busy with a program command, 0x0000 not) and
+        event counter (function 0x0B), as ``CommEventCounter(status, event_count)``.
+
+        A serial line function, sent over ``tcp://`` as :meth:`read_exception_status` is."""
+    def get_comm_event_log(self, unit: int) -> CommEventLog:
+        """The unit's status word, event counter, message counter and events (0 to 64
+        bytes, the newest first) (function 0x0C), as ``CommEventLog(status, event_count,
+        message_count, events)``.
+
+        A serial line function, sent over ``tcp://`` as :meth:`read_exception_status` is."""
+    def read_file_record(
+        self, unit: int, groups: Iterable[tuple[int, int, int]]
+    ) -> list[list[int]]:
+        """Read file records (function 0x14): for each group ``(file, record, length)``,
+        ``length`` registers (1 or more) from record ``record`` (0..0x270F) of file
+        ``file`` (1..0xFFFF); one list of registers per group, in the groups' order.
+
+        At least one group; the request (7 bytes a group) and the reply (2 bytes and the
+        registers a group) must each fit the 253-byte PDU, and no group may run past record
+        0x270F: else ValueError, and nothing is sent."""
+    def write_file_record(
+        self, unit: int, groups: Iterable[tuple[int, int, Iterable[int]]]
+    ) -> None:
+        """Write file records (function 0x15): for each group ``(file, record, values)``,
+        ``values`` (1 or more) from record ``record`` (0..0x270F) of file ``file``
+        (1..0xFFFF). The reply must echo the request (else FrameError).
+
+        At least one group; the request (7 bytes and the values a group) must fit the
+        253-byte PDU, and no group may run past record 0x270F: else ValueError, and nothing
+        is sent."""
+    def read_fifo_queue(self, unit: int, address: int) -> list[int]:
+        """The values queued in the FIFO whose count register is at ``address``
+        (0..0xFFFF) (function 0x18), oldest first: at most 31, as the specification
+        bounds a FIFO (a reply that counts more is a FrameError)."""
     def request(
         self,
         unit: int,

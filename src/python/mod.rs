@@ -18,8 +18,8 @@ mod values;
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::ascii::AsciiError;
 use crate::codec::pdu::{
-    MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT, MAX_WRITE_BITS,
-    MAX_WRITE_COUNT,
+    Request, MAX_FILE_RECORD, MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT,
+    MAX_WRITE_BITS, MAX_WRITE_COUNT,
 };
 use crate::codec::{mbap, Echo, FrameError, Framing};
 use crate::device::Device;
@@ -115,6 +115,9 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
     };
     build().unwrap_or_else(|e| e)
 }
+
+/// The Python module of the Bus's result types (`CommEventCounter`, `CommEventLog`).
+const RESULTS: &str = "benchbus._results";
 
 /// An instance of the public Python type `module.name` (a dataclass, an enum) made from
 /// `args` and `kwargs`: how a binding returns a result typed as users see it, without a
@@ -591,6 +594,85 @@ fn register_list(obj: &Bound<'_, PyAny>, max: usize) -> PyResult<Vec<u16>> {
     Ok(values)
 }
 
+/// The items of a `groups` argument (file record groups), each a sequence of three:
+/// refused as a TypeError if `groups` is text, bytes or not iterable, or an item is not a
+/// sequence of three.
+fn group_items<'py>(obj: &Bound<'py, PyAny>, third: &str) -> PyResult<Vec<[Bound<'py, PyAny>; 3]>> {
+    let shape = || {
+        PyTypeError::new_err(format!(
+            "groups must be a sequence of (file, record, {third}) tuples"
+        ))
+    };
+    if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
+        return Err(shape());
+    }
+    obj.try_iter()
+        .map_err(|_| shape())?
+        .map(|item| {
+            let item = item?;
+            if item.is_instance_of::<PyString>() || item.is_instance_of::<PyBytes>() {
+                return Err(shape());
+            }
+            let fields = item
+                .try_iter()
+                .map_err(|_| shape())?
+                .collect::<PyResult<Vec<_>>>()?;
+            <[Bound<'py, PyAny>; 3]>::try_from(fields).map_err(|_| shape())
+        })
+        .collect()
+}
+
+/// A group's file (1..=0xFFFF) and record (0..=0x270F).
+fn file_and_record(file: &Bound<'_, PyAny>, record: &Bound<'_, PyAny>) -> PyResult<(u16, u16)> {
+    let file = int_in(file, "file", 1, 0xFFFF)? as u16;
+    let record = int_in(record, "record", 0, i64::from(MAX_FILE_RECORD))? as u16;
+    Ok((file, record))
+}
+
+/// The request's own limits (a request and reply within a PDU, no record past 0x270F),
+/// as a ValueError before anything is sent.
+fn valid(request: Request) -> PyResult<Request> {
+    request
+        .validate()
+        .map_err(|e| PyValueError::new_err(e.to_string()))?;
+    Ok(request)
+}
+
+/// The `groups` of a Read File Record (0x14): `(file, record, length)` each, checked.
+fn read_file_groups(obj: &Bound<'_, PyAny>) -> PyResult<Vec<(u16, u16, u16)>> {
+    let groups = group_items(obj, "length")?
+        .iter()
+        .map(|[file, record, length]| {
+            let (file, record) = file_and_record(file, record)?;
+            let length = int_in(length, "length", 1, i64::from(MAX_FILE_RECORD) + 1)? as u16;
+            Ok((file, record, length))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    match valid(Request::ReadFileRecord { groups })? {
+        Request::ReadFileRecord { groups } => Ok(groups),
+        _ => Err(PyRuntimeError::new_err(
+            "unreachable: not a read file record",
+        )),
+    }
+}
+
+/// The `groups` of a Write File Record (0x15): `(file, record, values)` each, checked.
+fn write_file_groups(obj: &Bound<'_, PyAny>) -> PyResult<Vec<(u16, u16, Vec<u16>)>> {
+    let groups = group_items(obj, "values")?
+        .iter()
+        .map(|[file, record, values]| {
+            let (file, record) = file_and_record(file, record)?;
+            Ok((file, record, register_list(values, MAX_PDU_DATA / 2)?))
+        })
+        .collect::<PyResult<Vec<_>>>()?;
+    match valid(Request::WriteFileRecord { groups })? {
+        Request::WriteFileRecord { groups } => Ok(groups),
+        _ => Err(PyRuntimeError::new_err(
+            "unreachable: not a write file record",
+        )),
+    }
+}
+
 /// The `unit`, `address` and `count` (1..=`max`) of a read, checked: the block stays within
 /// the address map.
 fn read_args(
@@ -995,6 +1077,85 @@ impl PyBus {
         let unit = unit_arg(unit)?;
         let reply = self.wire(py, |b| b.report_server_id(unit, &TxOptions::default()))?;
         Ok(PyBytes::new(py, &reply))
+    }
+
+    /// The unit's status word and event counter (function 0x0B), as a
+    /// ``CommEventCounter(status, event_count)``.
+    fn get_comm_event_counter<'py>(
+        &self,
+        py: Python<'py>,
+        unit: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let unit = unit_arg(unit)?;
+        let (status, count) = self.wire(py, |b| {
+            b.get_comm_event_counter(unit, &TxOptions::default())
+        })?;
+        public(py, RESULTS, "CommEventCounter", (status, count), None)
+    }
+
+    /// The unit's status word, event and message counters and events (function 0x0C), as
+    /// a ``CommEventLog(status, event_count, message_count, events)``.
+    fn get_comm_event_log<'py>(
+        &self,
+        py: Python<'py>,
+        unit: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let unit = unit_arg(unit)?;
+        let (status, events, messages, log) =
+            self.wire(py, |b| b.get_comm_event_log(unit, &TxOptions::default()))?;
+        let log = PyBytes::new(py, &log);
+        public(
+            py,
+            RESULTS,
+            "CommEventLog",
+            (status, events, messages, log),
+            None,
+        )
+    }
+
+    /// Reads file records (function 0x14): for each group ``(file, record, length)``,
+    /// ``length`` registers from record ``record`` of file ``file``; one list per group.
+    fn read_file_record(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        groups: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<Vec<u16>>> {
+        let unit = unit_arg(unit)?;
+        let groups = read_file_groups(groups)?;
+        self.wire(py, |b| {
+            b.read_file_record(unit, &groups, &TxOptions::default())
+        })
+    }
+
+    /// Writes file records (function 0x15): for each group ``(file, record, values)``,
+    /// ``values`` from record ``record`` of file ``file``; the reply must echo the request.
+    fn write_file_record(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        groups: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let unit = unit_arg(unit)?;
+        let groups = write_file_groups(groups)?;
+        self.wire(py, |b| {
+            b.write_file_record(unit, &groups, &TxOptions::default())
+        })
+    }
+
+    /// The values queued in the FIFO whose count register is at ``address`` (function
+    /// 0x18), oldest first: at most 31.
+    fn read_fifo_queue(
+        &self,
+        py: Python<'_>,
+        unit: &Bound<'_, PyAny>,
+        address: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<u16>> {
+        let unit = unit_arg(unit)?;
+        let address = u16_arg(address, "address")?;
+        self.wire(py, |b| {
+            b.read_fifo_queue(unit, address, &TxOptions::default())
+        })
     }
 
     /// Sends function `function` (1..=127) with `data`, the PDU after the function code,

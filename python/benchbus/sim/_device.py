@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import collections
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -25,10 +26,14 @@ BASIC_FUNCTIONS = frozenset({0x03, 0x06, 0x10, 0x2B})
 #: Every public function a :class:`RegisterDevice` answers: the basic ones, coils (0x01,
 #: 0x05, 0x0F), discrete inputs (0x02), input registers (0x04), Mask Write Register (0x16),
 #: Read/Write Multiple registers (0x17), Read Exception Status (0x07), Diagnostics (0x08:
-#: sub-functions 0x0000, 0x0001 and 0x0004) and Report Server ID (0x11).
+#: sub-functions 0x0000, 0x0001 and 0x0004), Get Comm Event Counter (0x0B), Get Comm Event
+#: Log (0x0C), Report Server ID (0x11), Read / Write File Record (0x14, 0x15) and Read FIFO
+#: Queue (0x18).
 STANDARD_FUNCTIONS = BASIC_FUNCTIONS | frozenset(
-    {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0F, 0x11, 0x16, 0x17}
+    {0x01, 0x02, 0x04, 0x05, 0x07, 0x08, 0x0B, 0x0C, 0x0F, 0x11, 0x14, 0x15, 0x16, 0x17, 0x18}
 )
+#: Records in a file (0x14, 0x15): 0 to 9999 (Modbus application protocol 6.14).
+FILE_RECORDS = 10000
 
 
 class SimException(Exception):
@@ -156,6 +161,21 @@ class SimDevice:
     #: three fields take at most 251 bytes together).
     additional_data: bytes = b""
 
+    #: The status word of Get Comm Event Counter (0x0B) and Get Comm Event Log (0x0C): True
+    #: answers 0xFFFF (a program command still being processed), False 0x0000.
+    comm_busy: bool = False
+
+    #: The event counter of 0x0B and 0x0C, 0..0xFFFF: a test sets it to what the device
+    #: under study would have counted (successful messages since its restart).
+    comm_event_count: int = 0
+
+    #: The message counter of Get Comm Event Log (0x0C), 0..0xFFFF, set as
+    #: :attr:`comm_event_count` is.
+    comm_message_count: int = 0
+
+    #: The events of Get Comm Event Log (0x0C), one byte each, the newest first, at most 64.
+    comm_events: bytes = b""
+
     #: Whether this unit answers a broadcast (unit 0) as if it had been addressed itself, with
     #: its own unit address in the reply. Standard Modbus units act on a broadcast silently;
     #: the PBL manual says its drives answer.
@@ -214,6 +234,29 @@ class SimDevice:
 
     def read_input_registers(self, address: int, count: int) -> list[int]:
         """Values of the ``count`` input registers from ``address`` (0x04; each 0..0xFFFF).
+
+        Raise :class:`SimException` to answer with an exception reply instead.
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def read_file_record(self, file: int, record: int, length: int) -> list[int]:
+        """The ``length`` registers from record ``record`` of file ``file`` (0x14; the
+        request's ranges are checked before: file 1..0xFFFF, records within 0..9999).
+
+        Raise :class:`SimException` to answer with an exception reply instead.
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def write_file_record(self, file: int, record: int, values: list[int]) -> None:
+        """Write ``values`` from record ``record`` of file ``file`` (0x15, one call a group).
+
+        Raise :class:`SimException` to answer with an exception reply instead.
+        """
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+
+    def read_fifo_queue(self, address: int) -> list[int]:
+        """The values queued in the FIFO whose count register is at ``address`` (0x18),
+        oldest first; more than 31 answers exception 3, as the specification says.
 
         Raise :class:`SimException` to answer with an exception reply instead.
         """
@@ -344,6 +387,12 @@ class RegisterDevice(SimDevice):
         self.discrete_inputs: list[bool] = _bits(discrete_inputs)
         #: The identification objects (0x2B / 0x0E) by object id, or None: not answered.
         self.identity = dict(identity) if identity is not None else None
+        #: The files of Read / Write File Record (0x14, 0x15) by file number: 10000
+        #: registers each (records 0..9999), all 0 until written; a file is made when first
+        #: read or written (``dev.files[4][1] = 0x0DFE``).
+        self.files: collections.defaultdict[int, list[int]] = collections.defaultdict(
+            lambda: [0] * FILE_RECORDS
+        )
         #: The holding registers a write to answers :attr:`readonly_code`.
         self.readonly: set[int] = set(readonly)
         for address in self.readonly:
@@ -381,6 +430,24 @@ class RegisterDevice(SimDevice):
         """The discrete inputs ``address .. address + count - 1`` from
         :attr:`discrete_inputs`."""
         return _block(self.discrete_inputs, address, count)
+
+    def read_file_record(self, file: int, record: int, length: int) -> list[int]:
+        """The records ``record .. record + length - 1`` of :attr:`files` ``[file]``."""
+        return _block(self.files[file], record, length)
+
+    def write_file_record(self, file: int, record: int, values: list[int]) -> None:
+        """Store ``values`` from record ``record`` of :attr:`files` ``[file]``."""
+        _block(self.files[file], record, len(values))
+        for value in values:
+            _check_value(value)
+        self.files[file][record : record + len(values)] = values
+
+    def read_fifo_queue(self, address: int) -> list[int]:
+        """The FIFO kept in the holding registers: its count in register ``address``, the
+        values queued in the registers after it (read, not cleared, as the specification
+        has it)."""
+        (count,) = _block(self.registers, address, 1)
+        return _block(self.registers, address + 1, count)
 
     def __repr__(self) -> str:
         """Class name and the registers that are not 0."""

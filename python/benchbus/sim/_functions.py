@@ -5,13 +5,14 @@ exception state diagrams) alone: coils (0x01, 0x05, 0x0F), discrete inputs (0x02
 registers (0x04), Mask Write Register (0x16), Read/Write Multiple registers (0x17), and the
 serial line's Read Exception Status (0x07), Diagnostics (0x08: return query data 0x0000 and
 restart communications 0x0001; the listen only mode, 0x0004, is the router's, which keeps
-the requests from the unit) and Report Server ID (0x11). :func:`serve` turns a request
-PDU's data into the reply PDU's data by calling the unit's :class:`~benchbus.sim.SimDevice`
-handlers, and raises :class:`~benchbus.sim.SimException` for an exception reply. The
-checks come in the spec's order: the quantity (and the byte count, and a coil's value)
-first, exception 3, and the device's own limit on it (``too_many_code``); then the
-addresses, exception 2; then the device's own refusals. Pure Python, no pymodbus.
-"""
+the requests from the unit), Get Comm Event Counter (0x0B), Get Comm Event Log (0x0C),
+Report Server ID (0x11), Read / Write File Record (0x14, 0x15) and Read FIFO Queue (0x18).
+:func:`serve` turns a request PDU's data into the reply PDU's data by calling the unit's
+:class:`~benchbus.sim.SimDevice` handlers, and raises :class:`~benchbus.sim.SimException`
+for an exception reply. The checks come in the spec's order: the quantity (and the byte
+count, and a coil's value) first, exception 3, and the device's own limit on it
+(``too_many_code``); then the addresses, exception 2; then the device's own refusals. Pure
+Python, no pymodbus."""
 
 from __future__ import annotations
 
@@ -40,6 +41,14 @@ DIAGNOSTICS = 0x08
 RETURN_QUERY_DATA, RESTART_COMMUNICATIONS, FORCE_LISTEN_ONLY = 0x0000, 0x0001, 0x0004
 #: Most bytes a Report Server ID reply's data may take (a PDU is at most 253 bytes).
 MAX_SERVER_ID_DATA = 251
+#: The reference type of a file record group (6.14, 6.15), the highest record number, and
+#: the request byte counts allowed: 0x07..0xF5 a read, 0x09..0xFB a write.
+FILE_REFERENCE, LAST_RECORD = 6, 0x270F
+READ_FILE_BYTES, WRITE_FILE_BYTES = range(0x07, 0xF6), range(0x09, 0xFC)
+#: Most values a FIFO queue holds (6.18), most events a comm event log carries (6.10).
+MAX_FIFO, MAX_EVENTS = 31, 64
+#: The status word of 0x0B and 0x0C: a program command still being processed, or not.
+BUSY, READY = 0xFFFF, 0x0000
 
 _SPACE = 0x10000
 _ILLEGAL_FUNCTION = SimException.ILLEGAL_FUNCTION
@@ -212,6 +221,92 @@ def _report_server_id(device: SimDevice, data: bytes) -> bytes:
     return bytes([len(field)]) + field
 
 
+def _counter(device: SimDevice, name: str) -> int:
+    value = getattr(device, name)
+    if isinstance(value, bool) or not isinstance(value, int) or not 0 <= value <= 0xFFFF:
+        raise ValueError(f"{type(device).__name__}.{name} is {value!r}: not 0..0xFFFF")
+    return value
+
+
+def _status(device: SimDevice) -> bytes:
+    return (BUSY if device.comm_busy else READY).to_bytes(2, "big")
+
+
+def _get_comm_event_counter(device: SimDevice, data: bytes) -> bytes:
+    _need(not data, _ILLEGAL_VALUE)
+    return _status(device) + _counter(device, "comm_event_count").to_bytes(2, "big")
+
+
+def _get_comm_event_log(device: SimDevice, data: bytes) -> bytes:
+    _need(not data, _ILLEGAL_VALUE)
+    events = device.comm_events
+    if not isinstance(events, bytes) or len(events) > MAX_EVENTS:
+        raise ValueError(
+            f"{type(device).__name__}.comm_events is {events!r}: at most {MAX_EVENTS} bytes"
+        )
+    counters = _words(
+        [_counter(device, "comm_event_count"), _counter(device, "comm_message_count")]
+    )
+    field = _status(device) + counters + events
+    return bytes([len(field)]) + field
+
+
+def _file_groups(data: bytes, sizes: range, values: bool) -> list[tuple[int, int, list[int]]]:
+    """The groups of a 0x14 (``values`` False: their lengths as ``[0] * length``) or 0x15
+    request: the byte count first (exception 3), then each group's reference type, file
+    and records (exception 2)."""
+    _need(len(data) >= 1 and data[0] in sizes and data[0] == len(data) - 1, _ILLEGAL_VALUE)
+    groups, at = [], 1
+    while at < len(data):
+        _need(len(data) - at >= 7, _ILLEGAL_VALUE)
+        reference, file, record, length = (
+            data[at],
+            _word(data, at + 1),
+            _word(data, at + 3),
+            _word(data, at + 5),
+        )
+        at += 7
+        words = []
+        if values:
+            _need(len(data) - at >= 2 * length, _ILLEGAL_VALUE)
+            words = [_word(data, at + 2 * i) for i in range(length)]
+            at += 2 * length
+        else:
+            words = [0] * length
+        _need(reference == FILE_REFERENCE and file >= 1, _ILLEGAL_ADDRESS)
+        _need(length >= 1 and record + length - 1 <= LAST_RECORD, _ILLEGAL_ADDRESS)
+        groups.append((file, record, words))
+    return groups
+
+
+def _read_file_record(device: SimDevice, data: bytes) -> bytes:
+    groups = _file_groups(data, READ_FILE_BYTES, values=False)
+    # function, byte count, then a length, a reference type and the registers a group.
+    _need(2 + sum(2 + 2 * len(g[2]) for g in groups) <= 253, _ILLEGAL_VALUE)
+    out = bytearray()
+    for file, record, words in groups:
+        name = f"{type(device).__name__}.read_file_record"
+        got = _checked(name, device.read_file_record(file, record, len(words)), len(words), False)
+        out += bytes([1 + 2 * len(got), FILE_REFERENCE]) + _words(got)
+    return bytes([len(out)]) + bytes(out)
+
+
+def _write_file_record(device: SimDevice, data: bytes) -> bytes:
+    for file, record, words in _file_groups(data, WRITE_FILE_BYTES, values=True):
+        device.write_file_record(file, record, words)
+    return data  # the echo
+
+
+def _read_fifo_queue(device: SimDevice, data: bytes) -> bytes:
+    _need(len(data) == 2, _ILLEGAL_VALUE)
+    values = device.read_fifo_queue(_word(data, 0))
+    name = f"{type(device).__name__}.read_fifo_queue"
+    count = len(values) if isinstance(values, list) else 0
+    _need(count <= MAX_FIFO, _ILLEGAL_VALUE)
+    values = _checked(name, values, count, bits=False)
+    return (2 + 2 * count).to_bytes(2, "big") + count.to_bytes(2, "big") + _words(values)
+
+
 _HANDLERS: dict[int, Callable[[SimDevice, bytes], bytes]] = {
     0x01: _read_coils,
     0x02: _read_discrete_inputs,
@@ -219,10 +314,15 @@ _HANDLERS: dict[int, Callable[[SimDevice, bytes], bytes]] = {
     0x05: _write_coil,
     0x07: _read_exception_status,
     DIAGNOSTICS: _diagnostics,
+    0x0B: _get_comm_event_counter,
+    0x0C: _get_comm_event_log,
     0x0F: _write_coils,
     0x11: _report_server_id,
+    0x14: _read_file_record,
+    0x15: _write_file_record,
     0x16: _mask_write_register,
     0x17: _read_write_registers,
+    0x18: _read_fifo_queue,
 }
 
 

@@ -90,8 +90,12 @@ def request_length(buf: bytes) -> int | None:
     if len(buf) < 2:
         return 0
     function = buf[1]
-    if function in (0x07, 0x11):
+    if function in (0x07, 0x0B, 0x0C, 0x11):
         return 4
+    if function == 0x18:
+        return 6
+    if function in (0x14, 0x15):
+        return 0 if len(buf) < 3 else 5 + buf[2]
     if function in (0x01, 0x02, 0x03, 0x04, 0x05, 0x06):
         return 8
     if function == 0x16:
@@ -116,10 +120,12 @@ def reply_length(buf: bytes) -> int | None:
         return 5
     if function == 0x07:
         return 5
-    if function in (0x01, 0x02, 0x03, 0x04, 0x11, 0x17):
+    if function in (0x01, 0x02, 0x03, 0x04, 0x0C, 0x11, 0x14, 0x15, 0x17):
         return 0 if len(buf) < 3 else 5 + buf[2]
-    if function in (0x05, 0x06, 0x0F, 0x10):
+    if function in (0x05, 0x06, 0x0B, 0x0F, 0x10):
         return 8
+    if function == 0x18:
+        return 0 if len(buf) < 4 else 6 + int.from_bytes(buf[2:4], "big")
     if function == 0x16:
         return 10
     if function == 0x2B:
