@@ -830,7 +830,7 @@ def test_serial_line_functions_through_the_gateway(third_party: ModbusTcpClient)
     assert (server_id.identifier, server_id.status) == (b"Pymodbus", True)
     assert client.read_exception_status(device_id=1).status == 0
     # Get comm event counter (0x0B, a reply of fixed length) and log (0x0C, whose reply
-    # the gateway reads by silence): nothing happened on pymodbus's side.
+    # the gateway reads by its byte count): nothing happened on pymodbus's side.
     counter = client.diag_get_comm_event_counter(device_id=1)
     assert not counter.isError()
     assert (counter.status, counter.count) == (True, 0)
@@ -976,3 +976,56 @@ def test_write_intervals_hold_for_every_write_function(
         assert closest >= 0.15
     else:  # the clients' writes come closer than the unit allows
         assert closest < 0.15
+
+
+#: The specification's examples (6.9, 6.10, 6.14, 6.15, 6.18): request PDU, reply PDU.
+SPEC_EXAMPLES = [
+    ("0B", "0B FF FF 01 08"),
+    ("0C", "0C 08 00 00 01 08 01 21 20 00"),
+    (
+        "15 0D 06 00 04 00 07 00 03 06 AF 04 BE 10 0D",
+        "15 0D 06 00 04 00 07 00 03 06 AF 04 BE 10 0D",
+    ),
+    (
+        "14 0E 06 00 04 00 01 00 02 06 00 03 00 09 00 02",
+        "14 0C 05 06 0D FE 00 20 05 06 33 CD 00 40",
+    ),
+    ("18 04 DE", "18 00 06 00 02 01 B8 12 84"),
+]
+
+
+def test_counters_files_and_fifo_through_the_gateway(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    device = sim.devices[2]
+    assert isinstance(device, RegisterDevice)
+    device.comm_busy, device.comm_event_count, device.comm_message_count = True, 0x0108, 0x0121
+    device.comm_events = b"\x20\x00"
+    device.files[4][1:3] = [0x0DFE, 0x0020]
+    device.files[3][9:11] = [0x33CD, 0x0040]
+    device.registers[0x04DE : 0x04DE + 3] = [2, 0x01B8, 0x1284]
+    with connect(gateway) as client:
+        for request, reply in SPEC_EXAMPLES:
+            if request.startswith("0C"):
+                device.comm_busy = False
+            got = ask(client, 2, bytes.fromhex(request))
+            assert got.hex(" ") == bytes.fromhex(reply).hex(" "), request
+        # Malformed: a byte count that is not the groups', a reference type other than 6, a
+        # FIFO address of one byte, data after 0x0C: answered 0x03 and not sent.
+        sent = len(sim.requests)
+        for bad in ("14 0E 06 00 04 00 01 00 02", "14 07 07 00 04 00 01 00 01", "18 04", "0C 00"):
+            pdu = bytes.fromhex(bad)
+            assert ask(client, 2, pdu) == bytes([pdu[0] | 0x80, 0x03]), bad
+        assert len(sim.requests) == sent
+    # Each went on the line once, as the client sent it.
+    assert [f[1:-2].hex(" ").upper() for f in sim.requests] == [r for r, _ in SPEC_EXAMPLES]
+    # And benchbus's own client, over Modbus TCP, has the typed calls.
+    with bb.Bus(gateway.url, timeout=2.0, retries=0) as bus:
+        assert bus.get_comm_event_counter(2) == (0, 0x0108)
+        assert bus.get_comm_event_log(2).events == b"\x20\x00"
+        assert bus.read_file_record(2, [(4, 7, 3)]) == [[0x06AF, 0x04BE, 0x100D]]
+        assert bus.read_fifo_queue(2, 0x04DE) == [0x01B8, 0x1284]
+        device.registers[0x04DE] = 32  # more than a FIFO holds: the unit's exception 3
+        with pytest.raises(bb.ModbusException) as e:
+            bus.read_fifo_queue(2, 0x04DE)
+        assert e.value.code == 3

@@ -182,25 +182,26 @@ class Gateway:
     Forwards every function code (1..127): the client's PDU goes on the line as it came
     (:meth:`Bus.request`), and the unit's reply goes back as it came, under the client's
     transaction id. The reply is read by its length where the request tells it (0x01 to
-    0x08, 0x0B, 0x0F, 0x10, 0x16, 0x17), or by the byte count it carries (0x11; 0x2B / 0x0E,
-    the identification, whose pages the gateway follows and sends with the conformity level
-    and object bytes the unit sent); any other function's reply (a vendor's function, file
-    records, another MEI type) ends when the line falls quiet (the Bus's ``silence``, at
-    least t3.5). A request of one of the specification's functions with a wrong length or
-    byte count, or a count past the specification's limits, is answered exception 0x03
-    (illegal data value) and not sent; a function code 0 or 0x80 and up, 0x01. Diagnostics
-    sub-function 0x04 (force listen only) is sent once and not answered, as no device
-    answers it. Unit 0 with 0x05, 0x06, 0x0F or 0x10 is a broadcast: sent, not answered
-    (nor is any other request to unit 0). A failure on the line comes back as the gateway
-    exceptions: 0x0B when the unit gave no valid reply (after the Bus's retries), 0x0A when
-    the serial port is lost or closed. An exception reply from the unit is passed on as it
-    is.
+    0x08, 0x0B, 0x0F, 0x10, 0x14, 0x15, 0x16, 0x17), or by the byte count it carries (0x0C,
+    0x11, 0x18; 0x2B / 0x0E, the identification, whose pages the gateway follows and sends
+    with the conformity level and object bytes the unit sent); any other function's reply (a
+    vendor's function, another MEI type) ends when the line falls quiet (the Bus's
+    ``silence``, at least t3.5). The serial line functions (0x07, 0x08, 0x0B, 0x0C, 0x11)
+    are forwarded as any other. A request of one of the specification's functions with a
+    wrong length or byte count, or a count past the specification's limits, is answered
+    exception 0x03 (illegal data value) and not sent; a function code 0 or 0x80 and up,
+    0x01. Diagnostics sub-function 0x04 (force listen only) is sent once and not answered,
+    as no device answers it. Unit 0 with 0x05, 0x06, 0x0F or 0x10 is a broadcast: sent, not
+    answered (nor is any other request to unit 0). A failure on the line comes back as the
+    gateway exceptions: 0x0B when the unit gave no valid reply (after the Bus's retries),
+    0x0A when the serial port is lost or closed. An exception reply from the unit is passed
+    on as it is.
 
     ``write_intervals`` (``{unit: seconds}``) keeps that least time between two writes to a
-    unit on the line (every function but the reads: 0x01 to 0x04, 0x07, 0x08, 0x11 and
-    0x2B / 0x0E), whichever client sends them (a J2 controller needs 0.15 s; the clients'
-    own pacing cannot see each other's writes); the Bus's retries of a 0x06 or 0x10 keep
-    it too, those of other writes do not.
+    unit on the line (every function but the reads: 0x01 to 0x04, 0x07, 0x08, 0x0B, 0x0C,
+    0x11, 0x14, 0x18 and 0x2B / 0x0E), whichever client sends them (a J2 controller needs
+    0.15 s; the clients' own pacing cannot see each other's writes); the Bus's retries of a
+    0x06 or 0x10 keep it too, those of other writes do not.
 
     A client's timeout must cover the gateway's work: up to the Bus's ``timeout x (retries
     + 1)``, the unit's write interval, and the requests of other clients queued ahead of it.
@@ -700,7 +701,8 @@ class Gateway:
         Every function goes out as the client's PDU through :meth:`Bus.request`, its reply
         read by its length where the request tells it (``reply_length``), else by silence on
         the line. Three read the Bus's own way, by the byte count their reply carries: the
-        identification (0x2B / 0x0E, its pages followed), the server id (0x11); and the
+        identification (0x2B / 0x0E, its pages followed), the server id (0x11), the comm
+        event log (0x0C) and the FIFO queue (0x18, at most 31 values); and the
         Bus's paced writes (0x06, 0x10 to a unit with a write interval, so that their
         retries keep it too). Force listen only (0x08 / 0x04) is sent once, not awaited.
         """
@@ -711,6 +713,14 @@ class Gateway:
         if function == 0x11:
             server_id = bus.report_server_id(unit)
             return bytes([0x11, len(server_id)]) + server_id
+        if function == 0x0C:
+            status, events, messages, log = bus.get_comm_event_log(unit)
+            field = b"".join(w.to_bytes(2, "big") for w in (status, events, messages)) + log
+            return bytes([0x0C, len(field)]) + field
+        if function == 0x18:
+            values = bus.read_fifo_queue(unit, _words(data, 1)[0])
+            field = b"".join(w.to_bytes(2, "big") for w in (len(values), *values))
+            return bytes([0x18]) + len(field).to_bytes(2, "big") + field
         if function == 0x08 and data[:2] == _FORCE_LISTEN_ONLY:
             bus.diagnostics(unit, 0x04, data[2:])
             return None
@@ -760,7 +770,7 @@ def _is_read(function: int, data: bytes) -> bool:
     function it does not know may write."""
     if function == 0x2B:
         return data[:1] == bytes([_MEI_DEVICE_ID])
-    return function in (0x01, 0x02, 0x03, 0x04, 0x07, 0x08, 0x11)
+    return function in (0x01, 0x02, 0x03, 0x04, 0x07, 0x08, 0x0B, 0x0C, 0x11, 0x14, 0x18)
 
 
 def _reply_length(function: int, data: bytes) -> int | None:
@@ -808,8 +818,12 @@ def _reply_length(function: int, data: bytes) -> int | None:
         if len(data) < 2:
             raise ValueError("function 0x08 takes its sub-function (2 bytes)")
         return len(data)  # every sub-function answers as many bytes as it was sent
-    if function == 0x11:
+    if function in (0x0C, 0x11):
         _data_size(function, data, 0)
+    if function == 0x18:
+        _data_size(function, data, 2)
+    if function in (0x14, 0x15):
+        return _file_record_reply(function, data)
     if function == 0x2B:
         if not data:
             raise ValueError("0x2B without its MEI type")
@@ -826,6 +840,36 @@ _FIXED = {0x05: (4, 4), 0x06: (4, 4), 0x07: (0, 1), 0x0B: (0, 4), 0x16: (6, 6)}
 _READS = {0x01: (2000, True), 0x02: (2000, True), 0x03: (125, False), 0x04: (125, False)}
 #: Writes of a count of bits or registers: {function: (most a request may carry, bits?)}.
 _WRITES = {0x0F: (1968, True), 0x10: (123, False)}
+
+
+#: File records (0x14, 0x15): the reference type of every group, the last record of a file,
+#: the byte counts a request may carry (read 0x07..0xF5, write 0x09..0xFB), the longest PDU.
+_FILE_REFERENCE, _LAST_RECORD, _MAX_PDU = 6, 0x270F, 253
+_FILE_BYTES = {0x14: range(0x07, 0xF6), 0x15: range(0x09, 0xFC)}
+
+
+def _file_record_reply(function: int, data: bytes) -> int:
+    """The reply's data length to a Read (0x14) or Write (0x15) File Record request: the
+    groups' lengths and registers (0x14), or the echo (0x15). ValueError for a byte count,
+    reference type, file or record out of the specification's ranges (6.14, 6.15)."""
+    if not data or data[0] not in _FILE_BYTES[function] or data[0] != len(data) - 1:
+        raise ValueError(f"function {function:#04x}: the byte count does not match the groups")
+    at, reply = 1, 1
+    while at < len(data):
+        if len(data) - at < 7:
+            raise ValueError(f"function {function:#04x}: a group is cut short")
+        reference, file, record, length = data[at], *_words(data[at + 1 :], 3)
+        at += 7 + (2 * length if function == 0x15 else 0)
+        reply += 2 + 2 * length
+        if reference != _FILE_REFERENCE or file == 0 or length == 0:
+            raise ValueError(f"function {function:#04x}: reference type, file or length wrong")
+        if record + length - 1 > _LAST_RECORD or at > len(data):
+            raise ValueError(f"function {function:#04x}: records past 0x270F or cut short")
+    if function == 0x15:
+        return len(data)
+    if 1 + reply > _MAX_PDU:
+        raise ValueError("function 0x14: the reply would not fit a PDU")
+    return reply
 
 
 def _words(data: bytes, n: int) -> list[int]:
