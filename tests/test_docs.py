@@ -50,6 +50,7 @@ PICKED_BY = (
     "bus.poll(",
     "tcp://192.168.1.50:502",
     "bus.read_coils(",
+    "bus.read_fifo_queue(",
     "bb.from_registers(",
     'framing="ascii"',
     "ProfileDevice(",
@@ -124,6 +125,25 @@ def test_readme_functions_example(capsys: pytest.CaptureFixture[str]) -> None:
         "0x17",
         "02 03 e8",
     ]
+
+
+def test_counters_files_and_fifo_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """The example of 0x0B, 0x0C, 0x14, 0x15 and 0x18, on a simulated unit in the states of
+    the specification's examples (6.9, 6.10, 6.14, 6.15, 6.18)."""
+    (block,) = [b for b in doc_blocks() if "bus.read_fifo_queue(" in b]
+    device = RegisterDevice({0x04DE: 2, 0x04DF: 0x01B8, 0x04E0: 0x1284})
+    device.comm_busy, device.comm_event_count = True, 0x0108
+    device.comm_message_count, device.comm_events = 0x0121, b"\x20\x00"
+    device.files[3][9:11] = [0x33CD, 0x0040]
+    with Simulator({1: device}) as sim:
+        exec(block.replace("/dev/ttyUSB1", sim.port), {})
+    assert capsys.readouterr().out.splitlines() == [
+        "CommEventCounter(status=65535, event_count=264)",
+        "289 20 00",
+        "[[1711, 1214, 4109], [13261, 64]]",
+        "[440, 4740]",
+    ]
+    assert device.files[4][7:10] == [0x06AF, 0x04BE, 0x100D]
 
 
 def test_readme_ascii_example(capsys: pytest.CaptureFixture[str]) -> None:

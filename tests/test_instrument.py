@@ -387,3 +387,24 @@ def test_line_errors_raise_the_right_class(rig: Rig) -> None:
     assert caught.value.code == 2
     with pytest.raises(bb.PortError):
         bb.Instrument("/dev/benchbus-no-such-port")
+
+
+def test_counters_files_and_fifo_of_a_generic_instrument() -> None:
+    from benchbus.sim import RegisterDevice
+
+    device = RegisterDevice({0x20: 3, 0x21: 10, 0x22: 20, 0x23: 30})
+    device.comm_event_count, device.comm_message_count, device.comm_events = 7, 9, b"\x20"
+    with Simulator({1: device}) as sim, bb.Bus(sim.port) as bus:
+        inst = bb.Instrument(bus, 1, min_write_interval=0.1)
+        counter = inst.get_comm_event_counter()
+        assert isinstance(counter, bb.CommEventCounter) and counter == (0, 7)
+        assert inst.get_comm_event_log() == bb.CommEventLog(0, 7, 9, b"\x20")
+        inst.write_file_record([(2, 10, [1, 2, 3])])
+        inst.write_file_record([(2, 13, [4])])  # paced as the instrument's other writes
+        assert inst.read_file_record([(2, 10, 4), (1, 0, 1)]) == [[1, 2, 3, 4], [0]]
+        assert inst.read_fifo_queue(0x20) == [10, 20, 30]
+        writes = [t for t, f in zip(sim.request_times, sim.requests) if f[1] == 0x15]
+        assert len(writes) == 2 and writes[1] - writes[0] >= 0.1
+        with pytest.raises(ValueError, match="record"):
+            inst.read_file_record([(2, 0x270F, 2)])
+        assert [f[1] for f in sim.requests] == [0x0B, 0x0C, 0x15, 0x15, 0x14, 0x18]

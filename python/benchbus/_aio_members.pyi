@@ -35,6 +35,7 @@ from benchbus._pbl import (
     StartStopSource,
 )
 from benchbus._record import Recording
+from benchbus._results import CommEventCounter, CommEventLog
 
 __all__ = [
     "DeviceMembers",
@@ -427,6 +428,14 @@ class InstrumentMembers:
     async def close(self) -> None:
         """Close the Bus if the device opened it (a shared Bus stays open)."""
 
+    async def get_comm_event_counter(self) -> CommEventCounter:
+        """The status word (0xFFFF busy, 0x0000 not) and event counter (function 0x0B), as a
+        ``CommEventCounter(status, event_count)``."""
+
+    async def get_comm_event_log(self) -> CommEventLog:
+        """The status word, event and message counters and events (function 0x0C), as a
+        ``CommEventLog(status, event_count, message_count, events)``."""
+
     async def identify(
         self, level: Literal["basic", "regular", "extended"] = "basic"
     ) -> Identification:
@@ -468,6 +477,14 @@ class InstrumentMembers:
     async def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
         """``count`` discrete inputs from ``address`` (0x02), in requests of at most
         ``max_read_bits``."""
+
+    async def read_fifo_queue(self, address: int) -> list[int]:
+        """The values queued in the FIFO whose count register is at ``address`` (function
+        0x18), oldest first: at most 31."""
+
+    async def read_file_record(self, groups: Iterable[tuple[int, int, int]]) -> list[list[int]]:
+        """File records (function 0x14): for each group ``(file, record, length)``,
+        ``length`` registers from record ``record`` of file ``file``; one list per group."""
 
     async def read_float(
         self,
@@ -566,6 +583,10 @@ class InstrumentMembers:
     async def write_coils(self, address: int, values: Iterable[bool]) -> None:
         """Set the coils from ``address`` to ``values`` (True or False each) with 0x0F, in
         requests of at most ``max_write_bits``."""
+
+    async def write_file_record(self, groups: Iterable[tuple[int, int, Iterable[int]]]) -> None:
+        """Write file records (function 0x15): for each group ``(file, record, values)``,
+        ``values`` from record ``record`` of file ``file``; the reply must echo the request."""
 
     async def write_float(
         self,

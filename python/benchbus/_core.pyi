@@ -1030,6 +1030,25 @@ class InstrumentCore(_Station):
         A device without the function raises :class:`~benchbus.ModbusException` with code 1
         (its ``meaning`` says so).
         """
+    def get_comm_event_counter(self) -> CommEventCounter:
+        """The status word (0xFFFF busy with a program command, 0x0000 not) and event
+        counter (function 0x0B), as :meth:`Bus.get_comm_event_counter` reads them."""
+    def get_comm_event_log(self) -> CommEventLog:
+        """The status word, event counter, message counter and events (function 0x0C), as
+        :meth:`Bus.get_comm_event_log` reads them."""
+    def read_file_record(self, groups: Iterable[tuple[int, int, int]]) -> list[list[int]]:
+        """File records (function 0x14): for each group ``(file, record, length)``,
+        ``length`` registers from record ``record`` (0..0x270F) of file ``file``
+        (1..0xFFFF); one list per group. The limits of :meth:`Bus.read_file_record`
+        (ValueError, nothing sent)."""
+    def write_file_record(self, groups: Iterable[tuple[int, int, Iterable[int]]]) -> None:
+        """Write file records (function 0x15): for each group ``(file, record, values)``,
+        ``values`` from record ``record`` of file ``file``, paced as the instrument's other
+        writes; the reply must echo the request. The limits of
+        :meth:`Bus.write_file_record` (ValueError, nothing sent)."""
+    def read_fifo_queue(self, address: int) -> list[int]:
+        """The values queued in the FIFO whose count register is at ``address`` (function
+        0x18), oldest first: at most 31 (a reply that counts more is a FrameError)."""
 
 @final
 class Profile:

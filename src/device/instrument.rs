@@ -463,6 +463,57 @@ impl Instrument {
     }
 }
 
+/// The comm event counter and log, file records and the FIFO queue (0x0B, 0x0C, 0x14,
+/// 0x15, 0x18) of the instrument, with its own timing and write pacing.
+impl Instrument {
+    /// The status word and event counter (0x0B): [`Bus::get_comm_event_counter`].
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn get_comm_event_counter(&self) -> Result<(u16, u16)> {
+        self.bus()
+            .get_comm_event_counter(self.unit(), self.station.opts())
+    }
+
+    /// The status word, both counters and the events (0x0C): [`Bus::get_comm_event_log`].
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn get_comm_event_log(&self) -> Result<(u16, u16, u16, Vec<u8>)> {
+        self.bus()
+            .get_comm_event_log(self.unit(), self.station.opts())
+    }
+
+    /// File records, one list per `(file, record, length)` group (0x14):
+    /// [`Bus::read_file_record`].
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] before anything is sent.
+    pub fn read_file_record(&self, groups: &[(u16, u16, u16)]) -> Result<Vec<Vec<u16>>> {
+        self.bus()
+            .read_file_record(self.unit(), groups, self.station.opts())
+    }
+
+    /// Writes file records, `(file, record, values)` groups (0x15), paced as the
+    /// instrument's other writes: [`Bus::write_file_record`].
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] before anything is sent.
+    pub fn write_file_record(&self, groups: &[(u16, u16, Vec<u16>)]) -> Result<()> {
+        self.bus()
+            .write_file_record(self.unit(), groups, self.station.opts())
+    }
+
+    /// The values queued in the FIFO at `address` (0x18): [`Bus::read_fifo_queue`].
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    pub fn read_fifo_queue(&self, address: u16) -> Result<Vec<u16>> {
+        self.bus()
+            .read_fifo_queue(self.unit(), address, self.station.opts())
+    }
+}
+
 /// A span of `count` registers from `address`: 1 or more, within 0..=0xFFFF.
 fn check_span(address: u16, count: usize) -> Result<()> {
     if count == 0 || usize::from(address) + count > 0x1_0000 {

@@ -3,8 +3,8 @@
 //! identification record, the repr, the context manager).
 
 use super::{
-    bool_sequence, int_in, number, opt, public, register_list, seconds, u16_arg, unit_arg,
-    Attached, PyBus, PyStation,
+    bool_sequence, int_in, number, opt, public, read_file_groups, register_list, seconds, u16_arg,
+    unit_arg, write_file_groups, Attached, PyBus, PyStation, RESULTS,
 };
 use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
 use crate::device::instrument::{Instrument, MAX_DECIMALS};
@@ -613,5 +613,51 @@ impl PyInstrumentCore {
         fields.set_item("objects", &objects)?;
         fields.set_item("conformity", id.conformity)?;
         public(py, PY, "Identification", (), Some(&fields))
+    }
+
+    /// The status word (0xFFFF busy, 0x0000 not) and event counter (function 0x0B), as a
+    /// ``CommEventCounter(status, event_count)``.
+    fn get_comm_event_counter<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let (status, count) = self.dev.wire(py, |i| i.get_comm_event_counter())?;
+        public(py, RESULTS, "CommEventCounter", (status, count), None)
+    }
+
+    /// The status word, event and message counters and events (function 0x0C), as a
+    /// ``CommEventLog(status, event_count, message_count, events)``.
+    fn get_comm_event_log<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let (status, events, messages, log) = self.dev.wire(py, |i| i.get_comm_event_log())?;
+        let log = PyBytes::new(py, &log);
+        public(
+            py,
+            RESULTS,
+            "CommEventLog",
+            (status, events, messages, log),
+            None,
+        )
+    }
+
+    /// File records (function 0x14): for each group ``(file, record, length)``,
+    /// ``length`` registers from record ``record`` of file ``file``; one list per group.
+    fn read_file_record(
+        &self,
+        py: Python<'_>,
+        groups: &Bound<'_, PyAny>,
+    ) -> PyResult<Vec<Vec<u16>>> {
+        let groups = read_file_groups(groups)?;
+        self.dev.wire(py, move |i| i.read_file_record(&groups))
+    }
+
+    /// Write file records (function 0x15): for each group ``(file, record, values)``,
+    /// ``values`` from record ``record`` of file ``file``; the reply must echo the request.
+    fn write_file_record(&self, py: Python<'_>, groups: &Bound<'_, PyAny>) -> PyResult<()> {
+        let groups = write_file_groups(groups)?;
+        self.dev.wire(py, move |i| i.write_file_record(&groups))
+    }
+
+    /// The values queued in the FIFO whose count register is at ``address`` (function
+    /// 0x18), oldest first: at most 31.
+    fn read_fifo_queue(&self, py: Python<'_>, address: &Bound<'_, PyAny>) -> PyResult<Vec<u16>> {
+        let address = u16_arg(address, "address")?;
+        self.dev.wire(py, move |i| i.read_fifo_queue(address))
     }
 }

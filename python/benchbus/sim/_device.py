@@ -97,6 +97,10 @@ class SimDevice:
       :meth:`write_holding` of ``(current AND and_mask) OR (or_mask AND NOT and_mask)``;
     - 0x17 (read/write multiple) :meth:`write_holding`, then :meth:`read_holding`, as the
       spec orders them (limits :attr:`max_write`, at most 121, and :attr:`max_read`);
+    - 0x14 and 0x15 :meth:`read_file_record` / :meth:`write_file_record` (one call a
+      group), 0x18 :meth:`read_fifo_queue`;
+    - 0x0B and 0x0C read :attr:`comm_busy`, :attr:`comm_event_count`,
+      :attr:`comm_message_count` and :attr:`comm_events`;
     - 0x07 reads :attr:`exception_status`, 0x11 :attr:`server_id`, :attr:`run_indicator`
       and :attr:`additional_data`; 0x08 (Diagnostics) is answered without asking the
       device: sub-function 0x0000 (return query data) echoes the request, 0x0004 (force
