@@ -612,8 +612,8 @@ def test_shape_reply_only_sees_the_units_replies_on_the_line(
     # Replies the simulator makes itself.
     sim.answer_exception(6, unit=1)
     assert client.transact(frame("01 06 00 05 00 07"), 5) == frame("01 86 06")
-    # (0x14 read file record: a function a RegisterDevice does not serve.)
-    assert client.transact(frame("01 14 00 00 00 01"), 5) == frame("01 94 01")
+    # (0x41, a vendor's function: one a RegisterDevice does not serve.)
+    assert client.transact(frame("01 41 00 00 00 01"), 5) == frame("01 C1 01")
     # A broadcast this unit does not answer.
     client.send(frame("00 06 00 05 00 09"))
     client.assert_quiet()

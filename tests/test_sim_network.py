@@ -182,8 +182,8 @@ def test_tcp_device_exception_codes(tcp: tuple[Simulator[SimDevice], Client]) ->
     assert client.transact(mbap(5, 1, "03 00 00 00 01"), 9) == mbap(5, 1, "83 21")
     # Unit 2 on the same server: its own reply, not the rewritten code.
     assert client.transact(mbap(6, 2, "03 00 10 00 01"), 11) == mbap(6, 2, "03 02 22 22")
-    # Functions the units do not speak (0x14 read file record), and a bad count.
-    assert client.transact(mbap(7, 2, "14 00 10 00 01"), 9) == mbap(7, 2, "94 01")
+    # Functions the units do not speak (0x41, a vendor's), and a bad count.
+    assert client.transact(mbap(7, 2, "41 00 10 00 01"), 9) == mbap(7, 2, "C1 01")
     assert client.transact(mbap(8, 2, "03 00 10 00 00"), 9) == mbap(8, 2, "83 03")
 
 
