@@ -807,6 +807,19 @@ def test_instrument() -> None:
         assert device.registers[0x0005] == 100
 
 
+def test_instrument_counters_files_and_fifo(sim: Simulator[RegisterDevice]) -> None:
+    async def main() -> None:
+        async with aio.AsyncBus(sim.port) as bus:
+            unit = aio.Instrument(bus, unit=2)
+            assert await unit.get_comm_event_counter() == bb.CommEventCounter(0, 0)
+            assert (await unit.get_comm_event_log()).events == b""
+            await unit.write_file_record([(1, 0, [5, 6])])
+            assert await unit.read_file_record([(1, 1, 1)]) == [[6]]
+            assert await unit.read_fifo_queue(0) == []
+
+    run(main)
+
+
 def test_device_from_profile() -> None:
     path = ROOT / "examples" / "profiles" / "xy_md02.toml"
     sensor = ProfileDevice(path, values={"temperature": 23.4})
