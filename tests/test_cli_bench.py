@@ -5,11 +5,13 @@ the command line's own commands rather than Python code."""
 
 from __future__ import annotations
 
+import csv
 from pathlib import Path
 
-from test_cli import ok, one_line_error, run
+from test_cli import ok, one_line_error, run, table
 
-from benchbus.sim import DriveDevice, RegisterDevice, Simulator
+import benchbus as bb
+from benchbus.sim import DriveDevice, ProfileDevice, RegisterDevice, Simulator
 
 CONTROLLER = (
     Path(__file__).resolve().parent.parent / "examples" / "profiles" / "flow_controller.toml"
@@ -73,3 +75,45 @@ def test_the_guides_raw_read_prints_what_the_guide_shows() -> None:
     printed = done.stderr.splitlines() + ok(done)
     assert shown[0] == printed[0] and shown[-1] == printed[-1]
     assert [line for line in shown if line != "..."] == [line for line in printed if line in shown]
+
+
+# ---- f32 registers: the shortest decimal of the single -------------------------------------------
+
+
+def test_a_float_register_is_its_shortest_decimal_in_python_the_table_and_the_csv(
+    tmp_path: Path,
+) -> None:
+    model = ProfileDevice(CONTROLLER, values={"flow": 231.7, "setpoint": 129.9})
+    with Simulator({7: model}) as sim:
+        with bb.Bus(sim.port) as bus:
+            device = bb.Device.from_profile(CONTROLLER, bus, 7)
+            assert device.read("flow") == 231.7 and repr(device.read("setpoint")) == "129.9"
+            assert device.read_many(["flow", "setpoint"]) == {"flow": 231.7, "setpoint": 129.9}
+            assert device.sample()["flow"] == 231.7
+        profile = ["--profile", str(CONTROLLER), "--port", sim.port, "--unit", "7"]
+        assert table(ok(run("read", *profile, "flow")))["flow"] == "231.7 sccm"
+        log = tmp_path / "flow.csv"
+        lines = ok(run("monitor", *profile, "--count", "1", "--fields", "flow", "--csv", log))
+        assert lines[1].split()[1] == "231.7"
+        with log.open() as f:
+            rows = list(csv.DictReader(f))
+        assert rows[0]["flow (sccm)"] == "231.7" and rows[0]["setpoint (sccm)"] == "129.9"
+        raw = ok(run("read", "2", "--table", "input", "--type", "f32", "--order", "CDAB",
+                     "--port", sim.port, "--unit", "7"))  # fmt: skip
+        assert raw == ["0x0002 (2) = 231.7"]
+
+
+def test_from_registers_gives_a_single_as_its_shortest_decimal() -> None:
+    assert bb.from_registers([0x4365, 0xE666], "f32") == [229.9]
+    assert bb.from_registers([0x3DCC, 0xCCCD], "f32") == [0.1]
+    assert bb.from_registers([0x0000, 0x0001], "f32") == [1e-45]
+    # Written back, the decimal is the same single.
+    assert bb.to_registers(229.9, "f32") == [0x4365, 0xE666]
+    # f64 is exact as it is.
+    assert bb.from_registers(bb.to_registers(0.1 + 0.2, "f64"), "f64") == [0.1 + 0.2]
+
+
+def test_an_instruments_float_is_its_shortest_decimal() -> None:
+    device = RegisterDevice({0x10: 0x4365, 0x11: 0xE666})
+    with Simulator({1: device}) as sim, bb.Bus(sim.port) as bus:
+        assert bb.Instrument(bus, 1).read_float(0x10) == 229.9
