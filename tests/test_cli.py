@@ -534,7 +534,7 @@ def test_pbl_start_reverse_and_the_start_stop_source() -> None:
     with Simulator({0x11: device}) as sim:
         pbl = ["--port", sim.port, "--unit", "0x11"]
         device.set_param(204, 0)  # start/stop from the keys: a start would be ignored
-        line = one_line_error(run("pbl", *pbl, "start", "--speed", "900"), 1)
+        line = one_line_error(run("pbl", *pbl, "start", "--speed", "900"), 2)
         assert "--take-control" in line and device.peek(0) == 0
         ok(run("pbl", *pbl, "start", "--speed", "900", "--take-control"))
         assert device.peek(204) == 2 and device.peek(201) == 900
@@ -554,7 +554,7 @@ def test_j2_setpoint_modes_and_output() -> None:
         j2 = ["--port", sim.port, "--unit", "3"]
         assert ok(run("j2", *j2, "set-sv", "150.5")) == ["unit 3: SV 150.5"]
         assert device.value("SV") == 150.5
-        assert "--manual" in one_line_error(run("j2", *j2, "set-output", "30"), 1)
+        assert "--manual" in one_line_error(run("j2", *j2, "set-output", "30"), 2)
         assert device.auto
         ok(run("j2", *j2, "set-output", "30", "--manual"))
         assert not device.auto and device.value("MV") == 30.0
@@ -562,7 +562,7 @@ def test_j2_setpoint_modes_and_output() -> None:
         assert status["sv"] == "150.5 °C" and status["mv"] == "30 %" and status["mode"] == "MANUAL"
         ok(run("j2", *j2, "auto"))
         assert device.auto
-        assert "LSP to USP" in one_line_error(run("j2", *j2, "set-sv", "500"), 1)
+        assert "LSP to USP" in one_line_error(run("j2", *j2, "set-sv", "500"), 2)
         assert device.value("SV") == 150.5
 
 

@@ -6,12 +6,16 @@ the command line's own commands rather than Python code."""
 from __future__ import annotations
 
 import csv
+import time
 from pathlib import Path
 
+import pytest
 from test_cli import ok, one_line_error, run, table
 
 import benchbus as bb
-from benchbus.sim import DriveDevice, ProfileDevice, RegisterDevice, Simulator
+from benchbus import cli
+from benchbus.cli._errors import one_line
+from benchbus.sim import DriveDevice, J2Device, PblDevice, ProfileDevice, RegisterDevice, Simulator
 
 CONTROLLER = (
     Path(__file__).resolve().parent.parent / "examples" / "profiles" / "flow_controller.toml"
@@ -117,3 +121,71 @@ def test_an_instruments_float_is_its_shortest_decimal() -> None:
     device = RegisterDevice({0x10: 0x4365, 0x11: 0xE666})
     with Simulator({1: device}) as sim, bb.Bus(sim.port) as bus:
         assert bb.Instrument(bus, 1).read_float(0x10) == 229.9
+
+
+# ---- refusals: exit 2, before anything is written ------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("args", "says"),
+    [
+        (["j2", "set-sv", "9999"], "SV must be -1999 to 3276.7"),
+        (["j2", "set-sv", "500"], "LSP to USP"),
+        (["j2", "set-output", "150", "--manual"], "MV"),
+        (["j2", "set-output", "30"], "run 'benchbus j2 manual' first, or add --manual"),
+        (["j2", "set-limits", "-10", "9999"], "USP"),
+        (["drive", "set-speed", "5000"], "RPM must be 0 to 3000"),
+        (["drive", "start", "--speed", "5000"], "rpm must be 0 to 3000"),
+        (["pbl", "set-speed", "70000"], "RPM must be 0 to 65535"),
+    ],
+)
+def test_a_refusal_before_anything_is_written_exits_2_in_every_command(
+    args: list[str], says: str
+) -> None:
+    units = {1: J2Device(), 2: DriveDevice("BLD2"), 3: PblDevice()}
+    unit = {"j2": 1, "drive": 2, "pbl": 3}[args[0]]
+    with Simulator(units) as sim:
+        line = one_line_error(run(*args, "--port", sim.port, "--unit", unit), 2)
+        assert says in line
+        assert not [f for f in sim.requests if f[1] in (0x06, 0x10)]  # nothing written
+
+
+# ---- errors speak of the command line ------------------------------------------------------------
+
+
+def test_j2_limits_are_set_from_the_command_line_and_errors_say_how() -> None:
+    device = J2Device()
+    with Simulator({1: device}) as sim:
+        port = ["--port", sim.port]
+        line = one_line_error(run("j2", "set-sv", "500", *port), 2)
+        assert "set both with 'benchbus j2 set-limits LOW HIGH'" in line
+        assert "j2.limits" not in line
+        assert ok(run("j2", "set-limits", "0", "600", *port)) == ["unit 1: limits 0 to 600 °C"]
+        assert (device.value("LSP"), device.value("USP")) == (0.0, 600.0)
+        time.sleep(0.2)  # the J2 takes a write 150 ms after the last one at the soonest
+        assert ok(run("j2", "set-sv", "500", *port)) == ["unit 1: SV 500"]
+        assert device.value("SV") == 500.0
+        assert table(ok(run("j2", "status", *port)))["limits"] == "0 to 600 °C"
+
+
+def test_a_lost_port_says_to_run_the_command_again_not_to_call_reopen() -> None:
+    lost = bb.PortError("/dev/ttyUSB0: lost: No such device (call reopen() once it is back)")
+    earlier = bb.PortError(
+        "/dev/ttyUSB0: lost earlier (gone); call reopen() once it is back, or open the Bus "
+        "with reconnect=True"
+    )
+    for exc in (lost, earlier):
+        text = one_line(exc)
+        assert "reopen()" not in text and "reconnect=True" not in text
+        assert "run the command again once it is back" in text
+
+
+def test_every_suggestion_the_library_makes_in_python_has_a_command_line_wording() -> None:
+    """The library's messages that suggest Python code are those the command line rewords
+    (found in the compiled core's sources, so that a new one is not missed)."""
+    sources = Path(__file__).resolve().parent.parent / "src"
+    text = " ".join(
+        " ".join(p.read_text(encoding="utf-8").split()) for p in sources.rglob("*.rs")
+    ).replace("\\ ", "")
+    for python, _ in cli._errors.CLI_WORDS:
+        assert python in text, python
