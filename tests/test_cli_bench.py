@@ -65,7 +65,6 @@ def test_read_labels_the_address_in_hex_and_decimal_and_the_value() -> None:
         help_text = "\n".join(ok(run("read", "--help")))
         assert "0x2001 (8193) = 1500" in " ".join(help_text.split())
 
-
 def test_the_guides_raw_read_prints_what_the_guide_shows() -> None:
     """The command line guide's raw read, run as written on a simulated drive: every line
     the guide shows (on stderr, then stdout) is what the command prints."""
@@ -189,3 +188,24 @@ def test_every_suggestion_the_library_makes_in_python_has_a_command_line_wording
     ).replace("\\ ", "")
     for python, _ in cli._errors.CLI_WORDS:
         assert python in text, python
+
+
+# ---- the CSV path: checked before the port opens -------------------------------------------------
+
+
+@pytest.mark.parametrize("where", ["no-such-folder/run.csv", "."])
+def test_an_unwritable_csv_path_is_a_usage_error_before_the_port_opens(
+    tmp_path: Path, where: str
+) -> None:
+    path = tmp_path / where
+    done = run("monitor", "j2", "--port", "/dev/no-such-benchbus-port", "--csv", path)
+    line = one_line_error(done, 2)
+    assert line.startswith(f"benchbus: monitor: --csv {path}: cannot write there (")
+    assert "cannot open" not in line and "Errno" not in line
+
+
+def test_a_csv_path_checked_and_not_used_is_not_left_behind(tmp_path: Path) -> None:
+    path = tmp_path / "run.csv"
+    done = run("monitor", "j2", "--port", "/dev/no-such-benchbus-port", "--csv", path)
+    assert "cannot open" in one_line_error(done, 1)
+    assert not path.exists()
