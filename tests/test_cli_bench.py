@@ -65,6 +65,7 @@ def test_read_labels_the_address_in_hex_and_decimal_and_the_value() -> None:
         help_text = "\n".join(ok(run("read", "--help")))
         assert "0x2001 (8193) = 1500" in " ".join(help_text.split())
 
+
 def test_the_guides_raw_read_prints_what_the_guide_shows() -> None:
     """The command line guide's raw read, run as written on a simulated drive: every line
     the guide shows (on stderr, then stdout) is what the command prints."""
