@@ -180,6 +180,17 @@ def test_a_lost_port_says_to_run_the_command_again_not_to_call_reopen() -> None:
         assert "run the command again once it is back" in text
 
 
+def test_a_j2_in_automatic_mode_is_told_of_the_command_not_set_output() -> None:
+    exc = bb.StateError(
+        "unit 1: MV can be written only in manual mode (AM = 0), and the controller is in "
+        "automatic mode; switch with mode = manual, or set_output(percent, "
+        "switch_to_manual=True)"
+    )
+    text = one_line(exc)
+    assert "set_output(" not in text and "mode = manual" not in text
+    assert text.endswith("run 'benchbus j2 manual' first, or add --manual to set-output")
+
+
 def test_every_suggestion_the_library_makes_in_python_has_a_command_line_wording() -> None:
     """The library's messages that suggest Python code are those the command line rewords
     (found in the compiled core's sources, so that a new one is not missed)."""

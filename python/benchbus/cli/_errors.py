@@ -37,6 +37,10 @@ CLI_WORDS = (
         "run the command again once it is back",
     ),
     ("call reopen() once it is back", "run the command again once it is back"),
+    (
+        "switch with mode = manual, or set_output(percent, switch_to_manual=True)",
+        "run 'benchbus j2 manual' first, or add --manual to set-output",
+    ),
 )
 
 
