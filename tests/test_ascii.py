@@ -288,8 +288,8 @@ def test_the_cli_reads_writes_and_scans_in_ascii() -> None:
     with Simulator({7: device}, framing="ascii") as sim:
         port = ["--port", sim.port, "--unit", "7"]
         assert ok(run("read", *port, "0x10", "2", "--framing", "ascii")) == [
-            "0x0010  16  65531",
-            "0x0011  17  1234",
+            "0x0010 (16) = 65531",
+            "0x0011 (17) = 1234",
         ]
         ok(run("write", *port, "0x20", "5", "6", "--framing", "ASCII", "--parity", "N"))
         assert device.registers[0x20:0x22] == [5, 6]

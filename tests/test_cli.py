@@ -388,17 +388,17 @@ def test_read_prints_registers_raw_hex_signed_and_scaled() -> None:
     device = RegisterDevice({0x10: 0xFFFB, 0x11: 1234})
     with Simulator({7: device}) as sim:
         port = ["--port", sim.port, "--unit", "7"]
-        assert ok(run("read", *port, "0x10", "2")) == ["0x0010  16  65531", "0x0011  17  1234"]
+        assert ok(run("read", *port, "0x10", "2")) == ["0x0010 (16) = 65531", "0x0011 (17) = 1234"]
         assert ok(run("read", *port, "16", "2", "--hex")) == [
-            "0x0010  16  0xFFFB",
-            "0x0011  17  0x04D2",
+            "0x0010 (16) = 0xFFFB",
+            "0x0011 (17) = 0x04D2",
         ]
         signed = run("read", *port, "0x10", "2", "--signed", "--decimals", "1")
         assert [line.split()[-1] for line in ok(signed)] == ["-0.5", "123.4"]
         # $BENCHBUS_PORT stands in for --port; 130 registers take two requests (125 + 5).
         sim.clear_log()
         many = ok(run("read", "--unit", "7", "0", "130", env={cli.PORT_ENV: sim.port}))
-        assert len(many) == 130 and many[-1] == "0x0081  129  0"
+        assert len(many) == 130 and many[-1] == "0x0081 (129) = 0"
         assert [(f[1], f[4] << 8 | f[5]) for f in sim.requests] == [(3, 125), (3, 5)]
 
 
@@ -409,14 +409,14 @@ def test_read_and_write_typed_values_in_each_layout() -> None:
         # Two floats, low word first (CDAB): 21.5 is 0x41AC0000, -0.5 is 0xBF000000.
         device.registers[0x10:0x14] = [0x0000, 0x41AC, 0x0000, 0xBF00]
         lines = ok(run("read", *port, "0x10", "2", "--type", "f32", "--order", "cdab"))
-        assert lines == ["0x0010  16  21.5", "0x0012  18  -0.5"]
+        assert lines == ["0x0010 (16) = 21.5", "0x0012 (18) = -0.5"]
         assert [(f[1], f[4] << 8 | f[5]) for f in sim.requests] == [(3, 4)]
         # Written as it is read: a 64-bit integer over four registers, byte-swapped.
         done = ok(run("write", *port, "0x20", "-2", "--type", "i64", "--order", "BADC"))
         assert done == ["unit 7: wrote 65535 65535 65535 65279 at 0x0020 (0x10)"]
         assert sim.peek(7, 0x20, 4) == [0xFFFF, 0xFFFF, 0xFFFF, 0xFEFF]
         back = ok(run("read", *port, "0x20", "--type", "i64", "--order", "BADC"))
-        assert back == ["0x0020  32  -2"]
+        assert back == ["0x0020 (32) = -2"]
         # One u16 still goes as 0x06; a hex integer is taken for an integer type.
         ok(run("write", *port, "0x30", "0x1234", "--type", "u16"))
         assert sim.requests[-1][1] == 0x06 and sim.peek(7, 0x30) == [0x1234]
@@ -428,16 +428,16 @@ def test_read_and_write_every_table() -> None:
     with Simulator({4: device}) as sim:
         port = ["--port", sim.port, "--unit", "4"]
         assert ok(run("read", *port, "0", "4", "--table", "coils")) == [
-            "0x0000  0  0",
-            "0x0001  1  1",
-            "0x0002  2  0",
-            "0x0003  3  1",
+            "0x0000 (0) = 0",
+            "0x0001 (1) = 1",
+            "0x0002 (2) = 0",
+            "0x0003 (3) = 1",
         ]
         assert [
             line.split()[-1] for line in ok(run("read", *port, "0", "3", "--table", "discrete"))
         ] == ["1", "0", "1"]
         assert ok(run("read", *port, "5", "--table", "input", "--type", "f32")) == [
-            "0x0005  5  21.5"
+            "0x0005 (5) = 21.5"
         ]
         assert [f[1] for f in sim.requests] == [0x01, 0x02, 0x04]
         # 2500 coils: a read of 2000, then 500.
@@ -534,7 +534,7 @@ def test_pbl_start_reverse_and_the_start_stop_source() -> None:
     with Simulator({0x11: device}) as sim:
         pbl = ["--port", sim.port, "--unit", "0x11"]
         device.set_param(204, 0)  # start/stop from the keys: a start would be ignored
-        line = one_line_error(run("pbl", *pbl, "start", "--speed", "900"), 1)
+        line = one_line_error(run("pbl", *pbl, "start", "--speed", "900"), 2)
         assert "--take-control" in line and device.peek(0) == 0
         ok(run("pbl", *pbl, "start", "--speed", "900", "--take-control"))
         assert device.peek(204) == 2 and device.peek(201) == 900
@@ -554,7 +554,7 @@ def test_j2_setpoint_modes_and_output() -> None:
         j2 = ["--port", sim.port, "--unit", "3"]
         assert ok(run("j2", *j2, "set-sv", "150.5")) == ["unit 3: SV 150.5"]
         assert device.value("SV") == 150.5
-        assert "--manual" in one_line_error(run("j2", *j2, "set-output", "30"), 1)
+        assert "--manual" in one_line_error(run("j2", *j2, "set-output", "30"), 2)
         assert device.auto
         ok(run("j2", *j2, "set-output", "30", "--manual"))
         assert not device.auto and device.value("MV") == 30.0
@@ -562,7 +562,7 @@ def test_j2_setpoint_modes_and_output() -> None:
         assert status["sv"] == "150.5 °C" and status["mv"] == "30 %" and status["mode"] == "MANUAL"
         ok(run("j2", *j2, "auto"))
         assert device.auto
-        assert "LSP to USP" in one_line_error(run("j2", *j2, "set-sv", "500"), 1)
+        assert "LSP to USP" in one_line_error(run("j2", *j2, "set-sv", "500"), 2)
         assert device.value("SV") == 150.5
 
 
@@ -628,7 +628,7 @@ def test_sim_prints_its_port_serves_it_and_ends_at_sigterm() -> None:
         port = readline(proc.stdout).strip()
         assert port.startswith("/dev/")
         assert ok(run("read", "--port", port, "--unit", "3", "0x2103", "--hex")) == [
-            "0x2103  8451  0x0020"
+            "0x2103 (8451) = 0x0020"
         ]
         with bb.Drive(port, unit=3, family="C20") as drive:
             assert drive.model == bb.Model.C20

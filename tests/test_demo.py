@@ -118,3 +118,15 @@ def test_demo_plot_labels_carry_units_and_show_the_output(
     mv_ax = fig.axes[labels.index("output MV (%)")]
     (mv,) = mv_ax.get_lines()
     assert len(mv.get_ydata()) >= 5 and max(mv.get_ydata()) > 0  # heating
+
+
+def test_the_demos_plot_is_ignored_by_git_where_make_demo_writes_it() -> None:
+    """``make demo`` runs in the clone's top folder and writes the plot there, by default:
+    git ignores that file, and only that one (a plot named with --out is the user's)."""
+    from benchbus import _demo
+
+    root = Path(__file__).resolve().parent.parent
+    ignored = (root / ".gitignore").read_text(encoding="utf-8").splitlines()
+    assert f"/{_demo.DEFAULT_OUT}" in ignored
+    assert "demo:" in (root / "Makefile").read_text(encoding="utf-8")
+    assert not any(line.endswith(".png") and line != f"/{_demo.DEFAULT_OUT}" for line in ignored)

@@ -16,6 +16,7 @@ import os
 import subprocess
 import sys
 import time
+import warnings
 from collections.abc import Iterator
 from contextlib import contextmanager
 from datetime import datetime, timedelta, timezone
@@ -566,3 +567,93 @@ def test_unknown_columns_are_refused_before_anything_is_sent() -> None:
         with pytest.raises(ValueError, match="'zz'"):
             j2.record(1.0, 0.1, columns=["pv", "zz"])
         assert sim.requests == []
+
+
+# ---- a sample slower than the interval -----------------------------------------------------------
+
+
+def test_a_sample_slower_than_the_interval_warns_once_with_the_period_and_the_missed() -> None:
+    """21 single reads take 165 ms: at 100 ms a recording of 5 s misses every other
+    deadline or so, and says so once, at the end."""
+    fake = FakeTime()
+
+    def sample() -> dict[str, float]:
+        fake.now += 0.165
+        return {"speed": 0.0}
+
+    with pytest.warns(UserWarning) as caught:
+        rec = record(sample, 5.0, 0.1, device="Drive unit 1", clock=fake.clock, sleep=fake.sleep)
+    assert len(caught) == 1 and caught[0].filename == __file__
+    message = str(caught[0].message)
+    assert rec.missed > 0 and len(rec) + rec.missed == 50
+    period = (rec.times[-1] - rec.times[0]) / (len(rec) - 1)
+    assert message.startswith("Drive unit 1: a sample takes 0.165 s, longer than the interval")
+    assert f"{len(rec)} samples, one every {period:.3g} s, and {rec.missed} missed" in message
+    assert "interval of 0.17 s or more" in message
+
+
+def test_a_drive_recording_too_fast_for_its_line_warns_where_it_was_called(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    fake = FakeTime()
+    with drive_line() as (_, drive, _):
+        real_sample = drive.sample
+
+        def slow_sample() -> dict[str, float]:
+            fake.now += 0.6
+            return real_sample()
+
+        monkeypatch.setattr(drive, "sample", slow_sample)
+        with pytest.warns(UserWarning, match="missed") as caught:
+            rec = drive.record(2.0, 0.25, clock=fake.clock, sleep=fake.sleep)
+    assert len(caught) == 1 and caught[0].filename == __file__ and rec.missed > 0
+    assert str(caught[0].message).startswith("Drive unit 1: a sample takes 0.6 s")
+
+
+def test_one_late_sample_is_no_reason_to_warn() -> None:
+    fake = FakeTime()
+    calls = 0
+
+    def sample() -> dict[str, float]:
+        nonlocal calls
+        fake.now += 0.875 if calls == 4 else 0.0625
+        calls += 1
+        return {"x": 1.0}
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        rec = record(sample, 3.0, 0.25, clock=fake.clock, sleep=fake.sleep)
+    assert rec.missed == 2
+
+
+# ---- plot: an Axes per unit ----------------------------------------------------------------------
+
+
+def test_plot_gives_each_unit_an_axes_of_its_own_sharing_time(tmp_path: Path) -> None:
+    pytest.importorskip("matplotlib")
+    times = [0.0, 0.5, 1.0]
+    rec = Recording(
+        times,
+        times,
+        {"speed": [0.0, 1000.0, 2000.0], "current": [0.2, 1.4, 1.4], "ref": [0.0, 1500.0, 2000.0]},
+        interval=0.5,
+        units={"speed": "rpm", "current": "A", "ref": "rpm"},
+        device="Drive unit 1",
+    )
+    top = rec.plot(path=tmp_path / "two.png")
+    axes = top.figure.axes
+    assert len(axes) == 2 and axes[0] is top
+    assert [line.get_label() for line in axes[0].get_lines()] == ["speed (rpm)", "ref (rpm)"]
+    assert [line.get_label() for line in axes[1].get_lines()] == ["current (A)"]
+    assert [ax.get_ylabel() for ax in axes] == ["rpm", "A"]
+    assert axes[0].get_ylim()[1] < 2500 and axes[1].get_ylim()[1] < 2  # each on its own scale
+    assert axes[0].get_shared_x_axes().joined(axes[0], axes[1])
+    assert axes[1].get_xlabel() == "time (s)" and top.get_title() == "Drive unit 1"
+    assert (tmp_path / "two.png").read_bytes().startswith(PNG_SIGNATURE)
+    # One unit: one Axes, labelled with it.
+    one = rec.plot(["current"])
+    assert len(one.figure.axes) == 1 and one.get_ylabel() == "A"
+    # An Axes of the caller's takes one unit's columns.
+    assert rec.plot(["speed", "ref"], ax=one) is one
+    with pytest.raises(ValueError, match=r"2 units \(rpm, A\)"):
+        rec.plot(ax=one)

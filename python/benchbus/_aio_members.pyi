@@ -91,7 +91,9 @@ class DeviceMembers:
         Samples are taken on absolute deadlines ``n * interval`` after the start, the
         last one before ``duration``: time spent on the wire never adds up to drift. A
         sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst. Each sample
+        counts them in ``missed``) rather than taking late ones in a burst; when samples
+        take longer than ``interval`` itself, a UserWarning at the end says so, with the
+        period achieved and the count missed. Each sample
         keeps the time it was actually taken, read from ``clock`` just before its
         request; ``clock`` and ``sleep`` are injectable for tests.
 
@@ -288,7 +290,9 @@ class DriveMembers:
         Samples are taken on absolute deadlines ``n * interval`` after the start, the
         last one before ``duration``: time spent on the wire never adds up to drift. A
         sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst. Each sample
+        counts them in ``missed``) rather than taking late ones in a burst; when samples
+        take longer than ``interval`` itself, a UserWarning at the end says so, with the
+        period achieved and the count missed. Each sample
         keeps the time it was actually taken, read from ``clock`` just before its
         request; ``clock`` and ``sleep`` are injectable for tests.
 
@@ -546,7 +550,9 @@ class InstrumentMembers:
         Samples are taken on absolute deadlines ``n * interval`` after the start, the
         last one before ``duration``: time spent on the wire never adds up to drift. A
         sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst. Each sample
+        counts them in ``missed``) rather than taking late ones in a burst; when samples
+        take longer than ``interval`` itself, a UserWarning at the end says so, with the
+        period achieved and the count missed. Each sample
         keeps the time it was actually taken, read from ``clock`` just before its
         request; ``clock`` and ``sleep`` are injectable for tests.
 
@@ -737,7 +743,9 @@ class J2ControllerMembers:
         Samples are taken on absolute deadlines ``n * interval`` after the start, the
         last one before ``duration``: time spent on the wire never adds up to drift. A
         sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst. Each sample
+        counts them in ``missed``) rather than taking late ones in a burst; when samples
+        take longer than ``interval`` itself, a UserWarning at the end says so, with the
+        period achieved and the count missed. Each sample
         keeps the time it was actually taken, read from ``clock`` just before its
         request; ``clock`` and ``sleep`` are injectable for tests.
 
@@ -925,7 +933,9 @@ class PblDriveMembers:
         Samples are taken on absolute deadlines ``n * interval`` after the start, the
         last one before ``duration``: time spent on the wire never adds up to drift. A
         sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst. Each sample
+        counts them in ``missed``) rather than taking late ones in a burst; when samples
+        take longer than ``interval`` itself, a UserWarning at the end says so, with the
+        period achieved and the count missed. Each sample
         keeps the time it was actually taken, read from ``clock`` just before its
         request; ``clock`` and ``sleep`` are injectable for tests.
 

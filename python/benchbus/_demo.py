@@ -226,6 +226,11 @@ def _plot(trace: _Trace, units: dict[str, str], out: Path) -> Figure:
     return fig
 
 
+#: The PNG the demo writes without ``out``, in the current directory (git ignores it at the
+#: top of a clone, where ``make demo`` runs).
+DEFAULT_OUT = "benchbus-demo.png"
+
+
 def run(
     port: str | None = None,
     out: str | os.PathLike[str] | None = None,
@@ -242,7 +247,7 @@ def run(
     """
     _check_matplotlib()
     stream = sys.stdout if stream is None else stream
-    target = Path(out if out is not None else "benchbus-demo.png").resolve()
+    target = Path(out if out is not None else DEFAULT_OUT).resolve()
     if not target.parent.is_dir():
         raise FileNotFoundError(f"no directory {target.parent} to write the plot in")
     trace = _Trace()

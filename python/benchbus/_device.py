@@ -393,7 +393,9 @@ class BusDevice(metaclass=_DeviceType):
         Samples are taken on absolute deadlines ``n * interval`` after the start, the
         last one before ``duration``: time spent on the wire never adds up to drift. A
         sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst. Each sample
+        counts them in ``missed``) rather than taking late ones in a burst; when samples
+        take longer than ``interval`` itself, a UserWarning at the end says so, with the
+        period achieved and the count missed. Each sample
         keeps the time it was actually taken, read from ``clock`` just before its
         request; ``clock`` and ``sleep`` are injectable for tests.
 

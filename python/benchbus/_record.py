@@ -16,6 +16,7 @@ import os
 import statistics
 import sys
 import time
+import warnings
 from collections.abc import Callable, Iterable, Mapping, Sequence
 from datetime import datetime
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol, cast, overload
@@ -219,13 +220,21 @@ class Recording:
         ax: Axes | None = None,
         path: str | os.PathLike[str] | None = None,
     ) -> Axes:
-        """Plot ``columns`` (all by default) against time on ``ax``, and return the Axes.
+        """Plot ``columns`` (all by default) against time, one Axes per unit, and return
+        the top one.
+
+        Columns of one unit share an Axes, labelled with that unit; columns of several
+        units (``speed`` in rpm, ``output_current`` in A) get an Axes each, stacked and
+        sharing the time axis, so that each is drawn on its own scale
+        (``ax.figure.axes`` lists them, top first).
 
         Without ``ax``, the plot gets a figure of its own: made through pyplot when pyplot
         is already in use or in a Jupyter kernel (so that it shows like any other plot
         there), otherwise a standalone ``matplotlib.figure.Figure``, which needs no
-        backend or display. ``path`` saves the figure there, in the format its extension
-        names (PNG without one). Nothing is shown: no ``plt.show()``. Needs matplotlib
+        backend or display. An ``ax`` of the caller's takes columns of one unit (several
+        units are a ValueError: leave ``ax`` out, or plot one unit's columns on it).
+        ``path`` saves the figure there, in the format its extension names (PNG without
+        one). Nothing is shown: no ``plt.show()``. Needs matplotlib
         (``pip install 'benchbus[plot]'``).
         """
         try:
@@ -236,31 +245,46 @@ class Recording:
                 name="matplotlib",
             ) from exc
         names = self._select(columns)
+        units = self.unit_map()
+        groups: dict[str, list[str]] = {}
+        for name in names:
+            groups.setdefault(units[name], []).append(name)
+        if not groups:
+            groups[""] = []
+        if ax is not None and len(groups) > 1:
+            listed = ", ".join(unit or "no unit" for unit in groups)
+            raise ValueError(
+                f"the columns are in {len(groups)} units ({listed}), an Axes each: leave out "
+                "ax for stacked Axes, or plot the columns of one unit on it"
+            )
         if ax is None:
+            height = 4.0 if len(groups) == 1 else 1.0 + 2.25 * len(groups)
             if "matplotlib.pyplot" in sys.modules or "ipykernel" in sys.modules:
                 import matplotlib.pyplot as plt
 
-                figure = plt.figure(figsize=(8, 4), layout="constrained")
+                figure = plt.figure(figsize=(8, height), layout="constrained")
             else:
-                figure = Figure(figsize=(8, 4), layout="constrained")
-            ax = figure.add_subplot()
-        units = self.unit_map()
-        for name in names:
-            ax.plot(self.times, self.columns[name], label=with_unit(name, units[name]))
-        shown = list(dict.fromkeys(units[name] for name in names if units[name]))
-        if shown:
-            ax.set_ylabel(", ".join(shown))
-        ax.set_xlabel("time (s)")
-        ax.set_title(self._title())
-        ax.grid(True, alpha=0.3)
-        if names:
-            ax.legend()
+                figure = Figure(figsize=(8, height), layout="constrained")
+            grid = figure.subplots(len(groups), 1, sharex=True, squeeze=False)
+            axes: list[Axes] = [grid[i, 0] for i in range(len(groups))]
+        else:
+            axes = [ax]
+        for one, (unit, group) in zip(axes, groups.items()):
+            for name in group:
+                one.plot(self.times, self.columns[name], label=with_unit(name, unit))
+            if unit:
+                one.set_ylabel(unit)
+            one.grid(True, alpha=0.3)
+            if group:
+                one.legend(loc="upper right" if len(axes) > 1 else "best")
+        axes[-1].set_xlabel("time (s)")
+        axes[0].set_title(self._title())
         if path is not None:
-            root = ax.figure
+            root = axes[0].figure
             while not isinstance(root, Figure):  # a SubFigure's parent
                 root = root.figure
             root.savefig(path, format=None if os.path.splitext(path)[1] else "png")
-        return ax
+        return axes[0]
 
     def unit_map(self) -> dict[str, str]:
         """The unit of each column (``""`` for none), in column order."""
@@ -381,6 +405,10 @@ def record(
     from ``sample()`` ends the recording and goes on, carrying what was recorded before it
     as its ``recording`` attribute. Ctrl-C (KeyboardInterrupt) ends it too, and returns
     what was recorded, with ``interrupted`` set. ``units`` gives the unit of each column.
+
+    A sample that takes longer than ``interval`` (a slow line, many single-register reads)
+    makes the recording miss deadlines: at its end, one UserWarning then says how long a
+    sample takes, the period achieved and how many deadlines were missed.
     """
     duration = check_seconds("duration", duration)
     interval = check_seconds("interval", interval)
@@ -393,6 +421,7 @@ def record(
         _first_columns(dict.fromkeys(known, 0.0), wanted)
     rec = Recording([], [], {}, interval=interval, duration=duration, device=device)
     names: list[str] | None = None
+    spent: list[float] = []  # how long each sample took, seconds
     try:
         # The real clock and sleep are the schedule's own (it waits without the GIL).
         ticks = _Ticks(
@@ -408,6 +437,7 @@ def record(
             rec.missed += missed
             taken = clock() - rec.clock_start
             values = sample()
+            spent.append(clock() - rec.clock_start - taken)
             if names is None:
                 names = _first_columns(values, wanted)
                 rec.columns = {name: [] for name in names}
@@ -415,6 +445,7 @@ def record(
             rec._append(taken, n * interval, [float(values.get(name, math.nan)) for name in names])
     except KeyboardInterrupt:
         rec.interrupted = True
+        _warn_if_too_short(rec, spent)
     except Exception as exc:
         kept = cast(Any, exc)
         try:
@@ -425,7 +456,36 @@ def record(
         except (AttributeError, TypeError):  # an exception that takes no attributes
             pass
         raise
+    _warn_if_too_short(rec, spent)
     return rec
+
+
+def _warn_if_too_short(rec: Recording, spent: list[float]) -> None:
+    """Warn (once, at the end) when a sample took longer than the interval, so that
+    deadlines were missed: with the period achieved and the count missed."""
+    if not rec.missed or not spent or statistics.median(spent) <= rec.interval:
+        return
+    achieved = (rec.times[-1] - rec.times[0]) / (len(rec) - 1) if len(rec) > 1 else spent[0]
+    enough = math.ceil(max(spent) * 100) / 100
+    who = f"{rec.device}: " if rec.device else ""
+    warnings.warn(
+        f"{who}a sample takes {statistics.median(spent):.3g} s, longer than the interval of "
+        f"{rec.interval:g} s: {plural(len(rec), 'sample')}, one every {achieved:.3g} s, and "
+        f"{rec.missed} missed (record at an interval of {enough:g} s or more)",
+        UserWarning,
+        stacklevel=_outside_benchbus(),
+    )
+
+
+def _outside_benchbus() -> int:
+    """The ``stacklevel`` that makes a warning of the caller point at the first frame
+    outside benchbus: the user's call."""
+    level = 1
+    frame = sys._getframe(1)
+    while frame.f_back is not None and frame.f_globals.get("__name__", "").startswith("benchbus."):
+        frame = frame.f_back
+        level += 1
+    return level
 
 
 def _first_columns(values: Mapping[str, float], wanted: list[str] | None) -> list[str]:

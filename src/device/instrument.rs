@@ -3,7 +3,7 @@
 //! with decimals and sign, 32- and 64-bit integers and IEEE floats over two or four registers
 //! in any of the four layouts ([`Layout`]), strings, and Read Device Identification.
 
-use super::value::{registers_for_bits, Layout};
+use super::value::{registers_for_bits, single, Layout};
 use super::{Device, Station, Table};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
@@ -352,7 +352,7 @@ impl Instrument {
     pub fn read_float(&self, table: Table, address: u16, bits: u32, layout: Layout) -> Result<f64> {
         let raw = self.read_uint(table, address, bits, layout)?;
         Ok(if bits == 32 {
-            f64::from(f32::from_bits(raw as u32))
+            single(raw as u32)
         } else {
             f64::from_bits(raw)
         })

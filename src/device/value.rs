@@ -15,6 +15,21 @@
 
 use crate::error::{Error, Result};
 
+/// The IEEE 754 single of `bits` as the f64 of its shortest decimal: 229.9 for the single
+/// nearest 229.9, not 229.89999389648438 (its exact value), so that a value read shows as
+/// the device meant it, wherever it is printed. That decimal reads back as the same single
+/// (`value as f32` gives `bits` again). NaN and the infinities stay as they are.
+pub fn single(bits: u32) -> f64 {
+    let value = f32::from_bits(bits);
+    if !value.is_finite() {
+        return f64::from(value);
+    }
+    // `{}` on an f32 writes the shortest decimal that reads back as the same f32.
+    format!("{value}")
+        .parse::<f64>()
+        .unwrap_or_else(|_| f64::from(value))
+}
+
 /// The layout of a value over consecutive registers (see the module docs).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Layout {
@@ -231,7 +246,7 @@ impl Kind {
     /// The value of its raw bits.
     fn number(self, raw: u64) -> Number {
         match self {
-            Kind::F32 => Number::Float(f64::from(f32::from_bits(raw as u32))),
+            Kind::F32 => Number::Float(single(raw as u32)),
             Kind::F64 => Number::Float(f64::from_bits(raw)),
             _ if self.signed() => {
                 let shift = 64 - self.bits();
@@ -370,6 +385,25 @@ mod tests {
             .decode(&[1, 0xFFFF], Layout::Abcd)
             .unwrap_or_default();
         assert_eq!(two, vec![Number::Int(1), Number::Int(-1)]);
+    }
+
+    #[test]
+    fn a_single_reads_as_its_shortest_decimal() {
+        for (bits, shown) in [
+            (229.9f32.to_bits(), 229.9),
+            (231.7f32.to_bits(), 231.7),
+            (0.1f32.to_bits(), 0.1),
+            (f32::MAX.to_bits(), 3.402_823_5e38),
+            (f32::MIN_POSITIVE.to_bits(), 1.175_494_4e-38),
+            (1u32, 1e-45),
+        ] {
+            assert_eq!(single(bits), shown);
+            assert_eq!((single(bits) as f32).to_bits(), bits);
+        }
+        assert!(single(f32::NAN.to_bits()).is_nan());
+        assert_eq!(single(f32::NEG_INFINITY.to_bits()), f64::NEG_INFINITY);
+        let read = Kind::F32.decode(&[0x4365, 0xE666], Layout::Abcd);
+        assert_eq!(read.ok(), Some(vec![Number::Float(229.9)]));
     }
 
     #[test]

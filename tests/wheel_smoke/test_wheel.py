@@ -137,7 +137,7 @@ def test_the_command_line_reads_through_a_simulator() -> None:
     with Simulator({7: RegisterDevice({0x10: 0xFFFB, 0x11: 1234})}, network="tcp") as sim:
         done = benchbus_command("read", "--port", sim.port, "--unit", "7", "0x10", "2")
     assert done.returncode == 0, done.stderr
-    assert done.stdout.splitlines() == ["0x0010  16  65531", "0x0011  17  1234"]
+    assert done.stdout.splitlines() == ["0x0010 (16) = 65531", "0x0011 (17) = 1234"]
 
 
 def test_the_command_line_fails_in_one_line() -> None:

@@ -28,11 +28,35 @@ def interrupted(exc: BaseException) -> bool:
     )
 
 
+#: What the library's messages suggest doing in Python, and the command line's own way
+#: to do it (the longest first where one contains another).
+CLI_WORDS = (
+    ("set both with j2.limits = (low, high)", "set both with 'benchbus j2 set-limits LOW HIGH'"),
+    (
+        "call reopen() once it is back, or open the Bus with reconnect=True",
+        "run the command again once it is back",
+    ),
+    ("call reopen() once it is back", "run the command again once it is back"),
+    (
+        "switch with mode = manual, or set_output(percent, switch_to_manual=True)",
+        "run 'benchbus j2 manual' first, or add --manual to set-output",
+    ),
+)
+
+
+def in_cli_words(text: str) -> str:
+    """``text`` with each suggestion of Python code replaced by the command line's own."""
+    for python, command in CLI_WORDS:
+        text = text.replace(python, command)
+    return text
+
+
 def one_line(exc: BaseException) -> str:
-    """What went wrong, in one line."""
+    """What went wrong, in one line, suggesting the command line's commands and options
+    where the library's message suggests Python code."""
     if isinstance(exc, ModuleNotFoundError):
         return f"the Python package {exc.name or '?'!r} is needed here and is not installed"
-    text = " ".join(str(exc).split()) or type(exc).__name__
+    text = in_cli_words(" ".join(str(exc).split())) or type(exc).__name__
     if isinstance(exc, bb.ResponseTimeout):
         text += " (is the unit there, at this line format? see --port, --baudrate, --unit)"
     return "; ".join([text, *notes(exc)])
@@ -42,7 +66,9 @@ def notes(exc: BaseException) -> list[str]:
     """The notes added to ``exc`` on its way out (a failed stop on leaving a block), each in
     one line."""
     notes = getattr(exc, "__notes__", None)
-    return [" ".join(str(n).split()) for n in notes] if isinstance(notes, list) else []
+    return (
+        [in_cli_words(" ".join(str(n).split())) for n in notes] if isinstance(notes, list) else []
+    )
 
 
 def end_ctrl_c_line() -> None:

@@ -26,7 +26,11 @@ EPILOG = "Without --port the demo runs on simulated devices."
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus demo`` (``parents``: its option groups, for its actions)."""
     parser.add_argument("--port", metavar="PATH", help="a real port to run the demo on")
-    parser.add_argument("--out", metavar="FILE.png", help="where to save the plot")
+    parser.add_argument(
+        "--out",
+        metavar="FILE.png",
+        help="where to save the plot (default: benchbus-demo.png in the current directory)",
+    )
     parser.add_argument(
         "--unit", type=parse_int, default=1, help="the BLD drive's unit with --port (default 1)"
     )

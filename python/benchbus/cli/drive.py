@@ -6,7 +6,7 @@ import argparse
 
 from benchbus._core import DriveCore
 from benchbus.cli._args import Parser, add_command, integer
-from benchbus.cli._line import check_family, open_bus, open_drive
+from benchbus.cli._line import check_family, open_bus, open_drive, refused_as_usage
 from benchbus.cli._output import enum_name, measured, print_table
 
 __all__ = ["HELP", "add_arguments", "run"]
@@ -37,7 +37,8 @@ def run(args: argparse.Namespace) -> int:
             print_table(None, rows)
         elif args.action in ("start", "reverse"):
             if args.speed is not None:
-                drive.speed_setpoint = args.speed
+                with refused_as_usage():
+                    drive.speed_setpoint = args.speed
             (drive.forward if args.action == "start" else drive.reverse)()
             way = "forward" if args.action == "start" else "reverse"
             print(f"unit {unit}: running {way} at {drive.speed_setpoint} rpm")
@@ -45,7 +46,8 @@ def run(args: argparse.Namespace) -> int:
             drive.stop()
             print(f"unit {unit}: stopping")
         elif args.action == "set-speed":
-            drive.speed_setpoint = args.rpm
+            with refused_as_usage():
+                drive.speed_setpoint = args.rpm
             print(f"unit {unit}: speed setpoint {args.rpm} rpm")
         else:
             drive.reset_fault()

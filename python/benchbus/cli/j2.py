@@ -7,8 +7,8 @@ import enum
 
 import benchbus as bb
 from benchbus.cli._args import PROG, Parser, add_command, number
-from benchbus.cli._errors import CliError
-from benchbus.cli._line import check_family, open_bus, unit_of
+from benchbus.cli._errors import UsageError
+from benchbus.cli._line import check_family, open_bus, refused_as_usage, unit_of
 from benchbus.cli._output import enum_name, fmt, measured, print_table
 
 __all__ = ["HELP", "add_arguments", "run"]
@@ -36,16 +36,23 @@ def run(args: argparse.Namespace) -> int:
             ]
             print_table(None, rows)
         elif args.action == "set-sv":
-            j2.sv = args.value
+            with refused_as_usage():
+                j2.sv = args.value
             print(f"unit {unit}: SV {fmt(args.value)}")
+        elif args.action == "set-limits":
+            with refused_as_usage():
+                j2.limits = (args.low, args.high)
+            u = j2.units()
+            print(f"unit {unit}: limits {fmt(args.low)} to {measured(args.high, u['USP'])}")
         elif args.action in ("auto", "manual"):
             j2.mode = bb.J2Mode.AUTO if args.action == "auto" else bb.J2Mode.MANUAL
             print(f"unit {unit}: {args.action} mode")
         else:
             try:
-                j2.set_output(args.percent, switch_to_manual=args.manual)
+                with refused_as_usage():
+                    j2.set_output(args.percent, switch_to_manual=args.manual)
             except bb.StateError:
-                raise CliError(
+                raise UsageError(
                     f"unit {unit} is in automatic mode and takes an output in manual mode "
                     f"only: run '{PROG} j2 manual' first, or add --manual"
                 ) from None
@@ -72,6 +79,11 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     add_command(actions, "status", "PV, SV, MV, mode, limits", parents)
     p = add_command(actions, "set-sv", "set the setpoint SV (checked against LSP to USP)", parents)
     p.add_argument("value", type=number, metavar="VALUE")
+    p = add_command(
+        actions, "set-limits", "set the setpoint limits LSP and USP (SV must lie within)", parents
+    )
+    p.add_argument("low", type=number, metavar="LOW")
+    p.add_argument("high", type=number, metavar="HIGH")
     add_command(actions, "auto", "automatic mode: the PID sets the output", parents)
     add_command(actions, "manual", "manual mode: the output stays as set", parents)
     p = add_command(actions, "set-output", "set the output MV, percent (manual mode only)", parents)

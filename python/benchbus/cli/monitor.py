@@ -3,8 +3,10 @@
 from __future__ import annotations
 
 import argparse
+import contextlib
 import csv
 import datetime
+import os
 import sys
 import time
 from typing import IO, Any
@@ -58,6 +60,22 @@ class CsvLog:
         self.units = units
         self._file: IO[str] | None = None
         self._writer: Any = None
+
+    @staticmethod
+    def check(path: str) -> None:
+        """Refuse a ``path`` the log could not be appended to (a missing folder, a folder,
+        no permission) as a UsageError, before any port is opened; a new file is made and
+        removed again."""
+        existed = os.path.lexists(path)
+        try:
+            with open(path, "a", encoding="utf-8"):
+                pass
+        except OSError as exc:
+            reason = exc.strerror or str(exc)
+            raise UsageError(f"--csv {path}: cannot write there ({reason})") from None
+        if not existed:
+            with contextlib.suppress(OSError):
+                os.remove(path)
 
     def write(self, when: datetime.datetime, t: float, sample: dict[str, Any]) -> None:
         """Append one row (the header first, if the file is new or empty)."""
@@ -148,6 +166,8 @@ def run(args: argparse.Namespace) -> int:
     samples = 0
     lost: float | None = None  # when the port was lost, while it is
     line = kind if profile is None else profile_options(profile)
+    if args.csv:
+        CsvLog.check(args.csv)
     with open_bus(args, line, reconnect=args.reconnect) as bus:
         if profile is None:
             device = open_device(bus, args, kind)

@@ -6,8 +6,8 @@ import argparse
 
 import benchbus as bb
 from benchbus.cli._args import Parser, add_command, integer
-from benchbus.cli._errors import CliError
-from benchbus.cli._line import check_family, open_bus, unit_of
+from benchbus.cli._errors import UsageError
+from benchbus.cli._line import check_family, open_bus, refused_as_usage, unit_of
 from benchbus.cli._output import enum_name, measured, print_table
 
 __all__ = ["HELP", "add_arguments", "run"]
@@ -40,14 +40,15 @@ def run(args: argparse.Namespace) -> int:
             source = pbl.start_stop_source
             if source != bb.StartStopSource.COMMUNICATION:
                 if not args.take_control:
-                    raise CliError(
+                    raise UsageError(
                         f"unit {unit} takes start/stop from {enum_name(source)} (parameter 204), "
                         "so it would ignore a start: add --take-control to switch it to "
                         "COMMUNICATION"
                     )
                 pbl.start_stop_source = bb.StartStopSource.COMMUNICATION
             if args.speed is not None:
-                pbl.speed_setpoint = args.speed
+                with refused_as_usage():
+                    pbl.speed_setpoint = args.speed
             reverse = args.action == "reverse"
             pbl.direction = bb.Direction.REVERSE if reverse else bb.Direction.FORWARD
             pbl.start()
@@ -57,7 +58,8 @@ def run(args: argparse.Namespace) -> int:
             pbl.stop()
             print(f"unit {unit}: stopping")
         else:
-            pbl.speed_setpoint = args.rpm
+            with refused_as_usage():
+                pbl.speed_setpoint = args.rpm
             print(f"unit {unit}: speed setpoint {args.rpm} rpm")
     return 0
 

@@ -4,11 +4,13 @@ name."""
 from __future__ import annotations
 
 import argparse
+import sys
 from decimal import Decimal
 
 import benchbus as bb
 from benchbus._profile import known
 from benchbus.cli._args import (
+    PROG,
     VALUE_TYPES,
     Parser,
     add_profile_option,
@@ -100,19 +102,44 @@ def run(args: argparse.Namespace) -> int:
     unit = unit_of(args, "read")
     read: list[int] = []
     with open_bus(args, "read") as bus:
+        one_a_request = False
         for start in range(args.address, args.address + total, most):
             count = min(most, args.address + total - start)
-            read += getattr(bus, method)(unit, start, count)
+            if not one_a_request:
+                try:
+                    read += getattr(bus, method)(unit, start, count)
+                    continue
+                except bb.ModbusException as exc:
+                    if exc.code != ILLEGAL_DATA_VALUE or count == 1:
+                        raise
+                    print(
+                        f"{PROG}: read: unit {unit} refused {count} {what} in one request "
+                        f"(exception 0x03: illegal data value): some devices, BLD drives "
+                        f"among them, read one a request; reading them one at a time",
+                        file=sys.stderr,
+                    )
+                    one_a_request = True
+            for address in range(start, start + count):
+                read += getattr(bus, method)(unit, address, 1)
     if bits or not args.type:
         for offset, item in enumerate(read):
-            address = args.address + offset
-            print(f"0x{address:04X}  {address}  {_text(int(item), args)}")
+            print(labelled(args.address + offset, _text(int(item), args)))
         return 0
     values = bb.from_registers(read, args.type, args.order or "ABCD")
     for index, typed in enumerate(values):
-        address = args.address + index * width
-        print(f"0x{address:04X}  {address}  {typed}")
+        print(labelled(args.address + index * width, str(typed)))
     return 0
+
+
+#: The exception code a device answers to a request for more registers than it reads at
+#: once (BLD drives: more than one).
+ILLEGAL_DATA_VALUE = 0x03
+
+
+def labelled(address: int, value: str) -> str:
+    """One line of ``benchbus read``: ``0x2001 (8193) = 1234``, the address in hex and in
+    decimal, then the value."""
+    return f"0x{address:04X} ({address}) = {value}"
 
 
 def _text(word: int, args: argparse.Namespace) -> str:
@@ -131,7 +158,10 @@ HELP = (
 #: The rest of its ``--help``.
 EPILOG = (
     "Prints one line per register, bit (1 or 0) or --type value: the address in hex, in "
-    "decimal, and the value. --table says which table: holding registers (0x03, the "
+    "decimal in parentheses, and the value after '=' (0x2001 (8193) = 1500). A device "
+    "that refuses a read of several registers with exception 0x03 (illegal data value), as "
+    "BLD drives do, is read one register a request, and a line on stderr says so. --table "
+    "says which table: holding registers (0x03, the "
     "default), input registers (0x04), coils (0x01) or discrete inputs (0x02). With "
     "--profile FILE, the registers NAME ... of that device profile (every readable one "
     "without names), one line each: the name and the value in engineering units with its "
