@@ -531,9 +531,9 @@ fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Dur
     let ok = value.is_finite() && (value > 0.0 || (allow_zero && value == 0.0)) && value <= 3600.0;
     if !ok || obj.is_instance_of::<PyString>() {
         let range = if allow_zero {
-            "0 to 3600"
+            "from 0 to 3600"
         } else {
-            "0 < seconds <= 3600"
+            "more than 0 and at most 3600"
         };
         return Err(PyValueError::new_err(format!(
             "{name} must be {range} seconds, got {value}"
