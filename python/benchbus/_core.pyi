@@ -94,6 +94,9 @@ def diagnose(
 def refresh_logging() -> None:
     """Re-read the Python logging levels (cached for speed; a Bus reads them when it opens)."""
 
+def _did_you_mean(name: str, known: list[str]) -> str:
+    """``; did you mean 'a' or 'b'?`` naming the closest of ``known`` to ``name``, or ""."""
+
 def _panic_on_wire() -> None:
     """Panic on the path every wire call takes; raises BenchbusError (a test hook)."""
 

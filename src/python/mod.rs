@@ -1429,6 +1429,13 @@ fn refresh_logging() {
     }
 }
 
+/// `; did you mean 'a' or 'b'?` naming the closest of `known` to `name`, or `""`: the one
+/// rule of the core's hints, for `benchbus._device.did_you_mean`.
+#[pyfunction]
+fn _did_you_mean(name: &str, known: Vec<String>) -> String {
+    crate::device::suggest::did_you_mean(name, known.iter().map(String::as_str))
+}
+
 /// Panics on the path every wire call takes, to show that the panic comes out as a
 /// BenchbusError (for the test suite; not part of the API).
 #[pyfunction]
@@ -1466,6 +1473,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
+    m.add_function(wrap_pyfunction!(_did_you_mean, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
