@@ -312,13 +312,10 @@ pub fn is_reserved(number: u16) -> bool {
 /// # Errors
 /// [`Error::InvalidArgument`] if there is none.
 pub fn by_name(name: &str) -> Result<&'static Register> {
-    PARAMETERS
-        .iter()
-        .find(|p| p.name == name)
-        .ok_or_else(|| {
-            let hint = did_you_mean(name, PARAMETERS.iter().map(|p| p.name));
-            Error::InvalidArgument(format!("a PBL drive has no parameter {name:?}{hint}"))
-        })
+    PARAMETERS.iter().find(|p| p.name == name).ok_or_else(|| {
+        let hint = did_you_mean(name, PARAMETERS.iter().map(|p| p.name));
+        Error::InvalidArgument(format!("a PBL drive has no parameter {name:?}{hint}"))
+    })
 }
 
 /// Parameter `number`.

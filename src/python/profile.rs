@@ -179,7 +179,11 @@ impl PyProfile {
     /// The register called `name`, or ValueError naming the profile.
     fn index(&self, name: &str) -> PyResult<usize> {
         self.find(name).ok_or_else(|| {
-            let names = self.profile.registers.iter().map(|r| r.register.name.as_str());
+            let names = self
+                .profile
+                .registers
+                .iter()
+                .map(|r| r.register.name.as_str());
             let hint = did_you_mean(name, names);
             PyValueError::new_err(format!(
                 "{} has no register {name:?}{hint}",

@@ -401,7 +401,10 @@ mod tests {
             panic!("/dev/null opened as a serial port");
         };
         let text = describe_open_error(&e);
-        assert!(text.starts_with("not a serial port (the system says "), "{text}");
+        assert!(
+            text.starts_with("not a serial port (the system says "),
+            "{text}"
+        );
     }
 
     #[test]
