@@ -34,6 +34,7 @@ __all__ = [
     "_Station",
     "_Ticks",
     "__version__",
+    "_did_you_mean",
     "_panic_on_wire",
     "crc16",
     "diagnose",
