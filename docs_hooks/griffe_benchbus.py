@@ -9,13 +9,16 @@ griffe reads benchbus without importing it. Two things it cannot see that way:
 - the docstrings' reStructuredText: the inline roles (``:class:`Bus```, ``:meth:``, ``:func:``,
   ``:attr:``, ``:data:``, ``:exc:``, ``:mod:``) become cross-references to the page that
   documents their target (``[Bus][benchbus.Bus]``), or code where the target has no page; a
-  paragraph ending in ``::`` before its literal block ends in ``:`` as it reads in Sphinx.
+  paragraph ending in ``::`` before its literal block ends in ``:`` as it reads in Sphinx,
+  and the literal block becomes a fenced one, ``python`` (highlighted as the site's own
+  code blocks are) when it parses as Python, ``text`` otherwise (a diagram, a table).
 """
 
 from __future__ import annotations
 
 import ast
 import re
+import textwrap
 from collections.abc import Iterable, Iterator
 from typing import Any
 
@@ -222,7 +225,7 @@ class Reference:
     def rewrite(self, scope: griffe.Object, text: str) -> str:
         """``text``, a docstring of ``scope``, with its roles as links to the entries of
         their targets (code where there is none, or where the target starts with ``!``) and
-        its ``::`` as ``:``."""
+        its ``::`` as ``:`` before a fenced literal block (see :func:`fence_literals`)."""
 
         def role(match: re.Match[str]) -> str:
             kind, content = match.groups()
@@ -249,7 +252,61 @@ class Reference:
             return f"[{code}][{path}]" if path else code
 
         text = ROLE.sub(role, text)
-        return LITERAL_INTRO.sub(_literal_intro, text)
+        return fence_literals(text)
+
+
+def fence_literals(text: str) -> str:
+    """``text`` with each reStructuredText literal block (the lines indented under a line
+    ending in ``::``) as a fenced code block at the introducing line's indent, in the
+    language :func:`literal_language` finds, and its ``::`` as ``:`` (a ``::`` alone on its
+    line goes). Markdown would make the block an indented code block, which the site's
+    highlighter leaves plain."""
+    lines = text.splitlines()
+    out: list[str] = []
+    i = 0
+    while i < len(lines):
+        match = LITERAL_INTRO.fullmatch(lines[i])
+        if match is None:
+            out.append(lines[i])
+            i += 1
+            continue
+        indent = _indent(lines[i])
+        out.append(_literal_intro(match))
+        i += 1
+        gap = i
+        while i < len(lines) and not lines[i].strip():
+            i += 1
+        start = i
+        while i < len(lines) and (not lines[i].strip() or _indent(lines[i]) > indent):
+            i += 1
+        end = i
+        while end > start and not lines[end - 1].strip():
+            end -= 1
+        out.extend(lines[gap:start])
+        if end == start:  # no literal block follows: a paragraph
+            continue
+        code = textwrap.dedent("\n".join(lines[start:end]))
+        pad = " " * indent
+        if out and out[-1].strip():  # a fence stands apart from the paragraph before it
+            out.append("")
+        out.append(f"{pad}```{literal_language(code)}")
+        out.extend(pad + line if line.strip() else "" for line in code.splitlines())
+        out.append(f"{pad}```")
+        out.extend(lines[end:i])
+        if i < len(lines) and end == i:  # and from the one after it
+            out.append("")
+    return "\n".join(out) + ("\n" if text.endswith("\n") else "")
+
+
+def literal_language(code: str) -> str:
+    """``python`` if ``code`` parses as Python (``await`` and ``async with`` at the top
+    level too), else ``text``."""
+    flags = ast.PyCF_ONLY_AST | ast.PyCF_ALLOW_TOP_LEVEL_AWAIT
+    try:
+        compile(code, "<docstring>", "exec", flags=flags, dont_inherit=True)
+    except (SyntaxError, ValueError):
+        return "text"
+    return "python"
 
 
 def unindented_literals(text: str) -> list[int]:

@@ -5,6 +5,7 @@ simulated devices are not affected."""
 
 from __future__ import annotations
 
+import asyncio
 from collections.abc import Iterator
 
 import pytest
@@ -100,10 +101,91 @@ def test_read_only_and_measured_names_keep_their_own_errors(
         j2.unit = 2  # type: ignore[misc]
 
 
-def test_reading_an_unknown_name_is_the_usual_error(bench: tuple[Simulator, bb.Bus]) -> None:
+@pytest.mark.parametrize(
+    ("kind", "typo", "meant"),
+    [
+        ("Drive", "sped", "speed"),
+        ("Drive", "spped_setpoint", "speed_setpoint"),
+        ("PblDrive", "pole_pair", "pole_pairs"),
+        ("J2Controller", "pvv", "pv"),
+        ("Instrument", "max_reed", "max_read"),
+    ],
+)
+def test_reading_a_typo_names_the_closest_name(
+    bench: tuple[Simulator, bb.Bus], kind: str, typo: str, meant: str
+) -> None:
+    sim, bus = bench
+    device = make(kind, bus)
+    sent = len(sim.requests)
+    with pytest.raises(AttributeError, match=f"did you mean '{meant}'") as caught:
+        getattr(device, typo)
+    assert str(caught.value).startswith(f"'{kind}' object has no attribute '{typo}';")
+    assert (caught.value.name, caught.value.obj) == (typo, device)
+    assert len(sim.requests) == sent  # and nothing was sent
+
+
+def test_asking_for_a_missing_name_stays_cheap_and_plain(bench: tuple[Simulator, bb.Bus]) -> None:
     _, bus = bench
-    with pytest.raises(AttributeError, match="spped"):
-        bb.Drive(bus, DRIVE).spped_setpoint  # type: ignore[attr-defined]  # noqa: B018
+    drive = bb.Drive(bus, DRIVE)
+    assert not hasattr(drive, "zzzz")
+    assert getattr(drive, "sped", None) is None
+    with pytest.raises(AttributeError) as caught:
+        drive._privat  # type: ignore[attr-defined]  # noqa: B018
+    assert str(caught.value) == "'Drive' object has no attribute '_privat'"  # no search
+    with pytest.raises(AttributeError) as caught:
+        drive.__getstate_x__  # type: ignore[attr-defined]  # noqa: B018
+    assert "did you mean" not in str(caught.value)
+    with pytest.raises(AttributeError) as caught:
+        drive.zzzz  # type: ignore[attr-defined]  # noqa: B018
+    assert str(caught.value) == "'Drive' object has no attribute 'zzzz'"
+
+
+@pytest.mark.parametrize(
+    ("kind", "typo", "meant"),
+    [
+        ("Drive", "speed_setpont", "speed_setpoint"),
+        ("PblDrive", "internal_sped", "internal_speed"),
+        ("J2Controller", "SVV", "SV"),
+        ("J2Controller", "pv_ofset", "PVOS"),
+    ],
+)
+def test_get_and_set_of_an_unknown_register_name_the_closest(
+    bench: tuple[Simulator, bb.Bus], kind: str, typo: str, meant: str
+) -> None:
+    sim, bus = bench
+    device = make(kind, bus)
+    assert not isinstance(device, bb.Instrument)
+    sent = len(sim.requests)
+    with pytest.raises(
+        ValueError, match=f"no (register|parameter) \"{typo}\"; did you mean '{meant}'"
+    ):
+        device.get(typo)
+    with pytest.raises(ValueError, match=f"did you mean '{meant}'"):
+        device.set(typo, 1)
+    assert len(sim.requests) == sent
+
+
+def test_an_unknown_register_with_no_close_name_lists_or_says_nothing(
+    bench: tuple[Simulator, bb.Bus],
+) -> None:
+    _, bus = bench
+    with pytest.raises(ValueError) as caught:
+        bb.Drive(bus, DRIVE).get("zzzz")
+    assert str(caught.value).endswith('no register "zzzz"')
+    with pytest.raises(ValueError, match="it has MV, PV, SV"):
+        bb.J2Controller(bus, J2).get("zzzz")
+
+
+def test_async_devices_name_the_closest_too() -> None:
+    async def main(port: str) -> None:
+        async with bb.aio.AsyncBus(port, timeout=0.5) as bus, bb.aio.Drive(bus, DRIVE) as drive:
+            with pytest.raises(AttributeError, match="did you mean 'speed'"):
+                drive.sped  # noqa: B018
+            with pytest.raises(ValueError, match="did you mean 'speed_setpoint'"):
+                await drive.get("speed_setpont")
+
+    with Simulator({DRIVE: DriveDevice()}) as sim:
+        asyncio.run(main(sim.port))
 
 
 class LabelledDrive(bb.Drive):

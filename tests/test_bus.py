@@ -319,6 +319,19 @@ def test_port_errors() -> None:
         bb.Bus("rtu+tcp://127.0.0.1")  # a device server has no standard port
 
 
+def test_a_file_that_is_not_a_serial_port_is_told_so() -> None:
+    with pytest.raises(bb.PortError, match="not a serial port") as e:
+        bb.Bus("/dev/null")
+    assert "/dev/null" in str(e.value)
+
+
+@pytest.mark.parametrize("timeout", [0, -1, 3601])
+def test_the_timeout_range_reads_as_words(sim: Simulator, timeout: float) -> None:
+    message = f"^timeout must be more than 0 and at most 3600 seconds, got {timeout}$"
+    with pytest.raises(ValueError, match=message):
+        bb.Bus(sim.port, timeout=timeout)
+
+
 def test_closed_bus_and_exclusive_open(sim: Simulator) -> None:
     bus = bb.Bus(sim.port)
     with pytest.raises(bb.PortError):

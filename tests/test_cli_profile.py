@@ -314,7 +314,9 @@ def test_monitor_a_profile_shows_its_sample_with_units_and_logs_it(
 def test_monitor_takes_a_family_or_a_profile_not_both_nor_neither(sensor: Rig) -> None:
     _, _, profile = sensor
     assert "not both" in one_line_error(run("monitor", "j2", *profile, "--count", "1"), 2)
-    assert "or --profile FILE" in one_line_error(run("monitor", "--port", "/dev/null"), 2)
+    neither = one_line_error(run("monitor", "--port", "/dev/null"), 2)
+    assert "or --profile FILE" in neither
+    assert "not both" not in neither  # neither was given: it says what to give
     family = run("monitor", *profile, "--family", "C20", "--count", "1")
     assert "--family goes with drive" in one_line_error(family, 2)
 

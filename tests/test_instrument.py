@@ -275,6 +275,45 @@ def test_32_and_64_bit_values_in_all_four_layouts(rig: Rig, words: str, order: s
         assert inst.read_float(0x50, bits=64, **layout) == value  # type: ignore[arg-type]
 
 
+#: The same layouts by the name profiles and ``from_registers`` give them.
+ORDERS = {"ABCD": ("big", "big"), "CDAB": ("little", "big"), "BADC": ("big", "little")}
+ORDERS["DCBA"] = ("little", "little")
+
+
+@pytest.mark.parametrize("order", list(ORDERS))
+def test_the_layout_by_its_order_name_and_by_its_aliases(rig: Rig, order: str) -> None:
+    bus, _, meter, _ = rig
+    inst = bb.Instrument(bus, 1)
+    words, bytes_ = ORDERS[order]
+    two, four = LAYOUTS[(words, bytes_)]
+    inst.write_long(0x30, 0x01020304, order=order)  # type: ignore[arg-type]
+    assert meter.registers[0x30:0x32] == two == bb.to_registers(0x01020304, "u32", order)  # type: ignore[arg-type]
+    alias = {"word_order": words, "byte_order": bytes_}
+    assert inst.read_long(0x30, **alias) == 0x01020304  # type: ignore[arg-type]
+    inst.write_long(0x40, 0x0102030405060708, bits=64, **alias)  # type: ignore[arg-type]
+    assert meter.registers[0x40:0x44] == four
+    assert inst.read_long(0x40, bits=64, order=order.lower()) == 0x0102030405060708  # type: ignore[arg-type]
+    inst.write_float(0x50, 21.5, order=order)  # type: ignore[arg-type]
+    assert inst.read_float(0x50, **alias) == 21.5  # type: ignore[arg-type]
+    inst.write_float(0x50, -0.5, **alias)  # type: ignore[arg-type]
+    assert inst.read_float(0x50, order=order) == -0.5  # type: ignore[arg-type]
+    assert bb.from_registers(meter.registers[0x50:0x52], "f32", order) == [-0.5]  # type: ignore[arg-type]
+
+
+def test_an_order_and_its_aliases_together_are_refused(rig: Rig) -> None:
+    bus, sim, _, _ = rig
+    inst = bb.Instrument(bus, 1)
+    sent = len(sim.requests)
+    with pytest.raises(TypeError, match="not both"):
+        inst.read_long(0, order="CDAB", word_order="little")
+    with pytest.raises(TypeError, match="not both"):
+        inst.write_float(0, 1.0, "big", order="ABCD")
+    with pytest.raises(ValueError, match='order must be "ABCD", "CDAB", "BADC" or "DCBA"'):
+        inst.read_float(0, order="big")  # type: ignore[arg-type]
+    assert len(sim.requests) == sent
+    assert inst.read_long(0, order=None, word_order="big") == inst.read_long(0)  # type: ignore[arg-type]
+
+
 def test_64_bit_values_refused_before_anything_is_sent(rig: Rig) -> None:
     bus, sim, _, _ = rig
     inst = bb.Instrument(bus, 1)

@@ -296,6 +296,8 @@ def test_a_missing_file(tmp_path: Path) -> None:
     with pytest.raises(bb.ProfileError, match="cannot read the file") as raised:
         bb.Profile(path)
     assert raised.value.path == str(path)
+    assert raised.value.line == 0
+    assert str(raised.value).startswith(f"{path}: cannot read the file: ")  # no line 0
 
 
 def test_the_path_must_be_a_path() -> None:

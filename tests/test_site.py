@@ -12,6 +12,7 @@ import html
 import http.server
 import importlib
 import inspect
+import json
 import os
 import re
 import shutil
@@ -659,3 +660,94 @@ def test_chromium_renders_the_page(site: Build, tmp_path: Path, page: str, title
     assert any(texts), "no code block with content"
     # Material's scripts ran (its bundle marks the document).
     assert re.search(r'<html[^>]*class="[^"]*js-focus-visible', dom), dom[:300]
+
+
+#: Pages with long code lines: the home page's ``make demo`` comment, the profile file's
+#: ``[line]`` comment, and the API reference's docstring examples and signatures.
+WIDE_PAGES = ("index.html", "devices/profiles/index.html", "reference/benchbus/index.html")
+
+#: A page that loads each of ``WIDE_PAGES`` in a frame as wide as a laptop's browser window
+#: and writes, as JSON, how many code blocks each has, the longest line of each block whose
+#: text is wider than the block (cut off, or scrolled sideways), and by how many pixels the
+#: page itself is wider than its window.
+PROBE = """<!doctype html>
+<html><body>
+<iframe id="frame" style="width: 1000px; height: 800px"></iframe>
+<pre id="result">pending</pre>
+<script>
+const pages = PAGES;
+const found = {};
+const frame = document.getElementById("frame");
+function next(i) {
+  if (i === pages.length) {
+    document.getElementById("result").textContent = JSON.stringify(found);
+    return;
+  }
+  frame.onload = () => {
+    const doc = frame.contentDocument;
+    const blocks = [...doc.querySelectorAll(".md-content pre > code")];
+    const longest = (c) =>
+      c.textContent.split("\\n").reduce((a, b) => (b.length > a.length ? b : a), "");
+    found[pages[i]] = {
+      blocks: blocks.length,
+      overflowing: blocks.filter((c) => c.scrollWidth > c.clientWidth + 1).map(longest),
+      page: doc.documentElement.scrollWidth - doc.documentElement.clientWidth,
+    };
+    next(i + 1);
+  };
+  frame.src = "site/" + pages[i];
+}
+next(0);
+</script>
+</body></html>
+"""
+
+
+@pytest.mark.timeout(240)
+def test_long_code_lines_stay_within_the_page(site: Build, tmp_path: Path) -> None:
+    root = tmp_path / "root"
+    root.mkdir()
+    (root / "site").symlink_to(built(site))
+    (root / "probe.html").write_text(PROBE.replace("PAGES", json.dumps(list(WIDE_PAGES))))
+    with serving(root) as base:
+        dom = dump_dom(base + "probe.html", tmp_path / "profile")
+    result = re.search(r'<pre id="result">(.*?)</pre>', dom, re.S)
+    assert result, dom[:2000]
+    found = json.loads(html.unescape(result.group(1)))
+    assert set(found) == set(WIDE_PAGES), found
+    for page, seen in found.items():
+        assert seen["blocks"] > 0, f"{page}: no code block measured"
+        assert seen["overflowing"] == [], f"{page}: code lines wider than their block"
+        assert seen["page"] <= 0, f"{page}: the page is {seen['page']} px wider than its window"
+
+
+#: A code block of a docstring as the reference renders it (signatures are apart:
+#: ``doc-signature highlight``).
+DOCSTRING_CODE = re.compile(r'<div class="highlight"><pre><span></span><code>(.*?)</code>', re.S)
+
+
+def test_docstring_code_blocks_are_highlighted(site: Build) -> None:
+    path = built(site)
+    page = (path / "reference/benchbus/index.html").read_text()
+    # The package docstring's example (a reStructuredText literal block after ``::``).
+    first = DOCSTRING_CODE.search(page)
+    assert first, "no code block in the API reference"
+    assert '<span class="kn">import</span>' in first.group(1), first.group(1)[:300]
+    # Every page's: all but the few that are not Python (a diagram, the exception tree).
+    for name in ("benchbus", "aio", "sim", "integrations"):
+        codes = DOCSTRING_CODE.findall((path / f"reference/{name}/index.html").read_text())
+        plain = [html.unescape(c)[:60] for c in codes if '<span class="' not in c]
+        assert codes and len(plain) <= 2, f"reference/{name}: not highlighted: {plain}"
+
+
+def test_a_literal_block_becomes_a_fenced_block_in_its_language() -> None:
+    fence = hook("griffe_benchbus").fence_literals
+    doc = "Use it::\n\n    import benchbus as bb\n    bb.Bus(port)\n\nThen::\n\n    a -> b\n"
+    assert fence(doc) == (
+        "Use it:\n\n```python\nimport benchbus as bb\nbb.Bus(port)\n```\n\n"
+        "Then:\n\n```text\na -> b\n```\n"
+    )
+    assert fence(
+        "Async::\n\n    async with bb.aio.AsyncBus(p) as bus:\n        await bus.scan()\n"
+    ) == ("Async:\n\n```python\nasync with bb.aio.AsyncBus(p) as bus:\n    await bus.scan()\n```\n")
+    assert fence("Not a block::\nsame indent\n") == "Not a block:\nsame indent\n"

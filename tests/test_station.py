@@ -97,7 +97,7 @@ def test_the_instrument_is_its_compiled_class_with_nothing_forwarded() -> None:
     for name in ("write_string", "identify", "max_read", "max_write", "min_write_interval"):
         assert name not in vars(bb.Instrument), name
     # The compiled methods keep the defaults users see.
-    assert "word_order='big'" in str(inspect.signature(bb.Instrument.read_long))
+    assert "order='ABCD'" in str(inspect.signature(bb.Instrument.read_long))
     assert "*, function=6" in str(inspect.signature(bb.Instrument.write_register))
     assert "level='basic'" in str(inspect.signature(bb.Instrument.identify))
 

@@ -20,8 +20,6 @@ benches, with the wire timing done right and every failure raised as a clear exc
 Simulated devices for tests without hardware are in :mod:`benchbus.sim`.
 """
 
-from __future__ import annotations
-
 from benchbus import aio
 from benchbus._core import (
     Bus,

@@ -6,7 +6,7 @@ Generated from the sync classes by ``python -m benchbus._aio_stubgen``: do not e
 from collections.abc import Callable, Coroutine, Iterable, Mapping
 from typing import Any, Literal
 
-from benchbus._core import Profile, _Order, _Read
+from benchbus._core import Profile, _Layout, _Order, _Read
 from benchbus._device import LineDefaults, PrintableIntEnum
 from benchbus._drive import (
     C20ControlMode,
@@ -493,28 +493,41 @@ class InstrumentMembers:
     async def read_float(
         self,
         address: int,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
         function: _Read = 3,
+        order: _Layout = "ABCD",
     ) -> float:
         """An IEEE 754 float of ``bits`` (32: single, 64: double) over 2 or 4 registers, laid
-        out as :meth:`read_long` reads an integer."""
+        out as :meth:`read_long` reads an integer (``order``, or its aliases ``word_order`` /
+        ``byte_order``)."""
 
     async def read_long(
         self,
         address: int,
         signed: bool = False,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
         function: _Read = 3,
+        order: _Layout = "ABCD",
     ) -> int:
         """An integer of ``bits`` (32 or 64) over the 2 or 4 registers from ``address``,
-        signed or not, laid out by ``word_order`` (which register first) and ``byte_order``
-        (which byte of each register first), each "big" (most significant first) or "little"."""
+        signed or not, laid out by ``order``, as profiles and :func:`benchbus.from_registers`
+        name it: ``"ABCD"`` (most significant register and byte first), ``"CDAB"`` (words
+        swapped), ``"BADC"`` (bytes swapped in each register) or ``"DCBA"``.
+
+        For 0x01020304: ABCD ``[0x0102, 0x0304]``, CDAB ``[0x0304, 0x0102]``, BADC
+        ``[0x0201, 0x0403]``, DCBA ``[0x0403, 0x0201]``; a 64-bit value lies the same way
+        over four registers.
+
+        ``word_order`` (which register first) and ``byte_order`` (which byte of each
+        register first), each ``"big"`` or ``"little"``, are accepted aliases:
+        ``word_order="little"`` is ``order="CDAB"``, ``byte_order="little"`` ``"BADC"``.
+        Giving ``order`` with either is a TypeError."""
 
     async def read_register(
         self, address: int, decimals: int = 0, signed: bool = False, *, function: _Read = 3
@@ -598,26 +611,31 @@ class InstrumentMembers:
         self,
         address: int,
         value: float,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
+        order: _Layout = "ABCD",
     ) -> None:
         """Write an IEEE 754 float of ``bits`` (32 or 64) over 2 or 4 registers (NaN,
-        infinities and, in 32 bits, numbers beyond a single's range are refused)."""
+        infinities and, in 32 bits, numbers beyond a single's range are refused), laid out
+        as :meth:`read_long` reads an integer (``order``, or its aliases ``word_order`` /
+        ``byte_order``)."""
 
     async def write_long(
         self,
         address: int,
         value: int,
         signed: bool = False,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
+        order: _Layout = "ABCD",
     ) -> None:
         """Write an integer of ``bits`` (32 or 64) over 2 or 4 registers, laid out as
-        :meth:`read_long` reads it, in one request (more if ``max_write`` is smaller)."""
+        :meth:`read_long` reads it (``order``, or its aliases ``word_order`` /
+        ``byte_order``), in one request (more if ``max_write`` is smaller)."""
 
     async def write_register(
         self,

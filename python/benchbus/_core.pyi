@@ -15,7 +15,8 @@ from benchbus._profile import ProfileLimits, ProfileLine, ProfileRegister
 from benchbus._results import CommEventCounter, CommEventLog
 
 #: Which register (word order) or which byte of a register (byte order) of a multi-register
-#: value comes first: "big" the most significant (the Modbus convention), "little" the least.
+#: value comes first: "big" the most significant (the Modbus convention), "little" the least;
+#: the aliases of an ``order`` (``_Layout``) the Instrument's value methods accept.
 _Order = Literal["big", "little"]
 #: The function a register read uses: 3 (holding registers) or 4 (input registers).
 _Read = Literal[3, 4]
@@ -34,6 +35,7 @@ __all__ = [
     "_Station",
     "_Ticks",
     "__version__",
+    "_did_you_mean",
     "_panic_on_wire",
     "crc16",
     "diagnose",
@@ -94,6 +96,9 @@ def diagnose(
 
 def refresh_logging() -> None:
     """Re-read the Python logging levels (cached for speed; a Bus reads them when it opens)."""
+
+def _did_you_mean(name: str, known: list[str]) -> str:
+    """``; did you mean 'a' or 'b'?`` naming the closest of ``known`` to ``name``, or ""."""
 
 def _panic_on_wire() -> None:
     """Panic on the path every wire call takes; raises BenchbusError (a test hook)."""
@@ -970,53 +975,67 @@ class InstrumentCore(_Station):
         self,
         address: int,
         signed: bool = False,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
         function: _Read = 3,
+        order: _Layout = "ABCD",
     ) -> int:
         """An integer of ``bits`` (32 or 64) over the 2 or 4 registers from ``address``,
-        signed or not, laid out by ``word_order`` (which register first) and ``byte_order``
-        (which byte of each register first), each "big" (most significant first) or "little".
+        signed or not, laid out by ``order``, as profiles and :func:`benchbus.from_registers`
+        name it: ``"ABCD"`` (most significant register and byte first), ``"CDAB"`` (words
+        swapped), ``"BADC"`` (bytes swapped in each register) or ``"DCBA"``.
 
-        For 0x01020304: big/big ``[0x0102, 0x0304]`` (ABCD), little/big ``[0x0304, 0x0102]``
-        (CDAB), big/little ``[0x0201, 0x0403]`` (BADC), little/little ``[0x0403, 0x0201]``
-        (DCBA); a 64-bit value lies the same way over four registers."""
+        For 0x01020304: ABCD ``[0x0102, 0x0304]``, CDAB ``[0x0304, 0x0102]``, BADC
+        ``[0x0201, 0x0403]``, DCBA ``[0x0403, 0x0201]``; a 64-bit value lies the same way
+        over four registers.
+
+        ``word_order`` (which register first) and ``byte_order`` (which byte of each
+        register first), each ``"big"`` or ``"little"``, are accepted aliases:
+        ``word_order="little"`` is ``order="CDAB"``, ``byte_order="little"`` ``"BADC"``.
+        Giving ``order`` with either is a TypeError."""
     def write_long(
         self,
         address: int,
         value: int,
         signed: bool = False,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
+        order: _Layout = "ABCD",
     ) -> None:
         """Write an integer of ``bits`` (32 or 64) over 2 or 4 registers, laid out as
-        :meth:`read_long` reads it, in one request (more if ``max_write`` is smaller)."""
+        :meth:`read_long` reads it (``order``, or its aliases ``word_order`` /
+        ``byte_order``), in one request (more if ``max_write`` is smaller)."""
     def read_float(
         self,
         address: int,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
         function: _Read = 3,
+        order: _Layout = "ABCD",
     ) -> float:
         """An IEEE 754 float of ``bits`` (32: single, 64: double) over 2 or 4 registers,
-        laid out as :meth:`read_long` reads an integer."""
+        laid out as :meth:`read_long` reads an integer (``order``, or its aliases
+        ``word_order`` / ``byte_order``)."""
     def write_float(
         self,
         address: int,
         value: float,
-        word_order: _Order = "big",
+        word_order: _Order | None = None,
         *,
-        byte_order: _Order = "big",
+        byte_order: _Order | None = None,
         bits: Literal[32, 64] = 32,
+        order: _Layout = "ABCD",
     ) -> None:
         """Write an IEEE 754 float of ``bits`` (32 or 64) over 2 or 4 registers (NaN,
-        infinities and, in 32 bits, numbers beyond a single's range are refused)."""
+        infinities and, in 32 bits, numbers beyond a single's range are refused), laid out
+        as :meth:`read_long` reads an integer (``order``, or its aliases ``word_order`` /
+        ``byte_order``)."""
     def read_string(self, address: int, count: int, *, function: _Read = 3) -> str:
         """``count`` registers as text, two Latin-1 characters a register (high byte first),
         without the NULs that pad it (``function=4``: input registers)."""

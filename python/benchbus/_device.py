@@ -10,7 +10,6 @@ float) on the way out.
 from __future__ import annotations
 
 import contextlib
-import difflib
 import enum
 import logging
 import os
@@ -29,7 +28,7 @@ from typing import (
     overload,
 )
 
-from benchbus._core import Bus
+from benchbus._core import Bus, _did_you_mean
 from benchbus._record import Recording, record
 from benchbus.exceptions import PortError
 
@@ -271,21 +270,26 @@ def _annotations(klass: type) -> dict[str, Any]:
 
 def did_you_mean(name: str, known: Iterable[str]) -> str:
     """``; did you mean 'a' or 'b'?`` naming up to three of ``known`` closest to ``name``
-    (letter case aside), or "" when none is close: what a typo's error message ends with."""
-    by_folded = {n.lower(): n for n in sorted(known)}
-    close = [by_folded[n] for n in difflib.get_close_matches(name.lower(), by_folded, n=3)]
-    return f"; did you mean {' or '.join(repr(n) for n in close)}?" if close else ""
+    (letter case aside), or "" when none is close: what a typo's error message ends with.
+
+    The core's rule (``src/device/suggest.rs``), which also ends its errors for an unknown
+    register or parameter name: one rule for every name a user can mistype."""
+    return _did_you_mean(name, list(known))
 
 
-def _unknown_attribute(device: object, name: str) -> AttributeError:
-    """An AttributeError for setting ``name``, naming the closest known names."""
+def _unknown_attribute(device: object, name: str, to: str = " to set") -> AttributeError:
+    """An AttributeError for setting (or with ``to=""``, reading) ``name``, naming the
+    closest known names."""
     known = {n for n in dir(type(device)) if not n.startswith("__")}
     known |= set(vars(device))
     known = {n for n in known if n.startswith("_") == name.startswith("_")} - {"_made"}
     hint = did_you_mean(name, known)
-    error = AttributeError(
-        f"{type(device).__name__!r} object has no attribute {name!r} to set{hint}"
-    )
+    return _no_such(device, name, f"{to}{hint}")
+
+
+def _no_such(device: object, name: str, tail: str = "") -> AttributeError:
+    """Python's AttributeError for ``name`` on ``device``, its message ending in ``tail``."""
+    error = AttributeError(f"{type(device).__name__!r} object has no attribute {name!r}{tail}")
     error.name, error.obj = name, device
     return error
 
@@ -300,9 +304,12 @@ class BusDevice(metaclass=_DeviceType):
     Once made, a device takes no new attribute: setting a name that is not one of its
     properties, nor defined or annotated on its class, nor set while ``__init__`` ran,
     raises AttributeError with the closest names (``j2.SV = 150``: did you mean 'sv'?),
-    so that a typo cannot pass for a setting. A subclass may set any attribute of its
-    own in its ``__init__``, or declare it on the class (``log: list[str]`` is enough) to
-    set it later.
+    so that a typo cannot pass for a setting. Reading a name the device lacks says the
+    same (``drive.sped``: did you mean 'speed'?); a private or special name (``_x``,
+    ``__getstate__``) gets Python's plain AttributeError, found without a search, so that
+    ``hasattr``, ``copy`` and ``pickle`` ask as cheaply as ever. A subclass may set any
+    attribute of its own in its ``__init__``, or declare it on the class (``log:
+    list[str]`` is enough) to set it later.
     """
 
     _owns_bus: bool
@@ -320,6 +327,14 @@ class BusDevice(metaclass=_DeviceType):
             ):
                 raise _unknown_attribute(self, name)
             super().__setattr__(name, value)
+
+        def __getattr__(self, name: str) -> Any:
+            """Called only for a name the device lacks: AttributeError with the closest
+            public names (none for a private name, nor for one the class declares, whose
+            own reading failed)."""
+            if name.startswith("_") or _declared(type(self), name):
+                raise _no_such(self, name)
+            raise _unknown_attribute(self, name, "")
 
     def _on_line(
         self,

@@ -89,7 +89,7 @@ class Instrument(InstrumentCore, BusDevice):
             print(meter.read_register(0x0000))             # the measured value
             meter.write_register(0x0005, 100)              # the setpoint SV
             block = meter.read_registers(0x0000, 100)      # 37 + 37 + 26 on the wire
-            meter.write_float(0x0100, 21.5, word_order="little")
+            meter.write_float(0x0100, 21.5, order="CDAB")    # low word first
             power = meter.read_float(0x000C, function=4)   # an input register
             meter.write_coil(0x0002, True)                 # a relay
             print(meter.identify())                        # 0x2B / 0x0E, if supported

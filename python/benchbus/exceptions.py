@@ -144,7 +144,8 @@ class Cancelled(BenchbusError):
 class ProfileError(BenchbusError, ValueError):
     """A device profile file is wrong; raised before any port is opened.
 
-    The message reads ``FILE:LINE: key: what is wrong``.
+    The message reads ``FILE:LINE: key: what is wrong``, or ``FILE: cannot read the
+    file: ...`` for a file that cannot be read (it has no line).
     """
 
     path: str

@@ -6,6 +6,7 @@
 //! table: C20 lacks the brake command and 0x2010..0x2012 / 0x3012..0x3014, has other ranges
 //! for some enumerations, and reads status word 2 bit 4 with the opposite polarity.
 
+use super::suggest::did_you_mean;
 use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::{exception_meaning, FrameError};
@@ -521,7 +522,10 @@ fn find_setting(name: &str) -> Result<Setting> {
         .iter()
         .find(|s| s.name == name)
         .copied()
-        .ok_or_else(|| Error::InvalidArgument(format!("the drive has no setting {name:?}")))
+        .ok_or_else(|| {
+            let hint = did_you_mean(name, SETTINGS.iter().map(|s| s.name));
+            Error::InvalidArgument(format!("the drive has no setting {name:?}{hint}"))
+        })
 }
 
 /// Whether a drive does something the manuals leave open (block reads, the hall count
@@ -643,7 +647,14 @@ impl Drive {
         let entry = REGISTERS
             .iter()
             .find(|r| r.register.name == name)
-            .ok_or_else(|| Error::InvalidArgument(format!("the drive has no register {name:?}")))?;
+            .ok_or_else(|| {
+                let names = REGISTERS
+                    .iter()
+                    .filter(|r| r.on(self.family).is_some())
+                    .map(|r| r.register.name);
+                let hint = did_you_mean(name, names);
+                Error::InvalidArgument(format!("the drive has no register {name:?}{hint}"))
+            })?;
         entry.on(self.family).ok_or_else(|| {
             Error::InvalidArgument(format!(
                 "{name} ({:#06x}) exists on BLD drives only, not on the C20",

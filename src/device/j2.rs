@@ -14,6 +14,7 @@
 //! ramp rate that cannot be meant literally: those are checked against the widest range,
 //! -1999..=3276.7, and the controller itself refuses what it does not take.
 
+use super::suggest::did_you_mean;
 use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::error::{Error, Result};
@@ -235,14 +236,12 @@ pub fn by_name(name: &str) -> Result<&'static Param> {
         .iter()
         .find(|p| p.name.eq_ignore_ascii_case(name))
         .ok_or_else(|| {
-            Error::InvalidArgument(format!(
-                "a J2 controller has no parameter {name:?}; it has {}",
-                PARAMETERS
-                    .iter()
-                    .map(|p| p.name)
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ))
+            let names = PARAMETERS.iter().map(|p| p.name);
+            let mut hint = did_you_mean(name, names.clone());
+            if hint.is_empty() {
+                hint = format!("; it has {}", names.collect::<Vec<_>>().join(", "));
+            }
+            Error::InvalidArgument(format!("a J2 controller has no parameter {name:?}{hint}"))
         })
 }
 

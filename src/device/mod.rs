@@ -9,6 +9,7 @@ pub mod j2;
 pub mod pbl;
 pub mod profile;
 pub mod profiled;
+pub mod suggest;
 pub mod value;
 
 use crate::bus::{Bus, TxOptions};

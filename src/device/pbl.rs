@@ -8,6 +8,7 @@
 //! answer a 0x06 write with a register count of 1 instead of the echo, which is accepted for
 //! this family only; they also act on and answer a broadcast, which the Bus never waits for.
 
+use super::suggest::did_you_mean;
 use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::Echo;
@@ -311,10 +312,10 @@ pub fn is_reserved(number: u16) -> bool {
 /// # Errors
 /// [`Error::InvalidArgument`] if there is none.
 pub fn by_name(name: &str) -> Result<&'static Register> {
-    PARAMETERS
-        .iter()
-        .find(|p| p.name == name)
-        .ok_or_else(|| Error::InvalidArgument(format!("a PBL drive has no parameter {name:?}")))
+    PARAMETERS.iter().find(|p| p.name == name).ok_or_else(|| {
+        let hint = did_you_mean(name, PARAMETERS.iter().map(|p| p.name));
+        Error::InvalidArgument(format!("a PBL drive has no parameter {name:?}{hint}"))
+    })
 }
 
 /// Parameter `number`.

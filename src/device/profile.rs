@@ -120,13 +120,16 @@ fn wrapped(name: &str, n: usize) -> bool {
             .is_some_and(|inner| !inner.starts_with('_') && !inner.ends_with('_'))
 }
 
-/// A mistake in a profile file: where it is and what is wrong.
+/// A mistake in a profile file: where it is and what is wrong, shown as `FILE:LINE: key:
+/// message` (`FILE: message` for a file that cannot be read, which has no line).
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-#[error("{path}:{line}: {}{message}", if .key.is_empty() { String::new() } else { format!("{}: ", .key) })]
+#[error("{path}{}: {}{message}",
+    if *.line == 0 { String::new() } else { format!(":{}", .line) },
+    if .key.is_empty() { String::new() } else { format!("{}: ", .key) })]
 pub struct ProfileError {
     /// The file, as it was given.
     pub path: String,
-    /// The line (from 1) of the offending key or value.
+    /// The line (from 1) of the offending key or value; 0 for a file that cannot be read.
     pub line: usize,
     /// The key, dotted from the top of the file (`line.parity`, `register[2].type`); empty
     /// for a file that is not valid TOML.

@@ -49,11 +49,24 @@ fn big_arg(obj: Option<&Bound<'_, PyAny>>, name: &str, what: &str) -> PyResult<b
     })
 }
 
-/// The layout of a multi-register value from its `word_order` and `byte_order` arguments.
+/// The layout of a multi-register value: its `order` ("ABCD", "CDAB", "BADC", "DCBA", as
+/// profiles and `from_registers` name it), or the same said by the aliases `word_order`
+/// and `byte_order` (each "big" or "little"), not both ways at once.
 fn layout_arg(
+    order: Option<&Bound<'_, PyAny>>,
     word_order: Option<&Bound<'_, PyAny>>,
     byte_order: Option<&Bound<'_, PyAny>>,
 ) -> PyResult<Layout> {
+    let given = |o: Option<&Bound<'_, PyAny>>| o.is_some_and(|o| !o.is_none());
+    if given(order) {
+        if given(word_order) || given(byte_order) {
+            return Err(PyTypeError::new_err(
+                "give order (\"ABCD\", \"CDAB\", \"BADC\" or \"DCBA\") or its aliases \
+                 word_order / byte_order, not both",
+            ));
+        }
+        return super::values::layout_arg(order);
+    }
     let words = big_arg(word_order, "word_order", "word")?;
     let bytes = big_arg(byte_order, "byte_order", "byte")?;
     Ok(Layout::new(words, bytes))
@@ -455,11 +468,21 @@ impl PyInstrumentCore {
     }
 
     /// An integer of ``bits`` (32 or 64) over the 2 or 4 registers from ``address``,
-    /// signed or not, laid out by ``word_order`` (which register first) and ``byte_order``
-    /// (which byte of each register first), each "big" (most significant first) or "little".
+    /// signed or not, laid out by ``order``, as profiles and :func:`benchbus.from_registers`
+    /// name it: ``"ABCD"`` (most significant register and byte first), ``"CDAB"`` (words
+    /// swapped), ``"BADC"`` (bytes swapped in each register) or ``"DCBA"``.
+    ///
+    /// For 0x01020304: ABCD ``[0x0102, 0x0304]``, CDAB ``[0x0304, 0x0102]``, BADC
+    /// ``[0x0201, 0x0403]``, DCBA ``[0x0403, 0x0201]``; a 64-bit value lies the same way
+    /// over four registers.
+    ///
+    /// ``word_order`` (which register first) and ``byte_order`` (which byte of each
+    /// register first), each ``"big"`` or ``"little"``, are accepted aliases:
+    /// ``word_order="little"`` is ``order="CDAB"``, ``byte_order="little"`` ``"BADC"``.
+    /// Giving ``order`` with either is a TypeError.
     #[pyo3(
-        signature = (address, signed=false, word_order=None, *, byte_order=None, bits=None, function=None),
-        text_signature = "($self, address, signed=False, word_order='big', *, byte_order='big', bits=32, function=3)"
+        signature = (address, signed=false, word_order=None, *, byte_order=None, bits=None, function=None, order=None),
+        text_signature = "($self, address, signed=False, word_order=None, *, byte_order=None, bits=32, function=3, order='ABCD')"
     )]
     #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn read_long<'py>(
@@ -471,10 +494,11 @@ impl PyInstrumentCore {
         byte_order: Option<&Bound<'py, PyAny>>,
         bits: Option<&Bound<'py, PyAny>>,
         function: Option<&Bound<'py, PyAny>>,
+        order: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let bits = bits_arg(bits)?;
         let address = value_address(address, bits)?;
-        let layout = layout_arg(word_order, byte_order)?;
+        let layout = layout_arg(order, word_order, byte_order)?;
         let table = read_function_arg(function)?;
         let v = self
             .dev
@@ -487,10 +511,11 @@ impl PyInstrumentCore {
     }
 
     /// Write an integer of ``bits`` (32 or 64) over 2 or 4 registers, laid out as
-    /// :meth:`read_long` reads it, in one request (more if ``max_write`` is smaller).
+    /// :meth:`read_long` reads it (``order``, or its aliases ``word_order`` /
+    /// ``byte_order``), in one request (more if ``max_write`` is smaller).
     #[pyo3(
-        signature = (address, value, signed=false, word_order=None, *, byte_order=None, bits=None),
-        text_signature = "($self, address, value, signed=False, word_order='big', *, byte_order='big', bits=32)"
+        signature = (address, value, signed=false, word_order=None, *, byte_order=None, bits=None, order=None),
+        text_signature = "($self, address, value, signed=False, word_order=None, *, byte_order=None, bits=32, order='ABCD')"
     )]
     #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn write_long(
@@ -502,21 +527,24 @@ impl PyInstrumentCore {
         word_order: Option<&Bound<'_, PyAny>>,
         byte_order: Option<&Bound<'_, PyAny>>,
         bits: Option<&Bound<'_, PyAny>>,
+        order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let bits = bits_arg(bits)?;
         let address = value_address(address, bits)?;
         let value = int_bits(value, bits, signed)?;
-        let layout = layout_arg(word_order, byte_order)?;
+        let layout = layout_arg(order, word_order, byte_order)?;
         self.dev
             .wire(py, move |i| i.write_uint(address, value, bits, layout))
     }
 
     /// An IEEE 754 float of ``bits`` (32: single, 64: double) over 2 or 4 registers, laid
-    /// out as :meth:`read_long` reads an integer.
+    /// out as :meth:`read_long` reads an integer (``order``, or its aliases ``word_order`` /
+    /// ``byte_order``).
     #[pyo3(
-        signature = (address, word_order=None, *, byte_order=None, bits=None, function=None),
-        text_signature = "($self, address, word_order='big', *, byte_order='big', bits=32, function=3)"
+        signature = (address, word_order=None, *, byte_order=None, bits=None, function=None, order=None),
+        text_signature = "($self, address, word_order=None, *, byte_order=None, bits=32, function=3, order='ABCD')"
     )]
+    #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn read_float(
         &self,
         py: Python<'_>,
@@ -525,21 +553,25 @@ impl PyInstrumentCore {
         byte_order: Option<&Bound<'_, PyAny>>,
         bits: Option<&Bound<'_, PyAny>>,
         function: Option<&Bound<'_, PyAny>>,
+        order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<f64> {
         let bits = bits_arg(bits)?;
         let address = value_address(address, bits)?;
-        let layout = layout_arg(word_order, byte_order)?;
+        let layout = layout_arg(order, word_order, byte_order)?;
         let table = read_function_arg(function)?;
         self.dev
             .wire(py, move |i| i.read_float(table, address, bits, layout))
     }
 
     /// Write an IEEE 754 float of ``bits`` (32 or 64) over 2 or 4 registers (NaN,
-    /// infinities and, in 32 bits, numbers beyond a single's range are refused).
+    /// infinities and, in 32 bits, numbers beyond a single's range are refused), laid out
+    /// as :meth:`read_long` reads an integer (``order``, or its aliases ``word_order`` /
+    /// ``byte_order``).
     #[pyo3(
-        signature = (address, value, word_order=None, *, byte_order=None, bits=None),
-        text_signature = "($self, address, value, word_order='big', *, byte_order='big', bits=32)"
+        signature = (address, value, word_order=None, *, byte_order=None, bits=None, order=None),
+        text_signature = "($self, address, value, word_order=None, *, byte_order=None, bits=32, order='ABCD')"
     )]
+    #[allow(clippy::too_many_arguments)] // the Python signature's, one by one
     fn write_float(
         &self,
         py: Python<'_>,
@@ -548,11 +580,12 @@ impl PyInstrumentCore {
         word_order: Option<&Bound<'_, PyAny>>,
         byte_order: Option<&Bound<'_, PyAny>>,
         bits: Option<&Bound<'_, PyAny>>,
+        order: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let bits = bits_arg(bits)?;
         let address = value_address(address, bits)?;
         let value = number(value, "value")?;
-        let layout = layout_arg(word_order, byte_order)?;
+        let layout = layout_arg(order, word_order, byte_order)?;
         self.dev
             .wire(py, move |i| i.write_float(address, value, bits, layout))
     }

@@ -534,9 +534,9 @@ fn seconds(obj: &Bound<'_, PyAny>, name: &str, allow_zero: bool) -> PyResult<Dur
     let ok = value.is_finite() && (value > 0.0 || (allow_zero && value == 0.0)) && value <= 3600.0;
     if !ok || obj.is_instance_of::<PyString>() {
         let range = if allow_zero {
-            "0 to 3600"
+            "from 0 to 3600"
         } else {
-            "0 < seconds <= 3600"
+            "more than 0 and at most 3600"
         };
         return Err(PyValueError::new_err(format!(
             "{name} must be {range} seconds, got {value}"
@@ -1590,6 +1590,13 @@ fn refresh_logging() {
     }
 }
 
+/// `; did you mean 'a' or 'b'?` naming the closest of `known` to `name`, or `""`: the one
+/// rule of the core's hints, for `benchbus._device.did_you_mean`.
+#[pyfunction]
+fn _did_you_mean(name: &str, known: Vec<String>) -> String {
+    crate::device::suggest::did_you_mean(name, known.iter().map(String::as_str))
+}
+
 /// Panics on the path every wire call takes, to show that the panic comes out as a
 /// BenchbusError (for the test suite; not part of the API).
 #[pyfunction]
@@ -1627,6 +1634,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(doctor::diagnose, m)?)?;
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
+    m.add_function(wrap_pyfunction!(_did_you_mean, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

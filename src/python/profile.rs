@@ -8,6 +8,7 @@ use crate::device::profile::{
     ValueType,
 };
 use crate::device::profiled::ProfiledDevice;
+use crate::device::suggest::did_you_mean;
 use pyo3::exceptions::{PyKeyError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::intern;
 use pyo3::prelude::*;
@@ -178,7 +179,16 @@ impl PyProfile {
     /// The register called `name`, or ValueError naming the profile.
     fn index(&self, name: &str) -> PyResult<usize> {
         self.find(name).ok_or_else(|| {
-            PyValueError::new_err(format!("{} has no register {name:?}", self.profile.name))
+            let names = self
+                .profile
+                .registers
+                .iter()
+                .map(|r| r.register.name.as_str());
+            let hint = did_you_mean(name, names);
+            PyValueError::new_err(format!(
+                "{} has no register {name:?}{hint}",
+                self.profile.name
+            ))
         })
     }
 

@@ -24,8 +24,9 @@ fn kind_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Kind> {
     })
 }
 
-/// An `order` argument: "ABCD" (absent), "CDAB", "BADC" or "DCBA".
-fn layout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Layout> {
+/// An `order` argument: "ABCD" (absent), "CDAB", "BADC" or "DCBA" (any case), the
+/// vocabulary of profiles, `from_registers` and the Instrument's value methods.
+pub(super) fn layout_arg(obj: Option<&Bound<'_, PyAny>>) -> PyResult<Layout> {
     let Some(obj) = obj.filter(|o| !o.is_none()) else {
         return Ok(Layout::Abcd);
     };

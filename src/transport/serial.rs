@@ -170,8 +170,21 @@ pub fn describe_open_error(e: &serialport::Error) -> String {
         serialport::ErrorKind::Io(io::ErrorKind::NotFound) => {
             format!("{} ({})", e.description, ports_here())
         }
+        _ if not_a_terminal(e) => format!(
+            "not a serial port (the system says {:?}; {})",
+            e.description,
+            ports_here()
+        ),
         _ => e.description.clone(),
     }
+}
+
+/// Whether an open failed because the file is not a terminal (`ENOTTY`: a regular file,
+/// `/dev/null`, a directory's device...), which the crate reports by the system's text alone.
+fn not_a_terminal(e: &serialport::Error) -> bool {
+    ["Not a typewriter", "Inappropriate ioctl for device"]
+        .iter()
+        .any(|text| e.description.contains(text))
 }
 
 /// The serial ports this system has, for the message of a port that does not exist.
@@ -379,6 +392,19 @@ mod tests {
             "Bad data",
         );
         assert_eq!(describe_open_error(&other), "Bad data");
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn a_file_that_is_not_a_terminal_is_told_it_is_not_a_serial_port() {
+        let Err(e) = SerialTransport::open("/dev/null", &line()) else {
+            panic!("/dev/null opened as a serial port");
+        };
+        let text = describe_open_error(&e);
+        assert!(
+            text.starts_with("not a serial port (the system says "),
+            "{text}"
+        );
     }
 
     #[test]

@@ -158,7 +158,8 @@ def run(args: argparse.Namespace) -> int:
     """Run ``benchbus monitor`` as ``args`` say; the exit status."""
     profile = profile_of(args)
     if (profile is None) == (args.device is None):
-        raise UsageError(f"give a device ({'|'.join(_kinds())}) or --profile FILE, not both")
+        wanted = f"give a device ({'|'.join(_kinds())}) or --profile FILE"
+        raise UsageError(f"{wanted}, not both" if profile is not None else wanted)
     if profile is not None and opt(args, "family") is not None:
         raise UsageError("--family goes with drive: a profile says what the device is")
     kind: str = "profile" if profile is not None else args.device
