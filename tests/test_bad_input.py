@@ -151,6 +151,10 @@ EXPLICIT: list[Case] = [
     *calls("Bus", "__init__", TypeError, "timeout", A(PORT, timeout="fast")),
     *calls("Bus", "__init__", ValueError, "retries", A(PORT, retries=-1), A(PORT, retries=HUGE)),
     *calls("Bus", "__init__", TypeError, "retries", A(PORT, retries=1.5)),
+    *sets("Bus", "timeout", ValueError, "timeout", 0, -1, NAN, INF, 3601, HUGE),
+    *sets("Bus", "timeout", TypeError, "timeout", "1", None, True, [1]),
+    *sets("Bus", "retries", ValueError, "retries", -1, 101, HUGE),
+    *sets("Bus", "retries", TypeError, "retries", 1.5, "2", None, True, NAN),
     *calls(
         "Bus", "__init__", ValueError, "turnaround", A(PORT, turnaround=-1), A(PORT, turnaround=NAN)
     ),

@@ -549,7 +549,7 @@ fn own_timing(
 ) -> PyResult<(Option<Duration>, Option<u32>)> {
     let timeout = opt(timeout, None, |t| seconds(t, "timeout", false).map(Some))?;
     let retries = opt(retries, None, |r| {
-        int_in(r, "retries", 0, 100).map(|n| Some(n as u32))
+        int_in(r, "retries", 0, bus::MAX_RETRIES.into()).map(|n| Some(n as u32))
     })?;
     Ok((timeout, retries))
 }
@@ -802,7 +802,7 @@ impl PyBus {
         let mut config = BusConfig::new(&port, line);
         config.ascii = ascii;
         config.timeout = opt(timeout, config.timeout, |t| seconds(t, "timeout", false))?;
-        config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, 100))? as u32;
+        config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, bus::MAX_RETRIES.into()))? as u32;
         config.turnaround = opt(turnaround, config.turnaround, |t| {
             seconds(t, "turnaround", true)
         })?;
@@ -1337,16 +1337,30 @@ impl PyBus {
         }
     }
 
-    /// Reply timeout per attempt, in seconds.
+    /// Reply timeout per attempt, in seconds. Settable (``bus.timeout = 5`` for a slow
+    /// command): the calls that start from then on use it, a call in flight keeps its own; a
+    /// bad value raises TypeError or ValueError, as in the constructor, and changes nothing.
     #[getter]
     fn timeout(&self) -> f64 {
-        self.bus.config().timeout.as_secs_f64()
+        self.bus.timeout().as_secs_f64()
     }
 
-    /// Further attempts after a timeout or a corrupt frame.
+    #[setter]
+    fn set_timeout(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let timeout = seconds(value, "timeout", false)?;
+        self.bus.set_timeout(timeout).map_err(|e| to_pyerr(py, e))
+    }
+
+    /// Further attempts after a timeout or a corrupt frame. Settable, like :attr:`timeout`.
     #[getter]
     fn retries(&self) -> u32 {
-        self.bus.config().retries
+        self.bus.retries()
+    }
+
+    #[setter]
+    fn set_retries(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let retries = int_in(value, "retries", 0, bus::MAX_RETRIES.into())? as u32;
+        self.bus.set_retries(retries).map_err(|e| to_pyerr(py, e))
     }
 
     /// The quiet gap, in seconds, that ends a raw request's reply read without a
@@ -1390,8 +1404,8 @@ impl PyBus {
             c.line.baudrate,
             c.line.parity.letter(),
             c.line.stop_bits,
-            c.timeout.as_secs_f64(),
-            c.retries,
+            self.bus.timeout().as_secs_f64(),
+            self.bus.retries(),
             if c.ascii {
                 format!(", framing='ascii', bytesize={}", c.line.data_bits)
             } else {
