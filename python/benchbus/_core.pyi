@@ -509,10 +509,16 @@ class Bus:
         """The framing on the line: "rtu", or "ascii" (Modbus ASCII)."""
     @property
     def timeout(self) -> float:
-        """Reply timeout per attempt, in seconds."""
+        """Reply timeout per attempt, in seconds. Settable (``bus.timeout = 5`` for a slow
+        command): the calls that start from then on use it, a call in flight keeps its own; a
+        bad value raises TypeError or ValueError, as in the constructor, and changes nothing."""
+    @timeout.setter
+    def timeout(self, value: float) -> None: ...
     @property
     def retries(self) -> int:
-        """Further attempts after a timeout or a corrupt frame."""
+        """Further attempts after a timeout or a corrupt frame. Settable, like :attr:`timeout`."""
+    @retries.setter
+    def retries(self, value: int) -> None: ...
     @property
     def turnaround(self) -> float:
         """Quiet time after a broadcast, in seconds."""
@@ -704,7 +710,7 @@ class DriveCore(_Station):
     def _model(self) -> Model | int: ...
     @staticmethod
     def _table(family: str) -> list[DriveRegister]: ...
-    def _stop_on_exit(self) -> None: ...
+    def _stop_on_exit(self, urgent: bool = False) -> None: ...
 
 @disjoint_base
 class PblCore(_Station):
@@ -749,6 +755,7 @@ class PblCore(_Station):
         """Start: set bit 0 of the control word, keeping its other bits."""
     def stop(self) -> None:
         """Stop: clear bit 0 of the control word, keeping its other bits."""
+    def _stop_on_exit(self, urgent: bool = False) -> None: ...
     @property
     def running(self) -> bool:
         """Whether the motor is moving (status word bit 0)."""
