@@ -1057,7 +1057,10 @@ fn timeout_and_retries_set_on_a_live_bus_apply_to_the_next_call_and_bad_ones_cha
         other => panic!("{other:?}"),
     }
     assert_eq!(common::sent(&t).len(), 2);
-    for bad in [Duration::ZERO, benchbus::bus::MAX_TIMEOUT + Duration::from_nanos(1)] {
+    for bad in [
+        Duration::ZERO,
+        benchbus::bus::MAX_TIMEOUT + Duration::from_nanos(1),
+    ] {
         assert!(matches!(
             bus.set_timeout(bad),
             Err(Error::InvalidArgument(_))

@@ -25,7 +25,10 @@ def asked(sim: Simulator[Any], unit: int = ABSENT) -> int:
 
 
 def test_a_timeout_and_retries_set_on_a_live_bus_are_those_the_next_call_uses() -> None:
-    with Simulator({1: RegisterDevice({0: 7})}) as sim, bb.Bus(sim.port, timeout=3, retries=2) as bus:
+    with (
+        Simulator({1: RegisterDevice({0: 7})}) as sim,
+        bb.Bus(sim.port, timeout=3, retries=2) as bus,
+    ):
         bus.timeout = 0.2
         bus.retries = 1
         assert (bus.timeout, bus.retries) == (0.2, 1)
@@ -51,7 +54,10 @@ def test_a_timeout_and_retries_set_on_a_live_bus_are_those_the_next_call_uses() 
 
 
 def test_a_call_in_flight_keeps_the_timeout_it_started_with() -> None:
-    with Simulator({1: RegisterDevice({0: 7})}) as sim, bb.Bus(sim.port, timeout=1.0, retries=0) as bus:
+    with (
+        Simulator({1: RegisterDevice({0: 7})}) as sim,
+        bb.Bus(sim.port, timeout=1.0, retries=0) as bus,
+    ):
         outcome: list[BaseException] = []
 
         def call() -> None:
@@ -96,7 +102,10 @@ BAD_RETRIES: list[tuple[Any, type[Exception]]] = [
 
 
 def test_bad_values_are_refused_as_the_constructor_refuses_them_and_change_nothing() -> None:
-    with Simulator({1: RegisterDevice({0: 7})}) as sim, bb.Bus(sim.port, timeout=0.5, retries=3) as bus:
+    with (
+        Simulator({1: RegisterDevice({0: 7})}) as sim,
+        bb.Bus(sim.port, timeout=0.5, retries=3) as bus,
+    ):
         for value, error in BAD_TIMEOUTS:
             with pytest.raises(error, match="timeout"):
                 bus.timeout = value

@@ -802,7 +802,9 @@ impl PyBus {
         let mut config = BusConfig::new(&port, line);
         config.ascii = ascii;
         config.timeout = opt(timeout, config.timeout, |t| seconds(t, "timeout", false))?;
-        config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, bus::MAX_RETRIES.into()))? as u32;
+        config.retries = opt(retries, 2, |r| {
+            int_in(r, "retries", 0, bus::MAX_RETRIES.into())
+        })? as u32;
         config.turnaround = opt(turnaround, config.turnaround, |t| {
             seconds(t, "turnaround", true)
         })?;
