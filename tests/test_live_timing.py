@@ -154,3 +154,26 @@ def test_an_async_bus_sets_them_on_its_bus() -> None:
                 assert await abus.read_holding_registers(1, 0, 1) == [7]
 
         asyncio.run(asyncio.wait_for(main(), 20))
+
+
+def test_the_calls_that_take_options_take_their_own_timeout_and_retries() -> None:
+    with (
+        Simulator({1: RegisterDevice({0: 7})}) as sim,
+        bb.Bus(sim.port, timeout=3, retries=3) as bus,
+    ):
+        calls = [
+            lambda: bus.write_register(ABSENT, 0, 1, timeout=0.2, retries=1),
+            lambda: bus.write_registers(ABSENT, 0, [1, 2], timeout=0.2, retries=1),
+            lambda: bus.request(ABSENT, 3, b"\0\0\0\1", reply_length=3, timeout=0.2, retries=1),
+        ]
+        for n, call in enumerate(calls, start=1):
+            start = time.monotonic()
+            with pytest.raises(bb.ResponseTimeout) as err:
+                call()
+            assert time.monotonic() - start < 2.5
+            assert "200ms" in str(err.value) and "2 attempts" in str(err.value)
+            assert asked(sim) == 2 * n
+        # The Bus's own are left as they were.
+        assert (bus.timeout, bus.retries) == (3.0, 3)
+        bus.write_register(1, 0, 9, timeout=0.5, retries=0)
+        assert bus.read_holding_registers(1, 0, 1) == [9]

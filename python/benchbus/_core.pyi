@@ -350,6 +350,8 @@ class Bus:
         data: bytes | bytearray,
         *,
         reply_length: int | None = None,
+        timeout: float | None = None,
+        retries: int | None = None,
     ) -> bytes:
         """Send a raw PDU: function ``function`` (1..127) and ``data`` (at most 252 bytes),
         and return the reply's bytes after its function code.
@@ -360,7 +362,8 @@ class Bus:
         path, for replies whose length is not known in advance. An exception reply
         (function | 0x80) is known at 5 bytes and raises ModbusException. Retries, stats,
         the wire log and errors are as for any function. ValueError for function 0 or 0x80
-        and up (exception replies), or data too long, before anything is sent."""
+        and up (exception replies), or data too long, before anything is sent. ``timeout``
+        and ``retries`` as for :meth:`write_register`."""
     def write_register(
         self,
         unit: int,
@@ -369,6 +372,8 @@ class Bus:
         *,
         accept_count_echo: bool = False,
         write_interval: float = 0.0,
+        timeout: float | None = None,
+        retries: int | None = None,
     ) -> None:
         """Write one register (function 0x06).
 
@@ -376,13 +381,22 @@ class Bus:
         value (as PBL drives send) is accepted. ``write_interval`` (seconds, 0..60) is the
         least time the unit needs between two writes (a J2 controller: 0.15): the Bus waits
         it out since its last write to the unit, before a retry too, while other units' calls
-        go on; a later broadcast waits for it as well.
+        go on; a later broadcast waits for it as well. ``timeout`` and ``retries``, if given,
+        replace the Bus's for this call only (a long flash write), checked as the
+        constructor checks them.
         """
     def write_registers(
-        self, unit: int, address: int, values: Iterable[int], *, write_interval: float = 0.0
+        self,
+        unit: int,
+        address: int,
+        values: Iterable[int],
+        *,
+        write_interval: float = 0.0,
+        timeout: float | None = None,
+        retries: int | None = None,
     ) -> None:
         """Write 1..123 consecutive registers from ``address`` (function 0x10);
-        ``write_interval`` as for :meth:`write_register`."""
+        ``write_interval``, ``timeout`` and ``retries`` as for :meth:`write_register`."""
     def read_device_identification(
         self, unit: int, read_code: int = 1, object_id: int = 0
     ) -> dict[int, str]:

@@ -1001,11 +1001,13 @@ impl PyBus {
 
     /// Sends function `function` (1..=127) with `data`, the PDU after the function code,
     /// and returns the reply's bytes after its function code: read by `reply_length`, or
-    /// without it until the line is quiet (the Bus's `silence`, at least t3.5).
+    /// without it until the line is quiet (the Bus's `silence`, at least t3.5). `timeout`
+    /// and `retries`, if given, replace the Bus's for this call.
     #[pyo3(
-        signature = (unit, function, data, *, reply_length=None),
-        text_signature = "($self, unit, function, data, *, reply_length=None)"
+        signature = (unit, function, data, *, reply_length=None, timeout=None, retries=None),
+        text_signature = "($self, unit, function, data, *, reply_length=None, timeout=None, retries=None)"
     )]
+    #[allow(clippy::too_many_arguments)]
     fn request<'py>(
         &self,
         py: Python<'py>,
@@ -1013,6 +1015,8 @@ impl PyBus {
         function: &Bound<'py, PyAny>,
         data: &Bound<'py, PyAny>,
         reply_length: Option<&Bound<'py, PyAny>>,
+        timeout: Option<&Bound<'py, PyAny>>,
+        retries: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyBytes>> {
         let unit = unit_arg(unit)?;
         // 0 is no function, and 0x80 | f is f's exception reply.
@@ -1030,17 +1034,25 @@ impl PyBus {
         let reply_length = opt(reply_length, None, |r| {
             int_in(r, "reply_length", 0, MAX_PDU_DATA as i64).map(|n| Some(n as usize))
         })?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
+        let opts = TxOptions {
+            timeout,
+            retries,
+            ..TxOptions::default()
+        };
         let reply = self.wire(py, |b| {
-            b.request(unit, function, &data, reply_length, &TxOptions::default())
+            b.request(unit, function, &data, reply_length, &opts)
         })?;
         Ok(PyBytes::new(py, &reply))
     }
 
-    /// Writes one register (function 0x06).
+    /// Writes one register (function 0x06). `timeout` and `retries`, if given, replace
+    /// the Bus's for this call only.
     #[pyo3(
-        signature = (unit, address, value, *, accept_count_echo=false, write_interval=None),
-        text_signature = "($self, unit, address, value, *, accept_count_echo=False, write_interval=0.0)"
+        signature = (unit, address, value, *, accept_count_echo=false, write_interval=None, timeout=None, retries=None),
+        text_signature = "($self, unit, address, value, *, accept_count_echo=False, write_interval=0.0, timeout=None, retries=None)"
     )]
+    #[allow(clippy::too_many_arguments)]
     fn write_register(
         &self,
         py: Python<'_>,
@@ -1049,11 +1061,16 @@ impl PyBus {
         value: &Bound<'_, PyAny>,
         accept_count_echo: bool,
         write_interval: Option<&Bound<'_, PyAny>>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let unit = unit_arg(unit)?;
         let address = u16_arg(address, "address")?;
         let value = u16_arg(value, "value")?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
         let opts = TxOptions {
+            timeout,
+            retries,
             echo: if accept_count_echo {
                 Echo::CountForSingleWrite
             } else {
@@ -1065,11 +1082,13 @@ impl PyBus {
         self.wire(py, |b| b.write_register(unit, address, value, &opts))
     }
 
-    /// Writes 1..=123 consecutive registers from `address` (function 0x10).
+    /// Writes 1..=123 consecutive registers from `address` (function 0x10). `timeout` and
+    /// `retries`, if given, replace the Bus's for this call only.
     #[pyo3(
-        signature = (unit, address, values, *, write_interval=None),
-        text_signature = "($self, unit, address, values, *, write_interval=0.0)"
+        signature = (unit, address, values, *, write_interval=None, timeout=None, retries=None),
+        text_signature = "($self, unit, address, values, *, write_interval=0.0, timeout=None, retries=None)"
     )]
+    #[allow(clippy::too_many_arguments)]
     fn write_registers(
         &self,
         py: Python<'_>,
@@ -1077,10 +1096,15 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         values: &Bound<'_, PyAny>,
         write_interval: Option<&Bound<'_, PyAny>>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let unit = unit_arg(unit)?;
         let (address, values) = register_block(address, values)?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
         let opts = TxOptions {
+            timeout,
+            retries,
             write_interval: write_interval_arg(write_interval)?,
             ..TxOptions::default()
         };
