@@ -35,7 +35,7 @@ use owed::{Ledger, Owed};
 use queue::{Cancel, Queue, Turn};
 pub use queue::{CancelToken, Entered};
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
 
@@ -51,6 +51,12 @@ const OWED_WINDOW: u32 = 3;
 /// whole request if shorter): unit, function, address, and a byte of count or value. Five
 /// is the shortest reply, so a read's echo read as a reply of byte count 0 still shows.
 const ECHO_EVIDENCE: usize = 5;
+
+/// The longest reply timeout a Bus takes ([`Bus::set_timeout`]): an hour.
+pub const MAX_TIMEOUT: Duration = Duration::from_secs(3600);
+
+/// The most retries a Bus takes ([`Bus::set_retries`]).
+pub const MAX_RETRIES: u32 = 100;
 
 /// Unit addresses a request may go to: 1..=255 (0 is broadcast). The serial line spec (2.2)
 /// reserves 248..=255, but some devices use them (J2 controllers take stations 1..=255).
@@ -130,6 +136,12 @@ pub struct TxOptions {
     pub timeout: Option<Duration>,
     /// Overrides the Bus retries for this request.
     pub retries: Option<u32>,
+    /// Whether the request is sent once, at once: no retry, and no wait for the answers
+    /// its unit still owes to other calls (they stay owed, for the next call). For a stop
+    /// on the way out of an error, when getting out matters more than the reply. A write's
+    /// reply must echo its request, so an owed read answer that comes instead fails the
+    /// echo check ([`Error::Frame`]): never taken for the write's. Reads are never sent so.
+    pub urgent: bool,
     /// The device family's meaning of an exception code.
     pub meaning: fn(u8) -> &'static str,
     /// Whether the timeout is the whole window from the start of the request however long
@@ -149,6 +161,7 @@ impl Default for TxOptions {
             write_interval: Duration::ZERO,
             timeout: None,
             retries: None,
+            urgent: false,
             meaning: exception_meaning,
             window_from_start: false,
             write_ack: true,
@@ -220,6 +233,11 @@ struct State {
 /// the order they asked.
 pub struct Bus {
     config: BusConfig,
+    /// The reply timeout per attempt, in nanoseconds: the config's, then as set
+    /// ([`Bus::set_timeout`]). A call reads it once, when it starts.
+    timeout: AtomicU64,
+    /// The retries after a timeout or a corrupt frame: the config's, then as set.
+    retries: AtomicU32,
     /// The framing of the port's transport: what the Bus builds requests and reads replies
     /// in.
     framing: Framing,
@@ -279,6 +297,8 @@ impl Bus {
             framed.framing()
         };
         Bus {
+            timeout: AtomicU64::new(nanos(config.timeout)),
+            retries: AtomicU32::new(config.retries),
             config,
             framing,
             state: Mutex::new(State {
@@ -300,9 +320,56 @@ impl Bus {
         }
     }
 
-    /// The configuration the bus was opened with.
+    /// The configuration the bus was opened with. Its `timeout` and `retries` stay those it
+    /// was opened with: [`Bus::timeout`] and [`Bus::retries`] are the ones calls use.
     pub fn config(&self) -> &BusConfig {
         &self.config
+    }
+
+    /// The reply timeout per attempt that a call starting now uses (unless its
+    /// [`TxOptions`] give their own): the config's, or the last [`Bus::set_timeout`].
+    pub fn timeout(&self) -> Duration {
+        Duration::from_nanos(self.timeout.load(Ordering::Relaxed))
+    }
+
+    /// The retries that a call starting now makes (unless its [`TxOptions`] give their
+    /// own): the config's, or the last [`Bus::set_retries`].
+    pub fn retries(&self) -> u32 {
+        self.retries.load(Ordering::Relaxed)
+    }
+
+    /// Sets the reply timeout per attempt for the calls that start from now on (a slow
+    /// command, a long flash write); a call in flight keeps the one it started with.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a timeout of zero or over [`MAX_TIMEOUT`]; the
+    /// timeout is then left as it was.
+    pub fn set_timeout(&self, timeout: Duration) -> Result<()> {
+        if timeout.is_zero() || timeout > MAX_TIMEOUT {
+            return Err(Error::InvalidArgument(format!(
+                "timeout must be 0 < seconds <= {}, got {}",
+                MAX_TIMEOUT.as_secs(),
+                timeout.as_secs_f64()
+            )));
+        }
+        self.timeout.store(nanos(timeout), Ordering::Relaxed);
+        Ok(())
+    }
+
+    /// Sets the retries for the calls that start from now on; a call in flight keeps the
+    /// ones it started with.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for more than [`MAX_RETRIES`]; the retries are then left
+    /// as they were.
+    pub fn set_retries(&self, retries: u32) -> Result<()> {
+        if retries > MAX_RETRIES {
+            return Err(Error::InvalidArgument(format!(
+                "retries must be 0 to {MAX_RETRIES}, got {retries}"
+            )));
+        }
+        self.retries.store(retries, Ordering::Relaxed);
+        Ok(())
     }
 
     /// A snapshot of the counters (all zero in a process other than the one that opened
@@ -832,7 +899,7 @@ impl Bus {
         };
         st.serving = call;
         self.on_port(&mut st, &mut CallPort::default(), |st| {
-            let sent = self.send(st, &frame, request, self.config.timeout);
+            let sent = self.send(st, &frame, request, self.timeout(), false);
             let sent_end = match &sent {
                 Ok(end) => *end,
                 Err(Error::Frame { .. }) => Instant::now(),
@@ -910,10 +977,12 @@ impl Bus {
         let cancel = Cancel::current();
         let call = self.calls.fetch_add(1, Ordering::Relaxed);
         let paced = is_write(request) && !opts.write_interval.is_zero();
-        let timeout = opts.timeout.unwrap_or(self.config.timeout);
-        let attempts = if request.is_answered() {
+        let timeout = opts.timeout.unwrap_or_else(|| self.timeout());
+        // An urgent request is sent once, and does not wait for what its unit owes.
+        let urgent = opts.urgent && is_write(request);
+        let attempts = if request.is_answered() && !urgent {
             opts.retries
-                .unwrap_or(self.config.retries)
+                .unwrap_or_else(|| self.retries())
                 .saturating_add(1)
         } else {
             1
@@ -932,7 +1001,12 @@ impl Bus {
                 let pacing = paced
                     .then(|| st.pacing.write_ready(unit, opts.write_interval))
                     .flatten();
-                pacing.max(st.late_until(unit, call))
+                let late = if urgent {
+                    None
+                } else {
+                    st.late_until(unit, call)
+                };
+                pacing.max(late)
             };
             let Some(mut st) = self.line(&cancel, ready) else {
                 return Err(cancelled(unit, request, attempt));
@@ -948,7 +1022,7 @@ impl Bus {
                     request,
                     &frame,
                     opts,
-                    timeout,
+                    (timeout, urgent),
                     &mut first_unanswered,
                 )
             });
@@ -992,12 +1066,12 @@ impl Bus {
         request: &Request,
         frame: &[u8],
         opts: &TxOptions,
-        timeout: Duration,
+        (timeout, urgent): (Duration, bool),
         earlier: &mut Option<Sent>,
     ) -> Result<Response> {
         let unanswered = unanswered(request, opts);
         let outcome = if unanswered {
-            self.send(st, frame, request, timeout)
+            self.send(st, frame, request, timeout, urgent)
                 .map(|_| (Reply::Normal(request.assumed_reply()), Vec::new()))
         } else {
             self.attempt(
@@ -1005,7 +1079,7 @@ impl Bus {
                 unit,
                 request,
                 frame,
-                timeout,
+                (timeout, urgent),
                 opts.window_from_start,
                 earlier,
             )
@@ -1072,11 +1146,11 @@ impl Bus {
         unit: u8,
         request: &Request,
         frame: &[u8],
-        timeout: Duration,
+        (timeout, urgent): (Duration, bool),
         window_from_start: bool,
         earlier: &mut Option<Sent>,
     ) -> Result<(Reply, Vec<u8>)> {
-        let sent_end = self.send(st, frame, request, timeout)?;
+        let sent_end = self.send(st, frame, request, timeout, urgent)?;
         let function = request.function();
         let mut buf = Vec::with_capacity(64);
         let mut chunk = [0u8; ascii::MAX_FRAME];
@@ -1317,13 +1391,15 @@ impl Bus {
 
     /// Drops stale input, waits out the silence, writes `frame` (of `request`), reads back
     /// its echo on a Bus opened with `echo`; returns when its last character will have left
-    /// the wire.
+    /// the wire. An `urgent` request does not listen for the answers its unit owes first
+    /// (see [`TxOptions::urgent`]): they stay in the ledger.
     fn send(
         &self,
         st: &mut State,
         frame: &[u8],
         request: &Request,
         timeout: Duration,
+        urgent: bool,
     ) -> Result<Instant> {
         let line = self.config.line;
         let transport = self.port(&mut st.link)?;
@@ -1335,7 +1411,7 @@ impl Bus {
         // `State::late_until`.) Over Modbus TCP the transaction id tells an owed answer from
         // the reply (see `attempt`).
         let target = self.unit_of(frame).unwrap_or(BROADCAST);
-        if serial {
+        if serial && !urgent {
             for owed in st.owed.take(target, st.serving) {
                 let dropped = self.drain_owed(transport, &owed)?;
                 st.stats.stale_bytes += dropped as u64;
@@ -1751,6 +1827,11 @@ fn unanswered(request: &Request, opts: &TxOptions) -> bool {
 /// Whether `request` may write (reads are always answered; writes are paced).
 fn is_write(request: &Request) -> bool {
     !request.is_read()
+}
+
+/// A duration in whole nanoseconds, as an atomic holds it (saturating, past 584 years).
+fn nanos(d: Duration) -> u64 {
+    u64::try_from(d.as_nanos()).unwrap_or(u64::MAX)
 }
 
 fn check_config(config: &BusConfig) -> Result<()> {

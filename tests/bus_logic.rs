@@ -1002,3 +1002,78 @@ fn an_interrupt_between_attempts_ends_the_call_and_keeps_the_line_in_step() {
         vec![9]
     );
 }
+
+#[test]
+fn an_urgent_write_goes_once_at_once_and_an_owed_answer_never_passes_for_its_echo() {
+    // Unit 1 timed out on a read (its answer, 7, is owed); then the stop on leaving a block
+    // on an error: an urgent write, on a Bus with 2 retries. It goes out at once (no wait
+    // for the owed answer) and once; the owed read answer that comes in its reply's place
+    // fails the echo check: a frame error, not a write taken as done.
+    let (bus, t) = common::serial_bus(
+        vec![
+            Act::Silent,
+            Act::Reply(with_crc(&[1, 3, 2, 0, 7])),
+            common::words(1, &[9]),
+        ],
+        19_200,
+        Duration::ZERO,
+    );
+    bus.set_retries(2).unwrap();
+    let timeout = bus.timeout();
+    let read = TxOptions {
+        retries: Some(0),
+        ..TxOptions::default()
+    };
+    assert!(matches!(
+        bus.read_holding_registers(1, 0, 1, &read),
+        Err(Error::Timeout { .. })
+    ));
+    let gave_up = std::time::Instant::now();
+    let urgent = TxOptions {
+        urgent: true,
+        ..TxOptions::default()
+    };
+    let err = bus.write_register(1, 0x2000, 5, &urgent).unwrap_err();
+    assert!(matches!(err, Error::Frame { .. }), "{err:?}");
+    let at = common::sent_at(&t);
+    assert_eq!(at.len(), 2, "the urgent write is sent once");
+    assert!(at[1].saturating_duration_since(gave_up) < timeout / 2);
+    // Reads are never urgent: a read with the flag still waits for what the unit owes.
+    let value = bus.read_holding_registers(1, 1, 1, &urgent).unwrap();
+    assert_eq!(value, vec![9]);
+    assert!(common::sent_at(&t)[2].saturating_duration_since(gave_up) >= timeout * 2);
+}
+
+#[test]
+fn timeout_and_retries_set_on_a_live_bus_apply_to_the_next_call_and_bad_ones_change_nothing() {
+    let (bus, t) = bus(vec![Act::Silent, Act::Silent, Act::Silent], 2);
+    assert_eq!(bus.retries(), 2);
+    bus.set_retries(1).unwrap();
+    bus.set_timeout(Duration::from_millis(7)).unwrap();
+    match bus.read_holding_registers(1, 0, 1, &TxOptions::default()) {
+        Err(Error::Timeout {
+            timeout, attempts, ..
+        }) => assert_eq!((timeout, attempts), (Duration::from_millis(7), 2)),
+        other => panic!("{other:?}"),
+    }
+    assert_eq!(common::sent(&t).len(), 2);
+    for bad in [
+        Duration::ZERO,
+        benchbus::bus::MAX_TIMEOUT + Duration::from_nanos(1),
+    ] {
+        assert!(matches!(
+            bus.set_timeout(bad),
+            Err(Error::InvalidArgument(_))
+        ));
+    }
+    assert!(matches!(
+        bus.set_retries(benchbus::bus::MAX_RETRIES + 1),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert_eq!(
+        (bus.timeout(), bus.retries()),
+        (Duration::from_millis(7), 1)
+    );
+    // The config keeps what the Bus was opened with.
+    assert_eq!(bus.config().timeout, Duration::from_millis(5));
+}

@@ -249,10 +249,10 @@ fn leaving_ends_a_jog_this_object_started_then_stops() {
     assert!(!d.jogging());
     d.command(Command::JogForward).expect("jog");
     assert!(d.jogging());
-    d.stop_on_exit().expect("exit");
+    d.stop_on_exit(false).expect("exit");
     assert!(!d.jogging());
     // Without a jog on, only the stop goes out.
-    d.stop_on_exit().expect("exit");
+    d.stop_on_exit(false).expect("exit");
     assert_eq!(sent(&t), frames.map(hex).to_vec());
 }
 

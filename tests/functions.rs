@@ -24,6 +24,7 @@ const OPTS: TxOptions = TxOptions {
     write_interval: Duration::ZERO,
     timeout: None,
     retries: None,
+    urgent: false,
     meaning: benchbus::codec::exception_meaning,
     window_from_start: false,
     write_ack: true,

@@ -176,6 +176,34 @@ def test_a_failed_stop_does_not_hide_the_exception_that_ended_the_block(
         assert drive.bus.closed
 
 
+@pytest.mark.parametrize("family", FAMILIES)
+def test_leaving_on_an_exception_sends_the_stop_once_at_once(family: str) -> None:
+    """A drive gone silent, a Bus with retries: leaving the block on an exception sends one
+    request, the stop (a PblDrive: control word 0, not read first), without waiting for the
+    answer the drive owes the read that timed out; a normal exit still retries."""
+    with simulated(family) as (motor, sim), bb.Bus(sim.port, timeout=0.3, retries=3) as bus:
+        with pytest.raises(BenchFailed), motor.open(bus) as drive:
+            motor.start(drive)
+            sim.set_silent(motor.unit)
+            with pytest.raises(bb.ResponseTimeout):
+                _ = drive.running if isinstance(drive, bb.PblDrive) else drive.speed
+            before = sim.request_count
+            start = time.monotonic()
+            raise BenchFailed
+        took = time.monotonic() - start
+        after = sim.requests[-(sim.request_count - before) :] if sim.request_count > before else []
+        assert len(after) == 1, after
+        assert after[0][1] == 0x06
+        assert after[0][2:6] == (bytes(4) if family == "PBL" else bytes.fromhex("20000005"))
+        assert took < 0.6 + 0.3, took
+        sim.set_silent(None, False)
+        with pytest.raises(bb.ResponseTimeout), motor.open(bus):
+            sim.set_silent(motor.unit)
+            before = sim.request_count
+        # Not urgent: the stop is retried (a PblDrive reads the control word first).
+        assert sim.request_count - before >= 4
+
+
 # ---- Ctrl-C as a real SIGINT to a script -------------------------------------------------------
 
 #: The script a bench would run: start the motor, then wait in one of three ways.
@@ -280,6 +308,64 @@ def test_sigint_to_a_script_stops_the_motor(family: str, wait: str, tmp_path: Pa
             # the read short (see test_ctrl_c_during_a_read_leaves_the_stop_its_reply).
             assert motor.device.commands == [1, 5]
         assert not sim.errors
+
+
+#: A drive that falls silent while a script reads it, on a Bus with a long timeout and retries.
+SILENT_SCRIPT = """\
+import sys
+
+import benchbus as bb
+
+bus = bb.Bus(sys.argv[1], timeout=float(sys.argv[2]), retries=3)
+with bb.Drive(bus, unit=1) as drive:
+    drive.forward()
+    print("running", flush=True)
+    while True:
+        _ = drive.speed
+"""
+
+#: The silent drive's timeout: long beside the tolerance, short enough for the suite.
+SILENT_TIMEOUT = 1.5
+
+
+def test_ctrl_c_on_a_silent_drive_leaves_the_block_within_two_timeouts(tmp_path: Path) -> None:
+    """Ctrl-C while the drive has fallen silent: the read in flight ends (one timeout), then
+    the stop is sent once, at once (no retries, no wait for the read's owed answer): the
+    block is left within two timeouts of the Ctrl-C, not after the owed answer's window and
+    four attempts of the stop (about nine timeouts)."""
+    script = tmp_path / "silent.py"
+    script.write_text(SILENT_SCRIPT)
+    with simulated("BLD2") as (motor, sim):
+        proc = subprocess.Popen(
+            [sys.executable, str(script), sim.port, str(SILENT_TIMEOUT)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            cwd=tmp_path,
+        )
+        try:
+            assert read_line(proc, STEP_TIMEOUT) == "running"
+            sim.set_silent(motor.unit)
+            silent_from = sim.request_count
+            deadline = time.monotonic() + STEP_TIMEOUT
+            # Into the read's retries: the drive owes answers, as after any timeout.
+            while sim.request_count < silent_from + 2 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            time.sleep(0.2)
+            proc.send_signal(signal.SIGINT)
+            sent = time.monotonic()
+            _, err = proc.communicate(timeout=STEP_TIMEOUT * 2)
+            took = time.monotonic() - sent
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        stderr = err.decode(errors="replace")
+        stops = [r for r in sim.requests if r[1] == 0x06 and r[2:6] == bytes.fromhex("20000005")]
+    assert proc.returncode == -signal.SIGINT, stderr
+    # The stop went unanswered: the interrupt goes on, the failure noted on it.
+    assert "\nKeyboardInterrupt\nunit 1: could not stop the motor" in stderr, stderr
+    assert len(stops) == 1, stops
+    assert took < 2 * SILENT_TIMEOUT + 1.0, took
 
 
 # ---- a signal in the middle of a transaction ---------------------------------------------------

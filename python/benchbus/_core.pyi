@@ -391,6 +391,8 @@ class Bus:
         data: bytes | bytearray,
         *,
         reply_length: int | None = None,
+        timeout: float | None = None,
+        retries: int | None = None,
     ) -> bytes:
         """Send a raw PDU: function ``function`` (1..127) and ``data`` (at most 252 bytes),
         and return the reply's bytes after its function code.
@@ -401,7 +403,8 @@ class Bus:
         path, for replies whose length is not known in advance. An exception reply
         (function | 0x80) is known at 5 bytes and raises ModbusException. Retries, stats,
         the wire log and errors are as for any function. ValueError for function 0 or 0x80
-        and up (exception replies), or data too long, before anything is sent."""
+        and up (exception replies), or data too long, before anything is sent. ``timeout``
+        and ``retries`` as for :meth:`write_register`."""
     def write_register(
         self,
         unit: int,
@@ -410,6 +413,8 @@ class Bus:
         *,
         accept_count_echo: bool = False,
         write_interval: float = 0.0,
+        timeout: float | None = None,
+        retries: int | None = None,
     ) -> None:
         """Write one register (function 0x06).
 
@@ -417,13 +422,22 @@ class Bus:
         value (as PBL drives send) is accepted. ``write_interval`` (seconds, 0..60) is the
         least time the unit needs between two writes (a J2 controller: 0.15): the Bus waits
         it out since its last write to the unit, before a retry too, while other units' calls
-        go on; a later broadcast waits for it as well.
+        go on; a later broadcast waits for it as well. ``timeout`` and ``retries``, if given,
+        replace the Bus's for this call only (a long flash write), checked as the
+        constructor checks them.
         """
     def write_registers(
-        self, unit: int, address: int, values: Iterable[int], *, write_interval: float = 0.0
+        self,
+        unit: int,
+        address: int,
+        values: Iterable[int],
+        *,
+        write_interval: float = 0.0,
+        timeout: float | None = None,
+        retries: int | None = None,
     ) -> None:
         """Write 1..123 consecutive registers from ``address`` (function 0x10);
-        ``write_interval`` as for :meth:`write_register`."""
+        ``write_interval``, ``timeout`` and ``retries`` as for :meth:`write_register`."""
     def read_device_identification(
         self, unit: int, read_code: int = 1, object_id: int = 0
     ) -> dict[int, str]:
@@ -550,10 +564,16 @@ class Bus:
         """The framing on the line: "rtu", or "ascii" (Modbus ASCII)."""
     @property
     def timeout(self) -> float:
-        """Reply timeout per attempt, in seconds."""
+        """Reply timeout per attempt, in seconds. Settable (``bus.timeout = 5`` for a slow
+        command): the calls that start from then on use it, a call in flight keeps its own; a
+        bad value raises TypeError or ValueError, as in the constructor, and changes nothing."""
+    @timeout.setter
+    def timeout(self, value: float) -> None: ...
     @property
     def retries(self) -> int:
-        """Further attempts after a timeout or a corrupt frame."""
+        """Further attempts after a timeout or a corrupt frame. Settable, like :attr:`timeout`."""
+    @retries.setter
+    def retries(self, value: int) -> None: ...
     @property
     def turnaround(self) -> float:
         """Quiet time after a broadcast, in seconds."""
@@ -745,7 +765,7 @@ class DriveCore(_Station):
     def _model(self) -> Model | int: ...
     @staticmethod
     def _table(family: str) -> list[DriveRegister]: ...
-    def _stop_on_exit(self) -> None: ...
+    def _stop_on_exit(self, urgent: bool = False) -> None: ...
 
 @disjoint_base
 class PblCore(_Station):
@@ -790,6 +810,7 @@ class PblCore(_Station):
         """Start: set bit 0 of the control word, keeping its other bits."""
     def stop(self) -> None:
         """Stop: clear bit 0 of the control word, keeping its other bits."""
+    def _stop_on_exit(self, urgent: bool = False) -> None: ...
     @property
     def running(self) -> bool:
         """Whether the motor is moving (status word bit 0)."""

@@ -473,8 +473,12 @@ class MotorDevice(BusDevice):
         """Stop the motor."""
         raise NotImplementedError
 
-    def _stop_on_exit(self) -> None:
-        """What leaving a ``with`` block sends (the stop; a subclass may add to it)."""
+    def _stop_on_exit(self, urgent: bool = False) -> None:
+        """What leaving a ``with`` block sends (the stop; a subclass may add to it).
+
+        ``urgent`` when the block is left by an exception (Ctrl-C among them): the stop is
+        then sent once and at once (no retry, no wait for answers the drive still owes).
+        """
         self.stop()
 
     def __exit__(
@@ -485,12 +489,18 @@ class MotorDevice(BusDevice):
     ) -> None:
         """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
 
+        Leaving on an exception, the stop is sent once and at once: no retry, no wait for
+        answers the drive still owes (a write's reply must echo it, so such an answer is
+        never taken for the stop's), so the block is left within one timeout (a jog this
+        object started adds its jog stop). A second Ctrl-C raises once the request in
+        flight is over.
+
         If stopping fails while another exception is on its way out, that exception goes
         on, carrying the failure as a note (``__notes__``, shown in its traceback), and the
         failure is logged as an error; otherwise the failure is raised.
         """
         try:
-            self._stop_on_exit()
+            self._stop_on_exit(exc is not None)
         except Exception as failure:
             if exc is None:
                 raise

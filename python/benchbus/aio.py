@@ -377,6 +377,16 @@ class _BusProperty(Generic[T]):
         return value
 
 
+class _SettableBusProperty(_BusProperty[T]):
+    """A property of the Bus underneath that may also be set (``abus.timeout = 5``): set on
+    the Bus at once, nothing sent, checked as the Bus checks it."""
+
+    def __set__(self, bus: AsyncBus, value: T) -> None:
+        """Set the property on ``bus``'s Bus (a bad value raises as there)."""
+        setter: Any = self._prop
+        setter.__set__(bus.bus, value)
+
+
 class AsyncBus:
     """A :class:`benchbus.Bus` for asyncio: the same constructor, methods and properties,
     each method a coroutine run in the bus's worker threads.
@@ -484,8 +494,8 @@ class AsyncBus:
     stopbits = _BusProperty(Bus.stopbits)
     bytesize = _BusProperty(Bus.bytesize)
     framing = _BusProperty(Bus.framing)
-    timeout = _BusProperty(Bus.timeout)
-    retries = _BusProperty(Bus.retries)
+    timeout = _SettableBusProperty(Bus.timeout)
+    retries = _SettableBusProperty(Bus.retries)
     turnaround = _BusProperty(Bus.turnaround)
     silence = _BusProperty(Bus.silence)
     char_time = _BusProperty(Bus.char_time)

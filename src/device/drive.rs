@@ -704,15 +704,30 @@ impl Drive {
     }
 
     /// What leaving a `with` block sends: a jog stop if this object started a jog, then the
-    /// stop.
+    /// stop. `urgent` (leaving on an error, Ctrl-C): each is sent once and at once (see
+    /// [`TxOptions::urgent`](crate::bus::TxOptions::urgent)), and the stop is sent even if
+    /// the jog stop failed.
     ///
     /// # Errors
-    /// Any [`Error`] of either command.
-    pub fn stop_on_exit(&self) -> Result<()> {
-        if self.jogging() {
-            self.command(Command::JogStop)?;
+    /// Any [`Error`] of either command (urgent: the stop's, else the jog stop's).
+    pub fn stop_on_exit(&self, urgent: bool) -> Result<()> {
+        if !urgent {
+            if self.jogging() {
+                self.command(Command::JogStop)?;
+            }
+            return self.command(Command::Stop);
         }
-        self.command(Command::Stop)
+        let jog = if self.jogging() {
+            let sent = self.station.write_urgent(COMMAND, Command::JogStop.code());
+            if sent.is_ok() {
+                self.jogging.store(false, Ordering::Relaxed);
+            }
+            sent
+        } else {
+            Ok(())
+        };
+        self.station.write_urgent(COMMAND, Command::Stop.code())?;
+        jog
     }
 
     /// Reads 0x2100..0x2102.

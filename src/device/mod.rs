@@ -74,12 +74,12 @@ impl Station {
 
     /// The reply timeout of the device's requests: its own, or the Bus's.
     pub fn timeout(&self) -> Duration {
-        self.opts.timeout.unwrap_or(self.bus.config().timeout)
+        self.opts.timeout.unwrap_or_else(|| self.bus.timeout())
     }
 
     /// The retries of the device's requests: its own, or the Bus's.
     pub fn retries(&self) -> u32 {
-        self.opts.retries.unwrap_or(self.bus.config().retries)
+        self.opts.retries.unwrap_or_else(|| self.bus.retries())
     }
 
     /// Exactly `count` holding registers from `address` (a reply of another length is a
@@ -161,6 +161,19 @@ impl Station {
     pub fn write(&self, address: u16, value: u16) -> Result<()> {
         self.bus
             .write_register(self.unit, address, value, &self.opts)
+    }
+
+    /// Writes one register with function 0x06, sent once and at once (see
+    /// [`TxOptions::urgent`]): a stop on the way out of an error.
+    ///
+    /// # Errors
+    /// Any [`Error`] of the request.
+    pub fn write_urgent(&self, address: u16, value: u16) -> Result<()> {
+        let opts = TxOptions {
+            urgent: true,
+            ..self.opts
+        };
+        self.bus.write_register(self.unit, address, value, &opts)
     }
 
     /// Writes `values` from `address` with function 0x10.

@@ -496,6 +496,21 @@ impl Pbl {
         })
     }
 
+    /// What leaving a `with` block sends: [`stop`](Self::stop), or when `urgent` (leaving on
+    /// an error, Ctrl-C) a control word of 0 (stop, forward), sent once and at once (see
+    /// [`TxOptions::urgent`](crate::bus::TxOptions::urgent)): the control word is not read
+    /// first, as a read cannot skip the answers the drive still owes.
+    ///
+    /// # Errors
+    /// Any [`Error`] of the write (or of [`stop`](Self::stop)).
+    pub fn stop_on_exit(&self, urgent: bool) -> Result<()> {
+        if urgent {
+            self.station.write_urgent(CONTROL, 0)
+        } else {
+            self.stop()
+        }
+    }
+
     /// Sets bit 1 of the control word: the direction asked for (true = reverse).
     ///
     /// # Errors

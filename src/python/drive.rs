@@ -155,9 +155,10 @@ drive_commands!(with_command_methods! {
     }
 
     /// What leaving a ``with`` block sends: a jog stop if this object started a jog, then
-    /// the stop.
-    fn _stop_on_exit(&self, py: Python<'_>) -> PyResult<()> {
-        self.dev.wire(py, |d| d.stop_on_exit())
+    /// the stop; ``urgent`` (leaving on an exception): each sent once, at once.
+    #[pyo3(signature = (urgent=false))]
+    fn _stop_on_exit(&self, py: Python<'_>, urgent: bool) -> PyResult<()> {
+        self.dev.wire(py, |d| d.stop_on_exit(urgent))
     }
 
     /// The command table: ``(name, code)`` of every value the command register 0x2000

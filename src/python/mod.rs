@@ -552,7 +552,7 @@ fn own_timing(
 ) -> PyResult<(Option<Duration>, Option<u32>)> {
     let timeout = opt(timeout, None, |t| seconds(t, "timeout", false).map(Some))?;
     let retries = opt(retries, None, |r| {
-        int_in(r, "retries", 0, 100).map(|n| Some(n as u32))
+        int_in(r, "retries", 0, bus::MAX_RETRIES.into()).map(|n| Some(n as u32))
     })?;
     Ok((timeout, retries))
 }
@@ -884,7 +884,9 @@ impl PyBus {
         let mut config = BusConfig::new(&port, line);
         config.ascii = ascii;
         config.timeout = opt(timeout, config.timeout, |t| seconds(t, "timeout", false))?;
-        config.retries = opt(retries, 2, |r| int_in(r, "retries", 0, 100))? as u32;
+        config.retries = opt(retries, 2, |r| {
+            int_in(r, "retries", 0, bus::MAX_RETRIES.into())
+        })? as u32;
         config.turnaround = opt(turnaround, config.turnaround, |t| {
             seconds(t, "turnaround", true)
         })?;
@@ -1160,11 +1162,13 @@ impl PyBus {
 
     /// Sends function `function` (1..=127) with `data`, the PDU after the function code,
     /// and returns the reply's bytes after its function code: read by `reply_length`, or
-    /// without it until the line is quiet (the Bus's `silence`, at least t3.5).
+    /// without it until the line is quiet (the Bus's `silence`, at least t3.5). `timeout`
+    /// and `retries`, if given, replace the Bus's for this call.
     #[pyo3(
-        signature = (unit, function, data, *, reply_length=None),
-        text_signature = "($self, unit, function, data, *, reply_length=None)"
+        signature = (unit, function, data, *, reply_length=None, timeout=None, retries=None),
+        text_signature = "($self, unit, function, data, *, reply_length=None, timeout=None, retries=None)"
     )]
+    #[allow(clippy::too_many_arguments)]
     fn request<'py>(
         &self,
         py: Python<'py>,
@@ -1172,6 +1176,8 @@ impl PyBus {
         function: &Bound<'py, PyAny>,
         data: &Bound<'py, PyAny>,
         reply_length: Option<&Bound<'py, PyAny>>,
+        timeout: Option<&Bound<'py, PyAny>>,
+        retries: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyBytes>> {
         let unit = unit_arg(unit)?;
         // 0 is no function, and 0x80 | f is f's exception reply.
@@ -1189,17 +1195,25 @@ impl PyBus {
         let reply_length = opt(reply_length, None, |r| {
             int_in(r, "reply_length", 0, MAX_PDU_DATA as i64).map(|n| Some(n as usize))
         })?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
+        let opts = TxOptions {
+            timeout,
+            retries,
+            ..TxOptions::default()
+        };
         let reply = self.wire(py, |b| {
-            b.request(unit, function, &data, reply_length, &TxOptions::default())
+            b.request(unit, function, &data, reply_length, &opts)
         })?;
         Ok(PyBytes::new(py, &reply))
     }
 
-    /// Writes one register (function 0x06).
+    /// Writes one register (function 0x06). `timeout` and `retries`, if given, replace
+    /// the Bus's for this call only.
     #[pyo3(
-        signature = (unit, address, value, *, accept_count_echo=false, write_interval=None),
-        text_signature = "($self, unit, address, value, *, accept_count_echo=False, write_interval=0.0)"
+        signature = (unit, address, value, *, accept_count_echo=false, write_interval=None, timeout=None, retries=None),
+        text_signature = "($self, unit, address, value, *, accept_count_echo=False, write_interval=0.0, timeout=None, retries=None)"
     )]
+    #[allow(clippy::too_many_arguments)]
     fn write_register(
         &self,
         py: Python<'_>,
@@ -1208,11 +1222,16 @@ impl PyBus {
         value: &Bound<'_, PyAny>,
         accept_count_echo: bool,
         write_interval: Option<&Bound<'_, PyAny>>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let unit = unit_arg(unit)?;
         let address = u16_arg(address, "address")?;
         let value = u16_arg(value, "value")?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
         let opts = TxOptions {
+            timeout,
+            retries,
             echo: if accept_count_echo {
                 Echo::CountForSingleWrite
             } else {
@@ -1224,11 +1243,13 @@ impl PyBus {
         self.wire(py, |b| b.write_register(unit, address, value, &opts))
     }
 
-    /// Writes 1..=123 consecutive registers from `address` (function 0x10).
+    /// Writes 1..=123 consecutive registers from `address` (function 0x10). `timeout` and
+    /// `retries`, if given, replace the Bus's for this call only.
     #[pyo3(
-        signature = (unit, address, values, *, write_interval=None),
-        text_signature = "($self, unit, address, values, *, write_interval=0.0)"
+        signature = (unit, address, values, *, write_interval=None, timeout=None, retries=None),
+        text_signature = "($self, unit, address, values, *, write_interval=0.0, timeout=None, retries=None)"
     )]
+    #[allow(clippy::too_many_arguments)]
     fn write_registers(
         &self,
         py: Python<'_>,
@@ -1236,10 +1257,15 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         values: &Bound<'_, PyAny>,
         write_interval: Option<&Bound<'_, PyAny>>,
+        timeout: Option<&Bound<'_, PyAny>>,
+        retries: Option<&Bound<'_, PyAny>>,
     ) -> PyResult<()> {
         let unit = unit_arg(unit)?;
         let (address, values) = register_block(address, values)?;
+        let (timeout, retries) = own_timing(timeout, retries)?;
         let opts = TxOptions {
+            timeout,
+            retries,
             write_interval: write_interval_arg(write_interval)?,
             ..TxOptions::default()
         };
@@ -1498,16 +1524,30 @@ impl PyBus {
         }
     }
 
-    /// Reply timeout per attempt, in seconds.
+    /// Reply timeout per attempt, in seconds. Settable (``bus.timeout = 5`` for a slow
+    /// command): the calls that start from then on use it, a call in flight keeps its own; a
+    /// bad value raises TypeError or ValueError, as in the constructor, and changes nothing.
     #[getter]
     fn timeout(&self) -> f64 {
-        self.bus.config().timeout.as_secs_f64()
+        self.bus.timeout().as_secs_f64()
     }
 
-    /// Further attempts after a timeout or a corrupt frame.
+    #[setter]
+    fn set_timeout(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let timeout = seconds(value, "timeout", false)?;
+        self.bus.set_timeout(timeout).map_err(|e| to_pyerr(py, e))
+    }
+
+    /// Further attempts after a timeout or a corrupt frame. Settable, like :attr:`timeout`.
     #[getter]
     fn retries(&self) -> u32 {
-        self.bus.config().retries
+        self.bus.retries()
+    }
+
+    #[setter]
+    fn set_retries(&self, py: Python<'_>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let retries = int_in(value, "retries", 0, bus::MAX_RETRIES.into())? as u32;
+        self.bus.set_retries(retries).map_err(|e| to_pyerr(py, e))
     }
 
     /// The quiet gap, in seconds, that ends a raw request's reply read without a
@@ -1551,8 +1591,8 @@ impl PyBus {
             c.line.baudrate,
             c.line.parity.letter(),
             c.line.stop_bits,
-            c.timeout.as_secs_f64(),
-            c.retries,
+            self.bus.timeout().as_secs_f64(),
+            self.bus.retries(),
             if c.ascii {
                 format!(", framing='ascii', bytesize={}", c.line.data_bits)
             } else {

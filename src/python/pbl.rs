@@ -159,6 +159,13 @@ impl PyPblCore {
         self.dev.wire(py, |p| p.stop())
     }
 
+    /// What leaving a ``with`` block sends: :meth:`stop`; ``urgent`` (leaving on an
+    /// exception): a control word of 0 (stop, forward), sent once, at once.
+    #[pyo3(signature = (urgent=false))]
+    fn _stop_on_exit(&self, py: Python<'_>, urgent: bool) -> PyResult<()> {
+        self.dev.wire(py, |p| p.stop_on_exit(urgent))
+    }
+
     /// The direction asked for: bit 1 of the control word (see :meth:`status` for the
     /// direction the motor turns). Setting it keeps the control word's other bits.
     #[getter]
