@@ -39,7 +39,7 @@ PUBLIC_MODULES = (
 ROLE = re.compile(r":(?:py:)?(class|meth|func|attr|data|exc|mod|obj|const):`([^`]+)`")
 LITERAL_INTRO = re.compile(r"(?m)^([ \t]*)(.*?)[ \t]*::[ \t]*$")
 AWAITABLE = re.compile(r"^_awaitable\(Bus\.(\w+)\)$")
-BUS_PROPERTY = re.compile(r"^_BusProperty\(Bus\.(\w+)\)$")
+BUS_PROPERTY = re.compile(r"^_(?:Settable)?BusProperty\(Bus\.(\w+)\)$")
 
 
 def _target(obj: griffe.Object | griffe.Alias) -> griffe.Object | None:
@@ -130,10 +130,11 @@ def _async_bus(pkg: griffe.Module) -> None:
         value = str(member.value)
         match = AWAITABLE.match(value) or BUS_PROPERTY.match(value)
         if match is None:
-            if re.search(r"\b(_awaitable|_BusProperty)\b", value):
+            if re.search(r"\b(_awaitable|_BusProperty|_SettableBusProperty)\b", value):
                 raise RuntimeError(
                     f"AsyncBus.{name} = {value}: made from the Bus in a form this extension"
-                    " does not read (it reads `_awaitable(Bus.name)`, `_BusProperty(Bus.name)`)"
+                    " does not read (it reads `_awaitable(Bus.name)`, `_BusProperty(Bus.name)`,"
+                    " `_SettableBusProperty(Bus.name)`)"
                 )
             continue
         found = bus.members.get(match.group(1))

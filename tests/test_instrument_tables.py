@@ -30,7 +30,11 @@ def test_input_registers_are_read_with_function_4(peer: bb.Bus) -> None:
     # Two registers as one value, from the input table: (1004 << 16) | 1005.
     assert inst.read_long(4, function=4) == INPUT[4] << 16 | INPUT[5]
     raw = struct.pack(">HH", INPUT[6], INPUT[7])
-    assert inst.read_float(6, function=4) == struct.unpack(">f", raw)[0]
+    # A single is read as the shortest decimal that is that single.
+    single = struct.unpack(">f", raw)[0]
+    texts = (f"{single:.{digits}g}" for digits in range(1, 10))
+    shortest = next(float(t) for t in texts if struct.pack(">f", float(t)) == raw)
+    assert inst.read_float(6, function=4) == shortest
     text = b"".join(w.to_bytes(2, "big") for w in INPUT[8:10]).rstrip(b"\0").decode("latin-1")
     assert inst.read_string(8, 2, function=4) == text
 

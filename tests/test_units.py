@@ -60,10 +60,13 @@ def test_the_units_are_the_tables() -> None:
 def test_plot_labels_carry_units() -> None:
     rec = _recording("drive", ["speed", "output_current"])
     ax = rec.plot()
-    assert ax.get_ylabel() == "rpm, A"
-    assert [t.get_text() for t in ax.get_legend().get_texts()] == [
-        "speed (rpm)",
-        "output_current (A)",
+    # One Axes per unit, stacked, each labelled with its unit and its column.
+    axes = ax.figure.axes
+    assert axes[0] is ax
+    assert [a.get_ylabel() for a in axes] == ["rpm", "A"]
+    assert [[t.get_text() for t in a.get_legend().get_texts()] for a in axes] == [
+        ["speed (rpm)"],
+        ["output_current (A)"],
     ]
     one = rec.plot(["speed"])
     assert one.get_ylabel() == "rpm"
