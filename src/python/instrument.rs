@@ -3,8 +3,8 @@
 //! identification record, the repr, the context manager).
 
 use super::{
-    bool_sequence, int_in, number, opt, public, read_file_groups, register_list, seconds, u16_arg,
-    unit_arg, write_file_groups, Attached, PyBus, PyStation, RESULTS,
+    bool_sequence, comm_event_log, int_in, number, opt, public, read_file_groups, register_list,
+    seconds, u16_arg, unit_arg, write_file_groups, Attached, PyBus, PyStation, RESULTS,
 };
 use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
 use crate::device::instrument::{Instrument, MAX_DECIMALS};
@@ -658,15 +658,8 @@ impl PyInstrumentCore {
     /// The status word, event and message counters and events (function 0x0C), as a
     /// ``CommEventLog(status, event_count, message_count, events)``.
     fn get_comm_event_log<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        let (status, events, messages, log) = self.dev.wire(py, |i| i.get_comm_event_log())?;
-        let log = PyBytes::new(py, &log);
-        public(
-            py,
-            RESULTS,
-            "CommEventLog",
-            (status, events, messages, log),
-            None,
-        )
+        let log = self.dev.wire(py, |i| i.get_comm_event_log())?;
+        comm_event_log(py, log)
     }
 
     /// File records (function 0x14): for each group ``(file, record, length)``,

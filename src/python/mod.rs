@@ -119,6 +119,22 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
 /// The Python module of the Bus's result types (`CommEventCounter`, `CommEventLog`).
 const RESULTS: &str = "benchbus._results";
 
+/// A comm event log (function 0x0C: status word, event and message counters, events) as
+/// the `CommEventLog` users see, for the Bus and the Instrument alike.
+fn comm_event_log(
+    py: Python<'_>,
+    (status, events, messages, log): (u16, u16, u16, Vec<u8>),
+) -> PyResult<Bound<'_, PyAny>> {
+    let log = PyBytes::new(py, &log);
+    public(
+        py,
+        RESULTS,
+        "CommEventLog",
+        (status, events, messages, log),
+        None,
+    )
+}
+
 /// An instance of the public Python type `module.name` (a dataclass, an enum) made from
 /// `args` and `kwargs`: how a binding returns a result typed as users see it, without a
 /// Python method in between. The module is imported on first use (it is already loaded
@@ -1103,16 +1119,8 @@ impl PyBus {
         unit: &Bound<'py, PyAny>,
     ) -> PyResult<Bound<'py, PyAny>> {
         let unit = unit_arg(unit)?;
-        let (status, events, messages, log) =
-            self.wire(py, |b| b.get_comm_event_log(unit, &TxOptions::default()))?;
-        let log = PyBytes::new(py, &log);
-        public(
-            py,
-            RESULTS,
-            "CommEventLog",
-            (status, events, messages, log),
-            None,
-        )
+        let log = self.wire(py, |b| b.get_comm_event_log(unit, &TxOptions::default()))?;
+        comm_event_log(py, log)
     }
 
     /// Reads file records (function 0x14): for each group ``(file, record, length)``,
