@@ -35,20 +35,12 @@ import tty
 from collections import deque
 from types import TracebackType
 
+from conftest import crc
+
 
 def value(unit: int, address: int) -> int:
     """What register ``address`` of ``unit`` holds: different for every address."""
     return (address * 7 + unit * 1000 + 1) & 0xFFFF
-
-
-def crc(data: bytes) -> bytes:
-    """CRC-16/MODBUS, low byte first."""
-    v = 0xFFFF
-    for b in data:
-        v ^= b
-        for _ in range(8):
-            v = (v >> 1) ^ 0xA001 if v & 1 else v >> 1
-    return v.to_bytes(2, "little")
 
 
 def request_length(buf: bytes | bytearray) -> int | None:
