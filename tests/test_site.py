@@ -578,7 +578,21 @@ def serving(directory: Path) -> Iterator[str]:
 
 def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
     """The DOM of ``url`` once headless chromium has rendered it (scripts run). chromium and
-    every process it starts run in a process group of their own, killed afterwards."""
+    every process it starts run in a process group of their own, killed afterwards. A
+    chromium that hangs with nothing rendered (seen now and then on a loaded machine, the
+    same page rendering in seconds the next time) is started once more, with a fresh
+    profile; a second hang fails."""
+    out, hung = _dump_dom_once(url, profile, timeout)
+    if hung:
+        out, hung = _dump_dom_once(url, profile.with_name(profile.name + "-again"), timeout)
+    assert not hung, f"chromium failed on {url}: chromium took more than {timeout} s, twice"
+    return out
+
+
+def _dump_dom_once(url: str, profile: Path, timeout: float) -> tuple[str, bool]:
+    """One run of :func:`dump_dom`: the DOM, and whether chromium hung with nothing
+    rendered (the checks of processes left behind and of a failure made all the same, but
+    for a hang, which the caller may try once more)."""
     command = [chromium(), "--headless", "--disable-gpu", "--no-first-run"]
     # No sandbox, whoever runs it: chromium refuses its sandbox as root, and where AppArmor
     # forbids unprivileged user namespaces (Ubuntu 24.04, as GitHub's runners) it finds "No
@@ -595,10 +609,11 @@ def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
         text=True,
         start_new_session=True,
     )
+    hung = False
     try:
         out, err = process.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
-        out, err = "", f"chromium took more than {timeout} s"
+        out, err, hung = "", f"chromium took more than {timeout} s", True
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.killpg(process.pid, signal.SIGKILL)
@@ -608,8 +623,10 @@ def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
     while (left := session_processes(process.pid)) and time.monotonic() < deadline:
         time.sleep(0.1)
     assert left == [], f"chromium processes left behind: {left}"
+    if hung:
+        return out, True
     assert process.returncode == 0 or out, f"chromium failed on {url}: {err[-2000:]}"
-    return out
+    return out, False
 
 
 def session_processes(session: int) -> list[int]:
