@@ -124,6 +124,16 @@ pub enum Error {
         /// How many times the request had been sent.
         attempts: u32,
     },
+    /// The device's unit was not vouched for (see [`crate::device::Vouch`]): its check
+    /// found it to be another kind of device, or could not be made; nothing of the call
+    /// was sent.
+    #[error("unit {unit}: {reason}")]
+    Unvouched {
+        /// Unit asked.
+        unit: u8,
+        /// What the check said.
+        reason: String,
+    },
     /// A bug in benchbus: a panic, caught before it reached the caller (see [`guarded`]).
     #[error("internal error in benchbus (a bug; please report it): {0}")]
     Internal(String),

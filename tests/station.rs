@@ -89,3 +89,50 @@ fn the_drive_stands_on_the_station_too() {
     assert!(matches!(d.get("speed"), Err(Error::Timeout { .. })));
     assert_eq!(sent(&t).len(), 1);
 }
+
+/// A check that refuses every request, counting how often it was asked.
+#[derive(Debug, Default)]
+struct Refuse(std::sync::atomic::AtomicU32);
+
+impl benchbus::device::Vouch for Refuse {
+    fn vouch(&self, unit: u8) -> benchbus::Result<()> {
+        self.0.fetch_add(1, std::sync::atomic::Ordering::SeqCst);
+        Err(Error::Unvouched {
+            unit,
+            reason: "not this kind of device".into(),
+        })
+    }
+}
+
+#[test]
+fn a_unit_its_vouch_refuses_gets_nothing_but_an_urgent_stop() {
+    let (b, t) = bus(vec![Act::Silent], 0);
+    let refuse = Arc::new(Refuse::default());
+    let d = Drive::new(Arc::new(b), 7, Family::Bld, true)
+        .with_vouch(Arc::clone(&refuse) as Arc<dyn benchbus::device::Vouch>);
+    // Bad input is refused before the check is asked.
+    assert!(matches!(
+        d.set("speed_setpoint", 1e9),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert_eq!(refuse.0.load(std::sync::atomic::Ordering::SeqCst), 0);
+    // Reads and writes: refused unsent.
+    assert!(matches!(
+        d.get("speed"),
+        Err(Error::Unvouched { unit: 7, .. })
+    ));
+    assert!(matches!(
+        d.set("speed_setpoint", 100.0),
+        Err(Error::Unvouched { .. })
+    ));
+    assert!(matches!(
+        d.stop_on_exit(false),
+        Err(Error::Unvouched { .. })
+    ));
+    assert_eq!(refuse.0.load(std::sync::atomic::Ordering::SeqCst), 3);
+    assert!(sent(&t).is_empty());
+    // The urgent stop (leaving on an error) goes without the check: once, the stop.
+    assert!(d.stop_on_exit(true).is_err()); // the script is silent
+    assert_eq!(sent(&t).len(), 1);
+    assert_eq!(&sent(&t)[0][..6], &[7, 0x06, 0x20, 0x00, 0x00, 0x05]);
+}

@@ -49,12 +49,36 @@ pub struct Station {
     bus: Arc<Bus>,
     unit: u8,
     opts: TxOptions,
+    vouch: Option<Arc<dyn Vouch>>,
+}
+
+/// What a device's unit must pass before each of the device's requests goes out: a check
+/// its user gives (the Python bindings check that the unit is of the device's family, once,
+/// before its first exchange). It runs after the call's arguments are checked, so that bad
+/// input is refused before anything is sent, the check's reads included.
+pub trait Vouch: Send + Sync + std::fmt::Debug {
+    /// Ok to send; else the error the call fails with ([`Error::Unvouched`] for a unit
+    /// found to be another kind of device), nothing of the call sent.
+    ///
+    /// # Errors
+    /// Whatever the check finds, or fails with.
+    fn vouch(&self, unit: u8) -> Result<()>;
 }
 
 impl Station {
     /// The device at `unit` on `bus`, its requests sent with `opts`.
     pub fn new(bus: Arc<Bus>, unit: u8, opts: TxOptions) -> Station {
-        Station { bus, unit, opts }
+        Station {
+            bus,
+            unit,
+            opts,
+            vouch: None,
+        }
+    }
+
+    /// Ok if the unit is vouched for (see [`Vouch`]); what every request runs first.
+    fn vouched(&self) -> Result<()> {
+        self.vouch.as_ref().map_or(Ok(()), |v| v.vouch(self.unit))
     }
 
     /// The bus the device is on.
@@ -96,6 +120,7 @@ impl Station {
     /// # Errors
     /// [`Error::InvalidArgument`] for a table of bits; any [`Error`] of the request.
     pub fn read_table(&self, table: Table, address: u16, count: u16) -> Result<Vec<u16>> {
+        self.vouched()?;
         let (unit, opts) = (self.unit, &self.opts);
         let words = match table {
             Table::Holding => self
@@ -116,6 +141,7 @@ impl Station {
     /// # Errors
     /// [`Error::InvalidArgument`] for a table of registers; any [`Error`] of the request.
     pub fn read_bits(&self, table: Table, address: u16, count: u16) -> Result<Vec<bool>> {
+        self.vouched()?;
         let (unit, opts) = (self.unit, &self.opts);
         let bits = match table {
             Table::Coils => self.bus.read_coils(unit, address, count, opts)?,
@@ -134,6 +160,7 @@ impl Station {
     /// # Errors
     /// Any [`Error`] of the request.
     pub fn write_coil(&self, address: u16, value: bool) -> Result<()> {
+        self.vouched()?;
         self.bus.write_coil(self.unit, address, value, &self.opts)
     }
 
@@ -142,6 +169,7 @@ impl Station {
     /// # Errors
     /// Any [`Error`] of the request.
     pub fn write_coils(&self, address: u16, values: &[bool]) -> Result<()> {
+        self.vouched()?;
         self.bus.write_coils(self.unit, address, values, &self.opts)
     }
 
@@ -159,12 +187,14 @@ impl Station {
     /// # Errors
     /// Any [`Error`] of the request.
     pub fn write(&self, address: u16, value: u16) -> Result<()> {
+        self.vouched()?;
         self.bus
             .write_register(self.unit, address, value, &self.opts)
     }
 
     /// Writes one register with function 0x06, sent once and at once (see
-    /// [`TxOptions::urgent`]): a stop on the way out of an error.
+    /// [`TxOptions::urgent`]), without the unit's [`Vouch`]: a stop on the way out of an
+    /// error.
     ///
     /// # Errors
     /// Any [`Error`] of the request.
@@ -181,6 +211,7 @@ impl Station {
     /// # Errors
     /// Any [`Error`] of the request.
     pub fn write_many(&self, address: u16, values: &[u16]) -> Result<()> {
+        self.vouched()?;
         self.bus
             .write_registers(self.unit, address, values, &self.opts)
     }
@@ -219,6 +250,15 @@ pub trait Device: Send + Sync {
         let opts = &mut self.station_mut().opts;
         opts.timeout = timeout;
         opts.retries = retries;
+        self
+    }
+
+    /// The same device with `vouch` run before each of its requests (see [`Vouch`]).
+    fn with_vouch(mut self, vouch: Arc<dyn Vouch>) -> Self
+    where
+        Self: Sized,
+    {
+        self.station_mut().vouch = Some(vouch);
         self
     }
 

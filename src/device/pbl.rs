@@ -476,7 +476,8 @@ impl Pbl {
     }
 
     /// Clears bit 0 of the control word (stop), keeping the other bits. The stop is always
-    /// written: when the control word cannot be read, 0 (stop, forward) is written instead.
+    /// written: when the control word cannot be read, 0 (stop, forward) is written instead
+    /// (but nothing to a unit its [`Vouch`](super::Vouch) refuses).
     ///
     /// # Errors
     /// Any [`Error`] of the write.
@@ -484,6 +485,8 @@ impl Pbl {
         self.station.exclusive(|| {
             let word = match self.read_parameter(CONTROL) {
                 Ok(word) => word & !START,
+                // A unit not vouched for takes no write at all.
+                Err(e @ Error::Unvouched { .. }) => return Err(e),
                 Err(e) => {
                     log::warn!(
                         target: "benchbus::device",
