@@ -264,7 +264,7 @@ async def uses(line: aio.AsyncBus) -> None:
     speed: int = await drive.speed
     setpoint: int = await drive.get("speed_setpoint")  # E: (expression has type "int | float"
     reveal_type(await drive.telemetry())  # N: Revealed type is "benchbus._drive.DriveTelemetry"
-    reveal_type(await drive.state)  # N: Revealed type is "benchbus._drive.DriveState | int"
+    reveal_type(await drive.state)  # N: Revealed type is "benchbus._drive.DriveState"
     reveal_type(await drive.wait_for_speed(1500, tolerance=20))  # N: Revealed type is "int"
     unit: int = drive.unit
     family: str = drive.family

@@ -78,6 +78,7 @@ OWNERS: dict[str, type] = {
 ALLOWED: dict[str, str] = {
     "LINE_DEFAULTS": "a class constant: the family's line format, not an input",
     "SAMPLE_FIELDS": "a class constant: the names sample() gives, not an input",
+    "IDENTITY": "a class constant: the family the device checks its unit is of, not an input",
 }
 
 
@@ -445,6 +446,7 @@ EXPLICIT: list[Case] = [
     *calls("Drive", "__init__", ValueError, "family", A(BUS, family="XYZ"), A(BUS, family="")),
     *calls("Drive", "__init__", TypeError, "family", A(BUS, family=5)),
     *calls("Drive", "__init__", TypeError, "write_ack", A(BUS, write_ack="yes")),
+    *calls("Drive", "__init__", TypeError, "check_identity", A(BUS, check_identity="no")),
     *calls("Drive", "__init__", ValueError, "timeout", A(BUS, timeout=NAN), A(BUS, timeout=-1)),
     *calls("Drive", "__init__", ValueError, "retries", A(BUS, retries=HUGE), A(BUS, retries=-1)),
     *calls("Drive", "__init__", TypeError, "retries", A(BUS, retries=1.5)),
@@ -561,6 +563,7 @@ EXPLICIT: list[Case] = [
     # -- PblDrive
     *calls("PblDrive", "__init__", ValueError, "unit", *(A(BUS, u) for u in (-1, 0, 256, HUGE))),
     *calls("PblDrive", "__init__", TypeError, "unit", A(BUS, "1"), A(BUS, 17.0)),
+    *calls("PblDrive", "__init__", TypeError, "check_identity", A(BUS, check_identity=0)),
     *calls("PblDrive", "__init__", ValueError, "timeout", A(BUS, timeout=INF), A(BUS, timeout=0)),
     *calls("PblDrive", "__init__", TypeError, "timeout", A(BUS, timeout="x")),
     *calls("PblDrive", "__init__", ValueError, "retries", A(BUS, retries=-1)),
@@ -595,6 +598,7 @@ EXPLICIT: list[Case] = [
         "J2Controller", "__init__", ValueError, "unit", *(A(BUS, u) for u in (-1, 0, 256, HUGE))
     ),
     *calls("J2Controller", "__init__", TypeError, "unit", A(BUS, "3")),
+    *calls("J2Controller", "__init__", TypeError, "check_identity", A(BUS, check_identity=None)),
     *calls("J2Controller", "__init__", ValueError, "baudrate", A(BUS, 3, 4800), A(BUS, 3, HUGE)),
     *calls("J2Controller", "__init__", TypeError, "baudrate", A(BUS, 3, "9600")),
     *calls("J2Controller", "__init__", ValueError, "timeout", A(BUS, 3, timeout=-1)),

@@ -111,6 +111,20 @@ def test_status_and_monitor_refuse_another_family(command: str, device: str) -> 
             assert done.stdout == ""
 
 
+#: An action of each command that writes.
+WRITING = {"drive": ["stop"], "pbl": ["stop"], "j2": ["set-sv", "50"]}
+
+
+@pytest.mark.parametrize(("command", "device"), WRONG)
+def test_a_writing_action_refuses_another_family_before_writing(command: str, device: str) -> None:
+    with Simulator({1: SIMULATED[device]()}) as sim:
+        done = run(command, *WRITING[command], "--port", sim.port, "--timeout", "0.2")
+        line = one_line_error(done, 1)
+        assert f"unit 1 answers but is not {NAMES[command]} (looks like {NAMES[device]}" in line
+        assert f"see 'benchbus {device} --help', or check --port and --unit" in line
+        assert not [f for f in sim.requests if f[1] in (0x06, 0x10)]
+
+
 @pytest.mark.parametrize("command", list(SIMULATED))
 def test_status_goes_on_with_its_own_family_and_an_unknown_device(command: str) -> None:
     with Simulator({1: SIMULATED[command](), 2: TaisongDevice()}) as sim:

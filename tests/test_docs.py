@@ -15,7 +15,7 @@ import pytest
 from pymodbus_peer import pymodbus_server
 
 import benchbus as bb
-from benchbus.sim import DriveDevice, RegisterDevice, Simulator
+from benchbus.sim import DriveDevice, J2Device, RegisterDevice, Simulator
 from conftest import rtu
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -61,6 +61,8 @@ PICKED_BY = (
     "bb.aio.AsyncBus(",
     "benchbus.ophyd",
     "Faults(",
+    "bb.WrongDevice as",
+    "bb.is_unknown(",
 )
 
 
@@ -98,6 +100,27 @@ def test_readme_hardware_drive_example(capsys: pytest.CaptureFixture[str]) -> No
     # Leaving the block sent the stop (command 5 to 0x2000), its last request.
     assert device.peek(0x2000) == 5
     assert sim.requests[-1] == rtu("01 06 2000 0005")
+
+
+def test_the_wrong_device_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """Concepts' drive made on a J2 controller's port: refused, and nothing written."""
+    (block,) = [b for b in doc_blocks() if "bb.WrongDevice as" in b]
+    with Simulator({1: J2Device(speedup=20)}) as sim:
+        exec(block.replace("/dev/ttyUSB1", sim.port), {"bb": bb})
+        assert not [f for f in sim.requests if f[1] in (0x06, 0x10)]
+    said = [line.removeprefix("# ") for line in block.splitlines() if line.startswith("# ")]
+    out = capsys.readouterr().out.splitlines()
+    assert out == [" ".join(said[:-1]), said[-1]]
+
+
+def test_the_unknown_enum_value_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """Concepts' drive state that DriveState does not list."""
+    (block,) = [b for b in doc_blocks() if "bb.is_unknown(" in b]
+    with Simulator({1: RegisterDevice({0x2100: 9})}) as sim, bb.Bus(sim.port) as bus:
+        drive = bb.Drive(bus, 1, check_identity=False)
+        exec(block, {"bb": bb, "drive": drive})
+    shown = [line.split("# ")[1] for line in block.splitlines() if "print(" in line]
+    assert capsys.readouterr().out.splitlines() == shown
 
 
 def test_readme_networks_example(capsys: pytest.CaptureFixture[str]) -> None:

@@ -55,6 +55,8 @@ def test_the_drive_api_over_the_network(
     assert isinstance(device, DriveDevice)
     with bb.Bus(sim.port, timeout=0.5) as bus:
         drive = bb.Drive(bus, unit=1)
+        drive.verify_identity()  # a BLD2 over the network too
+        sim.clear_log()
         drive.speed_setpoint = 1500
         drive.accel_time = 2.5
         assert device.peek(0x2001) == 1500

@@ -211,17 +211,17 @@ def test_mv_writes_a_register_and_an_enum_by_name(
     assert model.value("reset_total") == 1  # a write-only register: a SignalW
 
 
-def test_an_enum_number_the_profile_does_not_list_reads_as_its_digits(
+def test_an_enum_number_the_profile_does_not_list_reads_as_unknown(
     RE: RunEngine,  # noqa: N803
     controller: tuple[Simulator[ProfileDevice], RegisterDevice, ProfileDevice],
 ) -> None:
     _, dev, model = controller
     model.registers[0x0010] = 7  # mode: not a member
     value = on_loop(RE, dev.mode.get_value())  # type: ignore[attr-defined]
-    assert value == "7" and type(value) is str
+    assert value == "UNKNOWN(7)" and type(value) is str
     docs = run(RE, count([dev], num=1))
     config = next(doc for name, doc in docs if name == "descriptor")["configuration"]["fc"]
-    assert config["data"]["fc-mode"] == "7"
+    assert config["data"]["fc-mode"] == "UNKNOWN(7)"
 
 
 def test_a_bool_register(RE: RunEngine) -> None:  # noqa: N803

@@ -24,6 +24,8 @@ def open_pbl(unit: int = 0x11, **options: object) -> Iterator[Rig]:
     """A simulated PBL drive at ``unit`` and a PblDrive on its line."""
     device = PblDevice(**options)  # type: ignore[arg-type]
     with Simulator({unit: device}) as sim, bb.PblDrive(sim.port, unit=unit) as pbl:
+        pbl.verify_identity()  # its reads out of the way of the frames a test counts
+        sim.clear_log()
         yield pbl, sim, device
 
 

@@ -404,3 +404,36 @@ def test_sim_profile_serves_profiles_and_stops_them_after(pytester: pytest.Pytes
     assert int((pytester.path / "during.txt").read_text()) >= len(threads) + 4  # 2 each
     assert sim_threads() <= threads  # every simulator stopped
     assert open_fds() == fds  # every pseudo-terminal and Bus closed
+
+
+WRONG_BENCH = """
+import benchbus as bb
+
+
+def test_reads(bench_drive):
+    assert isinstance(bench_drive.speed, int)
+"""
+
+
+@pytest.mark.parametrize("checked", [True, False])
+def test_a_bench_device_of_another_family_fails_the_setup(
+    pytester: pytest.Pytester,
+    rig: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
+    checked: bool,
+) -> None:
+    sim, _, j2 = rig
+    pytester.makepyfile(test_inner_wrong=WRONG_BENCH)
+    args = ["--benchbus-port", sim.port, "--benchbus-unit", "drive=2"]
+    args += ["--benchbus-baudrate", "19200"]
+    if not checked:
+        args.append("--benchbus-no-identity-check")
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider", *args)
+    if checked:
+        result.assert_outcomes(errors=1)
+        result.stdout.fnmatch_lines(["*WrongDevice: unit 2 answers but is not a BLD drive*"])
+    else:  # unchecked, the drive reads the J2's zeros, and its stop at teardown is refused
+        result.assert_outcomes(passed=1, errors=1)
+        result.stdout.fnmatch_lines(["*ModbusException: unit 2, function 0x06*"])
+    writes = [f for f in sim.requests if f[0] == 2 and f[1] in (0x06, 0x10)]
+    assert bool(writes) is not checked  # only the unchecked drive's stop reached the J2
+    assert j2.value("SV") == J2Device(speedup=100).value("SV")

@@ -220,6 +220,7 @@ def test_record_a_j2_heating_matches_the_simulator(monkeypatch: pytest.MonkeyPat
 def test_record_a_pbl_drive() -> None:
     fake = FakeTime()
     with Simulator({0x11: PblDevice()}) as sim, bb.PblDrive(sim.port, unit=0x11) as pbl:
+        pbl.verify_identity()
         sim.clear_log()
         rec = pbl.record(0.5, 0.125, clock=fake.clock, sleep=fake.sleep)
         assert len(sim.requests) == 4  # one request a sample

@@ -34,6 +34,7 @@ from benchbus._core import (
     refresh_logging,
     to_registers,
 )
+from benchbus._device import is_unknown
 from benchbus._doctor import Finding, doctor
 from benchbus._drive import (
     C20ControlMode,
@@ -79,6 +80,7 @@ from benchbus.exceptions import (
     ProfileError,
     ResponseTimeout,
     StateError,
+    WrongDevice,
 )
 
 __all__ = [
@@ -138,12 +140,14 @@ __all__ = [
     "StateError",
     "Stats",
     "StopMode",
+    "WrongDevice",
     "__version__",
     "aio",
     "crc16",
     "doctor",
     "enable_wire_log",
     "from_registers",
+    "is_unknown",
     "list_ports",
     "refresh_logging",
     "to_registers",

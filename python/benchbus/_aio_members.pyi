@@ -4,7 +4,7 @@ Generated from the sync classes by ``python -m benchbus._aio_stubgen``: do not e
 """
 
 from collections.abc import Callable, Coroutine, Iterable, Mapping
-from typing import Any, Literal
+from typing import Any, ClassVar, Literal
 
 from benchbus._core import Profile, _Layout, _Order, _Read
 from benchbus._device import LineDefaults, PrintableIntEnum
@@ -48,6 +48,8 @@ __all__ = [
 class DeviceMembers:
     """The members of :class:`benchbus.aio.Device`, for type checkers."""
 
+    IDENTITY: ClassVar[str | None]
+    "The family whose identity the device checks before its first exchange (a key of ``benchbus._families``); None: no check (a device of any kind)."
     LINE_DEFAULTS: LineDefaults
     "Line format and reply timeout when the profile says nothing of them."
     SAMPLE_FIELDS: tuple[str, ...] | None
@@ -126,6 +128,13 @@ class DeviceMembers:
     def units(self) -> dict[str, str]:
         """The unit of every register by name ("" for none)."""
 
+    async def verify_identity(self) -> None:
+        """Checks now, if not done yet, that the unit is of the device's family (what the
+        device's first exchange does): ``WrongDevice`` if it answers as another family, a
+        timeout if it does not answer (it is checked again on the next call). Nothing to
+        check for a device made with ``check_identity=False`` or without an identity (an
+        ``Instrument``, a profile's ``Device``)."""
+
     async def write(self, name: str, value: Any) -> None:
         """Write ``value`` (engineering units; an enum by member, name or number) to the
         register ``name``, checked before anything is sent."""
@@ -133,6 +142,8 @@ class DeviceMembers:
 class DriveMembers:
     """The members of :class:`benchbus.aio.Drive`, for type checkers."""
 
+    IDENTITY: ClassVar[str | None]
+    "The family whose identity the device checks before its first exchange."
     LINE_DEFAULTS: LineDefaults
     "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
@@ -176,7 +187,7 @@ class DriveMembers:
         BLD family only: the ZBLD.C20 manual lists no F08.04, so a C20 raises ValueError."""
 
     @property
-    def command_source(self) -> Coroutine[Any, Any, CommandSource | int]:
+    def command_source(self) -> Coroutine[Any, Any, CommandSource]:
         """Where run commands come from (0x2006)."""
 
     @staticmethod
@@ -185,7 +196,7 @@ class DriveMembers:
         takes, in code order, the brake stop (BLD only) included; each is a method."""
 
     @property
-    def control_mode(self) -> Coroutine[Any, Any, ControlMode | C20ControlMode | int]:
+    def control_mode(self) -> Coroutine[Any, Any, ControlMode | C20ControlMode]:
         """Control mode (0x2005; stopped only): ControlMode, or C20ControlMode on a C20."""
 
     @property
@@ -353,11 +364,11 @@ class DriveMembers:
         """Speed setpoint, rpm 0..3000 (0x2001)."""
 
     @property
-    def speed_source(self) -> Coroutine[Any, Any, SpeedSource | int]:
+    def speed_source(self) -> Coroutine[Any, Any, SpeedSource]:
         """Where the speed reference comes from (0x2007)."""
 
     @property
-    def state(self) -> Coroutine[Any, Any, DriveState | int]:
+    def state(self) -> Coroutine[Any, Any, DriveState]:
         """Status word 1 (0x2100)."""
 
     @property
@@ -371,7 +382,7 @@ class DriveMembers:
         """Stop: decelerate, or as :attr:`stop_mode` says (command 5)."""
 
     @property
-    def stop_mode(self) -> Coroutine[Any, Any, StopMode | int]:
+    def stop_mode(self) -> Coroutine[Any, Any, StopMode]:
         """What stop() does, BLD only (0x2012): StopMode."""
 
     async def telemetry(self) -> DriveTelemetry:
@@ -387,6 +398,13 @@ class DriveMembers:
 
     def units(self) -> dict[str, str]:
         """The unit of each register by name, from :meth:`registers` (``""`` for none)."""
+
+    async def verify_identity(self) -> None:
+        """Checks now, if not done yet, that the unit is of the device's family (what the
+        device's first exchange does): ``WrongDevice`` if it answers as another family, a
+        timeout if it does not answer (it is checked again on the next call). Nothing to
+        check for a device made with ``check_identity=False`` or without an identity (an
+        ``Instrument``, a profile's ``Device``)."""
 
     @property
     def virtual_inputs(self) -> Coroutine[Any, Any, int]:
@@ -424,6 +442,8 @@ class DriveMembers:
 class InstrumentMembers:
     """The members of :class:`benchbus.aio.Instrument`, for type checkers."""
 
+    IDENTITY: ClassVar[str | None]
+    "The family whose identity the device checks before its first exchange (a key of ``benchbus._families``); None: no check (a device of any kind)."
     LINE_DEFAULTS: LineDefaults
     "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
@@ -596,6 +616,13 @@ class InstrumentMembers:
         """The unit of each register or parameter by name, from the family's table (``""``
         for none; empty for a device without a fixed table)."""
 
+    async def verify_identity(self) -> None:
+        """Checks now, if not done yet, that the unit is of the device's family (what the
+        device's first exchange does): ``WrongDevice`` if it answers as another family, a
+        timeout if it does not answer (it is checked again on the next call). Nothing to
+        check for a device made with ``check_identity=False`` or without an identity (an
+        ``Instrument``, a profile's ``Device``)."""
+
     async def write_coil(self, address: int, value: bool) -> None:
         """Set one coil on (True) or off (False) with 0x05; the reply must echo it."""
 
@@ -661,6 +688,8 @@ class InstrumentMembers:
 class J2ControllerMembers:
     """The members of :class:`benchbus.aio.J2Controller`, for type checkers."""
 
+    IDENTITY: ClassVar[str | None]
+    "The family whose identity the device checks before its first exchange."
     LINE_DEFAULTS: LineDefaults
     "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
@@ -689,7 +718,7 @@ class J2ControllerMembers:
         """Reads the parameter called `name`."""
 
     @property
-    def input_type(self) -> Coroutine[Any, Any, InputType | int]:
+    def input_type(self) -> Coroutine[Any, Any, InputType]:
         """Input type (INP)."""
 
     @property
@@ -698,7 +727,7 @@ class J2ControllerMembers:
         pair: they are written in the order that keeps LSP <= USP."""
 
     @property
-    def mode(self) -> Coroutine[Any, Any, J2Mode | int]:
+    def mode(self) -> Coroutine[Any, Any, J2Mode]:
         """Automatic or manual control (AM)."""
 
     @property
@@ -820,6 +849,13 @@ class J2ControllerMembers:
         """The unit of each parameter by its manual name (``"PV"``), from the family's table
         (``""`` for none; a linear input, INP = LN, reads in its own scale, not °C)."""
 
+    async def verify_identity(self) -> None:
+        """Checks now, if not done yet, that the unit is of the device's family (what the
+        device's first exchange does): ``WrongDevice`` if it answers as another family, a
+        timeout if it does not answer (it is checked again on the next call). Nothing to
+        check for a device made with ``check_identity=False`` or without an identity (an
+        ``Instrument``, a profile's ``Device``)."""
+
     async def write(self, name: str, value: float, *, function: int = 6) -> None:
         """Write one parameter by name, with the manual's rules (see the class).
 
@@ -837,6 +873,8 @@ class J2ControllerMembers:
 class PblDriveMembers:
     """The members of :class:`benchbus.aio.PblDrive`, for type checkers."""
 
+    IDENTITY: ClassVar[str | None]
+    "The family whose identity the device checks before its first exchange."
     LINE_DEFAULTS: LineDefaults
     "Line format and reply timeout when the device opens its own Bus."
     SAMPLE_FIELDS: tuple[str, ...] | None
@@ -870,7 +908,7 @@ class PblDriveMembers:
         """Close the Bus if the device opened it (a shared Bus stays open)."""
 
     @property
-    def control_mode(self) -> Coroutine[Any, Any, PblControlMode | int]:
+    def control_mode(self) -> Coroutine[Any, Any, PblControlMode]:
         """Mode (100)."""
 
     @property
@@ -878,7 +916,7 @@ class PblDriveMembers:
         """Motor current, A (53)."""
 
     @property
-    def decel_mode(self) -> Coroutine[Any, Any, DecelMode | int]:
+    def decel_mode(self) -> Coroutine[Any, Any, DecelMode]:
         """Natural or braking (114)."""
 
     @property
@@ -891,7 +929,7 @@ class PblDriveMembers:
         direction the motor turns). Setting it keeps the control word's other bits."""
 
     @property
-    def direction_setting(self) -> Coroutine[Any, Any, DirectionSetting | int]:
+    def direction_setting(self) -> Coroutine[Any, Any, DirectionSetting]:
         """Normal or inverted direction (203)."""
 
     async def get(self, name: str) -> int:
@@ -1003,7 +1041,7 @@ class PblDriveMembers:
         """Start: set bit 0 of the control word, keeping its other bits."""
 
     @property
-    def start_stop_source(self) -> Coroutine[Any, Any, StartStopSource | int]:
+    def start_stop_source(self) -> Coroutine[Any, Any, StartStopSource]:
         """Where start/stop come from (204)."""
 
     async def status(self) -> PblStatus:
@@ -1027,6 +1065,13 @@ class PblDriveMembers:
 
     def units(self) -> dict[str, str]:
         """The unit of each parameter by name, from :meth:`table` (``""`` for none)."""
+
+    async def verify_identity(self) -> None:
+        """Checks now, if not done yet, that the unit is of the device's family (what the
+        device's first exchange does): ``WrongDevice`` if it answers as another family, a
+        timeout if it does not answer (it is checked again on the next call). Nothing to
+        check for a device made with ``check_identity=False`` or without an identity (an
+        ``Instrument``, a profile's ``Device``)."""
 
     async def write_parameter(self, key: int | str, value: int) -> None:
         """Writes one parameter, by number or name, checked against the table first."""

@@ -644,6 +644,13 @@ class _Station:
     @property
     def unit(self) -> int:
         """The device's unit address."""
+    def verify_identity(self) -> None:
+        """Checks now, if not done yet, that the unit is of the device's family (what the
+        device's first exchange does): ``WrongDevice`` if it answers as another family, a
+        timeout if it does not answer (it is checked again on the next call). Nothing to
+        check for a device made with ``check_identity=False`` or without an identity (an
+        ``Instrument``, a profile's ``Device``)."""
+    def _check_identity_with(self, check: Callable[[], object]) -> None: ...
 
 @disjoint_base
 class DriveCore(_Station):

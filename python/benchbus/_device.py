@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import contextlib
 import enum
+import functools
 import logging
 import os
 import time
@@ -19,6 +20,7 @@ from types import TracebackType
 from typing import (
     TYPE_CHECKING,
     Any,
+    ClassVar,
     Generic,
     NamedTuple,
     NoReturn,
@@ -48,6 +50,7 @@ __all__ = [
     "check_baudrate",
     "did_you_mean",
     "forked",
+    "is_unknown",
     "on_line",
     "to_enum",
     "to_float",
@@ -81,12 +84,32 @@ def add_note(exc: BaseException, text: str) -> None:
         setattr(exc, "__notes__", notes)  # noqa: B010 (BaseException lacks it before 3.11)
 
 
+#: The name of a value read from a device that its enum does not list (see :func:`as_enum`).
+UNKNOWN = "UNKNOWN"
+
+
 class PrintableIntEnum(enum.IntEnum):
-    """An IntEnum that prints as ``DriveState.FORWARD`` on every Python version."""
+    """An IntEnum that prints as ``DriveState.FORWARD`` on every Python version, and a value
+    its members do not list as ``DriveState.UNKNOWN(9)`` (see :func:`as_enum`)."""
 
     def __str__(self) -> str:
-        """``ClassName.MEMBER``."""
+        """``ClassName.MEMBER``, or ``ClassName.UNKNOWN(value)`` for a value not listed."""
+        if is_unknown(self):
+            return f"{type(self).__name__}.{UNKNOWN}({int(self)})"
         return f"{type(self).__name__}.{self.name}"
+
+    def __reduce_ex__(self, protocol: Any) -> tuple[Any, ...]:
+        """Pickled and copied as :func:`as_enum` of the class and the number, so that a
+        value not listed survives too."""
+        return as_enum, (type(self), int(self))
+
+
+def is_unknown(value: object) -> bool:
+    """Whether ``value``, read from a device, is a number its enum does not list: an
+    ``UNKNOWN`` value :func:`as_enum` made (``DriveState.UNKNOWN(9)``), not a member."""
+    if not isinstance(value, enum.Enum):
+        return False
+    return type(value)._member_map_.get(value.name) is not value
 
 
 log = logging.getLogger("benchbus.device")
@@ -109,12 +132,19 @@ T = TypeVar("T")
 D = TypeVar("D", bound=Registers)
 
 
-def as_enum(enum_type: type[E], raw: int) -> E | int:
-    """``enum_type(raw)``, or ``raw`` itself when the enum has no such member."""
+def as_enum(enum_type: type[E], raw: int) -> E:
+    """The member of ``enum_type`` whose value is ``raw``, read from a device; for a value
+    the enum does not list (a device may report a code its manual does not), an ``UNKNOWN``
+    value of the enum carrying the number: an instance of ``enum_type`` equal to ``raw``,
+    named ``"UNKNOWN"``, printed ``DriveState.UNKNOWN(9)``, which no member equals and
+    :func:`is_unknown` tells apart. Every family and every profile's enum reads so."""
     try:
         return enum_type(raw)
     except ValueError:
-        return raw
+        unknown: E = int.__new__(enum_type, raw)
+        unknown._name_ = UNKNOWN
+        unknown._value_ = raw
+        return unknown
 
 
 class _Backed(Generic[D, T]):
@@ -163,8 +193,9 @@ def to_float(_device: Any, raw: Any) -> float:
     return float(raw)
 
 
-def to_enum(enum_type: type[E]) -> Callable[[Any, Any], E | int]:
-    """A converter to ``enum_type`` (the int itself for a value the enum lacks)."""
+def to_enum(enum_type: type[E]) -> Callable[[Any, Any], E]:
+    """A converter to ``enum_type`` (an ``UNKNOWN`` value for a number it does not list:
+    see :func:`as_enum`)."""
     return lambda _device, raw: as_enum(enum_type, int(raw))
 
 
@@ -315,6 +346,9 @@ class BusDevice(metaclass=_DeviceType):
     _owns_bus: bool
     #: The family's line defaults (a subclass sets its own).
     LINE_DEFAULTS = LineDefaults(19200, "N", 0.1)
+    #: The family whose identity the device checks before its first exchange (a key of
+    #: ``benchbus._families``); None: no check (a device of any kind).
+    IDENTITY: ClassVar[str | None] = None
 
     if not TYPE_CHECKING:  # a __setattr__ would make type checkers accept any name
 
@@ -343,18 +377,36 @@ class BusDevice(metaclass=_DeviceType):
         timeout: float | None,
         retries: int | None,
         line: LineDefaults | None = None,
+        check_identity: bool = False,
     ) -> None:
         """Attach the compiled base to a shared Bus, with ``(bus, *args, timeout, retries)``,
         or to a Bus opened at ``line`` (the class's ``LINE_DEFAULTS`` by default; see
-        :func:`on_line`): what the ``__init__`` of a class whose base is compiled calls."""
+        :func:`on_line`): what the ``__init__`` of a class whose base is compiled calls.
+
+        With ``check_identity``, the device's first exchange is preceded by the check that
+        its unit is of the family :attr:`IDENTITY` (see ``verify_identity``)."""
+        if not isinstance(check_identity, bool):
+            kind = type(check_identity).__name__
+            raise TypeError(f"check_identity must be True or False, got {kind}")
         attachable = cast("_Attachable", self)
-        _, self._owns_bus = on_line(
+
+        def attach(bus: Bus, t: float | None, r: int | None) -> Bus:
+            attachable._attach(bus, *args, t, r)
+            return bus
+
+        bus, self._owns_bus = on_line(
             port_or_bus,
-            lambda bus, t, r: attachable._attach(bus, *args, t, r),
+            attach,
             line=self.LINE_DEFAULTS if line is None else line,
             timeout=timeout,
             retries=retries,
         )
+        if check_identity and self.IDENTITY is not None:
+            from benchbus._families import check_identity as check  # imports the families
+
+            self._check_identity_with(
+                functools.partial(check, self.IDENTITY, bus, self.unit, timeout, retries)
+            )
 
     if TYPE_CHECKING:  # the compiled base (``_core._Station``) has them
 
@@ -367,6 +419,12 @@ class BusDevice(metaclass=_DeviceType):
         def unit(self) -> int:
             """The device's unit address."""
             ...
+
+        def verify_identity(self) -> None:
+            """Check now that the unit is of the device's family (``WrongDevice``)."""
+            ...
+
+        def _check_identity_with(self, check: Callable[[], object]) -> None: ...
 
     #: The names :meth:`sample` gives (None: not known in advance), so that a bad
     #: ``record(columns=...)`` is refused before anything is sent.

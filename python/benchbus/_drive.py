@@ -147,13 +147,13 @@ class DriveStatus:
     """Status words 1 and 2 and the fault code (0x2100..0x2102), read at once."""
 
     #: Status word 1.
-    state: DriveState | int
+    state: DriveState
     #: The DC bus voltage is established (word 2 bit 0).
     bus_voltage_ready: bool
     #: The drive reports overload (word 2 bit 4; its polarity differs on the C20).
     overloaded: bool
     #: Who controls the drive (word 2 bits 5..6).
-    control_source: CommandSource | int
+    control_source: CommandSource
     #: A keypad is connected (word 2 bit 7); None on the C20, which does not say.
     keypad_connected: bool | None
     #: The active fault, or None.
@@ -239,8 +239,11 @@ class DriveRegister(NamedTuple):
 _MODEL_FAMILY = {Model(name): family for name, _id, family in DriveCore.models()}
 
 
-def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode | int:
-    return as_enum(C20ControlMode if drive.family == "C20" else ControlMode, int(raw))
+def _control_mode(drive: Drive, raw: Any) -> ControlMode | C20ControlMode:
+    """The control mode in the enum of the drive's family."""
+    if drive.family == "C20":
+        return as_enum(C20ControlMode, int(raw))
+    return as_enum(ControlMode, int(raw))
 
 
 class Drive(DriveCore, MotorDevice):
@@ -274,6 +277,8 @@ class Drive(DriveCore, MotorDevice):
 
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(19200, "N", 0.25)
+    #: The family whose identity the device checks before its first exchange.
+    IDENTITY = "drive"
 
     @property
     def profile(self) -> Profile:
@@ -294,15 +299,15 @@ class Drive(DriveCore, MotorDevice):
     decel_time: RegisterProperty[Drive, float] = RegisterProperty(
         "decel_time", to_float, "Deceleration time, s 0.1..600.0 in steps of 0.1 (0x2004)."
     )
-    control_mode: RegisterProperty[Drive, ControlMode | C20ControlMode | int] = RegisterProperty(
+    control_mode: RegisterProperty[Drive, ControlMode | C20ControlMode] = RegisterProperty(
         "control_mode",
         _control_mode,
         "Control mode (0x2005; stopped only): ControlMode, or C20ControlMode on a C20.",
     )
-    command_source: RegisterProperty[Drive, CommandSource | int] = RegisterProperty(
+    command_source: RegisterProperty[Drive, CommandSource] = RegisterProperty(
         "command_source", to_enum(CommandSource), "Where run commands come from (0x2006)."
     )
-    speed_source: RegisterProperty[Drive, SpeedSource | int] = RegisterProperty(
+    speed_source: RegisterProperty[Drive, SpeedSource] = RegisterProperty(
         "speed_source", to_enum(SpeedSource), "Where the speed reference comes from (0x2007)."
     )
     virtual_inputs: RegisterProperty[Drive, int] = RegisterProperty(
@@ -311,13 +316,13 @@ class Drive(DriveCore, MotorDevice):
     virtual_outputs: RegisterProperty[Drive, int] = RegisterProperty(
         "virtual_outputs", to_int, "Virtual output terminal bits, 0..0x0F (0x200B)."
     )
-    stop_mode: RegisterProperty[Drive, StopMode | int] = RegisterProperty(
+    stop_mode: RegisterProperty[Drive, StopMode] = RegisterProperty(
         "stop_mode", to_enum(StopMode), "What stop() does, BLD only (0x2012): StopMode."
     )
     speed: MeasuredProperty[Drive, int] = MeasuredProperty(
         "speed", to_int, "Measured motor speed, rpm (0x3006); a magnitude in both directions."
     )
-    state: MeasuredProperty[Drive, DriveState | int] = MeasuredProperty(
+    state: MeasuredProperty[Drive, DriveState] = MeasuredProperty(
         "state", to_enum(DriveState), "Status word 1 (0x2100)."
     )
 
@@ -330,16 +335,31 @@ class Drive(DriveCore, MotorDevice):
         write_ack: bool = True,
         timeout: float | None = None,
         retries: int | None = None,
+        check_identity: bool = True,
     ) -> None:
         """The drive at ``unit`` on a Bus, or on a port opened at 19200 8N1.
 
         ``timeout`` and ``retries`` are the drive's own: on a port it opens, they set the Bus
         (0.25 s and 2 by default); on a shared Bus, they replace the Bus's for this drive's
         requests only (None: the Bus's).
+
+        ``check_identity`` (default True): before its first exchange, the drive checks
+        that the unit is a BLD or C20 drive (the reads ``benchbus scan`` names a unit by) and raises
+        :class:`~benchbus.WrongDevice`, with nothing written, if it answers as another
+        family; False skips the check, for a unit whose identity registers differ from
+        its manual's.
         """
         self._keepalive: KeepAlive | None = None
         self._keepalive_lock = threading.Lock()
-        self._on_line(port_or_bus, unit, family, write_ack, timeout=timeout, retries=retries)
+        self._on_line(
+            port_or_bus,
+            unit,
+            family,
+            write_ack,
+            timeout=timeout,
+            retries=retries,
+            check_identity=check_identity,
+        )
 
     # ---- identity ------------------------------------------------------------------------
 

@@ -19,18 +19,18 @@ from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 from benchbus._core import Bus
-from benchbus._device import BusDevice, LineDefaults
+from benchbus._device import BusDevice, LineDefaults, add_note
 from benchbus._drive import Drive
 from benchbus._instrument import Instrument
 from benchbus._j2 import J2Controller
 from benchbus._pbl import PblDrive
 from benchbus._recognise import Probe, drive_model, is_drive, is_j2, is_pbl, is_taisong
-from benchbus.exceptions import FrameError, ResponseTimeout
+from benchbus.exceptions import FrameError, ModbusException, ResponseTimeout, WrongDevice
 
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
 
-__all__ = ["FAMILIES", "Family", "command_families", "family", "mismatch"]
+__all__ = ["FAMILIES", "Family", "check_identity", "command_families", "family", "mismatch"]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -80,12 +80,13 @@ class Family:
         return cls(**options)
 
     def verdict(self, probe: Probe) -> bool | None:
-        """The family's test, with a timeout or a garbled reply as 'cannot tell'."""
+        """The family's test, with a timeout, a garbled reply or an exception that says
+        nothing of the unit (busy, a gateway's) as 'cannot tell'."""
         if self.test is None:
             return None
         try:
             return self.test(probe)
-        except (ResponseTimeout, FrameError):
+        except (ResponseTimeout, FrameError, ModbusException):
             return None
 
     def identify(self, probe: Probe) -> str | None:
@@ -94,7 +95,7 @@ class Family:
             return self.label if self.verdict(probe) else None
         try:
             return self.model(probe)
-        except (ResponseTimeout, FrameError):
+        except (ResponseTimeout, FrameError, ModbusException):
             return None
 
 
@@ -147,16 +148,44 @@ def command_families() -> tuple[Family, ...]:
     return tuple(f for f in FAMILIES if f.command)
 
 
-def mismatch(bus: Bus, unit: int, key: str) -> Family | None:
+def mismatch(
+    bus: Bus, unit: int, key: str, *, timeout: float | None = None, retries: int | None = None
+) -> Family | None:
     """None if ``unit`` may be of the family ``key``, else the family it looks like.
 
     The family's own test runs first (a unit that does not answer it raises the timeout);
     only if it does not recognise the unit are the other families with a command tried,
     and only a unit another family recognises is refused: one that no test recognises is
-    given the benefit of the doubt.
+    given the benefit of the doubt. The reads go with ``timeout`` and ``retries`` (None:
+    the Bus's).
     """
     expected = family(key)
-    probe = Probe(bus, unit)
+    probe = Probe(bus, unit, timeout=timeout, retries=retries)
     if expected.test is None or expected.test(probe):
         return None
     return next((f for f in command_families() if f is not expected and f.verdict(probe)), None)
+
+
+def check_identity(
+    key: str, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
+) -> None:
+    """Raise :class:`~benchbus.WrongDevice` if ``unit`` looks like another family than
+    ``key`` (see :func:`mismatch`): the check a family's device makes before its first
+    exchange. A timeout, a garbled reply or an exception that says nothing of the unit
+    (busy, a gateway's) is raised with a note saying what was checked."""
+    expected = family(key)
+    try:
+        other = mismatch(bus, unit, key, timeout=timeout, retries=retries)
+    except (ResponseTimeout, FrameError, ModbusException) as exc:
+        add_note(exc, f"while checking that unit {unit} is {expected.name}")
+        raise
+    if other is not None:
+        made = expected.device.__name__ if expected.device else "device"
+        raise WrongDevice(
+            f"unit {unit} answers but is not {expected.name}: it looks like {other.name}. "
+            f"Check the port and the unit, or make the {made} with check_identity=False "
+            "if its identity registers differ from its manual's",
+            unit=unit,
+            expected=key,
+            looks_like=other.key,
+        )

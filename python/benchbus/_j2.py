@@ -110,7 +110,7 @@ class J2Status:
     #: Output, percent (MV).
     mv: float
     #: Automatic or manual control (AM).
-    mode: J2Mode | int
+    mode: J2Mode
     #: Whether autotuning runs (AT).
     autotune: bool
     #: Whether a setpoint ramp runs (RAPNF).
@@ -160,6 +160,8 @@ class J2Controller(J2Core, BusDevice):
 
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(9600, "N", 0.3)
+    #: The family whose identity the device checks before its first exchange.
+    IDENTITY = "j2"
 
     @property
     def profile(self) -> Profile:
@@ -189,10 +191,10 @@ class J2Controller(J2Core, BusDevice):
     pv_offset: RegisterProperty[J2Controller, float] = RegisterProperty(
         "PVOS", to_float, "Process value offset (PVOS), -50..50."
     )
-    mode: RegisterProperty[J2Controller, J2Mode | int] = RegisterProperty(
+    mode: RegisterProperty[J2Controller, J2Mode] = RegisterProperty(
         "AM", to_enum(J2Mode), "Automatic or manual control (AM)."
     )
-    input_type: RegisterProperty[J2Controller, InputType | int] = RegisterProperty(
+    input_type: RegisterProperty[J2Controller, InputType] = RegisterProperty(
         "INP", to_enum(InputType), "Input type (INP)."
     )
     decimal_point: RegisterProperty[J2Controller, int] = RegisterProperty(
@@ -207,11 +209,26 @@ class J2Controller(J2Core, BusDevice):
         *,
         timeout: float | None = None,
         retries: int | None = None,
+        check_identity: bool = True,
     ) -> None:
-        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1."""
+        """The controller at ``unit`` on a Bus, or on a port opened at ``baudrate`` 8N1.
+
+        ``check_identity`` (default True): before its first exchange, the controller checks
+        that the unit is a J2 controller (the reads ``benchbus scan`` names a unit by) and raises
+        :class:`~benchbus.WrongDevice`, with nothing written, if it answers as another
+        family; False skips the check, for a unit whose identity registers differ from
+        its manual's.
+        """
         check_baudrate(baudrate, (9600, 19200))
         line = self.LINE_DEFAULTS._replace(baudrate=baudrate)
-        self._on_line(port_or_bus, unit, timeout=timeout, retries=retries, line=line)
+        self._on_line(
+            port_or_bus,
+            unit,
+            timeout=timeout,
+            retries=retries,
+            line=line,
+            check_identity=check_identity,
+        )
 
     def sample_units(self) -> dict[str, str]:
         """The unit of each field :meth:`sample` gives (``pv``, ``sv``: °C; ``mv``: %)."""

@@ -142,6 +142,8 @@ class PblDrive(PblCore, MotorDevice):
 
     #: Line format and reply timeout when the device opens its own Bus.
     LINE_DEFAULTS = LineDefaults(115200, "E", 0.1)
+    #: The family whose identity the device checks before its first exchange.
+    IDENTITY = "pbl"
 
     @property
     def profile(self) -> Profile:
@@ -150,7 +152,7 @@ class PblDrive(PblCore, MotorDevice):
         range."""
         return Profile.family("pbl")
 
-    control_mode: RegisterProperty[PblDrive, PblControlMode | int] = RegisterProperty(
+    control_mode: RegisterProperty[PblDrive, PblControlMode] = RegisterProperty(
         "control_mode", to_enum(PblControlMode), "Mode (100)."
     )
     pole_pairs: RegisterProperty[PblDrive, int] = RegisterProperty(
@@ -168,10 +170,10 @@ class PblDrive(PblCore, MotorDevice):
     speed_source: RegisterProperty[PblDrive, int] = RegisterProperty(
         "speed_source", to_int, "Speed command source (202)."
     )
-    direction_setting: RegisterProperty[PblDrive, DirectionSetting | int] = RegisterProperty(
+    direction_setting: RegisterProperty[PblDrive, DirectionSetting] = RegisterProperty(
         "direction_setting", to_enum(DirectionSetting), "Normal or inverted direction (203)."
     )
-    start_stop_source: RegisterProperty[PblDrive, StartStopSource | int] = RegisterProperty(
+    start_stop_source: RegisterProperty[PblDrive, StartStopSource] = RegisterProperty(
         "start_stop_source", to_enum(StartStopSource), "Where start/stop come from (204)."
     )
     max_speed: RegisterProperty[PblDrive, int] = RegisterProperty(
@@ -180,7 +182,7 @@ class PblDrive(PblCore, MotorDevice):
     min_speed: RegisterProperty[PblDrive, int] = RegisterProperty(
         "min_speed", to_int, "Minimum speed, rpm (123)."
     )
-    decel_mode: RegisterProperty[PblDrive, DecelMode | int] = RegisterProperty(
+    decel_mode: RegisterProperty[PblDrive, DecelMode] = RegisterProperty(
         "decel_mode", to_enum(DecelMode), "Natural or braking (114)."
     )
     analog_max_speed: RegisterProperty[PblDrive, int] = RegisterProperty(
@@ -213,9 +215,19 @@ class PblDrive(PblCore, MotorDevice):
         *,
         timeout: float | None = None,
         retries: int | None = None,
+        check_identity: bool = True,
     ) -> None:
-        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1."""
-        self._on_line(port_or_bus, unit, timeout=timeout, retries=retries)
+        """The drive at ``unit`` on a Bus, or on a port opened at 115200 8E1.
+
+        ``check_identity`` (default True): before its first exchange, the drive checks
+        that the unit is a PBL drive (the reads ``benchbus scan`` names a unit by) and raises
+        :class:`~benchbus.WrongDevice`, with nothing written, if it answers as another
+        family; False skips the check, for a unit whose identity registers differ from
+        its manual's.
+        """
+        self._on_line(
+            port_or_bus, unit, timeout=timeout, retries=retries, check_identity=check_identity
+        )
 
     def restore_defaults(self) -> None:
         """Ask for the factory defaults (1511 to parameter 214).

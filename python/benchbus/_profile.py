@@ -15,7 +15,14 @@ from collections.abc import Iterator, Mapping
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from benchbus._core import Bus, Profile, ProfileCore
-from benchbus._device import BusDevice, LineDefaults, PrintableIntEnum, _declared, did_you_mean
+from benchbus._device import (
+    BusDevice,
+    LineDefaults,
+    PrintableIntEnum,
+    _declared,
+    as_enum,
+    did_you_mean,
+)
 from benchbus._display import html_table
 
 if TYPE_CHECKING:
@@ -234,8 +241,9 @@ class Device(ProfileCore, BusDevice):
     sequence on the Bus.
 
     An enum register reads as a member of an ``IntEnum`` built from the profile (named
-    after the register: ``mode`` gives ``Mode``, in :attr:`enums`), or as the plain number
-    when the device holds a value the profile does not list.
+    after the register: ``mode`` gives ``Mode``, in :attr:`enums`); a value the profile does not
+    list reads as that enum's ``UNKNOWN`` value carrying the number (``Mode.UNKNOWN(7)``,
+    see :func:`benchbus.is_unknown`), as in every family.
     """
 
     #: Line format and reply timeout when the profile says nothing of them.
@@ -295,10 +303,7 @@ class Device(ProfileCore, BusDevice):
         enum_type = self.enums.get(name)
         if enum_type is None or isinstance(value, bool):
             return value
-        try:
-            return enum_type(value)
-        except ValueError:
-            return value
+        return as_enum(enum_type, value)
 
     def read(self, name: str) -> Any:
         """The register ``name``, in engineering units (an enum member, a bool, a str)."""

@@ -650,6 +650,7 @@ _LOCAL = frozenset(
         "min_write_interval",
         "SAMPLE_FIELDS",
         "LINE_DEFAULTS",
+        "IDENTITY",
         "units",
         "sample_units",
         "registers",

@@ -13,6 +13,8 @@
     │                                              unit) or 0x0B (the unit did not answer it)
     ├── StateError(BenchbusError)                  the device's state forbids the request
     ├── Cancelled(BenchbusError)                   the call's CancelToken was cancelled
+    ├── WrongDevice(BenchbusError)                 the unit answers as another device
+    │                                              family than the device object's
     └── ProfileError(BenchbusError, ValueError)    a device profile file is wrong: its
                                                    path, line and key
 
@@ -36,6 +38,7 @@ __all__ = [
     "ProfileError",
     "ResponseTimeout",
     "StateError",
+    "WrongDevice",
 ]
 
 
@@ -139,6 +142,30 @@ class Cancelled(BenchbusError):
     any benchbus error, and an event loop that cancelled a call running in a worker thread
     raises its own task's ``CancelledError``. ``frame`` is None.
     """
+
+
+class WrongDevice(BenchbusError):
+    """The unit answers, but as a device of another family than the object talking to it.
+
+    A :class:`benchbus.Drive`, :class:`benchbus.PblDrive` or :class:`benchbus.J2Controller`
+    checks, before its first exchange, that its unit is of its family, with the reads
+    ``benchbus scan`` names a unit by; a unit another family's reads recognise raises this
+    (``unit 1 answers but is not a BLD drive: it looks like a J2 controller``), before
+    anything is written. Every later call of that object raises it again and sends nothing,
+    and leaving its ``with`` block writes nothing. A unit no family recognises is given the
+    benefit of the doubt. Make the device with ``check_identity=False`` for a unit whose
+    identity registers differ from its manual's.
+    """
+
+    expected: str
+    """The family the object was made for: ``"drive"``, ``"pbl"`` or ``"j2"``."""
+    looks_like: str
+    """The family the unit looks like (one of the same keys)."""
+
+    def __init__(self, message: str, *, unit: int, expected: str, looks_like: str) -> None:
+        super().__init__(message, unit=unit)
+        self.expected = expected
+        self.looks_like = looks_like
 
 
 class ProfileError(BenchbusError, ValueError):

@@ -40,6 +40,7 @@ from collections.abc import AsyncIterator, Callable
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from benchbus._core import CancelToken
+from benchbus._device import is_unknown
 from benchbus._extras import framework_missing
 from benchbus.exceptions import BenchbusError
 
@@ -273,7 +274,7 @@ if _MISSING is None:
         """The signal datatype of a register: ``bool``, ``str``, ``int`` for an unscaled
         integer, ``float`` for a float or a scaled value, and for an enum register a
         ``SubsetEnum`` whose values are the members' names (a number the device holds that
-        the profile does not list reads as its digits)."""
+        the profile does not list reads as ``UNKNOWN(7)``)."""
         if register.enum:
             taken: set[str] = set()
             members = {_member_key(n, taken): n for n in register.enum.values()}
@@ -392,6 +393,8 @@ if _MISSING is None:
             """A value as the device gives it, as the signal's datatype has it."""
             kind = self.datatype
             if isinstance(kind, type) and issubclass(kind, SubsetEnum):
+                if is_unknown(raw):
+                    return kind(f"UNKNOWN({int(raw)})")
                 name = getattr(raw, "name", None)
                 return kind(name if isinstance(name, str) else str(raw))
             return kind(raw) if kind is not None else raw

@@ -118,6 +118,7 @@ from benchbus._families import FAMILIES, family
 from benchbus._instrument import Instrument
 from benchbus._j2 import J2Controller
 from benchbus._pbl import PblDrive
+from benchbus.exceptions import FrameError, ResponseTimeout
 
 if TYPE_CHECKING:
     from benchbus._profile import Device
@@ -253,6 +254,8 @@ class _Settings:
     units: dict[str, int]  # kind -> unit; "" for every kind
     baudrate: int | None
     parity: str | None
+    #: Whether a real device checks that its unit is of its family (see ``bench_*``).
+    check_identity: bool = True
 
     def unit(self, kind: str) -> int:
         """The unit address of ``kind`` on the real port."""
@@ -299,6 +302,13 @@ def pytest_addoption(parser: pytest.Parser) -> None:
         default=None,
         help="parity of that port (default: each device family's, 8E1 for PBL, else 8N1)",
     )
+    group.addoption(
+        "--benchbus-no-identity-check",
+        action="store_false",
+        dest="benchbus_check_identity",
+        help="do not check that each real device is of its fixture's family (for a device"
+        " whose identity registers differ from its manual's)",
+    )
 
 
 def pytest_configure(config: pytest.Config) -> None:
@@ -309,6 +319,7 @@ def pytest_configure(config: pytest.Config) -> None:
         units=dict(config.getoption("benchbus_unit")),
         baudrate=config.getoption("benchbus_baudrate"),
         parity=config.getoption("benchbus_parity"),
+        check_identity=config.getoption("benchbus_check_identity"),
     )
 
 
@@ -596,7 +607,14 @@ def _bench(
             yield bench.device
     else:
         bus, unit, timeout = line.open(kind)
-        with _in_use(family(kind).open(bus, unit, timeout=timeout)) as device:
+        of = family(kind)
+        options = {}
+        if of.device is not None and of.device.IDENTITY is not None:
+            options["check_identity"] = request.config.stash[_SETTINGS].check_identity
+        with _in_use(of.open(bus, unit, timeout=timeout, **options)) as device:
+            # A wrong device fails the test's setup; an absent one is checked when it answers.
+            with contextlib.suppress(ResponseTimeout, FrameError):
+                device.verify_identity()
             yield device
 
 

@@ -16,6 +16,7 @@ mod pieces;
 
 /// Names a profile register may not take: the members every profile device has.
 pub const RESERVED_NAMES: &[&str] = &[
+    "IDENTITY",
     "LINE_DEFAULTS",
     "SAMPLE_FIELDS",
     "bus",
@@ -36,6 +37,7 @@ pub const RESERVED_NAMES: &[&str] = &[
     "table",
     "unit",
     "units",
+    "verify_identity",
     "write",
     "write_many",
 ];

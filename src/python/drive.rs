@@ -158,7 +158,7 @@ drive_commands!(with_command_methods! {
     /// the stop; ``urgent`` (leaving on an exception): each sent once, at once.
     #[pyo3(signature = (urgent=false))]
     fn _stop_on_exit(&self, py: Python<'_>, urgent: bool) -> PyResult<()> {
-        self.dev.wire(py, |d| d.stop_on_exit(urgent))
+        self.dev.stop_on_exit(py, |d| d.stop_on_exit(urgent))
     }
 
     /// The command table: ``(name, code)`` of every value the command register 0x2000

@@ -28,6 +28,7 @@ use crate::timing::{LineFormat, Parity};
 use crate::transport::parse_endpoint;
 use crate::transport::tuning::Rs485;
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
 use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyModule, PyString};
@@ -57,6 +58,15 @@ fn signal_raised() -> bool {
     })
 }
 
+/// The module `benchbus.exceptions`, imported once.
+fn exceptions(py: Python<'_>) -> PyResult<&Bound<'_, PyModule>> {
+    EXCEPTIONS
+        .get_or_try_init(py, || {
+            PyModule::import(py, "benchbus.exceptions").map(Bound::unbind)
+        })
+        .map(|m| m.bind(py))
+}
+
 /// Maps a crate error to the Python exception tree of `benchbus.exceptions` (the one place
 /// this happens).
 fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
@@ -68,6 +78,11 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
         Error::Interrupted { unit, function, .. } => match RAISED.with(|slot| slot.take()) {
             Some(raised) => return raised,
             None => ("BenchbusError", Some(*unit), Some(*function)),
+        },
+        // The check's own exception (WrongDevice, the timeout of its reads).
+        Error::Unvouched { unit, .. } => match RAISED.with(|slot| slot.take()) {
+            Some(raised) => return raised,
+            None => ("BenchbusError", Some(*unit), None),
         },
         Error::Cancelled { unit, function, .. } => ("Cancelled", Some(*unit), Some(*function)),
         Error::Port { .. } | Error::Closed { .. } | Error::Forked { .. } => {
@@ -96,9 +111,7 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
         Error::Internal(_) => ("BenchbusError", None, None),
     };
     let build = || -> PyResult<PyErr> {
-        let module = EXCEPTIONS.get_or_try_init(py, || {
-            PyModule::import(py, "benchbus.exceptions").map(Bound::unbind)
-        })?;
+        let module = exceptions(py)?;
         let kwargs = PyDict::new(py);
         kwargs.set_item("unit", unit)?;
         kwargs.set_item("function", function)?;
@@ -107,10 +120,7 @@ fn to_pyerr(py: Python<'_>, err: Error) -> PyErr {
             kwargs.set_item("code", *code)?;
             kwargs.set_item("meaning", meaning.as_str())?;
         }
-        let instance = module
-            .bind(py)
-            .getattr(class)?
-            .call((message,), Some(&kwargs))?;
+        let instance = module.getattr(class)?.call((message,), Some(&kwargs))?;
         Ok(PyErr::from_value(instance))
     };
     build().unwrap_or_else(|e| e)
@@ -151,18 +161,17 @@ fn public<'py>(
         .call(args, kwargs)
 }
 
-/// The member of the public enum `module.name` whose value is `value`, or `value` itself
-/// (an int) when the enum has none: a device may report a code its manual does not list.
+/// The member of the public enum `module.name` whose value is `value`, or its `UNKNOWN`
+/// value carrying the number when the enum has none (a device may report a code its manual
+/// does not list): `benchbus._device.as_enum`, the one rule for every family.
 fn member<'py>(
     py: Python<'py>,
     module: &str,
     name: &str,
     value: i64,
 ) -> PyResult<Bound<'py, PyAny>> {
-    match public(py, module, name, (value,), None) {
-        Err(e) if e.is_instance_of::<PyValueError>(py) => Ok(PyInt::new(py, value).into_any()),
-        made => made,
-    }
+    let enum_type = PyModule::import(py, module)?.getattr(name)?;
+    public(py, "benchbus._device", "as_enum", (enum_type, value), None)
 }
 
 /// What a wire call runs on: a Bus, or a device on one.
@@ -238,6 +247,98 @@ fn over_modbus_tcp(bus: Option<&bus::Bus>, err: Error) -> Error {
 /// path every family shares, [`Attached::attach`].
 pub(super) struct Attached<D> {
     device: OnceLock<Arc<D>>,
+    identity: Arc<Identity>,
+}
+
+/// Whether a device's unit has been found to be of its family: checked before the device's
+/// first exchange (by a Python callable its class gives, `_check_identity_with`), once.
+enum Vouch {
+    /// Nothing to check: a device without an identity check, or one that passed it.
+    Vouched,
+    /// To check: the callable returns if the unit may be of the family, raises
+    /// `WrongDevice` if it looks like another, or an error that says nothing of it (a
+    /// timeout: a unit off now is checked when it answers).
+    Unchecked(Py<PyAny>),
+    /// Found to be another family's: the `WrongDevice`, raised again by every call.
+    Refused(Py<PyAny>),
+}
+
+/// The identity check of one device, shared by its [`PyStation`] and its [`Attached`].
+pub(super) struct Identity(std::sync::Mutex<Vouch>);
+
+impl Identity {
+    fn state(&self) -> std::sync::MutexGuard<'_, Vouch> {
+        self.0
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Ok once the unit is vouched for; runs the check if it is due (without the lock:
+    /// the check calls the Bus, which lets other threads run). The WrongDevice it raises
+    /// is kept and raised again by every later call, with nothing sent.
+    fn vouch_now(&self, py: Python<'_>) -> PyResult<()> {
+        let check = match &*self.state() {
+            Vouch::Vouched => return Ok(()),
+            Vouch::Refused(err) => return Err(refused(py, err)),
+            Vouch::Unchecked(check) => check.clone_ref(py),
+        };
+        match check.call0(py) {
+            Ok(_) => {
+                let mut state = self.state();
+                if matches!(*state, Vouch::Unchecked(_)) {
+                    *state = Vouch::Vouched;
+                }
+                Ok(())
+            }
+            Err(err) => {
+                let wrong = exceptions(py)?.getattr(intern!(py, "WrongDevice"))?;
+                if err.is_instance(py, &wrong) {
+                    *self.state() = Vouch::Refused(err.value(py).clone().into_any().unbind());
+                }
+                Err(err)
+            }
+        }
+    }
+
+    /// Whether the unit was found to be another family's.
+    fn refused(&self) -> bool {
+        matches!(*self.state(), Vouch::Refused(_))
+    }
+}
+
+impl std::fmt::Debug for Identity {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let state = match &*self.state() {
+            Vouch::Vouched => "vouched",
+            Vouch::Unchecked(_) => "unchecked",
+            Vouch::Refused(_) => "refused",
+        };
+        f.write_str(state)
+    }
+}
+
+/// The core's side of the check: run from a request with the GIL released, it takes the
+/// GIL for the check (whose reads release it again), and hands the check's Python
+/// exception to [`to_pyerr`] through [`RAISED`], as a signal handler's is.
+impl crate::device::Vouch for Identity {
+    fn vouch(&self, unit: u8) -> crate::Result<()> {
+        if matches!(*self.state(), Vouch::Vouched) {
+            return Ok(());
+        }
+        Python::attach(|py| self.vouch_now(py)).map_err(|err| {
+            let reason = err.to_string();
+            RAISED.with(|slot| *slot.borrow_mut() = Some(err));
+            Error::Unvouched { unit, reason }
+        })
+    }
+}
+
+/// The kept WrongDevice `err`, to raise again (its old traceback dropped).
+fn refused(py: Python<'_>, err: &Py<PyAny>) -> PyErr {
+    let err = err.bind(py);
+    // A traceback that cannot be cleared only makes the new one longer.
+    let _ = err.setattr(intern!(py, "__traceback__"), py.None());
+    PyErr::from_value(err.clone())
 }
 
 impl<D: Device + 'static> Attached<D> {
@@ -246,11 +347,14 @@ impl<D: Device + 'static> Attached<D> {
     fn class<T: pyo3::PyClass<BaseType = PyStation>>(
         wrap: impl FnOnce(Self) -> T,
     ) -> PyClassInitializer<T> {
+        let identity = Arc::new(Identity(std::sync::Mutex::new(Vouch::Vouched)));
         let station = PyStation {
             at: OnceLock::new(),
+            identity: Arc::clone(&identity),
         };
         let empty = Attached {
             device: OnceLock::new(),
+            identity,
         };
         PyClassInitializer::from(station).add_subclass(wrap(empty))
     }
@@ -279,7 +383,8 @@ impl<D: Device + 'static> Attached<D> {
         let (timeout, retries) = own_timing(timeout, retries)?;
         let device = build(Arc::clone(&bus.get().bus), unit)
             .map_err(|e| to_pyerr(bus.py(), e))?
-            .with_timing(timeout, retries);
+            .with_timing(timeout, retries)
+            .with_vouch(Arc::clone(&self.identity) as Arc<dyn crate::device::Vouch>);
         station
             .at
             .set((bus.unbind(), unit))
@@ -293,12 +398,27 @@ impl<D: Device + 'static> Attached<D> {
     }
 
     /// Runs `f` on the core with the GIL released; its error as the Python exception.
+    /// Each request of the core is sent once the unit is vouched for (see [`Identity`]).
     fn wire<T: Send>(
         &self,
         py: Python<'_>,
         f: impl FnOnce(&D) -> crate::Result<T> + Send,
     ) -> PyResult<T> {
         on_wire(py, self.device()?, f)
+    }
+
+    /// What leaving a motor's `with` block sends, `f` (an urgent stop goes without the
+    /// unit's check: see [`crate::device::Station::write_urgent`]): nothing to a unit found
+    /// to be another family's.
+    fn stop_on_exit(
+        &self,
+        py: Python<'_>,
+        f: impl FnOnce(&D) -> crate::Result<()> + Send,
+    ) -> PyResult<()> {
+        if self.identity.refused() {
+            return Ok(());
+        }
+        self.wire(py, f)
     }
 }
 
@@ -315,6 +435,7 @@ fn unattached() -> PyErr {
 #[pyclass(subclass, frozen, module = "benchbus._core", name = "_Station")]
 pub(super) struct PyStation {
     at: OnceLock<(Py<PyBus>, u8)>,
+    identity: Arc<Identity>,
 }
 
 #[pymethods]
@@ -331,6 +452,22 @@ impl PyStation {
     fn unit(&self) -> PyResult<u8> {
         let (_, unit) = self.at.get().ok_or_else(unattached)?;
         Ok(*unit)
+    }
+
+    /// Checks now, if not done yet, that the unit is of the device's family (what the
+    /// device's first exchange does): ``WrongDevice`` if it answers as another family, a
+    /// timeout if it does not answer (it is checked again on the next call). Nothing to
+    /// check for a device made with ``check_identity=False`` or without an identity (an
+    /// ``Instrument``, a profile's ``Device``).
+    fn verify_identity(&self, py: Python<'_>) -> PyResult<()> {
+        self.at.get().ok_or_else(unattached)?;
+        self.identity.vouch_now(py)
+    }
+
+    /// Makes ``check()`` the identity check before the first exchange (what a family's
+    /// ``__init__`` does, unless made with ``check_identity=False``).
+    fn _check_identity_with(&self, check: Py<PyAny>) {
+        *self.identity.state() = Vouch::Unchecked(check);
     }
 }
 

@@ -163,7 +163,7 @@ impl PyPblCore {
     /// exception): a control word of 0 (stop, forward), sent once, at once.
     #[pyo3(signature = (urgent=false))]
     fn _stop_on_exit(&self, py: Python<'_>, urgent: bool) -> PyResult<()> {
-        self.dev.wire(py, |p| p.stop_on_exit(urgent))
+        self.dev.stop_on_exit(py, |p| p.stop_on_exit(urgent))
     }
 
     /// The direction asked for: bit 1 of the control word (see :meth:`status` for the

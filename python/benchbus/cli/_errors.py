@@ -5,6 +5,7 @@ from __future__ import annotations
 import sys
 
 import benchbus as bb
+from benchbus._families import family
 
 
 class CliError(Exception):
@@ -57,9 +58,22 @@ def one_line(exc: BaseException) -> str:
     if isinstance(exc, ModuleNotFoundError):
         return f"the Python package {exc.name or '?'!r} is needed here and is not installed"
     text = in_cli_words(" ".join(str(exc).split())) or type(exc).__name__
+    if isinstance(exc, bb.WrongDevice):
+        text = wrong_device(exc)
     if isinstance(exc, bb.ResponseTimeout):
         text += " (is the unit there, at this line format? see --port, --baudrate, --unit)"
     return "; ".join([text, *notes(exc)])
+
+
+def wrong_device(exc: bb.WrongDevice) -> str:
+    """A unit of another family than the command's, with the command that talks to it."""
+    from benchbus.cli._args import PROG  # which imports this module
+
+    expected, other = family(exc.expected), family(exc.looks_like)
+    return (
+        f"unit {exc.unit} answers but is not {expected.name} (looks like {other.name}: see "
+        f"'{PROG} {other.key} --help', or check --port and --unit)"
+    )
 
 
 def notes(exc: BaseException) -> list[str]:

@@ -13,10 +13,10 @@ from typing import Any
 
 import benchbus as bb
 from benchbus._device import BusDevice
-from benchbus._families import command_families, family, mismatch
+from benchbus._families import check_identity, command_families, family
 from benchbus._profile import profile_line
-from benchbus.cli._args import PORT_ENV, PROG
-from benchbus.cli._errors import CliError, UsageError
+from benchbus.cli._args import PORT_ENV
+from benchbus.cli._errors import UsageError
 
 
 @dataclasses.dataclass(frozen=True)
@@ -193,10 +193,11 @@ def open_device(bus: bb.Bus, args: argparse.Namespace, kind: str) -> BusDevice:
 
 
 def check_family(device: BusDevice, key: str) -> None:
-    """Refuse a unit recognised as another family than the command talks to."""
-    other = mismatch(device.bus, device.unit, key)
-    if other is not None:
-        raise CliError(
-            f"unit {device.unit} answers but is not {family(key).name} (looks like "
-            f"{other.name}: see '{PROG} {other.key} --help', or check --port and --unit)"
-        )
+    """Refuse a unit recognised as another family than the command talks to: the device's
+    own identity check where it has one (once), else the same check made here
+    (:class:`benchbus.WrongDevice`, which :func:`~benchbus.cli._errors.one_line` words for
+    the command line)."""
+    if key == type(device).IDENTITY:
+        device.verify_identity()
+    else:
+        check_identity(key, device.bus, device.unit)
