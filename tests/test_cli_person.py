@@ -125,6 +125,15 @@ def test_a_writing_action_refuses_another_family_before_writing(command: str, de
         assert not [f for f in sim.requests if f[1] in (0x06, 0x10)]
 
 
+def test_status_shows_a_state_its_enum_does_not_list_with_its_number() -> None:
+    # A drive (its model code at 0x2103) whose status word 1 holds 9, which no state is.
+    with Simulator({1: RegisterDevice({0x2100: 9, 0x2103: 0x20})}) as sim:
+        done = run("drive", "status", "--port", sim.port)
+        assert ok(done)
+        rows = table(done.stdout.splitlines())
+        assert rows["state"] == "UNKNOWN(9)" and rows["model"] == "BLD2"
+
+
 @pytest.mark.parametrize("command", list(SIMULATED))
 def test_status_goes_on_with_its_own_family_and_an_unknown_device(command: str) -> None:
     with Simulator({1: SIMULATED[command](), 2: TaisongDevice()}) as sim:

@@ -5,6 +5,8 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 
+from benchbus._device import is_unknown
+
 
 def fmt(value: float) -> str:
     """A number for a table: integral values without a fraction, others to 4 decimals."""
@@ -24,7 +26,10 @@ def csv_number(value: float) -> str:
 
 
 def enum_name(value: object) -> str:
-    """An enum member by its name, anything else as ``str``."""
+    """An enum member by its name (a value its enum does not list as ``UNKNOWN(9)``),
+    anything else as ``str``."""
+    if isinstance(value, enum.IntEnum) and is_unknown(value):
+        return f"UNKNOWN({int(value)})"
     return value.name if isinstance(value, enum.Enum) else str(value)
 
 
@@ -32,7 +37,7 @@ def shown(value: object, unit: str = "") -> str:
     """A value as read: an enum member by its name, a bool as ``true`` or ``false``, a
     number with its unit (:func:`measured`), text as it is."""
     if isinstance(value, enum.Enum):
-        return value.name
+        return enum_name(value)
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, (int, float)):
