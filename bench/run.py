@@ -190,6 +190,7 @@ class Benchbus(Client):
 
         self.bb = bb
         self.bus = bb.Bus(port, line.baud, line.parity, timeout=timeout, retries=0)
+        self._drive: Any = None
 
     def read(self, unit: int, address: int, count: int = 1) -> list[int]:
         try:
@@ -217,9 +218,11 @@ class Benchbus(Client):
         return latencies, poll.missed
 
     def telemetry(self) -> None:
-        """A Drive's whole telemetry snapshot (0x3000..0x3014, 21 registers)."""
-        drive = self.bb.Drive(self.bus, unit=1)
-        drive.telemetry()
+        """A Drive's whole telemetry snapshot (0x3000..0x3014, 21 registers): the snapshot's
+        read alone (a drive made once, without its one-off identity check)."""
+        if self._drive is None:
+            self._drive = self.bb.Drive(self.bus, unit=1, check_identity=False)
+        self._drive.telemetry()
 
     def close(self) -> None:
         self.bus.close()
