@@ -3,11 +3,14 @@ naming the file, the line and the key."""
 
 from __future__ import annotations
 
+import enum
+import keyword
 from pathlib import Path
 
 import pytest
 
 import benchbus as bb
+from benchbus._names import RESERVED
 
 EXAMPLE = """\
 [device]
@@ -272,15 +275,51 @@ def test_an_enum_member_python_keeps_for_itself_is_a_profile_error(
 
 @pytest.mark.parametrize("register", ["op_mode", "mode", "mode_2", "a__b", "x1_y"])
 def test_the_private_names_refused_are_those_of_the_class_python_makes(register: str) -> None:
-    from benchbus._profile import _camel
+    from benchbus._names import class_name
 
     def text(member: str) -> str:
         return f'{HEAD}[[register]]\nname = "{register}"\naddress = 1\nenum = {{ 1 = "{member}" }}'
 
     with pytest.raises(bb.ProfileError, match="private name"):
-        bb.Profile.parse(text(f"_{_camel(register)}__fast"))
+        bb.Profile.parse(text(f"_{class_name(register)}__fast"))
     # Another class's private name is a name like any other.
     assert bb.Profile.parse(text("_Other__fast"))[register].enum[1] == "_Other__fast"
+
+
+#: Member names Python's enum takes as any other, however close to the ones it keeps.
+TAKEN_MEMBERS = [
+    "name", "value", "name_1", "_9600", "_x", "x_", "_", "__", "___", "____", "__a_", "_a__",
+    "___x___", "_OpMode____", "_OpMode__x__", "_Mode__x", "_opmode__x", "mro_",
+]  # fmt: skip
+
+
+@pytest.mark.parametrize("member", TAKEN_MEMBERS)
+def test_a_member_name_python_takes_is_taken_and_is_a_member(member: str) -> None:
+    text = f'{HEAD}[[register]]\nname = "op_mode"\naddress = 1\nenum = {{ 0 = "{member}" }}\n'
+    profile = bb.Profile.parse(text)
+    assert profile["op_mode"].enum == {0: member}
+    # Python's own enum agrees: the class is made and the name is one of its members.
+    made = enum.IntEnum("OpMode", [(member, 0)])
+    assert made[member] == 0
+
+
+@pytest.mark.parametrize(("member", "kind"), RESERVED_MEMBERS)
+def test_python_itself_refuses_or_drops_each_refused_member(member: str, kind: str) -> None:
+    try:
+        made = enum.IntEnum("OpMode", [("off", 0), (member, 1)])
+    except (ValueError, TypeError, AttributeError):
+        return  # refused outright
+    assert member not in made.__members__, kind  # or silently not made a member
+
+
+@pytest.mark.parametrize("name", ["class", "None", "lambda", *sorted(RESERVED)])
+def test_a_keyword_or_a_member_of_the_device_is_no_register_name(name: str) -> None:
+    text = f'{HEAD}[[register]]\nname = "{name}"\naddress = 1\n'
+    with pytest.raises(bb.ProfileError) as raised:
+        bb.Profile.parse(text, "d.toml")
+    assert (raised.value.line, raised.value.key) == (4, "register[0].name")
+    why = "is not a Python identifier" if keyword.iskeyword(name) else "would shadow a member"
+    assert why in str(raised.value)
 
 
 def test_a_file_that_is_not_toml_names_its_line(tmp_path: Path) -> None:

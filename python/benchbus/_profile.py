@@ -24,6 +24,7 @@ from benchbus._device import (
     did_you_mean,
 )
 from benchbus._display import html_table
+from benchbus._names import class_name
 
 if TYPE_CHECKING:
     from collections.abc import Iterable
@@ -148,16 +149,10 @@ def profile_line(profile: Profile) -> LineDefaults:
     )
 
 
-def _camel(name: str) -> str:
-    """``op_mode`` -> ``OpMode``: the name of a register's enum class. The core's
-    ``enum_class_name`` gives the same, to refuse the class's private names as members."""
-    return "".join(part[:1].upper() + part[1:] for part in name.split("_"))
-
-
 @functools.lru_cache(maxsize=256)
 def _enum(name: str, members: tuple[tuple[str, int], ...]) -> type[PrintableIntEnum]:
     """The enum of a register called ``name`` (one class per definition)."""
-    made: type[PrintableIntEnum] = PrintableIntEnum(_camel(name), members)  # type: ignore[call-arg, arg-type, assignment]
+    made: type[PrintableIntEnum] = PrintableIntEnum(class_name(name), members)  # type: ignore[call-arg, arg-type, assignment]
     return made
 
 

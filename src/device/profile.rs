@@ -14,113 +14,27 @@ use toml::Spanned;
 
 mod pieces;
 
-/// Names a profile register may not take: the members every profile device has.
-pub const RESERVED_NAMES: &[&str] = &[
-    "IDENTITY",
-    "LINE_DEFAULTS",
-    "SAMPLE_FIELDS",
-    "bus",
-    "close",
-    "describe",
-    "enums",
-    "from_profile",
-    "get",
-    "name",
-    "profile",
-    "read",
-    "read_many",
-    "record",
-    "registers",
-    "sample",
-    "sample_units",
-    "set",
-    "table",
-    "unit",
-    "units",
-    "verify_identity",
-    "write",
-    "write_many",
-];
+/// The rules of the language a profile's device is used from, beyond a name's form (an
+/// ASCII identifier): which names its registers and enum members may not take. The Python
+/// bindings pass Python's (its keywords, the members of its device class, what its `enum`
+/// refuses: `benchbus._names`); read from Rust, a profile has none ([`AnyNames`]).
+pub trait Names {
+    /// Why a register may not be called `name`, or None.
+    fn register(&self, _name: &str) -> Option<String> {
+        None
+    }
 
-const PYTHON_KEYWORDS: &[&str] = &[
-    "False", "None", "True", "and", "as", "assert", "async", "await", "break", "class", "continue",
-    "def", "del", "elif", "else", "except", "finally", "for", "from", "global", "if", "import",
-    "in", "is", "lambda", "nonlocal", "not", "or", "pass", "raise", "return", "try", "while",
-    "with", "yield",
-];
-
-/// Names Python's `enum` refuses as members of an enum class, beyond the `_sunder_` and
-/// `__dunder__` names [`enum_member_refusal`] refuses by their form: `mro`, the method every
-/// class has ("invalid enum member name").
-pub const ENUM_RESERVED_NAMES: &[&str] = &["mro"];
-
-/// The name of the enum class Python makes for the enum register `register`: its words,
-/// capitalised, joined (`op_mode` gives `OpMode`), as `benchbus._profile` names it.
-pub fn enum_class_name(register: &str) -> String {
-    register
-        .split('_')
-        .flat_map(|word| {
-            let mut chars = word.chars();
-            chars
-                .next()
-                .map(|c| c.to_ascii_uppercase())
-                .into_iter()
-                .chain(chars)
-        })
-        .collect()
-}
-
-/// Why Python's `enum` cannot take `member` as a member of the enum class `class`, or None
-/// for a name it takes. These are Python's rules (`enum.py`, 3.9 to 3.13), each of which
-/// either fails the class's creation or leaves the name out of its members:
-///
-/// - a `_sunder_` name (one underscore each side: `_missing_`, `_generate_next_value_`,
-///   `_order_`, and any other: Enum keeps them for itself);
-/// - a `__dunder__` name (two underscores each side: Python's special names, `__init__`);
-/// - one of [`ENUM_RESERVED_NAMES`] (`mro`);
-/// - a private name of the class (`_Mode__fast` in `Mode`), which Python 3.11 and later
-///   do not make a member, and the bare `_Mode__`, on which 3.9's enum fails.
-///
-/// Names such as `name`, `value`, `_9600` or `name_1` are members like any other.
-pub fn enum_member_refusal(class: &str, member: &str) -> Option<String> {
-    let private = format!("_{class}__");
-    if wrapped(member, 1) {
-        Some(format!(
-            "{member:?} is a _sunder_ name, which Python's enum keeps for itself"
-        ))
-    } else if wrapped(member, 2) {
-        Some(format!(
-            "{member:?} is a __dunder__ name, one of Python's special names"
-        ))
-    } else if ENUM_RESERVED_NAMES.contains(&member) {
-        Some(format!(
-            "{member:?} is a method of every Python class, which an enum member may not shadow"
-        ))
-    } else if member == private {
-        Some(format!(
-            "{member:?} is the prefix of the private names of the enum {class}, which \
-             Python 3.9's enum cannot take"
-        ))
-    } else if member.starts_with(&private) && !member.ends_with("__") {
-        Some(format!(
-            "{member:?} is a private name of the enum {class}, which Python 3.11 and later \
-             do not make a member"
-        ))
-    } else {
+    /// Why `member` may not be a member of the enum of the register `register`, or None.
+    fn member(&self, _register: &str, _member: &str) -> Option<String> {
         None
     }
 }
 
-/// Whether `name` has `n` underscores each side and no more: a `_sunder_` name for 1, a
-/// `__dunder__` name for 2, as Python's `enum.py` tells them.
-fn wrapped(name: &str, n: usize) -> bool {
-    let bar = "__".get(..n).unwrap_or_default();
-    name.len() > 2 * n
-        && name
-            .strip_prefix(bar)
-            .and_then(|rest| rest.strip_suffix(bar))
-            .is_some_and(|inner| !inner.starts_with('_') && !inner.ends_with('_'))
-}
+/// No rules beyond a name's form.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AnyNames;
+
+impl Names for AnyNames {}
 
 /// A mistake in a profile file: where it is and what is wrong, shown as `FILE:LINE: key:
 /// message` (`FILE: message` for a file that cannot be read, which has no line).
@@ -290,6 +204,8 @@ impl Lines {
 struct Source<'a> {
     path: &'a str,
     lines: &'a Lines,
+    /// The rules of names beyond their form.
+    names: &'a dyn Names,
     /// Where the text parsed lies in the file: (offset in the text, offset in the file) of
     /// each of its pieces, ascending (`[(0, 0)]` for the whole file).
     at: &'a [(usize, usize)],
@@ -441,12 +357,11 @@ fn quoted(choices: &[&str]) -> String {
         .join(", ")
 }
 
-/// Whether `name` is a Python identifier (ASCII) and not a keyword.
+/// Whether `name` is an identifier: ASCII letters, digits and `_`, not starting with a digit.
 pub fn is_identifier(name: &str) -> bool {
     let mut chars = name.chars();
     matches!(chars.next(), Some(c) if c.is_ascii_alphabetic() || c == '_')
         && chars.all(|c| c.is_ascii_alphanumeric() || c == '_')
-        && !PYTHON_KEYWORDS.contains(&name)
 }
 
 /// The engineering values a number kind holds at `scale` and `offset`, low to high: the
@@ -510,11 +425,23 @@ const REGISTER_KEYS: &[&str] = &[
 ];
 
 impl Profile {
-    /// Reads and checks the profile file at `path`.
+    /// Reads and checks the profile file at `path`, its names by no rules but their form
+    /// (see [`Profile::load_with`]).
     ///
     /// # Errors
     /// A [`ProfileError`] for a file that cannot be read (line 0) or any mistake in it.
     pub fn load(path: &std::path::Path) -> Result<Profile, Box<ProfileError>> {
+        Profile::load_with(path, &AnyNames)
+    }
+
+    /// Reads and checks the profile file at `path`, its names by the rules `names`.
+    ///
+    /// # Errors
+    /// A [`ProfileError`] for a file that cannot be read (line 0) or any mistake in it.
+    pub fn load_with(
+        path: &std::path::Path,
+        names: &dyn Names,
+    ) -> Result<Profile, Box<ProfileError>> {
         let shown = path.display().to_string();
         let text = std::fs::read_to_string(path).map_err(|e| {
             Box::new(ProfileError {
@@ -524,29 +451,44 @@ impl Profile {
                 message: format!("cannot read the file: {e}"),
             })
         })?;
-        Profile::parse(&shown, &text)
+        Profile::parse_with(&shown, &text, names)
     }
 
-    /// Checks the profile `text`, read from `path` (used only in errors).
+    /// Checks the profile `text`, read from `path` (used only in errors), its names by no
+    /// rules but their form.
     ///
     /// # Errors
     /// A [`ProfileError`] for the first mistake in it.
     pub fn parse(path: &str, text: &str) -> Result<Profile, Box<ProfileError>> {
+        Profile::parse_with(path, text, &AnyNames)
+    }
+
+    /// Checks the profile `text`, read from `path` (used only in errors), its names by the
+    /// rules `names` (the Python bindings pass Python's).
+    ///
+    /// # Errors
+    /// A [`ProfileError`] for the first mistake in it.
+    pub fn parse_with(
+        path: &str,
+        text: &str,
+        names: &dyn Names,
+    ) -> Result<Profile, Box<ProfileError>> {
         let lines = Lines::new(text);
         // The registers a run at a time where the file allows it: the whole file's TOML
         // tree takes about 45 bytes for each byte of the file. A file with a mistake is read
         // whole, so that its mistake is the one reading it whole finds first.
-        match Profile::parse_in_runs(path, text, &lines) {
+        match Profile::parse_in_runs(path, text, &lines, names) {
             Some(profile) => Ok(profile),
-            None => Profile::parse_whole(path, text, &lines),
+            None => Profile::parse_whole(path, text, &lines, names),
         }
     }
 
     /// The profile `text` read as one TOML document.
-    fn parse_whole(path: &str, text: &str, lines: &Lines) -> Parsed<Profile> {
+    fn parse_whole(path: &str, text: &str, lines: &Lines, names: &dyn Names) -> Parsed<Profile> {
         let src = Source {
             path,
             lines,
+            names,
             at: &[(0, 0)],
         };
         let root = DeTable::parse(text).map_err(|e| {
@@ -580,7 +522,7 @@ impl Profile {
     /// TOML document, then the registers a run of tables at a time, each run's tree dropped
     /// before the next is read. None for a file with a mistake, or whose pieces do not hold
     /// what they should (the cut is made without parsing): the caller then reads it whole.
-    fn parse_in_runs(path: &str, text: &str, lines: &Lines) -> Option<Profile> {
+    fn parse_in_runs(path: &str, text: &str, lines: &Lines, names: &dyn Names) -> Option<Profile> {
         let pieces = Pieces::new(text);
         if pieces.len() != text.len() {
             return None;
@@ -588,6 +530,7 @@ impl Profile {
         let src = Source {
             path,
             lines,
+            names,
             at: &pieces.rest_at,
         };
         let root = DeTable::parse(&pieces.rest).ok()?;
@@ -607,6 +550,7 @@ impl Profile {
                 let run_src = Source {
                     path,
                     lines,
+                    names,
                     at: &at,
                 };
                 let cut_wrong = || run_src.fail(0..0, "register", "the cut was wrong");
@@ -850,12 +794,8 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
             format!("{name:?} is not a Python identifier"),
         ));
     }
-    if RESERVED_NAMES.contains(&name) || name.starts_with('_') {
-        return Err(s.fail(
-            "name",
-            s.span_of("name"),
-            format!("{name:?} would shadow a member of the device"),
-        ));
+    if let Some(refusal) = s.src.names.register(name) {
+        return Err(s.fail("name", s.span_of("name"), refusal));
     }
     let address =
         s.int_in("address", 0, 0xFFFF)?
@@ -926,7 +866,7 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         None => (0.0, 0.0),
     };
     let members = match kind {
-        Some(kind) => members(s, kind, &enum_class_name(name))?,
+        Some(kind) => members(s, kind, name)?,
         None => Vec::new(),
     };
     if !members.is_empty() && (scale != 1.0 || offset != 0.0) {
@@ -1072,8 +1012,8 @@ fn range(s: &Section<'_, '_, '_>, kind: Kind, scale: f64, offset: f64) -> Parsed
     Ok((min, max))
 }
 
-/// The enum of a register whose enum class is `class` (see [`enum_class_name`]).
-fn members(s: &Section<'_, '_, '_>, kind: Kind, class: &str) -> Parsed<Vec<(i128, String)>> {
+/// The enum of the register `register`.
+fn members(s: &Section<'_, '_, '_>, kind: Kind, register: &str) -> Parsed<Vec<(i128, String)>> {
     let span = s.span_of("enum");
     let table = match s.get("enum").map(Spanned::get_ref) {
         None => return Ok(Vec::new()),
@@ -1115,7 +1055,7 @@ fn members(s: &Section<'_, '_, '_>, kind: Kind, class: &str) -> Parsed<Vec<(i128
                 format!("{member:?} is not a Python identifier"),
             ));
         }
-        if let Some(refusal) = enum_member_refusal(class, member) {
+        if let Some(refusal) = s.src.names.member(register, member) {
             return Err(s.fail(&key_name, value.span(), refusal));
         }
         let new_number = numbers.insert(number);
@@ -1343,17 +1283,36 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             4,
             "register[0].name",
         );
-        fails(
-            "[[register]]\nname = \"class\"\naddress = 1\n",
-            4,
-            "register[0].name",
+        // A name's form is all the core checks itself; the rules of the language a
+        // profile is used from are passed in.
+        let text = "[device]\nname = \"d\"\n[[register]]\nname = \"class\"\naddress = 1\n\
+                    enum = { 0 = \"mro\" }\n";
+        assert!(Profile::parse("d.toml", text).is_ok());
+        let refused = *Profile::parse_with("d.toml", text, &Picky).unwrap_err();
+        assert_eq!(
+            (refused.line, refused.key.as_str()),
+            (4, "register[0].name")
         );
-        for reserved in RESERVED_NAMES {
-            fails(
-                &format!("[[register]]\nname = \"{reserved}\"\naddress = 1\n"),
-                4,
-                "register[0].name",
-            );
+        assert_eq!(refused.message, "class: not here");
+        let member = text.replace("\"class\"", "\"klass\"");
+        let refused = *Profile::parse_with("d.toml", &member, &Picky).unwrap_err();
+        assert_eq!(
+            (refused.line, refused.key.as_str()),
+            (6, "register[0].enum.0")
+        );
+        assert_eq!(refused.message, "klass.mro: not here");
+    }
+
+    /// Rules that refuse the register `class` and the member `mro`.
+    struct Picky;
+
+    impl Names for Picky {
+        fn register(&self, name: &str) -> Option<String> {
+            (name == "class").then(|| format!("{name}: not here"))
+        }
+
+        fn member(&self, register: &str, member: &str) -> Option<String> {
+            (member == "mro").then(|| format!("{register}.{member}: not here"))
         }
     }
 
@@ -1534,22 +1493,6 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             6,
             "register[0].enum.0x0",
         );
-        // Names Python's enum keeps for itself, on the member's own line.
-        for reserved in [
-            "_missing_",
-            "_generate_next_value_",
-            "_x_",
-            "__init__",
-            "__x__",
-            "mro",
-            "_A__x",
-        ] {
-            fails(
-                &format!("{R}[register.enum]\n0 = \"ok\"\n1 = \"{reserved}\"\n"),
-                8,
-                "register[0].enum.1",
-            );
-        }
         fails(&format!("{R}enum = {{ 0 = 1 }}\n"), 6, "register[0].enum.0");
         fails(
             &format!("{R}type = \"f32\"\nenum = {{ 0 = \"off\" }}\n"),
@@ -1660,8 +1603,8 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
     fn both_ways(text: &str) -> (Option<Profile>, Parsed<Profile>) {
         let lines = Lines::new(text);
         (
-            Profile::parse_in_runs("d.toml", text, &lines),
-            Profile::parse_whole("d.toml", text, &lines),
+            Profile::parse_in_runs("d.toml", text, &lines, &AnyNames),
+            Profile::parse_whole("d.toml", text, &lines, &AnyNames),
         )
     }
 
@@ -1726,52 +1669,6 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
         }
         let first = Profile::parse("d.toml", &repeated).map_err(|e| e.key);
         assert_eq!(first.err().as_deref(), Some("device.name"));
-    }
-
-    #[test]
-    fn the_names_pythons_enum_refuses() {
-        let refused = |member: &str| enum_member_refusal("OpMode", member).is_some();
-        for name in [
-            "_missing_",
-            "_ignore_",
-            "_a_b_",
-            "__init__",
-            "__x__",
-            "mro",
-            "_OpMode__x",
-            "_OpMode___x",
-            "_OpMode__",
-        ] {
-            assert!(refused(name), "{name}");
-        }
-        // As Python's enum.py draws the lines: neither one nor two underscores each side.
-        for name in [
-            "name",
-            "value",
-            "name_1",
-            "_9600",
-            "_x",
-            "x_",
-            "_",
-            "__",
-            "___",
-            "____",
-            "__a_",
-            "_a__",
-            "___x___",
-            "_OpMode____",
-            "_OpMode__x__",
-            "_Mode__x",
-            "_opmode__x",
-            "mro_",
-        ] {
-            assert!(!refused(name), "{name}");
-        }
-        assert_eq!(enum_class_name("op_mode"), "OpMode");
-        assert_eq!(enum_class_name("mode_2x"), "Mode2x");
-        assert_eq!(enum_class_name("a__b"), "AB");
-        let e = error(&format!("{R}enum = {{ 0 = \"_A__slow\" }}\n"));
-        assert!(e.message.contains("enum A"), "{e}");
     }
 
     #[test]

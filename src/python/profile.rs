@@ -4,8 +4,8 @@
 use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::export::{family_note, FAMILIES};
 use crate::device::profile::{
-    access_name, table_name, LineSettings, Profile, ProfileError, ProfileRegister, ProfileValue,
-    ValueType,
+    access_name, table_name, LineSettings, Names, Profile, ProfileError, ProfileRegister,
+    ProfileValue, ValueType,
 };
 use crate::device::profiled::ProfiledDevice;
 use crate::device::suggest::did_you_mean;
@@ -242,6 +242,53 @@ impl PyProfile {
     }
 }
 
+/// Python's rules for a profile's names: `benchbus._names`, asked for each name.
+struct PyNames<'py> {
+    register: Bound<'py, PyAny>,
+    member: Bound<'py, PyAny>,
+}
+
+impl<'py> PyNames<'py> {
+    fn new(py: Python<'py>) -> PyResult<Self> {
+        let names = PyModule::import(py, "benchbus._names")?;
+        Ok(PyNames {
+            register: names.getattr("register_refusal")?,
+            member: names.getattr("member_refusal")?,
+        })
+    }
+
+    /// What `rule` says of `args`: its refusal, or None; a rule that fails refuses, saying
+    /// so.
+    fn ask(rule: &Bound<'py, PyAny>, args: impl pyo3::call::PyCallArgs<'py>) -> Option<String> {
+        match rule.call1(args) {
+            Ok(said) => said.extract::<Option<String>>().unwrap_or_else(|_| {
+                Some(format!(
+                    "cannot be checked: {} returned {said}",
+                    rule_name(rule)
+                ))
+            }),
+            Err(e) => Some(format!("cannot be checked: {e}")),
+        }
+    }
+}
+
+/// A Python callable's name, for a message.
+fn rule_name(rule: &Bound<'_, PyAny>) -> String {
+    rule.getattr("__name__")
+        .and_then(|n| n.extract::<String>())
+        .unwrap_or_else(|_| "the rule".to_string())
+}
+
+impl Names for PyNames<'_> {
+    fn register(&self, name: &str) -> Option<String> {
+        PyNames::ask(&self.register, (name,))
+    }
+
+    fn member(&self, register: &str, member: &str) -> Option<String> {
+        PyNames::ask(&self.member, (register, member))
+    }
+}
+
 #[pymethods]
 impl PyProfile {
     /// Reads and checks the device profile (TOML) at `path`; ``ProfileError`` (a
@@ -249,7 +296,7 @@ impl PyProfile {
     #[new]
     fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
         let shown = path.display().to_string();
-        let loaded = Profile::load(&path);
+        let loaded = Profile::load_with(&path, &PyNames::new(py)?);
         PyProfile::new_checked(py, shown, loaded)
     }
 
@@ -257,7 +304,8 @@ impl PyProfile {
     #[staticmethod]
     #[pyo3(signature = (text, path = "<string>"))]
     fn parse(py: Python<'_>, text: &str, path: &str) -> PyResult<Self> {
-        PyProfile::new_checked(py, path.to_string(), Profile::parse(path, text))
+        let parsed = Profile::parse_with(path, text, &PyNames::new(py)?);
+        PyProfile::new_checked(py, path.to_string(), parsed)
     }
 
     /// The built-in family ``key`` ("drive" for a BLD2 / BLD3H, "drive-c20", "pbl" or
