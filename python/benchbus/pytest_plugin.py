@@ -73,6 +73,9 @@ otherwise on a simulator as above (from the same ``sim_*_model`` fixtures), so o
 on both. Afterwards a drive is stopped (as leaving its ``with`` block does; a stop that
 fails is a teardown error, since the motor may still turn) and the device closed; a J2
 controller goes on controlling. A test that needs the simulator uses ``sim_*`` instead.
+On the real port a drive or controller is first checked to be of its fixture's family
+(``verify_identity``): one that answers as another family fails the test's setup with
+:class:`benchbus.WrongDevice`, nothing written to it.
 
 On the real port the ``bench_*`` devices of one test share one :class:`benchbus.Bus`, as
 the devices of one RS485 line do. Options:
@@ -84,6 +87,8 @@ the devices of one RS485 line do. Options:
 - ``--benchbus-baudrate N`` and ``--benchbus-parity N|E|O``: the line format. By default
   each family's own (drive 19200 8N1, PBL 115200 8E1, J2 and instrument 9600 8N1); a test
   whose devices' defaults differ needs them given, or its setup fails saying so.
+- ``--benchbus-no-identity-check``: no family check, for a device whose identity
+  registers differ from its manual's.
 
 Each device gets its family's timeout (drive 0.25 s, J2 0.3 s, PBL and instrument 0.1 s)
 and the Bus 2 retries. The unit and line options only apply to the real port; the
