@@ -160,13 +160,18 @@ impl Endpoint {
         match self {
             Endpoint::Serial(path) => path.clone(),
             Endpoint::ModbusTcp { host, port } | Endpoint::RtuOverTcp { host, port } => {
-                if host.contains(':') {
-                    format!("[{host}]:{port}")
-                } else {
-                    format!("{host}:{port}")
-                }
+                host_port(host, *port)
             }
         }
+    }
+}
+
+/// `HOST:PORT`, an IPv6 address in brackets: how `connect` takes a peer and messages show it.
+pub(crate) fn host_port(host: &str, port: u16) -> String {
+    if host.contains(':') {
+        format!("[{host}]:{port}")
+    } else {
+        format!("{host}:{port}")
     }
 }
 
