@@ -30,7 +30,9 @@ use crate::codec::{
 use crate::error::{hex, Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard, Turnarounds, WritePacing};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
-use crate::transport::{check_line_options, is_lost, open, Framed, Transport};
+use crate::transport::{
+    check_line_options, is_lost, open, parse_endpoint, Endpoint, Framed, Transport,
+};
 use owed::{Ledger, Owed};
 use queue::{Cancel, Queue, Turn};
 pub use queue::{CancelToken, Entered};
@@ -68,9 +70,10 @@ pub const STANDARD_UNITS: std::ops::RangeInclusive<u8> = 1..=247;
 /// How a Bus is opened.
 #[derive(Debug, Clone)]
 pub struct BusConfig {
-    /// Serial port path (`/dev/ttyUSB0`, `/dev/pts/3`), `tcp://HOST[:PORT]` or
-    /// `rtu+tcp://HOST:PORT` (see [`Bus::open`]).
-    pub port: String,
+    /// The port as given ([`BusConfig::port`]).
+    port: String,
+    /// What it names, parsed from it once ([`BusConfig::endpoint`]).
+    endpoint: Endpoint,
     /// Line format (baud, parity, stop bits).
     pub line: LineFormat,
     /// How long to wait for a reply, per attempt.
@@ -107,10 +110,19 @@ pub struct BusConfig {
 }
 
 impl BusConfig {
-    /// A config with the usual defaults: 100 ms timeout, 2 retries, 100 ms turnaround.
-    pub fn new(port: &str, line: LineFormat) -> BusConfig {
-        BusConfig {
+    /// A config for the port `port` with the usual defaults: 100 ms timeout, 2 retries,
+    /// 100 ms turnaround. The port is a serial port path (`/dev/ttyUSB0`, `/dev/pts/3`,
+    /// `COM3`), `tcp://HOST[:PORT]` or `rtu+tcp://HOST:PORT` (see [`Bus::open`]), parsed
+    /// here, once ([`crate::transport::parse_endpoint`]).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for a malformed `scheme://` port, before anything is
+    /// opened.
+    pub fn new(port: &str, line: LineFormat) -> Result<BusConfig> {
+        let endpoint = parse_endpoint(port).map_err(Error::InvalidArgument)?;
+        Ok(BusConfig {
             port: port.to_string(),
+            endpoint,
             line,
             timeout: Duration::from_millis(100),
             retries: 2,
@@ -121,7 +133,17 @@ impl BusConfig {
             interrupted: None,
             rs485: None,
             silence: Duration::ZERO,
-        }
+        })
+    }
+
+    /// The port as it was given, for messages.
+    pub fn port(&self) -> &str {
+        &self.port
+    }
+
+    /// What the port names: the transport a Bus opens and the framing it speaks there.
+    pub fn endpoint(&self) -> &Endpoint {
+        &self.endpoint
     }
 }
 
@@ -261,16 +283,13 @@ impl std::fmt::Debug for Bus {
 impl Bus {
     /// Opens the port of `config`: a serial port path, `tcp://HOST[:PORT]` (Modbus TCP to a
     /// gateway, port 502 by default) or `rtu+tcp://HOST:PORT` (RTU frames over TCP to a
-    /// serial device server); see [`crate::transport::parse_endpoint`].
+    /// serial device server); see [`crate::transport::open`].
     ///
     /// # Errors
     /// [`Error::Port`] if the port cannot be opened or the connection made;
-    /// [`Error::InvalidArgument`] for a bad line format or a malformed `scheme://` port.
+    /// [`Error::InvalidArgument`] for a bad line format.
     pub fn open(config: BusConfig) -> Result<Bus> {
-        Bus::with_opener(
-            config,
-            Box::new(|c: &BusConfig| open(&c.port, &c.line, c.rs485.as_ref())),
-        )
+        Bus::with_opener(config, Box::new(open))
     }
 
     /// A Bus over the transport `opener` makes from the config, now and at each reopen.
@@ -290,7 +309,7 @@ impl Bus {
     }
 
     fn build(config: BusConfig, transport: Box<dyn Transport>, opener: Option<Opener>) -> Bus {
-        let framed = Framed::new(transport, &config.port);
+        let framed = Framed::new(transport, &config.endpoint);
         let framing = if config.ascii {
             Framing::Ascii
         } else {
@@ -444,7 +463,7 @@ impl Bus {
             None => Err(self.cannot_reopen()),
         };
         let transport = opened?;
-        st.link = Link::Open(Framed::new(transport, &self.config.port));
+        st.link = Link::Open(Framed::new(transport, &self.config.endpoint));
         st.stats.reopens += 1;
         log::debug!(target: "benchbus::wire", "port {} reopened", self.config.port);
         Ok(())
@@ -1835,13 +1854,12 @@ fn nanos(d: Duration) -> u64 {
 }
 
 fn check_config(config: &BusConfig) -> Result<()> {
-    check_line_options(&config.port, config.echo, config.rs485.is_some())
+    check_line_options(&config.endpoint, config.echo, config.rs485.is_some())
         .map_err(Error::InvalidArgument)?;
     check_rs485_platform(config.rs485.as_ref()).map_err(Error::InvalidArgument)?;
     let line = &config.line;
     if config.ascii {
-        let endpoint = crate::transport::parse_endpoint(&config.port);
-        if matches!(endpoint, Ok(e) if e.framing() == Framing::Mbap) {
+        if config.endpoint.framing() == Framing::Mbap {
             return Err(Error::InvalidArgument(
                 "Modbus ASCII is a serial line framing: not over tcp:// (Modbus TCP)".into(),
             ));

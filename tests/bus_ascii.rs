@@ -36,7 +36,7 @@ fn slow_bus(acts: Vec<Act>, byte_time: Duration) -> (Bus, Scripted) {
         s.acts = acts.into();
         s.byte_time = Some(byte_time);
     }
-    let mut cfg = BusConfig::new("mock", LineFormat::ascii(19_200, Parity::Even));
+    let mut cfg = BusConfig::new("mock", LineFormat::ascii(19_200, Parity::Even)).unwrap();
     cfg.ascii = true;
     cfg.retries = 0;
     cfg.timeout = Duration::from_millis(20);
@@ -359,7 +359,7 @@ fn refused(cfg: BusConfig) -> String {
 #[test]
 fn line_formats_and_ports_that_cannot_carry_the_framing_are_refused() {
     let ascii_cfg = |port: &str, line: LineFormat| {
-        let mut cfg = BusConfig::new(port, line);
+        let mut cfg = BusConfig::new(port, line).unwrap();
         cfg.ascii = true;
         cfg
     };
@@ -385,10 +385,7 @@ fn line_formats_and_ports_that_cannot_carry_the_framing_are_refused() {
     ));
     assert!(upper.contains("tcp://"), "{upper}");
     // RTU takes 8 data bits.
-    let m = refused(BusConfig::new(
-        "mock",
-        LineFormat::ascii(9600, Parity::Even),
-    ));
+    let m = refused(BusConfig::new("mock", LineFormat::ascii(9600, Parity::Even)).unwrap());
     assert!(m.contains("RTU") && m.contains("8 data bits"), "{m}");
     // What the spec allows opens: 7E1, 7N2, 8N1 in ASCII, and over rtu+tcp://.
     for (port, line) in [

@@ -38,7 +38,7 @@ impl Line {
     }
 
     fn bus(&self, timeout: Duration, retries: u32) -> Bus {
-        let mut cfg = BusConfig::new("sim", LineFormat::new(115_200, Parity::None, 1));
+        let mut cfg = BusConfig::new("sim", LineFormat::new(115_200, Parity::None, 1)).unwrap();
         cfg.timeout = timeout;
         cfg.retries = retries;
         Bus::with_transport(cfg, Box::new(self.clone()))

@@ -299,7 +299,7 @@ fn a_long_reply_at_a_low_baud_rate_gets_its_wire_time() {
         s.acts.push_back(words(1, &[7; 37]));
         s.byte_time = Some(Duration::from_micros(4167));
     }
-    let mut cfg = BusConfig::new("mock", LineFormat::new(2400, Parity::None, 1));
+    let mut cfg = BusConfig::new("mock", LineFormat::new(2400, Parity::None, 1)).unwrap();
     cfg.timeout = Duration::from_millis(100);
     cfg.retries = 0;
     let bus = Bus::with_transport(cfg, Box::new(t.clone()));

@@ -85,7 +85,7 @@ fn with_crc(adu: &[u8]) -> Vec<u8> {
 }
 
 fn config(url: &str, timeout_ms: u64, retries: u32) -> BusConfig {
-    let mut c = BusConfig::new(url, LineFormat::new(19_200, Parity::None, 1));
+    let mut c = BusConfig::new(url, LineFormat::new(19_200, Parity::None, 1)).unwrap();
     c.timeout = Duration::from_millis(timeout_ms);
     c.retries = retries;
     c
@@ -285,7 +285,7 @@ fn malformed_urls_are_invalid_arguments_before_anything_opens() {
         "rtu+tcp://host",
         "tcp://host:502/x",
     ] {
-        match Bus::open(config(url, 100, 0)) {
+        match BusConfig::new(url, LineFormat::new(19_200, Parity::None, 1)).and_then(Bus::open) {
             Err(Error::InvalidArgument(m)) => assert!(m.contains("tcp://HOST[:PORT]"), "{m}"),
             other => panic!("{url}: {other:?}"),
         }

@@ -34,7 +34,7 @@ fn env(name: &str) -> String {
 }
 
 fn config(port: &str) -> BusConfig {
-    let mut cfg = BusConfig::new(port, LineFormat::new(19_200, Parity::None, 1));
+    let mut cfg = BusConfig::new(port, LineFormat::new(19_200, Parity::None, 1)).unwrap();
     cfg.timeout = Duration::from_millis(500);
     cfg
 }
@@ -79,7 +79,7 @@ fn registers_are_read_and_written_through_a_com_port() {
 fn com10_and_up_open_by_the_name_windows_shows() {
     let port = env("BENCHBUS_COM_HIGH");
     let bus = Bus::open(config(&port)).unwrap();
-    assert_eq!(bus.config().port, port);
+    assert_eq!(bus.config().port(), port);
     round_trip(&bus, 200);
 }
 

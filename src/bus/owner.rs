@@ -136,7 +136,8 @@ mod tests {
             seen: Arc::clone(&seen),
             reply: Vec::new(),
         };
-        let config = BusConfig::new("/dev/fake", LineFormat::new(115_200, Parity::None, 1));
+        let config =
+            BusConfig::new("/dev/fake", LineFormat::new(115_200, Parity::None, 1)).unwrap();
         (Bus::with_transport(config, Box::new(probe)), seen)
     }
 

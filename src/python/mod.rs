@@ -25,7 +25,6 @@ use crate::codec::{mbap, Echo, FrameError, Framing};
 use crate::device::Device;
 use crate::error::{hex, Error};
 use crate::timing::{LineFormat, Parity};
-use crate::transport::parse_endpoint;
 use crate::transport::tuning::Rs485;
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::intern;
@@ -220,9 +219,7 @@ fn on_wire<D: OnBus, T: Send>(
 
 /// `err`, with the meaning of an exception reply worded for Modbus TCP if `bus` speaks it.
 fn over_modbus_tcp(bus: Option<&bus::Bus>, err: Error) -> Error {
-    let tcp = bus.is_some_and(|b| {
-        parse_endpoint(&b.config().port).is_ok_and(|e| e.framing() == Framing::Mbap)
-    });
+    let tcp = bus.is_some_and(|b| b.config().endpoint().framing() == Framing::Mbap);
     match err {
         Error::Exception {
             unit,
@@ -1026,15 +1023,14 @@ impl PyBus {
             .extract()
             .map_err(|_| PyTypeError::new_err("port must be a str or os.PathLike"))?;
         let port = port.to_string_lossy().into_owned();
-        // "scheme://..." names a network transport: a malformed one is refused here, before
-        // anything is opened (the message gives the forms expected).
-        crate::transport::parse_endpoint(&port).map_err(PyValueError::new_err)?;
         if port.is_empty() {
             return Err(PyValueError::new_err("port must not be empty"));
         }
         let line = line_arg(baudrate, parity, stopbits)?;
         let (ascii, line) = framing_arg(framing, bytesize, parity, stopbits, line)?;
-        let mut config = BusConfig::new(&port, line);
+        // "scheme://..." names a network transport: a malformed one is refused here, before
+        // anything is opened (the message gives the forms expected).
+        let mut config = BusConfig::new(&port, line).map_err(|e| to_pyerr(py, e))?;
         config.ascii = ascii;
         config.timeout = opt(timeout, config.timeout, |t| seconds(t, "timeout", false))?;
         config.retries = opt(retries, 2, |r| {
@@ -1632,7 +1628,7 @@ impl PyBus {
     /// The port path.
     #[getter]
     fn port(&self) -> String {
-        self.bus.config().port.clone()
+        self.bus.config().port().to_string()
     }
 
     /// Bits per second.
@@ -1732,7 +1728,7 @@ impl PyBus {
         let c = self.bus.config();
         format!(
             "Bus('{}', baudrate={}, parity='{}', stopbits={}, timeout={}, retries={}{}{}{}{}{}{})",
-            c.port.replace('\\', "\\\\").replace('\'', "\\'"),
+            c.port().replace('\\', "\\\\").replace('\'', "\\'"),
             c.line.baudrate,
             c.line.parity.letter(),
             c.line.stop_bits,

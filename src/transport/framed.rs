@@ -3,7 +3,7 @@
 //! MBAP [`Session`] between them and the pipe (requests `unit | PDU`, replies from their
 //! MBAP length field on: `length | unit | PDU`).
 
-use super::{parse_endpoint, port_lost, Transport};
+use super::{port_lost, Endpoint, Transport};
 use crate::codec::mbap::{Dropped, Session};
 use crate::codec::Framing;
 use crate::error::hex;
@@ -21,16 +21,11 @@ pub(crate) struct Framed {
 }
 
 impl Framed {
-    /// `pipe`, opened for the port string `port`, speaking that endpoint's framing
-    /// ([`super::Endpoint::framing`]; RTU for a port string that does not parse). A new session:
-    /// the transaction ids start again.
-    pub(crate) fn new(pipe: Box<dyn Transport>, port: &str) -> Framed {
-        let mbap = match parse_endpoint(port) {
-            Ok(endpoint) if endpoint.framing() == Framing::Mbap => {
-                Some((Session::new(), endpoint.address()))
-            }
-            _ => None,
-        };
+    /// `pipe`, opened for `endpoint`, speaking its framing ([`Endpoint::framing`]). A new
+    /// session: the transaction ids start again.
+    pub(crate) fn new(pipe: Box<dyn Transport>, endpoint: &Endpoint) -> Framed {
+        let mbap =
+            (endpoint.framing() == Framing::Mbap).then(|| (Session::new(), endpoint.address()));
         Framed { pipe, mbap }
     }
 

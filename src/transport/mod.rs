@@ -8,8 +8,9 @@
 //! through and runs a Modbus TCP session on `unit | PDU` for `tcp://`); timing, checks and
 //! retries are the Bus's.
 //!
-//! Which transport a Bus opens is chosen by its port string ([`parse_endpoint`]), and
-//! opened by [`open`].
+//! Which transport a Bus opens is chosen by its [`Endpoint`], parsed from its port string
+//! ([`parse_endpoint`]) once, when its config is made ([`BusConfig::new`]), and opened by
+//! [`open`].
 
 pub mod doctor;
 mod framed;
@@ -26,10 +27,9 @@ pub(crate) use framed::Framed;
 pub use serial::{describe_open_error, SerialTransport};
 pub use tcp::{describe_connect_error, TcpTransport, CONNECT_TIMEOUT, WRITE_TIMEOUT};
 
+use crate::bus::BusConfig;
 use crate::codec::Framing;
 use crate::error::Error;
-use crate::timing::LineFormat;
-use tuning::Rs485;
 
 use std::io;
 use std::net::{Ipv4Addr, Ipv6Addr};
@@ -120,23 +120,21 @@ pub enum Endpoint {
     },
 }
 
-/// Refuses line options the endpoint of the port string `port` has no line for: a local
-/// echo (`echo`) over Modbus TCP, where the gateway keeps the line; the kernel RS485 mode
-/// (`rs485`) anywhere but a local serial port. A port string that does not parse is left
-/// to [`open`] to refuse.
+/// Refuses line options `endpoint` has no line for: a local echo (`echo`) over Modbus TCP,
+/// where the gateway keeps the line; the kernel RS485 mode (`rs485`) anywhere but a local
+/// serial port.
 ///
 /// # Errors
 /// The message saying why.
-pub fn check_line_options(port: &str, echo: bool, rs485: bool) -> Result<(), String> {
-    let endpoint = parse_endpoint(port);
-    if echo && matches!(endpoint, Ok(Endpoint::ModbusTcp { .. })) {
+pub fn check_line_options(endpoint: &Endpoint, echo: bool, rs485: bool) -> Result<(), String> {
+    if echo && matches!(endpoint, Endpoint::ModbusTcp { .. }) {
         return Err(
             "echo=True is for a serial line (or rtu+tcp://): over tcp:// the gateway \
                     keeps the line, and no echo reaches the Bus"
                 .into(),
         );
     }
-    if rs485 && !matches!(endpoint, Ok(Endpoint::Serial(_))) {
+    if rs485 && !matches!(endpoint, Endpoint::Serial(_)) {
         return Err(
             "rs485=True is for a local serial port: over the network the gateway or \
                     device server drives the line"
@@ -162,35 +160,39 @@ impl Endpoint {
         match self {
             Endpoint::Serial(path) => path.clone(),
             Endpoint::ModbusTcp { host, port } | Endpoint::RtuOverTcp { host, port } => {
-                if host.contains(':') {
-                    format!("[{host}]:{port}")
-                } else {
-                    format!("{host}:{port}")
-                }
+                host_port(host, *port)
             }
         }
     }
 }
 
-/// Opens the transport the port string `port` names ([`parse_endpoint`]): a serial port
-/// at `line` (and, on a board UART, the kernel RS485 mode `rs485`), or a TCP connection
-/// (Modbus TCP, or RTU frames over TCP). Opening again connects again.
+/// `HOST:PORT`, an IPv6 address in brackets: how `connect` takes a peer and messages show it.
+pub(crate) fn host_port(host: &str, port: u16) -> String {
+    if host.contains(':') {
+        format!("[{host}]:{port}")
+    } else {
+        format!("{host}:{port}")
+    }
+}
+
+/// Opens the transport of `config`'s endpoint ([`BusConfig::endpoint`]): a serial port at
+/// its line format (and, on a board UART, its kernel RS485 mode), or a TCP connection
+/// (Modbus TCP, or RTU frames over TCP). Opening again connects again. A [`Bus`]'s opener
+/// unless it is given another ([`Bus::with_opener`]).
+///
+/// [`Bus`]: crate::Bus
+/// [`Bus::with_opener`]: crate::Bus::with_opener
 ///
 /// # Errors
-/// [`Error::InvalidArgument`] for a malformed `scheme://` port, before anything is opened;
 /// [`Error::Port`] if the port cannot be opened or the connection made.
-pub fn open(
-    port: &str,
-    line: &LineFormat,
-    rs485: Option<&Rs485>,
-) -> crate::Result<Box<dyn Transport>> {
-    let endpoint = parse_endpoint(port).map_err(Error::InvalidArgument)?;
-    let (host, tcp_port) = match &endpoint {
+pub fn open(config: &BusConfig) -> crate::Result<Box<dyn Transport>> {
+    let endpoint = config.endpoint();
+    let (host, tcp_port) = match endpoint {
         Endpoint::Serial(path) => {
-            return match SerialTransport::open_with(path, line, rs485) {
+            return match SerialTransport::open_with(path, &config.line, config.rs485.as_ref()) {
                 Ok(transport) => Ok(Box::new(transport)),
                 Err(e) => Err(Error::Port {
-                    port: port.to_string(),
+                    port: config.port().to_string(),
                     message: format!("cannot open: {}", describe_open_error(&e)),
                     source: None,
                 }),
@@ -201,7 +203,7 @@ pub fn open(
     match TcpTransport::connect(host, tcp_port) {
         Ok(transport) => Ok(Box::new(transport)),
         Err(e) => Err(Error::Port {
-            port: port.to_string(),
+            port: config.port().to_string(),
             message: format!(
                 "cannot connect to {}: {}",
                 endpoint.address(),
@@ -219,6 +221,7 @@ const EXPECTED: &str = "expected a serial port path (/dev/ttyUSB0), tcp://HOST[:
                         address such as [::1]";
 
 /// Parses a Bus's port string: a serial path, `tcp://HOST[:PORT]` or `rtu+tcp://HOST:PORT`.
+/// A Bus's is parsed once, by [`BusConfig::new`]; what comes after takes the [`Endpoint`].
 ///
 /// Pure (no name lookup, nothing opened). The scheme is matched without regard to case.
 /// HOST is a DNS name (letters, digits, `-`, `_`, dot-separated labels), an IPv4 address,

@@ -9,7 +9,7 @@
 //! [`port_lost`]: the Bus drops it, and [`Bus::reopen`](crate::Bus::reopen)
 //! or a reconnecting Bus connects again.
 
-use super::{port_lost, Transport};
+use super::{host_port, port_lost, Transport};
 use std::io::{self, Read, Write};
 use std::net::{SocketAddr, TcpStream, ToSocketAddrs};
 #[cfg(unix)]
@@ -62,11 +62,7 @@ impl TcpTransport {
     /// The I/O error of the last address tried (see [`describe_connect_error`]), or of the
     /// name lookup.
     pub fn connect(host: &str, port: u16) -> io::Result<TcpTransport> {
-        let peer = if host.contains(':') {
-            format!("[{host}]:{port}")
-        } else {
-            format!("{host}:{port}")
-        };
+        let peer = host_port(host, port);
         let addrs: Vec<SocketAddr> = (host, port)
             .to_socket_addrs()
             .map_err(|e| io::Error::new(e.kind(), format!("cannot resolve {host:?}: {e}")))?

@@ -163,7 +163,7 @@ pub fn with_crc(body: &[u8]) -> Vec<u8> {
 pub fn mock(acts: Vec<Act>, retries: u32) -> (Scripted, BusConfig) {
     let t = Scripted::default();
     t.0.lock().unwrap().acts = acts.into();
-    let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1));
+    let mut cfg = BusConfig::new("mock", LineFormat::new(19_200, Parity::None, 1)).unwrap();
     cfg.retries = retries;
     cfg.timeout = Duration::from_millis(5);
     cfg.turnaround = Duration::ZERO;
@@ -195,7 +195,7 @@ pub fn reopenable_bus(acts: Vec<Act>, retries: u32, reconnect: bool) -> (Bus, Sc
             s.open_attempts += 1;
             if s.absent {
                 return Err(Error::Port {
-                    port: cfg.port.clone(),
+                    port: cfg.port().to_string(),
                     message: "cannot open: No such file or directory".into(),
                     source: None,
                 });
@@ -218,7 +218,7 @@ pub fn serial_bus(acts: Vec<Act>, baudrate: u32, byte_time: Duration) -> (Bus, S
         s.acts = acts.into();
         s.byte_time = Some(byte_time);
     }
-    let mut cfg = BusConfig::new("mock", LineFormat::new(baudrate, Parity::None, 1));
+    let mut cfg = BusConfig::new("mock", LineFormat::new(baudrate, Parity::None, 1)).unwrap();
     cfg.retries = 0;
     cfg.timeout = Duration::from_millis(20);
     (Bus::with_transport(cfg, Box::new(t.clone())), t)
