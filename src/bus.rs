@@ -24,10 +24,10 @@
 //! the Bus does that itself, once per call, before the call's request goes out.
 
 use crate::codec::{
-    ascii, check_echo, exception_meaning, is_gateway_exception, DeviceIdentification, Echo,
+    ascii, check_echo, exception_meaning, hex, is_gateway_exception, DeviceIdentification, Echo,
     FrameError, Framing, Needed, Reply, Request, Response, BROADCAST,
 };
-use crate::error::{hex, Error, Result};
+use crate::error::{Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard, Turnarounds, WritePacing};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
 use crate::transport::{check_line_options, is_lost, open, Framed, Transport};

@@ -21,9 +21,9 @@ use crate::codec::pdu::{
     Request, MAX_FILE_RECORD, MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT,
     MAX_WRITE_BITS, MAX_WRITE_COUNT,
 };
-use crate::codec::{mbap, Echo, FrameError, Framing};
+use crate::codec::{hex, mbap, Echo, FrameError, Framing};
 use crate::device::Device;
-use crate::error::{hex, Error};
+use crate::error::Error;
 use crate::timing::{LineFormat, Parity};
 use crate::transport::parse_endpoint;
 use crate::transport::tuning::Rs485;
