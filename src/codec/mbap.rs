@@ -91,8 +91,8 @@ pub fn reply_needed(buf: &[u8]) -> Needed {
 
 /// Decodes a complete reply `frame` (`length | unit | PDU`, as [`reply_needed`] measured it)
 /// to `request` sent to `unit`: its `unit | PDU` is checked by the PDU layer (unit,
-/// function, byte count, length, in [`reply::decode`]'s order), and its length
-/// must count exactly the bytes that reply has. A raw request's reply of no known length
+/// function, byte count, length, in [`reply::decode`]'s order), and its length must count
+/// exactly the bytes that reply has. A raw request's reply of no known length
 /// ([`Request::Raw`] without `reply_length`) is all the length counts.
 ///
 /// # Errors
