@@ -24,10 +24,10 @@
 //! the Bus does that itself, once per call, before the call's request goes out.
 
 use crate::codec::{
-    ascii, check_echo, exception_meaning, is_gateway_exception, DeviceIdentification, Echo,
+    ascii, check_echo, exception_meaning, hex, is_gateway_exception, DeviceIdentification, Echo,
     FrameError, Framing, Needed, Reply, Request, Response, BROADCAST,
 };
-use crate::error::{hex, Error, Result};
+use crate::error::{Error, Result};
 use crate::timing::{sleep_until, LineFormat, SilenceGuard, Turnarounds, WritePacing};
 use crate::transport::tuning::{check_rs485_platform, Rs485};
 use crate::transport::{
@@ -849,44 +849,6 @@ impl Bus {
         Ok(all)
     }
 
-    /// Writes one register on every unit (unit 0): [`Bus::broadcast`] of a 0x06.
-    ///
-    /// # Errors
-    /// As [`Bus::broadcast`].
-    pub fn broadcast_write_register(&self, address: u16, value: u16) -> Result<()> {
-        self.broadcast(&Request::WriteSingleRegister { address, value })
-    }
-
-    /// Writes consecutive registers on every unit (unit 0): [`Bus::broadcast`] of a 0x10.
-    ///
-    /// # Errors
-    /// As [`Bus::broadcast`].
-    pub fn broadcast_write_registers(&self, address: u16, values: &[u16]) -> Result<()> {
-        self.broadcast(&Request::WriteMultipleRegisters {
-            address,
-            values: values.to_vec(),
-        })
-    }
-
-    /// Sets one coil on every unit (unit 0): [`Bus::broadcast`] of a 0x05.
-    ///
-    /// # Errors
-    /// As [`Bus::broadcast`].
-    pub fn broadcast_write_coil(&self, address: u16, value: bool) -> Result<()> {
-        self.broadcast(&Request::WriteSingleCoil { address, value })
-    }
-
-    /// Sets consecutive coils on every unit (unit 0): [`Bus::broadcast`] of a 0x0F.
-    ///
-    /// # Errors
-    /// As [`Bus::broadcast`].
-    pub fn broadcast_write_coils(&self, address: u16, values: &[bool]) -> Result<()> {
-        self.broadcast(&Request::WriteMultipleCoils {
-            address,
-            values: values.to_vec(),
-        })
-    }
-
     /// Sends a write `request` to every unit (unit 0). Waits for no reply, then keeps the
     /// line quiet for the turnaround delay; any answer a device sends anyway is dropped. A
     /// broadcast is a write to every unit: it waits out each unit's write interval, and the
@@ -988,7 +950,7 @@ impl Bus {
         self.owned()?;
         if !UNITS.contains(&unit) {
             return Err(Error::InvalidArgument(format!(
-                "unit must be 1 to 255, got {unit} (unit 0 is broadcast: use broadcast_write_register)"
+                "unit must be 1 to 255, got {unit} (unit 0 is broadcast: use Bus::broadcast)"
             )));
         }
         request.validate()?;

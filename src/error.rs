@@ -1,7 +1,7 @@
 //! The crate's one error type. Each variant keeps its evidence: the unit, the function and
 //! the raw frame, so the caller (and the Python exception built from it) can show them.
 
-use crate::codec::{FrameError, RequestError};
+use crate::codec::{hex, FrameError, RequestError};
 use std::time::Duration;
 
 /// Result with the crate's [`Error`].
@@ -179,18 +179,6 @@ pub fn guarded<T>(f: impl FnOnce() -> Result<T>) -> Result<T> {
         log::error!(target: "benchbus", "internal error (panic) caught: {message}");
         Err(Error::Internal(message))
     })
-}
-
-/// Bytes as space-separated uppercase hex, the way the manuals print frames.
-pub fn hex(bytes: &[u8]) -> String {
-    let mut s = String::with_capacity(bytes.len() * 3);
-    for (i, b) in bytes.iter().enumerate() {
-        if i > 0 {
-            s.push(' ');
-        }
-        s.push_str(&format!("{b:02X}"));
-    }
-    s
 }
 
 fn tries(attempts: u32) -> String {

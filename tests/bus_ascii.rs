@@ -6,7 +6,7 @@
 mod common;
 
 use benchbus::bus::{Bus, BusConfig, TxOptions};
-use benchbus::codec::{ascii, FrameError};
+use benchbus::codec::{ascii, FrameError, Request};
 use benchbus::timing::{LineFormat, Parity};
 use benchbus::Error;
 use common::{mock, sent, Act, Scripted};
@@ -329,7 +329,11 @@ fn a_frame_that_never_ends_or_a_flood_of_noise_fails_without_a_panic() {
 #[test]
 fn a_broadcast_goes_out_to_unit_zero_in_ascii() {
     let (bus, t) = ascii_bus(vec![], 0);
-    bus.broadcast_write_register(1, 3).unwrap();
+    bus.broadcast(&Request::WriteSingleRegister {
+        address: 1,
+        value: 3,
+    })
+    .unwrap();
     assert_eq!(sent(&t), [b":000600010003F6\r\n".to_vec()]);
 }
 

@@ -7,7 +7,7 @@
 //! caller's attempt may be on the line.
 
 use benchbus::bus::{Bus, BusConfig, CancelToken, TxOptions};
-use benchbus::codec::crc16;
+use benchbus::codec::{crc16, Request};
 use benchbus::timing::{LineFormat, Parity};
 use benchbus::transport::Transport;
 use benchbus::Error;
@@ -333,7 +333,10 @@ fn a_cancelled_token_fails_every_call_under_it_at_once() {
             assert!(start.elapsed() < Duration::from_millis(20));
         }
         assert!(matches!(
-            bus.broadcast_write_register(0, 1),
+            bus.broadcast(&Request::WriteSingleRegister {
+                address: 0,
+                value: 1
+            }),
             Err(Error::Cancelled {
                 unit: 0,
                 attempts: 0,

@@ -3,7 +3,7 @@
 mod common;
 
 use benchbus::bus::TxOptions;
-use benchbus::codec::{Echo, FrameError};
+use benchbus::codec::{Echo, FrameError, Request};
 use benchbus::Error;
 use common::{bus, with_crc, Act};
 use std::time::Duration;
@@ -396,9 +396,11 @@ fn a_lost_port_fails_at_once_and_stays_lost_without_reconnect() {
     t.0.lock().unwrap().lost = false;
     let e = read(&bus).unwrap_err();
     assert!(port_message(&e).starts_with("lost earlier (hung up"), "{e}");
-    assert!(
-        bus.broadcast_write_register(0, 1).is_err() && bus.probe(1, 0, Duration::ZERO).is_err()
-    );
+    let write = Request::WriteSingleRegister {
+        address: 0,
+        value: 1,
+    };
+    assert!(bus.broadcast(&write).is_err() && bus.probe(1, 0, Duration::ZERO).is_err());
     // No timeout waited out (5 ms x 3 attempts per call), nothing sent, no reopen tried.
     assert!(
         start.elapsed() < Duration::from_millis(5),
@@ -764,12 +766,16 @@ fn is_local_echo(e: &Error) -> bool {
 fn a_broadcast_with_a_garbled_echo_keeps_its_turnaround() {
     let (bus, t) = common::echo_bus(vec![], 0);
     t.0.lock().unwrap().garble_echo = 1;
-    let e = bus.broadcast_write_register(1, 5).unwrap_err();
+    let write = Request::WriteSingleRegister {
+        address: 1,
+        value: 5,
+    };
+    let e = bus.broadcast(&write).unwrap_err();
     assert!(is_local_echo(&e), "{e:?}");
     let s = bus.stats();
     assert_eq!((s.broadcasts, s.frame_errors), (1, 1));
     assert_eq!(common::sent(&t).len(), 1, "a broadcast is not repeated");
-    bus.broadcast_write_register(1, 5).unwrap();
+    bus.broadcast(&write).unwrap();
     assert_eq!(bus.stats().broadcasts, 2);
 }
 
@@ -808,7 +814,11 @@ fn an_unanswered_write_whose_echo_stays_garbled_fails_after_its_attempts() {
 #[test]
 fn a_multiple_register_broadcast_goes_to_unit_0_once_and_waits_no_reply() {
     let (bus, t) = bus(vec![], 2);
-    bus.broadcast_write_registers(0x2000, &[1, 0x0203]).unwrap();
+    bus.broadcast(&Request::WriteMultipleRegisters {
+        address: 0x2000,
+        values: vec![1, 0x0203],
+    })
+    .unwrap();
     assert_eq!(
         common::sent(&t),
         vec![with_crc(&common::hex("00 10 20 00 00 02 04 00 01 02 03"))]
@@ -817,10 +827,22 @@ fn a_multiple_register_broadcast_goes_to_unit_0_once_and_waits_no_reply() {
     assert_eq!((s.broadcasts, s.transactions, s.timeouts), (1, 1, 0));
     // Malformed writes and reads are refused before anything is sent.
     for e in [
-        bus.broadcast_write_registers(0, &[]).unwrap_err(),
-        bus.broadcast_write_registers(0, &[0; 124]).unwrap_err(),
-        bus.broadcast_write_registers(0xFFFF, &[1, 2]).unwrap_err(),
-        bus.broadcast(&benchbus::codec::Request::ReadHoldingRegisters {
+        bus.broadcast(&Request::WriteMultipleRegisters {
+            address: 0,
+            values: vec![],
+        })
+        .unwrap_err(),
+        bus.broadcast(&Request::WriteMultipleRegisters {
+            address: 0,
+            values: vec![0; 124],
+        })
+        .unwrap_err(),
+        bus.broadcast(&Request::WriteMultipleRegisters {
+            address: 0xFFFF,
+            values: vec![1, 2],
+        })
+        .unwrap_err(),
+        bus.broadcast(&Request::ReadHoldingRegisters {
             address: 0,
             count: 1,
         })

@@ -6,7 +6,7 @@
 mod common;
 
 use benchbus::bus::TxOptions;
-use benchbus::codec::FrameError;
+use benchbus::codec::{FrameError, Request};
 use benchbus::Error;
 use common::{hex, sent, with_crc, Act};
 use std::time::{Duration, Instant};
@@ -306,14 +306,22 @@ fn raw_requests_by_length_by_silence_and_their_exceptions() {
 #[test]
 fn coil_broadcasts_go_to_unit_zero_and_await_nothing() {
     let (bus, t) = common::bus(vec![], 0);
-    bus.broadcast_write_coil(172, true).unwrap();
-    bus.broadcast_write_coils(19, &[true, false, true]).unwrap();
+    bus.broadcast(&Request::WriteSingleCoil {
+        address: 172,
+        value: true,
+    })
+    .unwrap();
+    bus.broadcast(&Request::WriteMultipleCoils {
+        address: 19,
+        values: vec![true, false, true],
+    })
+    .unwrap();
     assert_eq!(
         sent(&t),
         [frame("00 05 00 AC FF 00"), frame("00 0F 00 13 00 03 01 05")]
     );
     assert_eq!(bus.stats().broadcasts, 2);
-    let read = benchbus::codec::Request::ReadCoils {
+    let read = Request::ReadCoils {
         address: 0,
         count: 1,
     };
@@ -394,7 +402,10 @@ fn bad_input_is_refused_before_anything_is_sent() {
         ("unit 0", bus.read_coils(0, 0, 1, &OPTS).map(drop)),
         (
             "broadcast coils 1969",
-            bus.broadcast_write_coils(0, &[true; 1969]),
+            bus.broadcast(&Request::WriteMultipleCoils {
+                address: 0,
+                values: vec![true; 1969],
+            }),
         ),
     ];
     for (what, result) in refused {

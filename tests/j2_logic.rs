@@ -4,6 +4,7 @@
 mod common;
 
 use benchbus::bus::TxOptions;
+use benchbus::codec::Request;
 use benchbus::device::j2::{blocks, J2, WRITE_INTERVAL};
 use benchbus::device::Device;
 use benchbus::Error;
@@ -254,7 +255,12 @@ fn a_broadcast_counts_as_a_write_to_every_unit() {
     let (c, t) = j2(vec![echo(8, 1), Act::Silent, echo(8, 2)], 0);
     c.write("AL1", 0.1).expect("write");
     let start = Instant::now();
-    c.bus().broadcast_write_register(10, 7).expect("broadcast");
+    c.bus()
+        .broadcast(&Request::WriteSingleRegister {
+            address: 10,
+            value: 7,
+        })
+        .expect("broadcast");
     // The broadcast waited out unit 1's interval, and the next write waits after it.
     assert!(start.elapsed() >= WRITE_INTERVAL);
     let after = Instant::now();

@@ -3,7 +3,7 @@
 //! (`rtu+tcp://`). Every socket wait in the fake gateway is bounded by `BOUND`.
 
 use benchbus::bus::{Bus, BusConfig, TxOptions};
-use benchbus::codec::{crc16, FrameError};
+use benchbus::codec::{crc16, FrameError, Request};
 use benchbus::timing::{LineFormat, Parity};
 use benchbus::transport::is_lost;
 use benchbus::Error;
@@ -144,7 +144,11 @@ fn mbap_broadcast_is_sent_and_awaits_no_reply() {
         (broadcast, next)
     });
     let bus = Bus::open(config(&format!("tcp://127.0.0.1:{port}"), 1000, 0)).unwrap();
-    bus.broadcast_write_register(0x0001, 0x0002).unwrap();
+    bus.broadcast(&Request::WriteSingleRegister {
+        address: 0x0001,
+        value: 0x0002,
+    })
+    .unwrap();
     assert_eq!(read(&bus).unwrap(), vec![7]);
     let (broadcast, next) = join(server);
     assert_eq!(broadcast, [0, 1, 0, 0, 0, 6, 0, 6, 0, 1, 0, 2]);

@@ -180,7 +180,10 @@ mod tests {
         assert!(message.contains("gateway"), "{message}");
         assert!(matches!(read(&bus), Err(Error::Forked { .. })));
         assert!(matches!(
-            bus.broadcast_write_register(0, 1),
+            bus.broadcast(&Request::WriteSingleRegister {
+                address: 0,
+                value: 1
+            }),
             Err(Error::Forked { .. })
         ));
         assert!(matches!(
@@ -260,7 +263,11 @@ mod tests {
         let outcome = within_bound(move || {
             [
                 read(&b).err(),
-                b.broadcast_write_register(0, 1).err(),
+                b.broadcast(&Request::WriteSingleRegister {
+                    address: 0,
+                    value: 1,
+                })
+                .err(),
                 b.probe(1, 0, Duration::from_millis(10)).err(),
                 b.reopen().err(),
                 b.exclusive(1, || read(&b)).err(),

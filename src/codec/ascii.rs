@@ -5,20 +5,23 @@
 //! new frame, the one begun is dropped) and 6.2.1 (LRC: the two's complement of the 8-bit
 //! sum of unit and PDU bytes). The LRC is one byte, sent as two hex characters.
 //!
-//! The unit | PDU inside a frame is the same as in RTU, so the PDU-level rules (how long a
-//! reply is, how it decodes) are RTU's for `unit | PDU` with no CRC; this module puts the
-//! hex text around them:
+//! The unit | PDU inside a frame is the same as in RTU, so the PDU layer's rules (how long a
+//! reply is, how it decodes: [`super::reply`]) read it as they read RTU's, with no CRC;
+//! this module puts the hex text around it:
 //!
 //! - [`encode`] / [`encode_request`]: a whole frame to send;
 //! - [`seen`] and [`complete`]: where the first frame in received characters begins and
 //!   ends (the rules above, with no state: what a reader that keeps every character needs),
 //!   and its `unit | PDU` once it has ended;
 //! - [`reply_needed`], [`decode_reply`], [`unit_of`]: a reply read from such a buffer, the
-//!   way [`Framing::reply_needed`] and [`Framing::decode_reply`] read RTU;
+//!   way [`super::Framing::reply_needed`] and [`super::Framing::decode_reply`] read RTU;
 //! - [`Receiver`]: an incremental receiver that is fed characters and hands out each
 //!   frame's `unit | PDU` (or why it was rejected), counting the characters outside frames.
 
-use super::{rtu, FrameError, Framing, Needed, Reply, Request};
+pub use super::error::AsciiError;
+use super::error::FrameError;
+use super::pdu::Request;
+use super::reply::{self, Needed, Reply, Trailer};
 use std::time::Duration;
 
 /// The character that begins a frame.
@@ -28,11 +31,11 @@ pub const END: [u8; 2] = *b"\r\n";
 /// Longest frame, in characters: `:`, 255 bytes as hex (unit, 253 bytes of PDU, LRC), CR LF
 /// (serial line spec 2.5.2.1).
 pub const MAX_FRAME: usize = 513;
-/// Longest `unit | PDU` a frame carries: the RTU frame's, [`super::rtu::MAX_UNIT_PDU`].
+/// Longest `unit | PDU` a frame carries: the PDU layer's, [`reply::MAX_UNIT_PDU`].
 pub const MAX_UNIT_PDU: usize = (MAX_FRAME - 1 - END.len()) / 2 - 1;
 /// Shortest `unit | PDU` a frame carries: unit and function code.
 const MIN_UNIT_PDU: usize = 2;
-const _: () = assert!(MAX_UNIT_PDU == super::rtu::MAX_UNIT_PDU);
+const _: () = assert!(MAX_UNIT_PDU == reply::MAX_UNIT_PDU);
 
 /// The longest gap between two characters of an ASCII frame (serial line spec 2.5.2.1
 /// allows up to one second). Unlike RTU, where a gap of t1.5 ends a frame, an ASCII frame
@@ -72,40 +75,7 @@ pub fn encode(unit_pdu: &[u8]) -> Vec<u8> {
 
 /// The ASCII frame of `request` to `unit` (0: broadcast), as it goes to the wire.
 pub fn encode_request(unit: u8, request: &Request) -> Vec<u8> {
-    encode(&Framing::Mbap.encode_request(unit, request))
-}
-
-/// Why an ASCII frame was rejected.
-#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
-pub enum AsciiError {
-    /// A character between `:` and CR LF that is not a hex digit.
-    #[error("character {byte:#04x} at {at} of an ASCII frame is not a hex digit")]
-    BadChar {
-        /// Its index in the frame (the `:` is 0).
-        at: usize,
-        /// The character.
-        byte: u8,
-    },
-    /// An odd number of hex digits: the last byte is cut in half.
-    #[error("ASCII frame with an odd number of hex digits ({0})")]
-    OddLength(usize),
-    /// The LRC does not match the frame's contents.
-    #[error("LRC mismatch: computed {computed:#04x}, received {received:#04x}")]
-    Lrc {
-        /// LRC computed over unit and PDU.
-        computed: u8,
-        /// LRC carried by the frame.
-        received: u8,
-    },
-    /// A frame of this many characters without its end, over the longest (513).
-    #[error("ASCII frame of {0} characters without its end (513 at most)")]
-    TooLong(usize),
-    /// Fewer bytes than a unit, a function code and the LRC.
-    #[error("ASCII frame too short: {0} bytes with the LRC, 3 at least")]
-    TooShort(usize),
-    /// No whole frame (`:` to CR LF) in these characters.
-    #[error("no complete ASCII frame (':' to CR LF) in {0} characters")]
-    Incomplete(usize),
+    encode(&request.unit_pdu(unit))
 }
 
 /// The value of a hex digit, either case.
@@ -246,15 +216,17 @@ pub fn unit_of(buf: &[u8]) -> Option<u8> {
 /// How many more characters a reply to `request` needs, given the characters `buf`
 /// received so far (noise before the `:` included): [`Needed::Complete`] with the index
 /// just past the LF once the frame has ended; else [`Needed::More`] by the reply's length
-/// as far as its `unit | PDU` tells it (as [`rtu::reply_needed`] reads it), and at least its LRC and
-/// CR LF; [`Needed::Unknown`] once it is too long to be a frame.
+/// as far as its `unit | PDU` tells it ([`reply::needed`]), and at least its LRC and CR
+/// LF; [`Needed::Unknown`] once it is too long to be a frame.
 ///
 /// Reading exactly the characters asked never reads past the end of the frame, which ends
 /// at its CR LF whatever its length: a reply the PDU-level rules cannot size (another
 /// function, a byte count the request does not call for) is still read to its end, two
 /// characters at a time at least.
 pub fn reply_needed(request: &Request, buf: &[u8]) -> Needed {
-    needed_by(buf, |unit_pdu| rtu::unit_pdu_needed(request, unit_pdu))
+    needed_by(buf, |unit_pdu| {
+        reply::needed(request, unit_pdu, Trailer::NONE)
+    })
 }
 
 /// [`reply_needed`] with the `unit | PDU` lengths given by `pdu_needed`.
@@ -288,7 +260,7 @@ fn needed_by(buf: &[u8], pdu_needed: impl Fn(&[u8]) -> Needed) -> Needed {
 
 /// Decodes the reply to `request` from `unit` in `buf`, characters as received: the first
 /// frame in it ([`seen`]; noise before its `:` is skipped), its framing checked
-/// ([`decode`]), then its `unit | PDU` as [`rtu::decode_reply`] checks it (without a CRC).
+/// ([`decode`]), then its `unit | PDU` ([`reply::decode`]).
 ///
 /// # Errors
 /// The framing's [`AsciiError`] (no whole frame in `buf` is [`AsciiError::Incomplete`],
@@ -302,7 +274,7 @@ where
         return Err(AsciiError::Incomplete(buf.len()).into());
     };
     let unit_pdu = unit_pdu?;
-    Ok(rtu::decode_unit_pdu(unit, request, &unit_pdu)?)
+    Ok(reply::decode(unit, request, &unit_pdu, Trailer::NONE)?)
 }
 
 /// An incremental ASCII receiver: fed the characters of a line as they come, it hands out
@@ -382,7 +354,8 @@ impl Receiver {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::codec::{Response, BROADCAST};
+    use crate::codec::pdu::Response;
+    use crate::codec::rtu::BROADCAST;
 
     /// Read holding registers 0x006B..0x006D of unit 0x11 (the RTU example `11 03 00 6B 00
     /// 03`), in ASCII: 0x11 + 0x03 + 0x6B + 0x03 = 0x82, LRC 0x7E.

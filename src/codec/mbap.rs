@@ -15,8 +15,9 @@
 //! the reply the request calls for. Like the rest of the codec it touches no port and no
 //! clock.
 
-use super::rtu::{self, FrameError, Needed, Reply};
-use super::Request;
+use super::error::FrameError;
+use super::pdu::Request;
+use super::reply::{self, Needed, Reply, Trailer, MAX_UNIT_PDU};
 use std::collections::VecDeque;
 use std::ops::RangeInclusive;
 
@@ -30,7 +31,7 @@ pub const PREFIX: usize = 6;
 
 /// The MBAP length field's sane range: unit id + function code at least, unit id + the
 /// longest PDU (253 bytes) at most.
-pub const LENGTH: RangeInclusive<usize> = 2..=254;
+pub const LENGTH: RangeInclusive<usize> = 2..=MAX_UNIT_PDU;
 
 /// The Modbus protocol id (any other is another protocol on the same port).
 pub const MODBUS_PROTOCOL: u16 = 0;
@@ -69,9 +70,6 @@ pub fn encode(tid: u16, adu: &[u8]) -> Vec<u8> {
 /// PDU`).
 pub const LENGTH_FIELD: usize = 2;
 
-// The longest reply so read fits in the longest frame the Bus reads (an RTU frame's 256).
-const _: () = assert!(LENGTH_FIELD + *LENGTH.end() <= rtu::MAX_ADU);
-
 /// How many more bytes a reply needs, given the bytes `buf` of it received so far, as a
 /// [`Session`] hands them out: `length | unit | PDU`. The length field alone tells:
 /// [`Needed::More`] until it and the bytes it counts have come, then [`Needed::Complete`];
@@ -92,9 +90,9 @@ pub fn reply_needed(buf: &[u8]) -> Needed {
 }
 
 /// Decodes a complete reply `frame` (`length | unit | PDU`, as [`reply_needed`] measured it)
-/// to `request` sent to `unit`: its `unit | PDU` as an RTU reply without a CRC is checked
-/// (unit, function, byte count, length, in [`rtu::decode_reply`]'s order), and its length
-/// must count exactly the bytes that reply has. A raw request's reply of no known length
+/// to `request` sent to `unit`: its `unit | PDU` is checked by the PDU layer (unit,
+/// function, byte count, length, in [`reply::decode`]'s order), and its length must count
+/// exactly the bytes that reply has. A raw request's reply of no known length
 /// ([`Request::Raw`] without `reply_length`) is all the length counts.
 ///
 /// # Errors
@@ -111,22 +109,27 @@ pub fn decode_reply(unit: u8, request: &Request, frame: &[u8]) -> Result<Reply, 
             unit_pdu.len()
         )));
     }
-    match rtu::unit_pdu_needed(request, unit_pdu) {
+    match reply::needed(request, unit_pdu, Trailer::NONE) {
         // The reply ends before the bytes the length counts do: what is wrong within it is
         // told first (another unit, a byte count...), else the length.
-        Needed::Complete(reply) if reply < length => {
-            rtu::decode_unit_pdu(unit, request, unit_pdu.get(..reply).unwrap_or(unit_pdu))?;
-            let extra = length - reply;
+        Needed::Complete(whole) if whole < length => {
+            reply::decode(
+                unit,
+                request,
+                unit_pdu.get(..whole).unwrap_or(unit_pdu),
+                Trailer::NONE,
+            )?;
+            let extra = length - whole;
             Err(FrameError::Length(format!(
                 "MBAP length {length} counts {extra} byte{} more than the reply to function \
-                 {:#04x} has (unit + PDU: {reply} bytes)",
+                 {:#04x} has (unit + PDU: {whole} bytes)",
                 if extra == 1 { "" } else { "s" },
                 request.function()
             )))
         }
         // The same length, one too short (the decoder says what is missing), or a reply of
         // no known length: its checks tell.
-        _ => rtu::decode_unit_pdu(unit, request, unit_pdu),
+        _ => reply::decode(unit, request, unit_pdu, Trailer::NONE),
     }
 }
 
@@ -569,7 +572,7 @@ mod tests {
         let exact = &MBAP_REPLY[4..];
         assert_eq!(
             decode_reply(1, &READ_ONE, exact),
-            Ok(Reply::Normal(super::super::Response::Registers(vec![
+            Ok(Reply::Normal(super::super::pdu::Response::Registers(vec![
                 0x1234
             ])))
         );
@@ -619,7 +622,7 @@ mod tests {
         };
         assert_eq!(
             decode_reply(1, &raw, &[0x00, 0x05, 0x01, 0x41, 0xAA, 0xBB, 0xCC]),
-            Ok(Reply::Normal(super::super::Response::Raw(vec![
+            Ok(Reply::Normal(super::super::pdu::Response::Raw(vec![
                 0xAA, 0xBB, 0xCC
             ])))
         );

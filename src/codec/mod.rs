@@ -1,22 +1,31 @@
 //! Sans-IO Modbus codec: requests to bytes, bytes to replies. No clock, no port, no Python.
 //!
-//! [`pdu`] holds the protocol data units (function codes and their data), [`rtu`] the serial
-//! framing (unit address and CRC) and the incremental reply decoder, [`mbap`] the Modbus TCP
-//! framing (MBAP header, transaction ids) and the session that carries RTU frames over it.
-//! Which framing an endpoint speaks is [`Framing`].
+//! [`pdu`] holds the protocol data units (function codes and their data) and [`reply`] the
+//! PDU layer's reading of replies (how many bytes a reply needs, what it says, a write's
+//! echo), for `unit | PDU` as every framing carries it. The framings only wrap and unwrap
+//! it: [`rtu`] the serial framing (unit address and CRC), [`ascii`] Modbus ASCII (hex
+//! characters and LRC), [`mbap`] the Modbus TCP framing (MBAP header, transaction ids) and
+//! the session that carries requests and replies over it. Which framing an endpoint speaks
+//! is [`Framing`]. Why a frame is refused is a [`FrameError`].
+
+mod error;
 
 pub mod ascii;
 pub mod mbap;
 pub mod pdu;
+pub mod reply;
 pub mod rtu;
 
+pub use error::{hex, FrameError};
 pub use pdu::{
     exception_meaning, is_gateway_exception, DeviceIdentification, Request, RequestError, Response,
 };
-pub use rtu::{
-    check_echo, check_header, crc16, decode_reply, encode_request, reply_needed, Echo, FrameError,
-    Needed, Reply, BROADCAST,
-};
+pub use reply::{check_echo, check_header, Echo, Needed, Reply};
+pub use rtu::{crc16, decode_reply, encode_request, reply_needed, BROADCAST};
+
+// The longest reply the Bus reads over Modbus TCP (`length | unit | PDU`, as the session
+// hands it out) fits in the longest frame it reads (an RTU frame).
+const _: () = assert!(mbap::LENGTH_FIELD + *mbap::LENGTH.end() <= rtu::MAX_ADU);
 
 /// What frames cross a connection. The Bus builds `unit | PDU` and the framing's trailer:
 /// RTU frames go to the wire as they are, and over Modbus TCP the [`mbap`] session puts the
@@ -47,8 +56,9 @@ impl Framing {
     /// `unit | PDU` for the Modbus TCP session.
     pub fn encode_request(self, unit: u8, request: &Request) -> Vec<u8> {
         match self {
+            Framing::Rtu => rtu::encode_request(unit, request),
+            Framing::Mbap => request.unit_pdu(unit),
             Framing::Ascii => ascii::encode_request(unit, request),
-            _ => rtu::encode_in(self, unit, request),
         }
     }
 

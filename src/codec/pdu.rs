@@ -582,6 +582,15 @@ impl Request {
             Request::Raw { data, .. } => out.extend_from_slice(data),
         }
     }
+
+    /// `unit | PDU`: the request to `unit` (0: broadcast) as every framing carries it, RTU
+    /// with a CRC after it, Modbus ASCII as hex characters, Modbus TCP behind an MBAP header.
+    pub fn unit_pdu(&self, unit: u8) -> Vec<u8> {
+        let mut out = Vec::with_capacity(16);
+        out.push(unit);
+        self.encode(&mut out);
+        out
+    }
 }
 
 /// Appends `values` big-endian, as every Modbus field of two bytes goes.

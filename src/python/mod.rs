@@ -19,11 +19,12 @@ use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::ascii::AsciiError;
 use crate::codec::pdu::{
     Request, MAX_FILE_RECORD, MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT,
-    MAX_WRITE_BITS, MAX_WRITE_COUNT,
+    MAX_WRITE_BITS, MAX_WRITE_COUNT, WRITE_MULTIPLE_COILS, WRITE_MULTIPLE_REGISTERS,
+    WRITE_SINGLE_COIL, WRITE_SINGLE_REGISTER,
 };
-use crate::codec::{mbap, Echo, FrameError, Framing};
+use crate::codec::{hex, mbap, Echo, FrameError, Framing};
 use crate::device::Device;
-use crate::error::{hex, Error};
+use crate::error::Error;
 use crate::timing::{LineFormat, Parity};
 use crate::transport::tuning::Rs485;
 use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
@@ -992,6 +993,43 @@ impl PyBus {
     ) -> PyResult<T> {
         on_wire(py, &self.bus, f)
     }
+
+    /// Sends the write `function` (0x05, 0x06, 0x0F or 0x10) from `address` to every unit
+    /// (unit 0) and waits no reply: `value` is one value, or a sequence for 0x0F and 0x10,
+    /// converted and checked as the write to one unit checks it. The `broadcast_write_*`
+    /// methods are this.
+    fn broadcast_write(
+        &self,
+        py: Python<'_>,
+        function: u8,
+        address: &Bound<'_, PyAny>,
+        value: &Bound<'_, PyAny>,
+    ) -> PyResult<()> {
+        let request = match function {
+            WRITE_SINGLE_REGISTER => Request::WriteSingleRegister {
+                address: u16_arg(address, "address")?,
+                value: u16_arg(value, "value")?,
+            },
+            WRITE_MULTIPLE_REGISTERS => {
+                let (address, values) = register_block(address, value)?;
+                Request::WriteMultipleRegisters { address, values }
+            }
+            WRITE_SINGLE_COIL => Request::WriteSingleCoil {
+                address: u16_arg(address, "address")?,
+                value: bool_arg(value, "value")?,
+            },
+            WRITE_MULTIPLE_COILS => {
+                let (address, values) = coil_block(address, value)?;
+                Request::WriteMultipleCoils { address, values }
+            }
+            _ => {
+                return Err(PyRuntimeError::new_err(format!(
+                    "unreachable: no broadcast write of function {function:#04x}"
+                )))
+            }
+        };
+        self.wire(py, |b| b.broadcast(&request))
+    }
 }
 
 #[pymethods]
@@ -1463,9 +1501,7 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         value: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let address = u16_arg(address, "address")?;
-        let value = u16_arg(value, "value")?;
-        self.wire(py, |b| b.broadcast_write_register(address, value))
+        self.broadcast_write(py, WRITE_SINGLE_REGISTER, address, value)
     }
 
     /// Writes 1..=123 consecutive registers from `address` on every unit (unit 0, function
@@ -1476,8 +1512,7 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         values: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let (address, values) = register_block(address, values)?;
-        self.wire(py, |b| b.broadcast_write_registers(address, &values))
+        self.broadcast_write(py, WRITE_MULTIPLE_REGISTERS, address, values)
     }
 
     /// Sets one coil on every unit (unit 0, function 0x05); waits no reply.
@@ -1487,9 +1522,7 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         value: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let address = u16_arg(address, "address")?;
-        let value = bool_arg(value, "value")?;
-        self.wire(py, |b| b.broadcast_write_coil(address, value))
+        self.broadcast_write(py, WRITE_SINGLE_COIL, address, value)
     }
 
     /// Sets 1..=1968 consecutive coils from `address` on every unit (unit 0, function
@@ -1500,8 +1533,7 @@ impl PyBus {
         address: &Bound<'_, PyAny>,
         values: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
-        let (address, values) = coil_block(address, values)?;
-        self.wire(py, |b| b.broadcast_write_coils(address, &values))
+        self.broadcast_write(py, WRITE_MULTIPLE_COILS, address, values)
     }
 
     /// The units among `units` that answer a read of register `address` within `timeout`

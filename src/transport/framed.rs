@@ -5,8 +5,7 @@
 
 use super::{port_lost, Endpoint, Transport};
 use crate::codec::mbap::{Dropped, Session};
-use crate::codec::Framing;
-use crate::error::hex;
+use crate::codec::{hex, Framing};
 use std::io;
 use std::time::{Duration, Instant};
 
