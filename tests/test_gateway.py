@@ -956,6 +956,27 @@ def test_coil_broadcasts_reach_every_unit(
     assert gateway.bus.stats.broadcasts == 2
 
 
+def test_a_mask_write_broadcast_reaches_every_unit(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    # 0x16 is one of the writes the Bus broadcasts (with 0x05, 0x06, 0x0F and 0x10); the
+    # units that have it (not the J2 controller) apply it.
+    for unit in (1, 2):
+        device = sim.devices[unit]
+        assert isinstance(device, RegisterDevice)
+        device.registers[4] = 0x12
+    with connect(gateway) as client:
+        # The specification's example (6.16): 0x12 AND 0xF2, OR 0x25 where not kept.
+        client.sendall(bytes.fromhex("00 05 00 00 00 08 00 16 00 04 00 F2 00 25"))
+        assert ask(client, 2, READ, tid=6) == bytes.fromhex("03 02 00 00")
+    assert [f[:-2] for f in sim.requests] == [
+        bytes.fromhex("00 16 00 04 00 F2 00 25"),
+        rtu_of(2, READ),
+    ]
+    assert [sim.peek(unit, 4) for unit in (1, 2)] == [[0x17], [0x17]]
+    assert gateway.bus.stats.broadcasts == 1
+
+
 @pytest.mark.parametrize("paced", [True, False])
 def test_write_intervals_hold_for_every_write_function(
     sim: Simulator[RegisterDevice | J2Device], paced: bool

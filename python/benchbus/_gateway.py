@@ -191,8 +191,9 @@ class Gateway:
     wrong length or byte count, or a count past the specification's limits, is answered
     exception 0x03 (illegal data value) and not sent; a function code 0 or 0x80 and up,
     0x01. Diagnostics sub-function 0x04 (force listen only) is sent once and not answered,
-    as no device answers it. Unit 0 with 0x05, 0x06, 0x0F or 0x10 is a broadcast: sent, not
-    answered (nor is any other request to unit 0). A failure on the line comes back as the
+    as no device answers it. Unit 0 with 0x05, 0x06, 0x0F, 0x10 or 0x16 (the writes the
+    Bus can broadcast) is a broadcast: sent, not answered (nor is any other request to unit
+    0, which is not sent). A failure on the line comes back as the
     gateway exceptions: 0x0B when the unit gave no valid reply (after the Bus's retries),
     0x0A when the serial port is lost or closed. An exception reply from the unit is passed
     on as it is.
@@ -738,31 +739,14 @@ class Gateway:
         return bytes([function]) + bus.request(unit, function, data, reply_length=reply_length)
 
     def _broadcast(self, function: int, data: bytes) -> None:
-        """Send a write to unit 0 (checked by :func:`_reply_length`), if the Bus can
-        broadcast it: 0x05, 0x06, 0x0F, 0x10. Any other broadcast is dropped."""
-        bus = self.bus
-        if function not in (0x05, 0x06, 0x0F, 0x10):
-            log.debug("gateway: broadcast of function %#04x not forwarded", function)
-            return
-        address, word = _words(data, 2)
+        """Send a write to unit 0 (checked by :func:`_reply_length`) as the Bus broadcasts
+        it: 0x05, 0x06, 0x0F, 0x10, 0x16. The Bus refuses any other (ValueError), unsent."""
         with self._pacer.hold(self._intervals):  # a write to every unit
-            if function == 0x05:
-                bus.broadcast_write_coil(address, word == _COIL_ON)
-            elif function == 0x06:
-                bus.broadcast_write_register(address, word)
-            elif function == 0x0F:
-                bits = data[5:]
-                bus.broadcast_write_coils(
-                    address, [bool(bits[i // 8] >> i % 8 & 1) for i in range(word)]
-                )
-            else:
-                bus.broadcast_write_registers(address, _words(data[5:], word))
+            self.bus._broadcast(function, data)
 
 
 #: Diagnostics (0x08) sub-function 0x04, force listen only: no device answers it.
 _FORCE_LISTEN_ONLY = b"\x00\x04"
-#: A coil's "on" in 0x05 (its "off" is 0x0000; anything else is no coil value).
-_COIL_ON = 0xFF00
 
 
 def _is_read(function: int, data: bytes) -> bool:
