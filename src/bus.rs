@@ -860,6 +860,16 @@ impl Bus {
     /// [`Error::Frame`] if the local echo was garbled (not repeated: whether the units got
     /// the write is not known; the turnaround is kept all the same).
     pub fn broadcast(&self, request: &Request) -> Result<()> {
+        self.broadcast_paced(request, Duration::ZERO)
+    }
+
+    /// [`Bus::broadcast`] as a write to units whose devices want `write_interval` between
+    /// two writes: it also waits that long after the last broadcast, for units that no
+    /// paced write has told the Bus of yet (a gateway's, which knows every unit's interval).
+    ///
+    /// # Errors
+    /// As [`Bus::broadcast`].
+    pub fn broadcast_paced(&self, request: &Request, write_interval: Duration) -> Result<()> {
         self.owned()?;
         if !request.is_echoed_write() {
             return Err(Error::InvalidArgument(format!(
@@ -873,7 +883,7 @@ impl Bus {
         let call = self.calls.fetch_add(1, Ordering::Relaxed);
         let ready = |st: &State| {
             let late = st.late_until(BROADCAST, call);
-            st.pacing.broadcast_ready().max(late)
+            st.pacing.broadcast_ready(write_interval).max(late)
         };
         let Some(mut st) = self.line(&Cancel::current(), ready) else {
             return Err(cancelled(BROADCAST, request, 0));

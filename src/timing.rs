@@ -238,13 +238,15 @@ impl WritePacing {
         last.max(self.last_broadcast).map(|at| at + interval)
     }
 
-    /// When a broadcast may go: every unit's own write interval has passed since its last
-    /// write, and the widest of them since the last broadcast; None if nothing holds it.
-    pub fn broadcast_ready(&self) -> Option<Instant> {
+    /// When a broadcast that wants `interval` between writes to every unit (for units it
+    /// may not have seen a write to yet) may go: every unit's own write interval has passed
+    /// since its last write, and the widest of them and `interval` since the last
+    /// broadcast; None if nothing holds it.
+    pub fn broadcast_ready(&self, interval: Duration) -> Option<Instant> {
         let widest = self.last_write.values().map(|&(_, i)| i).max();
         let after_broadcast = self
             .last_broadcast
-            .map(|at| at + widest.unwrap_or_default());
+            .map(|at| at + widest.unwrap_or_default().max(interval));
         self.last_write
             .values()
             .map(|&(at, interval)| at + interval)
@@ -940,26 +942,33 @@ mod tests {
         let t0 = Instant::now();
         let mut p = WritePacing::new();
         assert_eq!(p.write_ready(1, ms(150)), None);
-        assert_eq!(p.broadcast_ready(), None);
+        assert_eq!(p.broadcast_ready(ms(0)), None);
         p.wrote(1, ms(150), t0);
         assert_eq!(p.write_ready(1, ms(150)), Some(t0 + ms(150)));
         // Another unit is not held up by unit 1's writes.
         assert_eq!(p.write_ready(2, ms(150)), None);
         // A broadcast waits out unit 1's interval...
-        assert_eq!(p.broadcast_ready(), Some(t0 + ms(150)));
+        assert_eq!(p.broadcast_ready(ms(0)), Some(t0 + ms(150)));
         p.wrote(2, ms(0), t0 + ms(10));
-        assert_eq!(p.broadcast_ready(), Some(t0 + ms(150)));
+        assert_eq!(p.broadcast_ready(ms(0)), Some(t0 + ms(150)));
         // ...and every unit's next write waits its interval after the broadcast.
         p.broadcast(t0 + ms(200));
         assert_eq!(p.write_ready(1, ms(150)), Some(t0 + ms(350)));
         assert_eq!(p.write_ready(2, ms(20)), Some(t0 + ms(220)));
         // The next broadcast waits the widest interval any unit asked for.
-        assert_eq!(p.broadcast_ready(), Some(t0 + ms(350)));
+        assert_eq!(p.broadcast_ready(ms(0)), Some(t0 + ms(350)));
         // A unit's widest interval is kept even when a later write asks for less.
         p.wrote(1, ms(50), t0 + ms(400));
-        assert_eq!(p.broadcast_ready(), Some(t0 + ms(550)));
+        assert_eq!(p.broadcast_ready(ms(0)), Some(t0 + ms(550)));
         p.broadcast(t0 + ms(500));
-        assert_eq!(p.broadcast_ready(), Some(t0 + ms(650)));
+        assert_eq!(p.broadcast_ready(ms(0)), Some(t0 + ms(650)));
+        // A broadcast's own interval holds after the last broadcast too, for units no write
+        // has told the pacing of yet.
+        assert_eq!(p.broadcast_ready(ms(300)), Some(t0 + ms(800)));
+        let mut fresh = WritePacing::new();
+        fresh.broadcast(t0);
+        assert_eq!(fresh.broadcast_ready(ms(0)), Some(t0));
+        assert_eq!(fresh.broadcast_ready(ms(150)), Some(t0 + ms(150)));
     }
 
     #[test]

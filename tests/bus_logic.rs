@@ -6,7 +6,7 @@ use benchbus::bus::TxOptions;
 use benchbus::codec::{Echo, FrameError, Request};
 use benchbus::Error;
 use common::{bus, with_crc, Act};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 #[test]
 fn corrupt_reply_is_retried_and_recovers() {
@@ -851,6 +851,25 @@ fn a_multiple_register_broadcast_goes_to_unit_0_once_and_waits_no_reply() {
         assert!(matches!(e, Error::InvalidArgument(_)), "{e:?}");
     }
     assert_eq!(common::sent(&t).len(), 1);
+}
+
+#[test]
+fn a_paced_broadcast_waits_its_interval_after_the_last_broadcast() {
+    let (bus, t) = bus(vec![], 0);
+    let interval = Duration::from_millis(150);
+    let write = benchbus::codec::Request::WriteSingleRegister {
+        address: 8,
+        value: 1,
+    };
+    bus.broadcast_paced(&write, interval).unwrap();
+    let first = Instant::now();
+    // No unit was written with its interval yet: only the broadcast's own holds the next.
+    bus.broadcast_paced(&write, interval).unwrap();
+    assert!(first.elapsed() >= interval, "{:?}", first.elapsed());
+    let second = Instant::now();
+    bus.broadcast(&write).unwrap();
+    assert!(second.elapsed() < interval, "{:?}", second.elapsed());
+    assert_eq!(common::sent(&t).len(), 3);
 }
 
 #[test]

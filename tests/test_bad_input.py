@@ -238,6 +238,8 @@ EXPLICIT: list[Case] = [
     *calls("Bus", "write_register", TypeError, "retries", A(1, 0, 1, retries=True)),
     *calls("Bus", "request", ValueError, "timeout", A(1, 3, b"\0\0\0\1", timeout=3601)),
     *calls("Bus", "request", ValueError, "retries", A(1, 3, b"\0\0\0\1", retries=-1)),
+    *calls("Bus", "request", ValueError, "write_interval", A(1, 6, bytes(4), write_interval=61)),
+    *calls("Bus", "request", TypeError, "write_interval", A(1, 6, bytes(4), write_interval="1")),
     *calls("Bus", "read_device_identification", ValueError, "unit", A(-1), A(256)),
     *calls("Bus", "read_device_identification", ValueError, "read_code", A(1, 0), A(1, 5)),
     *calls("Bus", "read_device_identification", ValueError, "read_code", A(1, HUGE)),

@@ -956,12 +956,69 @@ def test_coil_broadcasts_reach_every_unit(
     assert gateway.bus.stats.broadcasts == 2
 
 
+def test_a_mask_write_broadcast_reaches_every_unit(
+    sim: Simulator[RegisterDevice | J2Device], gateway: bb.Gateway
+) -> None:
+    # 0x16 is one of the writes the Bus broadcasts (with 0x05, 0x06, 0x0F and 0x10); the
+    # units that have it (not the J2 controller) apply it.
+    for unit in (1, 2):
+        device = sim.devices[unit]
+        assert isinstance(device, RegisterDevice)
+        device.registers[4] = 0x12
+    with connect(gateway) as client:
+        # The specification's example (6.16): 0x12 AND 0xF2, OR 0x25 where not kept.
+        client.sendall(bytes.fromhex("00 05 00 00 00 08 00 16 00 04 00 F2 00 25"))
+        assert ask(client, 2, READ, tid=6) == bytes.fromhex("03 02 00 00")
+    assert [f[:-2] for f in sim.requests] == [
+        bytes.fromhex("00 16 00 04 00 F2 00 25"),
+        rtu_of(2, READ),
+    ]
+    assert [sim.peek(unit, 4) for unit in (1, 2)] == [[0x17], [0x17]]
+    assert gateway.bus.stats.broadcasts == 1
+
+
+def test_write_intervals_hold_between_broadcasts(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    device = sim.devices[5]
+    assert isinstance(device, J2Device)
+    with (
+        bb.Bus(sim.port, timeout=0.2, retries=0) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", write_intervals={5: 0.15}) as gw,
+        connect(gw) as client,
+    ):
+        # Broadcasts only: a write to every unit each, unit 5 never written alone.
+        for tid, value in enumerate((100, 200, 300), start=1):
+            client.sendall(struct.pack(">HHHBBHH", tid, 0, 6, 0, 6, 8, value))
+        assert ask(client, 2, READ, tid=9) == bytes.fromhex("03 02 00 00")
+        assert bus.stats.broadcasts == 3
+    assert len(device.write_times) == 3
+    assert device.write_violations == []
+
+
+def test_write_intervals_hold_for_the_retries_of_every_write(
+    sim: Simulator[RegisterDevice | J2Device],
+) -> None:
+    mask_write = bytes.fromhex("16 00 04 00 F2 00 25")
+    with (
+        bb.Bus(sim.port, timeout=0.2, retries=2) as bus,
+        bb.Gateway(bus, "127.0.0.1:0", write_intervals={2: 0.15}) as gw,
+        connect(gw) as client,
+    ):
+        sim.corrupt_next(1)  # the write's reply is lost: the Bus repeats the write
+        assert ask(client, 2, mask_write) == mask_write
+        assert bus.stats.retries == 1
+    times = [t for f, t in zip(sim.requests, sim.request_times, strict=True) if f[0] == 2]
+    assert len(times) == 2
+    assert times[1] - times[0] >= 0.15
+
+
 @pytest.mark.parametrize("paced", [True, False])
 def test_write_intervals_hold_for_every_write_function(
     sim: Simulator[RegisterDevice | J2Device], paced: bool
 ) -> None:
-    # Writes the Bus paces itself (0x06) and raw ones (0x05, a vendor's 0x41) to one unit,
-    # from two clients at once.
+    # Writes of several functions (0x06, 0x05, a vendor's 0x41) to one unit, from two
+    # clients at once.
     intervals = {2: 0.15} if paced else {}
     writes = [bytes.fromhex("06 00 00 00 07"), bytes.fromhex("05 00 01 FF 00"), b"\x41"]
     with (

@@ -37,6 +37,7 @@ __all__ = [
     "__version__",
     "_did_you_mean",
     "_panic_on_wire",
+    "_request_rules",
     "crc16",
     "diagnose",
     "from_registers",
@@ -99,6 +100,16 @@ def refresh_logging() -> None:
 
 def _did_you_mean(name: str, known: list[str]) -> str:
     """``; did you mean 'a' or 'b'?`` naming the closest of ``known`` to ``name``, or ""."""
+
+def _request_rules(function: int, data: bytes) -> tuple[tuple[int, str] | None, int | None, bool]:
+    """What a server needs to forward the request PDU ``function`` / ``data``, by the core's
+    rules (the gateway's): ``(refusal, reply_length, write)``. ``refusal`` is None for a
+    well-formed request, else ``(exception code, why)``: 0x01 for a function code no
+    request has (0, 0x80 and up), 0x03 for a wrong length or byte count, or a count past
+    the specification's limits; ``reply_length`` is the reply's bytes after its function
+    code where the request tells them, None where the reply carries its own length or ends
+    when the line falls quiet; ``write`` whether it is paced as a write (all but the
+    reads)."""
 
 def _panic_on_wire() -> None:
     """Panic on the path every wire call takes; raises BenchbusError (a test hook)."""
@@ -391,6 +402,7 @@ class Bus:
         data: bytes | bytearray,
         *,
         reply_length: int | None = None,
+        write_interval: float = 0.0,
         timeout: float | None = None,
         retries: int | None = None,
     ) -> bytes:
@@ -403,8 +415,9 @@ class Bus:
         path, for replies whose length is not known in advance. An exception reply
         (function | 0x80) is known at 5 bytes and raises ModbusException. Retries, stats,
         the wire log and errors are as for any function. ValueError for function 0 or 0x80
-        and up (exception replies), or data too long, before anything is sent. ``timeout``
-        and ``retries`` as for :meth:`write_register`."""
+        and up (exception replies), or data too long, before anything is sent. A raw
+        request may write, so it counts as a write to the unit: ``write_interval``,
+        ``timeout`` and ``retries`` as for :meth:`write_register`."""
     def write_register(
         self,
         unit: int,
@@ -449,6 +462,14 @@ class Bus:
         """Internal (the gateway's): ``(conformity, {object_id: raw bytes})``, the
         conformity level the device sent and its objects undecoded. Use
         :meth:`read_device_identification`."""
+    def _broadcast(
+        self, function: int, data: bytes | bytearray, *, write_interval: float = 0.0
+    ) -> None:
+        """Internal (the gateway's): send the request PDU ``function`` / ``data`` to every
+        unit (unit 0), if it is a write that can be broadcast (0x05, 0x06, 0x0F, 0x10,
+        0x16), as a write to units that want ``write_interval`` (seconds) between writes:
+        it waits that long after the last broadcast too. ValueError for any other request,
+        or a malformed one, before anything is sent."""
     def broadcast_write_register(self, address: int, value: int) -> None:
         """Write one register on every unit (unit 0); waits no reply."""
     def broadcast_write_coil(self, address: int, value: bool) -> None:

@@ -11,6 +11,8 @@
 
 use std::collections::BTreeMap;
 
+pub mod decode;
+
 /// Function 0x01, Read Coils (spec 6.1).
 pub const READ_COILS: u8 = 0x01;
 /// Function 0x02, Read Discrete Inputs (spec 6.2).
@@ -246,6 +248,10 @@ pub enum RequestError {
     /// 0..=0x270F, at least one register, none past record 0x270F), or no group.
     #[error("{0}")]
     FileRecord(String),
+    /// Request bytes of a form the function does not have: a length or byte count it does
+    /// not take, a coil value other than on or off ([`decode::decode`]).
+    #[error("{0}")]
+    Form(String),
     /// More data than a PDU holds.
     #[error("{what} must be at most {max} bytes, got {len}")]
     DataLength {

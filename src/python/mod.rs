@@ -17,6 +17,7 @@ mod values;
 
 use crate::bus::{self, BusConfig, TxOptions, STANDARD_UNITS, UNITS};
 use crate::codec::ascii::AsciiError;
+use crate::codec::pdu::decode;
 use crate::codec::pdu::{
     Request, MAX_FILE_RECORD, MAX_PDU_DATA, MAX_READ_BITS, MAX_READ_COUNT, MAX_READ_WRITE_COUNT,
     MAX_WRITE_BITS, MAX_WRITE_COUNT, WRITE_MULTIPLE_COILS, WRITE_MULTIPLE_REGISTERS,
@@ -1341,11 +1342,12 @@ impl PyBus {
 
     /// Sends function `function` (1..=127) with `data`, the PDU after the function code,
     /// and returns the reply's bytes after its function code: read by `reply_length`, or
-    /// without it until the line is quiet (the Bus's `silence`, at least t3.5). `timeout`
-    /// and `retries`, if given, replace the Bus's for this call.
+    /// without it until the line is quiet (the Bus's `silence`, at least t3.5). It is paced
+    /// as a write by `write_interval`. `timeout` and `retries`, if given, replace the Bus's
+    /// for this call.
     #[pyo3(
-        signature = (unit, function, data, *, reply_length=None, timeout=None, retries=None),
-        text_signature = "($self, unit, function, data, *, reply_length=None, timeout=None, retries=None)"
+        signature = (unit, function, data, *, reply_length=None, write_interval=None, timeout=None, retries=None),
+        text_signature = "($self, unit, function, data, *, reply_length=None, write_interval=0.0, timeout=None, retries=None)"
     )]
     #[allow(clippy::too_many_arguments)]
     fn request<'py>(
@@ -1355,6 +1357,7 @@ impl PyBus {
         function: &Bound<'py, PyAny>,
         data: &Bound<'py, PyAny>,
         reply_length: Option<&Bound<'py, PyAny>>,
+        write_interval: Option<&Bound<'py, PyAny>>,
         timeout: Option<&Bound<'py, PyAny>>,
         retries: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyBytes>> {
@@ -1378,6 +1381,7 @@ impl PyBus {
         let opts = TxOptions {
             timeout,
             retries,
+            write_interval: write_interval_arg(write_interval)?,
             ..TxOptions::default()
         };
         let reply = self.wire(py, |b| {
@@ -1513,6 +1517,28 @@ impl PyBus {
         values: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         self.broadcast_write(py, WRITE_MULTIPLE_REGISTERS, address, values)
+    }
+
+    /// Sends the request PDU `function` / `data` to every unit (unit 0), if it is a write
+    /// that can be broadcast (internal: the gateway's), as a write to units that want
+    /// `write_interval` between writes; waits no reply.
+    #[pyo3(
+        signature = (function, data, *, write_interval=None),
+        text_signature = "($self, function, data, *, write_interval=0.0)"
+    )]
+    fn _broadcast(
+        &self,
+        py: Python<'_>,
+        function: &Bound<'_, PyAny>,
+        data: &Bound<'_, PyAny>,
+        write_interval: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<()> {
+        let function = u8_in(function, "function", 0, 255)?;
+        let data = bytes_arg(data, "data", MAX_PDU_DATA)?;
+        let request =
+            decode::decode(function, &data).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        let interval = write_interval_arg(write_interval)?;
+        self.wire(py, |b| b.broadcast_paced(&request, interval))
     }
 
     /// Sets one coil on every unit (unit 0, function 0x05); waits no reply.
@@ -1803,6 +1829,19 @@ fn refresh_logging() {
     }
 }
 
+/// What a server needs to forward the request PDU `function` / `data`, by the core's rules
+/// (for the gateway): `(refusal, reply_length, write)`. `refusal` is None for a well-formed
+/// request, else `(exception code, why)`: 0x01 for a function code no request has, 0x03 for
+/// a malformed request; `reply_length` the reply's bytes after its function code where the
+/// request tells them, else None; `write` whether it is paced as a write.
+#[pyfunction]
+fn _request_rules(function: u8, data: &[u8]) -> (Option<(u8, String)>, Option<usize>, bool) {
+    match decode::decode(function, data) {
+        Ok(request) => (None, decode::reply_len(&request), !request.is_read()),
+        Err(e) => (Some((decode::refusal(&e), e.to_string())), None, false),
+    }
+}
+
 /// `; did you mean 'a' or 'b'?` naming the closest of `known` to `name`, or `""`: the one
 /// rule of the core's hints, for `benchbus._device.did_you_mean`.
 #[pyfunction]
@@ -1848,6 +1887,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
     m.add_function(wrap_pyfunction!(_did_you_mean, m)?)?;
+    m.add_function(wrap_pyfunction!(_request_rules, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }
