@@ -114,26 +114,25 @@ pub fn needed(request: &Request, buf: &[u8], trailer: Trailer) -> Needed {
             Request::WriteSingleRegister { .. }
             | Request::WriteMultipleRegisters { .. }
             | Request::WriteSingleCoil { .. }
-            | Request::WriteMultipleCoils { .. } => 6,
-            Request::MaskWriteRegister { .. } => 8,
-            Request::ReadExceptionStatus => 3,
-            Request::GetCommEventCounter => 6,
-            // The echo: byte count and groups, as sent.
-            Request::WriteFileRecord { .. } => {
-                let mut pdu = Vec::new();
-                request.encode(&mut pdu);
-                1 + pdu.len()
-            }
+            | Request::WriteMultipleCoils { .. }
+            | Request::MaskWriteRegister { .. }
+            | Request::ReadExceptionStatus
+            | Request::GetCommEventCounter
+            | Request::WriteFileRecord { .. }
+            | Request::Diagnostics { .. }
+            | Request::Raw {
+                reply_length: Some(_),
+                ..
+            } => match data_len(request) {
+                // unit, function, then the data.
+                Some(n) => 2 + n,
+                None => return Needed::Unknown,
+            },
             // A byte count of two bytes, then the FIFO count and the values.
             Request::ReadFifoQueue { .. } => match buf.get(2..4) {
                 Some(&[hi, lo]) => 4 + usize::from(u16::from_be_bytes([hi, lo])),
                 _ => return Needed::More(4 + trailer.len - buf.len()),
             },
-            Request::Diagnostics { data, .. } => 4 + data.len(),
-            Request::Raw {
-                reply_length: Some(n),
-                ..
-            } => 2 + n,
             Request::Raw {
                 reply_length: None, ..
             } => return Needed::Silence,
@@ -151,6 +150,37 @@ pub fn needed(request: &Request, buf: &[u8], trailer: Trailer) -> Needed {
         Needed::Complete(total)
     } else {
         Needed::More(total - buf.len())
+    }
+}
+
+/// How many bytes the normal reply to `request` carries after its function code, when the
+/// request alone tells it: the byte count a read calls for (and its byte), a write's echo
+/// (0x05, 0x06, 0x0F, 0x10: 4 bytes; 0x16: 6; 0x15: the request's data), 0x07's status
+/// byte, 0x0B's status and count, a Diagnostics echo, a raw request's `reply_length`. None
+/// when the reply carries its own length (0x0C, 0x11, 0x18, device identification) or ends
+/// when the line falls quiet (a raw request without a reply length).
+pub fn data_len(request: &Request) -> Option<usize> {
+    if let Some(count) = request.reply_byte_count() {
+        return Some(1 + count);
+    }
+    match request {
+        Request::WriteSingleRegister { .. }
+        | Request::WriteMultipleRegisters { .. }
+        | Request::WriteSingleCoil { .. }
+        | Request::WriteMultipleCoils { .. }
+        | Request::GetCommEventCounter => Some(4),
+        Request::MaskWriteRegister { .. } => Some(6),
+        Request::ReadExceptionStatus => Some(1),
+        // The echo: byte count and groups, as sent (the PDU but its function code).
+        Request::WriteFileRecord { .. } => {
+            let mut pdu = Vec::new();
+            request.encode(&mut pdu);
+            Some(pdu.len().saturating_sub(1))
+        }
+        // Sub-function and data.
+        Request::Diagnostics { data, .. } => Some(2 + data.len()),
+        Request::Raw { reply_length, .. } => *reply_length,
+        _ => None,
     }
 }
 

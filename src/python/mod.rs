@@ -23,7 +23,7 @@ use crate::codec::pdu::{
     MAX_WRITE_BITS, MAX_WRITE_COUNT, WRITE_MULTIPLE_COILS, WRITE_MULTIPLE_REGISTERS,
     WRITE_SINGLE_COIL, WRITE_SINGLE_REGISTER,
 };
-use crate::codec::{hex, mbap, Echo, FrameError, Framing};
+use crate::codec::{hex, mbap, reply, Echo, FrameError, Framing};
 use crate::device::Device;
 use crate::error::Error;
 use crate::timing::{LineFormat, Parity};
@@ -1837,7 +1837,7 @@ fn refresh_logging() {
 #[pyfunction]
 fn _request_rules(function: u8, data: &[u8]) -> (Option<(u8, String)>, Option<usize>, bool) {
     match decode::decode(function, data) {
-        Ok(request) => (None, decode::reply_len(&request), !request.is_read()),
+        Ok(request) => (None, reply::data_len(&request), !request.is_read()),
         Err(e) => (Some((decode::refusal(&e), e.to_string())), None, false),
     }
 }

@@ -10,7 +10,6 @@ use super::{
     WRITE_FILE_RECORD, WRITE_MULTIPLE_COILS, WRITE_MULTIPLE_REGISTERS, WRITE_SINGLE_COIL,
     WRITE_SINGLE_REGISTER,
 };
-use crate::codec::reply::{needed, Needed, Trailer};
 
 /// The request whose PDU is `function` and `data` (the bytes after the function code), as
 /// [`Request::encode`] writes it: each of the specification's functions as its own variant,
@@ -129,27 +128,6 @@ pub fn decode(function: u8, data: &[u8]) -> Result<Request, RequestError> {
     };
     request.validate()?;
     Ok(request)
-}
-
-/// The bytes the reply to `request` carries after its function code, when the request
-/// alone tells how many: what [`needed`] reckons from the first bytes of a normal
-/// reply, when that is the same whatever those bytes are. None when the reply carries its
-/// own length (a byte count that is not the request's, its objects), or ends when the line
-/// falls quiet (a raw request without a reply length).
-pub fn reply_len(request: &Request) -> Option<usize> {
-    // A byte count the request calls for: a reply carrying any other is not one.
-    if let Some(count) = request.reply_byte_count() {
-        return Some(1 + count);
-    }
-    let function = request.function();
-    let frame_len = |first: u8| match needed(request, &[0, function, first, first], Trailer::NONE) {
-        Needed::More(more) => Some(4 + more),
-        Needed::Complete(len) => Some(len),
-        Needed::Unknown | Needed::Silence => None,
-    };
-    let (len, other) = (frame_len(0)?, frame_len(1)?);
-    // Unit and function before (no trailer).
-    (len == other).then(|| len.saturating_sub(2))
 }
 
 /// The exception a server answers a request with that [`decode`] refused (spec section
@@ -443,7 +421,7 @@ mod tests {
 
     #[test]
     fn the_reply_length_is_known_where_the_request_tells_it() {
-        let len = |text: &str| reply_len(&pdu(text).unwrap());
+        let len = |text: &str| crate::codec::reply::data_len(&pdu(text).unwrap());
         // Reads: byte count and data (6.1 to 6.4, 6.17); 0x14: its groups (6.14).
         assert_eq!(len("01 00 13 00 13"), Some(1 + 3));
         assert_eq!(len("02 00 C4 00 16"), Some(1 + 3));
