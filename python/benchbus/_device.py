@@ -51,6 +51,7 @@ __all__ = [
     "did_you_mean",
     "forked",
     "is_unknown",
+    "member_name",
     "on_line",
     "to_enum",
     "to_float",
@@ -94,9 +95,7 @@ class PrintableIntEnum(enum.IntEnum):
 
     def __str__(self) -> str:
         """``ClassName.MEMBER``, or ``ClassName.UNKNOWN(value)`` for a value not listed."""
-        if is_unknown(self):
-            return f"{type(self).__name__}.{UNKNOWN}({int(self)})"
-        return f"{type(self).__name__}.{self.name}"
+        return f"{type(self).__name__}.{member_name(self)}"
 
     def __reduce_ex__(self, protocol: Any) -> tuple[Any, ...]:
         """Pickled and copied as :func:`as_enum` of the class and the number, so that a
@@ -110,6 +109,13 @@ def is_unknown(value: object) -> bool:
     if not isinstance(value, enum.Enum):
         return False
     return type(value)._member_map_.get(value.name) is not value
+
+
+def member_name(value: enum.Enum) -> str:
+    """The name of an enum value read from a device: its member's, or ``UNKNOWN(9)`` for a
+    number its enum does not list (see :func:`as_enum`): what ``str()``, the command line
+    and the ophyd-async signals show."""
+    return f"{UNKNOWN}({value.value})" if is_unknown(value) else value.name
 
 
 log = logging.getLogger("benchbus.device")

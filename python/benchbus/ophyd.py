@@ -30,6 +30,7 @@ waits on the line.
 from __future__ import annotations
 
 import asyncio
+import enum
 import functools
 import inspect
 import logging
@@ -40,7 +41,7 @@ from collections.abc import AsyncIterator, Callable
 from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from benchbus._core import CancelToken
-from benchbus._device import is_unknown
+from benchbus._device import member_name
 from benchbus._extras import framework_missing
 from benchbus.exceptions import BenchbusError
 
@@ -393,10 +394,7 @@ if _MISSING is None:
             """A value as the device gives it, as the signal's datatype has it."""
             kind = self.datatype
             if isinstance(kind, type) and issubclass(kind, SubsetEnum):
-                if is_unknown(raw):
-                    return kind(f"UNKNOWN({int(raw)})")
-                name = getattr(raw, "name", None)
-                return kind(name if isinstance(name, str) else str(raw))
+                return kind(member_name(raw) if isinstance(raw, enum.Enum) else str(raw))
             return kind(raw) if kind is not None else raw
 
         async def get_value(self) -> Any:

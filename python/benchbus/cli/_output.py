@@ -5,7 +5,7 @@ from __future__ import annotations
 import enum
 from collections.abc import Sequence
 
-from benchbus._device import is_unknown
+from benchbus._device import member_name
 
 
 def fmt(value: float) -> str:
@@ -28,9 +28,7 @@ def csv_number(value: float) -> str:
 def enum_name(value: object) -> str:
     """An enum member by its name (a value its enum does not list as ``UNKNOWN(9)``),
     anything else as ``str``."""
-    if isinstance(value, enum.IntEnum) and is_unknown(value):
-        return f"UNKNOWN({int(value)})"
-    return value.name if isinstance(value, enum.Enum) else str(value)
+    return member_name(value) if isinstance(value, enum.Enum) else str(value)
 
 
 def shown(value: object, unit: str = "") -> str:
