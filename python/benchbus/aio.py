@@ -98,6 +98,7 @@ _EARLY = 0.002
 #: How often a thread looks whether the call before its own holds its place in the line's
 #: queue (it usually does within microseconds).
 _ADMIT_POLL = 0.0002
+_JOIN = 1.0  # s: the most a closing waits for a thread past its last act (microseconds)
 
 
 # ---- cancellation in the core ---------------------------------------------------------------
@@ -313,7 +314,9 @@ class _Pool:
         loop = asyncio.get_running_loop()
         with self._lock:
             if self._ended is not None:
-                return asyncio.wrap_future(self._ended, loop=loop)
+                return asyncio.ensure_future(
+                    self._joined(asyncio.wrap_future(self._ended, loop=loop))
+                )
             self._closed = True
             self._ended = concurrent.futures.Future()
             self._then = then
@@ -331,7 +334,18 @@ class _Pool:
                     call.loop.call_soon_threadsafe(_settle, call.future, None, error)
         if not running:
             self._finish()
-        return asyncio.wrap_future(self._ended, loop=loop)
+        return asyncio.ensure_future(self._joined(asyncio.wrap_future(self._ended, loop=loop)))
+
+    async def _joined(self, ended: asyncio.Future[None]) -> None:
+        """``ended``'s outcome, once the threads have also returned: the last one says the
+        pool has ended just before it returns, so closing leaves no thread behind.
+        Cancelling this leaves ``ended`` (shared by every loop's wait) alone."""
+        try:
+            await asyncio.shield(ended)
+        finally:
+            for thread in self.threads():
+                if thread is not threading.current_thread():
+                    thread.join(_JOIN)
 
 
 # ---- the bus ----------------------------------------------------------------------------------
