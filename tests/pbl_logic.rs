@@ -3,7 +3,7 @@
 
 mod common;
 
-use benchbus::device::pbl::{Pbl, PARAMETERS};
+use benchbus::device::pbl::{table, Pbl};
 use benchbus::device::Device;
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
@@ -74,7 +74,7 @@ fn the_parameter_list_is_read_in_blocks_of_61() {
     assert_eq!(sent(&t)[3], with_crc(&[1, 3, 0, 183, 0, 40]));
     assert!(all.iter().all(|(name, _)| !name.starts_with("reserved_")));
     assert!(all.contains(&("acceleration", 209)) && all.contains(&("speed", 50)));
-    assert_eq!(all.len(), PARAMETERS.len() - 28 - 3);
+    assert_eq!(all.len(), table().unwrap().len() - 28 - 3);
 }
 
 #[test]

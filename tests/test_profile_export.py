@@ -6,6 +6,7 @@ the family's class reads a ProfileDevice serving the export as that device holds
 from __future__ import annotations
 
 import math
+from importlib import resources
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -146,6 +147,40 @@ def test_family_refuses_an_unknown_key_and_notes_what_stays_code() -> None:
     assert not again.startswith("#")
     lineless = [r._replace(line=0) for r in exported("pbl").registers]
     assert [r._replace(line=0) for r in bb.Profile.parse(again).registers] == lineless
+
+
+FAMILY_FILES = sorted(
+    f.name
+    for f in resources.files("benchbus").joinpath("families").iterdir()
+    if f.name.endswith(".toml")
+)
+
+
+def test_the_package_ships_the_family_files() -> None:
+    assert "pbl.toml" in FAMILY_FILES
+
+
+@pytest.mark.parametrize("name", FAMILY_FILES)
+def test_a_family_with_a_file_exports_the_file_itself(name: str) -> None:
+    """The family's register map is the file the package ships: the export is that file,
+    byte for byte (its comments included), and the class's line defaults are its [line]."""
+    text = resources.files("benchbus").joinpath("families", name).read_text("utf-8")
+    key = name.removesuffix(".toml")
+    assert bb.Profile.family(key).to_toml() == text
+    assert text.startswith("# ")
+    family = bb.Profile.parse(text, name)
+    assert [r._replace(line=0) for r in family.registers] == [
+        r._replace(line=0) for r in bb.Profile.family(key).registers
+    ]
+    classes = {"pbl": bb.PblDrive}
+    line = family.line
+    assert tuple(classes[key].LINE_DEFAULTS[:5]) == (
+        line.baudrate,
+        line.parity,
+        line.timeout,
+        line.stopbits,
+        line.framing,
+    )
 
 
 def same(a: Any, b: Any) -> bool:

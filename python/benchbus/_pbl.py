@@ -24,6 +24,7 @@ from benchbus._device import (
     to_int,
 )
 from benchbus._display import dataclass_table, field_table
+from benchbus._profile import profile_line
 
 if TYPE_CHECKING:
     pass
@@ -140,8 +141,9 @@ class PblDrive(PblCore, MotorDevice):
     (``bus.broadcast_write_register``): the Bus waits for no reply and drops what comes.
     """
 
-    #: Line format and reply timeout when the device opens its own Bus.
-    LINE_DEFAULTS = LineDefaults(115200, "E", 0.1)
+    #: Line format and reply timeout when the device opens its own Bus: the family file's
+    #: ``[line]`` (115200 8E1, 0.1 s).
+    LINE_DEFAULTS = profile_line(Profile.family("pbl"))
     #: The family whose identity the device checks before its first exchange.
     IDENTITY = "pbl"
 

@@ -4,6 +4,7 @@
 
 pub mod drive;
 pub mod export;
+pub mod family;
 pub mod instrument;
 pub mod j2;
 pub mod pbl;

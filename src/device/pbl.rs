@@ -8,8 +8,10 @@
 //! answer a 0x06 write with a register count of 1 instead of the echo, which is accepted for
 //! this family only; they also act on and answer a broadcast, which the Bus never waits for.
 
+use super::family;
+use super::profile::ProfileRegister;
 use super::suggest::did_you_mean;
-use super::{Access, Device, Register, Station};
+use super::{Device, Register, Station, Table};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::Echo;
 use crate::error::{Error, Result};
@@ -39,281 +41,31 @@ pub const SAMPLE: [&str; 5] = [
     "power",
 ];
 
-/// Most parameters one read may ask for: the manual's frame holds 1..123 data bytes, so a
-/// reply carries at most 61 registers.
-pub const MAX_BLOCK: u16 = 61;
-
 const START: u16 = 0x0001;
 const REVERSE: u16 = 0x0002;
 
-const fn ro(number: u16, name: &'static str, unit: &'static str) -> Register {
-    Register {
-        name,
-        address: number,
-        scale: 1.0,
-        signed: false,
-        unit,
-        access: Access::Read,
-        range: (0.0, 0.0),
-    }
+/// The parameter table, 0..=222 in number order: the family's file (`families/pbl.toml`).
+///
+/// # Errors
+/// As [`family::profile`].
+pub fn table() -> Result<&'static [ProfileRegister]> {
+    family::registers("pbl")
 }
-
-const fn rw(number: u16, name: &'static str, unit: &'static str, lo: f64, hi: f64) -> Register {
-    Register {
-        name,
-        address: number,
-        scale: 1.0,
-        signed: false,
-        unit,
-        access: Access::ReadWrite,
-        range: (lo, hi),
-    }
-}
-
-/// The manual's parameter list, 0..=222, indexed by number. Names are English renderings of
-/// the manual's descriptions; where it repeats a description (72..99 mirror 52..69), the
-/// number is appended. `reserved_N` marks the ones it calls reserved.
-#[rustfmt::skip]
-pub const PARAMETERS: [Register; 223] = [
-    rw(0, "control_word", "", 0.0, 65535.0),
-    rw(1, "control_word_high", "", 0.0, 65535.0),
-    ro(2, "status", ""),
-    ro(3, "status_high", ""),
-    ro(4, "alarm_low", ""),
-    ro(5, "alarm_high", ""),
-    ro(6, "hall_state", ""),
-    ro(7, "motor_position", ""),
-    ro(8, "motor_speed", ""),
-    ro(9, "motor_current", ""),
-    ro(10, "u_phase_current", ""),
-    ro(11, "v_phase_current", ""),
-    ro(12, "w_phase_current", ""),
-    ro(13, "dc_bus_voltage", ""),
-    ro(14, "digital_input_1", ""),
-    ro(15, "digital_input_2", ""),
-    ro(16, "digital_output_1", ""),
-    ro(17, "digital_output_2", ""),
-    ro(18, "analog_input_1", ""),
-    ro(19, "analog_input_2", ""),
-    ro(20, "analog_input_3", ""),
-    ro(21, "analog_input_4", ""),
-    ro(22, "reserved_22", ""),
-    ro(23, "reserved_23", ""),
-    ro(24, "reserved_24", ""),
-    ro(25, "reserved_25", ""),
-    ro(26, "reserved_26", ""),
-    ro(27, "reserved_27", ""),
-    ro(28, "reserved_28", ""),
-    ro(29, "reserved_29", ""),
-    ro(30, "reserved_30", ""),
-    ro(31, "reserved_31", ""),
-    ro(32, "reserved_32", ""),
-    ro(33, "reserved_33", ""),
-    ro(34, "reserved_34", ""),
-    ro(35, "reserved_35", ""),
-    ro(36, "reserved_36", ""),
-    ro(37, "reserved_37", ""),
-    ro(38, "reserved_38", ""),
-    ro(39, "reserved_39", ""),
-    ro(40, "reserved_40", ""),
-    ro(41, "reserved_41", ""),
-    ro(42, "reserved_42", ""),
-    ro(43, "reserved_43", ""),
-    ro(44, "reserved_44", ""),
-    ro(45, "reserved_45", ""),
-    ro(46, "reserved_46", ""),
-    ro(47, "reserved_47", ""),
-    ro(48, "reserved_48", ""),
-    ro(49, "reserved_49", ""),
-    ro(50, "speed", "rpm"),
-    ro(51, "bus_voltage", "V"),
-    ro(52, "analog_speed_input", "mV"),
-    ro(53, "current", "A"),
-    ro(54, "power", "W"),
-    ro(55, "u_phase_current_ad", ""),
-    ro(56, "v_phase_current_ad", ""),
-    ro(57, "w_phase_current_calc", ""),
-    ro(58, "duty_cycle", ""),
-    ro(59, "speed_loop_output", ""),
-    ro(60, "hall_bridge_state", ""),
-    ro(61, "ad_channel_0", ""),
-    ro(62, "ad_channel_1", ""),
-    ro(63, "ad_channel_2", ""),
-    ro(64, "ad_channel_3", ""),
-    ro(65, "planned_speed", "rpm"),
-    ro(66, "pwm_limit", ""),
-    ro(67, "overload_current", ""),
-    ro(68, "current_loop_output", ""),
-    ro(69, "speed_loop_integral", ""),
-    ro(70, "motor_current_ad", ""),
-    ro(71, "pwm_input_duty", ""),
-    ro(72, "analog_speed_input_72", "mV"),
-    ro(73, "current_73", "A"),
-    ro(74, "power_74", "W"),
-    ro(75, "u_phase_current_ad_75", ""),
-    ro(76, "v_phase_current_ad_76", ""),
-    ro(77, "w_phase_current_calc_77", ""),
-    ro(78, "duty_cycle_78", ""),
-    ro(79, "speed_loop_output_79", ""),
-    ro(80, "hall_bridge_state_80", ""),
-    ro(81, "ad_channel_0_81", ""),
-    ro(82, "ad_channel_1_82", ""),
-    ro(83, "ad_channel_2_83", ""),
-    ro(84, "ad_channel_3_84", ""),
-    ro(85, "planned_speed_85", "rpm"),
-    ro(86, "pwm_limit_86", ""),
-    ro(87, "overload_current_87", ""),
-    ro(88, "current_loop_output_88", ""),
-    ro(89, "speed_loop_integral_89", ""),
-    ro(90, "hall_bridge_state_90", ""),
-    ro(91, "ad_channel_0_91", ""),
-    ro(92, "ad_channel_1_92", ""),
-    ro(93, "ad_channel_2_93", ""),
-    ro(94, "ad_channel_3_94", ""),
-    ro(95, "planned_speed_95", "rpm"),
-    ro(96, "pwm_limit_96", ""),
-    ro(97, "overload_current_97", ""),
-    ro(98, "current_loop_output_98", ""),
-    ro(99, "speed_loop_integral_99", ""),
-    rw(100, "control_mode", "", 0.0, 2.0),
-    rw(101, "use_current_loop", "", 0.0, 1.0),
-    rw(102, "min_pulse_width", "", 0.0, 65535.0),
-    rw(103, "dead_time", "", 0.0, 65535.0),
-    rw(104, "update_rate", "", 0.0, 65535.0),
-    rw(105, "pole_pairs_105", "", 0.0, 65535.0),
-    rw(106, "acceleration_106", "", 0.0, 65535.0),
-    rw(107, "deceleration_107", "", 0.0, 65535.0),
-    rw(108, "v_current_offset", "", 0.0, 65535.0),
-    rw(109, "w_current_offset", "", 0.0, 65535.0),
-    rw(110, "precharge_time", "ms", 0.0, 65535.0),
-    rw(111, "max_temperature", "", 0.0, 65535.0),
-    rw(112, "hall_angle", "", 0.0, 1.0),
-    rw(113, "pwm_frequency", "", 0.0, 3.0),
-    rw(114, "decel_mode", "", 0.0, 1.0),
-    rw(115, "waveform", "", 0.0, 1.0),
-    rw(116, "motion_direction", "", 0.0, 1.0),
-    rw(117, "use_encoder", "", 0.0, 1.0),
-    rw(118, "use_brake", "", 0.0, 1.0),
-    rw(119, "use_dc_brake", "", 0.0, 1.0),
-    rw(120, "has_speed_sensor", "", 0.0, 1.0),
-    rw(121, "speed_sensor_type", "", 0.0, 1.0),
-    rw(122, "encoder_lines", "", 0.0, 65535.0),
-    rw(123, "min_speed", "rpm", 0.0, 65535.0),
-    rw(124, "max_speed", "rpm", 0.0, 65535.0),
-    rw(125, "min_bus_voltage", "", 0.0, 65535.0),
-    rw(126, "max_bus_voltage", "", 0.0, 65535.0),
-    rw(127, "brake_on_bus_voltage", "", 0.0, 65535.0),
-    rw(128, "brake_off_bus_voltage", "", 0.0, 65535.0),
-    rw(129, "decel_bus_voltage_limit", "", 0.0, 65535.0),
-    rw(130, "speed_kp", "", 0.0, 65535.0),
-    rw(131, "speed_ki", "", 0.0, 65535.0),
-    rw(132, "speed_kd", "", 0.0, 65535.0),
-    rw(133, "max_brake_time", "ms", 0.0, 65535.0),
-    rw(134, "brake_cooling_time", "ms", 0.0, 65535.0),
-    rw(135, "accel_current", "", 0.0, 65535.0),
-    rw(136, "comm_timeout", "", 0.0, 65535.0),
-    rw(137, "version", "", 0.0, 65535.0),
-    rw(138, "bus_voltage_scale", "", 0.0, 65535.0),
-    rw(139, "use_overcurrent_protection", "", 0.0, 1.0),
-    rw(140, "rated_current", "", 0.0, 65535.0),
-    rw(141, "overload_ratio", "%", 0.0, 65535.0),
-    rw(142, "continuous_current", "%", 0.0, 65535.0),
-    rw(143, "overload_time", "ms", 0.0, 65535.0),
-    rw(144, "current_offset_reserved", "", 0.0, 65535.0),
-    rw(145, "overcurrent_reserved", "", 0.0, 65535.0),
-    rw(146, "bus_voltage_protection", "", 0.0, 1.0),
-    rw(147, "mcu_overheat_protection", "", 0.0, 1.0),
-    rw(148, "hall_fault_protection", "", 0.0, 1.0),
-    rw(149, "stall_protection", "", 0.0, 1.0),
-    rw(150, "current_limit_protection", "", 0.0, 1.0),
-    rw(151, "overload_protection_old", "", 0.0, 2.0),
-    rw(152, "overheat_protection", "", 0.0, 1.0),
-    rw(153, "current_kp", "", 0.0, 65535.0),
-    rw(154, "current_ki", "", 0.0, 65535.0),
-    rw(155, "test_parameter", "", 0.0, 65535.0),
-    rw(156, "speed_loop_output_limit", "", 0.0, 65535.0),
-    rw(157, "current_loop_limit", "", 0.0, 65535.0),
-    rw(158, "power_overload_protection", "", 0.0, 1.0),
-    rw(159, "speed_integral_limit", "", 0.0, 65535.0),
-    rw(160, "current_integral_limit", "", 0.0, 65535.0),
-    rw(161, "speed_integral_period", "", 0.0, 999.0),
-    rw(162, "current_integral_period", "", 0.0, 999.0),
-    rw(163, "speed_pi_follows_plan", "", 0.0, 65535.0),
-    rw(164, "kp_speed_coefficient", "", 0.0, 65535.0),
-    rw(165, "kp_speed_offset", "", 0.0, 65535.0),
-    rw(166, "bus_current_average_ratio", "", 0.0, 65535.0),
-    rw(167, "reserved_167", "", 0.0, 65535.0),
-    rw(168, "reserved_168", "", 0.0, 65535.0),
-    rw(169, "min_speed_loop_output", "", 0.0, 65535.0),
-    rw(170, "start_speed", "rpm", 0.0, 65535.0),
-    rw(171, "pwm_duty_limit", "", 0.0, 65535.0),
-    rw(172, "max_negative_current", "", 0.0, 65535.0),
-    rw(173, "max_positive_current", "", 0.0, 65535.0),
-    rw(174, "speed_pi_offset", "", 0.0, 65535.0),
-    rw(175, "current_pi_offset", "", 0.0, 65535.0),
-    rw(176, "low_speed_filter_time", "ms", 0.0, 65535.0),
-    rw(177, "low_speed_decel", "rpm", 0.0, 65535.0),
-    rw(178, "min_current_loop_duty", "", 0.0, 65535.0),
-    rw(179, "duty_limit_ramp", "", 0.0, 65535.0),
-    rw(180, "invert_current_feedback", "", 0.0, 1.0),
-    rw(181, "speed_loop_rate_limit", "", 0.0, 65535.0),
-    rw(182, "current_loop_rate_limit", "", 0.0, 65535.0),
-    rw(183, "current_loop_output_offset", "", 0.0, 65535.0),
-    rw(184, "reserved_184", "", 0.0, 65535.0),
-    rw(185, "back_emf_coefficient", "", 0.0, 65535.0),
-    rw(186, "rated_power", "W", 0.0, 65535.0),
-    rw(187, "average_current_ratio", "", 0.0, 65535.0),
-    rw(188, "bus_voltage_offset", "", 0.0, 65535.0),
-    rw(189, "stop_on_zero_duty", "", 0.0, 1.0),
-    rw(190, "current_sampling", "", 0.0, 1.0),
-    rw(191, "zero_current_at_low_duty", "", 0.0, 1.0),
-    rw(192, "low_duty_threshold", "", 0.0, 65535.0),
-    rw(193, "max_computed_acceleration", "", 0.0, 65535.0),
-    rw(194, "bus_voltage_filter", "", 0.0, 65535.0),
-    rw(195, "pwm_active_level", "", 0.0, 1.0),
-    rw(196, "current_sampling_196", "", 0.0, 1.0),
-    rw(197, "zero_current_at_low_duty_197", "", 0.0, 1.0),
-    rw(198, "low_duty_threshold_198", "", 0.0, 65535.0),
-    rw(199, "max_computed_acceleration_199", "", 0.0, 65535.0),
-    rw(200, "display_select", "", 0.0, 65535.0),
-    rw(201, "internal_speed", "rpm", 0.0, 65535.0),
-    rw(202, "speed_source", "", 0.0, 65535.0),
-    rw(203, "direction_setting", "", 0.0, 1.0),
-    rw(204, "start_stop_source", "", 0.0, 2.0),
-    rw(205, "pole_pairs", "", 0.0, 65535.0),
-    rw(206, "p2_group_switch", "", 0.0, 65535.0),
-    rw(207, "speed_gain", "", 0.0, 65535.0),
-    rw(208, "speed_integral_gain", "", 0.0, 65535.0),
-    rw(209, "acceleration", "rpm/s", 0.0, 65535.0),
-    rw(210, "deceleration", "rpm/s", 0.0, 65535.0),
-    rw(211, "analog_max_speed", "rpm", 0.0, 65535.0),
-    rw(212, "analog_zero_offset", "mV", 0.0, 3299.0),
-    rw(213, "key_speed_step", "rpm", 0.0, 65535.0),
-    rw(214, "restore_defaults", "", 0.0, 65535.0),
-    rw(215, "drive_address", "", 1.0, 255.0),
-    rw(216, "start_speed_216", "rpm", 0.0, 65535.0),
-    rw(217, "hold_mode", "", 0.0, 2.0),
-    rw(218, "hold_duty", "", 0.0, 65535.0),
-    rw(219, "speed_display_filter", "", 0.0, 65535.0),
-    rw(220, "current_display_ratio", "", 0.0, 65535.0),
-    rw(221, "analog_max_voltage", "mV", 0.0, 3299.0),
-    rw(222, "analog_min_voltage", "mV", 0.0, 3299.0),
-];
 
 /// Whether the manual calls parameter `number` reserved.
 pub fn is_reserved(number: u16) -> bool {
-    PARAMETERS
-        .get(usize::from(number))
-        .is_some_and(|p| p.name.starts_with("reserved_"))
+    by_number(number).is_ok_and(|p| p.name.starts_with("reserved_"))
 }
 
 /// The parameter called `name`.
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] if there is none.
-pub fn by_name(name: &str) -> Result<&'static Register> {
-    PARAMETERS.iter().find(|p| p.name == name).ok_or_else(|| {
-        let hint = did_you_mean(name, PARAMETERS.iter().map(|p| p.name));
+pub fn by_name(name: &str) -> Result<&'static Register<String>> {
+    let table = table()?;
+    let found = table.iter().find(|p| p.register.name == name);
+    found.map(|p| &p.register).ok_or_else(|| {
+        let hint = did_you_mean(name, table.iter().map(|p| p.register.name.as_str()));
         Error::InvalidArgument(format!("a PBL drive has no parameter {name:?}{hint}"))
     })
 }
@@ -322,10 +74,15 @@ pub fn by_name(name: &str) -> Result<&'static Register> {
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] if it is not 0..=222.
-pub fn by_number(number: u16) -> Result<&'static Register> {
-    PARAMETERS
+pub fn by_number(number: u16) -> Result<&'static Register<String>> {
+    let table = table()?;
+    table
         .get(usize::from(number))
-        .ok_or_else(|| Error::InvalidArgument(format!("PBL parameters are 0 to 222, got {number}")))
+        .map(|p| &p.register)
+        .ok_or_else(|| {
+            let last = table.len().saturating_sub(1);
+            Error::InvalidArgument(format!("PBL parameters are 0 to {last}, got {number}"))
+        })
 }
 
 /// The names of the alarm bits set in `word` (the manual names none: "alarm bit N").
@@ -410,7 +167,7 @@ impl Pbl {
     /// # Errors
     /// Any [`Error`]; [`Error::InvalidArgument`] past parameter 222.
     pub fn read_parameters(&self, start: u16, count: u16) -> Result<Vec<u16>> {
-        if count == 0 || usize::from(start) + usize::from(count) > PARAMETERS.len() {
+        if count == 0 || usize::from(start) + usize::from(count) > table()?.len() {
             return Err(Error::InvalidArgument(format!(
                 "parameters {start}+{count} are not within 0 to 222"
             )));
@@ -418,8 +175,10 @@ impl Pbl {
         let mut words = Vec::with_capacity(count.into());
         let end = start + count;
         let mut at = start;
+        // The manual's frame holds 1..123 data bytes: the file's max_read, 61 registers.
+        let block = family::profile("pbl")?.read_limit(Table::Holding);
         while at < end {
-            let n = (end - at).min(MAX_BLOCK);
+            let n = (end - at).min(block);
             words.extend(self.station.read(at, n)?);
             at += n;
         }
@@ -427,33 +186,36 @@ impl Pbl {
     }
 
     /// Every parameter the manual documents (not the reserved ones), `(name, value)` in
-    /// number order, read in blocks of [`MAX_BLOCK`] (four requests).
+    /// number order, read in blocks of the file's `max_read` (four requests).
     ///
     /// # Errors
     /// Any [`Error`].
     pub fn parameters(&self) -> Result<Vec<(&'static str, u16)>> {
-        let words = self.read_parameters(0, PARAMETERS.len() as u16)?;
-        Ok(PARAMETERS
+        let table = table()?;
+        let words = self.read_parameters(0, u16::try_from(table.len()).unwrap_or(u16::MAX))?;
+        Ok(table
             .iter()
+            .map(|p| &p.register)
             .zip(words)
             .filter(|(p, _)| !p.name.starts_with("reserved_"))
-            .map(|(p, w)| (p.name, w))
+            .map(|(p, w)| (p.name.as_str(), w))
             .collect())
     }
 
     /// Parameters 0..=99 (status and measurements but the reserved ones), `(name, value,
-    /// unit)`, in blocks of [`MAX_BLOCK`] (two requests).
+    /// unit)`, in blocks of the file's `max_read` (two requests).
     ///
     /// # Errors
     /// Any [`Error`].
     pub fn telemetry(&self) -> Result<Vec<(&'static str, u16, &'static str)>> {
         let count = *MEASUREMENTS.end() + 1;
         let words = self.read_parameters(0, count)?;
-        Ok(PARAMETERS[..usize::from(count)]
+        Ok(table()?
             .iter()
+            .map(|p| &p.register)
             .zip(words)
             .filter(|(p, _)| !p.name.starts_with("reserved_"))
-            .map(|(p, w)| (p.name, w, p.unit))
+            .map(|(p, w)| (p.name.as_str(), w, p.unit.as_str()))
             .collect())
     }
 
@@ -580,10 +342,12 @@ impl Pbl {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::Access;
 
     #[test]
     fn the_table_is_the_manuals_list() {
-        for (i, p) in PARAMETERS.iter().enumerate() {
+        let table = table().unwrap();
+        for (i, p) in table.iter().map(|p| &p.register).enumerate() {
             assert_eq!(usize::from(p.address), i, "{}", p.name);
             assert_eq!(
                 p.access == Access::Read,
@@ -593,12 +357,15 @@ mod tests {
             );
             assert!(p.range.0 <= p.range.1 && p.range.1 <= 65535.0, "{}", p.name);
         }
-        let mut names: Vec<&str> = PARAMETERS.iter().map(|p| p.name).collect();
+        assert_eq!(table.len(), 223);
+        let mut names: Vec<&str> = table.iter().map(|p| p.register.name.as_str()).collect();
         names.sort_unstable();
         names.dedup();
-        assert_eq!(names.len(), PARAMETERS.len());
+        assert_eq!(names.len(), table.len());
         assert_eq!(
-            by_name("acceleration").map(|p| (p.address, p.unit)).ok(),
+            by_name("acceleration")
+                .map(|p| (p.address, p.unit.as_str()))
+                .ok(),
             Some((209, "rpm/s"))
         );
         assert_eq!(by_name("internal_speed").map(|p| p.address).ok(), Some(201));

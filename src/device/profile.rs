@@ -1217,10 +1217,7 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
 
     #[test]
     fn a_table_row_and_its_profile_row_are_the_same_register() {
-        let row = super::super::pbl::PARAMETERS
-            .iter()
-            .find(|r| r.name == "max_speed")
-            .unwrap();
+        let row = super::super::pbl::by_name("max_speed").unwrap();
         let text = "[device]\nname = \"pbl\"\n[[register]]\nname = \"max_speed\"\n\
                     address = 124\nunit = \"rpm\"\n";
         let p = Profile::parse("pbl.toml", text).unwrap();

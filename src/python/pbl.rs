@@ -5,7 +5,7 @@ use super::{int_in, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStati
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._pbl";
-use crate::device::pbl::{alarm_names, by_name, by_number, Pbl, PARAMETERS, SAMPLE};
+use crate::device::pbl::{alarm_names, by_name, by_number, table, Pbl, SAMPLE};
 use crate::device::Access;
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -31,7 +31,11 @@ fn parameter_number(py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
             key.get_type().name()?
         )));
     }
-    int_in(key, "parameter", 0, (PARAMETERS.len() - 1) as i64).map(|n| n as u16)
+    let last = table()
+        .map_err(|e| to_pyerr(py, e))?
+        .len()
+        .saturating_sub(1);
+    int_in(key, "parameter", 0, last as i64).map(|n| n as u16)
 }
 
 #[pymethods]
@@ -106,7 +110,8 @@ impl PyPblCore {
         count: &Bound<'_, PyAny>,
     ) -> PyResult<Vec<u16>> {
         let start = parameter_number(py, start)?;
-        let count = int_in(count, "count", 1, PARAMETERS.len() as i64)? as u16;
+        let all = table().map_err(|e| to_pyerr(py, e))?.len();
+        let count = int_in(count, "count", 1, all as i64)? as u16;
         self.dev.wire(py, move |p| p.read_parameters(start, count))
     }
 
@@ -233,9 +238,14 @@ impl PyPblCore {
     #[staticmethod]
     fn table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let out = PyList::empty(py);
-        for p in &PARAMETERS {
-            let access = if p.access == Access::Read { "R" } else { "W/R" };
-            let row = (p.address, p.name, p.unit, access, p.range.0, p.range.1);
+        for p in table().map_err(|e| to_pyerr(py, e))? {
+            let p = &p.register;
+            // A read-only parameter takes no write: its range is (0, 0).
+            let ((low, high), access) = match p.access {
+                Access::Read => ((0.0, 0.0), "R"),
+                _ => (p.range, "W/R"),
+            };
+            let row = (p.address, &p.name, &p.unit, access, low, high);
             out.append(public(py, PY, "PblParameter", row, None)?)?;
         }
         Ok(out)
@@ -244,8 +254,8 @@ impl PyPblCore {
     /// The unit of each parameter by name, from :meth:`table` (``""`` for none).
     fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
-        for p in &PARAMETERS {
-            out.set_item(p.name, p.unit)?;
+        for p in table().map_err(|e| to_pyerr(py, e))? {
+            out.set_item(&p.register.name, &p.register.unit)?;
         }
         Ok(out)
     }

@@ -3,6 +3,7 @@
 
 use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::export::{family_note, FAMILIES};
+use crate::device::family;
 use crate::device::profile::{
     access_name, table_name, LineSettings, Names, Profile, ProfileError, ProfileRegister,
     ProfileValue, ValueType,
@@ -319,12 +320,11 @@ impl PyProfile {
                 FAMILIES.join(", ")
             )));
         };
-        profile.line = family_line(py, key)?;
-        Ok(PyProfile::made(
-            profile,
-            format!("<{key}>"),
-            note.to_string(),
-        ))
+        if family::text(key).is_none() {
+            // A family whose map is still a table: its line is its class's.
+            profile.line = family_line(py, key)?;
+        }
+        Ok(PyProfile::made(profile, format!("<{key}>"), note))
     }
 
     /// The profile as a TOML file that reads back as the same profile (a built-in family's

@@ -88,6 +88,15 @@ def test_the_type_information_ships() -> None:
     assert "class DriveMembers:" in (package / "_aio_members.pyi").read_text(encoding="utf-8")
 
 
+def test_the_family_files_ship_and_are_the_exports() -> None:
+    """Each built-in family whose register map is a file ships it, and the export is it."""
+    files = sorted((Path(bb.__file__).parent / "families").glob("*.toml"))
+    assert "pbl.toml" in [f.name for f in files]
+    for file in files:
+        text = file.read_text(encoding="utf-8")
+        assert bb.Profile.family(file.stem).to_toml() == text, file.name
+
+
 @pytest.mark.sim
 def test_the_simulators_import() -> None:
     names = modules("benchbus.sim")
