@@ -5,12 +5,17 @@ mod common;
 
 use benchbus::bus::TxOptions;
 use benchbus::codec::Request;
-use benchbus::device::j2::{blocks, J2, WRITE_INTERVAL};
+use benchbus::device::j2::{index, profile, J2};
 use benchbus::device::Device;
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
+
+/// The family file's pacing, 150 ms.
+fn write_interval() -> std::time::Duration {
+    profile().unwrap().write_interval()
+}
 
 fn j2(acts: Vec<Act>, retries: u32) -> (J2, Scripted) {
     let (bus, t) = bus(acts, retries);
@@ -81,10 +86,17 @@ fn parameters_come_in_blocks_of_sixteen() {
 
 #[test]
 fn blocks_cover_the_wanted_addresses_in_the_fewest_reads() {
-    assert_eq!(blocks([0x80, 0].into_iter()), vec![(0, 1), (0x80, 1)]);
-    assert_eq!(blocks([14, 18, 16, 14].into_iter()), vec![(14, 5)]);
-    assert_eq!(blocks([0, 15, 16].into_iter()), vec![(0, 16), (16, 1)]);
-    assert_eq!(blocks(std::iter::empty()), vec![]);
+    let blocks = |names: &[&str]| -> Vec<(u16, u16)> {
+        let indices: Vec<usize> = names.iter().map(|n| index(n).unwrap()).collect();
+        let plan = profile().unwrap().plan(&indices);
+        plan.iter().map(|b| (b.start, b.count)).collect()
+    };
+    assert_eq!(blocks(&["AM", "MV"]), vec![(0, 1), (0x80, 1)]);
+    // P, D, I at 14, 18, 16 (and P again): one read across the empty addresses.
+    assert_eq!(blocks(&["P", "D", "I", "P"]), vec![(14, 5)]);
+    // MV, P and I at 0, 14 and 16: 17 registers is past the 16 a request takes.
+    assert_eq!(blocks(&["MV", "P", "I"]), vec![(0, 15), (16, 1)]);
+    assert_eq!(blocks(&[]), vec![]);
     // MV and AM: two reads of one register, not the 0..0x80 span.
     let (c, t) = j2(vec![words(1, &[250]), words(1, &[0])], 0);
     assert_eq!(c.read_many(&["MV", "AM"]).ok(), Some(vec![25.0, 0.0]));
@@ -204,7 +216,7 @@ fn writes_to_one_controller_are_paced() {
     for v in 1..=3 {
         c.write("AL1", f64::from(v) / 10.0).expect("write");
     }
-    assert!(start.elapsed() >= WRITE_INTERVAL * 2);
+    assert!(start.elapsed() >= write_interval() * 2);
 }
 
 #[test]
@@ -214,7 +226,7 @@ fn a_retried_write_keeps_the_interval() {
     let (c, _) = j2(acts, 1);
     let start = Instant::now();
     c.write("AL1", 0.1).expect("second attempt");
-    assert!(start.elapsed() >= WRITE_INTERVAL);
+    assert!(start.elapsed() >= write_interval());
     assert_eq!(c.bus().stats().retries, 1);
 }
 
@@ -262,10 +274,10 @@ fn a_broadcast_counts_as_a_write_to_every_unit() {
         })
         .expect("broadcast");
     // The broadcast waited out unit 1's interval, and the next write waits after it.
-    assert!(start.elapsed() >= WRITE_INTERVAL);
+    assert!(start.elapsed() >= write_interval());
     let after = Instant::now();
     c.write("AL1", 0.2).expect("write");
-    assert!(after.elapsed() >= WRITE_INTERVAL);
+    assert!(after.elapsed() >= write_interval());
     assert_eq!(
         sent(&t).iter().map(|f| f[0]).collect::<Vec<_>>(),
         vec![1, 0, 1]

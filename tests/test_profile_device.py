@@ -359,3 +359,81 @@ def test_a_device_of_every_address_samples_every_register(tmp_path: Path) -> Non
         assert values["r00000"] is dev.enums["r00000"].on and values["r00016"] == 0
         assert (values["r32769"], values["r65535"], dev.r65535) == (5, 7, 7)
         assert sim.errors == []
+
+
+# ---- read_gaps: one request across the addresses a profile does not list -------------------
+
+GAPPED = """
+[device]
+name = "gapped"
+[limits]
+max_read = 8
+read_gaps = {gaps}
+[[register]]
+name = "a"
+address = 0
+type = "i16"
+scale = 0.1
+[[register]]
+name = "b"
+address = 4
+[[register]]
+name = "c"
+address = 10
+"""
+
+
+@pytest.mark.parametrize("gaps", [False, True])
+def test_read_gaps_reads_across_unlisted_addresses_up_to_max_read(
+    tmp_path: Path, gaps: bool
+) -> None:
+    """With read_gaps, a and b (0 and 4) come in one request, the simulated device answers
+    the unlisted 1..3 with 0, and c (10) stays apart: 0..10 is past max_read 8."""
+    path = tmp_path / "gapped.toml"
+    path.write_text(GAPPED.format(gaps=str(gaps).lower()), encoding="utf-8")
+    for sim, dev, _ in rig(path, a=-1.5, b=7, c=9):
+        before = len(sim.requests)
+        assert dev.read_many(["a", "b", "c"]) == {"a": -1.5, "b": 7, "c": 9}
+        reads = (
+            [(0x03, 0, 0, 0, 5), (0x03, 0, 10, 0, 1)]
+            if gaps
+            else [
+                (0x03, 0, 0, 0, 1),
+                (0x03, 0, 4, 0, 1),
+                (0x03, 0, 10, 0, 1),
+            ]
+        )
+        assert sent_by(sim, before) == [frame(*r) for r in reads]
+        # A read that starts or ends on an unlisted address is still refused.
+        with pytest.raises(bb.ModbusException, match="0x02"):
+            dev.bus.read_holding_registers(1, 1, 4)
+        with pytest.raises(bb.ModbusException, match="0x02"):
+            dev.bus.read_holding_registers(1, 0, 2)
+        sim.errors.clear()
+
+
+def test_read_gaps_misuse_is_refused_by_the_parser_and_the_simulator(tmp_path: Path) -> None:
+    path = tmp_path / "gapped.toml"
+    path.write_text(
+        GAPPED.format(gaps="true").replace("[limits]", "[limits]\nblock_reads = false"),
+        encoding="utf-8",
+    )
+    with pytest.raises(bb.ProfileError, match="read_gaps: needs block reads"):
+        bb.Profile(path)
+    with pytest.raises(ValueError, match="read_gaps needs block reads"):
+        ProfileDevice(path)
+
+
+def test_the_j2_class_reads_a_simulated_profile_device_serving_its_file(tmp_path: Path) -> None:
+    """The J2 file's read_gaps: J2Controller reads PV, SV and MV (0, 2, 6) in one request
+    from a profile device serving the family file, as it does from a J2."""
+    path = tmp_path / "j2.toml"
+    path.write_text(bb.Profile.family("j2").to_toml(), encoding="utf-8")
+    model = ProfileDevice(path, values={"PV": 21.5, "SV": 40.0, "MV": 12.5})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, timeout=0.5) as bus:
+        j2 = bb.J2Controller(bus, 1, check_identity=False)
+        before = len(sim.requests)
+        sample = j2.sample()
+        assert sample == {"pv": 21.5, "sv": 40.0, "mv": 12.5}
+        assert sent_by(sim, before) == [frame(0x03, 0, 0, 0, 7)]
+        assert sim.errors == []

@@ -157,7 +157,7 @@ FAMILY_FILES = sorted(
 
 
 def test_the_package_ships_the_family_files() -> None:
-    assert "pbl.toml" in FAMILY_FILES
+    assert {"pbl.toml", "j2.toml"} <= set(FAMILY_FILES)
 
 
 @pytest.mark.parametrize("name", FAMILY_FILES)
@@ -172,7 +172,7 @@ def test_a_family_with_a_file_exports_the_file_itself(name: str) -> None:
     assert [r._replace(line=0) for r in family.registers] == [
         r._replace(line=0) for r in bb.Profile.family(key).registers
     ]
-    classes = {"pbl": bb.PblDrive}
+    classes = {"pbl": bb.PblDrive, "j2": bb.J2Controller}
     line = family.line
     assert tuple(classes[key].LINE_DEFAULTS[:5]) == (
         line.baudrate,

@@ -71,6 +71,7 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "max_write": 1,
         "min_write_interval": 0.0,
         "block_reads": True,
+        "read_gaps": None,
     }
     temperature, mode = p.registers
     assert temperature._asdict() == {

@@ -27,6 +27,7 @@ from benchbus._device import (
     to_int,
 )
 from benchbus._display import dataclass_table
+from benchbus._profile import profile_line
 
 if TYPE_CHECKING:
     pass
@@ -158,8 +159,9 @@ class J2Controller(J2Core, BusDevice):
     goes on controlling.
     """
 
-    #: Line format and reply timeout when the device opens its own Bus.
-    LINE_DEFAULTS = LineDefaults(9600, "N", 0.3)
+    #: Line format and reply timeout when the device opens its own Bus: the family file's
+    #: ``[line]`` (9600 8N1, 0.3 s).
+    LINE_DEFAULTS = profile_line(Profile.family("j2"))
     #: The family whose identity the device checks before its first exchange.
     IDENTITY = "j2"
 

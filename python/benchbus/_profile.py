@@ -67,6 +67,9 @@ class ProfileLimits(NamedTuple):
     min_write_interval: float | None
     #: Whether neighbouring registers may be read in one request (default True).
     block_reads: bool | None
+    #: Whether one request may also read unlisted addresses between two registers (default
+    #: False).
+    read_gaps: bool | None = None
 
 
 #: The whole numbers each integer type holds, exactly (a profile's ``min`` / ``max`` are

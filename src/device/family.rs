@@ -7,26 +7,17 @@ use crate::error::{Error, Result};
 use std::sync::OnceLock;
 
 /// The families whose register map is a file, and its text.
-const FILES: [(&str, &str); 1] = [(
-    "pbl",
-    include_str!("../../python/benchbus/families/pbl.toml"),
-)];
+const FILES: [(&str, &str); 2] = [
+    (
+        "pbl",
+        include_str!("../../python/benchbus/families/pbl.toml"),
+    ),
+    ("j2", include_str!("../../python/benchbus/families/j2.toml")),
+];
 
 /// The text of the file of family `key`, or None for a family without one.
 pub fn text(key: &str) -> Option<&'static str> {
     FILES.iter().find(|(k, _)| *k == key).map(|(_, text)| *text)
-}
-
-/// The comment lines at the top of family `key`'s file, without their `# `: what its class
-/// does in code and the file cannot say.
-pub fn note(key: &str) -> Option<String> {
-    let lines = text(key)?.lines().map_while(|l| l.strip_prefix('#'));
-    Some(
-        lines
-            .map(|l| l.strip_prefix(' ').unwrap_or(l))
-            .collect::<Vec<_>>()
-            .join("\n"),
-    )
 }
 
 /// The profile of family `key`, read from its file the first time it is asked for.
@@ -67,9 +58,7 @@ mod tests {
             assert!(!p.registers.is_empty(), "{key}");
             assert!(p.line.baudrate.is_some(), "{key}: its line is the file's");
         }
-        assert!(text("nope").is_none() && note("nope").is_none());
-        let note = note("pbl").unwrap();
-        assert!(note.starts_with("The PBL family") && note.ends_with("need PblDrive."));
+        assert!(text("nope").is_none());
         assert!(matches!(profile("nope"), Err(Error::Internal(_))));
     }
 }

@@ -2,10 +2,11 @@
 //! addresses, 9600 or 19200 8N1, stations 1..=255.
 //!
 //! The signed table (MV at 0 .. DIE at 62) holds signed 16-bit words in tenths, the unsigned
-//! table (AM at 128 .. FST at 156) plain integers. The manual's rules are applied here, not
-//! left to the caller: write commands at least [`WRITE_INTERVAL`] apart (paced by the Bus per
-//! unit), at most [`MAX_BLOCK`] registers a request, MV written only in manual mode (AM = 0),
-//! and RAPNF written 0 before a ramp parameter.
+//! table (AM at 128 .. FST at 156) plain integers: the family's file, `families/j2.toml`
+//! ([`table`]), with its request size (16 registers) and its write pacing (150 ms, paced by
+//! the Bus per unit). The manual's rules are applied here, not left to the caller: MV
+//! written only in manual mode (AM = 0), RAPNF written 0 before a ramp parameter, SV held
+//! to the limits, LSP never above USP.
 //!
 //! The manual's ranges are in engineering units; a signed register in tenths only reaches
 //! -3276.8..=3276.7, so its upper limits of 3600 and 9999 stop there. SV is checked against
@@ -14,141 +15,38 @@
 //! ramp rate that cannot be meant literally: those are checked against the widest range,
 //! -1999..=3276.7, and the controller itself refuses what it does not take.
 
+use super::family;
+use super::profile::{Profile, ProfileRegister, ProfileValue};
+use super::profiled::read_planned;
 use super::suggest::did_you_mean;
-use super::{Access, Device, Register, Station};
+use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::error::{Error, Result};
 use std::sync::Arc;
-use std::time::Duration;
 
-/// Least time between two write commands to one controller (manual: "不小於 150 毫秒").
-pub const WRITE_INTERVAL: Duration = Duration::from_millis(150);
-/// Most registers one read or write may carry.
-pub const MAX_BLOCK: u16 = 16;
-
-/// Lowest value a signed register in tenths holds.
-const WORD_MIN: f64 = -3276.8;
-/// Highest value a signed register in tenths holds.
+/// Highest value a signed register in tenths holds: the manual's upper limits of 3600 and
+/// 9999 stop here.
 const WORD_MAX: f64 = 3276.7;
 
-/// One parameter of either table.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Param {
-    /// The manual's name ("SV").
-    pub name: &'static str,
-    /// Register address.
-    pub address: u16,
-    /// Signed table (tenths, two's complement) or unsigned table (whole numbers).
-    pub signed: bool,
-    /// Whether it can be written.
-    pub writable: bool,
-    /// The manual's range in engineering units; ignored when `within_limits`.
-    pub range: (f64, f64),
-    /// Held to the limits LSP..USP the controller holds (SV).
-    pub within_limits: bool,
-    /// The unit of its value ("" for none): percent for the output, °C for the process
-    /// value and the parameters in its scale (a linear input, INP = LN, reads in its own).
-    pub unit: &'static str,
-}
+/// The parameter held to the limits LSP..USP the controller holds, read just before a
+/// write of it.
+pub const HELD_TO_LIMITS: &str = "SV";
 
-impl Param {
-    /// The parameter with `unit`.
-    const fn with_unit(self, unit: &'static str) -> Param {
-        Param { unit, ..self }
-    }
-}
-
-const LIMITS_RANGE: (f64, f64) = (-1999.0, 9999.0);
-/// The unit of the output and its limits.
-const PERCENT: &str = "%";
-/// The unit of the process value, and of the parameters in its scale.
-const PROCESS: &str = "°C";
-
-const fn s(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
-    Param {
-        name,
-        address,
-        signed: true,
-        writable: true,
-        range: (lo, hi),
-        within_limits: false,
-        unit: "",
-    }
-}
-
-/// A signed parameter the manual gives "LSP~USP" for; `held` to the limits the controller
-/// holds, or else to their widest range.
-const fn lim(name: &'static str, address: u16, held: bool) -> Param {
-    Param {
-        name,
-        address,
-        signed: true,
-        writable: true,
-        range: LIMITS_RANGE,
-        within_limits: held,
-        unit: "",
-    }
-}
-
-const fn u(name: &'static str, address: u16, lo: f64, hi: f64) -> Param {
-    Param {
-        name,
-        address,
-        signed: false,
-        writable: true,
-        range: (lo, hi),
-        within_limits: false,
-        unit: "",
-    }
+/// The family's file (`families/j2.toml`): both tables, their request size and pacing.
+///
+/// # Errors
+/// As [`family::profile`].
+pub fn profile() -> Result<&'static Profile> {
+    family::profile("j2")
 }
 
 /// Both tables, in address order; the manual's "NC" (empty) addresses are left out.
-#[rustfmt::skip]
-pub const PARAMETERS: [Param; 43] = [
-    s("MV", 0x00, 0.0, 100.0).with_unit(PERCENT),
-    Param { name: "PV", address: 0x02, signed: true, writable: false, range: (WORD_MIN, WORD_MAX), within_limits: false, unit: PROCESS },
-    lim("SV", 0x06, true).with_unit(PROCESS),
-    s("AL1", 0x08, -1999.0, 9999.0).with_unit(PROCESS),
-    s("AL2", 0x0A, -1999.0, 9999.0).with_unit(PROCESS),
-    s("P", 0x0E, 0.1, 3600.0),
-    s("I", 0x10, 0.0, 3600.0),
-    s("D", 0x12, 0.0, 3600.0),
-    s("LSP", 0x14, -1999.0, 9999.0).with_unit(PROCESS),
-    s("USP", 0x16, -1999.0, 9999.0).with_unit(PROCESS),
-    lim("HY1", 0x18, false),
-    lim("HY2", 0x1A, false),
-    lim("HYS", 0x1E, false),
-    s("OUL", 0x20, 0.0, 100.0).with_unit(PERCENT),
-    s("OUH", 0x22, 0.0, 100.0).with_unit(PERCENT),
-    s("GAP", 0x24, -50.0, 50.0),
-    lim("RAP", 0x26, false),
-    s("RTM", 0x28, 0.0, 3600.0),
-    s("P1", 0x2A, 0.1, 3600.0),
-    s("I1", 0x2C, 0.0, 3600.0),
-    s("D1", 0x2E, 0.0, 3600.0),
-    lim("TRL", 0x30, false),
-    lim("TRH", 0x32, false),
-    s("PVOS", 0x34, -50.0, 50.0).with_unit(PROCESS),
-    lim("SRT", 0x36, false),
-    s("LMO", 0x38, 0.0, 100.0),
-    lim("TOP", 0x3A, false),
-    s("U0", 0x3C, 0.0, 100.0),
-    s("DIE", 0x3E, 0.5, 5.0),
-    u("AM", 0x80, 0.0, 1.0),
-    u("RAPNF", 0x82, 0.0, 1.0),
-    u("AT", 0x84, 0.0, 1.0),
-    u("CYT", 0x86, 0.0, 250.0),
-    u("AD1", 0x88, 0.0, 9.0),
-    u("AD2", 0x8A, 0.0, 9.0),
-    u("CYT1", 0x8E, 0.0, 250.0),
-    u("MAN", 0x90, 0.0, 1.0),
-    u("SFT", 0x92, 0.0, 99.0),
-    u("DP", 0x94, 0.0, 3.0),
-    u("TH", 0x96, 0.0, 2.0),
-    u("INP", 0x98, 0.0, 9.0),
-    u("OUD", 0x9A, 0.0, 1.0),
-    u("FST", 0x9C, 20.0, 120.0),
-];
+///
+/// # Errors
+/// As [`family::profile`].
+pub fn table() -> Result<&'static [ProfileRegister]> {
+    family::registers("j2")
+}
 
 /// The address spans of the two tables: `(first, last)`.
 pub const TABLES: [(u16, u16); 2] = [(0x00, 0x3E), (0x80, 0x9C)];
@@ -172,71 +70,43 @@ pub const LIMITS: [&str; 2] = ["LSP", "USP"];
 /// The parameters the manual calls ramp parameters (RAPNF is written 0 before them).
 pub const RAMP_PARAMETERS: [&str; 2] = ["RAP", "RTM"];
 
-impl Param {
-    /// The Register this parameter is on the wire: tenths and signed, or whole and unsigned,
-    /// with its range cut to what the register can hold.
-    pub fn register(&self) -> Register {
-        let (scale, (lo, hi)) = if self.signed {
-            (
-                0.1,
-                (self.range.0.max(WORD_MIN), self.range.1.min(WORD_MAX)),
-            )
-        } else {
-            (1.0, self.range)
-        };
-        Register {
-            name: self.name,
-            address: self.address,
-            scale,
-            signed: self.signed,
-            unit: self.unit,
-            access: if self.writable {
-                Access::ReadWrite
-            } else {
-                Access::Read
-            },
-            range: (lo, hi),
+/// The raw word for `value` of parameter `p`, checked against its range and what the
+/// register holds; a signed parameter whose manual range reaches past what a word in tenths
+/// holds says so.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for a read-only parameter or a value it cannot take.
+pub fn encode(p: &Register<String>, value: f64) -> Result<u16> {
+    p.encode(value).map_err(|e| match e {
+        Error::InvalidArgument(m) if p.signed && p.range.1 == WORD_MAX && value > WORD_MAX => {
+            Error::InvalidArgument(format!(
+                "{m} (a signed 16-bit register in tenths holds -3276.8 to 3276.7, less than \
+                 the manual gives)"
+            ))
         }
-    }
-
-    /// The engineering value of a raw word (tenths decoded by division, so 0.3 reads 0.3).
-    pub fn decode(&self, raw: u16) -> f64 {
-        self.register().decode(raw)
-    }
-
-    /// The raw word for `value`, checked against the manual's range (for an "LSP~USP"
-    /// parameter, the widest limits) and what the register can hold.
-    ///
-    /// # Errors
-    /// [`Error::InvalidArgument`] for a read-only parameter or a value it cannot take.
-    pub fn encode(&self, value: f64) -> Result<u16> {
-        let register = self.register();
-        register.encode(value).map_err(|e| {
-            let (lo, hi) = register.range;
-            let cut_off =
-                (self.range.0..=self.range.1).contains(&value) && !(lo..=hi).contains(&value);
-            match e {
-                Error::InvalidArgument(m) if cut_off => Error::InvalidArgument(format!(
-                    "{m} (the manual gives {} to {}, but a signed 16-bit register in tenths \
-                         holds -3276.8 to 3276.7)",
-                    self.range.0, self.range.1
-                )),
-                other => other,
-            }
-        })
-    }
+        other => other,
+    })
 }
 
 /// The parameter called `name` (any case: "sv" is SV).
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] if there is none.
-pub fn by_name(name: &str) -> Result<&'static Param> {
-    PARAMETERS
+pub fn by_name(name: &str) -> Result<&'static Register<String>> {
+    Ok(&table()?[index(name)?].register)
+}
+
+/// The index in [`table`] of the parameter called `name` (any case).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if there is none.
+pub fn index(name: &str) -> Result<usize> {
+    let table = table()?;
+    table
         .iter()
-        .find(|p| p.name.eq_ignore_ascii_case(name))
+        .position(|p| p.register.name.eq_ignore_ascii_case(name))
         .ok_or_else(|| {
-            let names = PARAMETERS.iter().map(|p| p.name);
+            let names = table.iter().map(|p| p.register.name.as_str());
             let mut hint = did_you_mean(name, names.clone());
             if hint.is_empty() {
                 hint = format!("; it has {}", names.collect::<Vec<_>>().join(", "));
@@ -264,8 +134,9 @@ impl Device for J2 {
 impl J2 {
     /// The controller at `unit` on `bus`.
     pub fn new(bus: Arc<Bus>, unit: u8) -> J2 {
+        // The file's pacing (a file the parser refused fails every call anyway).
         let opts = TxOptions {
-            write_interval: WRITE_INTERVAL,
+            write_interval: profile().map(Profile::write_interval).unwrap_or_default(),
             ..TxOptions::default()
         };
         J2 {
@@ -278,27 +149,25 @@ impl J2 {
     /// # Errors
     /// Any [`Error`].
     pub fn read(&self, name: &str) -> Result<f64> {
-        let p = by_name(name)?;
-        let words = self.station.read(p.address, 1)?;
-        Ok(p.decode(words[0]))
+        match self.read_many(&[name])?[..] {
+            [value] => Ok(value),
+            _ => Err(self.station.short_reply()),
+        }
     }
 
-    /// Reads the parameters called `names`, in as few requests as the 16-register limit
-    /// allows (see [`blocks`]).
+    /// Reads the parameters called `names`, in as few requests as the file's limits allow
+    /// (16 registers, across the empty addresses: [`Profile::plan`]).
     ///
     /// # Errors
     /// Any [`Error`].
     pub fn read_many(&self, names: &[&str]) -> Result<Vec<f64>> {
-        let params = names
+        let indices = names.iter().map(|n| index(n)).collect::<Result<Vec<_>>>()?;
+        read_planned(&self.station, profile()?, &indices)?
             .iter()
-            .map(|n| by_name(n))
-            .collect::<Result<Vec<_>>>()?;
-        let words = self.read_addresses(params.iter().map(|p| p.address))?;
-        params
-            .iter()
-            .map(|p| match words.get(&p.address) {
-                Some(&w) => Ok(p.decode(w)),
-                None => Err(self.station.short_reply()),
+            .map(|v| match v {
+                ProfileValue::Int(n) => Ok(*n as f64),
+                ProfileValue::Float(f) => Ok(*f),
+                other => Err(Error::Internal(format!("a J2 parameter read as {other:?}"))),
             })
             .collect()
     }
@@ -309,7 +178,7 @@ impl J2 {
     /// # Errors
     /// Any [`Error`].
     pub fn parameters(&self) -> Result<Vec<(&'static str, f64)>> {
-        let names: Vec<&str> = PARAMETERS.iter().map(|p| p.name).collect();
+        let names: Vec<&str> = table()?.iter().map(|p| p.register.name.as_str()).collect();
         let values = self.read_many(&names)?;
         Ok(names.into_iter().zip(values).collect())
     }
@@ -333,14 +202,14 @@ impl J2 {
     /// As [`write`](Self::write).
     pub fn write_as(&self, name: &str, value: f64, multiple: bool) -> Result<()> {
         let p = by_name(name)?;
-        let raw = p.encode(value)?;
+        let raw = encode(p, value)?;
         let rapnf = by_name(RAPNF)?.address;
         self.sequence(|| {
             if p.name == "MV" && self.automatic()? {
                 return Err(self.mv_in_auto());
             }
             self.check_against_limits(p, value)?;
-            if RAMP_PARAMETERS.contains(&p.name) {
+            if RAMP_PARAMETERS.contains(&p.name.as_str()) {
                 self.write_word(rapnf, 0)?;
             }
             if multiple {
@@ -359,7 +228,7 @@ impl J2 {
     /// As [`write`](Self::write); a failure stops the sequence (the earlier writes stay).
     pub fn write_many(&self, values: &[(&str, f64)]) -> Result<()> {
         for (name, value) in values {
-            by_name(name)?.encode(*value)?;
+            encode(by_name(name)?, *value)?;
         }
         for (name, value) in values {
             self.write(name, *value)?;
@@ -374,7 +243,7 @@ impl J2 {
     /// As [`write`](Self::write).
     pub fn set_output(&self, percent: f64, switch_to_manual: bool) -> Result<()> {
         let mv = by_name("MV")?;
-        let raw = mv.encode(percent)?;
+        let raw = encode(mv, percent)?;
         let am = by_name(AM)?.address;
         self.sequence(|| {
             if self.automatic()? {
@@ -393,7 +262,7 @@ impl J2 {
     /// [`Error::InvalidArgument`] if `low > high` or either is out of range; any [`Error`].
     pub fn set_limits(&self, low: f64, high: f64) -> Result<()> {
         let (lsp, usp) = (by_name("LSP")?, by_name("USP")?);
-        let (raw_low, raw_high) = (lsp.encode(low)?, usp.encode(high)?);
+        let (raw_low, raw_high) = (encode(lsp, low)?, encode(usp, high)?);
         if low > high {
             return Err(Error::InvalidArgument(format!(
                 "limits must be low <= high, got ({low}, {high})"
@@ -438,13 +307,13 @@ impl J2 {
     }
 
     /// For an "LSP~USP" parameter, LSP or USP: refuses a value the limits do not allow.
-    fn check_against_limits(&self, p: &Param, value: f64) -> Result<()> {
-        let bounded = p.within_limits || p.name == "LSP" || p.name == "USP";
+    fn check_against_limits(&self, p: &Register<String>, value: f64) -> Result<()> {
+        let bounded = [HELD_TO_LIMITS, "LSP", "USP"].contains(&p.name.as_str());
         if !bounded {
             return Ok(());
         }
         let (low, high) = self.limits()?;
-        let refused = match p.name {
+        let refused = match p.name.as_str() {
             "LSP" if value > high => Some(format!("LSP must stay <= USP = {high}")),
             "USP" if value < low => Some(format!("USP must stay >= LSP = {low}")),
             "LSP" | "USP" => None,
@@ -462,19 +331,6 @@ impl J2 {
         }
     }
 
-    /// The words at `addresses`, `{address: word}`, read in the [`blocks`] that cover them.
-    fn read_addresses(
-        &self,
-        addresses: impl Iterator<Item = u16>,
-    ) -> Result<std::collections::BTreeMap<u16, u16>> {
-        let mut words = std::collections::BTreeMap::new();
-        for (first, count) in blocks(addresses) {
-            let read = self.station.read(first, count)?;
-            words.extend((first..).zip(read));
-        }
-        Ok(words)
-    }
-
     fn write_word(&self, address: u16, raw: u16) -> Result<()> {
         self.station.write(address, raw)
     }
@@ -486,35 +342,31 @@ impl J2 {
     }
 }
 
-/// The fewest reads of at most [`MAX_BLOCK`] registers that cover `addresses`, as
-/// `(first, count)`: each block starts at the lowest address not yet covered and ends at the
-/// last wanted address within reach, so no register past it is read.
-pub fn blocks(addresses: impl Iterator<Item = u16>) -> Vec<(u16, u16)> {
-    let wanted: std::collections::BTreeSet<u16> = addresses.collect();
-    let mut out: Vec<(u16, u16)> = Vec::new();
-    for a in wanted {
-        match out.last_mut() {
-            Some((first, count)) if a - *first < MAX_BLOCK => *count = a - *first + 1,
-            _ => out.push((a, 1)),
-        }
-    }
-    out
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::Access;
 
     #[test]
     fn table_is_in_address_order_at_even_addresses_within_the_tables() {
-        for pair in PARAMETERS.windows(2) {
+        let table: Vec<&Register<String>> = table().unwrap().iter().map(|p| &p.register).collect();
+        assert_eq!(table.len(), 43);
+        for pair in table.windows(2) {
             assert!(pair[0].address < pair[1].address, "{:?}", pair[1]);
         }
-        for p in &PARAMETERS {
+        for p in table {
             assert_eq!(p.address % 2, 0, "{}", p.name);
             assert!(TABLES.iter().any(|(a, b)| (*a..=*b).contains(&p.address)));
             assert_eq!(p.signed, p.address < 0x80, "{}", p.name);
+            assert_eq!(p.scale, if p.signed { 0.1 } else { 1.0 }, "{}", p.name);
+            assert_eq!(p.access == Access::Read, p.name == "PV", "{}", p.name);
         }
+        let p = profile().unwrap();
+        assert_eq!(
+            (p.limits.max_read, p.limits.max_write),
+            (Some(16), Some(16))
+        );
+        assert_eq!(p.write_interval(), std::time::Duration::from_millis(150));
     }
 
     #[test]
@@ -522,23 +374,25 @@ mod tests {
         let Some(al1) = by_name("AL1").ok().filter(|p| p.signed) else {
             panic!("AL1 is in the signed table");
         };
-        assert_eq!(al1.encode(-50.0).ok(), Some(0xFE0C));
+        assert_eq!(encode(al1, -50.0).ok(), Some(0xFE0C));
         assert_eq!(al1.decode(0xFE0C), -50.0);
-        assert_eq!(al1.encode(100.0).ok(), Some(1000));
+        assert_eq!(encode(al1, 100.0).ok(), Some(1000));
         assert_eq!(al1.decode(3), 0.3);
     }
 
     #[test]
     fn ranges_are_cut_to_what_the_register_holds() {
-        let check = |name: &str, v: f64| by_name(name).and_then(|p| p.encode(v)).is_ok();
+        let check = |name: &str, v: f64| by_name(name).and_then(|p| encode(p, v)).is_ok();
         assert!(check("AL1", 3276.7) && !check("AL1", 3276.8) && !check("AL1", 9999.0));
         assert!(check("AL1", -1999.0) && !check("AL1", -1999.1));
         assert!(check("P", 0.1) && !check("P", 0.0) && !check("P", 3600.0));
         assert!(check("DIE", 0.5) && !check("DIE", 0.4) && !check("DIE", 5.1));
         assert!(check("FST", 20.0) && !check("FST", 19.0) && !check("FST", 20.5));
         assert!(!check("PV", 1.0) && !check("MV", 100.1) && !check("MV", f64::NAN));
-        let msg = by_name("AL1").and_then(|p| p.encode(5000.0)).err();
-        assert!(msg.is_some_and(|e| e.to_string().contains("the manual gives -1999 to 9999")));
+        let msg = by_name("AL1").and_then(|p| encode(p, 5000.0)).err();
+        assert!(msg.is_some_and(|e| e.to_string().contains("holds -3276.8 to 3276.7")));
+        let msg = by_name("DIE").and_then(|p| encode(p, 5000.0)).err();
+        assert!(msg.is_some_and(|e| !e.to_string().contains("3276.7")));
     }
 
     #[test]
@@ -549,10 +403,8 @@ mod tests {
         }
         // Each small group is one request: within 16 registers.
         for group in [&SAMPLE[..], &PID, &PID2, &LIMITS] {
-            let addresses = group
-                .iter()
-                .filter_map(|n| by_name(n).ok().map(|p| p.address));
-            assert_eq!(blocks(addresses).len(), 1, "{group:?}");
+            let indices: Vec<usize> = group.iter().filter_map(|n| index(n).ok()).collect();
+            assert_eq!(profile().unwrap().plan(&indices).len(), 1, "{group:?}");
         }
     }
 

@@ -274,6 +274,17 @@ pub trait Device: Send + Sync {
     }
 }
 
+/// `raw` x `scale`, exactly where `scale` is one over a whole number: divided by 10 rather
+/// than multiplied by 0.1, so 3 tenths are 0.3, not 0.30000000000000004.
+pub(crate) fn scaled(raw: f64, scale: f64) -> f64 {
+    let per_unit = (1.0 / scale).round();
+    if scale < 1.0 && (per_unit * scale - 1.0).abs() < 1e-12 {
+        raw / per_unit
+    } else {
+        raw * scale
+    }
+}
+
 /// Who may write a register, in the manuals' terms.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Access {
@@ -316,13 +327,7 @@ impl<S: AsRef<str>> Register<S> {
         } else {
             f64::from(raw)
         };
-        // Divide by 10 rather than multiply by 0.1: 3 tenths read 0.3, not 0.30000000000000004.
-        let per_unit = (1.0 / self.scale).round();
-        if self.scale < 1.0 && (per_unit * self.scale - 1.0).abs() < 1e-12 {
-            raw / per_unit
-        } else {
-            raw * self.scale
-        }
+        scaled(raw, self.scale)
     }
 
     /// The same register holding its own name and unit (a `const` table's row as a

@@ -158,6 +158,9 @@ pub struct Limits {
     pub min_write_interval: Option<f64>,
     /// Whether neighbouring registers may be read in one request.
     pub block_reads: Option<bool>,
+    /// Whether one request may also read the addresses between two registers that the
+    /// profile does not list (a device that answers them, as the J2's empty "NC" ones).
+    pub read_gaps: Option<bool>,
 }
 
 /// A device described by a profile file.
@@ -368,7 +371,10 @@ pub fn is_identifier(name: &str) -> bool {
 /// range of a register whose profile gives no `min` / `max`.
 pub(crate) fn full_range(kind: Kind, scale: f64, offset: f64) -> (f64, f64) {
     let (raw_lo, raw_hi) = raw_range(kind);
-    let (a, b) = (raw_lo * scale + offset, raw_hi * scale + offset);
+    let (a, b) = (
+        super::scaled(raw_lo, scale) + offset,
+        super::scaled(raw_hi, scale) + offset,
+    );
     (a.min(b), a.max(b))
 }
 
@@ -404,7 +410,13 @@ const DEVICE_KEYS: &[&str] = &["name", "description"];
 const LINE_KEYS: &[&str] = &[
     "baudrate", "parity", "stopbits", "timeout", "framing", "bytesize",
 ];
-const LIMIT_KEYS: &[&str] = &["max_read", "max_write", "min_write_interval", "block_reads"];
+const LIMIT_KEYS: &[&str] = &[
+    "max_read",
+    "max_write",
+    "min_write_interval",
+    "block_reads",
+    "read_gaps",
+];
 const REGISTER_KEYS: &[&str] = &[
     "name",
     "address",
@@ -703,12 +715,22 @@ fn limits(s: &Section<'_, '_, '_>) -> Parsed<Limits> {
             ));
         }
     }
+    let block_reads = s.boolean("block_reads")?;
+    let read_gaps = s.boolean("read_gaps")?;
+    if read_gaps == Some(true) && block_reads == Some(false) {
+        return Err(s.fail(
+            "read_gaps",
+            s.span_of("read_gaps"),
+            "needs block reads: with block_reads = false every register is read apart",
+        ));
+    }
     // 2000 bits is the most one read of coils may ask for; 1968 one write of coils.
     Ok(Limits {
         max_read: s.int_in("max_read", 1, 2000)?.map(|v| v as u16),
         max_write: s.int_in("max_write", 1, 1968)?.map(|v| v as u16),
         min_write_interval: interval,
-        block_reads: s.boolean("block_reads")?,
+        block_reads,
+        read_gaps,
     })
 }
 
@@ -1559,6 +1581,11 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
         fails("[line]\ntimeout = 0\n", 4, "line.timeout");
         fails("[line]\nframing = \"tcp\"\n", 4, "line.framing");
         fails("[limits]\nmax_read = 0\n", 4, "limits.max_read");
+        fails(
+            "[limits]\nblock_reads = false\nread_gaps = true\n",
+            5,
+            "limits.read_gaps",
+        );
         fails("[limits]\nmax_write = 2000\n", 4, "limits.max_write");
         fails(
             "[limits]\nmin_write_interval = -1\n",

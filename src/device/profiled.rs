@@ -59,10 +59,17 @@ impl Profile {
         self.limits.max_write.map_or(protocol, |m| m.min(protocol))
     }
 
+    /// The least time between two writes: `min_write_interval` (none where not given).
+    pub fn write_interval(&self) -> Duration {
+        let interval = self.limits.min_write_interval.unwrap_or(0.0);
+        Duration::try_from_secs_f64(interval).unwrap_or_default()
+    }
+
     /// The requests that read the registers `wanted` (indices; repeats read once): each
     /// table apart, in address order; with `block_reads` (the default), neighbouring and
     /// overlapping registers share a request up to [`read_limit`](Self::read_limit),
-    /// otherwise only registers at the same address do (bits of one register).
+    /// otherwise only registers at the same address do (bits of one register); with
+    /// `read_gaps`, registers with unlisted addresses between them share one too.
     pub fn plan(&self, wanted: &[usize]) -> Vec<Block> {
         let mut order: Vec<usize> = wanted
             .iter()
@@ -75,6 +82,7 @@ impl Profile {
         });
         order.dedup();
         let merge = self.limits.block_reads.unwrap_or(true);
+        let gaps = merge && self.limits.read_gaps.unwrap_or(false);
         let mut blocks: Vec<Block> = Vec::new();
         for i in order {
             let r = &self.registers[i];
@@ -82,7 +90,7 @@ impl Profile {
             let end = start + r.value.width();
             if let Some(last) = blocks.last_mut() {
                 let joins = last.table == r.table
-                    && (start < last.end() || (merge && start == last.end()))
+                    && (start < last.end() || (merge && start == last.end()) || gaps)
                     && end.max(last.end()) - u32::from(last.start)
                         <= u32::from(self.read_limit(r.table));
                 if joins {
@@ -294,6 +302,58 @@ fn shown(value: &ProfileValue) -> String {
     }
 }
 
+/// The register of `profile` at `index`.
+fn register(profile: &Profile, index: usize) -> Result<&ProfileRegister> {
+    profile
+        .registers
+        .get(index)
+        .ok_or_else(|| Error::InvalidArgument(format!("no register {index}")))
+}
+
+/// The engineering values of the registers `indices` of `profile`, in that order, read from
+/// `station` as [`Profile::plan`] groups them (the one block-read planner of every device
+/// with a table).
+///
+/// # Errors
+/// [`Error::InvalidArgument`] for an index past the profile; any [`Error`] of a request
+/// (the values read before it are lost).
+pub fn read_planned(
+    station: &Station,
+    profile: &Profile,
+    indices: &[usize],
+) -> Result<Vec<ProfileValue>> {
+    // Only those asked for, by index (a slot for every register of the profile made each
+    // read cost the profile's length).
+    let mut values: HashMap<usize, ProfileValue> = HashMap::with_capacity(indices.len());
+    for block in profile.plan(indices) {
+        let words: Vec<u16> = if block.table.holds_bits() {
+            station
+                .read_bits(block.table, block.start, block.count)?
+                .into_iter()
+                .map(u16::from)
+                .collect()
+        } else {
+            station.read_table(block.table, block.start, block.count)?
+        };
+        for i in &block.members {
+            let r = register(profile, *i)?;
+            let from = usize::from(r.register.address - block.start);
+            let to = from + r.value.width() as usize;
+            let own = words.get(from..to).ok_or_else(|| station.short_reply())?;
+            values.insert(*i, r.decode(own)?);
+        }
+    }
+    indices
+        .iter()
+        .map(|i| {
+            values
+                .get(i)
+                .cloned()
+                .ok_or_else(|| Error::InvalidArgument(format!("no register {i}")))
+        })
+        .collect()
+}
+
 /// A device described by a profile, on a bus.
 #[derive(Debug)]
 pub struct ProfiledDevice {
@@ -315,9 +375,8 @@ impl ProfiledDevice {
     /// The device `profile` describes, at `unit` on `bus`, its writes at least the
     /// profile's `min_write_interval` apart.
     pub fn new(bus: Arc<Bus>, unit: u8, profile: Arc<Profile>) -> ProfiledDevice {
-        let interval = profile.limits.min_write_interval.unwrap_or(0.0);
         let opts = TxOptions {
-            write_interval: Duration::try_from_secs_f64(interval).unwrap_or_default(),
+            write_interval: profile.write_interval(),
             ..TxOptions::default()
         };
         ProfiledDevice {
@@ -333,10 +392,7 @@ impl ProfiledDevice {
 
     /// The register at `index`.
     fn register(&self, index: usize) -> Result<&ProfileRegister> {
-        self.profile
-            .registers
-            .get(index)
-            .ok_or_else(|| Error::InvalidArgument(format!("no register {index}")))
+        register(&self.profile, index)
     }
 
     /// The engineering values of the registers `indices`, in that order, read as
@@ -355,39 +411,7 @@ impl ProfiledDevice {
                 )));
             }
         }
-        // Only those asked for, by index (a slot for every register of the profile made each
-        // read cost the profile's length).
-        let mut values: HashMap<usize, ProfileValue> = HashMap::with_capacity(indices.len());
-        for block in self.profile.plan(indices) {
-            let words: Vec<u16> = if block.table.holds_bits() {
-                self.station
-                    .read_bits(block.table, block.start, block.count)?
-                    .into_iter()
-                    .map(u16::from)
-                    .collect()
-            } else {
-                self.station
-                    .read_table(block.table, block.start, block.count)?
-            };
-            for i in &block.members {
-                let r = self.register(*i)?;
-                let from = usize::from(r.register.address - block.start);
-                let to = from + r.value.width() as usize;
-                let own = words
-                    .get(from..to)
-                    .ok_or_else(|| self.station.short_reply())?;
-                values.insert(*i, r.decode(own)?);
-            }
-        }
-        indices
-            .iter()
-            .map(|i| {
-                values
-                    .get(i)
-                    .cloned()
-                    .ok_or_else(|| Error::InvalidArgument(format!("no register {i}")))
-            })
-            .collect()
+        read_planned(&self.station, &self.profile, indices)
     }
 
     /// Writes `value` to the register at `index`, every check made before anything is
@@ -477,6 +501,17 @@ address = 4
         );
         let p = profile("[limits]\nblock_reads = false\n", SENSOR);
         assert_eq!(spans(&p, &[3, 4]).len(), 2);
+    }
+
+    #[test]
+    fn read_gaps_reads_across_unlisted_addresses_within_max_read() {
+        // Input registers 0 (f32: 0..=1) and 10: apart without read_gaps, one read with it.
+        let p = profile("", SENSOR);
+        assert_eq!(spans(&p, &[0, 2]).len(), 2);
+        let p = profile("[limits]\nread_gaps = true\n", SENSOR);
+        assert_eq!(spans(&p, &[0, 2]), vec![(Table::Input, 0, 11, vec![0, 2])]);
+        let p = profile("[limits]\nread_gaps = true\nmax_read = 10\n", SENSOR);
+        assert_eq!(spans(&p, &[0, 2]).len(), 2);
     }
 
     #[test]

@@ -5,7 +5,10 @@ use super::{member, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStati
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._j2";
-use crate::device::j2::{by_name, Param, J2, LIMITS, PARAMETERS, PID, PID2, RAPNF, SAMPLE, STATUS};
+use crate::device::j2::{
+    by_name, table, HELD_TO_LIMITS, J2, LIMITS, PID, PID2, RAPNF, SAMPLE, STATUS,
+};
+use crate::device::{Access, Register};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyMapping, PyString, PyTuple};
@@ -28,7 +31,7 @@ impl PyJ2Core {
             .iter()
             .map(|n| param(py, n.borrow()))
             .collect::<PyResult<Vec<_>>>()?;
-        let wanted: Vec<&'static str> = params.iter().map(|p| p.name).collect();
+        let wanted: Vec<&'static str> = params.iter().map(|p| p.name.as_str()).collect();
         let values = self.dev.wire(py, move |j| j.read_many(&wanted))?;
         Ok(params
             .iter()
@@ -67,7 +70,7 @@ impl PyJ2Core {
 }
 
 /// A parameter name (str), checked against the table.
-fn param(py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<&'static Param> {
+fn param(py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<&'static Register<String>> {
     if !name.is_instance_of::<PyString>() {
         return Err(PyTypeError::new_err(format!(
             "a J2 parameter is named by a str (\"SV\"), got {}",
@@ -124,7 +127,7 @@ fn py_six() -> Py<PyAny> {
 }
 
 /// A value as Python has it: an int for the unsigned table, a float for the signed one.
-fn value<'py>(py: Python<'py>, p: &Param, v: f64) -> Bound<'py, PyAny> {
+fn value<'py>(py: Python<'py>, p: &Register<String>, v: f64) -> Bound<'py, PyAny> {
     if p.signed {
         PyFloat::new(py, v).into_any()
     } else {
@@ -164,7 +167,7 @@ impl PyJ2Core {
     /// Reads the parameter called `name`.
     fn get<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let p = param(py, name)?;
-        let v = self.dev.wire(py, move |j| j.read(p.name))?;
+        let v = self.dev.wire(py, move |j| j.read(&p.name))?;
         Ok(value(py, p, v))
     }
 
@@ -204,8 +207,8 @@ impl PyJ2Core {
             }
         };
         let p = param(py, name)?;
-        let v = number(value, p.name)?;
-        self.dev.wire(py, move |j| j.write_as(p.name, v, multiple))
+        let v = number(value, &p.name)?;
+        self.dev.wire(py, move |j| j.write_as(&p.name, v, multiple))
     }
 
     /// Writes `value` to the parameter called `name`, with the manual's rules.
@@ -216,8 +219,8 @@ impl PyJ2Core {
         value: &Bound<'_, PyAny>,
     ) -> PyResult<()> {
         let p = param(py, name)?;
-        let v = number(value, p.name)?;
-        self.dev.wire(py, move |j| j.write(p.name, v))
+        let v = number(value, &p.name)?;
+        self.dev.wire(py, move |j| j.write(&p.name, v))
     }
 
     /// Several parameters by name, in as few requests as the 16-register limit allows.
@@ -258,7 +261,7 @@ impl PyJ2Core {
                 )));
             }
             let p = param(py, &pair[0])?;
-            pairs.push((p.name, number(&pair[1], p.name)?));
+            pairs.push((p.name.as_str(), number(&pair[1], &p.name)?));
         }
         self.dev.wire(py, move |j| j.write_many(&pairs))
     }
@@ -407,16 +410,16 @@ impl PyJ2Core {
     #[staticmethod]
     fn table<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyList>> {
         let out = PyList::empty(py);
-        for p in &PARAMETERS {
-            let (lo, hi) = p.register().range;
+        for p in table().map_err(|e| to_pyerr(py, e))? {
+            let p = &p.register;
             let row = (
-                p.name,
+                &p.name,
                 p.address,
                 p.signed,
-                p.writable,
-                lo,
-                hi,
-                p.within_limits,
+                p.access != Access::Read,
+                p.range.0,
+                p.range.1,
+                p.name == HELD_TO_LIMITS,
             );
             out.append(public(py, PY, "J2Parameter", row, None)?)?;
         }
@@ -428,8 +431,8 @@ impl PyJ2Core {
     #[staticmethod]
     fn units<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
-        for p in &PARAMETERS {
-            out.set_item(p.name, p.unit)?;
+        for p in table().map_err(|e| to_pyerr(py, e))? {
+            out.set_item(&p.register.name, &p.register.unit)?;
         }
         Ok(out)
     }

@@ -33,6 +33,8 @@ pub(super) struct PyProfile {
     path: String,
     /// Comment lines for the top of the file `to_toml` writes ("" for none).
     note: String,
+    /// A built-in family's file, which `to_toml` gives back as it is (its comments too).
+    file: Option<&'static str>,
 }
 
 /// The line defaults of the built-in family `key`, from its class's ``LINE_DEFAULTS`` (the
@@ -165,6 +167,7 @@ impl PyProfile {
             by_name,
             path,
             note,
+            file: None,
         }
     }
 
@@ -310,26 +313,37 @@ impl PyProfile {
     }
 
     /// The built-in family ``key`` ("drive" for a BLD2 / BLD3H, "drive-c20", "pbl" or
-    /// "j2") as a profile, made from the family's own register table, with its class's
-    /// line defaults; ValueError for another key.
+    /// "j2") as a profile: the family's file as the package ships it (``families/``), or
+    /// one made from the family's own register table with its class's line defaults;
+    /// ValueError for another key.
     #[staticmethod]
     fn family(py: Python<'_>, key: &str) -> PyResult<Self> {
-        let (Some(mut profile), Some(note)) = (Profile::family(key), family_note(key)) else {
+        let Some(mut profile) = Profile::family(key) else {
             return Err(PyValueError::new_err(format!(
                 "no built-in family {key:?}: one of {}",
                 FAMILIES.join(", ")
             )));
         };
-        if family::text(key).is_none() {
+        let file = family::text(key);
+        let mut note = String::new();
+        if file.is_none() {
             // A family whose map is still a table: its line is its class's.
             profile.line = family_line(py, key)?;
+            note = family_note(key).unwrap_or_default().to_string();
         }
-        Ok(PyProfile::made(profile, format!("<{key}>"), note))
+        Ok(PyProfile {
+            file,
+            ..PyProfile::made(profile, format!("<{key}>"), note)
+        })
     }
 
     /// The profile as a TOML file that reads back as the same profile (a built-in family's
-    /// starts with comments on what its class does in code and the file cannot say).
+    /// file as it is; each starts with comments on what its class does in code and the
+    /// file cannot say).
     fn to_toml(&self) -> String {
+        if let Some(file) = self.file {
+            return file.to_string();
+        }
         let mut out: String = self.note.lines().map(|l| format!("# {l}\n")).collect();
         if !out.is_empty() {
             out.push('\n');
@@ -379,6 +393,7 @@ impl PyProfile {
         kwargs.set_item("max_write", l.max_write)?;
         kwargs.set_item("min_write_interval", l.min_write_interval)?;
         kwargs.set_item("block_reads", l.block_reads)?;
+        kwargs.set_item("read_gaps", l.read_gaps)?;
         public(py, ROWS, "ProfileLimits", (), Some(&kwargs))
     }
 

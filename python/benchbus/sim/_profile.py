@@ -28,7 +28,7 @@ Value = Union[int, float, bool, str]
 _TOP_KEYS = {"device", "line", "limits", "register"}
 _DEVICE_KEYS = {"name", "description"}
 _LINE_KEYS = {"baudrate", "parity", "stopbits", "timeout", "framing", "bytesize"}
-_LIMIT_KEYS = {"max_read", "max_write", "min_write_interval", "block_reads"}
+_LIMIT_KEYS = {"max_read", "max_write", "min_write_interval", "block_reads", "read_gaps"}
 _REGISTER_KEYS = {
     "name",
     "address",
@@ -283,9 +283,14 @@ class ProfileDevice(RegisterDevice):
     # ---- the wire ------------------------------------------------------------------------
 
     def _readable(self, table: str, address: int, count: int) -> None:
+        """Refuse a read of an unlisted address (unless between two listed ones of a
+        profile with ``read_gaps``, which read 0) or of a write-only register."""
         at = self._at[table]
+        gaps = bool(self.limits.get("read_gaps"))
         for a in range(address, address + count):
             regs = at.get(a)
+            if not regs and gaps and a not in (address, address + count - 1):
+                continue
             if not regs or any(r.access == "w" for r in regs):
                 raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
 
@@ -405,8 +410,11 @@ def _check_limits(path: str, limits: dict[str, Any]) -> None:
     interval = limits.get("min_write_interval", 0.0)
     if not _number(interval) or not interval >= 0:
         raise ValueError(f"{path}: [limits] min_write_interval must be >= 0 s, not {interval!r}")
-    if not isinstance(limits.get("block_reads", True), bool):
-        raise ValueError(f"{path}: [limits] block_reads must be true or false")
+    for key in ("block_reads", "read_gaps"):
+        if not isinstance(limits.get(key, False), bool):
+            raise ValueError(f"{path}: [limits] {key} must be true or false")
+    if limits.get("read_gaps") and limits.get("block_reads") is False:
+        raise ValueError(f"{path}: [limits] read_gaps needs block reads")
 
 
 def _number(v: object) -> bool:
