@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 import benchbus as bb
+from benchbus.sim import ProfileDevice
 from benchbus._names import RESERVED
 
 EXAMPLE = """\
@@ -92,6 +93,8 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "default": None,
         "description": "air temperature",
         "line": 15,
+        "models": (),
+        "ranges": {},
     }
     assert mode.address == 0x0101
     assert mode.table == "holding"
@@ -390,3 +393,64 @@ def test_a_mistake_at_the_end_of_a_big_profile_names_its_line(tmp_path: Path) ->
     err = raised.value
     assert (err.line, err.key) == (4 + 5 * 20_000, "register[20000].name")
     assert "duplicate name" in str(err)
+
+
+TWO_MODELS = """
+[device]
+name = "d"
+models = ["A", "B"]
+
+[[register]]
+name = "mode"
+address = 1
+access = "rw-stopped"
+max = 5
+ranges = { B = [1, 3] }
+
+[[register]]
+name = "extra"
+address = 2
+models = ["A"]
+"""
+
+
+def test_a_file_of_two_models_gives_each_its_rows_and_ranges(tmp_path: Path) -> None:
+    p = bb.Profile.parse(TWO_MODELS, "d.toml")
+    assert p.models == ("A", "B")
+    assert p["mode"].access == "rw-stopped" and p["mode"].ranges == {"B": (1.0, 3.0)}
+    assert p["extra"].models == ("A",)
+    b = p.for_model("B")
+    assert [r.name for r in b.registers] == ["mode"]
+    assert (b["mode"].min, b["mode"].max, b["mode"].ranges) == (1.0, 3.0, {})
+    assert b.models == () and len(p.for_model("A")) == 2
+    with pytest.raises(ValueError, match=r'no model "C" \(models: A, B\)'):
+        p.for_model("C")
+    with pytest.raises(ValueError, match="models: none"):
+        bb.Profile.parse(EXAMPLE).for_model("A")
+    # The simulator reads the file on its own: it serves the rows as written, and takes a
+    # write of a rw-stopped register.
+    path = tmp_path / "d.toml"
+    path.write_text(TWO_MODELS, encoding="utf-8")
+    model = ProfileDevice(path)
+    assert model.models == ("A", "B")
+    model.write_holding(1, [5])
+    assert model.read_holding(1, 2) == [5, 0]
+
+
+@pytest.mark.parametrize(
+    ("change", "message"),
+    [
+        ('models = ["B"]\n', "no model 'B'"),
+        ("ranges = { C = [0, 1] }\n", "no model 'C'"),
+        ("ranges = { A = [2, 1] }\n", r"ranges must be \{ MODEL = \[min, max\] \}"),
+        ("models = 1\n", "models must be an array of names"),
+    ],
+)
+def test_the_simulator_refuses_a_model_the_file_does_not_name(
+    tmp_path: Path, change: str, message: str
+) -> None:
+    text = '[device]\nname = "d"\nmodels = ["A"]\n[[register]]\nname = "z"\naddress = 9\n'
+    path = tmp_path / "d.toml"
+    path.write_text(text + change, encoding="utf-8")
+    with pytest.raises(ValueError, match=message):
+        ProfileDevice(path)

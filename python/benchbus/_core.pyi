@@ -1142,18 +1142,26 @@ class Profile:
         """Checks the profile ``text``; ``path`` names it in errors."""
     @staticmethod
     def family(key: str) -> Profile:
-        """The built-in family ``key`` ("drive" for a BLD2 / BLD3H, "drive-c20", "pbl" or
-        "j2") as a profile, made from the family's own register table, with its class's
-        line defaults; ValueError for another key."""
+        """The built-in family ``key`` ("drive", "pbl" or "j2") as a profile: the family's file
+        as the package ships it (``families/``); "drive-c20" is its C20 model
+        (``for_model("C20")``; the file's rows are the BLD's). ValueError for another key."""
     def to_toml(self) -> str:
         """The profile as a TOML file that reads back as the same profile (a built-in family's
-        starts with comments on what its class does in code and the file cannot say)."""
+        file as it is; each starts with comments on what its class does in code and the
+        file cannot say)."""
     @property
     def name(self) -> str:
         """The device's name (``[device] name``)."""
     @property
     def description(self) -> str:
         """The device's description ("" if the file has none)."""
+    @property
+    def models(self) -> tuple[str, ...]:
+        """The models the file describes (``[device] models``; the first is the one its rows
+        are written for), ``()`` for a file of one model."""
+    def for_model(self, model: str) -> Profile:
+        """The profile of ``model``, one of :attr:`models`: the registers that model has, each
+        with its range there (a register's ``ranges``); ValueError for another name."""
     @property
     def path(self) -> str:
         """The file it was read from (what ``parse`` was given for text)."""

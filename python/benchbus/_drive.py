@@ -29,6 +29,7 @@ from benchbus._device import (
     to_int,
 )
 from benchbus._display import dataclass_table
+from benchbus._profile import profile_line
 from benchbus._keepalive import KeepAlive, check_interval
 
 if TYPE_CHECKING:
@@ -275,16 +276,18 @@ class Drive(DriveCore, MotorDevice):
     drive's command table (:meth:`commands`), each a method of the compiled base.
     """
 
-    #: Line format and reply timeout when the device opens its own Bus.
-    LINE_DEFAULTS = LineDefaults(19200, "N", 0.25)
+    #: Line format and reply timeout when the device opens its own Bus: the family file's
+    #: ``[line]`` (19200 8N1, 0.25 s).
+    LINE_DEFAULTS = profile_line(Profile.family("drive"))
     #: The family whose identity the device checks before its first exchange.
     IDENTITY = "drive"
 
     @property
     def profile(self) -> Profile:
         """The drive's register table as a :class:`~benchbus.Profile`
-        (``Profile.family("drive")``, ``"drive-c20"`` on a C20): a row for each name
-        :meth:`get` and :meth:`set` take, with its unit, access and range."""
+        (``Profile.family("drive")``, the family's file; ``"drive-c20"``, its C20 model, on
+        a C20): a row for each name :meth:`get` and :meth:`set` take, with its unit, access
+        and range."""
         return Profile.family("drive-c20" if self.family == "C20" else "drive")
 
     speed_setpoint: RegisterProperty[Drive, int] = RegisterProperty(

@@ -12,6 +12,7 @@ import functools
 import os
 import threading
 from collections.abc import Iterator, Mapping
+from types import MappingProxyType
 from typing import TYPE_CHECKING, Any, NamedTuple
 
 from benchbus._core import Bus, Profile, ProfileCore
@@ -107,7 +108,8 @@ class ProfileRegister(NamedTuple):
     offset: float
     #: Unit of the engineering value ("" for none).
     unit: str
-    #: "r", "rw" or "w".
+    #: "r", "rw", "rw-stopped" (written only while a motor is stopped: the manuals' W/R*)
+    #: or "w".
     access: str
     #: Lowest value a write may carry (None for a bool or a string).
     min: float | None
@@ -121,6 +123,10 @@ class ProfileRegister(NamedTuple):
     description: str
     #: The line of its ``[[register]]`` header in the file.
     line: int
+    #: The models of the profile's ``models`` that have it (``()``: every model).
+    models: tuple[str, ...] = ()
+    #: Its write range ``(min, max)`` on a model where it differs from ``min`` / ``max``.
+    ranges: Mapping[str, tuple[float, float]] = MappingProxyType({})
 
     def integer_range(self) -> tuple[int, int] | None:
         """The exact range of an unscaled integer register's type (its engineering values

@@ -507,7 +507,7 @@ if _MISSING is None:
                 self.backends[register.name] = backend
                 if register.access == "r":
                     reads.append(signal)  # type: ignore[arg-type]
-                elif register.access == "rw":
+                elif register.access in ("rw", "rw-stopped"):
                     settings.append(signal)  # type: ignore[arg-type]
             self.add_readables(reads, StandardReadableFormat.UNCACHED_SIGNAL)
             self.add_readables(settings, StandardReadableFormat.CONFIG_SIGNAL)

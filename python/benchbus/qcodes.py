@@ -125,7 +125,12 @@ if _MISSING is None:
     def _docstring(register: ProfileRegister) -> str:
         """What a register's Parameter says of itself: its description and where it lies."""
         where = f"{register.table} {register.address:#06x}, {register.type}"
-        access = {"r": "read-only", "w": "write-only", "rw": "read and write"}[register.access]
+        access = {
+            "r": "read-only",
+            "w": "write-only",
+            "rw": "read and write",
+            "rw-stopped": "read, and write while stopped",
+        }[register.access]
         return f"{register.description or register.name} ({where}, {access})"
 
     class DeviceInstrument(Instrument):

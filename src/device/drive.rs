@@ -1,18 +1,21 @@
 //! BLD2 / BLD3H and ZBLD.C20 brushless DC drives (manuals 000 and 001, register list B.3).
 //!
 //! Commands go to 0x2000, settings live at 0x2001..0x2012, status at 0x2100..0x2103 and
-//! measurements at 0x3000..0x3014. Function-code parameters Fgg.nn sit at `gg << 8 | nn` and
-//! take a write only while 0x200E = 1. The two families differ in a few places, kept in the
-//! table: C20 lacks the brake command and 0x2010..0x2012 / 0x3012..0x3014, has other ranges
-//! for some enumerations, and reads status word 2 bit 4 with the opposite polarity.
+//! measurements at 0x3000..0x3014: the family's file, `families/drive.toml` ([`table`]),
+//! whose rows are the BLD's and say where the C20 differs (it lacks 0x2010..0x2012 and
+//! 0x3012..0x3014 and has other ranges for some enumerations). Function-code parameters
+//! Fgg.nn sit at `gg << 8 | nn` and take a write only while 0x200E = 1. The C20 also lacks
+//! the brake command and reads status word 2 bit 4 with the opposite polarity.
 
+use super::family;
+use super::profile::Profile;
 use super::suggest::did_you_mean;
-use super::{Access, Device, Register, Station};
+use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::{exception_meaning, FrameError};
 use crate::error::{Error, Result};
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 /// Which manual the drive follows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -132,155 +135,60 @@ impl Command {
 }
 
 /// Address of the command register, where every [`Command`] is written (the register just
-/// before the table's first row, which [`REGISTERS`] leaves out).
+/// before the table's first row, which the file leaves out).
 pub const COMMAND: u16 = 0x2000;
 
 /// Line speeds by the code of 0x2009 / F08.01 (the C20 stops at 57600).
 pub const BAUD_RATES: [u32; 8] = [1200, 2400, 4800, 9600, 19200, 38400, 57600, 115200];
 
-/// Address of the function-code write enable (0 = parameters not writable, 1 = writable):
-/// its row of [`REGISTERS`].
-pub const PARAMETER_WRITE_ENABLE: u16 = WRITE_ENABLE_ROW.register.address;
-/// First status register (0x2100 state, 0x2101 status word 2, 0x2102 fault code): the row
-/// of `state` in [`REGISTERS`].
-pub const STATUS: u16 = STATE_ROW.register.address;
-/// First measurement register: the row of `set_frequency` in [`REGISTERS`].
-pub const TELEMETRY: u16 = FIRST_MEASUREMENT_ROW.register.address;
+/// The row of the function-code write enable (0 = parameters not writable, 1 = writable).
+const WRITE_ENABLE: &str = "parameter_write_enable";
+/// The row of the first status register (0x2100 state, 0x2101 status word 2, 0x2102 fault
+/// code).
+const STATE: &str = "state";
+/// The row of the first measurement register.
+const FIRST_MEASUREMENT: &str = "set_frequency";
+/// The rows 0x3012..0x3014, which a BLD's firmware may lack ("software version dependent"
+/// in 000): a reserved word, then the hall count's high and low words.
+const HALL_ROWS: [&str; 3] = ["reserved_3012", "hall_count_high", "hall_count_low"];
 
-/// How a register exists on the C20.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum OnC20 {
-    /// As on the BLD.
-    Same,
-    /// With another write range.
-    Range(f64, f64),
-    /// Not there.
-    Absent,
+/// The family's file (`families/drive.toml`) as drives of `family` have it: the BLD's rows,
+/// or the C20's (fewer registers, other ranges).
+///
+/// # Errors
+/// As [`family::profile`]; [`Error::Internal`] if the file does not name the model.
+pub fn table(family: Family) -> Result<&'static Profile> {
+    static MODELS: [OnceLock<std::result::Result<Profile, String>>; 2] =
+        [const { OnceLock::new() }; 2];
+    let file = family::profile("drive")?;
+    let at = match family {
+        Family::Bld => 0,
+        Family::C20 => 1,
+    };
+    MODELS[at]
+        .get_or_init(|| {
+            file.for_model(family.name())
+                .ok_or_else(|| format!("the drive file has no model {}", family.name()))
+        })
+        .as_ref()
+        .map_err(|e| Error::Internal(e.clone()))
 }
 
-/// One register of the drive's list.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct DriveRegister {
-    /// The register as the BLD manual gives it.
-    pub register: Register,
-    /// What the C20 manual says of it.
-    pub c20: OnC20,
+/// The measurement rows of `family`'s table, 0x3000 on, in address order (with the hall
+/// rows or without).
+fn measurements(family: Family, hall: bool) -> Result<Vec<&'static Register<String>>> {
+    let table = table(family)?;
+    let first = table
+        .registers
+        .iter()
+        .position(|r| r.register.name == FIRST_MEASUREMENT)
+        .ok_or_else(|| Error::Internal(format!("the drive file has no {FIRST_MEASUREMENT}")))?;
+    Ok(table.registers[first..]
+        .iter()
+        .map(|r| &r.register)
+        .filter(|r| hall || !HALL_ROWS.contains(&r.name.as_str()))
+        .collect())
 }
-
-impl DriveRegister {
-    /// The register as a drive of `family` has it (the C20's own range), or None where
-    /// that family's manual lists none.
-    pub fn on(&self, family: Family) -> Option<Register> {
-        let mut register = self.register;
-        if family == Family::C20 {
-            match self.c20 {
-                OnC20::Same => {}
-                OnC20::Range(lo, hi) => register.range = (lo, hi),
-                OnC20::Absent => return None,
-            }
-        }
-        Some(register)
-    }
-}
-
-const fn reg(
-    name: &'static str,
-    address: u16,
-    scale: f64,
-    unit: &'static str,
-    access: Access,
-    range: (f64, f64),
-    c20: OnC20,
-) -> DriveRegister {
-    DriveRegister {
-        register: Register {
-            name,
-            address,
-            scale,
-            signed: false,
-            unit,
-            access,
-            range,
-        },
-        c20,
-    }
-}
-
-const fn measured(
-    name: &'static str,
-    address: u16,
-    scale: f64,
-    unit: &'static str,
-    c20: OnC20,
-) -> DriveRegister {
-    reg(name, address, scale, unit, Access::Read, (0.0, 0.0), c20)
-}
-
-/// The same register read as a two's complement signed word.
-const fn signed(mut entry: DriveRegister) -> DriveRegister {
-    entry.register.signed = true;
-    entry
-}
-
-use Access::{ReadWrite as RW, WriteWhenStopped as RWS};
-use OnC20::{Absent, Range, Same};
-
-// The rows the code names, declared here and listed in their place in REGISTERS.
-#[rustfmt::skip]
-const WRITE_ENABLE_ROW: DriveRegister =
-    reg("parameter_write_enable", 0x200E, 1.0, "", RW, (0.0, 1.0), Same);
-const STATE_ROW: DriveRegister = measured("state", 0x2100, 1.0, "", Same);
-const FIRST_MEASUREMENT_ROW: DriveRegister = measured("set_frequency", 0x3000, 0.01, "Hz", Same);
-
-/// Every register of the list but the command register, in address order.
-#[rustfmt::skip]
-pub const REGISTERS: &[DriveRegister] = &[
-    reg("speed_setpoint", 0x2001, 1.0, "rpm", RW, (0.0, 3000.0), Same),
-    reg("pole_pairs", 0x2002, 1.0, "", RWS, (1.0, 20.0), Same),
-    reg("accel_time", 0x2003, 0.1, "s", RW, (0.1, 600.0), Same),
-    reg("decel_time", 0x2004, 0.1, "s", RW, (0.1, 600.0), Same),
-    // Manual 000, B.3, 2005H: "控制模式選擇（0~5）", 5 listed as reserved: the range the
-    // drive takes is 0..5. C20 (manual 001, 2005H): 0..3 (3 = DIP switch).
-    reg("control_mode", 0x2005, 1.0, "", RWS, (0.0, 5.0), Range(0.0, 3.0)),
-    // 3 is "reserved" on the BLD, the DIP switch (SW3) on the C20.
-    reg("command_source", 0x2006, 1.0, "", RW, (0.0, 2.0), Range(0.0, 3.0)),
-    // The C20 text says 0~5 but lists 0..6 (6 = simple PLC); its list is taken.
-    reg("speed_source", 0x2007, 1.0, "", RW, (0.0, 8.0), Range(0.0, 6.0)),
-    reg("station_address", 0x2008, 1.0, "", RWS, (1.0, 127.0), Range(1.0, 247.0)),
-    reg("baud_code", 0x2009, 1.0, "", RWS, (0.0, 7.0), Range(0.0, 6.0)),
-    reg("virtual_inputs", 0x200A, 1.0, "", RW, (0.0, 511.0), Same),
-    reg("virtual_outputs", 0x200B, 1.0, "", RW, (0.0, 15.0), Same),
-    WRITE_ENABLE_ROW,
-    reg("restore_defaults", 0x200F, 1.0, "", RWS, (0.0, 1.0), Same),
-    reg("position_reference", 0x2010, 1.0, "", RW, (0.0, 65535.0), Absent),
-    reg("hall_count_clear", 0x2011, 1.0, "", RW, (0.0, 1.0), Absent),
-    reg("stop_mode", 0x2012, 1.0, "", RW, (0.0, 1.0), Absent),
-    STATE_ROW,
-    measured("status_word", 0x2101, 1.0, "", Same),
-    measured("fault_code", 0x2102, 1.0, "", Same),
-    measured("model_id", 0x2103, 1.0, "", Same),
-    FIRST_MEASUREMENT_ROW,
-    measured("output_frequency", 0x3001, 0.01, "Hz", Same),
-    measured("ramp_frequency", 0x3002, 0.01, "Hz", Same),
-    measured("output_voltage", 0x3003, 0.1, "V", Same),
-    measured("output_current", 0x3004, 0.01, "A", Same),
-    measured("speed_reference", 0x3005, 1.0, "rpm", Same),
-    measured("speed", 0x3006, 1.0, "rpm", Same),
-    measured("output_power", 0x3007, 1.0, "W", Same),
-    measured("bus_voltage", 0x3008, 0.1, "V", Same),
-    measured("hall_state", 0x3009, 1.0, "", Same),
-    measured("software_version", 0x300A, 0.01, "", Same),
-    measured("last_fault", 0x300B, 1.0, "", Same),
-    signed(measured("temperature", 0x300C, 0.1, "°C", Same)),
-    measured("input_terminals", 0x300D, 1.0, "", Same),
-    measured("output_terminals", 0x300E, 1.0, "", Same),
-    measured("ai1_voltage", 0x300F, 0.01, "V", Same),
-    measured("ai2_voltage", 0x3010, 0.01, "V", Same),
-    measured("ai3_voltage", 0x3011, 0.01, "V", Same),
-    measured("reserved_3012", 0x3012, 1.0, "", Absent),
-    measured("hall_count_high", 0x3013, 1.0, "", Absent),
-    measured("hall_count_low", 0x3014, 1.0, "", Absent),
-];
 
 /// The vendor's meaning of an exception code (B.2.4; the same list in the C20 manual).
 pub fn meaning(code: u8) -> &'static str {
@@ -411,13 +319,15 @@ pub struct Telemetry {
 impl Telemetry {
     /// The names a snapshot holds, in order: each value of 0x3000..0x3011, then
     /// `hall_count` (the registers 0x3012..0x3014 are read but not values of their own).
-    pub fn fields() -> Vec<&'static str> {
-        REGISTERS
-            .iter()
-            .filter(|r| r.register.address >= TELEMETRY && r.c20 != OnC20::Absent)
-            .map(|r| r.register.name)
+    ///
+    /// # Errors
+    /// As [`table`].
+    pub fn fields() -> Result<Vec<&'static str>> {
+        Ok(measurements(Family::Bld, false)?
+            .into_iter()
+            .map(|r| r.name.as_str())
             .chain(["hall_count"])
-            .collect()
+            .collect())
     }
 }
 
@@ -643,24 +553,32 @@ impl Drive {
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] if there is no such register, or not on this family.
-    pub fn register(&self, name: &str) -> Result<Register> {
-        let entry = REGISTERS
-            .iter()
-            .find(|r| r.register.name == name)
-            .ok_or_else(|| {
-                let names = REGISTERS
-                    .iter()
-                    .filter(|r| r.on(self.family).is_some())
-                    .map(|r| r.register.name);
+    pub fn register(&self, name: &str) -> Result<&'static Register<String>> {
+        let own = table(self.family)?;
+        if let Some(r) = own.registers.iter().find(|r| r.register.name == name) {
+            return Ok(&r.register);
+        }
+        let file = family::profile("drive")?;
+        match file.registers.iter().find(|r| r.register.name == name) {
+            Some(r) => Err(Error::InvalidArgument(format!(
+                "{name} ({:#06x}) exists on {} drives only, not on the {}",
+                r.register.address,
+                r.models.join(" and "),
+                self.family.name()
+            ))),
+            None => {
+                let names = own.registers.iter().map(|r| r.register.name.as_str());
                 let hint = did_you_mean(name, names);
-                Error::InvalidArgument(format!("the drive has no register {name:?}{hint}"))
-            })?;
-        entry.on(self.family).ok_or_else(|| {
-            Error::InvalidArgument(format!(
-                "{name} ({:#06x}) exists on BLD drives only, not on the C20",
-                entry.register.address
-            ))
-        })
+                Err(Error::InvalidArgument(format!(
+                    "the drive has no register {name:?}{hint}"
+                )))
+            }
+        }
+    }
+
+    /// The address of the row called `name` of this drive's table.
+    fn address(&self, name: &str) -> Result<u16> {
+        Ok(self.register(name)?.address)
     }
 
     /// Reads the register called `name`, in engineering units.
@@ -735,7 +653,7 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn status(&self) -> Result<Status> {
-        let words = self.read(STATUS, 3)?;
+        let words = self.read(self.address(STATE)?, 3)?;
         match words[..] {
             [state, word, fault] => Ok(Status::decode(self.family, state, word, fault)),
             _ => Err(self.station.short_reply()),
@@ -760,16 +678,9 @@ impl Drive {
     /// Any [`Error`].
     pub fn telemetry(&self) -> Result<Telemetry> {
         let with_hall = self.hall_registers.get() != Support::No;
-        let entries = |hall: bool| -> Vec<Register> {
-            REGISTERS
-                .iter()
-                .filter(|r| r.register.address >= TELEMETRY)
-                .filter(|r| hall || r.c20 != OnC20::Absent)
-                .map(|r| r.register)
-                .collect()
-        };
-        let mut wanted = entries(with_hall);
-        let words = match self.read(TELEMETRY, wanted.len() as u16) {
+        let first = self.address(FIRST_MEASUREMENT)?;
+        let mut wanted = measurements(self.family, with_hall)?;
+        let words = match self.read(first, wanted.len() as u16) {
             Ok(words) => {
                 if with_hall {
                     self.hall_registers.set(Support::Yes);
@@ -779,8 +690,8 @@ impl Drive {
             Err(Error::Exception { code: 0x02, .. })
                 if with_hall && self.hall_registers.get() == Support::Unknown =>
             {
-                wanted = entries(false);
-                let words = self.read(TELEMETRY, wanted.len() as u16)?;
+                wanted = measurements(self.family, false)?;
+                let words = self.read(first, wanted.len() as u16)?;
                 log::debug!(
                     target: "benchbus::device",
                     "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit()
@@ -796,11 +707,11 @@ impl Drive {
         let mut values = Vec::with_capacity(wanted.len());
         let mut hall = (None, None);
         for (register, &raw) in wanted.iter().zip(&words) {
-            match register.name {
+            match register.name.as_str() {
                 "reserved_3012" => {}
                 "hall_count_high" => hall.0 = Some(u32::from(raw)),
                 "hall_count_low" => hall.1 = Some(u32::from(raw)),
-                _ => values.push((register.name, register.decode(raw), register.unit)),
+                name => values.push((name, register.decode(raw), register.unit.as_str())),
             }
         }
         let hall_count = match hall {
@@ -898,14 +809,15 @@ impl Drive {
     }
 
     fn write_enabled(&self, code: &str, address: u16, value: u16) -> Result<()> {
-        let enable = self.read(PARAMETER_WRITE_ENABLE, 1)?;
+        let enable_at = self.address(WRITE_ENABLE)?;
+        let enable = self.read(enable_at, 1)?;
         let was = enable.first().copied().unwrap_or_default();
         if was != 1 {
-            self.write(PARAMETER_WRITE_ENABLE, 1)?;
+            self.write(enable_at, 1)?;
         }
         let written = self.write(address, value);
         let restored = if was != 1 {
-            self.write(PARAMETER_WRITE_ENABLE, was)
+            self.write(enable_at, was)
         } else {
             Ok(())
         };
@@ -988,6 +900,7 @@ fn is_refusal(e: &Error) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::Access;
 
     #[test]
     fn parameter_addresses_follow_the_manual() {
@@ -1017,19 +930,31 @@ mod tests {
 
     #[test]
     fn table_is_sorted_unique_and_fits_sixteen_bits() {
-        for pair in REGISTERS.windows(2) {
+        let file = family::profile("drive").unwrap();
+        assert_eq!(file.models, ["BLD", "C20"]);
+        for pair in file.registers.windows(2) {
             assert!(pair[0].register.address < pair[1].register.address);
         }
-        for entry in REGISTERS {
-            let r = entry.register;
-            let (lo, hi) = match entry.c20 {
-                OnC20::Range(lo, hi) => (lo.min(r.range.0), hi.max(r.range.1)),
-                _ => r.range,
-            };
-            assert!(lo <= hi, "{}", r.name);
-            assert!(lo / r.scale >= 0.0 && hi / r.scale <= 65535.0, "{}", r.name);
-            assert_eq!(r.access == Access::Read, r.address >= STATUS, "{}", r.name);
+        for entry in &file.registers {
+            let r = &entry.register;
+            assert!(r.range.0 <= r.range.1, "{}", r.name);
+            assert!(r.range.0 / r.scale >= -32768.0 && r.range.1 / r.scale <= 65535.0);
+            let measured = r.address >= 0x2100;
+            assert_eq!(r.access == Access::Read, measured, "{}", r.name);
+            assert!(entry.models.iter().all(|m| m == "BLD"), "{}", r.name);
         }
+        let (bld, c20) = (table(Family::Bld).unwrap(), table(Family::C20).unwrap());
+        assert_eq!(bld.registers.len(), file.registers.len());
+        assert_eq!(c20.registers.len(), file.registers.len() - 6);
+        let on = |t: &Profile, name: &str| {
+            t.registers
+                .iter()
+                .find(|r| r.register.name == name)
+                .map(|r| r.register.range)
+        };
+        assert_eq!(on(bld, "control_mode"), Some((0.0, 5.0)));
+        assert_eq!(on(c20, "control_mode"), Some((0.0, 3.0)));
+        assert_eq!(on(c20, "stop_mode"), None);
     }
 
     #[test]
@@ -1072,30 +997,26 @@ mod tests {
     }
 
     #[test]
-    fn addresses_come_from_the_table_rows() {
+    fn the_rows_the_code_names_are_in_the_file() {
+        let rows = &table(Family::Bld).unwrap().registers;
         let address = |name: &str| {
-            REGISTERS
-                .iter()
+            rows.iter()
                 .find(|r| r.register.name == name)
                 .map(|r| r.register.address)
         };
-        assert_eq!(address("parameter_write_enable"), Some(0x200E));
-        assert_eq!(
-            address("parameter_write_enable"),
-            Some(PARAMETER_WRITE_ENABLE)
-        );
-        assert_eq!(address("state"), Some(STATUS));
-        assert_eq!(STATUS, 0x2100);
-        assert_eq!(address("set_frequency"), Some(TELEMETRY));
-        assert_eq!(TELEMETRY, 0x3000);
+        assert_eq!(address(WRITE_ENABLE), Some(0x200E));
+        assert_eq!(address(STATE), Some(0x2100));
+        assert_eq!(address(FIRST_MEASUREMENT), Some(0x3000));
+        let hall: Vec<Option<u16>> = HALL_ROWS.iter().map(|n| address(n)).collect();
+        assert_eq!(hall, [Some(0x3012), Some(0x3013), Some(0x3014)]);
         // The command register sits just before the table's first row.
-        assert_eq!(REGISTERS[0].register.address, COMMAND + 1);
+        assert_eq!(rows[0].register.address, COMMAND + 1);
         assert!(address("command").is_none());
     }
 
     #[test]
     fn telemetry_fields_are_the_measurement_rows_and_the_hall_count() {
-        let fields = Telemetry::fields();
+        let fields = Telemetry::fields().unwrap();
         assert_eq!(fields.len(), 19);
         assert_eq!(fields[0], "set_frequency");
         assert_eq!(fields[17], "ai3_voltage");

@@ -7,7 +7,11 @@ use crate::error::{Error, Result};
 use std::sync::OnceLock;
 
 /// The families whose register map is a file, and its text.
-const FILES: [(&str, &str); 2] = [
+const FILES: [(&str, &str); 3] = [
+    (
+        "drive",
+        include_str!("../../python/benchbus/families/drive.toml"),
+    ),
     (
         "pbl",
         include_str!("../../python/benchbus/families/pbl.toml"),
@@ -18,6 +22,13 @@ const FILES: [(&str, &str); 2] = [
 /// The text of the file of family `key`, or None for a family without one.
 pub fn text(key: &str) -> Option<&'static str> {
     FILES.iter().find(|(k, _)| *k == key).map(|(_, text)| *text)
+}
+
+/// The comment lines at the top of family `key`'s file, without their `# `.
+pub fn note(key: &str) -> Option<String> {
+    let lines = text(key)?.lines().map_while(|l| l.strip_prefix('#'));
+    let lines: Vec<&str> = lines.map(|l| l.strip_prefix(' ').unwrap_or(l)).collect();
+    Some(lines.join("\n"))
 }
 
 /// The profile of family `key`, read from its file the first time it is asked for.
@@ -58,7 +69,9 @@ mod tests {
             assert!(!p.registers.is_empty(), "{key}");
             assert!(p.line.baudrate.is_some(), "{key}: its line is the file's");
         }
-        assert!(text("nope").is_none());
+        assert!(text("nope").is_none() && note("nope").is_none());
+        let note = note("drive").unwrap();
+        assert!(note.starts_with("The drive family") && !note.contains("\n#"));
         assert!(matches!(profile("nope"), Err(Error::Internal(_))));
     }
 }

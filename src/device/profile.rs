@@ -128,6 +128,10 @@ pub struct ProfileRegister {
     /// The line (from 1) of its `[[register]]` header; 0 for a register not read from a
     /// file (a built-in family's, [`Profile::family`]).
     pub line: usize,
+    /// The models of `[device] models` that have it (`models`; empty: every model).
+    pub models: Vec<String>,
+    /// The write range on a model where it differs from [`Register::range`] (`ranges`).
+    pub ranges: Vec<(String, (f64, f64))>,
 }
 
 /// How the device's own line is set up (each None: the caller's default).
@@ -174,6 +178,9 @@ pub struct Profile {
     pub line: LineSettings,
     /// `[limits]`.
     pub limits: Limits,
+    /// The models the file describes (`[device] models`), the first the one its rows are
+    /// written for; empty for a file of one model.
+    pub models: Vec<String>,
     /// Every `[[register]]`, in the file's order.
     pub registers: Vec<ProfileRegister>,
 }
@@ -314,6 +321,36 @@ impl<'s, 'a, 'i> Section<'s, 'a, 'i> {
         }
     }
 
+    /// A non-empty array of distinct non-empty strings (empty when the key is absent).
+    fn strings(&self, key: &str) -> Parsed<Vec<String>> {
+        let (items, span) = match self.get(key).map(|v| (v.get_ref(), v.span())) {
+            None => return Ok(Vec::new()),
+            Some((DeValue::Array(items), span)) => (items, span),
+            Some((other, span)) => {
+                return Err(self.fail(key, span, wrong("an array of strings", other)))
+            }
+        };
+        let mut out: Vec<String> = Vec::with_capacity(items.len());
+        for item in items {
+            match item.get_ref() {
+                DeValue::String(text) if !text.trim().is_empty() => {
+                    if out.iter().any(|o| o == text.as_ref()) {
+                        return Err(self.fail(key, item.span(), format!("{text:?} is repeated")));
+                    }
+                    out.push(text.to_string());
+                }
+                DeValue::String(_) => {
+                    return Err(self.fail(key, item.span(), "must not hold an empty name"))
+                }
+                other => return Err(self.fail(key, item.span(), wrong("a string", other))),
+            }
+        }
+        if out.is_empty() {
+            return Err(self.fail(key, span, "must name at least one"));
+        }
+        Ok(out)
+    }
+
     /// An integer in `lo..=hi`.
     fn int_in(&self, key: &str, lo: i128, hi: i128) -> Parsed<Option<i128>> {
         match self.int(key)? {
@@ -406,7 +443,7 @@ fn int_range(kind: Kind) -> Option<(i128, i128)> {
 }
 
 const TOP_KEYS: &[&str] = &["device", "line", "limits", "register"];
-const DEVICE_KEYS: &[&str] = &["name", "description"];
+const DEVICE_KEYS: &[&str] = &["name", "description", "models"];
 const LINE_KEYS: &[&str] = &[
     "baudrate", "parity", "stopbits", "timeout", "framing", "bytesize",
 ];
@@ -434,6 +471,8 @@ const REGISTER_KEYS: &[&str] = &[
     "default",
     "bit",
     "length",
+    "models",
+    "ranges",
 ];
 
 impl Profile {
@@ -616,6 +655,7 @@ impl Profile {
             return Err(device.fail("name", device.span_of("name"), "must not be empty"));
         }
         let description = device.string("description")?.unwrap_or("").to_string();
+        let models = device.strings("models")?;
         let line = match sub(top, "line")? {
             Some(s) => line_settings(&s)?,
             None => LineSettings::default(),
@@ -629,10 +669,76 @@ impl Profile {
             description,
             line,
             limits,
+            models,
             registers: registers()?,
         };
         profile.check_widths(path)?;
+        profile.check_models(path)?;
         Ok(profile)
+    }
+
+    /// Refuses a register's `models` or `ranges` naming a model `[device] models` does not.
+    fn check_models(&self, path: &str) -> Parsed<()> {
+        for (index, r) in self.registers.iter().enumerate() {
+            let named = r.models.iter().map(|m| ("models", m));
+            let ranged = r.ranges.iter().map(|(m, _)| ("ranges", m));
+            for (key, model) in named.chain(ranged) {
+                if !self.models.contains(model) {
+                    let known = if self.models.is_empty() {
+                        "the file names none in [device] models".to_string()
+                    } else {
+                        format!("[device] models are {}", self.models.join(", "))
+                    };
+                    return Err(Box::new(ProfileError {
+                        path: path.to_string(),
+                        line: r.line,
+                        key: format!("register[{index}].{key}"),
+                        message: format!("no model {model:?}: {known}"),
+                    }));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The profile of model `model` of `[device] models`: its registers only, each with its
+    /// range on that model, and no models of its own. None for a model the file does not
+    /// name.
+    pub fn for_model(&self, model: &str) -> Option<Profile> {
+        if !self.models.iter().any(|m| m == model) {
+            return None;
+        }
+        let registers = self
+            .registers
+            .iter()
+            .filter(|r| r.models.is_empty() || r.models.iter().any(|m| m == model))
+            .map(|r| {
+                let mut r = r.clone();
+                if let Some((_, range)) = r.ranges.iter().find(|(m, _)| m == model) {
+                    r.register.range = *range;
+                }
+                r.models.clear();
+                r.ranges.clear();
+                r
+            })
+            .collect();
+        Some(Profile {
+            models: Vec::new(),
+            registers,
+            ..self.clone_without_registers()
+        })
+    }
+
+    /// The profile's sections, without its registers.
+    fn clone_without_registers(&self) -> Profile {
+        Profile {
+            name: self.name.clone(),
+            description: self.description.clone(),
+            line: self.line.clone(),
+            limits: self.limits.clone(),
+            models: self.models.clone(),
+            registers: Vec::new(),
+        }
     }
 
     /// Refuses a register that one request cannot read or write whole: a value split over
@@ -869,7 +975,7 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
     }
     let offset = s.number("offset")?.unwrap_or(0.0);
     let read_only = matches!(table, Table::Input | Table::Discrete);
-    let access = match s.choice("access", &["r", "rw", "w"])? {
+    let access = match s.choice("access", &["r", "rw", "rw-stopped", "w"])? {
         None if read_only => Access::Read,
         None => Access::ReadWrite,
         Some("r") => Access::Read,
@@ -881,6 +987,7 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
             ))
         }
         Some("rw") => Access::ReadWrite,
+        Some("rw-stopped") => Access::WriteWhenStopped,
         _ => Access::Write,
     };
     let range = match kind {
@@ -899,6 +1006,17 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         ));
     }
     let default = default(s, value, (range, scale, offset), &members)?;
+    let ranges = match kind {
+        Some(kind) => model_ranges(s, kind, scale, offset)?,
+        None if s.get("ranges").is_some() => {
+            return Err(s.fail(
+                "ranges",
+                s.span_of("ranges"),
+                format!("a {} register takes no ranges", value.name()),
+            ))
+        }
+        None => Vec::new(),
+    };
     Ok(ProfileRegister {
         register: Register {
             name: name.to_string(),
@@ -917,16 +1035,80 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         default,
         description: s.string("description")?.unwrap_or("").to_string(),
         line,
+        models: s.strings("models")?,
+        ranges,
     })
 }
 
+/// A register's `ranges`: `{ MODEL = [min, max] }`, each within what its type holds.
+fn model_ranges(
+    s: &Section<'_, '_, '_>,
+    kind: Kind,
+    scale: f64,
+    offset: f64,
+) -> Parsed<Vec<(String, (f64, f64))>> {
+    let span = s.span_of("ranges");
+    let table = match s.get("ranges").map(Spanned::get_ref) {
+        None => return Ok(Vec::new()),
+        Some(DeValue::Table(t)) if !t.is_empty() => t,
+        Some(other) => {
+            return Err(s.fail(
+                "ranges",
+                span,
+                wrong("a table { MODEL = [min, max] }", other),
+            ))
+        }
+    };
+    let (lo, hi) = full_range(kind, scale, offset);
+    let slack = |v: f64| 1e-9 * v.abs().max(1.0);
+    let mut out = Vec::with_capacity(table.len());
+    for (model, value) in table.iter() {
+        let model: &str = model.get_ref();
+        let bounds: Vec<f64> = match value.get_ref() {
+            DeValue::Array(items) => items
+                .iter()
+                .filter_map(|v| match v.get_ref() {
+                    DeValue::Integer(i) => i128::from_str_radix(i.as_str(), i.radix())
+                        .ok()
+                        .map(|i| i as f64),
+                    DeValue::Float(f) => f.as_str().replace('_', "").parse::<f64>().ok(),
+                    _ => None,
+                })
+                .filter(|v| v.is_finite())
+                .collect(),
+            _ => Vec::new(),
+        };
+        let &[min, max] = &bounds[..] else {
+            return Err(s.fail(
+                "ranges",
+                value.span(),
+                format!("{model}: must be [min, max], two numbers"),
+            ));
+        };
+        if min > max || min < lo - slack(lo) || max > hi + slack(hi) {
+            return Err(s.fail(
+                "ranges",
+                value.span(),
+                format!(
+                    "{model}: [{min}, {max}] must be min <= max within what a {} holds \
+                     ({lo} to {hi})",
+                    kind.name()
+                ),
+            ));
+        }
+        out.push((model.to_string(), (min, max)));
+    }
+    Ok(out)
+}
+
 /// The table's name in a profile.
-/// How a profile names `access`: "r", "rw" (also for W/R*, whose rule stays code) or "w".
+/// How a profile names `access`: "r", "rw", "rw-stopped" (the manuals' W/R*) or "w".
 pub(crate) fn access_name(access: Access) -> &'static str {
     match access {
         Access::Read => "r",
         Access::Write => "w",
-        Access::ReadWrite | Access::WriteWhenStopped => "rw",
+        Access::ReadWrite => "rw",
+        Access::WriteWhenStopped => "rw-stopped",
     }
 }
 
@@ -1570,6 +1752,71 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             p.registers[0].default,
             Some(ProfileValue::Text("off".into()))
         );
+    }
+
+    /// A file of two models, `A` (its rows') and `B`.
+    const MODELS: &str = "[device]\nname = \"d\"\nmodels = [\"A\", \"B\"]\n\
+        [[register]]\nname = \"x\"\naddress = 1\naccess = \"rw-stopped\"\nmax = 5\n\
+        ranges = { B = [1, 3] }\n\
+        [[register]]\nname = \"y\"\naddress = 2\nmodels = [\"A\"]\n";
+
+    #[test]
+    fn models_ranges_and_rw_stopped() {
+        let p = Profile::parse("m.toml", MODELS).unwrap();
+        assert_eq!(p.models, ["A", "B"]);
+        let x = &p.registers[0];
+        assert_eq!(x.register.access, Access::WriteWhenStopped);
+        assert_eq!(x.register.range, (0.0, 5.0));
+        assert_eq!(x.ranges, vec![("B".to_string(), (1.0, 3.0))]);
+        assert_eq!(p.registers[1].models, ["A"]);
+        let b = p.for_model("B").unwrap();
+        assert_eq!(b.registers.len(), 1);
+        assert_eq!(b.registers[0].register.range, (1.0, 3.0));
+        assert!(b.models.is_empty() && b.registers[0].ranges.is_empty());
+        let a = p.for_model("A").unwrap();
+        assert_eq!(a.registers.len(), 2);
+        assert_eq!(a.registers[0].register.range, (0.0, 5.0));
+        assert!(p.for_model("C").is_none());
+        // Written back, it reads the same (rw-stopped, models and ranges too).
+        let again = Profile::parse("m.toml", &p.to_toml()).unwrap();
+        assert_eq!(again.models, p.models);
+        for (x, y) in again.registers.iter().zip(&p.registers) {
+            assert_eq!(
+                (&x.register, &x.models, &x.ranges),
+                (&y.register, &y.models, &y.ranges)
+            );
+        }
+    }
+
+    #[test]
+    fn models_misuse() {
+        let m = "models = [\"A\"]\n";
+        fails(&format!("{R}models = [\"A\"]\n"), 3, "register[0].models");
+        let e = error(&format!("{R}models = [\"A\"]\n"));
+        assert!(e.message.contains("names none in [device] models"), "{e}");
+        let text = format!("[device]\nname = \"d\"\n{m}{R}ranges = {{ B = [0, 1] }}\n");
+        let e = *Profile::parse("d.toml", &text).unwrap_err();
+        assert_eq!((e.line, e.key.as_str()), (4, "register[0].ranges"), "{e}");
+        assert!(e.message.contains("no model \"B\""), "{e}");
+        for (extra, key) in [
+            ("ranges = { A = [3, 1] }\n", "ranges"),
+            ("ranges = { A = [0, 70000] }\n", "ranges"),
+            ("ranges = { A = 3 }\n", "ranges"),
+            ("ranges = [0, 1]\n", "ranges"),
+            ("models = []\n", "models"),
+            ("models = [\"A\", \"A\"]\n", "models"),
+            ("models = \"A\"\n", "models"),
+            ("access = \"stopped\"\n", "access"),
+        ] {
+            let text = format!("[device]\nname = \"d\"\n{m}{R}{extra}");
+            let e = *Profile::parse("d.toml", &text).unwrap_err();
+            assert_eq!(e.key, format!("register[0].{key}"), "{extra}: {e}");
+        }
+        let text =
+            format!("[device]\nname = \"d\"\n{m}{R}type = \"bool\"\nranges = {{ A = [0, 1] }}\n");
+        let e = *Profile::parse("d.toml", &text).unwrap_err();
+        assert!(e.message.contains("takes no ranges"), "{e}");
+        fails("models = [1]\n", 3, "device.models");
     }
 
     #[test]

@@ -1,9 +1,12 @@
 //! Bindings of [`crate::device::drive`]: the compiled base class of `benchbus.Drive`, which
 //! adds only what belongs to Python (enums, the keepalive, reprs, the context manager).
 
-use super::{int_in, member, number, public, standard_unit_arg, Attached, PyBus, PyStation};
+use super::{
+    int_in, member, number, public, standard_unit_arg, to_pyerr, Attached, PyBus, PyStation,
+};
 use crate::device::drive::{
-    command_doc, drive_commands, fault_name, Command, Drive, Family, Model, Telemetry, REGISTERS,
+    command_doc, drive_commands, fault_name, table as drive_table, Command, Drive, Family, Model,
+    Telemetry,
 };
 use crate::device::{Access, Device, Register};
 use pyo3::exceptions::PyValueError;
@@ -30,7 +33,7 @@ fn family_arg(name: &str) -> PyResult<Family> {
 
 /// A value of `register` as Python shows it: an int for a whole-number register, else a
 /// float.
-fn shown<'py>(py: Python<'py>, register: &Register, value: f64) -> Bound<'py, PyAny> {
+fn shown<'py>(py: Python<'py>, register: &Register<String>, value: f64) -> Bound<'py, PyAny> {
     if register.is_integer() {
         PyInt::new(py, value as i64).into_any()
     } else {
@@ -41,16 +44,16 @@ fn shown<'py>(py: Python<'py>, register: &Register, value: f64) -> Bound<'py, Py
 /// The register table of `family` as `DriveRegister` rows.
 fn table<'py>(py: Python<'py>, family: Family) -> PyResult<Bound<'py, PyList>> {
     let out = PyList::empty(py);
-    for r in REGISTERS.iter().filter_map(|e| e.on(family)) {
-        let access = match r.access {
-            Access::Read => "R",
-            Access::ReadWrite => "W/R",
-            Access::WriteWhenStopped => "W/R*",
-            Access::Write => "W",
+    for r in &drive_table(family).map_err(|e| to_pyerr(py, e))?.registers {
+        let r = &r.register;
+        // A read-only register takes no write: its range is (0, 0).
+        let ((low, high), access) = match r.access {
+            Access::Read => ((0.0, 0.0), "R"),
+            Access::ReadWrite => (r.range, "W/R"),
+            Access::WriteWhenStopped => (r.range, "W/R*"),
+            Access::Write => (r.range, "W"),
         };
-        let row = (
-            r.name, r.address, r.scale, r.unit, access, r.range.0, r.range.1,
-        );
+        let row = (&r.name, r.address, r.scale, &r.unit, access, low, high);
         out.append(public(py, PY, "DriveRegister", row, None)?)?;
     }
     Ok(out)
@@ -144,7 +147,7 @@ drive_commands!(with_command_methods! {
     fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
         let name = name.to_string();
         let (register, raw) = self.dev.wire(py, move |d| Ok((d.register(&name)?, d.get(&name)?)))?;
-        Ok(shown(py, &register, raw))
+        Ok(shown(py, register, raw))
     }
 
     /// Write any writable register of the drive's table by name, in engineering units.
@@ -218,16 +221,17 @@ drive_commands!(with_command_methods! {
     #[classattr]
     #[allow(non_snake_case)]
     fn SAMPLE_FIELDS<'py>(py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
-        PyTuple::new(py, Telemetry::fields())
+        PyTuple::new(py, Telemetry::fields().map_err(|e| to_pyerr(py, e))?)
     }
 
     /// All measurement registers in one snapshot (one request where the drive allows).
     fn telemetry<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let t = self.dev.wire(py, |d| d.telemetry())?;
+        let rows = &drive_table(Family::Bld).map_err(|e| to_pyerr(py, e))?.registers;
         let fields = PyDict::new(py);
         let units = PyDict::new(py);
         for (name, raw, unit) in &t.values {
-            match REGISTERS.iter().find(|r| r.register.name == *name) {
+            match rows.iter().find(|r| r.register.name == *name) {
                 Some(r) => fields.set_item(*name, shown(py, &r.register, *raw))?,
                 None => fields.set_item(*name, *raw)?,
             }
@@ -327,8 +331,8 @@ drive_commands!(with_command_methods! {
     fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
         let out = PyDict::new(py);
         let family = self.dev.device()?.family();
-        for r in REGISTERS.iter().filter_map(|e| e.on(family)) {
-            out.set_item(r.name, r.unit)?;
+        for r in &drive_table(family).map_err(|e| to_pyerr(py, e))?.registers {
+            out.set_item(&r.register.name, &r.register.unit)?;
         }
         Ok(out)
     }

@@ -5,8 +5,7 @@ use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::export::{family_note, FAMILIES};
 use crate::device::family;
 use crate::device::profile::{
-    access_name, table_name, LineSettings, Names, Profile, ProfileError, ProfileRegister,
-    ProfileValue, ValueType,
+    access_name, table_name, Names, Profile, ProfileError, ProfileRegister, ProfileValue, ValueType,
 };
 use crate::device::profiled::ProfiledDevice;
 use crate::device::suggest::did_you_mean;
@@ -35,29 +34,6 @@ pub(super) struct PyProfile {
     note: String,
     /// A built-in family's file, which `to_toml` gives back as it is (its comments too).
     file: Option<&'static str>,
-}
-
-/// The line defaults of the built-in family `key`, from its class's ``LINE_DEFAULTS`` (the
-/// family registry's `line`), so that they are declared once.
-fn family_line(py: Python<'_>, key: &str) -> PyResult<LineSettings> {
-    let base = if key.starts_with("drive") {
-        "drive"
-    } else {
-        key
-    };
-    let line = PyModule::import(py, "benchbus._families")?
-        .getattr("family")?
-        .call1((base,))?
-        .getattr("line")?;
-    let parity: String = line.getattr("parity")?.extract()?;
-    Ok(LineSettings {
-        baudrate: line.getattr("baudrate")?.extract()?,
-        parity: parity.chars().next(),
-        stopbits: line.getattr("stopbits")?.extract()?,
-        timeout: line.getattr("timeout")?.extract()?,
-        framing: line.getattr("framing")?.extract()?,
-        bytesize: line.getattr("bytesize")?.extract()?,
-    })
 }
 
 /// The name of the register at `index` ("" for none).
@@ -242,6 +218,12 @@ impl PyProfile {
         kwargs.set_item(intern!(py, "default"), default)?;
         kwargs.set_item(intern!(py, "description"), r.description.as_str())?;
         kwargs.set_item(intern!(py, "line"), r.line)?;
+        kwargs.set_item(intern!(py, "models"), PyTuple::new(py, &r.models)?)?;
+        let ranges = PyDict::new(py);
+        for (model, range) in &r.ranges {
+            ranges.set_item(model.as_str(), *range)?;
+        }
+        kwargs.set_item(intern!(py, "ranges"), ranges)?;
         row_type.call((), Some(&kwargs))
     }
 }
@@ -312,25 +294,19 @@ impl PyProfile {
         PyProfile::new_checked(py, path.to_string(), parsed)
     }
 
-    /// The built-in family ``key`` ("drive" for a BLD2 / BLD3H, "drive-c20", "pbl" or
-    /// "j2") as a profile: the family's file as the package ships it (``families/``), or
-    /// one made from the family's own register table with its class's line defaults;
-    /// ValueError for another key.
+    /// The built-in family ``key`` ("drive", "pbl" or "j2") as a profile: the family's file
+    /// as the package ships it (``families/``); "drive-c20" is its C20 model
+    /// (``for_model("C20")``; the file's rows are the BLD's). ValueError for another key.
     #[staticmethod]
-    fn family(py: Python<'_>, key: &str) -> PyResult<Self> {
-        let Some(mut profile) = Profile::family(key) else {
+    fn family(key: &str) -> PyResult<Self> {
+        let Some(profile) = Profile::family(key) else {
             return Err(PyValueError::new_err(format!(
                 "no built-in family {key:?}: one of {}",
                 FAMILIES.join(", ")
             )));
         };
         let file = family::text(key);
-        let mut note = String::new();
-        if file.is_none() {
-            // A family whose map is still a table: its line is its class's.
-            profile.line = family_line(py, key)?;
-            note = family_note(key).unwrap_or_default().to_string();
-        }
+        let note = family_note(key).unwrap_or_default();
         Ok(PyProfile {
             file,
             ..PyProfile::made(profile, format!("<{key}>"), note)
@@ -362,6 +338,34 @@ impl PyProfile {
     #[getter]
     fn description(&self) -> &str {
         &self.profile.description
+    }
+
+    /// The models the file describes (``[device] models``; the first is the one its rows
+    /// are written for), ``()`` for a file of one model.
+    #[getter]
+    fn models<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyTuple>> {
+        PyTuple::new(py, &self.profile.models)
+    }
+
+    /// The profile of ``model``, one of :attr:`models`: the registers that model has, each
+    /// with its range there (a register's ``ranges``); ValueError for another name.
+    fn for_model(&self, model: &str) -> PyResult<Self> {
+        let Some(profile) = self.profile.for_model(model) else {
+            return Err(PyValueError::new_err(format!(
+                "{}: no model {model:?} (models: {})",
+                self.path,
+                if self.profile.models.is_empty() {
+                    "none".to_string()
+                } else {
+                    self.profile.models.join(", ")
+                }
+            )));
+        };
+        Ok(PyProfile::made(
+            profile,
+            format!("{}[{model}]", self.path),
+            String::new(),
+        ))
     }
 
     /// The file it was read from (what ``parse`` was given for text).

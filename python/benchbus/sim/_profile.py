@@ -26,7 +26,7 @@ __all__ = ["ProfileDevice"]
 Value = Union[int, float, bool, str]
 
 _TOP_KEYS = {"device", "line", "limits", "register"}
-_DEVICE_KEYS = {"name", "description"}
+_DEVICE_KEYS = {"name", "description", "models"}
 _LINE_KEYS = {"baudrate", "parity", "stopbits", "timeout", "framing", "bytesize"}
 _LIMIT_KEYS = {"max_read", "max_write", "min_write_interval", "block_reads", "read_gaps"}
 _REGISTER_KEYS = {
@@ -46,6 +46,8 @@ _REGISTER_KEYS = {
     "bit",
     "length",
     "default",
+    "models",
+    "ranges",
 }
 _TABLES = ("holding", "input", "coil", "discrete")
 _BIT_TABLES = ("coil", "discrete")
@@ -62,7 +64,7 @@ _NUMERIC = {
 }
 _TYPES = (*_NUMERIC, "bool", "string")
 _ORDERS = ("ABCD", "CDAB", "BADC", "DCBA")
-_ACCESS = ("r", "rw", "w")
+_ACCESS = ("r", "rw", "rw-stopped", "w")
 
 
 @dataclass(frozen=True)
@@ -176,6 +178,13 @@ class ProfileDevice(RegisterDevice):
         rows = profile.get("register", [])
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             raise ValueError(f"{self.path}: 'register' must be an array of tables ([[register]])")
+        models = device.get("models", [])
+        if not isinstance(models, list) or not all(isinstance(m, str) and m for m in models):
+            raise ValueError(f"{self.path}: [device] models must be an array of names")
+        #: The profile's ``[device] models`` (served as written: the first model's rows).
+        self.models: tuple[str, ...] = tuple(models)
+        for i, row in enumerate(rows):
+            _check_models(self.path, i, row, self.models)
         regs = [_register(self.path, i, row) for i, row in enumerate(rows)]
         self._regs: dict[str, _Register] = {}
         self._at: dict[str, dict[int, list[_Register]]] = {t: {} for t in _TABLES}
@@ -415,6 +424,24 @@ def _check_limits(path: str, limits: dict[str, Any]) -> None:
             raise ValueError(f"{path}: [limits] {key} must be true or false")
     if limits.get("read_gaps") and limits.get("block_reads") is False:
         raise ValueError(f"{path}: [limits] read_gaps needs block reads")
+
+
+def _check_models(path: str, index: int, row: dict[str, Any], models: tuple[str, ...]) -> None:
+    """A register's ``models`` (names) and ``ranges`` (``{model: [min, max]}``) name only
+    the profile's models."""
+    where = f"{path}: register {row.get('name', f'#{index + 1}')!r}"
+    named = row.get("models", [])
+    ranges = row.get("ranges", {})
+    if not isinstance(named, list) or not all(isinstance(m, str) for m in named):
+        raise ValueError(f"{where}: models must be an array of names")
+    if not isinstance(ranges, dict) or not all(
+        isinstance(r, list) and len(r) == 2 and all(_number(v) for v in r) and r[0] <= r[1]
+        for r in ranges.values()
+    ):
+        raise ValueError(f"{where}: ranges must be {{ MODEL = [min, max] }}")
+    for model in [*named, *ranges]:
+        if model not in models:
+            raise ValueError(f"{where}: no model {model!r} in [device] models")
 
 
 def _number(v: object) -> bool:
