@@ -145,7 +145,7 @@ class DriveMembers:
     IDENTITY: ClassVar[str | None]
     "The family whose identity the device checks before its first exchange."
     LINE_DEFAULTS: LineDefaults
-    "Line format and reply timeout when the device opens its own Bus."
+    "Line format and reply timeout when the device opens its own Bus: the family file's ``[line]`` (19200 8N1, 0.25 s)."
     SAMPLE_FIELDS: tuple[str, ...] | None
     "The names :meth:`sample` gives: the fields of :meth:`telemetry`."
 
@@ -269,8 +269,9 @@ class DriveMembers:
     @property
     def profile(self) -> Profile:
         """The drive's register table as a :class:`~benchbus.Profile`
-        (``Profile.family("drive")``, ``"drive-c20"`` on a C20): a row for each name
-        :meth:`get` and :meth:`set` take, with its unit, access and range."""
+        (``Profile.family("drive")``, the family's file; ``"drive-c20"``, its C20 model, on
+        a C20): a row for each name :meth:`get` and :meth:`set` take, with its unit, access
+        and range."""
 
     async def read_parameter(self, code: str) -> int:
         """The raw value of function-code parameter ``code``, e.g. ``"F00.10"``.
@@ -691,7 +692,7 @@ class J2ControllerMembers:
     IDENTITY: ClassVar[str | None]
     "The family whose identity the device checks before its first exchange."
     LINE_DEFAULTS: LineDefaults
-    "Line format and reply timeout when the device opens its own Bus."
+    "Line format and reply timeout when the device opens its own Bus: the family file's ``[line]`` (9600 8N1, 0.3 s)."
     SAMPLE_FIELDS: tuple[str, ...] | None
     "The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``."
 
@@ -876,7 +877,7 @@ class PblDriveMembers:
     IDENTITY: ClassVar[str | None]
     "The family whose identity the device checks before its first exchange."
     LINE_DEFAULTS: LineDefaults
-    "Line format and reply timeout when the device opens its own Bus."
+    "Line format and reply timeout when the device opens its own Bus: the family file's ``[line]`` (115200 8E1, 0.1 s)."
     SAMPLE_FIELDS: tuple[str, ...] | None
     "The names :meth:`sample` gives: parameters 50..54."
 
