@@ -368,4 +368,7 @@ def test_each_data_attribute_has_its_comment_as_docstring() -> None:
     drive = next(n for n in stub.body if isinstance(n, ast.ClassDef) and n.name == "DriveMembers")
     texts = [ast.unparse(s) for s in drive.body]
     at = texts.index("LINE_DEFAULTS: LineDefaults")
-    assert texts[at + 1] == repr("Line format and reply timeout when the device opens its own Bus.")
+    assert texts[at + 1] == repr(
+        "Line format and reply timeout when the device opens its own Bus: the family file's"
+        " ``[line]`` (19200 8N1, 0.25 s)."
+    )
