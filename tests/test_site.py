@@ -576,12 +576,12 @@ def serving(directory: Path) -> Iterator[str]:
         thread.join(5)
 
 
-def dump_dom(url: str, profile: Path, timeout: float = 60) -> str:
+def dump_dom(url: str, profile: Path, timeout: float = 20) -> str:
     """The DOM of ``url`` once headless chromium has rendered it (scripts run). chromium and
     every process it starts run in a process group of their own, killed afterwards. A
-    chromium that hangs with nothing rendered (seen now and then on a loaded machine, the
-    same page rendering in seconds the next time) is started once more, with a fresh
-    profile; a second hang fails."""
+    chromium that hangs with nothing rendered (seen now and then, the same page rendering
+    in seconds the next time; a page here renders in about 2 s) is started once more after
+    ``timeout`` seconds, with a fresh profile; a second hang fails."""
     out, hung = _dump_dom_once(url, profile, timeout)
     if hung:
         out, hung = _dump_dom_once(url, profile.with_name(profile.name + "-again"), timeout)
