@@ -151,3 +151,30 @@ def hook(name: str) -> types.ModuleType:
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
+
+
+#: The files whose tests hold the library to a line's time (a simulated slave keeping the
+#: wire's timing, upper bounds on how long a call takes). Run in parallel (``make test``
+#: runs pytest-xdist), they all go to one worker, one after the other, so that two of them
+#: never load the machine at once.
+TIMING_FILES = frozenset(
+    {
+        "test_bench.py",
+        "test_concurrency.py",
+        "test_fair_line.py",
+        "test_faults.py",
+        "test_line_in_step.py",
+        "test_live_timing.py",
+        "test_poll.py",
+        "test_record.py",
+        "test_safety.py",
+        "test_ticks.py",
+    }
+)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Put the tests of :data:`TIMING_FILES` in one xdist group."""
+    for item in items:
+        if item.path.name in TIMING_FILES:
+            item.add_marker(pytest.mark.xdist_group("timing"))

@@ -54,9 +54,9 @@ fn the_manuals_three_frames() {
         Act::Reply(hex("01 10 00 06 00 01 E1 C8")),
     ];
     let (c, t) = j2(acts, 0);
-    assert_eq!(c.read("SV").ok(), Some(100.0));
-    c.write("SV", 100.0).expect("06");
-    c.write_as("SV", 100.0, true).expect("10");
+    assert_eq!(c.get("SV").ok(), Some(100.0));
+    c.set("SV", 100.0).expect("06");
+    c.set_as("SV", 100.0, true).expect("10");
     let frames = sent(&t);
     assert_eq!(frames[0], hex("01 03 00 06 00 01 64 0B"));
     assert_eq!(frames[1], with_crc(&hex("01 03 00 14 00 03"))); // the limits, LSP..USP
@@ -99,7 +99,7 @@ fn blocks_cover_the_wanted_addresses_in_the_fewest_reads() {
     assert_eq!(blocks(&[]), vec![]);
     // MV and AM: two reads of one register, not the 0..0x80 span.
     let (c, t) = j2(vec![words(1, &[250]), words(1, &[0])], 0);
-    assert_eq!(c.read_many(&["MV", "AM"]).ok(), Some(vec![25.0, 0.0]));
+    assert_eq!(c.get_many(&["MV", "AM"]).ok(), Some(vec![25.0, 0.0]));
     assert_eq!(summary(&t), vec![(3, 0, 1), (3, 0x80, 1)]);
 }
 
@@ -111,16 +111,16 @@ fn values_decode_signed_tenths_and_unsigned_ints() {
     pid[4] = 3; // D = 0.3 exactly
     let (c, _) = j2(vec![words(1, &pid), words(1, &[6])], 0);
     assert_eq!(
-        c.read_many(&["P", "I", "D"]).ok(),
+        c.get_many(&["P", "I", "D"]).ok(),
         Some(vec![30.5, -0.1, 0.3])
     );
-    assert_eq!(c.read("INP").ok(), Some(6.0));
+    assert_eq!(c.get("INP").ok(), Some(6.0));
 }
 
 #[test]
 fn mv_in_automatic_mode_is_refused_without_writing() {
     let (c, t) = j2(vec![words(1, &[1])], 0);
-    let err = c.write("MV", 40.0).err();
+    let err = c.set("MV", 40.0).err();
     assert!(
         matches!(&err, Some(Error::State { unit: 1, .. })),
         "{err:?}"
@@ -145,14 +145,14 @@ fn set_output_switches_to_manual_when_asked() {
 fn ramp_parameters_are_written_after_rapnf_0() {
     let acts = vec![echo(0x82, 0), echo(0x28, 600)];
     let (c, t) = j2(acts, 0);
-    c.write("RTM", 60.0).expect("RAPNF, then RTM");
+    c.set("RTM", 60.0).expect("RAPNF, then RTM");
     assert_eq!(summary(&t), vec![(6, 0x82, 0), (6, 0x28, 600)]);
 }
 
 #[test]
 fn values_within_lsp_usp_are_checked_against_the_controllers_limits() {
     let (c, t) = j2(vec![words(1, &[0, 0, 2000])], 0);
-    let err = c.write("SV", 250.0).err().map(|e| e.to_string());
+    let err = c.set("SV", 250.0).err().map(|e| e.to_string());
     assert_eq!(
         err.as_deref(),
         Some("SV must be within the setpoint limits LSP to USP, 0 to 200, got 250 (set both with j2.limits = (low, high))")
@@ -161,20 +161,14 @@ fn values_within_lsp_usp_are_checked_against_the_controllers_limits() {
                                                  // Out of the widest range: refused before anything is sent.
     let (c, t) = j2(vec![], 0);
     assert!(matches!(
-        c.write("SV", 5000.0),
+        c.set("SV", 5000.0),
         Err(Error::InvalidArgument(_))
     ));
-    assert!(matches!(c.write("PV", 1.0), Err(Error::InvalidArgument(_))));
+    assert!(matches!(c.set("PV", 1.0), Err(Error::InvalidArgument(_))));
+    assert!(matches!(c.set("FST", 19.0), Err(Error::InvalidArgument(_))));
+    assert!(matches!(c.set("nope", 1.0), Err(Error::InvalidArgument(_))));
     assert!(matches!(
-        c.write("FST", 19.0),
-        Err(Error::InvalidArgument(_))
-    ));
-    assert!(matches!(
-        c.write("nope", 1.0),
-        Err(Error::InvalidArgument(_))
-    ));
-    assert!(matches!(
-        c.write("SV", f64::NAN),
+        c.set("SV", f64::NAN),
         Err(Error::InvalidArgument(_))
     ));
     assert!(sent(&t).is_empty());
@@ -203,8 +197,8 @@ fn limits_are_written_in_the_order_that_keeps_lsp_below_usp() {
 #[test]
 fn negative_values_go_as_twos_complement() {
     let (c, t) = j2(vec![echo(8, 0xFE0C), echo(0x34, 0xFFCE)], 0);
-    c.write("AL1", -50.0).expect("AL1");
-    c.write("PVOS", -5.0).expect("PVOS");
+    c.set("AL1", -50.0).expect("AL1");
+    c.set("PVOS", -5.0).expect("PVOS");
     assert_eq!(summary(&t), vec![(6, 8, 0xFE0C), (6, 0x34, 0xFFCE)]);
 }
 
@@ -214,7 +208,7 @@ fn writes_to_one_controller_are_paced() {
     let (c, _) = j2(acts, 0);
     let start = Instant::now();
     for v in 1..=3 {
-        c.write("AL1", f64::from(v) / 10.0).expect("write");
+        c.set("AL1", f64::from(v) / 10.0).expect("write");
     }
     assert!(start.elapsed() >= write_interval() * 2);
 }
@@ -225,7 +219,7 @@ fn a_retried_write_keeps_the_interval() {
     let acts = vec![Act::Silent, echo(8, 1)];
     let (c, _) = j2(acts, 1);
     let start = Instant::now();
-    c.write("AL1", 0.1).expect("second attempt");
+    c.set("AL1", 0.1).expect("second attempt");
     assert!(start.elapsed() >= write_interval());
     assert_eq!(c.bus().stats().retries, 1);
 }
@@ -265,7 +259,7 @@ fn pacing_does_not_hold_up_other_units() {
 #[test]
 fn a_broadcast_counts_as_a_write_to_every_unit() {
     let (c, t) = j2(vec![echo(8, 1), Act::Silent, echo(8, 2)], 0);
-    c.write("AL1", 0.1).expect("write");
+    c.set("AL1", 0.1).expect("write");
     let start = Instant::now();
     c.bus()
         .broadcast(&Request::WriteSingleRegister {
@@ -276,7 +270,7 @@ fn a_broadcast_counts_as_a_write_to_every_unit() {
     // The broadcast waited out unit 1's interval, and the next write waits after it.
     assert!(start.elapsed() >= write_interval());
     let after = Instant::now();
-    c.write("AL1", 0.2).expect("write");
+    c.set("AL1", 0.2).expect("write");
     assert!(after.elapsed() >= write_interval());
     assert_eq!(
         sent(&t).iter().map(|f| f[0]).collect::<Vec<_>>(),

@@ -54,7 +54,7 @@ fn a_devices_own_retries_replace_the_buss_in_every_family() {
 
     let (b, t) = bus(silent_then_reply(), 2);
     let j = J2::new(Arc::new(b), 7).with_timing(timeout, Some(0));
-    assert!(matches!(j.read("PV"), Err(Error::Timeout { .. })));
+    assert!(matches!(j.get("PV"), Err(Error::Timeout { .. })));
     assert_eq!(sent(&t).len(), 1);
 
     let (b, t) = bus(silent_then_reply(), 2);

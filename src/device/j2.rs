@@ -148,8 +148,8 @@ impl J2 {
     ///
     /// # Errors
     /// Any [`Error`].
-    pub fn read(&self, name: &str) -> Result<f64> {
-        match self.read_many(&[name])?[..] {
+    pub fn get(&self, name: &str) -> Result<f64> {
+        match self.get_many(&[name])?[..] {
             [value] => Ok(value),
             _ => Err(self.station.short_reply()),
         }
@@ -160,7 +160,7 @@ impl J2 {
     ///
     /// # Errors
     /// Any [`Error`].
-    pub fn read_many(&self, names: &[&str]) -> Result<Vec<f64>> {
+    pub fn get_many(&self, names: &[&str]) -> Result<Vec<f64>> {
         let indices = names.iter().map(|n| index(n)).collect::<Result<Vec<_>>>()?;
         read_planned(&self.station, profile()?, &indices)?
             .iter()
@@ -179,7 +179,7 @@ impl J2 {
     /// Any [`Error`].
     pub fn parameters(&self) -> Result<Vec<(&'static str, f64)>> {
         let names: Vec<&str> = table()?.iter().map(|p| p.register.name.as_str()).collect();
-        let values = self.read_many(&names)?;
+        let values = self.get_many(&names)?;
         Ok(names.into_iter().zip(values).collect())
     }
 
@@ -191,16 +191,16 @@ impl J2 {
     /// # Errors
     /// [`Error::InvalidArgument`] for a bad name or value (nothing sent);
     /// [`Error::State`] for MV in automatic mode (nothing written); any other [`Error`].
-    pub fn write(&self, name: &str, value: f64) -> Result<()> {
-        self.write_as(name, value, false)
+    pub fn set(&self, name: &str, value: f64) -> Result<()> {
+        self.set_as(name, value, false)
     }
 
-    /// As [`write`](Self::write), with function 0x10 (one register) instead of 0x06 when
+    /// As [`set`](Self::set), with function 0x10 (one register) instead of 0x06 when
     /// `multiple`: the manual shows both for SV.
     ///
     /// # Errors
-    /// As [`write`](Self::write).
-    pub fn write_as(&self, name: &str, value: f64, multiple: bool) -> Result<()> {
+    /// As [`set`](Self::set).
+    pub fn set_as(&self, name: &str, value: f64, multiple: bool) -> Result<()> {
         let p = by_name(name)?;
         let raw = encode(p, value)?;
         let rapnf = by_name(RAPNF)?.address;
@@ -220,18 +220,18 @@ impl J2 {
         })
     }
 
-    /// Writes several parameters in order, each as [`write`](Self::write) does. Every value
+    /// Writes several parameters in order, each as [`set`](Self::set) does. Every value
     /// is checked against its fixed range before the first is sent; the checks that need
     /// the controller (SV within the limits, MV in manual mode) are made write by write.
     ///
     /// # Errors
-    /// As [`write`](Self::write); a failure stops the sequence (the earlier writes stay).
-    pub fn write_many(&self, values: &[(&str, f64)]) -> Result<()> {
+    /// As [`set`](Self::set); a failure stops the sequence (the earlier writes stay).
+    pub fn set_many(&self, values: &[(&str, f64)]) -> Result<()> {
         for (name, value) in values {
             encode(by_name(name)?, *value)?;
         }
         for (name, value) in values {
-            self.write(name, *value)?;
+            self.set(name, *value)?;
         }
         Ok(())
     }
@@ -240,7 +240,7 @@ impl J2 {
     /// [`Error::State`], unless `switch_to_manual`: then AM is written 0 first.
     ///
     /// # Errors
-    /// As [`write`](Self::write).
+    /// As [`set`](Self::set).
     pub fn set_output(&self, percent: f64, switch_to_manual: bool) -> Result<()> {
         let mv = by_name("MV")?;
         let raw = encode(mv, percent)?;
@@ -285,7 +285,7 @@ impl J2 {
     /// # Errors
     /// Any [`Error`].
     pub fn limits(&self) -> Result<(f64, f64)> {
-        match self.read_many(&LIMITS)?[..] {
+        match self.get_many(&LIMITS)?[..] {
             [low, high] => Ok((low, high)),
             _ => Err(self.station.short_reply()),
         }
@@ -293,7 +293,7 @@ impl J2 {
 
     /// Whether the controller is in automatic mode (AM = 1).
     fn automatic(&self) -> Result<bool> {
-        Ok(self.read(AM)? != 0.0)
+        Ok(self.get(AM)? != 0.0)
     }
 
     fn mv_in_auto(&self) -> Error {

@@ -11,7 +11,7 @@
 use super::family;
 use super::profile::ProfileRegister;
 use super::suggest::did_you_mean;
-use super::{Device, Register, Station, Table};
+use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::Echo;
 use crate::error::{Error, Result};
@@ -172,15 +172,14 @@ impl Pbl {
                 "parameters {start}+{count} are not within 0 to 222"
             )));
         }
+        // The profiles' planner: the file lists every number, so its blocks are the
+        // stretch in order, each of at most the file's max_read (the manual's frame holds
+        // 1..123 data bytes: 61 registers).
+        let wanted: Vec<usize> = (usize::from(start)..usize::from(start) + usize::from(count))
+            .collect();
         let mut words = Vec::with_capacity(count.into());
-        let end = start + count;
-        let mut at = start;
-        // The manual's frame holds 1..123 data bytes: the file's max_read, 61 registers.
-        let block = family::profile("pbl")?.read_limit(Table::Holding);
-        while at < end {
-            let n = (end - at).min(block);
-            words.extend(self.station.read(at, n)?);
-            at += n;
+        for block in family::profile("pbl")?.plan(&wanted) {
+            words.extend(self.station.read(block.start, block.count)?);
         }
         Ok(words)
     }

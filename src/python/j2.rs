@@ -32,7 +32,7 @@ impl PyJ2Core {
             .map(|n| param(py, n.borrow()))
             .collect::<PyResult<Vec<_>>>()?;
         let wanted: Vec<&'static str> = params.iter().map(|p| p.name.as_str()).collect();
-        let values = self.dev.wire(py, move |j| j.read_many(&wanted))?;
+        let values = self.dev.wire(py, move |j| j.get_many(&wanted))?;
         Ok(params
             .iter()
             .zip(values)
@@ -56,7 +56,7 @@ impl PyJ2Core {
             .zip(&values)
             .map(|(p, v)| Ok((*p, number(v, p)?)))
             .collect::<PyResult<Vec<_>>>()?;
-        self.dev.wire(py, move |j| j.write_many(&pairs))
+        self.dev.wire(py, move |j| j.set_many(&pairs))
     }
 
     /// The parameters of `group` (a table of the core), as Python has them.
@@ -167,7 +167,7 @@ impl PyJ2Core {
     /// Reads the parameter called `name`.
     fn get<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
         let p = param(py, name)?;
-        let v = self.dev.wire(py, move |j| j.read(&p.name))?;
+        let v = self.dev.wire(py, move |j| j.get(&p.name))?;
         Ok(value(py, p, v))
     }
 
@@ -208,7 +208,7 @@ impl PyJ2Core {
         };
         let p = param(py, name)?;
         let v = number(value, &p.name)?;
-        self.dev.wire(py, move |j| j.write_as(&p.name, v, multiple))
+        self.dev.wire(py, move |j| j.set_as(&p.name, v, multiple))
     }
 
     /// Writes `value` to the parameter called `name`, with the manual's rules.
@@ -220,7 +220,7 @@ impl PyJ2Core {
     ) -> PyResult<()> {
         let p = param(py, name)?;
         let v = number(value, &p.name)?;
-        self.dev.wire(py, move |j| j.write(&p.name, v))
+        self.dev.wire(py, move |j| j.set(&p.name, v))
     }
 
     /// Several parameters by name, in as few requests as the 16-register limit allows.
@@ -263,7 +263,7 @@ impl PyJ2Core {
             let p = param(py, &pair[0])?;
             pairs.push((p.name.as_str(), number(&pair[1], &p.name)?));
         }
-        self.dev.wire(py, move |j| j.write_many(&pairs))
+        self.dev.wire(py, move |j| j.set_many(&pairs))
     }
 
     /// Every parameter, `{name: value}`, in six requests of at most 16 registers.
@@ -315,12 +315,12 @@ impl PyJ2Core {
 
     /// Start the setpoint ramp (RAPNF = 1).
     fn start_ramp(&self, py: Python<'_>) -> PyResult<()> {
-        self.dev.wire(py, |j| j.write(RAPNF, 1.0))
+        self.dev.wire(py, |j| j.set(RAPNF, 1.0))
     }
 
     /// End the setpoint ramp (RAPNF = 0).
     fn stop_ramp(&self, py: Python<'_>) -> PyResult<()> {
-        self.dev.wire(py, |j| j.write(RAPNF, 0.0))
+        self.dev.wire(py, |j| j.set(RAPNF, 0.0))
     }
 
     /// The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``.
