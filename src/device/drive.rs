@@ -8,6 +8,7 @@
 //! the brake command and reads status word 2 bit 4 with the opposite polarity.
 
 use super::family;
+use super::on_station;
 use super::profile::Profile;
 use super::suggest::did_you_mean;
 use super::{Device, Register, Station};
@@ -496,15 +497,7 @@ pub struct Drive {
     jogging: AtomicBool,
 }
 
-impl Device for Drive {
-    fn station(&self) -> &Station {
-        &self.station
-    }
-
-    fn station_mut(&mut self) -> &mut Station {
-        &mut self.station
-    }
-}
+on_station!(Drive);
 
 impl Drive {
     /// The drive at `unit` on `bus`. `write_ack` is false for a drive set to F08.06 = 1,

@@ -3,6 +3,7 @@
 //! with decimals and sign, 32- and 64-bit integers and IEEE floats over two or four registers
 //! in any of the four layouts ([`Layout`]), strings, and Read Device Identification.
 
+use super::on_station;
 use super::value::{registers_for_bits, single, Layout};
 use super::{Device, Station, Table};
 use crate::bus::{Bus, TxOptions};
@@ -95,15 +96,7 @@ pub struct Instrument {
     max_write_bits: u16,
 }
 
-impl Device for Instrument {
-    fn station(&self) -> &Station {
-        &self.station
-    }
-
-    fn station_mut(&mut self) -> &mut Station {
-        &mut self.station
-    }
-}
+on_station!(Instrument);
 
 impl Instrument {
     /// The instrument at `unit` on `bus`, reading at most `max_read` and writing at most

@@ -16,6 +16,7 @@
 //! -1999..=3276.7, and the controller itself refuses what it does not take.
 
 use super::family;
+use super::on_station;
 use super::profile::{Profile, ProfileRegister, ProfileValue};
 use super::profiled::read_planned;
 use super::suggest::did_you_mean;
@@ -121,15 +122,7 @@ pub struct J2 {
     station: Station,
 }
 
-impl Device for J2 {
-    fn station(&self) -> &Station {
-        &self.station
-    }
-
-    fn station_mut(&mut self) -> &mut Station {
-        &mut self.station
-    }
-}
+on_station!(J2);
 
 impl J2 {
     /// The controller at `unit` on `bus`.

@@ -234,6 +234,23 @@ impl Station {
     }
 }
 
+/// `impl Device` for a device struct whose `station` field is its [`Station`] (every
+/// device's is).
+macro_rules! on_station {
+    ($device:ty) => {
+        impl $crate::device::Device for $device {
+            fn station(&self) -> &$crate::device::Station {
+                &self.station
+            }
+
+            fn station_mut(&mut self) -> &mut $crate::device::Station {
+                &mut self.station
+            }
+        }
+    };
+}
+pub(crate) use on_station;
+
 /// What every device is: a [`Station`] plus its family's table and behaviours. The Bus, the
 /// unit and the per-device timing come from here, once for all families.
 pub trait Device: Send + Sync {

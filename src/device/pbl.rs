@@ -9,6 +9,7 @@
 //! this family only; they also act on and answer a broadcast, which the Bus never waits for.
 
 use super::family;
+use super::on_station;
 use super::profile::ProfileRegister;
 use super::suggest::did_you_mean;
 use super::{Device, Register, Station};
@@ -99,15 +100,7 @@ pub struct Pbl {
     station: Station,
 }
 
-impl Device for Pbl {
-    fn station(&self) -> &Station {
-        &self.station
-    }
-
-    fn station_mut(&mut self) -> &mut Station {
-        &mut self.station
-    }
-}
+on_station!(Pbl);
 
 impl Pbl {
     /// The drive at `unit` on `bus`.
@@ -175,8 +168,8 @@ impl Pbl {
         // The profiles' planner: the file lists every number, so its blocks are the
         // stretch in order, each of at most the file's max_read (the manual's frame holds
         // 1..123 data bytes: 61 registers).
-        let wanted: Vec<usize> = (usize::from(start)..usize::from(start) + usize::from(count))
-            .collect();
+        let wanted: Vec<usize> =
+            (usize::from(start)..usize::from(start) + usize::from(count)).collect();
         let mut words = Vec::with_capacity(count.into());
         for block in family::profile("pbl")?.plan(&wanted) {
             words.extend(self.station.read(block.start, block.count)?);

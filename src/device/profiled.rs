@@ -2,9 +2,10 @@
 //! profile's limits allow, and written in engineering units after every check, on a
 //! [`Station`] like the built-in families.
 
+use super::on_station;
 use super::profile::{Profile, ProfileRegister, ProfileValue, ValueType};
 use super::value::Number;
-use super::{fmt_num, unit_suffix, Access, Device, Station, Table};
+use super::{fmt_num, unit_suffix, Access, Station, Table};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
 use crate::error::{Error, Result};
@@ -361,15 +362,7 @@ pub struct ProfiledDevice {
     profile: Arc<Profile>,
 }
 
-impl Device for ProfiledDevice {
-    fn station(&self) -> &Station {
-        &self.station
-    }
-
-    fn station_mut(&mut self) -> &mut Station {
-        &mut self.station
-    }
-}
+on_station!(ProfiledDevice);
 
 impl ProfiledDevice {
     /// The device `profile` describes, at `unit` on `bus`, its writes at least the
