@@ -6,8 +6,8 @@ the family's class reads a ProfileDevice serving the export as that device holds
 from __future__ import annotations
 
 import math
-from importlib import resources
 from collections.abc import Iterator
+from importlib import resources
 from pathlib import Path
 from typing import Any
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 import benchbus as bb
-from benchbus.sim import ProfileDevice
 from benchbus._names import RESERVED
+from benchbus.sim import ProfileDevice
 
 EXAMPLE = """\
 [device]

@@ -18,7 +18,6 @@ from typing import TYPE_CHECKING, Any, NamedTuple
 
 from benchbus._core import Bus, DriveCore, Profile
 from benchbus._device import (
-    LineDefaults,
     MeasuredProperty,
     MotorDevice,
     PrintableIntEnum,
@@ -29,8 +28,8 @@ from benchbus._device import (
     to_int,
 )
 from benchbus._display import dataclass_table
-from benchbus._profile import profile_line
 from benchbus._keepalive import KeepAlive, check_interval
+from benchbus._profile import profile_line
 
 if TYPE_CHECKING:
     pass

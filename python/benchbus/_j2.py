@@ -17,7 +17,6 @@ from typing import TYPE_CHECKING, NamedTuple, Union
 from benchbus._core import Bus, J2Core, Profile
 from benchbus._device import (
     BusDevice,
-    LineDefaults,
     MeasuredProperty,
     PrintableIntEnum,
     RegisterProperty,

@@ -15,7 +15,6 @@ from typing import TYPE_CHECKING, NamedTuple
 
 from benchbus._core import Bus, PblCore, Profile
 from benchbus._device import (
-    LineDefaults,
     MeasuredProperty,
     MotorDevice,
     PrintableIntEnum,
