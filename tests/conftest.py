@@ -173,8 +173,8 @@ TIMING_FILES = frozenset(
 )
 
 
-def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Put the tests of :data:`TIMING_FILES` in one xdist group."""
-    for item in items:
-        if item.path.name in TIMING_FILES:
-            item.add_marker(pytest.mark.xdist_group("timing"))
+def pytest_itemcollected(item: pytest.Item) -> None:
+    """Put the tests of :data:`TIMING_FILES` in one xdist group, as each is collected
+    (before xdist's own ``pytest_collection_modifyitems`` reads the groups)."""
+    if item.path.name in TIMING_FILES:
+        item.add_marker(pytest.mark.xdist_group("timing"))

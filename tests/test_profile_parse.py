@@ -444,6 +444,10 @@ def test_a_file_of_two_models_gives_each_its_rows_and_ranges(tmp_path: Path) -> 
         ("ranges = { C = [0, 1] }\n", "no model 'C'"),
         ("ranges = { A = [2, 1] }\n", r"ranges must be \{ MODEL = \[min, max\] \}"),
         ("models = 1\n", "models must be an array of names"),
+        ("models = []\n", "models must be an array of names"),
+        ('models = ["A", "A"]\n', "models must be an array of names"),
+        ("ranges = {}\n", r"ranges must be \{ MODEL = \[min, max\] \}"),
+        ('type = "bool"\nranges = { A = [0, 1] }\n', "a bool register takes no ranges"),
     ],
 )
 def test_the_simulator_refuses_a_model_the_file_does_not_name(

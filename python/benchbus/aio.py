@@ -338,14 +338,16 @@ class _Pool:
 
     async def _joined(self, ended: asyncio.Future[None]) -> None:
         """``ended``'s outcome, once the threads have also returned: the last one says the
-        pool has ended just before it returns, so closing leaves no thread behind.
-        Cancelling this leaves ``ended`` (shared by every loop's wait) alone."""
+        pool has ended just before it returns, so closing leaves no thread behind. Waited
+        for on the loop without blocking it (at most :data:`_JOIN`); cancelling this leaves
+        ``ended`` (shared by every loop's wait) alone, and waits for no thread."""
         try:
             await asyncio.shield(ended)
         finally:
-            for thread in self.threads():
-                if thread is not threading.current_thread():
-                    thread.join(_JOIN)
+            if ended.done() and not ended.cancelled():
+                deadline = time.monotonic() + _JOIN
+                while any(t.is_alive() for t in self.threads()) and time.monotonic() < deadline:
+                    await asyncio.sleep(_ADMIT_POLL)
 
 
 # ---- the bus ----------------------------------------------------------------------------------

@@ -1,10 +1,9 @@
 //! Profiles written out: [`Profile::to_toml`] gives the text [`Profile::parse`] reads back
 //! as the same profile, and [`Profile::family`] describes a built-in family as a profile:
-//! the family's file where it has one (the PBL's and the J2's, [`family`]), else made from
-//! the drive's own `const` table, so that a changed row changes the export. What a file
-//! cannot say (the J2's rules, the drive's write enable and its Fgg.nn parameters) stays
-//! code; [`family_note`] says what, for the top of an exported file (a file says it in its
-//! own comments).
+//! the family's file ([`family`]), or for "drive-c20" the drive file's C20 model. What a
+//! file cannot say (the J2's rules, the drive's write enable and its Fgg.nn parameters)
+//! stays code, said in the file's own comments ([`family_note`] puts them at the top of
+//! the C20's export).
 
 use super::drive::{self, Family};
 use super::profile::{

@@ -20,7 +20,7 @@ use super::on_station;
 use super::profile::{Profile, ProfileRegister, ProfileValue};
 use super::profiled::read_planned;
 use super::suggest::did_you_mean;
-use super::{Device, Register, Station};
+use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::error::{Error, Result};
 use std::sync::Arc;
@@ -72,17 +72,20 @@ pub const LIMITS: [&str; 2] = ["LSP", "USP"];
 pub const RAMP_PARAMETERS: [&str; 2] = ["RAP", "RTM"];
 
 /// The raw word for `value` of parameter `p`, checked against its range and what the
-/// register holds; a signed parameter whose manual range reaches past what a word in tenths
-/// holds says so.
+/// register holds; a value past what a signed word in tenths holds says so.
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] for a read-only parameter or a value it cannot take.
 pub fn encode(p: &Register<String>, value: f64) -> Result<u16> {
     p.encode(value).map_err(|e| match e {
-        Error::InvalidArgument(m) if p.signed && p.range.1 == WORD_MAX && value > WORD_MAX => {
+        Error::InvalidArgument(m)
+            if p.access != Access::Read
+                && p.signed
+                && p.range.1 == WORD_MAX
+                && value > WORD_MAX =>
+        {
             Error::InvalidArgument(format!(
-                "{m} (a signed 16-bit register in tenths holds -3276.8 to 3276.7, less than \
-                 the manual gives)"
+                "{m} (a signed 16-bit register in tenths holds -3276.8 to 3276.7)"
             ))
         }
         other => other,
@@ -338,7 +341,6 @@ impl J2 {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::device::Access;
 
     #[test]
     fn table_is_in_address_order_at_even_addresses_within_the_tables() {
@@ -386,6 +388,8 @@ mod tests {
         assert!(msg.is_some_and(|e| e.to_string().contains("holds -3276.8 to 3276.7")));
         let msg = by_name("DIE").and_then(|p| encode(p, 5000.0)).err();
         assert!(msg.is_some_and(|e| !e.to_string().contains("3276.7")));
+        let msg = by_name("PV").and_then(|p| encode(p, 4000.0)).err();
+        assert!(msg.is_some_and(|e| e.to_string() == "PV is read-only"));
     }
 
     #[test]

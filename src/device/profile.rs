@@ -701,9 +701,9 @@ impl Profile {
         Ok(())
     }
 
-    /// The profile of model `model` of `[device] models`: its registers only, each with its
-    /// range on that model, and no models of its own. None for a model the file does not
-    /// name.
+    /// The profile of model `model` of `[device] models`, named after it: its registers
+    /// only, each with its range on that model, and no models of its own. None for a model
+    /// the file does not name.
     pub fn for_model(&self, model: &str) -> Option<Profile> {
         if !self.models.iter().any(|m| m == model) {
             return None;
@@ -723,6 +723,7 @@ impl Profile {
             })
             .collect();
         Some(Profile {
+            name: model.to_string(),
             models: Vec::new(),
             registers,
             ..self.clone_without_registers()

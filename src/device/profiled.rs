@@ -70,7 +70,8 @@ impl Profile {
     /// table apart, in address order; with `block_reads` (the default), neighbouring and
     /// overlapping registers share a request up to [`read_limit`](Self::read_limit),
     /// otherwise only registers at the same address do (bits of one register); with
-    /// `read_gaps`, registers with unlisted addresses between them share one too.
+    /// `read_gaps`, registers with unlisted addresses between them share one too (never
+    /// across a write-only register, which a read may not touch).
     pub fn plan(&self, wanted: &[usize]) -> Vec<Block> {
         let mut order: Vec<usize> = wanted
             .iter()
@@ -84,14 +85,33 @@ impl Profile {
         order.dedup();
         let merge = self.limits.block_reads.unwrap_or(true);
         let gaps = merge && self.limits.read_gaps.unwrap_or(false);
+        // The words of write-only registers, (table, address): a gap read may not cover them.
+        let unreadable: std::collections::BTreeSet<(u8, u32)> = if gaps {
+            self.registers
+                .iter()
+                .filter(|r| r.register.access == Access::Write)
+                .flat_map(|r| {
+                    let first = u32::from(r.register.address);
+                    (first..first + r.value.width()).map(move |a| (r.table as u8, a))
+                })
+                .collect()
+        } else {
+            std::collections::BTreeSet::new()
+        };
         let mut blocks: Vec<Block> = Vec::new();
         for i in order {
             let r = &self.registers[i];
             let start = u32::from(r.register.address);
             let end = start + r.value.width();
             if let Some(last) = blocks.last_mut() {
+                let table = r.table as u8;
+                let across = gaps
+                    && unreadable
+                        .range((table, last.end())..(table, start))
+                        .next()
+                        .is_none();
                 let joins = last.table == r.table
-                    && (start < last.end() || (merge && start == last.end()) || gaps)
+                    && (start < last.end() || (merge && start == last.end()) || across)
                     && end.max(last.end()) - u32::from(last.start)
                         <= u32::from(self.read_limit(r.table));
                 if joins {
@@ -505,6 +525,17 @@ address = 4
         assert_eq!(spans(&p, &[0, 2]), vec![(Table::Input, 0, 11, vec![0, 2])]);
         let p = profile("[limits]\nread_gaps = true\nmax_read = 10\n", SENSOR);
         assert_eq!(spans(&p, &[0, 2]).len(), 2);
+        // Never across a write-only register: 5 lies between 0 and 10.
+        let only = "[[register]]\nname = \"w\"\naddress = 5\ntable = \"holding\"\naccess = \"w\"\n";
+        let gapped =
+            "[[register]]\nname = \"a\"\naddress = 0\n[[register]]\nname = \"b\"\naddress = 10\n";
+        let p = profile("[limits]\nread_gaps = true\n", &format!("{gapped}{only}"));
+        assert_eq!(spans(&p, &[0, 1]).len(), 2);
+        let p = profile("[limits]\nread_gaps = true\n", gapped);
+        assert_eq!(
+            spans(&p, &[0, 1]),
+            vec![(Table::Holding, 0, 11, vec![0, 1])]
+        );
     }
 
     #[test]

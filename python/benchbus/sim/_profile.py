@@ -178,11 +178,12 @@ class ProfileDevice(RegisterDevice):
         rows = profile.get("register", [])
         if not isinstance(rows, list) or not all(isinstance(r, dict) for r in rows):
             raise ValueError(f"{self.path}: 'register' must be an array of tables ([[register]])")
-        models = device.get("models", [])
-        if not isinstance(models, list) or not all(isinstance(m, str) and m for m in models):
+        models = device.get("models")
+        if models is not None and not _names(models):
             raise ValueError(f"{self.path}: [device] models must be an array of names")
-        #: The profile's ``[device] models`` (served as written: the first model's rows).
-        self.models: tuple[str, ...] = tuple(models)
+        #: The profile's ``[device] models``: every row is served as written (a register's
+        #: ``models`` and ``ranges`` are checked, not applied: its min / max hold).
+        self.models: tuple[str, ...] = tuple(models or ())
         for i, row in enumerate(rows):
             _check_models(self.path, i, row, self.models)
         regs = [_register(self.path, i, row) for i, row in enumerate(rows)]
@@ -432,16 +433,28 @@ def _check_models(path: str, index: int, row: dict[str, Any], models: tuple[str,
     where = f"{path}: register {row.get('name', f'#{index + 1}')!r}"
     named = row.get("models", [])
     ranges = row.get("ranges", {})
-    if not isinstance(named, list) or not all(isinstance(m, str) for m in named):
+    if "models" in row and not _names(named):
         raise ValueError(f"{where}: models must be an array of names")
-    if not isinstance(ranges, dict) or not all(
+    if not isinstance(ranges, dict) or ("ranges" in row and not ranges) or not all(
         isinstance(r, list) and len(r) == 2 and all(_number(v) for v in r) and r[0] <= r[1]
         for r in ranges.values()
     ):
         raise ValueError(f"{where}: ranges must be {{ MODEL = [min, max] }}")
+    if ranges and row.get("type", "u16") in ("bool", "string"):
+        raise ValueError(f"{where}: a {row['type']} register takes no ranges")
     for model in [*named, *ranges]:
         if model not in models:
             raise ValueError(f"{where}: no model {model!r} in [device] models")
+
+
+def _names(value: object) -> bool:
+    """Whether ``value`` is a non-empty array of distinct non-empty names."""
+    return (
+        isinstance(value, list)
+        and bool(value)
+        and all(isinstance(m, str) and m.strip() for m in value)
+        and len(set(value)) == len(value)
+    )
 
 
 def _number(v: object) -> bool:
