@@ -435,9 +435,13 @@ def _check_models(path: str, index: int, row: dict[str, Any], models: tuple[str,
     ranges = row.get("ranges", {})
     if "models" in row and not _names(named):
         raise ValueError(f"{where}: models must be an array of names")
-    if not isinstance(ranges, dict) or ("ranges" in row and not ranges) or not all(
-        isinstance(r, list) and len(r) == 2 and all(_number(v) for v in r) and r[0] <= r[1]
-        for r in ranges.values()
+    if (
+        not isinstance(ranges, dict)
+        or ("ranges" in row and not ranges)
+        or not all(
+            isinstance(r, list) and len(r) == 2 and all(_number(v) for v in r) and r[0] <= r[1]
+            for r in ranges.values()
+        )
     ):
         raise ValueError(f"{where}: ranges must be {{ MODEL = [min, max] }}")
     if ranges and row.get("type", "u16") in ("bool", "string"):
