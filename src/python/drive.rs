@@ -1,6 +1,7 @@
 //! Bindings of [`crate::device::drive`]: the compiled base class of `benchbus.Drive`, which
 //! adds only what belongs to Python (enums, the keepalive, reprs, the context manager).
 
+use super::device_methods;
 use super::{
     int_in, member, number, public, standard_unit_arg, to_pyerr, Attached, PyBus, PyStation,
 };
@@ -63,8 +64,8 @@ fn table<'py>(py: Python<'py>, family: Family) -> PyResult<Bound<'py, PyList>> {
 /// command table (`forward`, `stop`...) that sends its command.
 macro_rules! with_command_methods {
     ({ $($methods:tt)* } $($variant:ident = $code:literal, $method:ident, $doc:literal;)*) => {
-        #[pymethods]
-        impl PyDriveCore {
+        device_methods! {
+            PyDriveCore = |dev| PyDriveCore { dev };
             $($methods)*
 
             $(
@@ -78,15 +79,6 @@ macro_rules! with_command_methods {
 }
 
 drive_commands!(with_command_methods! {
-    #[new]
-    #[pyo3(signature = (*_args, **_kwargs))]
-    fn new(
-        _args: &Bound<'_, PyTuple>,
-        _kwargs: Option<&Bound<'_, PyDict>>,
-    ) -> PyClassInitializer<Self> {
-        Attached::class(|dev| PyDriveCore { dev })
-    }
-
     /// Attaches the drive at `unit` (1..247) of `family` ("BLD" or "C20") to `bus` (what
     /// `Drive.__init__` does); `timeout` / `retries` replace the Bus's.
     #[pyo3(signature = (bus, unit, family, write_ack, timeout=None, retries=None))]

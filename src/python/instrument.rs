@@ -2,6 +2,7 @@
 //! `benchbus.Instrument`, which adds only what belongs to Python (its defaults, the
 //! identification record, the repr, the context manager).
 
+use super::device_methods;
 use super::{
     bool_sequence, comm_event_log, int_in, number, opt, public, read_file_groups, register_list,
     seconds, u16_arg, unit_arg, write_file_groups, Attached, PyBus, PyStation, RESULTS,
@@ -247,16 +248,8 @@ impl PyInstrumentCore {
     }
 }
 
-#[pymethods]
-impl PyInstrumentCore {
-    #[new]
-    #[pyo3(signature = (*_args, **_kwargs))]
-    fn new(
-        _args: &Bound<'_, PyTuple>,
-        _kwargs: Option<&Bound<'_, PyDict>>,
-    ) -> PyClassInitializer<Self> {
-        Attached::class(|dev| PyInstrumentCore { dev })
-    }
+device_methods! {
+PyInstrumentCore = |dev| PyInstrumentCore { dev };
 
     /// Attaches the instrument at `unit` to `bus` with its request limits (what
     /// `Instrument.__init__` does); `timeout` / `retries` replace the Bus's.

@@ -1,6 +1,7 @@
 //! Bindings of [`crate::device::j2`]: the compiled base class of `benchbus.J2Controller`,
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
+use super::device_methods;
 use super::{member, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
@@ -135,16 +136,8 @@ fn value<'py>(py: Python<'py>, p: &Register<String>, v: f64) -> Bound<'py, PyAny
     }
 }
 
-#[pymethods]
-impl PyJ2Core {
-    #[new]
-    #[pyo3(signature = (*_args, **_kwargs))]
-    fn new(
-        _args: &Bound<'_, PyTuple>,
-        _kwargs: Option<&Bound<'_, PyDict>>,
-    ) -> PyClassInitializer<Self> {
-        Attached::class(|dev| PyJ2Core { dev })
-    }
+device_methods! {
+PyJ2Core = |dev| PyJ2Core { dev };
 
     /// Attaches the controller at `unit` to `bus` (what `J2Controller.__init__` does);
     /// `timeout` / `retries` replace the Bus's.

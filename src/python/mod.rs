@@ -240,6 +240,29 @@ fn over_modbus_tcp(bus: Option<&bus::Bus>, err: Error) -> Error {
     }
 }
 
+/// `#[pymethods] impl $class { ... }` with the `__new__` every compiled device class has:
+/// an empty object made by `$make` (a closure from the [`Attached`] to the class), which
+/// takes any arguments so that the Python class's `__init__` may have its own, and attaches
+/// it (`_attach`).
+macro_rules! device_methods {
+    ($class:ident = $make:expr; $($body:tt)*) => {
+        #[pymethods]
+        impl $class {
+            #[new]
+            #[pyo3(signature = (*_args, **_kwargs))]
+            fn new(
+                _args: &Bound<'_, PyTuple>,
+                _kwargs: Option<&Bound<'_, PyDict>>,
+            ) -> PyClassInitializer<Self> {
+                Attached::class($make)
+            }
+
+            $($body)*
+        }
+    };
+}
+pub(super) use device_methods;
+
 /// A device core, once its Python object is attached to a Bus: what every device binding
 /// holds. The object is made empty (`__new__` takes any arguments, so that a subclass's
 /// `__init__` may have its own) and attached by its class's `__init__`, through the one

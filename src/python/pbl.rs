@@ -1,6 +1,7 @@
 //! Bindings of [`crate::device::pbl`]: the compiled base class of `benchbus.PblDrive`, which
 //! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
+use super::device_methods;
 use super::{int_in, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
@@ -38,16 +39,8 @@ fn parameter_number(py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
     int_in(key, "parameter", 0, last as i64).map(|n| n as u16)
 }
 
-#[pymethods]
-impl PyPblCore {
-    #[new]
-    #[pyo3(signature = (*_args, **_kwargs))]
-    fn new(
-        _args: &Bound<'_, PyTuple>,
-        _kwargs: Option<&Bound<'_, PyDict>>,
-    ) -> PyClassInitializer<Self> {
-        Attached::class(|dev| PyPblCore { dev })
-    }
+device_methods! {
+PyPblCore = |dev| PyPblCore { dev };
 
     /// Attaches the drive at `unit` to `bus` (what `PblDrive.__init__` does); `timeout` /
     /// `retries` replace the Bus's.

@@ -1,6 +1,7 @@
 //! Device profiles: `Profile` (a profile file checked by the core; its mistakes as
 //! `benchbus.ProfileError`) and `ProfileCore`, the compiled base of `benchbus.Device`.
 
+use super::device_methods;
 use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::export::{family_note, FAMILIES};
 use crate::device::family;
@@ -484,19 +485,11 @@ impl PyProfileCore {
     }
 }
 
-#[pymethods]
-impl PyProfileCore {
-    #[new]
-    #[pyo3(signature = (*_args, **_kwargs))]
-    fn new(
-        _args: &Bound<'_, PyTuple>,
-        _kwargs: Option<&Bound<'_, PyDict>>,
-    ) -> PyClassInitializer<Self> {
-        Attached::class(|dev| PyProfileCore {
+device_methods! {
+PyProfileCore = |dev| PyProfileCore {
             dev,
             profile: OnceLock::new(),
-        })
-    }
+        };
 
     /// Attaches the device `profile` describes at `unit` to `bus` (what ``Device.__init__``
     /// does); `timeout` / `retries` replace the Bus's.
