@@ -32,7 +32,8 @@ def test_every_file_the_map_names_exists(path: str) -> None:
 @pytest.mark.parametrize(
     ("term", "code", "where"),
     [
-        ("Attached::class", "fn class<", "src/python/mod.rs"),
+        ("device_methods!", "macro_rules! device_methods", "src/python/mod.rs"),
+        ("on_station!", "macro_rules! on_station", "src/device/mod.rs"),
         ("Attached::attach", "fn attach(", "src/python/mod.rs"),
         ("public()", "fn public<", "src/python/mod.rs"),
         ("member()", "fn member<", "src/python/mod.rs"),
