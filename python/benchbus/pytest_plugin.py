@@ -368,42 +368,41 @@ def _require_sim() -> None:
         pytest.fail(str(sim_missing(exc) or exc), pytrace=False)
 
 
+def _model(kind: str, **options: Any) -> Any:
+    """A new simulated device of the family ``kind`` (its simulator in the families'
+    registry), made with ``options``."""
+    _require_sim()
+    return family(kind).simulate(**options)
+
+
 @pytest.fixture
 def sim_drive_model() -> DriveDevice:
     """The simulated drive for ``sim_drive`` / ``bench_drive``: a BLD2. Override to change."""
-    _require_sim()
-    from benchbus.sim import DriveDevice
-
-    return DriveDevice("BLD2")
+    model: DriveDevice = _model("drive", model="BLD2")
+    return model
 
 
 @pytest.fixture
 def sim_pbl_model() -> PblDevice:
     """The simulated PBL drive for ``sim_pbl`` / ``bench_pbl``. Override to change."""
-    _require_sim()
-    from benchbus.sim import PblDevice
-
-    return PblDevice()
+    model: PblDevice = _model("pbl")
+    return model
 
 
 @pytest.fixture
 def sim_j2_model() -> J2Device:
     """The simulated J2 controller for ``sim_j2`` / ``bench_j2``, :data:`J2_SPEEDUP` times
     faster than real time. Override to change."""
-    _require_sim()
-    from benchbus.sim import J2Device
-
-    return J2Device(speedup=J2_SPEEDUP)
+    model: J2Device = _model("j2", speedup=J2_SPEEDUP)
+    return model
 
 
 @pytest.fixture
 def sim_instrument_model() -> TaisongDevice:
     """The simulated instrument for ``sim_instrument`` / ``bench_instrument``: a Taisong
     panel meter, :data:`INSTRUMENT_SPEEDUP` times faster than real time. Override to change."""
-    _require_sim()
-    from benchbus.sim import TaisongDevice
-
-    return TaisongDevice(speedup=INSTRUMENT_SPEEDUP)
+    model: TaisongDevice = _model("instrument", speedup=INSTRUMENT_SPEEDUP)
+    return model
 
 
 @contextlib.contextmanager
