@@ -17,8 +17,8 @@ endif
 PYTHON := $(VENV)/bin/python
 PIP := $(PYTHON) -m pip install --quiet --editable
 # pytest's workers (pytest-xdist): one more than the cores, as most of a test's time is
-# spent waiting on a line. The tests that keep a line's time run on one worker, one after
-# the other (tests/conftest.py, TIMING_FILES); the benchmark's runs after all, by itself.
+# spent waiting on a line. The tests that keep a line's time (tests/conftest.py,
+# TIMING_FILES, marked timing) run after the others, in one process, by themselves.
 TEST_WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 1 )))
 
 .PHONY: install demo test lint fmt example bench cross wheel wheel-smoke docs docs-serve
@@ -41,8 +41,8 @@ demo: $(VENV)/bin/python
 test: install
 	.ci/need.sh 'chromium|chromium-browser=chromium'
 	cargo test --quiet
-	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not alone"
-	$(PYTHON) -m pytest -q -m alone
+	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) -m "not timing"
+	$(PYTHON) -m pytest -q -m timing
 
 lint: install
 	cargo fmt --check

@@ -154,9 +154,9 @@ def hook(name: str) -> types.ModuleType:
 
 
 #: The files whose tests hold the library to a line's time (a simulated slave keeping the
-#: wire's timing, upper bounds on how long a call takes). Run in parallel (``make test``
-#: runs pytest-xdist), they all go to one worker, one after the other, so that two of them
-#: never load the machine at once.
+#: wire's timing, upper bounds on how long a call takes), marked ``timing``: ``make test``
+#: runs the other tests on pytest-xdist's workers, then these in one process, by
+#: themselves (a loaded machine delays a simulated slave's bytes past what a line allows).
 TIMING_FILES = frozenset(
     {
         "test_bench.py",
@@ -174,7 +174,6 @@ TIMING_FILES = frozenset(
 
 
 def pytest_itemcollected(item: pytest.Item) -> None:
-    """Put the tests of :data:`TIMING_FILES` in one xdist group, as each is collected
-    (before xdist's own ``pytest_collection_modifyitems`` reads the groups)."""
+    """Mark the tests of :data:`TIMING_FILES` ``timing``."""
     if item.path.name in TIMING_FILES:
-        item.add_marker(pytest.mark.xdist_group("timing"))
+        item.add_marker(pytest.mark.timing)

@@ -101,7 +101,6 @@ def test_benchbus_keeps_t35_seen_from_the_emulated_line() -> None:
     assert min(stats["gaps"]) >= line.t35 - 20e-6
 
 
-@pytest.mark.alone
 @pytest.mark.timeout(300)
 def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -> None:
     out = tmp_path / "bench.json"
