@@ -548,11 +548,11 @@ impl Drive {
     /// [`Error::InvalidArgument`] if there is no such register, or not on this family.
     pub fn register(&self, name: &str) -> Result<&'static Register<String>> {
         let own = table(self.family)?;
-        if let Some(r) = own.registers.iter().find(|r| r.register.name == name) {
-            return Ok(&r.register);
+        if let Some(i) = own.index(name) {
+            return Ok(&own.registers[i].register);
         }
         let file = family::profile("drive")?;
-        match file.registers.iter().find(|r| r.register.name == name) {
+        match file.index(name).map(|i| &file.registers[i]) {
             Some(r) => Err(Error::InvalidArgument(format!(
                 "{name} ({:#06x}) exists on {} drives only, not on the {}",
                 r.register.address,

@@ -99,10 +99,13 @@ impl Profile {
 /// lines for the top of the file: for "drive-c20", made from the drive's file, the top of
 /// that file; None for another key (a family's file says it in its own comments).
 pub fn family_note(key: &str) -> Option<String> {
+    if key != "drive-c20" {
+        return None;
+    }
     let note = family::note("drive")?;
-    (key == "drive-c20").then(|| {
-        format!("The C20's rows of the drive family's file (families/drive.toml).\n{note}")
-    })
+    Some(format!(
+        "The C20's rows of the drive family's file (families/drive.toml).\n{note}"
+    ))
 }
 
 fn line_section(out: &mut String, l: &LineSettings) {

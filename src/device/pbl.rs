@@ -63,9 +63,10 @@ pub fn is_reserved(number: u16) -> bool {
 /// # Errors
 /// [`Error::InvalidArgument`] if there is none.
 pub fn by_name(name: &str) -> Result<&'static Register<String>> {
-    let table = table()?;
-    let found = table.iter().find(|p| p.register.name == name);
-    found.map(|p| &p.register).ok_or_else(|| {
+    let profile = family::profile("pbl")?;
+    let table = &profile.registers;
+    let found = profile.index(name).map(|i| &table[i].register);
+    found.ok_or_else(|| {
         let hint = did_you_mean(name, table.iter().map(|p| p.register.name.as_str()));
         Error::InvalidArgument(format!("a PBL drive has no parameter {name:?}{hint}"))
     })

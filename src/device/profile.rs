@@ -304,7 +304,7 @@ impl<'s, 'a, 'i> Section<'s, 'a, 'i> {
         let value = match self.get(key).map(|v| (v.get_ref(), v.span())) {
             None => return Ok(None),
             Some((DeValue::Integer(_), _)) => self.int(key)?.map(|i| i as f64),
-            Some((DeValue::Float(f), _)) => f.as_str().replace('_', "").parse::<f64>().ok(),
+            Some((float @ DeValue::Float(_), _)) => to_number(float),
             Some((other, span)) => return Err(self.fail(key, span, wrong("a number", other))),
         };
         match value {
@@ -374,6 +374,24 @@ impl<'s, 'a, 'i> Section<'s, 'a, 'i> {
             s => Ok(s),
         }
     }
+}
+
+/// A TOML integer or float as an f64; None for another value, or one that does not parse.
+fn to_number(value: &DeValue<'_>) -> Option<f64> {
+    match value {
+        DeValue::Integer(i) => i128::from_str_radix(i.as_str(), i.radix())
+            .ok()
+            .map(|i| i as f64),
+        DeValue::Float(f) => f.as_str().replace('_', "").parse::<f64>().ok(),
+        _ => None,
+    }
+}
+
+/// Whether `value` lies within `(lo, hi)`, what a register's type holds, give or take the
+/// float rounding of its scale and offset.
+fn holds((lo, hi): (f64, f64), value: f64) -> bool {
+    let slack = |v: f64| 1e-9 * v.abs().max(1.0);
+    value >= lo - slack(lo) && value <= hi + slack(hi)
 }
 
 fn wrong(expected: &str, got: &DeValue<'_>) -> String {
@@ -724,22 +742,12 @@ impl Profile {
             .collect();
         Some(Profile {
             name: model.to_string(),
-            models: Vec::new(),
-            registers,
-            ..self.clone_without_registers()
-        })
-    }
-
-    /// The profile's sections, without its registers.
-    fn clone_without_registers(&self) -> Profile {
-        Profile {
-            name: self.name.clone(),
             description: self.description.clone(),
             line: self.line.clone(),
             limits: self.limits.clone(),
-            models: self.models.clone(),
-            registers: Vec::new(),
-        }
+            models: Vec::new(),
+            registers,
+        })
     }
 
     /// Refuses a register that one request cannot read or write whole: a value split over
@@ -1061,32 +1069,25 @@ fn model_ranges(
         }
     };
     let (lo, hi) = full_range(kind, scale, offset);
-    let slack = |v: f64| 1e-9 * v.abs().max(1.0);
     let mut out = Vec::with_capacity(table.len());
     for (model, value) in table.iter() {
         let model: &str = model.get_ref();
-        let bounds: Vec<f64> = match value.get_ref() {
+        // Every item a finite number, or the pair is refused.
+        let bounds: Option<Vec<f64>> = match value.get_ref() {
             DeValue::Array(items) => items
                 .iter()
-                .filter_map(|v| match v.get_ref() {
-                    DeValue::Integer(i) => i128::from_str_radix(i.as_str(), i.radix())
-                        .ok()
-                        .map(|i| i as f64),
-                    DeValue::Float(f) => f.as_str().replace('_', "").parse::<f64>().ok(),
-                    _ => None,
-                })
-                .filter(|v| v.is_finite())
+                .map(|v| to_number(v.get_ref()).filter(|n| n.is_finite()))
                 .collect(),
-            _ => Vec::new(),
+            _ => None,
         };
-        let &[min, max] = &bounds[..] else {
+        let Some(&[min, max]) = bounds.as_deref() else {
             return Err(s.fail(
                 "ranges",
                 value.span(),
                 format!("{model}: must be [min, max], two numbers"),
             ));
         };
-        if min > max || min < lo - slack(lo) || max > hi + slack(hi) {
+        if min > max || !holds((lo, hi), min) || !holds((lo, hi), max) {
             return Err(s.fail(
                 "ranges",
                 value.span(),
@@ -1193,11 +1194,9 @@ fn range(s: &Section<'_, '_, '_>, kind: Kind, scale: f64, offset: f64) -> Parsed
     let (lo, hi) = full_range(kind, scale, offset);
     let min = s.number("min")?;
     let max = s.number("max")?;
-    // A margin for the float rounding of scale and offset.
-    let slack = |v: f64| 1e-9 * v.abs().max(1.0);
     for (key, value) in [("min", min), ("max", max)] {
         if let Some(v) = value {
-            if v < lo - slack(lo) || v > hi + slack(hi) {
+            if !holds((lo, hi), v) {
                 return Err(s.fail(
                     key,
                     s.span_of(key),
@@ -1803,6 +1802,7 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             ("ranges = { A = [3, 1] }\n", "ranges"),
             ("ranges = { A = [0, 70000] }\n", "ranges"),
             ("ranges = { A = 3 }\n", "ranges"),
+            ("ranges = { A = [0, 1, \"x\"] }\n", "ranges"),
             ("ranges = [0, 1]\n", "ranges"),
             ("models = []\n", "models"),
             ("models = [\"A\", \"A\"]\n", "models"),

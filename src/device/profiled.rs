@@ -66,6 +66,17 @@ impl Profile {
         Duration::try_from_secs_f64(interval).unwrap_or_default()
     }
 
+    /// Whether a write-only register of `table` has a word at an address in `addresses`.
+    fn write_only_in(&self, table: Table, addresses: std::ops::Range<u32>) -> bool {
+        self.registers.iter().any(|r| {
+            let first = u32::from(r.register.address);
+            r.table == table
+                && r.register.access == Access::Write
+                && first < addresses.end
+                && first + r.value.width() > addresses.start
+        })
+    }
+
     /// The requests that read the registers `wanted` (indices; repeats read once): each
     /// table apart, in address order; with `block_reads` (the default), neighbouring and
     /// overlapping registers share a request up to [`read_limit`](Self::read_limit),
@@ -85,31 +96,14 @@ impl Profile {
         order.dedup();
         let merge = self.limits.block_reads.unwrap_or(true);
         let gaps = merge && self.limits.read_gaps.unwrap_or(false);
-        // The words of write-only registers, (table, address): a gap read may not cover them.
-        let unreadable: std::collections::BTreeSet<(u8, u32)> = if gaps {
-            self.registers
-                .iter()
-                .filter(|r| r.register.access == Access::Write)
-                .flat_map(|r| {
-                    let first = u32::from(r.register.address);
-                    (first..first + r.value.width()).map(move |a| (r.table as u8, a))
-                })
-                .collect()
-        } else {
-            std::collections::BTreeSet::new()
-        };
         let mut blocks: Vec<Block> = Vec::new();
         for i in order {
             let r = &self.registers[i];
             let start = u32::from(r.register.address);
             let end = start + r.value.width();
             if let Some(last) = blocks.last_mut() {
-                let table = r.table as u8;
-                let across = gaps
-                    && unreadable
-                        .range((table, last.end())..(table, start))
-                        .next()
-                        .is_none();
+                // A gap read may not cover a write-only register.
+                let across = gaps && !self.write_only_in(r.table, last.end()..start);
                 let joins = last.table == r.table
                     && (start < last.end() || (merge && start == last.end()) || across)
                     && end.max(last.end()) - u32::from(last.start)
