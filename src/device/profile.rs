@@ -862,6 +862,12 @@ struct RegisterSet {
 /// In [`RegisterSet::taken`], for a register taken whole (not one of its bits).
 const WHOLE: u8 = 16;
 
+/// Whether a value is one whole register read as a number: the word its bits may be
+/// declared beside (`bit`), a status word and its flags.
+fn is_word(value: &ValueType) -> bool {
+    matches!(value, ValueType::Number(Kind::U16 | Kind::I16))
+}
+
 impl RegisterSet {
     /// Checks the `[[register]]` tables `items` of the document `top`, and adds them.
     fn add(&mut self, top: &Section<'_, '_, '_>, items: &[Spanned<DeValue<'_>>]) -> Parsed<()> {
@@ -893,14 +899,16 @@ impl RegisterSet {
             };
             let first = u32::from(reg.register.address);
             for address in first..first + reg.value.width() {
-                // A bit shares its register with other bits only.
+                // A bit shares its register with other bits, and with the one-word number
+                // that is the whole of it (a status word beside its bits), nothing else.
                 let at = |b: u8| (table_id, address, b);
+                let whole = self.taken.get(&at(WHOLE)).copied();
                 let other = match bit {
+                    None if is_word(&reg.value) => whole,
                     None => self.taken.range(at(0)..=at(WHOLE)).map(|(_, i)| *i).min(),
-                    Some(b) => [at(b), at(WHOLE)]
-                        .iter()
-                        .filter_map(|k| self.taken.get(k).copied())
-                        .min(),
+                    Some(b) => self.taken.get(&at(b)).copied().or_else(|| {
+                        whole.filter(|i| self.out.get(*i).is_none_or(|w| !is_word(&w.value)))
+                    }),
                 };
                 if let Some(other) = other {
                     let other_name = self.out.get(other).map_or("", |r| r.register.name.as_str());
@@ -1562,11 +1570,32 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             10,
             "register[1].address",
         );
+        // A bit beside a number wider than the word, or beside a second whole word.
+        let at5 = |text: String| text.replace("\"a\"\naddress = 1\n", "\"c\"\naddress = 5\n");
         fails(
-            &format!("{}{R}", bit("a", 1)).replace("\"a\"\naddress = 1\n", "\"c\"\naddress = 5\n"),
+            &at5(format!("{}{R}type = \"u32\"\n", bit("a", 1))),
             10,
             "register[1].address",
         );
+        fails(
+            &at5(format!("{R}type = \"u32\"\n{}", bit("b", 1))),
+            9,
+            "register[1].address",
+        );
+        let word = at5(R.to_string());
+        fails(
+            &format!("{word}{}{word}", bit("b", 1)).replacen("\"c\"", "\"d\"", 1),
+            13,
+            "register[2].address",
+        );
+        // A status word beside its bits, declared before or after them: read once.
+        for text in [
+            format!("{word}{}", bit("b", 1)),
+            format!("{}{word}", bit("b", 1)),
+        ] {
+            let p = Profile::parse("d.toml", &format!("[device]\nname = \"d\"\n{text}")).unwrap();
+            assert_eq!(p.plan(&[0, 1]).len(), 1);
+        }
         // Distinct bits share a register; other tables are apart.
         let text = format!("[device]\nname = \"d\"\n{}{}", bit("a", 1), bit("b", 2));
         assert!(Profile::parse("d.toml", &text).is_ok());
