@@ -8,9 +8,9 @@
 //! the brake command and reads status word 2 bit 4 with the opposite polarity.
 
 use super::family;
-use super::on_station;
 use super::profile::Profile;
 use super::suggest::did_you_mean;
+use super::{on_station, tabled};
 use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::{exception_meaning, FrameError};
@@ -498,6 +498,7 @@ pub struct Drive {
 }
 
 on_station!(Drive);
+tabled!(Drive, |d, name| d.register(name));
 
 impl Drive {
     /// The drive at `unit` on `bus`. `write_ack` is false for a drive set to F08.06 = 1,

@@ -16,10 +16,10 @@
 //! -1999..=3276.7, and the controller itself refuses what it does not take.
 
 use super::family;
-use super::on_station;
 use super::profile::{Profile, ProfileRegister, ProfileValue};
 use super::profiled::read_planned;
 use super::suggest::did_you_mean;
+use super::{on_station, tabled};
 use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::error::{Error, Result};
@@ -126,6 +126,7 @@ pub struct J2 {
 }
 
 on_station!(J2);
+tabled!(J2, |_j2, name| by_name(name));
 
 impl J2 {
     /// The controller at `unit` on `bus`.

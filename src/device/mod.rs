@@ -291,6 +291,54 @@ pub trait Device: Send + Sync {
     }
 }
 
+/// A device family whose registers are a table (its profile file): any row read and
+/// written by name, in engineering units, with the family's rules. What the bindings'
+/// `get` and `set` serve, once for every family.
+pub trait Tabled: Device {
+    /// The row called `name`, as the family spells its names (the J2's in any case).
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] if there is none (on this model).
+    fn row(&self, name: &str) -> Result<&'static Register<String>>;
+
+    /// Reads the row called `name`, in engineering units.
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    fn get(&self, name: &str) -> Result<f64>;
+
+    /// Writes `value` (engineering units) to the row called `name`, checked (range, steps,
+    /// access and the family's rules) before anything is sent.
+    ///
+    /// # Errors
+    /// Any [`Error`]; [`Error::InvalidArgument`] for a bad value or a read-only row.
+    fn set(&self, name: &str, value: f64) -> Result<()>;
+}
+
+/// `impl Tabled` for a family struct from its own `get` and `set` and a row lookup.
+macro_rules! tabled {
+    ($device:ty, |$this:ident, $name:ident| $row:expr) => {
+        impl $crate::device::Tabled for $device {
+            fn row(
+                &self,
+                $name: &str,
+            ) -> $crate::Result<&'static $crate::device::Register<String>> {
+                let $this = self;
+                $row
+            }
+
+            fn get(&self, name: &str) -> $crate::Result<f64> {
+                <$device>::get(self, name)
+            }
+
+            fn set(&self, name: &str, value: f64) -> $crate::Result<()> {
+                <$device>::set(self, name, value)
+            }
+        }
+    };
+}
+pub(crate) use tabled;
+
 /// `raw` x `scale`, exactly where `scale` is one over a whole number: divided by 10 rather
 /// than multiplied by 0.1, so 3 tenths are 0.3, not 0.30000000000000004.
 pub(crate) fn scaled(raw: f64, scale: f64) -> f64 {

@@ -9,9 +9,9 @@
 //! this family only; they also act on and answer a broadcast, which the Bus never waits for.
 
 use super::family;
-use super::on_station;
 use super::profile::ProfileRegister;
 use super::suggest::did_you_mean;
+use super::{on_station, tabled};
 use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::Echo;
@@ -102,6 +102,7 @@ pub struct Pbl {
 }
 
 on_station!(Pbl);
+tabled!(Pbl, |_pbl, name| by_name(name));
 
 impl Pbl {
     /// The drive at `unit` on `bus`.

@@ -3,16 +3,16 @@
 
 use super::device_methods;
 use super::{
-    int_in, member, number, public, standard_unit_arg, to_pyerr, Attached, PyBus, PyStation,
+    int_in, member, number, public, shown, standard_unit_arg, to_pyerr, Attached, PyBus, PyStation,
 };
 use crate::device::drive::{
     command_doc, drive_commands, fault_name, table as drive_table, Command, Drive, Family, Model,
     Telemetry,
 };
-use crate::device::{Access, Device, Register};
+use crate::device::{Access, Device};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
-use pyo3::types::{PyDict, PyFloat, PyInt, PyList, PyTuple};
+use pyo3::types::{PyDict, PyInt, PyList, PyTuple};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._drive";
@@ -30,16 +30,6 @@ fn family_arg(name: &str) -> PyResult<Family> {
             "family must be \"BLD\" (BLD2, BLD3H) or \"C20\", got {name:?}"
         ))
     })
-}
-
-/// A value of `register` as Python shows it: an int for a whole-number register, else a
-/// float.
-fn shown<'py>(py: Python<'py>, register: &Register<String>, value: f64) -> Bound<'py, PyAny> {
-    if register.is_integer() {
-        PyInt::new(py, value as i64).into_any()
-    } else {
-        PyFloat::new(py, value).into_any()
-    }
 }
 
 /// The register table of `family` as `DriveRegister` rows.
@@ -66,6 +56,7 @@ macro_rules! with_command_methods {
     ({ $($methods:tt)* } $($variant:ident = $code:literal, $method:ident, $doc:literal;)*) => {
         device_methods! {
             PyDriveCore = |dev| PyDriveCore { dev };
+            tabled;
             $($methods)*
 
             $(
@@ -132,21 +123,6 @@ drive_commands!(with_command_methods! {
     #[getter]
     fn block_reads(&self) -> PyResult<Option<bool>> {
         Ok(self.dev.device()?.block_reads())
-    }
-
-    /// Read any register of the drive's table by name (see :meth:`registers`): an int, or a
-    /// float for a scaled register.
-    fn get<'py>(&self, py: Python<'py>, name: &str) -> PyResult<Bound<'py, PyAny>> {
-        let name = name.to_string();
-        let (register, raw) = self.dev.wire(py, move |d| Ok((d.register(&name)?, d.get(&name)?)))?;
-        Ok(shown(py, register, raw))
-    }
-
-    /// Write any writable register of the drive's table by name, in engineering units.
-    fn set(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        let value = number(value, name)?;
-        let name = name.to_string();
-        self.dev.wire(py, move |d| d.set(&name, value))
     }
 
     /// What leaving a ``with`` block sends: a jog stop if this object started a jog, then

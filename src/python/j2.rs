@@ -2,7 +2,7 @@
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
 use super::device_methods;
-use super::{member, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
+use super::{member, number, public, shown, to_pyerr, unit_arg, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._j2";
@@ -12,7 +12,7 @@ use crate::device::j2::{
 use crate::device::{Access, Register};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyFloat, PyInt, PyList, PyMapping, PyString, PyTuple};
+use pyo3::types::{PyBool, PyBytes, PyDict, PyInt, PyList, PyMapping, PyString, PyTuple};
 
 /// The compiled base of `benchbus.J2Controller`: the parameter table, the manual's rules and
 /// every call to the controller.
@@ -37,7 +37,7 @@ impl PyJ2Core {
         Ok(params
             .iter()
             .zip(values)
-            .map(|(p, v)| value(py, p, v))
+            .map(|(p, v)| shown(py, p, v))
             .collect())
     }
 
@@ -127,17 +127,9 @@ fn py_six() -> Py<PyAny> {
     Python::attach(|py| PyInt::new(py, 0x06).into_any().unbind())
 }
 
-/// A value as Python has it: an int for the unsigned table, a float for the signed one.
-fn value<'py>(py: Python<'py>, p: &Register<String>, v: f64) -> Bound<'py, PyAny> {
-    if p.signed {
-        PyFloat::new(py, v).into_any()
-    } else {
-        PyInt::new(py, v as i64).into_any()
-    }
-}
-
 device_methods! {
 PyJ2Core = |dev| PyJ2Core { dev };
+tabled;
 
     /// Attaches the controller at `unit` to `bus` (what `J2Controller.__init__` does);
     /// `timeout` / `retries` replace the Bus's.
@@ -155,13 +147,6 @@ PyJ2Core = |dev| PyJ2Core { dev };
             .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
                 Ok(J2::new(b, u))
             })
-    }
-
-    /// Reads the parameter called `name`.
-    fn get<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-        let p = param(py, name)?;
-        let v = self.dev.wire(py, move |j| j.get(&p.name))?;
-        Ok(value(py, p, v))
     }
 
     /// One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
@@ -202,18 +187,6 @@ PyJ2Core = |dev| PyJ2Core { dev };
         let p = param(py, name)?;
         let v = number(value, &p.name)?;
         self.dev.wire(py, move |j| j.set_as(&p.name, v, multiple))
-    }
-
-    /// Writes `value` to the parameter called `name`, with the manual's rules.
-    fn set(
-        &self,
-        py: Python<'_>,
-        name: &Bound<'_, PyAny>,
-        value: &Bound<'_, PyAny>,
-    ) -> PyResult<()> {
-        let p = param(py, name)?;
-        let v = number(value, &p.name)?;
-        self.dev.wire(py, move |j| j.set(&p.name, v))
     }
 
     /// Several parameters by name, in as few requests as the 16-register limit allows.
@@ -265,7 +238,7 @@ PyJ2Core = |dev| PyJ2Core { dev };
         let out = PyDict::new(py);
         for (name, v) in all {
             let p = by_name(name).map_err(|e| to_pyerr(py, e))?;
-            out.set_item(name, value(py, p, v))?;
+            out.set_item(name, shown(py, p, v))?;
         }
         Ok(out)
     }

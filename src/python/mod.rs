@@ -243,8 +243,34 @@ fn over_modbus_tcp(bus: Option<&bus::Bus>, err: Error) -> Error {
 /// `#[pymethods] impl $class { ... }` with the `__new__` every compiled device class has:
 /// an empty object made by `$make` (a closure from the [`Attached`] to the class), which
 /// takes any arguments so that the Python class's `__init__` may have its own, and attaches
-/// it (`_attach`).
+/// it (`_attach`). After `tabled;`, also `get` and `set` of any row by name, the same for
+/// every family with a table ([`crate::device::Tabled`]).
 macro_rules! device_methods {
+    ($class:ident = $make:expr; tabled; $($body:tt)*) => {
+        device_methods! {
+            $class = $make;
+
+            /// Reads the register called ``name`` (see the table), in engineering units: an
+            /// int, or a float for a scaled register.
+            fn get<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
+                let name = super::row_name(name)?;
+                let (row, raw) = self.dev.wire(py, move |d| {
+                    Ok((crate::device::Tabled::row(d, &name)?, crate::device::Tabled::get(d, &name)?))
+                })?;
+                Ok(super::shown(py, row, raw))
+            }
+
+            /// Writes ``value`` (engineering units) to the register called ``name``, checked
+            /// against its range, steps, access and the family's rules before anything is sent.
+            fn set(&self, py: Python<'_>, name: &Bound<'_, PyAny>, value: &Bound<'_, PyAny>) -> PyResult<()> {
+                let name = super::row_name(name)?;
+                let value = super::number(value, &name)?;
+                self.dev.wire(py, move |d| crate::device::Tabled::set(d, &name, value))
+            }
+
+            $($body)*
+        }
+    };
     ($class:ident = $make:expr; $($body:tt)*) => {
         #[pymethods]
         impl $class {
@@ -637,6 +663,31 @@ fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64>
 }
 
 /// A number (int or float, not bool) as f64: TypeError for anything else.
+/// A register's name given to `get` / `set`: a str, else TypeError.
+fn row_name(name: &Bound<'_, PyAny>) -> PyResult<String> {
+    if !name.is_instance_of::<PyString>() {
+        return Err(PyTypeError::new_err(format!(
+            "a register is named by a str (\"speed\"), got {}",
+            name.get_type().name()?
+        )));
+    }
+    name.extract()
+}
+
+/// A value of `register` as Python shows it: an int for a whole-number register, else a
+/// float.
+fn shown<'py>(
+    py: Python<'py>,
+    register: &crate::device::Register<String>,
+    value: f64,
+) -> Bound<'py, PyAny> {
+    if register.is_integer() {
+        PyInt::new(py, value as i64).into_any()
+    } else {
+        PyFloat::new(py, value).into_any()
+    }
+}
+
 fn number(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
     if obj.is_instance_of::<PyBool>()
         || !(obj.is_instance_of::<PyInt>() || obj.is_instance_of::<PyFloat>())

@@ -2,7 +2,7 @@
 //! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
 use super::device_methods;
-use super::{int_in, number, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
+use super::{int_in, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._pbl";
@@ -41,6 +41,7 @@ fn parameter_number(py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
 
 device_methods! {
 PyPblCore = |dev| PyPblCore { dev };
+tabled;
 
     /// Attaches the drive at `unit` to `bus` (what `PblDrive.__init__` does); `timeout` /
     /// `retries` replace the Bus's.
@@ -58,20 +59,6 @@ PyPblCore = |dev| PyPblCore { dev };
             .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
                 Ok(Pbl::new(b, u))
             })
-    }
-
-    /// Reads the parameter called `name` (an int).
-    fn get(&self, py: Python<'_>, name: &str) -> PyResult<i64> {
-        by_name(name).map_err(|e| to_pyerr(py, e))?;
-        let name = name.to_string();
-        self.dev.wire(py, move |p| p.get(&name)).map(|v| v as i64)
-    }
-
-    /// Writes `value` to the parameter called `name`.
-    fn set(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        let value = number(value, name)?;
-        let name = name.to_string();
-        self.dev.wire(py, move |p| p.set(&name, value))
     }
 
     /// Reads one parameter, by number or name.
