@@ -7,7 +7,7 @@ use benchbus::device::drive::{Drive, Family};
 use benchbus::device::instrument::Instrument;
 use benchbus::device::j2::J2;
 use benchbus::device::pbl::Pbl;
-use benchbus::device::{Device, Table};
+use benchbus::device::{Device, Table, Tabled};
 use benchbus::Error;
 use common::{bus, sent, words, Act};
 use std::sync::Arc;
@@ -135,4 +135,50 @@ fn a_unit_its_vouch_refuses_gets_nothing_but_an_urgent_stop() {
     assert!(d.stop_on_exit(true).is_err()); // the script is silent
     assert_eq!(sent(&t).len(), 1);
     assert_eq!(&sent(&t)[0][..6], &[7, 0x06, 0x20, 0x00, 0x00, 0x05]);
+}
+
+/// Reads `name` through the one interface every family with a table has.
+fn by_name(device: &impl Tabled, name: &str) -> benchbus::Result<(u16, f64)> {
+    Ok((device.row(name)?.address, device.get(name)?))
+}
+
+#[test]
+fn every_family_with_a_table_reads_and_refuses_by_name_the_same_way() {
+    // The raw word 0xFFF6 is each row's own value: 65526 rpm of a setpoint in whole rpm,
+    // -1.0 of the J2's SV in signed tenths.
+    let (b, t) = bus(vec![words(7, &[0xFFF6])], 0);
+    let drive = Drive::new(Arc::new(b), 7, Family::Bld, true);
+    assert_eq!(
+        by_name(&drive, "speed_setpoint").ok(),
+        Some((0x2001, 65526.0))
+    );
+    assert_eq!(sent(&t).len(), 1);
+
+    let (b, _) = bus(vec![words(7, &[0xFFF6])], 0);
+    let j2 = J2::new(Arc::new(b), 7);
+    assert_eq!(by_name(&j2, "sv").ok(), Some((0x0006, -1.0)));
+
+    let (b, t) = bus(vec![words(7, &[4])], 0);
+    let pbl = Pbl::new(Arc::new(b), 7);
+    assert_eq!(by_name(&pbl, "pole_pairs").ok(), Some((205, 4.0)));
+    assert_eq!(sent(&t).len(), 1);
+
+    // A name the table lacks and a value out of range: refused, nothing sent.
+    let (b, t) = bus(vec![], 0);
+    let pbl = Pbl::new(Arc::new(b), 7);
+    assert!(matches!(
+        Tabled::get(&pbl, "nope"),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(matches!(
+        Tabled::set(&pbl, "speed", 1.0),
+        Err(Error::InvalidArgument(_))
+    ));
+    let (b2, t2) = bus(vec![], 0);
+    let drive = Drive::new(Arc::new(b2), 7, Family::Bld, true);
+    assert!(matches!(
+        Tabled::set(&drive, "pole_pairs", 21.0),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(sent(&t).is_empty() && sent(&t2).is_empty());
 }
