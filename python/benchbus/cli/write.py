@@ -21,9 +21,8 @@ from benchbus.cli._args import (
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import (
     open_bus,
-    open_profiled,
     profile_of,
-    profile_options,
+    profiled,
     refused_as_usage,
     unit_of,
 )
@@ -119,16 +118,12 @@ def _write_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
         )
     if len(args.values) != 1:
         raise UsageError("--profile writes one register: give NAME VALUE")
-    try:
+    with refused_as_usage():
         name = known(profile, args.address)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
     register = profile[name]
     value = profile_value(register, args.values[0])
-    with open_bus(args, profile_options(profile)) as bus:
-        device = open_profiled(bus, args, profile)
-        with refused_as_usage():
-            device.write(name, value)
+    with profiled(args, profile) as device:
+        device.write(name, value)
     members = device.enums.get(name)
     written = members(value) if members is not None and isinstance(value, int) else value
     print(f"unit {device.unit}: wrote {name} {shown(written, register.unit)}")
