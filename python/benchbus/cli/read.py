@@ -186,11 +186,4 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     )
     parser.add_argument("--hex", action="store_true", help="print the values in hex")
     parser.add_argument("--signed", action="store_true", help="values are 16-bit two's complement")
-    parser.add_argument(
-        "--decimals",
-        type=integer(0, 9, "decimals"),
-        default=0,
-        metavar="N",
-        help="divide the values by 10**N",
-    )
-    add_value_options(parser, "read")
+    add_value_options(parser, "read", "divide")

@@ -207,15 +207,8 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         help="the table to write: holding registers (default) or coils",
     )
     parser.add_argument(
-        "--decimals",
-        type=integer(0, 9, "decimals"),
-        default=0,
-        metavar="N",
-        help="multiply the values by 10**N",
-    )
-    parser.add_argument(
         "--accept-count-echo",
         action="store_true",
         help="accept a 0x06 reply that carries a count of 1 instead of the value (PBL)",
     )
-    add_value_options(parser, "write")
+    add_value_options(parser, "write", "multiply")
