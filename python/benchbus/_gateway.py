@@ -387,9 +387,9 @@ class Gateway(Scoped):
         while not self._stopping.wait(poll):
             pass
 
-    def _enter(self) -> None:
-        """Entering a ``with`` block: start serving."""
-        self.start()
+    def __enter__(self) -> Gateway:
+        """Start serving."""
+        return self.start()
 
     def _leave(self, exc: BaseException | None) -> None:
         """Leaving a ``with`` block: stop serving (the Bus stays open)."""
