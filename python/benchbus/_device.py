@@ -16,7 +16,6 @@ import logging
 import os
 import time
 from collections.abc import Callable, Iterable
-from types import TracebackType
 from typing import (
     TYPE_CHECKING,
     Any,
@@ -32,6 +31,7 @@ from typing import (
 
 from benchbus._core import Bus, _did_you_mean
 from benchbus._record import Recording, record
+from benchbus._scope import Scoped
 from benchbus.exceptions import PortError
 
 if TYPE_CHECKING:
@@ -331,7 +331,7 @@ def _no_such(device: object, name: str, tail: str = "") -> AttributeError:
     return error
 
 
-class BusDevice(metaclass=_DeviceType):
+class BusDevice(Scoped, metaclass=_DeviceType):
     """A device on a Bus: its identity, and a context manager that closes what it opened.
 
     A subclass has a compiled device class as its first base (``class Drive(DriveCore,
@@ -509,17 +509,8 @@ class BusDevice(metaclass=_DeviceType):
         if self._owns_bus:
             self.bus.close()
 
-    def __enter__(self) -> Self:
-        """The device itself; leaving the block closes the Bus it opened."""
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """:meth:`close`."""
+    def _leave(self, exc: BaseException | None) -> None:
+        """Leaving a ``with`` block: :meth:`close`."""
         self.close()
 
     def __repr__(self) -> str:
@@ -545,13 +536,9 @@ class MotorDevice(BusDevice):
         """
         self.stop()
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """Stop the motor (also after an exception or Ctrl-C), then :meth:`close`.
+    def _leave(self, exc: BaseException | None) -> None:
+        """Leaving a ``with`` block: stop the motor (also after an exception or Ctrl-C),
+        then :meth:`close`.
 
         Leaving on an exception, the stop is sent once and at once: no retry, no wait for
         answers the drive still owes (a write's reply must echo it, so such an answer is

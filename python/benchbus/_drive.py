@@ -14,7 +14,7 @@ import logging
 import os
 import threading
 import time
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import Any, NamedTuple
 
 from benchbus._core import Bus, DriveCore, Profile
 from benchbus._device import (
@@ -30,9 +30,6 @@ from benchbus._device import (
 from benchbus._display import dataclass_table
 from benchbus._keepalive import KeepAlive, check_interval
 from benchbus._profile import profile_line
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = [
     "C20ControlMode",

@@ -29,11 +29,11 @@ import socket
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
-from types import TracebackType
 
 from benchbus import _mbap
 from benchbus._core import Bus, _request_rules
 from benchbus._device import forked
+from benchbus._scope import Scoped
 from benchbus.exceptions import (
     BenchbusError,
     FrameError,
@@ -172,7 +172,7 @@ class _Client:
     arriving_since: float | None = None
 
 
-class Gateway:
+class Gateway(Scoped):
     """A Modbus TCP server for the units on one :class:`Bus` (``benchbus gateway``).
 
     ::
@@ -391,13 +391,8 @@ class Gateway:
         """Start serving."""
         return self.start()
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """Stop serving (the Bus stays open)."""
+    def _leave(self, exc: BaseException | None) -> None:
+        """Leaving a ``with`` block: stop serving (the Bus stays open)."""
         self.stop()
 
     @property

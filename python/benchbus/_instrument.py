@@ -10,14 +10,10 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import TYPE_CHECKING
 
 from benchbus._core import Bus, InstrumentCore
 from benchbus._device import BusDevice, LineDefaults, check_baudrate
 from benchbus._display import field_table
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["Identification", "Instrument"]
 

@@ -12,7 +12,7 @@ from __future__ import annotations
 
 import dataclasses
 import os
-from typing import TYPE_CHECKING, NamedTuple, Union
+from typing import NamedTuple, Union
 
 from benchbus._core import Bus, J2Core, Profile
 from benchbus._device import (
@@ -27,9 +27,6 @@ from benchbus._device import (
 )
 from benchbus._display import dataclass_table
 from benchbus._profile import profile_line
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = ["InputType", "J2Controller", "J2Mode", "J2Parameter", "J2Status", "Limits", "Pid"]
 

@@ -11,14 +11,10 @@ from __future__ import annotations
 import logging
 import threading
 from collections.abc import Callable
-from types import TracebackType
-from typing import TYPE_CHECKING
 
 from benchbus._core import _Ticks
 from benchbus._record import check_seconds
-
-if TYPE_CHECKING:
-    from typing_extensions import Self
+from benchbus._scope import Scoped
 
 __all__ = ["KeepAlive", "check_interval"]
 
@@ -38,7 +34,7 @@ def check_interval(interval: object) -> float:
     return seconds
 
 
-class KeepAlive:
+class KeepAlive(Scoped):
     """A daemon thread calling ``read()`` every ``interval`` seconds on absolute deadlines.
 
     Made by :meth:`benchbus.Drive.keepalive`; not usually built directly. A read that fails
@@ -96,17 +92,8 @@ class KeepAlive:
                     "%s: keepalive read failed (%d so far): %s", self._name, self.errors, exc
                 )
 
-    def __enter__(self) -> Self:
-        """The keepalive itself; leaving the block stops it."""
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """:meth:`stop`."""
+    def _leave(self, exc: BaseException | None) -> None:
+        """Leaving a ``with`` block: :meth:`stop`."""
         self.stop()
 
     def __repr__(self) -> str:

@@ -11,7 +11,7 @@ from __future__ import annotations
 import dataclasses
 import os
 import warnings
-from typing import TYPE_CHECKING, NamedTuple
+from typing import NamedTuple
 
 from benchbus._core import Bus, PblCore, Profile
 from benchbus._device import (
@@ -24,9 +24,6 @@ from benchbus._device import (
 )
 from benchbus._display import dataclass_table, field_table
 from benchbus._profile import profile_line
-
-if TYPE_CHECKING:
-    pass
 
 __all__ = [
     "DecelMode",

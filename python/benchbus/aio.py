@@ -48,7 +48,6 @@ import os
 import threading
 import time
 from collections.abc import Callable, Coroutine, Iterable
-from types import TracebackType
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar, overload
 
 from benchbus import _core
@@ -66,6 +65,7 @@ from benchbus._instrument import Instrument as _SyncInstrument
 from benchbus._j2 import J2Controller as _SyncJ2Controller
 from benchbus._pbl import PblDrive as _SyncPblDrive
 from benchbus._profile import Device as _SyncDevice
+from benchbus._scope import AsyncScoped
 from benchbus.exceptions import PortError
 
 if TYPE_CHECKING:
@@ -403,7 +403,7 @@ class _SettableBusProperty(_BusProperty[T]):
         setter.__set__(bus.bus, value)
 
 
-class AsyncBus:
+class AsyncBus(AsyncScoped):
     """A :class:`benchbus.Bus` for asyncio: the same constructor, methods and properties,
     each method a coroutine run in the bus's worker threads.
 
@@ -567,17 +567,8 @@ class AsyncBus:
         """:meth:`aclose`, under the Bus's name."""
         await self.aclose()
 
-    async def __aenter__(self) -> Self:
-        """The bus itself."""
-        return self
-
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """:meth:`aclose`."""
+    async def _aleave(self, exc: BaseException | None) -> None:
+        """Leaving an ``async with`` block: :meth:`aclose`."""
         await self.aclose()
 
     def __repr__(self) -> str:
@@ -682,7 +673,7 @@ def _unwrap(value: Any) -> Any:
     return value.bus if isinstance(value, AsyncBus) else value
 
 
-class AsyncDevice(Generic[D]):
+class AsyncDevice(AsyncScoped, Generic[D]):
     """A benchbus device for asyncio: the synchronous device class's methods as coroutines,
     run in the threads of the AsyncBus it is made on (or of its own, on a port).
 
@@ -815,19 +806,12 @@ class AsyncDevice(Generic[D]):
         if ended is not None:
             await _unstoppable(ended)
 
-    async def __aenter__(self) -> Self:
-        """The device itself."""
-        return self
-
-    async def __aexit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        """The sync device's ``__exit__`` in a thread: for a motor, stop it (also after an
-        exception or on cancellation: the stop is shielded), then close what it opened."""
-        await self._leave(lambda: self._sync.__exit__(exc_type, exc, tb))
+    async def _aleave(self, exc: BaseException | None) -> None:
+        """Leaving an ``async with`` block: the sync device's ``__exit__`` in a thread: for
+        a motor, stop it (also after an exception or on cancellation: the stop is shielded),
+        then close what it opened."""
+        info = (None, None, None) if exc is None else (type(exc), exc, exc.__traceback__)
+        await self._leave(lambda: self._sync.__exit__(*info))
 
     def __repr__(self) -> str:
         """The sync device's, marked async."""

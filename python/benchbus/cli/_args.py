@@ -95,8 +95,16 @@ VALUE_TYPES = {
 ORDERS = ("ABCD", "CDAB", "BADC", "DCBA")
 
 
-def add_value_options(parser: argparse.ArgumentParser, verb: str) -> None:
-    """``--type`` and ``--order``: values of several registers, as ``verb`` ("read") them."""
+def add_value_options(parser: argparse.ArgumentParser, verb: str, scale: str) -> None:
+    """``--decimals`` (a number's decimals, which ``scale`` the raw words: "divide"),
+    ``--type`` and ``--order`` (values of several registers), as ``verb`` ("read") them."""
+    parser.add_argument(
+        "--decimals",
+        type=integer(0, 9, "decimals"),
+        default=0,
+        metavar="N",
+        help=f"{scale} the values by 10**N",
+    )
     parser.add_argument(
         "--type",
         choices=tuple(VALUE_TYPES),

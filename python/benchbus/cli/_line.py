@@ -90,6 +90,17 @@ def open_profiled(bus: bb.Bus, args: argparse.Namespace, profile: bb.Profile) ->
 
 
 @contextlib.contextmanager
+def profiled(args: argparse.Namespace, profile: bb.Profile) -> Iterator[bb.Device]:
+    """The device ``profile`` describes (:func:`open_profiled`), on a Bus opened at the
+    profile's line with the options given and closed after the block; a check the device
+    makes before anything is sent is a UsageError (:func:`refused_as_usage`)."""
+    with open_bus(args, profile_options(profile)) as bus:
+        device = open_profiled(bus, args, profile)
+        with refused_as_usage():
+            yield device
+
+
+@contextlib.contextmanager
 def refused_as_usage() -> Iterator[None]:
     """A ValueError or TypeError of a check made before anything is sent (a profile
     device's: a write-only register read, a value out of range...) as a UsageError; the

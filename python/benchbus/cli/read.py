@@ -21,9 +21,8 @@ from benchbus.cli._args import (
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import (
     open_bus,
-    open_profiled,
     profile_of,
-    profile_options,
+    profiled,
     refused_as_usage,
     unit_of,
 )
@@ -55,15 +54,11 @@ def _read_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
             "--profile reads registers by name, in engineering units: leave out --table, "
             "--hex, --signed, --decimals, --type and --order"
         )
-    try:
+    with refused_as_usage():
         names = [known(profile, n) for n in args.targets]
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
     names = names or [r.name for r in profile.registers if r.access != "w"]
-    with open_bus(args, profile_options(profile)) as bus:
-        device = open_profiled(bus, args, profile)
-        with refused_as_usage():
-            values = device.read_many(names)
+    with profiled(args, profile) as device:
+        values = device.read_many(names)
     units = device.units()
     print_table(None, [[name, shown(value, units[name])] for name, value in values.items()])
     return 0
@@ -191,11 +186,4 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     )
     parser.add_argument("--hex", action="store_true", help="print the values in hex")
     parser.add_argument("--signed", action="store_true", help="values are 16-bit two's complement")
-    parser.add_argument(
-        "--decimals",
-        type=integer(0, 9, "decimals"),
-        default=0,
-        metavar="N",
-        help="divide the values by 10**N",
-    )
-    add_value_options(parser, "read")
+    add_value_options(parser, "read", "divide")

@@ -21,9 +21,8 @@ from benchbus.cli._args import (
 from benchbus.cli._errors import UsageError
 from benchbus.cli._line import (
     open_bus,
-    open_profiled,
     profile_of,
-    profile_options,
+    profiled,
     refused_as_usage,
     unit_of,
 )
@@ -119,16 +118,12 @@ def _write_profile(args: argparse.Namespace, profile: bb.Profile) -> int:
         )
     if len(args.values) != 1:
         raise UsageError("--profile writes one register: give NAME VALUE")
-    try:
+    with refused_as_usage():
         name = known(profile, args.address)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
     register = profile[name]
     value = profile_value(register, args.values[0])
-    with open_bus(args, profile_options(profile)) as bus:
-        device = open_profiled(bus, args, profile)
-        with refused_as_usage():
-            device.write(name, value)
+    with profiled(args, profile) as device:
+        device.write(name, value)
     members = device.enums.get(name)
     written = members(value) if members is not None and isinstance(value, int) else value
     print(f"unit {device.unit}: wrote {name} {shown(written, register.unit)}")
@@ -212,15 +207,8 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
         help="the table to write: holding registers (default) or coils",
     )
     parser.add_argument(
-        "--decimals",
-        type=integer(0, 9, "decimals"),
-        default=0,
-        metavar="N",
-        help="multiply the values by 10**N",
-    )
-    parser.add_argument(
         "--accept-count-echo",
         action="store_true",
         help="accept a 0x06 reply that carries a count of 1 instead of the value (PBL)",
     )
-    add_value_options(parser, "write")
+    add_value_options(parser, "write", "multiply")
