@@ -215,8 +215,8 @@ class DriveMembers:
         """Run forward at the speed setpoint (command 1)."""
 
     async def get(self, name: str) -> int | float:
-        """Read any register of the drive's table by name (see :meth:`registers`): an int, or a
-        float for a scaled register."""
+        """Reads the register called ``name`` (see the table), in engineering units: an
+        int, or a float for a scaled register."""
 
     async def jog_forward(self) -> None:
         """Jog forward (command 3)."""
@@ -344,7 +344,8 @@ class DriveMembers:
         none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
 
     async def set(self, name: str, value: float) -> None:
-        """Write any writable register of the drive's table by name, in engineering units."""
+        """Writes ``value`` (engineering units) to the register called ``name``, checked
+        against its range, steps, access and the family's rules before anything is sent."""
 
     async def set_baud_rate(self, bps: int) -> None:
         """Store a new line speed (0x2009; stopped only): 1200..115200 (C20 up to 57600).
@@ -716,7 +717,8 @@ class J2ControllerMembers:
         """Decimal places shown (DP), 0..3."""
 
     async def get(self, name: str) -> int | float:
-        """Reads the parameter called `name`."""
+        """Reads the register called ``name`` (see the table), in engineering units: an
+        int, or a float for a scaled register."""
 
     @property
     def input_type(self) -> Coroutine[Any, Any, InputType]:
@@ -814,7 +816,8 @@ class J2ControllerMembers:
         """The unit of each field :meth:`sample` gives (``pv``, ``sv``: °C; ``mv``: %)."""
 
     async def set(self, name: str, value: float) -> None:
-        """Writes `value` to the parameter called `name`, with the manual's rules."""
+        """Writes ``value`` (engineering units) to the register called ``name``, checked
+        against its range, steps, access and the family's rules before anything is sent."""
 
     async def set_output(self, percent: float, switch_to_manual: bool = False) -> None:
         """Set the output MV to ``percent`` (0..100).
@@ -934,7 +937,8 @@ class PblDriveMembers:
         """Normal or inverted direction (203)."""
 
     async def get(self, name: str) -> int:
-        """Reads the parameter called `name` (an int)."""
+        """Reads the register called ``name`` (see the table), in engineering units: an
+        int, or a float for a scaled register."""
 
     @property
     def hall_state(self) -> Coroutine[Any, Any, int]:
@@ -1024,7 +1028,8 @@ class PblDriveMembers:
         none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
 
     async def set(self, name: str, value: float) -> None:
-        """Writes `value` to the parameter called `name`."""
+        """Writes ``value`` (engineering units) to the register called ``name``, checked
+        against its range, steps, access and the family's rules before anything is sent."""
 
     @property
     def speed(self) -> Coroutine[Any, Any, int]:

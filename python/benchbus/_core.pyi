@@ -672,6 +672,9 @@ class _Station:
         check for a device made with ``check_identity=False`` or without an identity (an
         ``Instrument``, a profile's ``Device``)."""
     def _check_identity_with(self, check: Callable[[], object]) -> None: ...
+    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
+        """An empty device of the subclass, attached to its Bus by ``__init__`` (so that a subclass's
+        ``__init__`` may take its own arguments)."""
 
 @disjoint_base
 class DriveCore(_Station):
@@ -684,9 +687,6 @@ class DriveCore(_Station):
 
     #: The names :meth:`sample` gives: the fields of :meth:`telemetry`.
     SAMPLE_FIELDS: tuple[str, ...] | None
-    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
-        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
-        ``__init__`` may take its own arguments)."""
     def _attach(
         self,
         bus: Bus,
@@ -808,9 +808,6 @@ class PblCore(_Station):
 
     #: The names :meth:`sample` gives: parameters 50..54.
     SAMPLE_FIELDS: tuple[str, ...] | None
-    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
-        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
-        ``__init__`` may take its own arguments)."""
     def _attach(
         self, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
     ) -> None:
@@ -879,9 +876,6 @@ class J2Core(_Station):
 
     #: The names :meth:`sample` gives: ``pv``, ``sv``, ``mv``.
     SAMPLE_FIELDS: tuple[str, ...] | None
-    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
-        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
-        ``__init__`` may take its own arguments)."""
     def _attach(
         self, bus: Bus, unit: int, timeout: float | None = None, retries: int | None = None
     ) -> None:
@@ -950,9 +944,6 @@ class InstrumentCore(_Station):
     releases the GIL.
     """
 
-    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
-        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
-        ``__init__`` may take its own arguments)."""
     def _attach(
         self,
         bus: Bus,
@@ -1190,9 +1181,6 @@ class ProfileCore(_Station):
     conversions and every check of a device described by a profile. Every call that
     touches the wire releases the GIL."""
 
-    def __new__(cls, *args: Any, **kwargs: Any) -> Self:
-        """An empty device, attached to its Bus by ``__init__`` (so that a subclass's
-        ``__init__`` may take its own arguments)."""
     def _attach(
         self,
         bus: Bus,
