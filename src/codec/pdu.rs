@@ -498,34 +498,21 @@ impl Request {
     pub fn encode(&self, out: &mut Vec<u8>) {
         out.push(self.function());
         match self {
-            Request::ReadHoldingRegisters { address, count } => {
-                out.extend_from_slice(&address.to_be_bytes());
-                out.extend_from_slice(&count.to_be_bytes());
+            Request::ReadHoldingRegisters { address, count }
+            | Request::ReadCoils { address, count }
+            | Request::ReadDiscreteInputs { address, count }
+            | Request::ReadInputRegisters { address, count } => {
+                words(out, &[*address, *count]);
             }
-            Request::WriteSingleRegister { address, value } => {
-                out.extend_from_slice(&address.to_be_bytes());
-                out.extend_from_slice(&value.to_be_bytes());
-            }
+            Request::WriteSingleRegister { address, value } => words(out, &[*address, *value]),
             Request::WriteMultipleRegisters { address, values } => {
-                // validate() bounds the count to 123, so both casts are lossless.
-                let count = values.len().min(usize::from(MAX_WRITE_COUNT)) as u16;
-                out.extend_from_slice(&address.to_be_bytes());
-                out.extend_from_slice(&count.to_be_bytes());
-                out.push((count * 2) as u8);
-                for v in values.iter().take(usize::from(count)) {
-                    out.extend_from_slice(&v.to_be_bytes());
-                }
+                written_registers(out, &[*address], values, MAX_WRITE_COUNT);
             }
             Request::ReadDeviceIdentification {
                 read_code,
                 object_id,
             } => {
                 out.extend_from_slice(&[MEI_READ_DEVICE_ID, *read_code, *object_id]);
-            }
-            Request::ReadCoils { address, count }
-            | Request::ReadDiscreteInputs { address, count }
-            | Request::ReadInputRegisters { address, count } => {
-                words(out, &[*address, *count]);
             }
             Request::WriteSingleCoil { address, value } => {
                 words(out, &[*address, coil_word(*value)]);
@@ -549,12 +536,8 @@ impl Request {
                 write_address,
                 values,
             } => {
-                // validate() bounds the count to 121, so the byte count fits a byte.
-                let values = &values[..values.len().min(usize::from(MAX_READ_WRITE_COUNT))];
-                let count = count_of(values.len());
-                words(out, &[*read_address, *read_count, *write_address, count]);
-                out.push((count * 2) as u8);
-                words(out, values);
+                let head = [*read_address, *read_count, *write_address];
+                written_registers(out, &head, values, MAX_READ_WRITE_COUNT);
             }
             Request::ReadExceptionStatus
             | Request::ReportServerId
@@ -601,6 +584,18 @@ fn words(out: &mut Vec<u8>, values: &[u16]) {
     for v in values {
         out.extend_from_slice(&v.to_be_bytes());
     }
+}
+
+/// Appends `head`, then the registers a 0x10 or 0x17 request writes: their count, their
+/// byte count and `values`, at most `max` of them (validate() bounds them to that, so the
+/// byte count fits a byte).
+fn written_registers(out: &mut Vec<u8>, head: &[u16], values: &[u16], max: u16) {
+    let values = &values[..values.len().min(usize::from(max))];
+    let count = count_of(values.len());
+    words(out, head);
+    words(out, &[count]);
+    out.push((count * 2) as u8);
+    words(out, values);
 }
 
 /// Bytes the groups of a 0x15 request take after its byte count: reference type, file,
