@@ -16,8 +16,6 @@ pub const MAX_ADU: usize = 256;
 pub const CRC_LEN: usize = 2;
 // The longest unit | PDU and its CRC are the longest frame.
 const _: () = assert!(MAX_UNIT_PDU + CRC_LEN == MAX_ADU);
-/// Length of an exception reply: unit, function | 0x80, code, CRC (2).
-pub const EXCEPTION_LEN: usize = 5;
 /// Unit address that every device accepts and none answers (serial line spec 2.2).
 pub const BROADCAST: u8 = 0;
 
