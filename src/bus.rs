@@ -638,11 +638,9 @@ impl Bus {
         opts: &TxOptions,
         pick: impl FnOnce(Response) -> std::result::Result<T, Response>,
     ) -> Result<T> {
-        pick(self.transact(unit, request, opts)?).map_err(|other| Error::Frame {
-            unit,
-            function: request.function(),
-            kind: FrameError::Length(format!("unexpected response {other:?}")),
-            frame: Vec::new(),
+        pick(self.transact(unit, request, opts)?).map_err(|other| {
+            let kind = FrameError::Length(format!("unexpected response {other:?}"));
+            frame_error(unit, request.function(), kind, Vec::new())
         })
     }
 
