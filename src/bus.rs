@@ -54,6 +54,43 @@ const OWED_WINDOW: u32 = 3;
 /// is the shortest reply, so a read's echo read as a reply of byte count 0 still shows.
 const ECHO_EVIDENCE: usize = 5;
 
+/// The response taker for [`Bus::ask`]: what `pattern` binds in a response of its kind, as
+/// `value`; a response of another kind is handed back.
+macro_rules! pick {
+    ($pattern:pat => $value:expr) => {
+        |response: Response| match response {
+            $pattern => Ok($value),
+            other => Err(other),
+        }
+    };
+}
+
+/// The reads of `count` items from `address` (0x01 to 0x04), a row each: `fn name -> output
+/// = request variant, response variant`; the response's values are the output. Each method
+/// takes the unit, the address, the count and the [`TxOptions`].
+macro_rules! reads {
+    ($($(#[$doc:meta])* fn $name:ident -> $out:ty = $request:ident, $response:ident;)*) => {$(
+        $(#[$doc])*
+        pub fn $name(&self, unit: u8, address: u16, count: u16, opts: &TxOptions) -> Result<$out> {
+            let request = Request::$request { address, count };
+            self.ask(unit, &request, opts, pick!(Response::$response(values) => values))
+        }
+    )*};
+}
+
+/// The writes from `address` whose reply echoes them (0x05, 0x06, 0x0F, 0x10), a row each:
+/// `fn name(field: type) = request variant`. Each method takes the unit, the address, the
+/// value or values and the [`TxOptions`]; [`Bus::transact`] checks the echo.
+macro_rules! writes {
+    ($($(#[$doc:meta])* fn $name:ident($field:ident: $arg:ty) = $request:ident;)*) => {$(
+        $(#[$doc])*
+        pub fn $name(&self, unit: u8, address: u16, $field: $arg, opts: &TxOptions) -> Result<()> {
+            let request = Request::$request { address, $field: $field.into() };
+            self.transact(unit, &request, opts).map(|_| ())
+        }
+    )*};
+}
+
 /// The longest reply timeout a Bus takes ([`Bus::set_timeout`]): an hour.
 pub const MAX_TIMEOUT: Duration = Duration::from_secs(3600);
 
@@ -540,56 +577,56 @@ impl Bus {
         })
     }
 
-    /// Reads `count` holding registers (0x03).
-    ///
-    /// # Errors
-    /// Any [`Error`]: bad arguments, port, timeout, frame or exception.
-    pub fn read_holding_registers(
-        &self,
-        unit: u8,
-        address: u16,
-        count: u16,
-        opts: &TxOptions,
-    ) -> Result<Vec<u16>> {
-        self.ask(
-            unit,
-            &Request::ReadHoldingRegisters { address, count },
-            opts,
-            registers,
-        )
+    reads! {
+        /// Reads `count` holding registers (0x03).
+        ///
+        /// # Errors
+        /// Any [`Error`]: bad arguments, port, timeout, frame or exception.
+        fn read_holding_registers -> Vec<u16> = ReadHoldingRegisters, Registers;
+
+        /// Reads `count` (1..=2000) coils from `address` (0x01).
+        ///
+        /// # Errors
+        /// Any [`Error`]: bad arguments, port, timeout, frame or exception.
+        fn read_coils -> Vec<bool> = ReadCoils, Bits;
+
+        /// Reads `count` (1..=2000) discrete inputs from `address` (0x02).
+        ///
+        /// # Errors
+        /// Any [`Error`].
+        fn read_discrete_inputs -> Vec<bool> = ReadDiscreteInputs, Bits;
+
+        /// Reads `count` (1..=125) input registers from `address` (0x04).
+        ///
+        /// # Errors
+        /// Any [`Error`].
+        fn read_input_registers -> Vec<u16> = ReadInputRegisters, Registers;
     }
 
-    /// Writes one register (0x06).
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn write_register(
-        &self,
-        unit: u8,
-        address: u16,
-        value: u16,
-        opts: &TxOptions,
-    ) -> Result<()> {
-        self.transact(unit, &Request::WriteSingleRegister { address, value }, opts)
-            .map(|_| ())
-    }
+    writes! {
+        /// Writes one register (0x06).
+        ///
+        /// # Errors
+        /// Any [`Error`].
+        fn write_register(value: u16) = WriteSingleRegister;
 
-    /// Writes consecutive registers (0x10).
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn write_registers(
-        &self,
-        unit: u8,
-        address: u16,
-        values: &[u16],
-        opts: &TxOptions,
-    ) -> Result<()> {
-        let request = Request::WriteMultipleRegisters {
-            address,
-            values: values.to_vec(),
-        };
-        self.transact(unit, &request, opts).map(|_| ())
+        /// Writes consecutive registers (0x10).
+        ///
+        /// # Errors
+        /// Any [`Error`].
+        fn write_registers(values: &[u16]) = WriteMultipleRegisters;
+
+        /// Sets one coil on or off (0x05); the reply must echo it (0xFF00 / 0x0000).
+        ///
+        /// # Errors
+        /// Any [`Error`].
+        fn write_coil(value: bool) = WriteSingleCoil;
+
+        /// Sets 1..=1968 consecutive coils from `address` (0x0F).
+        ///
+        /// # Errors
+        /// Any [`Error`].
+        fn write_coils(values: &[bool]) = WriteMultipleCoils;
     }
 
     /// One request by [`Bus::transact`], its response taken apart by `pick` (which hands
@@ -601,91 +638,10 @@ impl Bus {
         opts: &TxOptions,
         pick: impl FnOnce(Response) -> std::result::Result<T, Response>,
     ) -> Result<T> {
-        pick(self.transact(unit, request, opts)?).map_err(|other| Error::Frame {
-            unit,
-            function: request.function(),
-            kind: FrameError::Length(format!("unexpected response {other:?}")),
-            frame: Vec::new(),
+        pick(self.transact(unit, request, opts)?).map_err(|other| {
+            let kind = FrameError::Length(format!("unexpected response {other:?}"));
+            frame_error(unit, request.function(), kind, Vec::new())
         })
-    }
-
-    /// Reads `count` (1..=2000) coils from `address` (0x01).
-    ///
-    /// # Errors
-    /// Any [`Error`]: bad arguments, port, timeout, frame or exception.
-    pub fn read_coils(
-        &self,
-        unit: u8,
-        address: u16,
-        count: u16,
-        opts: &TxOptions,
-    ) -> Result<Vec<bool>> {
-        self.ask(unit, &Request::ReadCoils { address, count }, opts, bits)
-    }
-
-    /// Reads `count` (1..=2000) discrete inputs from `address` (0x02).
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn read_discrete_inputs(
-        &self,
-        unit: u8,
-        address: u16,
-        count: u16,
-        opts: &TxOptions,
-    ) -> Result<Vec<bool>> {
-        self.ask(
-            unit,
-            &Request::ReadDiscreteInputs { address, count },
-            opts,
-            bits,
-        )
-    }
-
-    /// Reads `count` (1..=125) input registers from `address` (0x04).
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn read_input_registers(
-        &self,
-        unit: u8,
-        address: u16,
-        count: u16,
-        opts: &TxOptions,
-    ) -> Result<Vec<u16>> {
-        self.ask(
-            unit,
-            &Request::ReadInputRegisters { address, count },
-            opts,
-            registers,
-        )
-    }
-
-    /// Sets one coil on or off (0x05); the reply must echo it (0xFF00 / 0x0000).
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn write_coil(&self, unit: u8, address: u16, value: bool, opts: &TxOptions) -> Result<()> {
-        self.transact(unit, &Request::WriteSingleCoil { address, value }, opts)
-            .map(|_| ())
-    }
-
-    /// Sets 1..=1968 consecutive coils from `address` (0x0F).
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn write_coils(
-        &self,
-        unit: u8,
-        address: u16,
-        values: &[bool],
-        opts: &TxOptions,
-    ) -> Result<()> {
-        let request = Request::WriteMultipleCoils {
-            address,
-            values: values.to_vec(),
-        };
-        self.transact(unit, &request, opts).map(|_| ())
     }
 
     /// Changes bits of one register (0x16): the register becomes (its value AND `and_mask`)
@@ -729,7 +685,12 @@ impl Bus {
             write_address,
             values: values.to_vec(),
         };
-        self.ask(unit, &request, opts, registers)
+        self.ask(
+            unit,
+            &request,
+            opts,
+            pick!(Response::Registers(values) => values),
+        )
     }
 
     /// Reads the eight exception status outputs (0x07, a serial line function: over Modbus
@@ -738,10 +699,12 @@ impl Bus {
     /// # Errors
     /// Any [`Error`].
     pub fn read_exception_status(&self, unit: u8, opts: &TxOptions) -> Result<u8> {
-        self.ask(unit, &Request::ReadExceptionStatus, opts, |r| match r {
-            Response::ExceptionStatus(status) => Ok(status),
-            other => Err(other),
-        })
+        self.ask(
+            unit,
+            &Request::ReadExceptionStatus,
+            opts,
+            pick!(Response::ExceptionStatus(status) => status),
+        )
     }
 
     /// Runs diagnostics sub-function `sub_function` with `data` (0x08) and returns the
@@ -763,10 +726,12 @@ impl Bus {
             sub_function,
             data: data.to_vec(),
         };
-        self.ask(unit, &request, opts, |r| match r {
-            Response::Diagnostics { data, .. } => Ok(data),
-            other => Err(other),
-        })
+        self.ask(
+            unit,
+            &request,
+            opts,
+            pick!(Response::Diagnostics { data, .. } => data),
+        )
     }
 
     /// The data field of a Report Server ID reply (0x11), after its byte count, as the
@@ -775,10 +740,12 @@ impl Bus {
     /// # Errors
     /// Any [`Error`].
     pub fn report_server_id(&self, unit: u8, opts: &TxOptions) -> Result<Vec<u8>> {
-        self.ask(unit, &Request::ReportServerId, opts, |r| match r {
-            Response::ServerId(data) => Ok(data),
-            other => Err(other),
-        })
+        self.ask(
+            unit,
+            &Request::ReportServerId,
+            opts,
+            pick!(Response::ServerId(data) => data),
+        )
     }
 
     /// Sends function `function` (1..=127) with `data` (the PDU after the function code)
@@ -803,10 +770,7 @@ impl Bus {
             data: data.to_vec(),
             reply_length,
         };
-        self.ask(unit, &request, opts, |r| match r {
-            Response::Raw(data) => Ok(data),
-            other => Err(other),
-        })
+        self.ask(unit, &request, opts, pick!(Response::Raw(data) => data))
     }
 
     /// Reads device identification objects (0x2B / 0x0E) from `object_id` on, following
@@ -833,10 +797,12 @@ impl Bus {
             if page > 0 && self.interrupted() {
                 return Err(interrupted(unit, &request, page));
             }
-            let page = self.ask(unit, &request, opts, |r| match r {
-                Response::DeviceIdentification(page) => Ok(page),
-                other => Err(other),
-            })?;
+            let page = self.ask(
+                unit,
+                &request,
+                opts,
+                pick!(Response::DeviceIdentification(page) => page),
+            )?;
             let advanced = page.next_object > next || page.objects.keys().any(|&k| k >= next);
             all.read_code = page.read_code;
             all.conformity = page.conformity;
@@ -1880,22 +1846,6 @@ fn frame_error(unit: u8, function: u8, kind: FrameError, frame: Vec<u8>) -> Erro
     }
 }
 
-/// The registers of a read's response ([`Bus::ask`]).
-fn registers(response: Response) -> std::result::Result<Vec<u16>, Response> {
-    match response {
-        Response::Registers(values) => Ok(values),
-        other => Err(other),
-    }
-}
-
-/// The bits of a coil or input read's response ([`Bus::ask`]).
-fn bits(response: Response) -> std::result::Result<Vec<bool>, Response> {
-    match response {
-        Response::Bits(values) => Ok(values),
-        other => Err(other),
-    }
-}
-
 /// The functions of the specification's sections 6.9, 6.10, 6.14, 6.15 and 6.18: the comm
 /// event counter and log, file records and the FIFO queue.
 impl Bus {
@@ -1906,13 +1856,12 @@ impl Bus {
     /// # Errors
     /// Any [`Error`].
     pub fn get_comm_event_counter(&self, unit: u8, opts: &TxOptions) -> Result<(u16, u16)> {
-        self.ask(unit, &Request::GetCommEventCounter, opts, |r| match r {
-            Response::CommEventCounter {
-                status,
-                event_count,
-            } => Ok((status, event_count)),
-            other => Err(other),
-        })
+        self.ask(
+            unit,
+            &Request::GetCommEventCounter,
+            opts,
+            pick!(Response::CommEventCounter { status, event_count } => (status, event_count)),
+        )
     }
 
     /// The status word, the event counter, the message counter and the events (0 to 64
@@ -1926,15 +1875,7 @@ impl Bus {
         unit: u8,
         opts: &TxOptions,
     ) -> Result<(u16, u16, u16, Vec<u8>)> {
-        self.ask(unit, &Request::GetCommEventLog, opts, |r| match r {
-            Response::CommEventLog {
-                status,
-                event_count,
-                message_count,
-                events,
-            } => Ok((status, event_count, message_count, events)),
-            other => Err(other),
-        })
+        self.ask(unit, &Request::GetCommEventLog, opts, pick!(Response::CommEventLog { status, event_count, message_count, events } => (status, event_count, message_count, events)))
     }
 
     /// Reads file records (0x14): for each group `(file, record, length)`, `length`
@@ -1953,10 +1894,12 @@ impl Bus {
         let request = Request::ReadFileRecord {
             groups: groups.to_vec(),
         };
-        self.ask(unit, &request, opts, |r| match r {
-            Response::FileRecords(records) => Ok(records),
-            other => Err(other),
-        })
+        self.ask(
+            unit,
+            &request,
+            opts,
+            pick!(Response::FileRecords(records) => records),
+        )
     }
 
     /// Writes file records (0x15): for each group `(file, record, values)`, `values` from
@@ -1988,10 +1931,7 @@ impl Bus {
             unit,
             &Request::ReadFifoQueue { address },
             opts,
-            |r| match r {
-                Response::FifoQueue(values) => Ok(values),
-                other => Err(other),
-            },
+            pick!(Response::FifoQueue(values) => values),
         )
     }
 }

@@ -114,19 +114,20 @@ impl LineFormat {
 
     /// Longest gap allowed inside a frame.
     pub fn t1_5(&self) -> Duration {
-        if self.baudrate > FIXED_TIMING_ABOVE {
-            Duration::from_micros(750)
-        } else {
-            self.chars(1.5)
-        }
+        self.gap(1.5, Duration::from_micros(750))
     }
 
     /// Silence that separates frames.
     pub fn t3_5(&self) -> Duration {
+        self.gap(3.5, Duration::from_micros(1750))
+    }
+
+    /// `n` character times, or `fixed` above [`FIXED_TIMING_ABOVE`] baud.
+    fn gap(&self, n: f64, fixed: Duration) -> Duration {
         if self.baudrate > FIXED_TIMING_ABOVE {
-            Duration::from_micros(1750)
+            fixed
         } else {
-            self.chars(3.5)
+            self.chars(n)
         }
     }
 

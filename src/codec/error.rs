@@ -139,3 +139,11 @@ pub fn hex(bytes: &[u8]) -> String {
     }
     s
 }
+
+/// The bytes of hex text as [`hex`] writes it (a frame of a manual, in a test).
+#[cfg(test)]
+pub(crate) fn unhex(text: &str) -> Vec<u8> {
+    text.split_whitespace()
+        .map(|b| u8::from_str_radix(b, 16).unwrap())
+        .collect()
+}

@@ -376,6 +376,13 @@ mod tests {
         0x00, 0x01, 0x00, 0x00, 0x00, 0x05, 0x01, 0x03, 0x02, 0x12, 0x34,
     ];
 
+    /// A session that has sent `READ` (transaction 1) and awaits its reply.
+    fn awaiting() -> Session {
+        let mut s = Session::new();
+        s.request(&READ).unwrap();
+        s
+    }
+
     fn read_all(s: &mut Session) -> Vec<u8> {
         let mut buf = [0u8; 300];
         let n = s.read(&mut buf);
@@ -444,8 +451,7 @@ mod tests {
 
     #[test]
     fn the_awaited_reply_comes_back_from_its_length_on_in_pieces() {
-        let mut s = Session::new();
-        s.request(&READ).unwrap();
+        let mut s = awaiting();
         s.receive(&MBAP_REPLY[..4]);
         assert_eq!(s.take_frames(), Ok(vec![]));
         assert_eq!(read_all(&mut s), Vec::<u8>::new());
@@ -461,8 +467,7 @@ mod tests {
 
     #[test]
     fn late_replies_and_other_protocols_are_dropped_and_counted() {
-        let mut s = Session::new();
-        s.request(&READ).unwrap();
+        let mut s = awaiting();
         s.request(&READ).unwrap();
         let mut foreign = MBAP_REPLY;
         foreign[1] = 2;
@@ -501,8 +506,7 @@ mod tests {
 
     #[test]
     fn out_of_step_stream_is_an_error_and_drops_the_buffer() {
-        let mut s = Session::new();
-        s.request(&READ).unwrap();
+        let mut s = awaiting();
         s.receive(&[0x01, 0x03, 0x02, 0x12, 0x34, 0xB5, 0x33]);
         assert_eq!(
             s.take_frames(),
@@ -513,8 +517,7 @@ mod tests {
 
     #[test]
     fn discard_returns_whole_frames_keeps_a_beginning_and_awaits_nothing() {
-        let mut s = Session::new();
-        s.request(&READ).unwrap();
+        let mut s = awaiting();
         s.receive(&MBAP_REPLY);
         s.take_frames().unwrap();
         let mut one = [0u8; 1];
@@ -547,8 +550,7 @@ mod tests {
 
     #[test]
     fn a_reply_is_read_by_its_length_field_and_taken_whole() {
-        let mut s = Session::new();
-        s.request(&READ).unwrap();
+        let mut s = awaiting();
         s.receive(&MBAP_PADDED);
         s.take_frames().unwrap();
         let mut got = Vec::new();

@@ -264,31 +264,49 @@ pub enum RequestError {
     },
 }
 
+/// What a request does to the device ([`Request`]'s table of kinds).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// It only reads: [`Request::is_read`].
+    Read,
+    /// It writes, and its reply only echoes it: [`Request::is_echoed_write`].
+    EchoedWrite,
+    /// Another: a write and a read (0x17), a write whose reply says more (0x15), a raw
+    /// request (which may write).
+    Other,
+}
+
 impl Request {
+    /// The function code of this request and what it does to the device: a row a request.
+    fn kind(&self) -> (u8, Kind) {
+        use Kind::{EchoedWrite, Other, Read};
+        match self {
+            Request::ReadHoldingRegisters { .. } => (READ_HOLDING_REGISTERS, Read),
+            Request::WriteSingleRegister { .. } => (WRITE_SINGLE_REGISTER, EchoedWrite),
+            Request::WriteMultipleRegisters { .. } => (WRITE_MULTIPLE_REGISTERS, EchoedWrite),
+            Request::ReadDeviceIdentification { .. } => (ENCAPSULATED_INTERFACE, Read),
+            Request::ReadCoils { .. } => (READ_COILS, Read),
+            Request::ReadDiscreteInputs { .. } => (READ_DISCRETE_INPUTS, Read),
+            Request::ReadInputRegisters { .. } => (READ_INPUT_REGISTERS, Read),
+            Request::WriteSingleCoil { .. } => (WRITE_SINGLE_COIL, EchoedWrite),
+            Request::WriteMultipleCoils { .. } => (WRITE_MULTIPLE_COILS, EchoedWrite),
+            Request::MaskWriteRegister { .. } => (MASK_WRITE_REGISTER, EchoedWrite),
+            Request::ReadWriteRegisters { .. } => (READ_WRITE_REGISTERS, Other),
+            Request::ReadExceptionStatus => (READ_EXCEPTION_STATUS, Read),
+            Request::Diagnostics { .. } => (DIAGNOSTICS, Read),
+            Request::ReportServerId => (REPORT_SERVER_ID, Read),
+            Request::GetCommEventCounter => (GET_COMM_EVENT_COUNTER, Read),
+            Request::GetCommEventLog => (GET_COMM_EVENT_LOG, Read),
+            Request::ReadFileRecord { .. } => (READ_FILE_RECORD, Read),
+            Request::WriteFileRecord { .. } => (WRITE_FILE_RECORD, Other),
+            Request::ReadFifoQueue { .. } => (READ_FIFO_QUEUE, Read),
+            Request::Raw { function, .. } => (*function, Other),
+        }
+    }
+
     /// The function code of this request.
     pub fn function(&self) -> u8 {
-        match self {
-            Request::ReadHoldingRegisters { .. } => READ_HOLDING_REGISTERS,
-            Request::WriteSingleRegister { .. } => WRITE_SINGLE_REGISTER,
-            Request::WriteMultipleRegisters { .. } => WRITE_MULTIPLE_REGISTERS,
-            Request::ReadDeviceIdentification { .. } => ENCAPSULATED_INTERFACE,
-            Request::ReadCoils { .. } => READ_COILS,
-            Request::ReadDiscreteInputs { .. } => READ_DISCRETE_INPUTS,
-            Request::ReadInputRegisters { .. } => READ_INPUT_REGISTERS,
-            Request::WriteSingleCoil { .. } => WRITE_SINGLE_COIL,
-            Request::WriteMultipleCoils { .. } => WRITE_MULTIPLE_COILS,
-            Request::MaskWriteRegister { .. } => MASK_WRITE_REGISTER,
-            Request::ReadWriteRegisters { .. } => READ_WRITE_REGISTERS,
-            Request::ReadExceptionStatus => READ_EXCEPTION_STATUS,
-            Request::Diagnostics { .. } => DIAGNOSTICS,
-            Request::ReportServerId => REPORT_SERVER_ID,
-            Request::GetCommEventCounter => GET_COMM_EVENT_COUNTER,
-            Request::GetCommEventLog => GET_COMM_EVENT_LOG,
-            Request::ReadFileRecord { .. } => READ_FILE_RECORD,
-            Request::WriteFileRecord { .. } => WRITE_FILE_RECORD,
-            Request::ReadFifoQueue { .. } => READ_FIFO_QUEUE,
-            Request::Raw { function, .. } => *function,
-        }
+        self.kind().0
     }
 
     /// Whether the device answers this request: all but diagnostics sub-function 0x04
@@ -306,34 +324,13 @@ impl Request {
     /// Whether this request only reads (nothing in the device changes): reads are never
     /// paced as writes. A raw request may write, so it is not one.
     pub fn is_read(&self) -> bool {
-        matches!(
-            self,
-            Request::ReadHoldingRegisters { .. }
-                | Request::ReadDeviceIdentification { .. }
-                | Request::ReadCoils { .. }
-                | Request::ReadDiscreteInputs { .. }
-                | Request::ReadInputRegisters { .. }
-                | Request::ReadExceptionStatus
-                | Request::ReportServerId
-                | Request::Diagnostics { .. }
-                | Request::GetCommEventCounter
-                | Request::GetCommEventLog
-                | Request::ReadFileRecord { .. }
-                | Request::ReadFifoQueue { .. }
-        )
+        self.kind().1 == Kind::Read
     }
 
     /// Whether this is a write whose reply only echoes it (0x05, 0x06, 0x0F, 0x10, 0x16):
     /// what may be broadcast, and what a device set to answer no write leaves unanswered.
     pub fn is_echoed_write(&self) -> bool {
-        matches!(
-            self,
-            Request::WriteSingleRegister { .. }
-                | Request::WriteMultipleRegisters { .. }
-                | Request::WriteSingleCoil { .. }
-                | Request::WriteMultipleCoils { .. }
-                | Request::MaskWriteRegister { .. }
-        )
+        self.kind().1 == Kind::EchoedWrite
     }
 
     /// The byte count a read reply must carry (0x01, 0x02, 0x03, 0x04, 0x17, and 0x14: a
@@ -501,34 +498,21 @@ impl Request {
     pub fn encode(&self, out: &mut Vec<u8>) {
         out.push(self.function());
         match self {
-            Request::ReadHoldingRegisters { address, count } => {
-                out.extend_from_slice(&address.to_be_bytes());
-                out.extend_from_slice(&count.to_be_bytes());
+            Request::ReadHoldingRegisters { address, count }
+            | Request::ReadCoils { address, count }
+            | Request::ReadDiscreteInputs { address, count }
+            | Request::ReadInputRegisters { address, count } => {
+                words(out, &[*address, *count]);
             }
-            Request::WriteSingleRegister { address, value } => {
-                out.extend_from_slice(&address.to_be_bytes());
-                out.extend_from_slice(&value.to_be_bytes());
-            }
+            Request::WriteSingleRegister { address, value } => words(out, &[*address, *value]),
             Request::WriteMultipleRegisters { address, values } => {
-                // validate() bounds the count to 123, so both casts are lossless.
-                let count = values.len().min(usize::from(MAX_WRITE_COUNT)) as u16;
-                out.extend_from_slice(&address.to_be_bytes());
-                out.extend_from_slice(&count.to_be_bytes());
-                out.push((count * 2) as u8);
-                for v in values.iter().take(usize::from(count)) {
-                    out.extend_from_slice(&v.to_be_bytes());
-                }
+                written_registers(out, &[*address], values, MAX_WRITE_COUNT);
             }
             Request::ReadDeviceIdentification {
                 read_code,
                 object_id,
             } => {
                 out.extend_from_slice(&[MEI_READ_DEVICE_ID, *read_code, *object_id]);
-            }
-            Request::ReadCoils { address, count }
-            | Request::ReadDiscreteInputs { address, count }
-            | Request::ReadInputRegisters { address, count } => {
-                words(out, &[*address, *count]);
             }
             Request::WriteSingleCoil { address, value } => {
                 words(out, &[*address, coil_word(*value)]);
@@ -552,12 +536,8 @@ impl Request {
                 write_address,
                 values,
             } => {
-                // validate() bounds the count to 121, so the byte count fits a byte.
-                let values = &values[..values.len().min(usize::from(MAX_READ_WRITE_COUNT))];
-                let count = count_of(values.len());
-                words(out, &[*read_address, *read_count, *write_address, count]);
-                out.push((count * 2) as u8);
-                words(out, values);
+                let head = [*read_address, *read_count, *write_address];
+                written_registers(out, &head, values, MAX_READ_WRITE_COUNT);
             }
             Request::ReadExceptionStatus
             | Request::ReportServerId
@@ -604,6 +584,18 @@ fn words(out: &mut Vec<u8>, values: &[u16]) {
     for v in values {
         out.extend_from_slice(&v.to_be_bytes());
     }
+}
+
+/// Appends `head`, then the registers a 0x10 or 0x17 request writes: their count, their
+/// byte count and `values`, at most `max` of them (validate() bounds them to that, so the
+/// byte count fits a byte).
+fn written_registers(out: &mut Vec<u8>, head: &[u16], values: &[u16], max: u16) {
+    let values = &values[..values.len().min(usize::from(max))];
+    let count = count_of(values.len());
+    words(out, head);
+    words(out, &[count]);
+    out.push((count * 2) as u8);
+    words(out, values);
 }
 
 /// Bytes the groups of a 0x15 request take after its byte count: reference type, file,

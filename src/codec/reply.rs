@@ -551,16 +551,29 @@ pub enum Echo {
     CountForSingleWrite,
 }
 
-/// Checks the echo of a multiple write: the address and count `sent`, as `received`.
-fn count_echo(sent: (u16, usize), received: (u16, u16)) -> Result<(), FrameError> {
-    let ((address, count), (a, c)) = (sent, received);
-    if a != address || usize::from(c) != count {
-        return Err(FrameError::Echo {
-            sent: format!("address {address:#06x} count {count}"),
-            received: format!("address {a:#06x} count {c}"),
-        });
+/// An echo is right when `same`; otherwise the error shows what was `sent` and what was
+/// `received`, each said by `say`.
+fn echoed<T>(same: bool, sent: T, received: T, say: fn(T) -> String) -> Result<(), FrameError> {
+    if same {
+        return Ok(());
     }
-    Ok(())
+    Err(FrameError::Echo {
+        sent: say(sent),
+        received: say(received),
+    })
+}
+
+/// A single write's echo: its address and value.
+fn address_value((address, value): (u16, u16)) -> String {
+    format!("address {address:#06x} value {value:#06x}")
+}
+
+/// Checks the echo of a multiple write: the address and count `sent`, as `received`.
+fn count_echo(sent: (u16, usize), (address, count): (u16, u16)) -> Result<(), FrameError> {
+    let received = (address, usize::from(count));
+    echoed(sent == received, sent, received, |(address, count)| {
+        format!("address {address:#06x} count {count}")
+    })
 }
 
 /// Checks that a write reply echoes its request.
@@ -568,73 +581,58 @@ fn count_echo(sent: (u16, usize), received: (u16, u16)) -> Result<(), FrameError
 /// # Errors
 /// [`FrameError::Echo`] when address, value or count differ.
 pub fn check_echo(request: &Request, response: &Response, echo: Echo) -> Result<(), FrameError> {
-    let mismatch = |sent: String, received: String| Err(FrameError::Echo { sent, received });
     match (request, response) {
         (
             Request::WriteSingleRegister { address, value },
-            Response::WriteSingleRegister {
+            &Response::WriteSingleRegister {
                 address: a,
                 value: v,
             },
         ) => {
-            let value_ok = v == value || (echo == Echo::CountForSingleWrite && *v == 1);
-            if a != address || !value_ok {
-                return mismatch(
-                    format!("address {address:#06x} value {value:#06x}"),
-                    format!("address {a:#06x} value {v:#06x}"),
-                );
-            }
-            Ok(())
+            let value_ok = v == *value || (echo == Echo::CountForSingleWrite && v == 1);
+            let same = a == *address && value_ok;
+            echoed(same, (*address, *value), (a, v), address_value)
         }
         (
             Request::WriteMultipleRegisters { address, values },
-            Response::WriteMultipleRegisters {
+            &Response::WriteMultipleRegisters {
                 address: a,
                 count: c,
             },
-        ) => count_echo((*address, values.len()), (*a, *c)),
+        ) => count_echo((*address, values.len()), (a, c)),
         (
             Request::WriteMultipleCoils { address, values },
-            Response::WriteMultipleCoils {
+            &Response::WriteMultipleCoils {
                 address: a,
                 count: c,
             },
-        ) => count_echo((*address, values.len()), (*a, *c)),
+        ) => count_echo((*address, values.len()), (a, c)),
         (
             Request::WriteSingleCoil { address, value },
-            Response::WriteSingleCoil {
+            &Response::WriteSingleCoil {
                 address: a,
                 value: v,
             },
         ) => {
-            let sent = coil_word(*value);
-            if a != address || *v != sent {
-                return mismatch(
-                    format!("address {address:#06x} value {sent:#06x}"),
-                    format!("address {a:#06x} value {v:#06x}"),
-                );
-            }
-            Ok(())
+            let sent = (*address, coil_word(*value));
+            echoed(sent == (a, v), sent, (a, v), address_value)
         }
         (
-            Request::MaskWriteRegister {
+            &Request::MaskWriteRegister {
                 address,
                 and_mask,
                 or_mask,
             },
-            Response::MaskWriteRegister {
+            &Response::MaskWriteRegister {
                 address: a,
                 and_mask: and,
                 or_mask: or,
             },
         ) => {
-            if (a, and, or) != (address, and_mask, or_mask) {
-                return mismatch(
-                    format!("address {address:#06x} and {and_mask:#06x} or {or_mask:#06x}"),
-                    format!("address {a:#06x} and {and:#06x} or {or:#06x}"),
-                );
-            }
-            Ok(())
+            let sent = (address, and_mask, or_mask);
+            echoed(sent == (a, and, or), sent, (a, and, or), |(a, and, or)| {
+                format!("address {a:#06x} and {and:#06x} or {or:#06x}")
+            })
         }
         (
             Request::Diagnostics { sub_function, data },
@@ -645,22 +643,16 @@ pub fn check_echo(request: &Request, response: &Response, echo: Echo) -> Result<
         ) => {
             // Every sub-function answers its own code; Return Query Data also its data.
             let data_ok = *sub_function != DIAG_RETURN_QUERY_DATA || d == data;
-            if s != sub_function || !data_ok {
-                return mismatch(
-                    format!("sub-function {sub_function:#06x} data {}", hex(data)),
-                    format!("sub-function {s:#06x} data {}", hex(d)),
-                );
-            }
-            Ok(())
+            let same = s == sub_function && data_ok;
+            echoed(same, (*sub_function, data), (*s, d), |(s, d)| {
+                format!("sub-function {s:#06x} data {}", hex(d))
+            })
         }
         (Request::WriteFileRecord { .. }, Response::FileRecordEcho(received)) => {
             let mut pdu = Vec::new();
             request.encode(&mut pdu);
             let sent = pdu.get(1..).unwrap_or_default();
-            if received.as_slice() != sent {
-                return mismatch(hex(sent), hex(received));
-            }
-            Ok(())
+            echoed(received.as_slice() == sent, sent, received, hex)
         }
         _ => Ok(()),
     }

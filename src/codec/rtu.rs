@@ -16,8 +16,6 @@ pub const MAX_ADU: usize = 256;
 pub const CRC_LEN: usize = 2;
 // The longest unit | PDU and its CRC are the longest frame.
 const _: () = assert!(MAX_UNIT_PDU + CRC_LEN == MAX_ADU);
-/// Length of an exception reply: unit, function | 0x80, code, CRC (2).
-pub const EXCEPTION_LEN: usize = 5;
 /// Unit address that every device accepts and none answers (serial line spec 2.2).
 pub const BROADCAST: u8 = 0;
 
@@ -75,19 +73,14 @@ fn check_crc(unit_pdu: &[u8], crc: &[u8]) -> Result<(), FrameError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::codec::error::unhex;
     use crate::codec::pdu::Response;
     use crate::codec::reply::{check_echo, check_header, Echo};
-
-    fn hex(s: &str) -> Vec<u8> {
-        s.split_whitespace()
-            .map(|b| u8::from_str_radix(b, 16).unwrap())
-            .collect()
-    }
 
     #[test]
     fn crc_of_known_frame() {
         // 000 B.4: 01 06 20 00 00 01 43 CA (run forward)
-        assert_eq!(crc16(&hex("01 06 20 00 00 01")), 0xCA43);
+        assert_eq!(crc16(&unhex("01 06 20 00 00 01")), 0xCA43);
     }
 
     #[test]
@@ -99,7 +92,7 @@ mod tests {
         assert_eq!(reply_needed(&req, &[]), Needed::More(5));
         assert_eq!(reply_needed(&req, &[1, 0x83]), Needed::More(3));
         assert_eq!(
-            reply_needed(&req, &hex("01 83 02 C0 F1")),
+            reply_needed(&req, &unhex("01 83 02 C0 F1")),
             Needed::Complete(5)
         );
         assert_eq!(reply_needed(&req, &[1, 0x03]), Needed::More(3));
@@ -115,14 +108,14 @@ mod tests {
         };
         assert_eq!(reply_needed(&req, &[2, 0xAB]), Needed::More(3));
         let standard = {
-            let mut f = hex("02 AB 01");
+            let mut f = unhex("02 AB 01");
             f.extend(crc16(&f).to_le_bytes());
             f
         };
         assert_eq!(reply_needed(&req, &standard), Needed::Complete(5));
         // ATV31 (manual 004): unit, 2B + 80, MEI type 0E, error code 00..02, CRC.
         let atv31 = {
-            let mut f = hex("02 AB 0E 02");
+            let mut f = unhex("02 AB 0E 02");
             f.extend(crc16(&f).to_le_bytes());
             f
         };
@@ -142,7 +135,7 @@ mod tests {
             address: 0,
             count: 1,
         };
-        assert_eq!(reply_needed(&read, &hex("02 83 0E")), Needed::More(2));
+        assert_eq!(reply_needed(&read, &unhex("02 83 0E")), Needed::More(2));
     }
 
     #[test]
@@ -151,7 +144,7 @@ mod tests {
             read_code: 1,
             object_id: 0,
         };
-        let mut f = hex("02 2B 0E 01 01 00 00 02 00 03 41 42 43 01 01 58");
+        let mut f = unhex("02 2B 0E 01 01 00 00 02 00 03 41 42 43 01 01 58");
         let crc = crc16(&f);
         f.extend_from_slice(&crc.to_le_bytes());
         assert_eq!(reply_needed(&req, &f[..8]), Needed::More(2));
@@ -173,7 +166,7 @@ mod tests {
             address: 0x2100,
             count: 1,
         };
-        let good = hex("01 03 02 00 05 78 47");
+        let good = unhex("01 03 02 00 05 78 47");
         assert_eq!(
             decode_reply(1, &req, &good),
             Ok(Reply::Normal(Response::Registers(vec![5])))
@@ -232,7 +225,7 @@ mod tests {
     }
 
     fn framed(body: &str) -> Vec<u8> {
-        let mut f = hex(body);
+        let mut f = unhex(body);
         f.extend(crc16(&f).to_le_bytes());
         f
     }

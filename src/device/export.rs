@@ -109,53 +109,37 @@ pub fn family_note(key: &str) -> Option<String> {
 }
 
 fn line_section(out: &mut String, l: &LineSettings) {
-    let mut keys = Vec::new();
-    if let Some(b) = l.baudrate {
-        keys.push(format!("baudrate = {b}"));
-    }
-    if let Some(p) = l.parity {
-        keys.push(format!("parity = {}", quote(&p.to_string())));
-    }
-    if let Some(s) = l.stopbits {
-        keys.push(format!("stopbits = {s}"));
-    }
-    if let Some(t) = l.timeout {
-        keys.push(format!("timeout = {}", number(t)));
-    }
-    if let Some(f) = &l.framing {
-        keys.push(format!("framing = {}", quote(f)));
-    }
-    if let Some(b) = l.bytesize {
-        keys.push(format!("bytesize = {b}"));
-    }
-    section(out, "[line]", &keys);
+    let keys = [
+        ("baudrate", l.baudrate.map(|b| b.to_string())),
+        ("parity", l.parity.map(|p| quote(&p.to_string()))),
+        ("stopbits", l.stopbits.map(|s| s.to_string())),
+        ("timeout", l.timeout.map(number)),
+        ("framing", l.framing.as_deref().map(quote)),
+        ("bytesize", l.bytesize.map(|b| b.to_string())),
+    ];
+    section(out, "[line]", keys);
 }
 
 fn limits_section(out: &mut String, l: &Limits) {
-    let mut keys = Vec::new();
-    if let Some(n) = l.max_read {
-        keys.push(format!("max_read = {n}"));
-    }
-    if let Some(n) = l.max_write {
-        keys.push(format!("max_write = {n}"));
-    }
-    if let Some(t) = l.min_write_interval {
-        keys.push(format!("min_write_interval = {}", number(t)));
-    }
-    if let Some(b) = l.block_reads {
-        keys.push(format!("block_reads = {b}"));
-    }
-    if let Some(b) = l.read_gaps {
-        keys.push(format!("read_gaps = {b}"));
-    }
-    section(out, "[limits]", &keys);
+    let keys = [
+        ("max_read", l.max_read.map(|n| n.to_string())),
+        ("max_write", l.max_write.map(|n| n.to_string())),
+        ("min_write_interval", l.min_write_interval.map(number)),
+        ("block_reads", l.block_reads.map(|b| b.to_string())),
+        ("read_gaps", l.read_gaps.map(|b| b.to_string())),
+    ];
+    section(out, "[limits]", keys);
 }
 
-fn section(out: &mut String, header: &str, keys: &[String]) {
-    if !keys.is_empty() {
-        let _ = writeln!(out, "\n{header}");
-        for k in keys {
-            let _ = writeln!(out, "{k}");
+/// The section `header` with each key that has a value, as TOML; nothing if none has.
+fn section<const N: usize>(out: &mut String, header: &str, keys: [(&str, Option<String>); N]) {
+    let mut keys = keys
+        .into_iter()
+        .filter_map(|(key, value)| Some((key, value?)));
+    if let Some((key, value)) = keys.next() {
+        let _ = writeln!(out, "\n{header}\n{key} = {value}");
+        for (key, value) in keys {
+            let _ = writeln!(out, "{key} = {value}");
         }
     }
 }

@@ -111,16 +111,8 @@ impl Instrument {
         max_write: u16,
         min_write_interval: Duration,
     ) -> Result<Instrument> {
-        if !(1..=MAX_READ_COUNT).contains(&max_read) {
-            return Err(Error::InvalidArgument(format!(
-                "max_read must be 1 to {MAX_READ_COUNT}, got {max_read}"
-            )));
-        }
-        if !(1..=MAX_WRITE_COUNT).contains(&max_write) {
-            return Err(Error::InvalidArgument(format!(
-                "max_write must be 1 to {MAX_WRITE_COUNT}, got {max_write}"
-            )));
-        }
+        check_limit("max_read", max_read, MAX_READ_COUNT)?;
+        check_limit("max_write", max_write, MAX_WRITE_COUNT)?;
         let opts = TxOptions {
             write_interval: min_write_interval,
             ..TxOptions::default()
@@ -142,16 +134,8 @@ impl Instrument {
     /// [`Error::InvalidArgument`] if `max_read_bits` is not 1..=2000 or `max_write_bits` not
     /// 1..=1968.
     pub fn with_bit_limits(mut self, max_read_bits: u16, max_write_bits: u16) -> Result<Self> {
-        if !(1..=MAX_READ_BITS).contains(&max_read_bits) {
-            return Err(Error::InvalidArgument(format!(
-                "max_read_bits must be 1 to {MAX_READ_BITS}, got {max_read_bits}"
-            )));
-        }
-        if !(1..=MAX_WRITE_BITS).contains(&max_write_bits) {
-            return Err(Error::InvalidArgument(format!(
-                "max_write_bits must be 1 to {MAX_WRITE_BITS}, got {max_write_bits}"
-            )));
-        }
+        check_limit("max_read_bits", max_read_bits, MAX_READ_BITS)?;
+        check_limit("max_write_bits", max_write_bits, MAX_WRITE_BITS)?;
         self.max_read_bits = max_read_bits;
         self.max_write_bits = max_write_bits;
         Ok(self)
@@ -189,12 +173,9 @@ impl Instrument {
     /// [`Error::InvalidArgument`] for an empty span or one past 0xFFFF, or a table of bits
     /// (nothing sent); any [`Error`] of a request (the registers read before it are lost).
     pub fn read_registers(&self, table: Table, address: u16, count: usize) -> Result<Vec<u16>> {
-        check_span(address, count)?;
-        let mut words = Vec::with_capacity(count);
-        for (at, n) in chunks(address, count, self.max_read) {
-            words.extend(self.station.read_table(table, at, n)?);
-        }
-        Ok(words)
+        read_in_parts(address, count, self.max_read, |at, n| {
+            self.station.read_table(table, at, n)
+        })
     }
 
     /// `count` bits of `table` (coils or discrete inputs) from `address`, in requests of at
@@ -203,12 +184,9 @@ impl Instrument {
     /// # Errors
     /// As [`read_registers`](Self::read_registers), for a table of registers too.
     pub fn read_bits(&self, table: Table, address: u16, count: usize) -> Result<Vec<bool>> {
-        check_span(address, count)?;
-        let mut bits = Vec::with_capacity(count);
-        for (at, n) in chunks(address, count, self.max_read_bits) {
-            bits.extend(self.station.read_bits(table, at, n)?);
-        }
-        Ok(bits)
+        read_in_parts(address, count, self.max_read_bits, |at, n| {
+            self.station.read_bits(table, at, n)
+        })
     }
 
     /// Sets one coil (0x05).
@@ -225,13 +203,9 @@ impl Instrument {
     /// # Errors
     /// As [`write_registers`](Self::write_registers).
     pub fn write_coils(&self, address: u16, values: &[bool]) -> Result<()> {
-        check_span(address, values.len())?;
-        let mut start = address;
-        for part in values.chunks(usize::from(self.max_write_bits)) {
-            self.station.write_coils(start, part)?;
-            start = start.wrapping_add(part.len() as u16);
-        }
-        Ok(())
+        write_in_parts(address, values, self.max_write_bits, |at, part| {
+            self.station.write_coils(at, part)
+        })
     }
 
     /// Writes `values` from `address` with 0x10, in requests of at most `max_write`.
@@ -240,13 +214,9 @@ impl Instrument {
     /// As [`read_registers`](Self::read_registers); a failed request leaves the earlier
     /// ones written.
     pub fn write_registers(&self, address: u16, values: &[u16]) -> Result<()> {
-        check_span(address, values.len())?;
-        let mut start = address;
-        for part in values.chunks(usize::from(self.max_write)) {
-            self.station.write_many(start, part)?;
-            start = start.wrapping_add(part.len() as u16);
-        }
-        Ok(())
+        write_in_parts(address, values, self.max_write, |at, part| {
+            self.station.write_many(at, part)
+        })
     }
 
     /// One register of `table` (holding or input): its raw word.
@@ -514,6 +484,49 @@ fn check_span(address: u16, count: usize) -> Result<()> {
             "{count} registers from {address:#06x} are not a span within 0x0000 to 0xFFFF \
              (at least 1)"
         )));
+    }
+    Ok(())
+}
+
+/// A request limit `value` of `name`: 1 to `max`.
+fn check_limit(name: &str, value: u16, max: u16) -> Result<()> {
+    if !(1..=max).contains(&value) {
+        return Err(Error::InvalidArgument(format!(
+            "{name} must be 1 to {max}, got {value}"
+        )));
+    }
+    Ok(())
+}
+
+/// `count` items (registers or bits) from `address`, each request of at most `max` made by
+/// `read(address, count)`.
+fn read_in_parts<T>(
+    address: u16,
+    count: usize,
+    max: u16,
+    mut read: impl FnMut(u16, u16) -> Result<Vec<T>>,
+) -> Result<Vec<T>> {
+    check_span(address, count)?;
+    let mut items = Vec::with_capacity(count);
+    for (at, n) in chunks(address, count, max) {
+        items.extend(read(at, n)?);
+    }
+    Ok(items)
+}
+
+/// Writes `values` from `address`, each request of at most `max` made by `write(address,
+/// part)`; a failed request leaves the earlier ones written.
+fn write_in_parts<T>(
+    address: u16,
+    values: &[T],
+    max: u16,
+    mut write: impl FnMut(u16, &[T]) -> Result<()>,
+) -> Result<()> {
+    check_span(address, values.len())?;
+    let mut at = address;
+    for part in values.chunks(usize::from(max.max(1))) {
+        write(at, part)?;
+        at = at.wrapping_add(part.len() as u16);
     }
     Ok(())
 }

@@ -53,11 +53,6 @@ pub fn table() -> Result<&'static [ProfileRegister]> {
     family::registers("pbl")
 }
 
-/// Whether the manual calls parameter `number` reserved.
-pub fn is_reserved(number: u16) -> bool {
-    by_number(number).is_ok_and(|p| p.name.starts_with("reserved_"))
-}
-
 /// The parameter called `name`.
 ///
 /// # Errors
@@ -363,6 +358,7 @@ mod tests {
             Some((209, "rpm/s"))
         );
         assert_eq!(by_name("internal_speed").map(|p| p.address).ok(), Some(201));
+        let is_reserved = |n| by_number(n).is_ok_and(|p| p.name.starts_with("reserved_"));
         assert!(is_reserved(22) && is_reserved(49) && !is_reserved(50) && is_reserved(184));
         assert!(by_number(223).is_err());
     }

@@ -233,6 +233,8 @@ pub(crate) fn latency_timer(sysfs: &Path, name: &str) -> Option<u32> {
 mod tests {
     use super::*;
     use std::mem::{offset_of, size_of};
+    use std::os::fd::AsRawFd;
+    use std::os::unix::fs::OpenOptionsExt;
     use std::time::Duration;
 
     #[test]
@@ -309,36 +311,25 @@ mod tests {
         assert_eq!(state_of(&SerialRs485::default()), Rs485State::Off);
     }
 
-    fn pty() -> (libc::c_int, libc::c_int) {
-        let (mut master, mut slave) = (-1, -1);
-        // SAFETY: valid out-pointers; no name, termios or window size asked for.
-        let rc = unsafe {
-            libc::openpty(
-                &mut master,
-                &mut slave,
-                std::ptr::null_mut(),
-                std::ptr::null(),
-                std::ptr::null(),
-            )
-        };
-        assert_eq!(rc, 0);
-        (master, slave)
-    }
-
     #[test]
     fn a_pty_has_neither_low_latency_nor_rs485_mode() {
-        let (master, slave) = pty();
+        let (master, path) = crate::transport::test_pty();
+        let end = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .custom_flags(libc::O_NOCTTY)
+            .open(path)
+            .unwrap();
+        let slave = end.as_raw_fd();
         assert_eq!(ask_low_latency(slave), LowLatency::Unsupported);
         assert_eq!(rs485_state(slave).unwrap(), Rs485State::Unsupported);
         assert!(!rs485_settable(slave));
         let rs485 = Rs485::new(Duration::ZERO, Duration::ZERO).unwrap();
         let e = set_rs485(slave, &rs485).unwrap_err();
         assert!(e.contains("no kernel RS485 mode"), "{e}");
-        // SAFETY: our own fds, closed once.
-        unsafe {
-            libc::close(slave);
-            libc::close(master);
-        }
+        drop(end);
+        // SAFETY: our own fd, closed once.
+        unsafe { libc::close(master) };
     }
 
     #[test]

@@ -348,6 +348,14 @@ mod tests {
     #[cfg(unix)]
     use std::time::Instant;
 
+    /// What the user is told of an I/O error of `kind` that says `message`, on opening.
+    fn told(kind: io::ErrorKind, message: &str) -> String {
+        describe_open_error(&serialport::Error::new(
+            serialport::ErrorKind::Io(kind),
+            message,
+        ))
+    }
+
     #[cfg(unix)]
     fn line() -> LineFormat {
         LineFormat::new(19_200, Parity::None, 1)
@@ -376,22 +384,14 @@ mod tests {
 
     #[test]
     fn a_port_the_user_may_not_open_says_how_to_get_the_permission() {
-        let e = serialport::Error::new(
-            serialport::ErrorKind::Io(io::ErrorKind::PermissionDenied),
-            "Permission denied",
-        );
-        let text = describe_open_error(&e);
+        let text = told(io::ErrorKind::PermissionDenied, "Permission denied");
         assert!(text.starts_with("Permission denied ("), "{text}");
         #[cfg(target_os = "linux")]
         assert!(
             text.contains("dialout") && text.contains("sudo usermod -aG dialout $USER"),
             "{text}"
         );
-        let other = serialport::Error::new(
-            serialport::ErrorKind::Io(io::ErrorKind::InvalidData),
-            "Bad data",
-        );
-        assert_eq!(describe_open_error(&other), "Bad data");
+        assert_eq!(told(io::ErrorKind::InvalidData, "Bad data"), "Bad data");
     }
 
     #[cfg(unix)]
@@ -409,11 +409,7 @@ mod tests {
 
     #[test]
     fn a_port_that_does_not_exist_is_told_with_the_ports_that_do() {
-        let e = serialport::Error::new(
-            serialport::ErrorKind::Io(io::ErrorKind::NotFound),
-            "No such file or directory",
-        );
-        let text = describe_open_error(&e);
+        let text = told(io::ErrorKind::NotFound, "No such file or directory");
         let ports: Vec<String> = crate::transport::ports::list_ports()
             .unwrap()
             .into_iter()

@@ -243,16 +243,11 @@ fn file_groups(function: u8, data: &[u8]) -> Result<Vec<FileGroup<'_>>, RequestE
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    fn hex(text: &str) -> Vec<u8> {
-        text.split_whitespace()
-            .map(|b| u8::from_str_radix(b, 16).unwrap())
-            .collect()
-    }
+    use crate::codec::error::unhex;
 
     /// `decode` of a PDU written as hex.
     fn pdu(text: &str) -> Result<Request, RequestError> {
-        let bytes = hex(text);
+        let bytes = unhex(text);
         decode(bytes[0], &bytes[1..])
     }
 
@@ -290,7 +285,25 @@ mod tests {
             "41 01 02 03",
         ] {
             let request = pdu(text).unwrap();
-            assert_eq!(encoded(&request), hex(text), "{text}");
+            assert_eq!(encoded(&request), unhex(text), "{text}");
+            // What each does, by its function code; a raw request may write.
+            let function = request.function();
+            let raw = matches!(request, Request::Raw { .. });
+            let reads = [
+                0x01, 0x02, 0x03, 0x04, 0x07, 0x08, 0x0B, 0x0C, 0x11, 0x14, 0x18, 0x2B,
+            ];
+            let echoed_writes = [0x05, 0x06, 0x0F, 0x10, 0x16];
+            assert_eq!(function, unhex(text)[0], "{text}");
+            assert_eq!(
+                request.is_read(),
+                !raw && reads.contains(&function),
+                "{text}"
+            );
+            assert_eq!(
+                request.is_echoed_write(),
+                echoed_writes.contains(&function),
+                "{text}"
+            );
         }
         assert_eq!(
             pdu("16 00 04 00 F2 00 25"),
@@ -350,7 +363,7 @@ mod tests {
         assert!(registers(123).is_ok());
         assert_eq!(registers(124), Err(count(123)));
         assert_eq!(pdu("17 00 00 00 7E 00 00 00 01 02 00 00"), Err(count(125)));
-        let mut rw = hex("00 00 00 01 00 00 00 7A F4");
+        let mut rw = unhex("00 00 00 01 00 00 00 7A F4");
         rw.resize(rw.len() + 244, 0);
         assert_eq!(decode(READ_WRITE_REGISTERS, &rw), Err(count(121)));
     }
