@@ -2,7 +2,7 @@
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
 use super::device_methods;
-use super::{member, number, public, shown, to_pyerr, unit_arg, Attached, PyBus, PyStation};
+use super::{member, number, public, shown, to_pyerr, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._j2";
@@ -129,25 +129,9 @@ fn py_six() -> Py<PyAny> {
 
 device_methods! {
 PyJ2Core = |dev| PyJ2Core { dev };
+attach = J2::new;
 tabled;
 
-    /// Attaches the controller at `unit` to `bus` (what `J2Controller.__init__` does);
-    /// `timeout` / `retries` replace the Bus's.
-    #[pyo3(signature = (bus, unit, timeout=None, retries=None))]
-    fn _attach(
-        slf: &Bound<'_, Self>,
-        bus: Bound<'_, PyBus>,
-        unit: &Bound<'_, PyAny>,
-        timeout: Option<&Bound<'_, PyAny>>,
-        retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<()> {
-        let station = slf.as_super().get();
-        slf.get()
-            .dev
-            .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
-                Ok(J2::new(b, u))
-            })
-    }
 
     /// One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
     /// signed table, an int for the unsigned one.

@@ -244,8 +244,31 @@ fn over_modbus_tcp(bus: Option<&bus::Bus>, err: Error) -> Error {
 /// an empty object made by `$make` (a closure from the [`Attached`] to the class), which
 /// takes any arguments so that the Python class's `__init__` may have its own, and attaches
 /// it (`_attach`). After `tabled;`, also `get` and `set` of any row by name, the same for
-/// every family with a table ([`crate::device::Tabled`]).
+/// every family with a table ([`crate::device::Tabled`]). After `attach = Xy::new;`, the
+/// `_attach` of a family whose core takes only the Bus and the unit (1..=255).
 macro_rules! device_methods {
+    ($class:ident = $make:expr; attach = $new:path; $($body:tt)*) => {
+        device_methods! {
+            $class = $make;
+            $($body)*
+
+            /// Attaches the device at ``unit`` to ``bus`` (what its class's ``__init__``
+            /// does); ``timeout`` / ``retries`` replace the Bus's.
+            #[pyo3(signature = (bus, unit, timeout=None, retries=None))]
+            fn _attach(
+                slf: &Bound<'_, Self>,
+                bus: Bound<'_, PyBus>,
+                unit: &Bound<'_, PyAny>,
+                timeout: Option<&Bound<'_, PyAny>>,
+                retries: Option<&Bound<'_, PyAny>>,
+            ) -> PyResult<()> {
+                let station = slf.as_super().get();
+                slf.get()
+                    .dev
+                    .attach(station, bus, unit, super::unit_arg, timeout, retries, |b, u| Ok($new(b, u)))
+            }
+        }
+    };
     ($class:ident = $make:expr; tabled; $($body:tt)*) => {
         device_methods! {
             $class = $make;

@@ -2,7 +2,7 @@
 //! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
 use super::device_methods;
-use super::{int_in, public, to_pyerr, unit_arg, Attached, PyBus, PyStation};
+use super::{int_in, public, to_pyerr, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._pbl";
@@ -41,25 +41,9 @@ fn parameter_number(py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
 
 device_methods! {
 PyPblCore = |dev| PyPblCore { dev };
+attach = Pbl::new;
 tabled;
 
-    /// Attaches the drive at `unit` to `bus` (what `PblDrive.__init__` does); `timeout` /
-    /// `retries` replace the Bus's.
-    #[pyo3(signature = (bus, unit, timeout=None, retries=None))]
-    fn _attach(
-        slf: &Bound<'_, Self>,
-        bus: Bound<'_, PyBus>,
-        unit: &Bound<'_, PyAny>,
-        timeout: Option<&Bound<'_, PyAny>>,
-        retries: Option<&Bound<'_, PyAny>>,
-    ) -> PyResult<()> {
-        let station = slf.as_super().get();
-        slf.get()
-            .dev
-            .attach(station, bus, unit, unit_arg, timeout, retries, |b, u| {
-                Ok(Pbl::new(b, u))
-            })
-    }
 
     /// Reads one parameter, by number or name.
     fn read_parameter(&self, py: Python<'_>, key: &Bound<'_, PyAny>) -> PyResult<u16> {
