@@ -2,7 +2,7 @@
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
 use super::device_methods;
-use super::{member, number, public, shown, to_pyerr, Attached, PyBus, PyStation};
+use super::{int_choice, member, number, public, shown, to_pyerr, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._j2";
@@ -67,6 +67,22 @@ impl PyJ2Core {
             .map(|n| PyString::new(py, n).into_any())
             .collect();
         self.read_names(py, &names)
+    }
+
+    /// The parameters of `group`, read in one request, as the `benchbus._j2` type `kind`.
+    fn read_as<'py>(
+        &self,
+        py: Python<'py>,
+        group: &[&str],
+        kind: &str,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        public(
+            py,
+            PY,
+            kind,
+            PyTuple::new(py, self.read_group(py, group)?)?,
+            None,
+        )
     }
 }
 
@@ -151,23 +167,8 @@ tabled;
         value: &Bound<'_, PyAny>,
         function: Py<PyAny>,
     ) -> PyResult<()> {
-        let f = function.bind(py);
-        if f.is_instance_of::<PyBool>() || !f.is_instance_of::<PyInt>() {
-            return Err(PyTypeError::new_err(format!(
-                "function must be an int, got {}",
-                f.get_type().name()?
-            )));
-        }
-        let multiple = match f.extract::<i64>() {
-            Ok(0x06) => false,
-            Ok(0x10) => true,
-            _ => {
-                return Err(PyValueError::new_err(format!(
-                    "function must be 0x06 or 0x10, got {}",
-                    f.repr()?
-                )))
-            }
-        };
+        let choices = [(0x06, false), (0x10, true)];
+        let multiple = int_choice(function.bind(py), "function", "an int", "0x06 or 0x10", &choices)?;
         let p = param(py, name)?;
         let v = number(value, &p.name)?;
         self.dev.wire(py, move |j| j.set_as(&p.name, v, multiple))
@@ -304,13 +305,7 @@ tabled;
     /// The first PID set (P, I, D), read in one request; set it with a 3-tuple.
     #[getter]
     fn pid<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        public(
-            py,
-            PY,
-            "Pid",
-            PyTuple::new(py, self.read_group(py, &PID)?)?,
-            None,
-        )
+        self.read_as(py, &PID, "Pid")
     }
 
     #[setter]
@@ -321,13 +316,7 @@ tabled;
     /// The second PID set (P1, I1, D1), read in one request; set it with a 3-tuple.
     #[getter]
     fn pid2<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        public(
-            py,
-            PY,
-            "Pid",
-            PyTuple::new(py, self.read_group(py, &PID2)?)?,
-            None,
-        )
+        self.read_as(py, &PID2, "Pid")
     }
 
     #[setter]
@@ -339,13 +328,7 @@ tabled;
     /// pair: they are written in the order that keeps LSP <= USP.
     #[getter]
     fn limits<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
-        public(
-            py,
-            PY,
-            "Limits",
-            PyTuple::new(py, self.read_group(py, &LIMITS)?)?,
-            None,
-        )
+        self.read_as(py, &LIMITS, "Limits")
     }
 
     #[setter]

@@ -686,6 +686,32 @@ fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64>
 }
 
 /// A number (int or float, not bool) as f64: TypeError for anything else.
+/// `obj`, an int (not a bool) that `choices` lists, as the value listed with it: TypeError
+/// ("`name` must be `kind`") for another type, ValueError ("must be `allowed`") for an int
+/// not listed.
+fn int_choice<T: Copy>(
+    obj: &Bound<'_, PyAny>,
+    name: &str,
+    kind: &str,
+    allowed: &str,
+    choices: &[(i64, T)],
+) -> PyResult<T> {
+    if obj.is_instance_of::<PyBool>() || !obj.is_instance_of::<PyInt>() {
+        return Err(PyTypeError::new_err(format!(
+            "{name} must be {kind}, got {}",
+            obj.get_type().name()?
+        )));
+    }
+    let n = obj.extract::<i64>().ok();
+    match choices.iter().find(|(code, _)| Some(*code) == n) {
+        Some((_, value)) => Ok(*value),
+        None => Err(PyValueError::new_err(format!(
+            "{name} must be {allowed}, got {}",
+            obj.repr()?
+        ))),
+    }
+}
+
 /// A register's name given to `get` / `set`: a str, else TypeError.
 fn row_name(name: &Bound<'_, PyAny>) -> PyResult<String> {
     if !name.is_instance_of::<PyString>() {

@@ -2,13 +2,13 @@
 //! adds only what belongs to Python (enums, the status object, reprs, the context manager).
 
 use super::device_methods;
-use super::{int_in, public, to_pyerr, Attached, PyBus, PyStation};
+use super::{int_choice, int_in, public, to_pyerr, Attached, PyBus, PyStation};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._pbl";
 use crate::device::pbl::{alarm_names, by_name, by_number, table, Pbl, SAMPLE};
 use crate::device::Access;
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFrozenSet, PyInt, PyList, PyString, PyTuple};
 
@@ -145,22 +145,8 @@ tabled;
 
     #[setter]
     fn set_direction(&self, py: Python<'_>, direction: &Bound<'_, PyAny>) -> PyResult<()> {
-        if direction.is_instance_of::<PyBool>() || !direction.is_instance_of::<PyInt>() {
-            return Err(PyTypeError::new_err(format!(
-                "direction must be a Direction, got {}",
-                direction.get_type().name()?
-            )));
-        }
-        let reverse = match direction.extract::<i64>() {
-            Ok(0) => false,
-            Ok(1) => true,
-            _ => {
-                return Err(PyValueError::new_err(format!(
-                    "direction must be Direction.FORWARD or REVERSE, got {}",
-                    direction.repr()?
-                )))
-            }
-        };
+        let allowed = "Direction.FORWARD or REVERSE";
+        let reverse = int_choice(direction, "direction", "a Direction", allowed, &[(0, false), (1, true)])?;
         self.dev.wire(py, move |p| p.set_reverse(reverse))
     }
 
