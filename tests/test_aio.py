@@ -490,6 +490,11 @@ def p99(values: list[float]) -> float:
     return sorted(values)[int(len(values) * 0.99)]
 
 
+#: Samples of the 100 that show the poll ran at its rate: a loaded machine skips a few
+#: deadlines (the poll skips what is past, it does not bunch them), a poll that stalls most.
+MOST_OF_A_POLL = 80
+
+
 async def lag_during_a_poll(port: str) -> tuple[float, float, int]:
     """A 1 ms ticker's p99 lag before and after a 1 s poll at 100 Hz, and during it; and
     how many samples the poll took."""
@@ -556,7 +561,7 @@ def test_loop_lag_during_a_100hz_poll_of_another_process(drive_in_another_proces
             )
         finally:
             loop.close()
-        assert samples >= 95
+        assert samples >= MOST_OF_A_POLL
         runs.append(f"p99 lag {busy * 1e3:.3f} ms, idle {idle * 1e3:.3f} ms")
         if busy <= idle + 0.0005:
             break
@@ -589,7 +594,7 @@ def test_on_the_default_loop_each_call_wakes_the_loop_once(drive_in_another_proc
         _, _, samples = loop.run_until_complete(lag_during_a_poll(drive_in_another_process))
     finally:
         loop.close()
-    assert samples >= 95
+    assert samples >= MOST_OF_A_POLL
     # The samples' results, and the opening and closing of the bus.
     assert samples <= selector.woken <= samples + 3, (selector.woken, samples)
 
