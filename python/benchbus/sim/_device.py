@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import collections
+import dataclasses
 import threading
 import time
 from collections.abc import Callable, Iterable, Mapping
@@ -13,8 +14,10 @@ __all__ = [
     "STANDARD_FUNCTIONS",
     "ClockedModel",
     "RegisterDevice",
+    "Row",
     "SimDevice",
     "SimException",
+    "TableDevice",
     "pace_write",
 ]
 
@@ -324,7 +327,190 @@ class ClockedModel:
             self._update()
 
 
-class RegisterDevice(SimDevice):
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One holding register of a simulated unit's table, as the unit's manual gives it.
+
+    ``access`` holds ``"r"`` where a read may take the register and ``"w"`` where a write
+    may: ``"r"``, ``"w"``, ``"rw"``, ``"rw-stopped"`` (written only while the unit's model
+    is at rest) or ``""``. A written word must be ``low..high`` (read as two's complement
+    when ``signed``). ``default`` is the word the unit keeps at power-up; None: the model
+    computes the register (:meth:`TableDevice._live`), and a write reaches only
+    :meth:`TableDevice._store`.
+    """
+
+    access: str = "rw"
+    low: int = 0
+    high: int = 0xFFFF
+    default: int | None = 0
+    signed: bool = False
+
+
+class TableDevice(SimDevice):
+    """A unit whose holding registers are a table of :class:`Row` by address: it keeps
+    their words and answers reads and writes of them with one set of checks; a family's
+    model comes in through the hooks (the methods with a leading underscore below).
+
+    A read (0x03) answers exception 2 for a block past 0xFFFF, an address without a row
+    (but see :attr:`_read_gaps`) or a row without ``"r"``. A write (0x06, 0x10) is all or
+    nothing; its words must be ints 0..0xFFFF (else TypeError / ValueError, for a direct
+    call). Under the unit's lock, :meth:`_arrive` first (pacing, the model brought up to
+    now); then exception 2 for a block past 0xFFFF or an address without a row, and
+    :attr:`_readonly_code` for a row without ``"w"``; then, for each word, :meth:`_refuse`,
+    exception 3 out of the row's range and :attr:`_running_code` for a ``"rw-stopped"``
+    row while :meth:`_running`; then each word goes to :meth:`_store`, in address order.
+    With :attr:`_writes_in_turn` each register is checked and stored before the next is
+    looked at, and a refusal puts back what :meth:`_save` kept.
+    """
+
+    #: Answered to a write touching a row without ``"w"``; None: the write is answered
+    #: normally and the row keeps its value.
+    _readonly_code: int | None = SimException.ILLEGAL_DATA_ADDRESS
+    #: Answered to a write of a ``"rw-stopped"`` row while :meth:`_running`.
+    _running_code: int = SimException.ILLEGAL_DATA_VALUE
+    #: The addresses without a row that a read answers 0 for: ``"none"``, ``"inside"``
+    #: (between the first and the last register of the read) or ``"all"``.
+    _read_gaps: str = "none"
+    #: Whether a write checks and stores each register before it looks at the next (a
+    #: register's checks then see the registers before it written), or checks them all
+    #: first.
+    _writes_in_turn: bool = False
+
+    def __init__(self, rows: Mapping[int, Row]) -> None:
+        """Serve ``rows`` (``{address: row}``), each stored row at its default."""
+        self._rows = dict(rows)
+        self._words = {a: row.default for a, row in self._rows.items() if row.default is not None}
+        self._lock = threading.RLock()
+
+    def read_holding(self, address: int, count: int) -> list[int]:
+        """The words of the rows ``address .. address + count - 1`` (see the class doc)."""
+        with self._lock:
+            self._arrive(write=False)
+            rows = self._readable(self._row, address, count)
+            return [0 if row is None else self._word(a, row) for a, row in rows]
+
+    def write_holding(self, address: int, values: list[int]) -> None:
+        """Check and store ``values`` from ``address``, all or nothing (see the class doc)."""
+        for value in values:
+            _check_value(value)
+        with self._lock:
+            self._arrive(write=True)
+            if self._writes_in_turn:
+                steps = [(address + i, [value]) for i, value in enumerate(values)]
+            else:
+                steps = [(address, values)]
+            saved = self._save()
+            try:
+                for start, words in steps:
+                    rows = self._writable(self._row, start, len(words))
+                    taken = list(zip(range(start, start + len(words)), rows, words))
+                    for a, row, value in taken:
+                        self._check(a, row, value)
+                    for a, row, value in taken:
+                        if "w" in row.access:
+                            self._store(a, value)
+            except BaseException:
+                self._restore(saved)
+                raise
+
+    # ---- the checks ---------------------------------------------------------------------
+
+    def _readable(
+        self, row: Callable[[int], Row | None], address: int, count: int
+    ) -> list[tuple[int, Row | None]]:
+        """``(address, row)`` of each register a read of ``count`` from ``address`` takes
+        (None: a gap that reads 0); exception 2 if it may not take them all."""
+        if not 0 <= address <= _REGISTER_SPACE - count:
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        taken = []
+        for a in range(address, address + count):
+            found = row(a)
+            if found is None and (
+                self._read_gaps == "all"
+                or (self._read_gaps == "inside" and address < a < address + count - 1)
+            ):
+                taken.append((a, None))
+            elif found is None or "r" not in found.access:
+                raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+            else:
+                taken.append((a, found))
+        return taken
+
+    def _writable(self, row: Callable[[int], Row | None], address: int, count: int) -> list[Row]:
+        """The rows a write of ``count`` from ``address`` touches: exception 2 if one is
+        missing, :attr:`_readonly_code` if one is not writable."""
+        if not 0 <= address <= _REGISTER_SPACE - count:
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        rows = [row(a) for a in range(address, address + count)]
+        found = [r for r in rows if r is not None]
+        if len(found) < count:
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        if self._readonly_code is not None and any("w" not in r.access for r in found):
+            raise SimException(self._readonly_code)
+        return found
+
+    def _check(self, address: int, row: Row, value: int) -> None:
+        """Refuse ``value`` for the writable ``row`` at ``address`` as the class doc says."""
+        if "w" not in row.access:
+            return
+        self._refuse(address, value)
+        word = value - 0x10000 if row.signed and value & 0x8000 else value
+        if not row.low <= word <= row.high:
+            raise SimException(SimException.ILLEGAL_DATA_VALUE)
+        if row.access == "rw-stopped" and self._running():
+            raise SimException(self._running_code)
+
+    def _read_one(self, address: int) -> int:
+        """The word a read of ``address`` alone answers (a gap does not read)."""
+        row = self._row(address)
+        if row is None or "r" not in row.access:
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        return self._word(address, row)
+
+    def _word(self, address: int, row: Row) -> int:
+        return self._words[address] if row.default is not None else self._live(address)
+
+    # ---- the hooks ----------------------------------------------------------------------
+
+    def _row(self, address: int) -> Row | None:
+        """The row at ``address``, None if there is none."""
+        return self._rows.get(address)
+
+    def _arrive(self, write: bool) -> None:
+        """A request reaches the unit (under its lock, before any check): bring the model
+        up to now; a unit that paces its writes records and refuses them here."""
+        self._update()
+
+    def _update(self) -> None:
+        """Bring the model up to now (no model: nothing)."""
+
+    def _live(self, address: int) -> int:
+        """The word of a row without a default, computed by the model."""
+        raise NotImplementedError
+
+    def _refuse(self, address: int, value: int) -> None:
+        """Raise :class:`SimException` to refuse ``value`` at ``address`` before its
+        range is checked (a lock the manual gives, for instance)."""
+
+    def _running(self) -> bool:
+        """Whether the model is running: ``"rw-stopped"`` rows refuse writes."""
+        return False
+
+    def _store(self, address: int, value: int) -> None:
+        """Take a checked ``value`` at ``address``: a command's effect, a rule the manual
+        adds (raise :class:`SimException` before changing anything to refuse), or, by
+        default, the word kept."""
+        self._words[address] = value
+
+    def _save(self) -> object:
+        """What :meth:`_restore` puts back when a write is refused after a store."""
+        return None
+
+    def _restore(self, saved: object) -> None:
+        """Put back what :meth:`_save` kept."""
+
+
+class RegisterDevice(TableDevice):
     """A plain Modbus unit: 65536 each of holding registers, input registers, coils and
     discrete inputs, all 0 (False) unless given, and every public function of
     :data:`STANDARD_FUNCTIONS`.
@@ -349,6 +535,10 @@ class RegisterDevice(SimDevice):
 
     #: Exception code answered to a write that touches a read-only register.
     readonly_code: int = SimException.ILLEGAL_DATA_ADDRESS
+
+    @property
+    def _readonly_code(self) -> int:  # type: ignore[override]
+        return self.readonly_code
 
     def __init__(
         self,
@@ -401,20 +591,18 @@ class RegisterDevice(SimDevice):
         self.readonly: set[int] = set(readonly)
         for address in self.readonly:
             _check_address(address)
+        super().__init__({})
 
-    def read_holding(self, address: int, count: int) -> list[int]:
-        """The registers ``address .. address + count - 1`` from :attr:`registers`."""
-        return _block(self.registers, address, count)
+    def _row(self, address: int) -> Row | None:
+        """Every register is a row: read-only if in :attr:`readonly`, the words in
+        :attr:`registers`."""
+        return _READ_ONLY if address in self.readonly else _READ_WRITE
 
-    def write_holding(self, address: int, values: list[int]) -> None:
-        """Store ``values`` from ``address``, all or nothing."""
-        count = len(values)
-        _block(self.registers, address, count)
-        if any(a in self.readonly for a in range(address, address + count)):
-            raise SimException(self.readonly_code)
-        for value in values:
-            _check_value(value)
-        self.registers[address : address + count] = values
+    def _live(self, address: int) -> int:
+        return self.registers[address]
+
+    def _store(self, address: int, value: int) -> None:
+        self.registers[address] = value
 
     def read_input_registers(self, address: int, count: int) -> list[int]:
         """The input registers ``address .. address + count - 1`` from
@@ -460,6 +648,10 @@ class RegisterDevice(SimDevice):
         more = ", ..." if len(nonzero) > 8 else ""
         return f"{type(self).__name__}({{{shown}{more}}})"
 
+
+#: :class:`RegisterDevice`'s rows: its words are in its lists, not kept by the table.
+_READ_WRITE = Row(default=None)
+_READ_ONLY = Row("r", default=None)
 
 _T = TypeVar("_T")
 
