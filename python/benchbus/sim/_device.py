@@ -357,8 +357,8 @@ class TableDevice(SimDevice):
     call). Under the unit's lock, :meth:`_arrive` first (pacing, the model brought up to
     now); then exception 2 for a block past 0xFFFF or an address without a row, and
     :attr:`_readonly_code` for a row without ``"w"``; then, for each word, :meth:`_refuse`,
-    exception 3 out of the row's range and :attr:`_running_code` for a ``"rw-stopped"``
-    row while :meth:`_running`; then each word goes to :meth:`_store`, in address order.
+    exception 3 out of the row's range and :attr:`_turning_code` for a ``"rw-stopped"``
+    row while :meth:`_turning`; then each word goes to :meth:`_store`, in address order.
     With :attr:`_writes_in_turn` each register is checked and stored before the next is
     looked at, and a refusal puts back what :meth:`_save` kept.
     """
@@ -366,8 +366,8 @@ class TableDevice(SimDevice):
     #: Answered to a write touching a row without ``"w"``; None: the write is answered
     #: normally and the row keeps its value.
     _readonly_code: int | None = SimException.ILLEGAL_DATA_ADDRESS
-    #: Answered to a write of a ``"rw-stopped"`` row while :meth:`_running`.
-    _running_code: int = SimException.ILLEGAL_DATA_VALUE
+    #: Answered to a write of a ``"rw-stopped"`` row while :meth:`_turning`.
+    _turning_code: int = SimException.ILLEGAL_DATA_VALUE
     #: The addresses without a row that a read answers 0 for: ``"none"``, ``"inside"``
     #: (between the first and the last register of the read) or ``"all"``.
     _read_gaps: str = "none"
@@ -405,7 +405,7 @@ class TableDevice(SimDevice):
                     rows = self._writable(self._row, start, len(words))
                     taken = list(zip(range(start, start + len(words)), rows, words))
                     for a, row, value in taken:
-                        self._check(a, row, value)
+                        self._check_word(a, row, value)
                     for a, row, value in taken:
                         if "w" in row.access:
                             self._store(a, value)
@@ -422,18 +422,16 @@ class TableDevice(SimDevice):
         (None: a gap that reads 0); exception 2 if it may not take them all."""
         if not 0 <= address <= _REGISTER_SPACE - count:
             raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
-        taken = []
+        taken: list[tuple[int, Row | None]] = []
         for a in range(address, address + count):
             found = row(a)
-            if found is None and (
+            gap = found is None and (
                 self._read_gaps == "all"
                 or (self._read_gaps == "inside" and address < a < address + count - 1)
-            ):
-                taken.append((a, None))
-            elif found is None or "r" not in found.access:
+            )
+            if not gap and (found is None or "r" not in found.access):
                 raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
-            else:
-                taken.append((a, found))
+            taken.append((a, found))
         return taken
 
     def _writable(self, row: Callable[[int], Row | None], address: int, count: int) -> list[Row]:
@@ -449,7 +447,7 @@ class TableDevice(SimDevice):
             raise SimException(self._readonly_code)
         return found
 
-    def _check(self, address: int, row: Row, value: int) -> None:
+    def _check_word(self, address: int, row: Row, value: int) -> None:
         """Refuse ``value`` for the writable ``row`` at ``address`` as the class doc says."""
         if "w" not in row.access:
             return
@@ -457,8 +455,8 @@ class TableDevice(SimDevice):
         word = value - 0x10000 if row.signed and value & 0x8000 else value
         if not row.low <= word <= row.high:
             raise SimException(SimException.ILLEGAL_DATA_VALUE)
-        if row.access == "rw-stopped" and self._running():
-            raise SimException(self._running_code)
+        if row.access == "rw-stopped" and self._turning():
+            raise SimException(self._turning_code)
 
     def _read_one(self, address: int) -> int:
         """The word a read of ``address`` alone answers (a gap does not read)."""
@@ -492,7 +490,7 @@ class TableDevice(SimDevice):
         """Raise :class:`SimException` to refuse ``value`` at ``address`` before its
         range is checked (a lock the manual gives, for instance)."""
 
-    def _running(self) -> bool:
+    def _turning(self) -> bool:
         """Whether the model is running: ``"rw-stopped"`` rows refuse writes."""
         return False
 

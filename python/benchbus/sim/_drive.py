@@ -246,6 +246,7 @@ class DriveDevice(ClockedModel, TableDevice):
         self._bld = model != "C20"
         self._params_table = _parameters(self._bld)
         super().__init__(_rows(self._bld, hall_registers))
+        self._param_defaults = {a: self._words[a] for a in self._params_table}
         self._start_clock(clock)
         self._core = _Core(t=self._now())
         #: Model time of the last request that reached this unit (for F08.04).
@@ -283,7 +284,7 @@ class DriveDevice(ClockedModel, TableDevice):
     #: A write to a status or telemetry register answers 7 (read-only).
     _readonly_code = _READ_ONLY
     #: A W/R* register written while the motor turns answers 8.
-    _running_code = _NOT_WHILE_RUNNING
+    _turning_code = _NOT_WHILE_RUNNING
     #: A 0x10 write is applied register by register in address order.
     _writes_in_turn = True
 
@@ -304,9 +305,6 @@ class DriveDevice(ClockedModel, TableDevice):
         if address in self._params_table and self._words[_WRITE_ENABLE] != 1:
             raise SimException(_WRITE_FAILED)
 
-    def _running(self) -> bool:
-        return self._turning()
-
     def _store(self, address: int, value: int) -> None:
         if address == _COMMAND:
             self._command(value)
@@ -314,7 +312,7 @@ class DriveDevice(ClockedModel, TableDevice):
             self._words[_ALIASES[address]] = value
         elif address == _RESTORE_DEFAULTS:
             if value == 1:
-                self._words.update({a: p.default for a, p in self._params_table.items()})
+                self._words.update(self._param_defaults)
         elif address == _HALL_CLEAR:
             if value == 1:
                 self._core.edges = 0.0

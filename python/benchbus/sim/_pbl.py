@@ -15,7 +15,7 @@ import time
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from benchbus.sim._device import ClockedModel, Row, SimException, TableDevice
+from benchbus.sim._device import ClockedModel, Row, TableDevice
 from benchbus.sim._rtu import with_crc
 
 __all__ = ["PblDevice"]
@@ -431,7 +431,6 @@ class PblDevice(ClockedModel, TableDevice):
         return self._driving() or self._core.speed != 0.0
 
     def _commanded_direction(self) -> int:
-        core = self._core
         reverse = (self._words[_CONTROL_LOW] >> 1 & 1) ^ self._words[_DIRECTION]
         return -1 if reverse else 1
 
