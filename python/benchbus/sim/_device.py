@@ -3,10 +3,11 @@
 from __future__ import annotations
 
 import collections
+import contextlib
 import dataclasses
 import threading
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import TypeVar
 
 __all__ = [
@@ -317,12 +318,18 @@ class ClockedModel:
         """Bring the model up to :meth:`_now` (called with ``self._lock`` held)."""
         raise NotImplementedError
 
+    @contextlib.contextmanager
+    def _up_to_now(self) -> Iterator[None]:
+        """Hold the model's lock, the model brought up to :meth:`_now`."""
+        with self._lock:
+            self._update()
+            yield
+
     def advance(self, seconds: float) -> None:
         """Move the model's time forward by ``seconds`` (model seconds) on top of its clock."""
         if not seconds >= 0:
             raise ValueError(f"seconds must be >= 0, not {seconds}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._offset += seconds
             self._update()
 
@@ -386,8 +393,7 @@ class TableDevice(SimDevice):
         """The words of the rows ``address .. address + count - 1`` (see the class doc)."""
         with self._lock:
             self._arrive(write=False)
-            rows = self._readable(self._row, address, count)
-            return [0 if row is None else self._word(a, row) for a, row in rows]
+            return self._read_words(address, count)
 
     def write_holding(self, address: int, values: list[int]) -> None:
         """Check and store ``values`` from ``address``, all or nothing (see the class doc)."""
@@ -458,15 +464,12 @@ class TableDevice(SimDevice):
         if row.access == "rw-stopped" and self._turning():
             raise SimException(self._turning_code)
 
-    def _read_one(self, address: int) -> int:
-        """The word a read of ``address`` alone answers (a gap does not read)."""
-        row = self._row(address)
-        if row is None or "r" not in row.access:
-            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
-        return self._word(address, row)
-
-    def _word(self, address: int, row: Row) -> int:
-        return self._words[address] if row.default is not None else self._live(address)
+    def _read_words(self, address: int, count: int) -> list[int]:
+        """The words a read of ``count`` from ``address`` answers (no request arrives)."""
+        return [
+            0 if row is None else self._words[a] if row.default is not None else self._live(a)
+            for a, row in self._readable(self._row, address, count)
+        ]
 
     # ---- the hooks ----------------------------------------------------------------------
 

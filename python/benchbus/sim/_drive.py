@@ -331,15 +331,13 @@ class DriveDevice(ClockedModel, TableDevice):
     @property
     def state(self) -> int:
         """Register 0x2100: 1 forward, 2 reverse, 3 stopped, 4 fault, 5 off, 6 braking."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._state()
 
     @property
     def speed(self) -> float:
         """The motor's speed now, rpm, negative in reverse (rounded to 1e-6 rpm)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return round(self._core.speed, 6) + 0.0  # + 0.0: no -0.0
 
     @property
@@ -383,26 +381,23 @@ class DriveDevice(ClockedModel, TableDevice):
 
     def peek(self, address: int) -> int:
         """The value a 0x03 read of ``address`` would answer now (KeyError if none)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             try:
-                return self._read_one(address)
+                return self._read_words(address, 1)[0]
             except SimException:
                 raise KeyError(f"a {self.model} has no register {address:#06x}") from None
 
     @property
     def hall_count(self) -> int:
         """The 32-bit hall count (registers 0x3013/0x3014); settable, e.g. near a wrap."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return math.floor(self._core.edges + 1e-6) % _HALL_COUNT_WRAP
 
     @hall_count.setter
     def hall_count(self, value: int) -> None:
         if not 0 <= value < _HALL_COUNT_WRAP:
             raise ValueError(f"the hall count is 0..2**32 - 1, not {value}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.edges = float(value)
 
     def inject_fault(self, code: int = 0x0A) -> None:
@@ -412,29 +407,25 @@ class DriveDevice(ClockedModel, TableDevice):
         """
         if not 1 <= code <= 0xFFFF:
             raise ValueError(f"a fault code is 1..0xFFFF, not {code}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._halt()
             self._core.fault = code
             self._core.last_fault = code
 
     def power_off(self) -> None:
         """Put the drive in its OFF state (5): the motor stops at once, no bus voltage."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._halt()
             self._core.powered = False
 
     def power_on(self) -> None:
         """Leave the OFF state: stopped (3), or in fault (4) if a fault is still active."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.powered = True
 
     def __repr__(self) -> str:
         """Model, state, speed, setpoint and fault."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             return (
                 f"<DriveDevice {self.model} state={self._state()} speed={core.speed:.0f} rpm"

@@ -396,22 +396,19 @@ class J2Device(ClockedModel, TableDevice):
     @property
     def mv(self) -> float:
         """The output now, % (unrounded; the MV register shows it rounded to 0.1)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._core.mv
 
     @property
     def temperature(self) -> float:
         """The process temperature now, degrees (unrounded, without PVOS)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._core.temperature
 
     @property
     def setpoint(self) -> float:
         """The working setpoint now, degrees: SV limited to LSP..USP, or the ramp toward it."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._core.setpoint
 
     @property
@@ -427,8 +424,7 @@ class J2Device(ClockedModel, TableDevice):
         Raises KeyError for a name that is not a parameter.
         """
         param = self._param(name)
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._raw(param.name) / param.scale
 
     def set_value(self, name: str, value: float) -> None:
@@ -448,8 +444,7 @@ class J2Device(ClockedModel, TableDevice):
         if not math.isfinite(value):
             raise ValueError(f"{param.name} must be finite, not {value}")
         raw = round(value * param.scale)
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             problem = self._check({param.name: raw})
             if problem is not None:
                 kind, message = problem
@@ -465,8 +460,7 @@ class J2Device(ClockedModel, TableDevice):
             value = float(value)
             if not math.isfinite(value):
                 raise ValueError(f"a temperature is finite, not {value}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             core.held = value
             if value is not None:
@@ -474,8 +468,7 @@ class J2Device(ClockedModel, TableDevice):
 
     def __repr__(self) -> str:
         """Mode, PV, working setpoint and output."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             mode = "auto" if self._stored("AM") == 1 else "manual"
             extra = " ramping" if core.ramping else ""

@@ -264,15 +264,13 @@ class PblDevice(ClockedModel, TableDevice):
     @property
     def speed(self) -> float:
         """The motor's speed now, rpm, negative in reverse (rounded to 1e-6 rpm)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return round(self._core.speed, 6) + 0.0  # + 0.0: no -0.0
 
     @property
     def running(self) -> bool:
         """Status bit 0: started (control word, source and alarms allow it) or turning."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._running()
 
     @property
@@ -306,8 +304,7 @@ class PblDevice(ClockedModel, TableDevice):
         low, high = _RANGES[address]
         if not low <= value <= high:
             raise ValueError(f"parameter {address} is {low}..{high}, not {value}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._words[address] = value
 
     def peek(self, address: int) -> int:
@@ -316,9 +313,8 @@ class PblDevice(ClockedModel, TableDevice):
             raise TypeError(f"a parameter address is an int, not {type(address).__name__}")
         if not 0 <= address < _PARAMETERS:
             raise KeyError(f"a PBL drive has no parameter {address}")
-        with self._lock:
-            self._update()
-            return self._read_one(address)
+        with self._up_to_now():
+            return self._read_words(address, 1)[0]
 
     def inject_alarm(self, bit: int) -> None:
         """Raise alarm ``bit`` (0..31): registers 4/5 show it, the motor stops at once.
@@ -328,15 +324,13 @@ class PblDevice(ClockedModel, TableDevice):
         """
         if isinstance(bit, bool) or not isinstance(bit, int) or not 0 <= bit <= 31:
             raise ValueError(f"an alarm bit is 0..31, not {bit!r}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.alarms |= 1 << bit
             self._core.speed = 0.0
 
     def clear_alarms(self) -> None:
         """Clear every alarm bit."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.alarms = 0
 
     def power_cycle(self) -> None:
@@ -345,8 +339,7 @@ class PblDevice(ClockedModel, TableDevice):
         The motor stops at once, the control word (0, 1), the alarms and the position
         clear, and if 214 is 1511 every setting returns to its default (214 to 0).
         """
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             core.speed, core.revs, core.direction = 0.0, 0.0, 1
             self._words[_CONTROL_LOW] = self._words[_CONTROL_HIGH] = 0
@@ -356,8 +349,7 @@ class PblDevice(ClockedModel, TableDevice):
 
     def __repr__(self) -> str:
         """Speed, target, control word and alarms."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             state = "running" if self._running() else "stopped"
             return (
