@@ -336,15 +336,11 @@ class ClockedModel:
 
 @dataclasses.dataclass(frozen=True)
 class Row:
-    """One holding register of a simulated unit's table, as the unit's manual gives it.
-
-    ``access`` holds ``"r"`` where a read may take the register and ``"w"`` where a write
-    may: ``"r"``, ``"w"``, ``"rw"``, ``"rw-stopped"`` (written only while the unit's model
-    is at rest) or ``""``. A written word must be ``low..high`` (read as two's complement
-    when ``signed``). ``default`` is the word the unit keeps at power-up; None: the model
-    computes the register (:meth:`TableDevice._live`), and a write reaches only
-    :meth:`TableDevice._store`.
-    """
+    """One holding register of a unit's table, as its manual gives it: ``access`` holds
+    ``"r"`` if a read may take it and ``"w"`` if a write may (``"rw-stopped"``: not while
+    :meth:`TableDevice._turning`); a written word is ``low..high`` (two's complement when
+    ``signed``); ``default`` is the word kept at power-up, None for a register the model
+    computes (:meth:`TableDevice._live`)."""
 
     access: str = "rw"
     low: int = 0
@@ -354,37 +350,32 @@ class Row:
 
 
 class TableDevice(SimDevice):
-    """A unit whose holding registers are a table of :class:`Row` by address: it keeps
-    their words and answers reads and writes of them with one set of checks; a family's
-    model comes in through the hooks (the methods with a leading underscore below).
+    """A unit whose holding registers are :class:`Row` s by address: it keeps their words
+    and answers their reads and writes with one set of checks, its family's model coming
+    in through the hooks (the methods below ``_row``).
 
-    A read (0x03) answers exception 2 for a block past 0xFFFF, an address without a row
-    (but see :attr:`_read_gaps`) or a row without ``"r"``. A write (0x06, 0x10) is all or
-    nothing; its words must be ints 0..0xFFFF (else TypeError / ValueError, for a direct
-    call). Under the unit's lock, :meth:`_arrive` first (pacing, the model brought up to
-    now); then exception 2 for a block past 0xFFFF or an address without a row, and
-    :attr:`_readonly_code` for a row without ``"w"``; then, for each word, :meth:`_refuse`,
-    exception 3 out of the row's range and :attr:`_turning_code` for a ``"rw-stopped"``
-    row while :meth:`_turning`; then each word goes to :meth:`_store`, in address order.
-    With :attr:`_writes_in_turn` each register is checked and stored before the next is
-    looked at, and a refusal puts back what :meth:`_save` kept.
+    A read (0x03): exception 2 for an address past 0xFFFF, without a row (but see
+    :attr:`_read_gaps`) or whose row lacks ``"r"``. A write (0x06, 0x10), all or nothing:
+    its words are ints 0..0xFFFF (else TypeError / ValueError); under the lock
+    :meth:`_arrive`; exception 2 for an address past 0xFFFF or without a row, then
+    :attr:`_readonly_code` for a row without ``"w"``; for each word :meth:`_refuse`,
+    exception 3 outside the row's range and :attr:`_turning_code` for ``"rw-stopped"``
+    while :meth:`_turning`; then :meth:`_store`, in address order.
     """
 
-    #: Answered to a write touching a row without ``"w"``; None: the write is answered
-    #: normally and the row keeps its value.
+    #: Answered to a write of a row without ``"w"``; None: taken, and the row unchanged.
     _readonly_code: int | None = SimException.ILLEGAL_DATA_ADDRESS
     #: Answered to a write of a ``"rw-stopped"`` row while :meth:`_turning`.
     _turning_code: int = SimException.ILLEGAL_DATA_VALUE
-    #: The addresses without a row that a read answers 0 for: ``"none"``, ``"inside"``
-    #: (between the first and the last register of the read) or ``"all"``.
+    #: The addresses without a row a read answers 0 for: "none", "all" or "inside" (not
+    #: the read's first or last).
     _read_gaps: str = "none"
-    #: Whether a write checks and stores each register before it looks at the next (a
-    #: register's checks then see the registers before it written), or checks them all
-    #: first.
+    #: Whether a write checks and stores each register before it looks at the next (and
+    #: puts back what :meth:`_save` kept on a refusal), or checks them all first.
     _writes_in_turn: bool = False
 
     def __init__(self, rows: Mapping[int, Row]) -> None:
-        """Serve ``rows`` (``{address: row}``), each stored row at its default."""
+        """Serve ``rows`` (``{address: row}``), each kept word at its default."""
         self._rows = dict(rows)
         self._words = {a: row.default for a, row in self._rows.items() if row.default is not None}
         self._lock = threading.RLock()
@@ -419,15 +410,18 @@ class TableDevice(SimDevice):
                 self._restore(saved)
                 raise
 
-    # ---- the checks ---------------------------------------------------------------------
+    def _read_words(self, address: int, count: int) -> list[int]:
+        """The words a read of ``count`` from ``address`` answers (no request arrives)."""
+        return [
+            0 if row is None else self._words[a] if row.default is not None else self._live(a)
+            for a, row in self._readable(self._row, address, count)
+        ]
 
     def _readable(
         self, row: Callable[[int], Row | None], address: int, count: int
     ) -> list[tuple[int, Row | None]]:
-        """``(address, row)`` of each register a read of ``count`` from ``address`` takes
-        (None: a gap that reads 0); exception 2 if it may not take them all."""
-        if not 0 <= address <= _REGISTER_SPACE - count:
-            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        """Each address a read takes with its ``row`` (None: a gap, read as 0)."""
+        _check_block(address, count)
         taken: list[tuple[int, Row | None]] = []
         for a in range(address, address + count):
             found = row(a)
@@ -441,10 +435,8 @@ class TableDevice(SimDevice):
         return taken
 
     def _writable(self, row: Callable[[int], Row | None], address: int, count: int) -> list[Row]:
-        """The rows a write of ``count`` from ``address`` touches: exception 2 if one is
-        missing, :attr:`_readonly_code` if one is not writable."""
-        if not 0 <= address <= _REGISTER_SPACE - count:
-            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        """The rows a write takes, if it may take them all."""
+        _check_block(address, count)
         rows = [row(a) for a in range(address, address + count)]
         found = [r for r in rows if r is not None]
         if len(found) < count:
@@ -454,7 +446,6 @@ class TableDevice(SimDevice):
         return found
 
     def _check_word(self, address: int, row: Row, value: int) -> None:
-        """Refuse ``value`` for the writable ``row`` at ``address`` as the class doc says."""
         if "w" not in row.access:
             return
         self._refuse(address, value)
@@ -464,47 +455,35 @@ class TableDevice(SimDevice):
         if row.access == "rw-stopped" and self._turning():
             raise SimException(self._turning_code)
 
-    def _read_words(self, address: int, count: int) -> list[int]:
-        """The words a read of ``count`` from ``address`` answers (no request arrives)."""
-        return [
-            0 if row is None else self._words[a] if row.default is not None else self._live(a)
-            for a, row in self._readable(self._row, address, count)
-        ]
-
-    # ---- the hooks ----------------------------------------------------------------------
-
     def _row(self, address: int) -> Row | None:
-        """The row at ``address``, None if there is none."""
+        """The row at ``address`` (None: none)."""
         return self._rows.get(address)
 
     def _arrive(self, write: bool) -> None:
-        """A request reaches the unit (under its lock, before any check): bring the model
-        up to now; a unit that paces its writes records and refuses them here."""
+        """A request reaches the unit, before any check: pacing, the model up to now."""
         self._update()
 
     def _update(self) -> None:
-        """Bring the model up to now (no model: nothing)."""
+        """Bring the model up to now."""
 
     def _live(self, address: int) -> int:
-        """The word of a row without a default, computed by the model."""
+        """The word of a row without a default."""
         raise NotImplementedError
 
     def _refuse(self, address: int, value: int) -> None:
-        """Raise :class:`SimException` to refuse ``value`` at ``address`` before its
-        range is checked (a lock the manual gives, for instance)."""
+        """Raise :class:`SimException` to refuse ``value`` before its range is checked."""
 
     def _turning(self) -> bool:
-        """Whether the model is running: ``"rw-stopped"`` rows refuse writes."""
+        """Whether ``"rw-stopped"`` rows refuse writes now."""
         return False
 
     def _store(self, address: int, value: int) -> None:
-        """Take a checked ``value`` at ``address``: a command's effect, a rule the manual
-        adds (raise :class:`SimException` before changing anything to refuse), or, by
-        default, the word kept."""
+        """Take a checked word: keep it, or act on it (a command); may refuse it by raising
+        :class:`SimException` before it changes anything."""
         self._words[address] = value
 
     def _save(self) -> object:
-        """What :meth:`_restore` puts back when a write is refused after a store."""
+        """What :meth:`_restore` puts back if a write in turn is refused."""
         return None
 
     def _restore(self, saved: object) -> None:
@@ -659,9 +638,14 @@ _T = TypeVar("_T")
 
 def _block(table: list[_T], address: int, count: int) -> list[_T]:
     """``table[address : address + count]``; exception 2 if it runs past the table."""
-    if not 0 <= address <= len(table) - count:
-        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+    _check_block(address, count, len(table))
     return table[address : address + count]
+
+
+def _check_block(address: int, count: int, size: int = _REGISTER_SPACE) -> None:
+    """Exception 2 if ``count`` entries from ``address`` run past a table of ``size``."""
+    if not 0 <= address <= size - count:
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
 
 
 def _words(given: Mapping[int, int] | None) -> list[int]:
