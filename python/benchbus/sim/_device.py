@@ -578,6 +578,10 @@ class RegisterDevice(TableDevice):
         :attr:`registers`."""
         return _READ_ONLY if address in self.readonly else _READ_WRITE
 
+    def _rows_of(self, table: str) -> Callable[[int], Row | None]:
+        """The rows of ``table`` ("holding", "input", "coil" or "discrete")."""
+        return self._row if table == "holding" else _any_address
+
     def _live(self, address: int) -> int:
         return self.registers[address]
 
@@ -587,20 +591,23 @@ class RegisterDevice(TableDevice):
     def read_input_registers(self, address: int, count: int) -> list[int]:
         """The input registers ``address .. address + count - 1`` from
         :attr:`input_registers`."""
+        self._readable(self._rows_of("input"), address, count)
         return _block(self.input_registers, address, count)
 
     def read_coils(self, address: int, count: int) -> list[bool]:
         """The coils ``address .. address + count - 1`` from :attr:`coils`."""
+        self._readable(self._rows_of("coil"), address, count)
         return _block(self.coils, address, count)
 
     def write_coils(self, address: int, values: list[bool]) -> None:
         """Set the coils from ``address`` to ``values``, all or nothing."""
-        _block(self.coils, address, len(values))
+        self._writable(self._rows_of("coil"), address, len(values))
         self.coils[address : address + len(values)] = [bool(v) for v in values]
 
     def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
         """The discrete inputs ``address .. address + count - 1`` from
         :attr:`discrete_inputs`."""
+        self._readable(self._rows_of("discrete"), address, count)
         return _block(self.discrete_inputs, address, count)
 
     def read_file_record(self, file: int, record: int, length: int) -> list[int]:
@@ -632,6 +639,11 @@ class RegisterDevice(TableDevice):
 #: :class:`RegisterDevice`'s rows: its words are in its lists, not kept by the table.
 _READ_WRITE = Row(default=None)
 _READ_ONLY = Row("r", default=None)
+
+
+def _any_address(address: int) -> Row:
+    return _READ_WRITE
+
 
 _T = TypeVar("_T")
 

@@ -304,22 +304,8 @@ class ProfileDevice(RegisterDevice):
         return self._table_rows["holding"].get(address)
 
     def _rows_of(self, table: str) -> Callable[[int], Row | None]:
+        """Only the addresses the profile declares, with their access."""
         return self._table_rows[table].get
-
-    def read_input_registers(self, address: int, count: int) -> list[int]:
-        """The input registers, if the profile declares each."""
-        self._readable(self._rows_of("input"), address, count)
-        return super().read_input_registers(address, count)
-
-    def read_coils(self, address: int, count: int) -> list[bool]:
-        """The coils, if the profile declares each and none is write-only."""
-        self._readable(self._rows_of("coil"), address, count)
-        return super().read_coils(address, count)
-
-    def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
-        """The discrete inputs, if the profile declares each."""
-        self._readable(self._rows_of("discrete"), address, count)
-        return super().read_discrete_inputs(address, count)
 
     def write_holding(self, address: int, values: list[int]) -> None:
         """Store ``values`` if every register they touch is declared, writable, written
@@ -334,11 +320,6 @@ class ProfileDevice(RegisterDevice):
             if not _in_range(reg, _decode(reg, words)):
                 raise SimException(SimException.ILLEGAL_DATA_VALUE)
         super().write_holding(address, values)
-
-    def write_coils(self, address: int, values: list[bool]) -> None:
-        """Set the coils if every one is declared and writable; else nothing."""
-        self._writable(self._rows_of("coil"), address, len(values))
-        super().write_coils(address, values)
 
     def __repr__(self) -> str:
         """Class name, the profile's device name and its register count."""
