@@ -400,12 +400,15 @@ class TableDevice(SimDevice):
             try:
                 for start, words in steps:
                     rows = self._writable(self._row, start, len(words))
-                    taken = list(zip(range(start, start + len(words)), rows, words))
+                    taken = [
+                        (a, row, value)
+                        for a, row, value in zip(range(start, start + len(words)), rows, words)
+                        if "w" in row.access  # else read-only, taken and left as it is
+                    ]
                     for a, row, value in taken:
                         self._check_word(a, row, value)
-                    for a, row, value in taken:
-                        if "w" in row.access:
-                            self._store(a, value)
+                    for a, _, value in taken:
+                        self._store(a, value)
             except BaseException:
                 self._restore(saved)
                 raise
@@ -446,8 +449,6 @@ class TableDevice(SimDevice):
         return found
 
     def _check_word(self, address: int, row: Row, value: int) -> None:
-        if "w" not in row.access:
-            return
         self._refuse(address, value)
         word = value - 0x10000 if row.signed and value & 0x8000 else value
         if not row.low <= word <= row.high:
