@@ -381,13 +381,15 @@ class TableDevice(SimDevice):
         self._lock = threading.RLock()
 
     def read_holding(self, address: int, count: int) -> list[int]:
-        """The words of the rows ``address .. address + count - 1`` (see the class doc)."""
+        """The words of the registers ``address .. address + count - 1`` as the unit's
+        table and model give them now; exception 2 where the table serves no read."""
         with self._lock:
             self._arrive(write=False)
             return self._read_words(address, count)
 
     def write_holding(self, address: int, values: list[int]) -> None:
-        """Check and store ``values`` from ``address``, all or nothing (see the class doc)."""
+        """Store ``values`` from ``address`` if the unit's table and rules take them all;
+        else raise the exception it answers and store nothing."""
         for value in values:
             _check_value(value)
         with self._lock:
