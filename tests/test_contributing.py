@@ -44,6 +44,7 @@ def test_every_file_the_map_names_exists(path: str) -> None:
         ("OWNERS", "OWNERS: dict[str, type] = {", "tests/test_bad_input.py"),
         ("Station", "pub struct Station {", "src/device/mod.rs"),
         ("Framing", "pub enum Framing {", "src/codec/mod.rs"),
+        ("TableDevice", "class TableDevice(SimDevice):", "python/benchbus/sim/_device.py"),
     ],
 )
 def test_the_mechanisms_the_map_describes_are_where_it_says(

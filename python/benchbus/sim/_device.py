@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import collections
+import contextlib
+import dataclasses
 import threading
 import time
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Callable, Iterable, Iterator, Mapping
 from typing import TypeVar
 
 __all__ = [
@@ -13,8 +15,10 @@ __all__ = [
     "STANDARD_FUNCTIONS",
     "ClockedModel",
     "RegisterDevice",
+    "Row",
     "SimDevice",
     "SimException",
+    "TableDevice",
     "pace_write",
 ]
 
@@ -314,17 +318,182 @@ class ClockedModel:
         """Bring the model up to :meth:`_now` (called with ``self._lock`` held)."""
         raise NotImplementedError
 
+    @contextlib.contextmanager
+    def _up_to_now(self) -> Iterator[None]:
+        """Hold the model's lock, the model brought up to :meth:`_now`."""
+        with self._lock:
+            self._update()
+            yield
+
     def advance(self, seconds: float) -> None:
         """Move the model's time forward by ``seconds`` (model seconds) on top of its clock."""
         if not seconds >= 0:
             raise ValueError(f"seconds must be >= 0, not {seconds}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._offset += seconds
             self._update()
 
 
-class RegisterDevice(SimDevice):
+@dataclasses.dataclass(frozen=True)
+class Row:
+    """One holding register of a unit's table, as its manual gives it: ``access`` holds
+    ``"r"`` if a read may take it and ``"w"`` if a write may (``"rw-stopped"``: not while
+    :meth:`TableDevice._turning`); a written word is ``low..high`` (two's complement when
+    ``signed``); ``default`` is the word kept at power-up, None for a register the model
+    computes (:meth:`TableDevice._live`)."""
+
+    access: str = "rw"
+    low: int = 0
+    high: int = 0xFFFF
+    default: int | None = 0
+    signed: bool = False
+
+
+class TableDevice(SimDevice):
+    """A unit whose holding registers are :class:`Row` s by address: it keeps their words
+    and answers their reads and writes with one set of checks, its family's model coming
+    in through the hooks (the methods below ``_row``).
+
+    A read (0x03): exception 2 for an address past 0xFFFF, without a row (but see
+    :attr:`_read_gaps`) or whose row lacks ``"r"``. A write (0x06, 0x10), all or nothing:
+    its words are ints 0..0xFFFF (else TypeError / ValueError); under the lock
+    :meth:`_arrive`; exception 2 for an address past 0xFFFF or without a row, then
+    :attr:`_readonly_code` for a row without ``"w"``; for each word :meth:`_refuse`,
+    exception 3 outside the row's range and :attr:`_turning_code` for ``"rw-stopped"``
+    while :meth:`_turning`; then :meth:`_store`, in address order.
+    """
+
+    #: Answered to a write of a row without ``"w"``; None: taken, and the row unchanged.
+    _readonly_code: int | None = SimException.ILLEGAL_DATA_ADDRESS
+    #: Answered to a write of a ``"rw-stopped"`` row while :meth:`_turning`.
+    _turning_code: int = SimException.ILLEGAL_DATA_VALUE
+    #: The addresses without a row a read answers 0 for: "none", "all" or "inside" (not
+    #: the read's first or last).
+    _read_gaps: str = "none"
+    #: Whether a write checks and stores each register before it looks at the next (and
+    #: puts back what :meth:`_save` kept on a refusal), or checks them all first.
+    _writes_in_turn: bool = False
+
+    def __init__(self, rows: Mapping[int, Row]) -> None:
+        """Serve ``rows`` (``{address: row}``), each kept word at its default."""
+        self._rows = dict(rows)
+        self._words = {a: row.default for a, row in self._rows.items() if row.default is not None}
+        self._lock = threading.RLock()
+
+    def read_holding(self, address: int, count: int) -> list[int]:
+        """The words of the registers ``address .. address + count - 1`` as the unit's
+        table and model give them now; exception 2 where the table serves no read."""
+        with self._lock:
+            self._arrive(write=False)
+            return self._read_words(address, count)
+
+    def write_holding(self, address: int, values: list[int]) -> None:
+        """Store ``values`` from ``address`` if the unit's table and rules take them all;
+        else raise the exception it answers and store nothing."""
+        for value in values:
+            _check_value(value)
+        with self._lock:
+            self._arrive(write=True)
+            if self._writes_in_turn:
+                steps = [(address + i, [value]) for i, value in enumerate(values)]
+            else:
+                steps = [(address, values)]
+            saved = self._save()
+            try:
+                for start, words in steps:
+                    rows = self._writable(self._row, start, len(words))
+                    taken = [
+                        (a, row, value)
+                        for a, row, value in zip(range(start, start + len(words)), rows, words)
+                        if "w" in row.access  # else read-only, taken and left as it is
+                    ]
+                    for a, row, value in taken:
+                        self._check_word(a, row, value)
+                    for a, _, value in taken:
+                        self._store(a, value)
+            except BaseException:
+                self._restore(saved)
+                raise
+
+    def _read_words(self, address: int, count: int) -> list[int]:
+        """The words a read of ``count`` from ``address`` answers (no request arrives)."""
+        return [
+            0 if row is None else self._words[a] if row.default is not None else self._live(a)
+            for a, row in self._readable(self._row, address, count)
+        ]
+
+    def _readable(
+        self, row: Callable[[int], Row | None], address: int, count: int
+    ) -> list[tuple[int, Row | None]]:
+        """Each address a read takes with its ``row`` (None: a gap, read as 0)."""
+        _check_block(address, count)
+        taken: list[tuple[int, Row | None]] = []
+        for a in range(address, address + count):
+            found = row(a)
+            gap = found is None and (
+                self._read_gaps == "all"
+                or (self._read_gaps == "inside" and address < a < address + count - 1)
+            )
+            if not gap and (found is None or "r" not in found.access):
+                raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+            taken.append((a, found))
+        return taken
+
+    def _writable(self, row: Callable[[int], Row | None], address: int, count: int) -> list[Row]:
+        """The rows a write takes, if it may take them all."""
+        _check_block(address, count)
+        rows = [row(a) for a in range(address, address + count)]
+        found = [r for r in rows if r is not None]
+        if len(found) < count:
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        if self._readonly_code is not None and any("w" not in r.access for r in found):
+            raise SimException(self._readonly_code)
+        return found
+
+    def _check_word(self, address: int, row: Row, value: int) -> None:
+        self._refuse(address, value)
+        word = value - 0x10000 if row.signed and value & 0x8000 else value
+        if not row.low <= word <= row.high:
+            raise SimException(SimException.ILLEGAL_DATA_VALUE)
+        if row.access == "rw-stopped" and self._turning():
+            raise SimException(self._turning_code)
+
+    def _row(self, address: int) -> Row | None:
+        """The row at ``address`` (None: none)."""
+        return self._rows.get(address)
+
+    def _arrive(self, write: bool) -> None:
+        """A request reaches the unit, before any check: pacing, the model up to now."""
+        self._update()
+
+    def _update(self) -> None:
+        """Bring the model up to now."""
+
+    def _live(self, address: int) -> int:
+        """The word of a row without a default."""
+        raise NotImplementedError
+
+    def _refuse(self, address: int, value: int) -> None:
+        """Raise :class:`SimException` to refuse ``value`` before its range is checked."""
+
+    def _turning(self) -> bool:
+        """Whether ``"rw-stopped"`` rows refuse writes now."""
+        return False
+
+    def _store(self, address: int, value: int) -> None:
+        """Take a checked word: keep it, or act on it (a command); may refuse it by raising
+        :class:`SimException` before it changes anything."""
+        self._words[address] = value
+
+    def _save(self) -> object:
+        """What :meth:`_restore` puts back if a write in turn is refused."""
+        return None
+
+    def _restore(self, saved: object) -> None:
+        """Put back what :meth:`_save` kept."""
+
+
+class RegisterDevice(TableDevice):
     """A plain Modbus unit: 65536 each of holding registers, input registers, coils and
     discrete inputs, all 0 (False) unless given, and every public function of
     :data:`STANDARD_FUNCTIONS`.
@@ -349,6 +518,10 @@ class RegisterDevice(SimDevice):
 
     #: Exception code answered to a write that touches a read-only register.
     readonly_code: int = SimException.ILLEGAL_DATA_ADDRESS
+
+    @property
+    def _readonly_code(self) -> int:  # type: ignore[override]
+        return self.readonly_code
 
     def __init__(
         self,
@@ -401,38 +574,43 @@ class RegisterDevice(SimDevice):
         self.readonly: set[int] = set(readonly)
         for address in self.readonly:
             _check_address(address)
+        super().__init__({})
 
-    def read_holding(self, address: int, count: int) -> list[int]:
-        """The registers ``address .. address + count - 1`` from :attr:`registers`."""
-        return _block(self.registers, address, count)
+    def _row(self, address: int) -> Row | None:
+        """Every register is a row: read-only if in :attr:`readonly`, the words in
+        :attr:`registers`."""
+        return _READ_ONLY if address in self.readonly else _READ_WRITE
 
-    def write_holding(self, address: int, values: list[int]) -> None:
-        """Store ``values`` from ``address``, all or nothing."""
-        count = len(values)
-        _block(self.registers, address, count)
-        if any(a in self.readonly for a in range(address, address + count)):
-            raise SimException(self.readonly_code)
-        for value in values:
-            _check_value(value)
-        self.registers[address : address + count] = values
+    def _rows_of(self, table: str) -> Callable[[int], Row | None]:
+        """The rows of ``table`` ("holding", "input", "coil" or "discrete")."""
+        return self._row if table == "holding" else _any_address
+
+    def _live(self, address: int) -> int:
+        return self.registers[address]
+
+    def _store(self, address: int, value: int) -> None:
+        self.registers[address] = value
 
     def read_input_registers(self, address: int, count: int) -> list[int]:
         """The input registers ``address .. address + count - 1`` from
         :attr:`input_registers`."""
+        self._readable(self._rows_of("input"), address, count)
         return _block(self.input_registers, address, count)
 
     def read_coils(self, address: int, count: int) -> list[bool]:
         """The coils ``address .. address + count - 1`` from :attr:`coils`."""
+        self._readable(self._rows_of("coil"), address, count)
         return _block(self.coils, address, count)
 
     def write_coils(self, address: int, values: list[bool]) -> None:
         """Set the coils from ``address`` to ``values``, all or nothing."""
-        _block(self.coils, address, len(values))
+        self._writable(self._rows_of("coil"), address, len(values))
         self.coils[address : address + len(values)] = [bool(v) for v in values]
 
     def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
         """The discrete inputs ``address .. address + count - 1`` from
         :attr:`discrete_inputs`."""
+        self._readable(self._rows_of("discrete"), address, count)
         return _block(self.discrete_inputs, address, count)
 
     def read_file_record(self, file: int, record: int, length: int) -> list[int]:
@@ -461,14 +639,28 @@ class RegisterDevice(SimDevice):
         return f"{type(self).__name__}({{{shown}{more}}})"
 
 
+#: :class:`RegisterDevice`'s rows: its words are in its lists, not kept by the table.
+_READ_WRITE = Row(default=None)
+_READ_ONLY = Row("r", default=None)
+
+
+def _any_address(address: int) -> Row:
+    return _READ_WRITE
+
+
 _T = TypeVar("_T")
 
 
 def _block(table: list[_T], address: int, count: int) -> list[_T]:
     """``table[address : address + count]``; exception 2 if it runs past the table."""
-    if not 0 <= address <= len(table) - count:
-        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+    _check_block(address, count, len(table))
     return table[address : address + count]
+
+
+def _check_block(address: int, count: int, size: int = _REGISTER_SPACE) -> None:
+    """Exception 2 if ``count`` entries from ``address`` run past a table of ``size``."""
+    if not 0 <= address <= size - count:
+        raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
 
 
 def _words(given: Mapping[int, int] | None) -> list[int]:

@@ -14,14 +14,12 @@ import math
 import time
 from collections.abc import Callable
 
-from benchbus.sim._device import ClockedModel, SimDevice, SimException
+from benchbus.sim._device import ClockedModel, Row, SimException, TableDevice
 
 __all__ = ["COMM_LOSS_FAULT", "DriveDevice"]
 
 # Exception codes with this family's meanings.
 _ILLEGAL_COMMAND = 0x01  # not supported, or the drive is in an error state
-_BAD_ADDRESS = 0x02
-_BAD_VALUE = 0x03
 _WRITE_FAILED = 0x04  # e.g. a function-code parameter written without 0x200E = 1
 _READ_ONLY = 0x07
 _NOT_WHILE_RUNNING = 0x08
@@ -66,64 +64,75 @@ _HALL_COUNT_WRAP = 1 << 32
 _TIME_EPSILON = 1e-9  # seconds: a ramp this close to its end has reached it
 
 
-@dataclasses.dataclass(frozen=True)
-class _Setting:
+def _setting(default: int, low: int, high: int, stopped_only: bool = False) -> Row:
     """A writable register or parameter: default, range, and W/R* (only while stopped)."""
-
-    default: int
-    low: int
-    high: int
-    stopped_only: bool = False
+    return Row("rw-stopped" if stopped_only else "rw", low, high, default)
 
 
-def _parameters(bld: bool) -> dict[int, _Setting]:
+def _parameters(bld: bool) -> dict[int, Row]:
     """The function-code parameters Fgg.nn (address ``gg << 8 | nn``) the drive knows."""
     return {
-        0x0000: _Setting(0, 0, 2),  # F00.00
-        0x0001: _Setting(2, 0, 2 if bld else 3),  # F00.01 run command channel (2 = comm)
-        0x0002: _Setting(3, 0, 8 if bld else 6),  # F00.02 speed reference (3 = Modbus)
-        0x0005: _Setting(0, 0, 1, True),  # F00.05 communication channel (0 = Modbus)
-        0x000A: _Setting(5000, 100, 40000),  # F00.10 maximum frequency, 0.01 Hz
-        0x0800: _Setting(1, 1, 247, True),  # F08.00 station address
-        0x0801: _Setting(4, 0, 7 if bld else 6, True),  # F08.01 baud code (4 = 19200)
-        0x0802: _Setting(0, 0, 3, True),  # F08.02 parity (0 = 8N1)
-        0x0803: _Setting(5, 0, 200, True),  # F08.03 reply delay, ms
-        0x0804: _Setting(0, 0, 600, True),  # F08.04 communication-loss timeout, 0.1 s
-        0x0805: _Setting(0, 0, 0, True),  # F08.05 reserved
-        0x0806: _Setting(0, 0, 1, True),  # F08.06 1 = no reply to writes
+        0x0000: _setting(0, 0, 2),  # F00.00
+        0x0001: _setting(2, 0, 2 if bld else 3),  # F00.01 run command channel (2 = comm)
+        0x0002: _setting(3, 0, 8 if bld else 6),  # F00.02 speed reference (3 = Modbus)
+        0x0005: _setting(0, 0, 1, True),  # F00.05 communication channel (0 = Modbus)
+        0x000A: _setting(5000, 100, 40000),  # F00.10 maximum frequency, 0.01 Hz
+        0x0800: _setting(1, 1, 247, True),  # F08.00 station address
+        0x0801: _setting(4, 0, 7 if bld else 6, True),  # F08.01 baud code (4 = 19200)
+        0x0802: _setting(0, 0, 3, True),  # F08.02 parity (0 = 8N1)
+        0x0803: _setting(5, 0, 200, True),  # F08.03 reply delay, ms
+        0x0804: _setting(0, 0, 600, True),  # F08.04 communication-loss timeout, 0.1 s
+        0x0805: _setting(0, 0, 0, True),  # F08.05 reserved
+        0x0806: _setting(0, 0, 1, True),  # F08.06 1 = no reply to writes
     }
 
 
-def _settings(bld: bool) -> dict[int, _Setting]:
+def _settings(bld: bool) -> dict[int, Row]:
     """The writable registers 0x2001..0x2012 (0x2000, the command, is handled apart)."""
     table = {
-        0x2001: _Setting(0, 0, 3000),  # speed setpoint, rpm
-        0x2002: _Setting(2, 1, 20, True),  # pole pairs
-        0x2003: _Setting(50, 1, 6000),  # accel time, 0.1 s
-        0x2004: _Setting(50, 1, 6000),  # decel time, 0.1 s
-        0x2005: _Setting(2, 0, 5 if bld else 3, True),  # control mode
-        0x2006: _Setting(2, 0, 2 if bld else 3),  # command source (= F00.01; 3 = C20 DIP)
-        0x2007: _Setting(3, 0, 8 if bld else 6),  # speed source (= F00.02)
-        0x2008: _Setting(1, 1, 127 if bld else 247, True),  # station address (= F08.00)
-        0x2009: _Setting(4, 0, 7 if bld else 6, True),  # baud code (= F08.01)
-        0x200A: _Setting(0, 0, 0x1FF),  # virtual input terminals
-        0x200B: _Setting(0, 0, 0x0F),  # virtual output terminals
-        0x200E: _Setting(0, 0, 1),  # function-code write enable
-        0x200F: _Setting(0, 0, 1, True),  # restore defaults (action)
+        0x2001: _setting(0, 0, 3000),  # speed setpoint, rpm
+        0x2002: _setting(2, 1, 20, True),  # pole pairs
+        0x2003: _setting(50, 1, 6000),  # accel time, 0.1 s
+        0x2004: _setting(50, 1, 6000),  # decel time, 0.1 s
+        0x2005: _setting(2, 0, 5 if bld else 3, True),  # control mode
+        0x2006: _setting(2, 0, 2 if bld else 3),  # command source (= F00.01; 3 = C20 DIP)
+        0x2007: _setting(3, 0, 8 if bld else 6),  # speed source (= F00.02)
+        0x2008: _setting(1, 1, 127 if bld else 247, True),  # station address (= F08.00)
+        0x2009: _setting(4, 0, 7 if bld else 6, True),  # baud code (= F08.01)
+        0x200A: _setting(0, 0, 0x1FF),  # virtual input terminals
+        0x200B: _setting(0, 0, 0x0F),  # virtual output terminals
+        0x200E: _setting(0, 0, 1),  # function-code write enable
+        0x200F: _setting(0, 0, 1, True),  # restore defaults (action)
     }
     if bld:
-        table[0x2010] = _Setting(0, 0, 0xFFFF)  # position reference (reserved)
-        table[0x2011] = _Setting(0, 0, 1)  # hall count clear (action)
-        table[0x2012] = _Setting(0, 0, 1)  # stop mode: 0 decelerate, 1 coast
+        table[0x2010] = _setting(0, 0, 0xFFFF)  # position reference (reserved)
+        table[0x2011] = _setting(0, 0, 1)  # hall count clear (action)
+        table[0x2012] = _setting(0, 0, 1)  # stop mode: 0 decelerate, 1 coast
     return table
+
+
+def _rows(bld: bool, hall_registers: bool) -> dict[int, Row]:
+    """Every register: the command, the settings and parameters, status and telemetry.
+
+    The command, the aliases of parameters and the actions are the model's (no default).
+    """
+    rows = {_COMMAND: Row(low=1, high=9 if bld else 8, default=None)}
+    for address, row in _settings(bld).items():
+        live = address in _ALIASES or address in (_RESTORE_DEFAULTS, _HALL_CLEAR)
+        rows[address] = dataclasses.replace(row, default=None) if live else row
+    rows.update(_parameters(bld))
+    readonly = [*range(0x2100, 0x2104), *range(0x3000, 0x3012)]
+    if bld and hall_registers:
+        readonly += [0x3012, 0x3013, 0x3014]
+    rows.update(dict.fromkeys(readonly, Row("r", default=None)))
+    return rows
 
 
 @dataclasses.dataclass
 class _Core:
-    """Everything a write can change: copied before a write, put back if it fails."""
+    """The model's state a write can change (beside the words): copied before a write,
+    put back if it fails."""
 
-    settings: dict[int, int]
-    params: dict[int, int]
     t: float
     command: int = 0
     commands: list[int] = dataclasses.field(default_factory=list)
@@ -137,7 +146,7 @@ class _Core:
     powered: bool = True
 
 
-class DriveDevice(ClockedModel, SimDevice):
+class DriveDevice(ClockedModel, TableDevice):
     """A BLD2, BLD3H or ZBLD.C20 ("C20") brushless DC drive as its manuals describe it.
 
     ::
@@ -235,17 +244,11 @@ class DriveDevice(ClockedModel, SimDevice):
         #: The three analog inputs in volts (registers 0x300F..0x3011, 0.00..10.00 V).
         self.analog_inputs: list[float] = [0.0, 0.0, 0.0]
         self._bld = model != "C20"
-        self._settings_table = _settings(self._bld)
         self._params_table = _parameters(self._bld)
-        self._readonly = set(range(0x2100, 0x2104)) | set(range(0x3000, 0x3012))
-        if self._bld and hall_registers:
-            self._readonly |= {0x3012, 0x3013, 0x3014}
+        super().__init__(_rows(self._bld, hall_registers))
+        self._param_defaults = {a: self._words[a] for a in self._params_table}
         self._start_clock(clock)
-        self._core = _Core(
-            settings={a: s.default for a, s in self._settings_table.items() if a not in _ALIASES},
-            params={a: p.default for a, p in self._params_table.items()},
-            t=self._now(),
-        )
+        self._core = _Core(t=self._now())
         #: Model time of the last request that reached this unit (for F08.04).
         self._heard = self._core.t
 
@@ -269,49 +272,72 @@ class DriveDevice(ClockedModel, SimDevice):
     @property
     def answers_writes(self) -> bool:  # type: ignore[override]
         """Whether writes are answered: F08.06 == 0."""
-        return self._core.params[_F08_06_WRITE_REPLY] == 0
+        return self._words[_F08_06_WRITE_REPLY] == 0
 
     @property
     def reply_delay(self) -> float:  # type: ignore[override]
         """Seconds each reply is held: F08.03 (ms) / 1000."""
-        return self._core.params[_F08_03_REPLY_DELAY] / 1000.0
+        return self._words[_F08_03_REPLY_DELAY] / 1000.0
 
-    # ---- Modbus handlers ----------------------------------------------------------------------
+    # ---- the table's hooks ------------------------------------------------------------------
 
-    def read_holding(self, address: int, count: int) -> list[int]:
-        """The registers ``address .. address + count - 1`` (all must exist)."""
-        with self._lock:
-            self._update()
-            self._heard = self._core.t
-            return [self._read(a) for a in range(address, address + count)]
+    #: A write to a status or telemetry register answers 7 (read-only).
+    _readonly_code = _READ_ONLY
+    #: A W/R* register written while the motor turns answers 8.
+    _turning_code = _NOT_WHILE_RUNNING
+    #: A 0x10 write is applied register by register in address order.
+    _writes_in_turn = True
 
-    def write_holding(self, address: int, values: list[int]) -> None:
-        """Write ``values`` from ``address``, register by register, all or nothing."""
-        with self._lock:
-            self._update()
-            self._heard = self._core.t
-            saved = copy.deepcopy(self._core)
-            try:
-                for offset, value in enumerate(values):
-                    self._write(address + offset, value)
-            except BaseException:
-                self._core = saved
-                raise
+    def _arrive(self, write: bool) -> None:
+        self._update()
+        self._heard = self._core.t
+
+    def _live(self, address: int) -> int:
+        if address == _COMMAND:
+            return self._core.command
+        if address in _ALIASES:
+            return self._words[_ALIASES[address]]
+        if address in (_RESTORE_DEFAULTS, _HALL_CLEAR):
+            return 0  # actions, not settings
+        return self._status(address)
+
+    def _refuse(self, address: int, value: int) -> None:
+        if address in self._params_table and self._words[_WRITE_ENABLE] != 1:
+            raise SimException(_WRITE_FAILED)
+
+    def _store(self, address: int, value: int) -> None:
+        if address == _COMMAND:
+            self._command(value)
+        elif address in _ALIASES:
+            self._words[_ALIASES[address]] = value
+        elif address == _RESTORE_DEFAULTS:
+            if value == 1:
+                self._words.update(self._param_defaults)
+        elif address == _HALL_CLEAR:
+            if value == 1:
+                self._core.edges = 0.0
+        else:
+            self._words[address] = value
+
+    def _save(self) -> object:
+        return copy.deepcopy(self._core), dict(self._words)
+
+    def _restore(self, saved: object) -> None:
+        assert isinstance(saved, tuple)
+        self._core, self._words = saved
 
     # ---- test access ----------------------------------------------------------------------
 
     @property
     def state(self) -> int:
         """Register 0x2100: 1 forward, 2 reverse, 3 stopped, 4 fault, 5 off, 6 braking."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._state()
 
     @property
     def speed(self) -> float:
         """The motor's speed now, rpm, negative in reverse (rounded to 1e-6 rpm)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return round(self._core.speed, 6) + 0.0  # + 0.0: no -0.0
 
     @property
@@ -334,7 +360,7 @@ class DriveDevice(ClockedModel, SimDevice):
         F08.00..F08.06.
         """
         with self._lock:
-            return dict(self._core.params)
+            return {a: self._words[a] for a in self._params_table}
 
     def set_param(self, address: int, value: int) -> None:
         """Set a function-code parameter directly, as the keypad would (any state).
@@ -351,30 +377,27 @@ class DriveDevice(ClockedModel, SimDevice):
                 raise ValueError(
                     f"parameter {address:#06x} is {setting.low}..{setting.high}, not {value}"
                 )
-            self._core.params[address] = value
+            self._words[address] = value
 
     def peek(self, address: int) -> int:
         """The value a 0x03 read of ``address`` would answer now (KeyError if none)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             try:
-                return self._read(address)
+                return self._read_words(address, 1)[0]
             except SimException:
                 raise KeyError(f"a {self.model} has no register {address:#06x}") from None
 
     @property
     def hall_count(self) -> int:
         """The 32-bit hall count (registers 0x3013/0x3014); settable, e.g. near a wrap."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return math.floor(self._core.edges + 1e-6) % _HALL_COUNT_WRAP
 
     @hall_count.setter
     def hall_count(self, value: int) -> None:
         if not 0 <= value < _HALL_COUNT_WRAP:
             raise ValueError(f"the hall count is 0..2**32 - 1, not {value}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.edges = float(value)
 
     def inject_fault(self, code: int = 0x0A) -> None:
@@ -384,87 +407,35 @@ class DriveDevice(ClockedModel, SimDevice):
         """
         if not 1 <= code <= 0xFFFF:
             raise ValueError(f"a fault code is 1..0xFFFF, not {code}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._halt()
             self._core.fault = code
             self._core.last_fault = code
 
     def power_off(self) -> None:
         """Put the drive in its OFF state (5): the motor stops at once, no bus voltage."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._halt()
             self._core.powered = False
 
     def power_on(self) -> None:
         """Leave the OFF state: stopped (3), or in fault (4) if a fault is still active."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.powered = True
 
     def __repr__(self) -> str:
         """Model, state, speed, setpoint and fault."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             return (
                 f"<DriveDevice {self.model} state={self._state()} speed={core.speed:.0f} rpm"
-                f" setpoint={core.settings[_SETPOINT]} rpm fault={core.fault:#04x}>"
+                f" setpoint={self._words[_SETPOINT]} rpm fault={core.fault:#04x}>"
             )
 
-    # ---- register access ----------------------------------------------------------------------
-
-    def _read(self, address: int) -> int:
-        core = self._core
-        if address == _COMMAND:
-            return core.command
-        if address in _ALIASES:
-            return core.params[_ALIASES[address]]
-        if address in (_RESTORE_DEFAULTS, _HALL_CLEAR) and address in self._settings_table:
-            return 0  # actions, not settings
-        if address in core.settings:
-            return core.settings[address]
-        if address in core.params:
-            return core.params[address]
-        if address in self._readonly:
-            return self._status(address)
-        raise SimException(_BAD_ADDRESS)
-
-    def _write(self, address: int, value: int) -> None:
-        core = self._core
-        if address == _COMMAND:
-            self._command(value)
-            return
-        param = self._params_table.get(address)
-        setting = param if param is not None else self._settings_table.get(address)
-        if setting is None:
-            if address in self._readonly:
-                raise SimException(_READ_ONLY)
-            raise SimException(_BAD_ADDRESS)
-        if param is not None and core.settings[_WRITE_ENABLE] != 1:
-            raise SimException(_WRITE_FAILED)
-        if not setting.low <= value <= setting.high:
-            raise SimException(_BAD_VALUE)
-        if setting.stopped_only and self._turning():
-            raise SimException(_NOT_WHILE_RUNNING)
-        if param is not None:
-            core.params[address] = value
-        elif address in _ALIASES:
-            core.params[_ALIASES[address]] = value
-        elif address == _RESTORE_DEFAULTS:
-            if value == 1:
-                core.params = {a: p.default for a, p in self._params_table.items()}
-        elif address == _HALL_CLEAR:
-            if value == 1:
-                core.edges = 0.0
-        else:
-            core.settings[address] = value
+    # ---- the commands ---------------------------------------------------------------------------
 
     def _command(self, value: int) -> None:
         core = self._core
-        if not 1 <= value <= (9 if self._bld else 8):
-            raise SimException(_BAD_VALUE)
         if value <= 4 and (core.fault or not core.powered):
             raise SimException(_ILLEGAL_COMMAND)
         if value in (1, 2):
@@ -472,7 +443,7 @@ class DriveDevice(ClockedModel, SimDevice):
         elif value in (3, 4):
             core.motion, core.direction = _JOG, 1 if value == 3 else -1
         elif value == 5 and self._turning():
-            if self._bld and core.settings[_STOP_MODE] == 1:
+            if self._bld and self._words[_STOP_MODE] == 1:
                 self._halt()
             else:
                 core.motion = _STOPPING
@@ -490,7 +461,7 @@ class DriveDevice(ClockedModel, SimDevice):
 
     def _status(self, address: int) -> int:
         core = self._core
-        pole_pairs = core.settings[_POLE_PAIRS]
+        pole_pairs = self._words[_POLE_PAIRS]
         rpm = abs(core.speed)
         turning = self._turning()
         load = min(rpm, _RPM_FULL_SCALE) / _RPM_FULL_SCALE
@@ -507,7 +478,7 @@ class DriveDevice(ClockedModel, SimDevice):
             word = 0x0001 if core.powered else 0
             if self.overloaded == self._bld:  # BLD: 1 = overloaded; C20: 0 = overloaded
                 word |= 0x0010
-            word |= (core.params[_ALIASES[_COMMAND_SOURCE]] & 0x3) << 5
+            word |= (self._words[_ALIASES[_COMMAND_SOURCE]] & 0x3) << 5
             if self._bld and self.keypad_connected:
                 word |= 0x0080
             return word
@@ -516,7 +487,7 @@ class DriveDevice(ClockedModel, SimDevice):
         if address == 0x2103:
             return 0x0030 if self.model == "BLD3H" else 0x0020
         if address == 0x3000:
-            return centihertz(core.settings[_SETPOINT])
+            return centihertz(self._words[_SETPOINT])
         if address in (0x3001, 0x3002):
             return centihertz(rpm)
         if address == 0x3003:
@@ -524,7 +495,7 @@ class DriveDevice(ClockedModel, SimDevice):
         if address == 0x3004:
             return amps
         if address == 0x3005:
-            return core.settings[_SETPOINT]
+            return self._words[_SETPOINT]
         if address == 0x3006:
             return round(rpm)
         if address == 0x3007:
@@ -541,9 +512,9 @@ class DriveDevice(ClockedModel, SimDevice):
         if address == 0x300C:
             return round((self.temperature + 0.5 * amps / 100) * 10) & 0xFFFF
         if address == 0x300D:
-            return core.settings[_VIRTUAL_INPUTS]
+            return self._words[_VIRTUAL_INPUTS]
         if address == 0x300E:
-            return core.settings[_VIRTUAL_OUTPUTS]
+            return self._words[_VIRTUAL_OUTPUTS]
         if 0x300F <= address <= 0x3011:
             volts_in = float(self.analog_inputs[address - 0x300F])
             return max(0, min(1000, round(volts_in * 100)))
@@ -583,7 +554,7 @@ class DriveDevice(ClockedModel, SimDevice):
     def _target(self) -> float:
         core = self._core
         if core.motion == _RUN:
-            return float(core.direction * core.settings[_SETPOINT])
+            return float(core.direction * self._words[_SETPOINT])
         if core.motion == _JOG:
             return float(core.direction * self.JOG_SPEED)
         return 0.0
@@ -592,7 +563,7 @@ class DriveDevice(ClockedModel, SimDevice):
         """Move the motor model from its last update to now; trip if F08.04 ran out."""
         core = self._core
         now = self._now()
-        timeout = core.params[_F08_04_COMM_TIMEOUT] / 10
+        timeout = self._words[_F08_04_COMM_TIMEOUT] / 10
         trip_at = self._heard + timeout
         if timeout > 0 and self._turning() and not core.fault and trip_at <= now:
             self._move(trip_at)
@@ -613,12 +584,12 @@ class DriveDevice(ClockedModel, SimDevice):
             same_side = target != 0 and (target > 0) == (speed > 0)
             if speed != 0 and not (same_side and abs(target) > abs(speed)):
                 goal = target if same_side else 0.0  # slow down, to 0 first if reversing
-                rate = _RPM_FULL_SCALE / (core.settings[_DECEL] / 10)
+                rate = _RPM_FULL_SCALE / (self._words[_DECEL] / 10)
                 if core.motion == _BRAKING:
                     rate *= _BRAKE_FACTOR
             else:
                 goal = target
-                rate = _RPM_FULL_SCALE / (core.settings[_ACCEL] / 10)
+                rate = _RPM_FULL_SCALE / (self._words[_ACCEL] / 10)
             need = abs(goal - speed) / rate
             if need <= dt + _TIME_EPSILON:  # reached (within rounding of the time steps)
                 step, new = need, goal
@@ -634,4 +605,4 @@ class DriveDevice(ClockedModel, SimDevice):
         core = self._core
         revs = (start + end) / 2 * seconds / 60
         core.revs += revs
-        core.edges += abs(revs) * core.settings[_POLE_PAIRS] * 6
+        core.edges += abs(revs) * self._words[_POLE_PAIRS] * 6

@@ -173,22 +173,20 @@ class TaisongDevice(ClockedModel, RegisterDevice):
 
     # ---- Modbus handlers ----------------------------------------------------------------------
 
-    def read_holding(self, address: int, count: int) -> list[int]:
-        """The table's words, with the live PV and status at 0x0000 and 0x0001."""
-        with self._lock:
-            words = super().read_holding(address, count)
-            for live, value in ((self.PV, self._pv), (self.STATUS, self._status)):
-                if address <= live < address + count:
-                    words[live - address] = value() & 0xFFFF
-            return words
-
-    def write_holding(self, address: int, values: list[int]) -> None:
-        """Pace, then store ``values`` from ``address``, all or nothing (not 0x0000..0x0001)."""
-        with self._lock:
+    def _arrive(self, write: bool) -> None:
+        if write:
             pace_write(self.write_times, self.write_violations, self.min_write_interval)
-            self._update()
-            super().write_holding(address, values)
-            self._update()  # a new SV: the process heads for it from now
+        self._update()
+
+    def _live(self, address: int) -> int:
+        """The live PV and status at 0x0000 and 0x0001, the table's words elsewhere."""
+        if address in (self.PV, self.STATUS):
+            return (self._pv() if address == self.PV else self._status()) & 0xFFFF
+        return super()._live(address)
+
+    def _store(self, address: int, value: int) -> None:
+        super()._store(address, value)
+        self._update()  # a new SV: the process heads for it from now
 
     # ---- test access ----------------------------------------------------------------------
 
@@ -201,8 +199,7 @@ class TaisongDevice(ClockedModel, RegisterDevice):
     @property
     def process(self) -> float:
         """The process value now, unrounded, without the wobble, whether held or not."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._x0
 
     @property
@@ -222,8 +219,7 @@ class TaisongDevice(ClockedModel, RegisterDevice):
             raise TypeError(f"a setpoint is an int, not {type(value).__name__}")
         if not _INT16_LOW <= value <= _INT16_HIGH:
             raise ValueError(f"a setpoint is -32768..32767, not {value}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self.registers[self.SV] = value & 0xFFFF
             self._update()
 

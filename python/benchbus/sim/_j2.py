@@ -15,15 +15,13 @@ import time
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from benchbus.sim._device import ClockedModel, SimDevice, SimException, pace_write
+from benchbus.sim._device import ClockedModel, Row, SimException, TableDevice, pace_write
 
 __all__ = ["J2Device"]
 
-_BAD_ADDRESS = SimException.ILLEGAL_DATA_ADDRESS
 _BAD_VALUE = SimException.ILLEGAL_DATA_VALUE
 _REFUSED = SimException.SERVER_DEVICE_FAILURE
 
-_REGISTER_SPACE = 0x10000
 _MAX_REGISTERS = 16
 _SIGNED_SCALE, _UNSIGNED_SCALE = 10, 1
 _WORD_LOW, _WORD_HIGH = -0x8000, 0x7FFF  # a signed register, raw
@@ -137,6 +135,16 @@ _BY_ADDRESS: dict[int, _Param] = {p.address: p for p in _PARAMS.values()}
 _LIVE = frozenset({"MV", "PV", "RAPNF", "AT"})  # values the model keeps, not stored words
 
 
+def _row(p: _Param) -> Row:
+    """The table's row of ``p``: its power-up word, unless the model keeps the value."""
+    default = None if p.name in _LIVE else round(_DEFAULTS.get(p.name, 0.0) * p.scale) & 0xFFFF
+    access = "rw" if p.writable else "r"
+    return Row(access, p.low, p.high, default, signed=p.scale == _SIGNED_SCALE)
+
+
+_ROWS = {p.address: _row(p) for p in _PARAMS.values()}
+
+
 def _public_table(names: list[str]) -> Mapping[str, tuple[int, float, float, int]]:
     table = {}
     for name in names:
@@ -157,7 +165,6 @@ def _clamp(value: float, low: float, high: float) -> float:
 class _Core:
     """The controller's state: stored parameters, the process and the control loop."""
 
-    words: dict[str, int]  # stored parameters, raw (signed ints for the signed table)
     temperature: float
     previous: float  # the temperature at the previous step (derivative on PV)
     setpoint: float  # the working setpoint (SV, or the ramp on its way to SV)
@@ -171,7 +178,7 @@ class _Core:
     steps: int = 0  # process steps taken since the start
 
 
-class J2Device(ClockedModel, SimDevice):
+class J2Device(ClockedModel, TableDevice):
     """A J2-series PID temperature controller as its Modbus manual describes it.
 
     ::
@@ -352,51 +359,32 @@ class J2Device(ClockedModel, SimDevice):
         self.write_times: list[float] = []
         #: Each too-short interval between two write requests, seconds (answered with 6).
         self.write_violations: list[float] = []
+        super().__init__(_ROWS)
         self._start_clock(clock)
-        words = {
-            name: round(value * _PARAMS[name].scale)
-            for name, value in self.DEFAULTS.items()
-            if name not in _LIVE
-        }
-        self._core = _Core(words=words, temperature=ambient, previous=ambient, setpoint=0.0)
+        self._core = _Core(temperature=ambient, previous=ambient, setpoint=0.0)
         self._core.setpoint = self._target()
 
-    # ---- Modbus handlers ----------------------------------------------------------------------
+    # ---- the table's hooks ------------------------------------------------------------------
 
-    def read_holding(self, address: int, count: int) -> list[int]:
-        """The words at ``address .. address + count - 1``; 0 where there is no parameter."""
-        if not 0 <= address <= _REGISTER_SPACE - count:
-            raise SimException(_BAD_ADDRESS)
-        with self._lock:
-            self._update()
-            words = []
-            for a in range(address, address + count):
-                param = _BY_ADDRESS.get(a)
-                words.append(0 if param is None else self._raw(param.name) & 0xFFFF)
-            return words
+    #: A read answers 0 for every address that is not a parameter.
+    _read_gaps = "all"
 
-    def write_holding(self, address: int, values: list[int]) -> None:
-        """Write ``values`` from ``address``, all or nothing (see the class documentation)."""
-        with self._lock:
-            self._pace()
-            count = len(values)
-            if not 0 <= address <= _REGISTER_SPACE - count:
-                raise SimException(_BAD_ADDRESS)
-            changes: dict[str, int] = {}
-            for offset, word in enumerate(values):
-                param = _BY_ADDRESS.get(address + offset)
-                if param is None or not param.writable:
-                    raise SimException(_BAD_ADDRESS)
-                changes[param.name] = _to_signed(word) if param.scale == _SIGNED_SCALE else word
-            self._update()
-            problem = self._check(changes)
-            if problem is not None:
-                raise SimException(_BAD_VALUE if problem[0] == "range" else _REFUSED)
-            self._apply(changes)
+    def _arrive(self, write: bool) -> None:
+        if write:
+            pace_write(self.write_times, self.write_violations, self.write_interval)
+        self._update()
 
-    def _pace(self) -> None:
-        """Record this write request's arrival; exception 6 if it is too soon."""
-        pace_write(self.write_times, self.write_violations, self.write_interval)
+    def _live(self, address: int) -> int:
+        return self._raw(_BY_ADDRESS[address].name) & 0xFFFF
+
+    def _store(self, address: int, value: int) -> None:
+        """Check the manual's rules on the state the write leads to, then apply it."""
+        param = _BY_ADDRESS[address]
+        changes = {param.name: _to_signed(value) if param.scale == _SIGNED_SCALE else value}
+        problem = self._check(changes)
+        if problem is not None:
+            raise SimException(_BAD_VALUE if problem[0] == "range" else _REFUSED)
+        self._apply(changes)
 
     # ---- test access ----------------------------------------------------------------------
 
@@ -408,29 +396,26 @@ class J2Device(ClockedModel, SimDevice):
     @property
     def mv(self) -> float:
         """The output now, % (unrounded; the MV register shows it rounded to 0.1)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._core.mv
 
     @property
     def temperature(self) -> float:
         """The process temperature now, degrees (unrounded, without PVOS)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._core.temperature
 
     @property
     def setpoint(self) -> float:
         """The working setpoint now, degrees: SV limited to LSP..USP, or the ramp toward it."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._core.setpoint
 
     @property
     def auto(self) -> bool:
         """Whether the controller is in automatic mode (AM = 1)."""
         with self._lock:
-            return self._core.words["AM"] == 1
+            return self._stored("AM") == 1
 
     def value(self, name: str) -> float:
         """The value a read of parameter ``name`` gives now, engineering units.
@@ -439,8 +424,7 @@ class J2Device(ClockedModel, SimDevice):
         Raises KeyError for a name that is not a parameter.
         """
         param = self._param(name)
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._raw(param.name) / param.scale
 
     def set_value(self, name: str, value: float) -> None:
@@ -460,8 +444,7 @@ class J2Device(ClockedModel, SimDevice):
         if not math.isfinite(value):
             raise ValueError(f"{param.name} must be finite, not {value}")
         raw = round(value * param.scale)
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             problem = self._check({param.name: raw})
             if problem is not None:
                 kind, message = problem
@@ -477,8 +460,7 @@ class J2Device(ClockedModel, SimDevice):
             value = float(value)
             if not math.isfinite(value):
                 raise ValueError(f"a temperature is finite, not {value}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             core.held = value
             if value is not None:
@@ -486,15 +468,14 @@ class J2Device(ClockedModel, SimDevice):
 
     def __repr__(self) -> str:
         """Mode, PV, working setpoint and output."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
-            mode = "auto" if core.words["AM"] == 1 else "manual"
+            mode = "auto" if self._stored("AM") == 1 else "manual"
             extra = " ramping" if core.ramping else ""
             extra += " tuning" if core.tuning > 0 else ""
             return (
                 f"<J2Device {mode}{extra} PV={self._raw('PV') / 10:.1f}"
-                f" W={core.setpoint:.1f} SV={core.words['SV'] / 10:.1f} MV={core.mv:.1f}%>"
+                f" W={core.setpoint:.1f} SV={self._eng('SV'):.1f} MV={core.mv:.1f}%>"
             )
 
     # ---- parameters -------------------------------------------------------------------------
@@ -519,11 +500,21 @@ class J2Device(ClockedModel, SimDevice):
             return int(core.ramping)
         if name == "AT":
             return int(core.tuning > 0)
-        return core.words[name]
+        return self._stored(name)
+
+    def _stored(self, name: str) -> int:
+        """A stored parameter, raw (signed for the signed table)."""
+        param = _PARAMS[name]
+        word = self._words[param.address]
+        return _to_signed(word) if param.scale == _SIGNED_SCALE else word
+
+    def _put(self, name: str, raw: int) -> None:
+        """Store parameter ``name`` from its raw value."""
+        self._words[_PARAMS[name].address] = raw & 0xFFFF
 
     def _eng(self, name: str) -> float:
         """A stored parameter in engineering units."""
-        return self._core.words[name] / _PARAMS[name].scale
+        return self._stored(name) / _PARAMS[name].scale
 
     def _check(self, changes: dict[str, int]) -> tuple[str, str] | None:
         """Why ``changes`` (raw, by name) cannot be written: ("range" | "state", text)."""
@@ -567,14 +558,14 @@ class J2Device(ClockedModel, SimDevice):
                 elif raw and core.tuning <= 0:
                     core.tuning = self.AUTOTUNE_TIME
             elif name == "AM":
-                was = core.words["AM"]
-                core.words["AM"] = raw
+                was = self._stored("AM")
+                self._put("AM", raw)
                 if raw == 0 and was == 1:
                     core.manual = core.mv
                 elif raw == 1 and was == 0 and core.tuning <= 0:
                     self._bumpless()
             else:
-                core.words[name] = raw
+                self._put(name, raw)
                 if name in ("SV", "LSP", "USP") and not core.ramping:
                     core.setpoint = self._target()
 
@@ -612,7 +603,7 @@ class J2Device(ClockedModel, SimDevice):
         """Give the output back to the mode: the PID (bumpless) or the manual MV."""
         core = self._core
         core.tuning = 0.0
-        if core.words["AM"] == 1:
+        if self._stored("AM") == 1:
             self._bumpless()
         else:
             core.mv = core.manual
@@ -656,9 +647,9 @@ class J2Device(ClockedModel, SimDevice):
             core.tuning -= self.STEP
             if core.tuning <= 1e-9:
                 for name, value in self.TUNED.items():
-                    core.words[name] = round(value * _SIGNED_SCALE)
+                    self._put(name, round(value * _SIGNED_SCALE))
                 self._end_tuning()
-        elif core.words["AM"] == 1:
+        elif self._stored("AM") == 1:
             core.mv = self._pid()
         else:
             core.mv = core.manual

@@ -15,13 +15,10 @@ import time
 from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
-from benchbus.sim._device import ClockedModel, SimDevice, SimException
+from benchbus.sim._device import ClockedModel, Row, TableDevice
 from benchbus.sim._rtu import with_crc
 
 __all__ = ["PblDevice"]
-
-_BAD_ADDRESS = SimException.ILLEGAL_DATA_ADDRESS
-_BAD_VALUE = SimException.ILLEGAL_DATA_VALUE
 
 _PARAMETERS = 223  # 0..222
 
@@ -117,6 +114,15 @@ def _ranges() -> dict[int, tuple[int, int]]:
 
 _RANGES = _ranges()
 
+#: Every parameter: the control word (0, 1), the live values (2..99: a write is taken and
+#: ignored) and the settings (100..222).
+_ROWS = {
+    _CONTROL_LOW: Row(),
+    _CONTROL_HIGH: Row(),
+    **dict.fromkeys(range(_CONTROL_HIGH + 1, _FIRST_SETTING), Row("r", default=None)),
+    **{a: Row(low=lo, high=hi, default=_DEFAULTS.get(a, 0)) for a, (lo, hi) in _RANGES.items()},
+}
+
 #: Hall sensor states in the order a 120-degree sensor set steps through them going forward.
 _HALL_SEQUENCE = (1, 5, 4, 6, 2, 3)
 
@@ -128,18 +134,16 @@ _AD_REFERENCE_MV = 3300  # ... on a 3.3 V reference
 
 @dataclasses.dataclass
 class _Core:
-    """The drive's state: settings, control word and the motor."""
+    """The motor's state (the settings and the control word are the table's words)."""
 
-    settings: dict[int, int]
     t: float
-    control: list[int] = dataclasses.field(default_factory=lambda: [0, 0])
     speed: float = 0.0  # signed rpm
     revs: float = 0.0  # signed revolutions since power-up
     direction: int = 1  # of the last motion: 1 forward, -1 reverse
     alarms: int = 0
 
 
-class PblDevice(ClockedModel, SimDevice):
+class PblDevice(ClockedModel, TableDevice):
     """A PBL-series brushless DC drive as its Modbus manual describes it.
 
     ::
@@ -240,36 +244,14 @@ class PblDevice(ClockedModel, SimDevice):
         self.bus_voltage: int = 48
         #: The analog speed input, mV (registers 52 and 72).
         self.analog_input_mv: int = 0
+        super().__init__(_ROWS)
         self._start_clock(clock)
-        self._core = _Core(settings=dict(self.DEFAULTS), t=self._now())
+        self._core = _Core(t=self._now())
 
     # ---- Modbus handlers ----------------------------------------------------------------------
 
-    def read_holding(self, address: int, count: int) -> list[int]:
-        """The parameters ``address .. address + count - 1`` (all in 0..222)."""
-        if address < 0 or count < 1 or address + count > _PARAMETERS:
-            raise SimException(_BAD_ADDRESS)
-        with self._lock:
-            self._update()
-            return [self._read(a) for a in range(address, address + count)]
-
-    def write_holding(self, address: int, values: list[int]) -> None:
-        """Write ``values`` from ``address``, all or nothing (2..99 are ignored)."""
-        if address < 0 or not values or address + len(values) > _PARAMETERS:
-            raise SimException(_BAD_ADDRESS)
-        for offset, value in enumerate(values):
-            low, high = _RANGES.get(address + offset, (0, 0xFFFF))
-            if not low <= value <= high:
-                raise SimException(_BAD_VALUE)
-        with self._lock:
-            self._update()
-            core = self._core
-            for offset, value in enumerate(values):
-                target = address + offset
-                if target in (_CONTROL_LOW, _CONTROL_HIGH):
-                    core.control[target] = value
-                elif target >= _FIRST_SETTING:
-                    core.settings[target] = value
+    #: A write to a live value (2..99) is answered normally and ignored.
+    _readonly_code = None
 
     def shape_reply(self, request: bytes, reply: bytes) -> bytes:
         """A 0x06 reply carries a register count of 1 instead of the value, unless echoing."""
@@ -282,15 +264,13 @@ class PblDevice(ClockedModel, SimDevice):
     @property
     def speed(self) -> float:
         """The motor's speed now, rpm, negative in reverse (rounded to 1e-6 rpm)."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return round(self._core.speed, 6) + 0.0  # + 0.0: no -0.0
 
     @property
     def running(self) -> bool:
         """Status bit 0: started (control word, source and alarms allow it) or turning."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             return self._running()
 
     @property
@@ -303,13 +283,13 @@ class PblDevice(ClockedModel, SimDevice):
     def params(self) -> dict[int, int]:
         """The settings 100..222, ``{address: value}`` (a copy; see :meth:`set_param`)."""
         with self._lock:
-            return dict(self._core.settings)
+            return {a: self._words[a] for a in self.DEFAULTS}
 
     @property
     def restore_pending(self) -> bool:
         """Whether the next :meth:`power_cycle` restores the defaults (214 == 1511)."""
         with self._lock:
-            return self._core.settings[_RESTORE] == _RESTORE_CODE
+            return self._words[_RESTORE] == _RESTORE_CODE
 
     def set_param(self, address: int, value: int) -> None:
         """Set a setting (100..222) directly, as the keys would, range checked.
@@ -324,9 +304,8 @@ class PblDevice(ClockedModel, SimDevice):
         low, high = _RANGES[address]
         if not low <= value <= high:
             raise ValueError(f"parameter {address} is {low}..{high}, not {value}")
-        with self._lock:
-            self._update()
-            self._core.settings[address] = value
+        with self._up_to_now():
+            self._words[address] = value
 
     def peek(self, address: int) -> int:
         """The value a 0x03 read of ``address`` would answer now (KeyError past 222)."""
@@ -334,9 +313,8 @@ class PblDevice(ClockedModel, SimDevice):
             raise TypeError(f"a parameter address is an int, not {type(address).__name__}")
         if not 0 <= address < _PARAMETERS:
             raise KeyError(f"a PBL drive has no parameter {address}")
-        with self._lock:
-            self._update()
-            return self._read(address)
+        with self._up_to_now():
+            return self._read_words(address, 1)[0]
 
     def inject_alarm(self, bit: int) -> None:
         """Raise alarm ``bit`` (0..31): registers 4/5 show it, the motor stops at once.
@@ -346,15 +324,13 @@ class PblDevice(ClockedModel, SimDevice):
         """
         if isinstance(bit, bool) or not isinstance(bit, int) or not 0 <= bit <= 31:
             raise ValueError(f"an alarm bit is 0..31, not {bit!r}")
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.alarms |= 1 << bit
             self._core.speed = 0.0
 
     def clear_alarms(self) -> None:
         """Clear every alarm bit."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             self._core.alarms = 0
 
     def power_cycle(self) -> None:
@@ -363,41 +339,32 @@ class PblDevice(ClockedModel, SimDevice):
         The motor stops at once, the control word (0, 1), the alarms and the position
         clear, and if 214 is 1511 every setting returns to its default (214 to 0).
         """
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             core.speed, core.revs, core.direction = 0.0, 0.0, 1
-            core.control = [0, 0]
+            self._words[_CONTROL_LOW] = self._words[_CONTROL_HIGH] = 0
             core.alarms = 0
-            if core.settings[_RESTORE] == _RESTORE_CODE:
-                core.settings = dict(self.DEFAULTS)
+            if self._words[_RESTORE] == _RESTORE_CODE:
+                self._words.update(self.DEFAULTS)
 
     def __repr__(self) -> str:
         """Speed, target, control word and alarms."""
-        with self._lock:
-            self._update()
+        with self._up_to_now():
             core = self._core
             state = "running" if self._running() else "stopped"
             return (
                 f"<PblDevice {state} speed={core.speed:.0f} rpm target={self._target():.0f} rpm"
-                f" control={core.control[0]:#06x} alarms={core.alarms:#010x}>"
+                f" control={self._words[_CONTROL_LOW]:#06x} alarms={core.alarms:#010x}>"
             )
 
     # ---- register access ----------------------------------------------------------------------
 
-    def _read(self, address: int) -> int:
-        core = self._core
-        if address in (_CONTROL_LOW, _CONTROL_HIGH):
-            return core.control[address]
-        if address >= _FIRST_SETTING:
-            return core.settings[address]
+    def _live(self, address: int) -> int:
+        """A live value (2..99)."""
         if 72 <= address <= 89:  # 72..89 repeat 52..69
             address -= 20
         elif 90 <= address <= 99:  # 90..99 repeat 60..69
             address -= 30
-        return self._live(address)
-
-    def _live(self, address: int) -> int:
         core = self._core
         rpm = abs(core.speed)
         amps = self._amps()
@@ -439,7 +406,7 @@ class PblDevice(ClockedModel, SimDevice):
 
     def _hall_step(self) -> int:
         """Hall steps since power-up: revolutions x pole pairs x 6, down in reverse."""
-        return math.floor(self._core.revs * self._core.settings[_POLE_PAIRS] * 6 + 1e-6)
+        return math.floor(self._core.revs * self._words[_POLE_PAIRS] * 6 + 1e-6)
 
     # ---- the motor ------------------------------------------------------------------------------
 
@@ -447,8 +414,8 @@ class PblDevice(ClockedModel, SimDevice):
         """Whether the control word runs the motor: bit 0, communication source, no alarm."""
         core = self._core
         return (
-            bool(core.control[_CONTROL_LOW] & 1)
-            and core.settings[_START_SOURCE] == _COMMUNICATION
+            bool(self._words[_CONTROL_LOW] & 1)
+            and self._words[_START_SOURCE] == _COMMUNICATION
             and not core.alarms
         )
 
@@ -456,8 +423,7 @@ class PblDevice(ClockedModel, SimDevice):
         return self._driving() or self._core.speed != 0.0
 
     def _commanded_direction(self) -> int:
-        core = self._core
-        reverse = (core.control[_CONTROL_LOW] >> 1 & 1) ^ core.settings[_DIRECTION]
+        reverse = (self._words[_CONTROL_LOW] >> 1 & 1) ^ self._words[_DIRECTION]
         return -1 if reverse else 1
 
     def _reversing(self) -> int:
@@ -472,8 +438,7 @@ class PblDevice(ClockedModel, SimDevice):
     def _target(self) -> float:
         if not self._driving():
             return 0.0
-        settings = self._core.settings
-        rpm = min(settings[_INTERNAL_SPEED], settings[_MAX_SPEED])
+        rpm = min(self._words[_INTERNAL_SPEED], self._words[_MAX_SPEED])
         return float(self._commanded_direction() * rpm)
 
     def _update(self) -> None:
@@ -488,12 +453,12 @@ class PblDevice(ClockedModel, SimDevice):
             same_side = target != 0 and (target > 0) == (speed > 0)
             if speed != 0 and not (same_side and abs(target) > abs(speed)):
                 goal = target if same_side else 0.0  # slow down, to 0 first if reversing
-                rate = float(core.settings[_DECEL])
-                if not self._driving() and core.settings[_BRAKE_MODE] == 1:
+                rate = float(self._words[_DECEL])
+                if not self._driving() and self._words[_BRAKE_MODE] == 1:
                     rate *= _BRAKE_FACTOR
             else:
                 goal = target
-                rate = float(core.settings[_ACCEL])
+                rate = float(self._words[_ACCEL])
             need = abs(goal - speed) / rate if rate > 0 else 0.0  # 0: at once
             if need <= dt + _TIME_EPSILON:  # reached (within rounding of the time steps)
                 step, new = min(need, max(dt, 0.0)), goal

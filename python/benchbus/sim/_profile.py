@@ -11,11 +11,11 @@ import math
 import os
 import struct
 import sys
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any, Union
 
-from benchbus.sim._device import RegisterDevice, SimException
+from benchbus.sim._device import RegisterDevice, Row, SimException
 
 # The standard library's TOML reader from Python 3.11, its original (tomli) before.
 _toml = importlib.import_module("tomllib" if sys.version_info >= (3, 11) else "tomli")
@@ -191,6 +191,12 @@ class ProfileDevice(RegisterDevice):
         self._at: dict[str, dict[int, list[_Register]]] = {t: {} for t in _TABLES}
         for reg in regs:
             self._add(reg)
+        #: Each table's rows: readable unless a register at the address is write-only,
+        #: writable unless one is read-only (the words are in the lists).
+        self._table_rows: dict[str, dict[int, Row]] = {
+            table: {a: Row(_access(regs), default=None) for a, regs in at.items()}
+            for table, at in self._at.items()
+        }
         top = {"max_read": 125, "max_read_bits": 2000, "max_write": 123, "max_write_bits": 1968}
         limit = {
             "max_read": self.limits.get("max_read"),
@@ -208,6 +214,8 @@ class ProfileDevice(RegisterDevice):
             k: given[k] if given[k] is not None else (min(v, top[k]) if v is not None else None)
             for k, v in limit.items()
         }
+        if self.limits.get("read_gaps"):
+            self._read_gaps = "inside"
         super().__init__(
             identity=identity,
             max_read=chosen["max_read"],
@@ -268,7 +276,7 @@ class ProfileDevice(RegisterDevice):
         reg = self._reg(name)
         if reg.table in _BIT_TABLES:
             return self._bits(reg.table)[reg.address]
-        return _decode(reg, self._words(reg.table)[reg.address : reg.address + reg.width])
+        return _decode(reg, self._table_words(reg.table)[reg.address : reg.address + reg.width])
 
     def set_value(self, name: str, value: Value) -> None:
         """Set register ``name`` to an engineering value (whatever its access), as the
@@ -280,11 +288,11 @@ class ProfileDevice(RegisterDevice):
                 raise TypeError(f"{name} is True or False, not {value!r}")
             self._bits(reg.table)[reg.address] = value
             return
-        words = self._words(reg.table)
+        words = self._table_words(reg.table)
         current = words[reg.address : reg.address + reg.width]
         words[reg.address : reg.address + reg.width] = _encode(reg, value, current)
 
-    def _words(self, table: str) -> list[int]:
+    def _table_words(self, table: str) -> list[int]:
         return self.registers if table == "holding" else self.input_registers
 
     def _bits(self, table: str) -> list[bool]:
@@ -292,74 +300,36 @@ class ProfileDevice(RegisterDevice):
 
     # ---- the wire ------------------------------------------------------------------------
 
-    def _readable(self, table: str, address: int, count: int) -> None:
-        """Refuse a read of an unlisted address (unless between two listed ones of a
-        profile with ``read_gaps``, which read 0) or of a write-only register."""
-        at = self._at[table]
-        gaps = bool(self.limits.get("read_gaps"))
-        for a in range(address, address + count):
-            regs = at.get(a)
-            if not regs and gaps and a not in (address, address + count - 1):
-                continue
-            if not regs or any(r.access == "w" for r in regs):
-                raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+    def _row(self, address: int) -> Row | None:
+        return self._table_rows["holding"].get(address)
 
-    def _writable(self, table: str, address: int, count: int) -> list[_Register]:
-        """The registers a write of ``count`` from ``address`` touches, after the access
-        checks."""
-        at = self._at[table]
-        touched: dict[str, _Register] = {}
-        for a in range(address, address + count):
-            regs = at.get(a)
-            if not regs:
-                raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
-            for reg in regs:
-                touched[reg.name] = reg
-        if any(r.access == "r" for r in touched.values()):
-            raise SimException(self.readonly_code)
-        end = address + count
-        if any(r.address < address or r.address + r.width > end for r in touched.values()):
-            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
-        return list(touched.values())
-
-    def read_holding(self, address: int, count: int) -> list[int]:
-        """The holding registers, if the profile declares each and none is write-only."""
-        self._readable("holding", address, count)
-        return super().read_holding(address, count)
-
-    def read_input_registers(self, address: int, count: int) -> list[int]:
-        """The input registers, if the profile declares each."""
-        self._readable("input", address, count)
-        return super().read_input_registers(address, count)
-
-    def read_coils(self, address: int, count: int) -> list[bool]:
-        """The coils, if the profile declares each and none is write-only."""
-        self._readable("coil", address, count)
-        return super().read_coils(address, count)
-
-    def read_discrete_inputs(self, address: int, count: int) -> list[bool]:
-        """The discrete inputs, if the profile declares each."""
-        self._readable("discrete", address, count)
-        return super().read_discrete_inputs(address, count)
+    def _rows_of(self, table: str) -> Callable[[int], Row | None]:
+        """Only the addresses the profile declares, with their access."""
+        return self._table_rows[table].get
 
     def write_holding(self, address: int, values: list[int]) -> None:
         """Store ``values`` if every register they touch is declared, writable, written
         whole and given a value in its range; else nothing."""
-        touched = self._writable("holding", address, len(values))
-        for reg in touched:
+        self._writable(self._row, address, len(values))
+        end = address + len(values)
+        touched = {reg.name: reg for a in range(address, end) for reg in self._at["holding"][a]}
+        if any(r.address < address or r.address + r.width > end for r in touched.values()):
+            raise SimException(SimException.ILLEGAL_DATA_ADDRESS)
+        for reg in touched.values():
             words = values[reg.address - address : reg.address - address + reg.width]
             if not _in_range(reg, _decode(reg, words)):
                 raise SimException(SimException.ILLEGAL_DATA_VALUE)
         super().write_holding(address, values)
 
-    def write_coils(self, address: int, values: list[bool]) -> None:
-        """Set the coils if every one is declared and writable; else nothing."""
-        self._writable("coil", address, len(values))
-        super().write_coils(address, values)
-
     def __repr__(self) -> str:
         """Class name, the profile's device name and its register count."""
         return f"{type(self).__name__}({self.name!r}, {len(self._regs)} registers)"
+
+
+def _access(regs: list[_Register]) -> str:
+    """The access of a word that ``regs`` share."""
+    readable = "" if any(r.access == "w" for r in regs) else "r"
+    return readable + ("" if any(r.access == "r" for r in regs) else "w")
 
 
 # ---- reading the file ----------------------------------------------------------------------

@@ -5,7 +5,7 @@ from __future__ import annotations
 import logging
 import os
 import threading
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from types import TracebackType
 from typing import Generic, Literal, TypeVar, overload
 
@@ -24,6 +24,7 @@ __all__ = ["FRAMINGS", "Simulator"]
 log = logging.getLogger("benchbus.sim")
 
 D = TypeVar("D", bound=SimDevice)
+_R = TypeVar("_R")
 
 #: The framings a Simulator's line speaks.
 FRAMINGS = ("rtu", "ascii")
@@ -665,31 +666,18 @@ class Simulator(Generic[D]):
         )
         if not 1 <= wanted <= limit:  # the device's own limit (its manual's), as data
             return int(device.too_many_code)
-        try:
-            if values is None:
-                result = device.read_holding(address, count)
-                if len(result) != count or not all(
-                    isinstance(v, int) and 0 <= v <= 0xFFFF for v in result
-                ):
-                    raise ValueError(
-                        f"{type(device).__name__}.read_holding({address}, {count}) returned"
-                        f" {result!r}: expected {count} ints 0..0xFFFF"
-                    )
-                return [int(v) for v in result]
-            device.write_holding(address, values)
-            return None
-        except SimException as exc:
-            return exc.code
-        except Exception as exc:
-            log.exception("simulated unit %d failed on function %#04x", unit, function)
-            self.errors.append(exc)
-            return SimException.SERVER_DEVICE_FAILURE
+        return self._answer(unit, function, lambda: _holding(device, address, count, values))
 
     def _serve(self, unit: int, function: int, data: bytes) -> bytes | int:
         """The reply data of ``unit`` to ``function`` with ``data`` (see
         ``benchbus.sim._functions``), or its exception code."""
+        return self._answer(unit, function, lambda: serve(self.devices[unit], function, data))
+
+    def _answer(self, unit: int, function: int, call: Callable[[], _R]) -> _R | int:
+        """``call()``, or the exception code ``unit`` answers instead: a
+        :class:`SimException`'s, or 4 for any other error (kept in :attr:`errors`)."""
         try:
-            return serve(self.devices[unit], function, data)
+            return call()
         except SimException as exc:
             return exc.code
         except Exception as exc:
@@ -716,3 +704,19 @@ class Simulator(Generic[D]):
     def _identity_of(self, unit: int) -> Mapping[int, str] | None:
         device = self.devices.get(unit)
         return None if device is None else device.identity
+
+
+def _holding(
+    device: SimDevice, address: int, count: int, values: list[int] | None
+) -> list[int] | None:
+    """``device``'s read of ``count`` holding registers, checked, or its write of ``values``."""
+    if values is not None:
+        device.write_holding(address, values)
+        return None
+    result = device.read_holding(address, count)
+    if len(result) != count or not all(isinstance(v, int) and 0 <= v <= 0xFFFF for v in result):
+        raise ValueError(
+            f"{type(device).__name__}.read_holding({address}, {count}) returned"
+            f" {result!r}: expected {count} ints 0..0xFFFF"
+        )
+    return [int(v) for v in result]
