@@ -437,3 +437,79 @@ def test_the_j2_class_reads_a_simulated_profile_device_serving_its_file(tmp_path
         assert sample == {"pv": 21.5, "sv": 40.0, "mv": 12.5}
         assert sent_by(sim, before) == [frame(0x03, 0, 0, 0, 7)]
         assert sim.errors == []
+
+
+STATUS_WORD = """
+[device]
+name = "pump"
+[limits]
+block_reads = false
+
+[[register]]
+name = "status"
+address = 2
+access = "r"
+
+[[register]]
+name = "running"
+address = 2
+type = "bool"
+bit = 0
+access = "r"
+
+[[register]]
+name = "fault"
+address = 2
+type = "bool"
+bit = 3
+access = "r"
+
+[[register]]
+name = "control"
+address = 7
+
+[[register]]
+name = "start"
+address = 7
+type = "bool"
+bit = 0
+"""
+
+
+def test_a_status_word_and_its_flags_are_read_in_one_request(tmp_path: Path) -> None:
+    """The word and its flags share address 2: one request (even without block reads),
+    each flag the word's bit; a flag of a writable word is written by read-modify-write."""
+    path = tmp_path / "pump.toml"
+    path.write_text(STATUS_WORD, encoding="utf-8")
+    for sim, dev, model in rig(path, status=0b1001, control=0b0110):
+        before = len(sim.requests)
+        assert dev.read_many(["status", "running", "fault"]) == {
+            "status": 9,
+            "running": True,
+            "fault": True,
+        }
+        assert sent_by(sim, before) == [frame(0x03, 0, 2, 0, 1)]
+        model.set_value("status", 0b0001)
+        assert (dev.status, dev.running, dev.fault) == (1, True, False)
+        dev.start = True  # bit 0 of the control word; its other bits kept
+        assert model.value("control") == 0b0111
+        assert model.value("start") is True
+        dev.control = 0
+        assert dev.start is False
+
+
+def test_only_a_one_word_number_shares_its_address_with_bits(tmp_path: Path) -> None:
+    """A u32 under a flag, or two whole words at one address: refused by the parser and by
+    the simulator, each on its own reading of the file."""
+    for text in (
+        STATUS_WORD.replace(
+            'name = "status"\naddress = 2', 'name = "status"\naddress = 2\ntype = "u32"'
+        ),
+        STATUS_WORD + '\n[[register]]\nname = "again"\naddress = 7\n',
+    ):
+        path = tmp_path / "bad.toml"
+        path.write_text(text, encoding="utf-8")
+        with pytest.raises(bb.ProfileError, match="overlaps"):
+            bb.Profile(path)
+        with pytest.raises(ValueError, match="is also"):
+            ProfileDevice(path)

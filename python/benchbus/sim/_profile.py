@@ -241,7 +241,7 @@ class ProfileDevice(RegisterDevice):
         at = self._at[reg.table]
         for address in reg.addresses:
             for other in at.get(address, []):
-                if reg.bit is None or other.bit is None or reg.bit == other.bit:
+                if not _may_share(reg, other):
                     raise ValueError(
                         f"{self.path}: register {reg.name!r}: address {address:#06x} of the "
                         f"{reg.table} table is also {other.name!r}'s"
@@ -324,6 +324,15 @@ class ProfileDevice(RegisterDevice):
     def __repr__(self) -> str:
         """Class name, the profile's device name and its register count."""
         return f"{type(self).__name__}({self.name!r}, {len(self._regs)} registers)"
+
+
+def _may_share(a: _Register, b: _Register) -> bool:
+    """Whether two registers may be declared at one address: two different bits of it, or
+    a bit and the one-word number that is the whole word (a status word and its flags)."""
+    if a.bit is not None and b.bit is not None:
+        return a.bit != b.bit
+    bit, word = (a, b) if a.bit is not None else (b, a)
+    return bit.bit is not None and word.type in ("u16", "i16")
 
 
 def _access(regs: list[_Register]) -> str:
