@@ -673,8 +673,8 @@ class _Station:
         ``Instrument``, a profile's ``Device``)."""
     def _check_identity_with(self, check: Callable[[], object]) -> None: ...
     def __new__(cls, *args: Any, **kwargs: Any) -> Self:
-        """An empty device of the subclass, attached to its Bus by ``__init__`` (so that a subclass's
-        ``__init__`` may take its own arguments)."""
+        """An empty device of the subclass, attached to its Bus by ``__init__`` (so that a
+        subclass's ``__init__`` may take its own arguments)."""
 
 @disjoint_base
 class DriveCore(_Station):
