@@ -6,10 +6,10 @@ import logging
 import os
 import threading
 from collections.abc import Callable, Mapping
-from types import TracebackType
 from typing import Generic, Literal, TypeVar, overload
 
 from benchbus import _mbap
+from benchbus._scope import Scoped
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
 from benchbus.sim._functions import serve
@@ -33,7 +33,7 @@ _START_TIMEOUT = 5.0
 _STOP_TIMEOUT = 5.0
 
 
-class Simulator(Generic[D]):
+class Simulator(Scoped, Generic[D]):
     """Simulated Modbus units served on a pseudo-terminal (or loopback TCP) the library opens.
 
     ::
@@ -327,12 +327,7 @@ class Simulator(Generic[D]):
         """Start (see :meth:`start`)."""
         return self.start()
 
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
+    def _leave(self, exc: BaseException | None) -> None:
         """Stop (see :meth:`stop`)."""
         self.stop()
 
