@@ -73,6 +73,21 @@ def test_a_member_that_cannot_be_typed_stops_the_generator(
         _aio_stubgen.generate()
 
 
+def test_a_shared_member_that_a_family_would_declare_otherwise_stops_the_generator(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Declared once only if it is the same for every family (as a compiled class that
+    gave a shared member a docstring of its own would make it)."""
+    doc = _aio_stubgen._doc
+    monkeypatch.setattr(
+        _aio_stubgen,
+        "_doc",
+        lambda sync, name: "The drive's." if (sync, name) == (Drive, "unit") else doc(sync, name),
+    )
+    with pytest.raises(_aio_stubgen.StubError, match=r"DriveMembers.unit differs from Bus"):
+        _aio_stubgen.generate()
+
+
 # ---- the stub declares what the devices serve ---------------------------------------------------
 
 

@@ -463,17 +463,9 @@ def generate() -> str:
         )
         for klass in sorted(layers, key=lambda k: (len(k.__mro__), k.__name__))
     ]
-    all_names = "".join(f"    {m.__name__!r},\n" for m, _ in _classes())
-    text = "\n".join(
-        [
-            _HEADER,
-            *imports.lines(),
-            "",
-            f"__all__ = [\n{all_names}]",
-            "",
-            *(f"\n{ast.unparse(ast.fix_missing_locations(c))}\n" for c in classes),
-        ]
-    )
+    declared = ast.unparse(ast.fix_missing_locations(ast.Module(classes, type_ignores=[])))
+    all_names = [members.__name__ for members, _ in _classes()]
+    text = "\n".join([_HEADER, *imports.lines(), f"__all__ = {all_names!r}", declared])
     text = _ruff(text, "check", "--fix", "--select", "I", "--quiet", "--exit-zero")
     return _ruff(text, "format", "--quiet")
 
