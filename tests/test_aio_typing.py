@@ -73,23 +73,88 @@ def test_a_member_that_cannot_be_typed_stops_the_generator(
         _aio_stubgen.generate()
 
 
+def test_a_shared_member_that_a_family_would_declare_otherwise_stops_the_generator(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    """Declared once only if it is the same for every family (as a compiled class that
+    gave a shared member a docstring of its own would make it)."""
+    doc = _aio_stubgen._doc
+    monkeypatch.setattr(
+        _aio_stubgen,
+        "_doc",
+        lambda sync, name: "The drive's." if (sync, name) == (Drive, "unit") else doc(sync, name),
+    )
+    with pytest.raises(_aio_stubgen.StubError, match=r"DriveMembers.unit differs from Bus"):
+        _aio_stubgen.generate()
+
+
 # ---- the stub declares what the devices serve ---------------------------------------------------
 
 
-def stub_members() -> dict[str, dict[str, ast.stmt]]:
-    """Each members class of the stub: its declarations by name."""
+def stub_classes() -> dict[str, ast.ClassDef]:
+    """The stub's classes by name."""
     tree = ast.parse(_aio_stubgen.STUB.read_text(encoding="utf-8"))
-    classes = {}
-    for node in tree.body:
-        if isinstance(node, ast.ClassDef):
-            members: dict[str, ast.stmt] = {}
+    return {node.name: node for node in tree.body if isinstance(node, ast.ClassDef)}
+
+
+def families(classes: dict[str, ast.ClassDef]) -> list[str]:
+    """The members classes the async devices extend: those no class of the stub extends."""
+    extended = {ast.unparse(base) for node in classes.values() for base in node.bases}
+    return [name for name in classes if name not in extended]
+
+
+def chain(name: str, classes: dict[str, ast.ClassDef]) -> list[ast.ClassDef]:
+    """The stub's class ``name`` and the stub's classes it extends, nearest first: where
+    Python and mypy look a member up (a base that is not in the stub: KeyError)."""
+    node = classes[name]
+    return [node, *(found for base in node.bases for found in chain(ast.unparse(base), classes))]
+
+
+def stub_members() -> dict[str, dict[str, ast.stmt]]:
+    """Each family's members class of the stub: the declarations it gives, by name (its
+    own, then those of the classes it extends)."""
+    classes = stub_classes()
+    out = {}
+    for family in families(classes):
+        members: dict[str, ast.stmt] = {}
+        for node in chain(family, classes):
             for stmt in node.body:
                 if isinstance(stmt, (ast.FunctionDef, ast.AsyncFunctionDef)):
-                    members[stmt.name] = stmt
+                    members.setdefault(stmt.name, stmt)
                 elif isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
-                    members[stmt.target.id] = stmt
-            classes[node.name] = members
-    return classes
+                    members.setdefault(stmt.target.id, stmt)
+        out[family] = members
+    return out
+
+
+def declared(node: ast.ClassDef) -> dict[str, str]:
+    """What a class of the stub declares itself, by name: each declaration's text (an
+    attribute's with its docstring)."""
+    out = {}
+    for at, stmt in enumerate(node.body):
+        if isinstance(stmt, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            out[stmt.name] = ast.unparse(stmt)
+        elif isinstance(stmt, ast.AnnAssign):
+            out[ast.unparse(stmt.target)] = ast.unparse(node.body[at : at + 2])
+    return out
+
+
+def test_what_the_families_share_is_declared_once() -> None:
+    """A member the sync classes all get from their shared bases (``record`` and its long
+    docstring, ``verify_identity``...) is declared on the one members class every family's
+    extends; a family's class declares only what it has of its own (another type, another
+    docstring), never the same again."""
+    classes = stub_classes()
+    (base,) = {ast.unparse(b) for family in families(classes) for b in classes[family].bases}
+    shared = declared(classes[base])
+    assert {"record", "verify_identity", "unit", "close", "sample_units"} <= set(shared)
+    for family in families(classes):
+        own = declared(classes[family])
+        assert own, family
+        assert not [name for name in own if own[name] == shared.get(name)], family
+    # An override stays in the family's class: the drive's close stops its keepalive.
+    assert "keepalive" in declared(classes["DriveMembers"])["close"]
+    assert "keepalive" not in shared["close"]
 
 
 def kind(node: ast.stmt) -> str:
@@ -225,15 +290,19 @@ def test_the_members_classes_change_nothing_at_run_time(
             cls = async_class(members)
             base = getattr(_aio_stubgen._aio_members, members)
             assert cls.__mro__[1] is aio.AsyncDevice and base in cls.__mro__
-            assert set(vars(base)) <= {
-                "__module__",
-                "__qualname__",
-                "__doc__",
-                "__dict__",
-                "__weakref__",
-                "__firstlineno__",
-                "__static_attributes__",
-            }
+            # The members class and those it extends, as the stub has them: all empty.
+            stub = chain(members, stub_classes())
+            assert [k.__name__ for k in base.__mro__[:-1]] == [node.name for node in stub]
+            for klass in base.__mro__[:-1]:
+                assert set(vars(klass)) <= {
+                    "__module__",
+                    "__qualname__",
+                    "__doc__",
+                    "__dict__",
+                    "__weakref__",
+                    "__firstlineno__",
+                    "__static_attributes__",
+                }, klass
             bare = type("Bare", (aio.AsyncDevice,), {"SYNC": cls.SYNC})
             async with aio.AsyncBus(sim.port) as bus:
                 typed, untyped = make(cls, bus, unit), make(bare, bus, unit)
@@ -354,21 +423,28 @@ def test_each_data_attribute_has_its_comment_as_docstring() -> None:
     """An attribute the async devices serve as it is (``LINE_DEFAULTS``, ``enums``...) carries
     the ``#:`` comment of its nearest declaration in the sync classes, so that the API
     reference and editors show it."""
-    stub = ast.parse((ROOT / "python" / "benchbus" / "_aio_members.pyi").read_text("utf-8"))
-    seen = 0
-    for cls in (n for n in stub.body if isinstance(n, ast.ClassDef)):
-        for at, stmt in enumerate(cls.body):
-            if isinstance(stmt, ast.AnnAssign):
-                after = cls.body[at + 1] if at + 1 < len(cls.body) else None
-                assert isinstance(after, ast.Expr), f"{cls.name}.{ast.unparse(stmt.target)}"
-                assert isinstance(after.value, ast.Constant) and after.value.value.strip()
-                seen += 1
-    assert seen >= 11
+    classes = stub_classes()
+    # Each family: {attribute: (its declaration, its docstring)}, through the classes it
+    # extends (the nearest declaration first).
+    served: dict[str, dict[str, tuple[str, str]]] = {}
+    for family in families(classes):
+        found = served[family] = {}
+        for cls in chain(family, classes):
+            for at, stmt in enumerate(cls.body):
+                if isinstance(stmt, ast.AnnAssign) and ast.unparse(stmt.target) not in found:
+                    after = cls.body[at + 1] if at + 1 < len(cls.body) else None
+                    assert isinstance(after, ast.Expr), f"{cls.name}.{ast.unparse(stmt.target)}"
+                    assert isinstance(after.value, ast.Constant) and after.value.value.strip()
+                    found[ast.unparse(stmt.target)] = (ast.unparse(stmt), after.value.value)
+    assert set(served) == set(stub_members())
+    assert sum(map(len, served.values())) >= 11
     # The drive's own comment, not its base class's.
-    drive = next(n for n in stub.body if isinstance(n, ast.ClassDef) and n.name == "DriveMembers")
-    texts = [ast.unparse(s) for s in drive.body]
-    at = texts.index("LINE_DEFAULTS: LineDefaults")
-    assert texts[at + 1] == repr(
+    assert served["DriveMembers"]["LINE_DEFAULTS"] == (
+        "LINE_DEFAULTS: LineDefaults",
         "Line format and reply timeout when the device opens its own Bus: the family file's"
-        " ``[line]`` (19200 8N1, 0.25 s)."
+        " ``[line]`` (19200 8N1, 0.25 s).",
+    )
+    assert served["DriveMembers"]["SAMPLE_FIELDS"] == (
+        "SAMPLE_FIELDS: tuple[str, ...] | None",
+        "The names :meth:`sample` gives: the fields of :meth:`telemetry`.",
     )

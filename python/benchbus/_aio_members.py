@@ -19,21 +19,27 @@ __all__ = [
 ]
 
 
-class DriveMembers:
+class BusDeviceMembers:
+    """The members every async device serves from the sync classes' shared bases
+    (:class:`benchbus._device.BusDevice` and the compiled ``_Station``), for type checkers:
+    each family's members class extends it."""
+
+
+class DriveMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.Drive`, for type checkers."""
 
 
-class PblDriveMembers:
+class PblDriveMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.PblDrive`, for type checkers."""
 
 
-class J2ControllerMembers:
+class J2ControllerMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.J2Controller`, for type checkers."""
 
 
-class InstrumentMembers:
+class InstrumentMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.Instrument`, for type checkers."""
 
 
-class DeviceMembers:
+class DeviceMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.Device`, for type checkers."""

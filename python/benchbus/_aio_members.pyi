@@ -45,34 +45,18 @@ __all__ = [
     "PblDriveMembers",
 ]
 
-class DeviceMembers:
-    """The members of :class:`benchbus.aio.Device`, for type checkers."""
+class BusDeviceMembers:
+    """The members every async device serves from the sync classes' shared bases
+    (:class:`benchbus._device.BusDevice` and the compiled ``_Station``), for type checkers:
+    each family's members class extends it."""
 
     IDENTITY: ClassVar[str | None]
     "The family whose identity the device checks before its first exchange (a key of ``benchbus._families``); None: no check (a device of any kind)."
-    LINE_DEFAULTS: LineDefaults
-    "Line format and reply timeout when the profile says nothing of them."
     SAMPLE_FIELDS: tuple[str, ...] | None
-    "The readable registers :meth:`sample` gives (every readable one but strings)."
+    "The names :meth:`sample` gives (None: not known in advance), so that a bad ``record(columns=...)`` is refused before anything is sent."
 
     async def close(self) -> None:
         """Close the Bus if the device opened it (a shared Bus stays open)."""
-    enums: Mapping[str, type[PrintableIntEnum]]
-    "Each enum register's enum class, by register name."
-
-    async def get(self, name: str) -> Any:
-        """:meth:`read`, under the name every benchbus device reads a register by."""
-
-    @property
-    def profile(self) -> Profile:
-        """The profile the device follows."""
-
-    async def read(self, name: str) -> Any:
-        """The register ``name``, in engineering units (an enum member, a bool, a str)."""
-
-    async def read_many(self, names: Iterable[str]) -> dict[str, Any]:
-        """The registers ``names``, ``{name: value}`` in that order, read in the fewest
-        requests the profile allows (:meth:`Profile.plan` shows which)."""
 
     async def record(
         self,
@@ -109,24 +93,22 @@ class DeviceMembers:
         the exception's ``recording`` attribute. Ctrl-C ends it and returns the samples
         taken so far, with the recording's ``interrupted`` set."""
 
-    async def sample(self) -> dict[str, Any]:
-        """Every readable register but strings, ``{name: value}`` in the profile's order, in
-        the fewest requests the profile allows: what :meth:`record` and ``benchbus
-        monitor`` take."""
+    async def sample(self) -> dict[str, float]:
+        """One snapshot of the device's main measurements, ``{name: value}`` as numbers, in
+        as few requests as the device allows: what :meth:`record`, ``benchbus monitor`` and
+        the demo sample. Devices without fixed measurements raise ``TypeError``."""
 
     def sample_units(self) -> dict[str, str]:
         """The unit of each field :meth:`sample` gives, from the family's table (``""`` for
         none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
-
-    async def set(self, name: str, value: Any) -> None:
-        """:meth:`write`, under the name every benchbus device writes a register by."""
 
     @property
     def unit(self) -> int:
         """The device's unit address."""
 
     def units(self) -> dict[str, str]:
-        """The unit of every register by name ("" for none)."""
+        """The unit of each register or parameter by name, from the family's table (``""``
+        for none; empty for a device without a fixed table)."""
 
     async def verify_identity(self) -> None:
         """Checks now, if not done yet, that the unit is of the device's family (what the
@@ -135,11 +117,46 @@ class DeviceMembers:
         check for a device made with ``check_identity=False`` or without an identity (an
         ``Instrument``, a profile's ``Device``)."""
 
+class DeviceMembers(BusDeviceMembers):
+    """The members of :class:`benchbus.aio.Device`, for type checkers."""
+
+    LINE_DEFAULTS: LineDefaults
+    "Line format and reply timeout when the profile says nothing of them."
+    SAMPLE_FIELDS: tuple[str, ...] | None
+    "The readable registers :meth:`sample` gives (every readable one but strings)."
+    enums: Mapping[str, type[PrintableIntEnum]]
+    "Each enum register's enum class, by register name."
+
+    async def get(self, name: str) -> Any:
+        """:meth:`read`, under the name every benchbus device reads a register by."""
+
+    @property
+    def profile(self) -> Profile:
+        """The profile the device follows."""
+
+    async def read(self, name: str) -> Any:
+        """The register ``name``, in engineering units (an enum member, a bool, a str)."""
+
+    async def read_many(self, names: Iterable[str]) -> dict[str, Any]:
+        """The registers ``names``, ``{name: value}`` in that order, read in the fewest
+        requests the profile allows (:meth:`Profile.plan` shows which)."""
+
+    async def sample(self) -> dict[str, Any]:
+        """Every readable register but strings, ``{name: value}`` in the profile's order, in
+        the fewest requests the profile allows: what :meth:`record` and ``benchbus
+        monitor`` take."""
+
+    async def set(self, name: str, value: Any) -> None:
+        """:meth:`write`, under the name every benchbus device writes a register by."""
+
+    def units(self) -> dict[str, str]:
+        """The unit of every register by name ("" for none)."""
+
     async def write(self, name: str, value: Any) -> None:
         """Write ``value`` (engineering units; an enum by member, name or number) to the
         register ``name``, checked before anything is sent."""
 
-class DriveMembers:
+class DriveMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.Drive`, for type checkers."""
 
     IDENTITY: ClassVar[str | None]
@@ -283,41 +300,6 @@ class DriveMembers:
         """Reads the setting called ``name`` (a function-code parameter in engineering units,
         "comm_loss_timeout" for F08.04)."""
 
-    async def record(
-        self,
-        duration: float,
-        interval: float,
-        *,
-        columns: Iterable[str] | None = None,
-        clock: Callable[[], float] = ...,
-        sleep: Callable[[float], None] = ...,
-    ) -> Recording:
-        """Take :meth:`sample` every ``interval`` seconds for ``duration`` seconds.
-
-        ::
-
-            rec = drive.record(5.0, 0.05)     # 100 samples, 50 ms apart
-            rec.to_pandas().describe()        # or rec.to_csv(path), rec.plot(["speed"])
-
-        Samples are taken on absolute deadlines ``n * interval`` after the start, the
-        last one before ``duration``: time spent on the wire never adds up to drift. A
-        sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst; when samples
-        take longer than ``interval`` itself, a UserWarning at the end says so, with the
-        period achieved and the count missed. Each sample
-        keeps the time it was actually taken, read from ``clock`` just before its
-        request; ``clock`` and ``sleep`` are injectable for tests.
-
-        ``columns`` keeps only those measurements, in that order (a name the device does
-        not give raises ValueError at the first sample); by default every one. A
-        ``duration`` or ``interval`` that is not a positive, finite number raises
-        TypeError or ValueError before anything is sent; an ``interval`` longer than
-        ``duration`` gives one sample.
-
-        A bus error ends the recording and is raised; the samples taken before it are in
-        the exception's ``recording`` attribute. Ctrl-C ends it and returns the samples
-        taken so far, with the recording's ``interrupted`` set."""
-
     def registers(self) -> list[DriveRegister]:
         """The register table of this drive's family: a ``DriveRegister`` ``(name, address,
         scale, unit, access, low, high)`` for each register; access is "R", "W/R" or "W/R*"."""
@@ -338,10 +320,6 @@ class DriveMembers:
     async def sample(self) -> dict[str, float]:
         """The numeric fields of :meth:`telemetry` as floats (one request where the drive
         allows); ``hall_count`` only where the drive has it."""
-
-    def sample_units(self) -> dict[str, str]:
-        """The unit of each field :meth:`sample` gives, from the family's table (``""`` for
-        none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
 
     async def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
@@ -394,19 +372,8 @@ class DriveMembers:
     def timeout(self) -> float:
         """Reply timeout of the drive's requests, in seconds (its own, or the Bus's)."""
 
-    @property
-    def unit(self) -> int:
-        """The device's unit address."""
-
     def units(self) -> dict[str, str]:
         """The unit of each register by name, from :meth:`registers` (``""`` for none)."""
-
-    async def verify_identity(self) -> None:
-        """Checks now, if not done yet, that the unit is of the device's family (what the
-        device's first exchange does): ``WrongDevice`` if it answers as another family, a
-        timeout if it does not answer (it is checked again on the next call). Nothing to
-        check for a device made with ``check_identity=False`` or without an identity (an
-        ``Instrument``, a profile's ``Device``)."""
 
     @property
     def virtual_inputs(self) -> Coroutine[Any, Any, int]:
@@ -441,18 +408,11 @@ class DriveMembers:
         """Writes ``value`` (engineering units) to the setting called ``name``, enabling 0x200E
         around it; the value and the family are checked before anything is sent."""
 
-class InstrumentMembers:
+class InstrumentMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.Instrument`, for type checkers."""
 
-    IDENTITY: ClassVar[str | None]
-    "The family whose identity the device checks before its first exchange (a key of ``benchbus._families``); None: no check (a device of any kind)."
     LINE_DEFAULTS: LineDefaults
     "Line format and reply timeout when the device opens its own Bus."
-    SAMPLE_FIELDS: tuple[str, ...] | None
-    "The names :meth:`sample` gives (None: not known in advance), so that a bad ``record(columns=...)`` is refused before anything is sent."
-
-    async def close(self) -> None:
-        """Close the Bus if the device opened it (a shared Bus stays open)."""
 
     async def get_comm_event_counter(self) -> CommEventCounter:
         """The status word (0xFFFF busy, 0x0000 not) and event counter (function 0x0B), as a
@@ -566,65 +526,6 @@ class InstrumentMembers:
         """``count`` registers as text, two Latin-1 characters a register (high byte first),
         without the NULs that pad it (``function=4``: input registers)."""
 
-    async def record(
-        self,
-        duration: float,
-        interval: float,
-        *,
-        columns: Iterable[str] | None = None,
-        clock: Callable[[], float] = ...,
-        sleep: Callable[[float], None] = ...,
-    ) -> Recording:
-        """Take :meth:`sample` every ``interval`` seconds for ``duration`` seconds.
-
-        ::
-
-            rec = drive.record(5.0, 0.05)     # 100 samples, 50 ms apart
-            rec.to_pandas().describe()        # or rec.to_csv(path), rec.plot(["speed"])
-
-        Samples are taken on absolute deadlines ``n * interval`` after the start, the
-        last one before ``duration``: time spent on the wire never adds up to drift. A
-        sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst; when samples
-        take longer than ``interval`` itself, a UserWarning at the end says so, with the
-        period achieved and the count missed. Each sample
-        keeps the time it was actually taken, read from ``clock`` just before its
-        request; ``clock`` and ``sleep`` are injectable for tests.
-
-        ``columns`` keeps only those measurements, in that order (a name the device does
-        not give raises ValueError at the first sample); by default every one. A
-        ``duration`` or ``interval`` that is not a positive, finite number raises
-        TypeError or ValueError before anything is sent; an ``interval`` longer than
-        ``duration`` gives one sample.
-
-        A bus error ends the recording and is raised; the samples taken before it are in
-        the exception's ``recording`` attribute. Ctrl-C ends it and returns the samples
-        taken so far, with the recording's ``interrupted`` set."""
-
-    async def sample(self) -> dict[str, float]:
-        """One snapshot of the device's main measurements, ``{name: value}`` as numbers, in
-        as few requests as the device allows: what :meth:`record`, ``benchbus monitor`` and
-        the demo sample. Devices without fixed measurements raise ``TypeError``."""
-
-    def sample_units(self) -> dict[str, str]:
-        """The unit of each field :meth:`sample` gives, from the family's table (``""`` for
-        none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
-
-    @property
-    def unit(self) -> int:
-        """The device's unit address."""
-
-    def units(self) -> dict[str, str]:
-        """The unit of each register or parameter by name, from the family's table (``""``
-        for none; empty for a device without a fixed table)."""
-
-    async def verify_identity(self) -> None:
-        """Checks now, if not done yet, that the unit is of the device's family (what the
-        device's first exchange does): ``WrongDevice`` if it answers as another family, a
-        timeout if it does not answer (it is checked again on the next call). Nothing to
-        check for a device made with ``check_identity=False`` or without an identity (an
-        ``Instrument``, a profile's ``Device``)."""
-
     async def write_coil(self, address: int, value: bool) -> None:
         """Set one coil on (True) or off (False) with 0x05; the reply must echo it."""
 
@@ -687,7 +588,7 @@ class InstrumentMembers:
         """Write ``text`` into ``count`` registers, two characters a register, padded with
         NULs (longer text or characters outside Latin-1 raise ValueError)."""
 
-class J2ControllerMembers:
+class J2ControllerMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.J2Controller`, for type checkers."""
 
     IDENTITY: ClassVar[str | None]
@@ -708,9 +609,6 @@ class J2ControllerMembers:
     @property
     def autotune(self) -> Coroutine[Any, Any, bool]:
         """Whether autotuning runs (AT); set True to start it, False to stop it."""
-
-    async def close(self) -> None:
-        """Close the Bus if the device opened it (a shared Bus stays open)."""
 
     @property
     def decimal_point(self) -> Coroutine[Any, Any, int]:
@@ -774,41 +672,6 @@ class J2ControllerMembers:
     async def read_many(self, names: Iterable[str]) -> list[int | float]:
         """Several parameters by name, in as few requests as the 16-register limit allows."""
 
-    async def record(
-        self,
-        duration: float,
-        interval: float,
-        *,
-        columns: Iterable[str] | None = None,
-        clock: Callable[[], float] = ...,
-        sleep: Callable[[float], None] = ...,
-    ) -> Recording:
-        """Take :meth:`sample` every ``interval`` seconds for ``duration`` seconds.
-
-        ::
-
-            rec = drive.record(5.0, 0.05)     # 100 samples, 50 ms apart
-            rec.to_pandas().describe()        # or rec.to_csv(path), rec.plot(["speed"])
-
-        Samples are taken on absolute deadlines ``n * interval`` after the start, the
-        last one before ``duration``: time spent on the wire never adds up to drift. A
-        sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst; when samples
-        take longer than ``interval`` itself, a UserWarning at the end says so, with the
-        period achieved and the count missed. Each sample
-        keeps the time it was actually taken, read from ``clock`` just before its
-        request; ``clock`` and ``sleep`` are injectable for tests.
-
-        ``columns`` keeps only those measurements, in that order (a name the device does
-        not give raises ValueError at the first sample); by default every one. A
-        ``duration`` or ``interval`` that is not a positive, finite number raises
-        TypeError or ValueError before anything is sent; an ``interval`` longer than
-        ``duration`` gives one sample.
-
-        A bus error ends the recording and is raised; the samples taken before it are in
-        the exception's ``recording`` attribute. Ctrl-C ends it and returns the samples
-        taken so far, with the recording's ``interrupted`` set."""
-
     async def sample(self) -> dict[str, float]:
         """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""
 
@@ -844,21 +707,10 @@ class J2ControllerMembers:
         """The parameter table: a :class:`~benchbus.J2Parameter` (name, address, signed,
         writable, low, high, within_limits) for each parameter."""
 
-    @property
-    def unit(self) -> int:
-        """The device's unit address."""
-
     @staticmethod
     def units() -> dict[str, str]:
         """The unit of each parameter by its manual name (``"PV"``), from the family's table
         (``""`` for none; a linear input, INP = LN, reads in its own scale, not °C)."""
-
-    async def verify_identity(self) -> None:
-        """Checks now, if not done yet, that the unit is of the device's family (what the
-        device's first exchange does): ``WrongDevice`` if it answers as another family, a
-        timeout if it does not answer (it is checked again on the next call). Nothing to
-        check for a device made with ``check_identity=False`` or without an identity (an
-        ``Instrument``, a profile's ``Device``)."""
 
     async def write(self, name: str, value: float, *, function: int = 6) -> None:
         """Write one parameter by name, with the manual's rules (see the class).
@@ -874,7 +726,7 @@ class J2ControllerMembers:
         controller (SV within its limits, MV in manual mode) are made write by write, so a
         refusal there leaves the earlier writes done."""
 
-class PblDriveMembers:
+class PblDriveMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.PblDrive`, for type checkers."""
 
     IDENTITY: ClassVar[str | None]
@@ -907,9 +759,6 @@ class PblDriveMembers:
     @property
     def bus_voltage(self) -> Coroutine[Any, Any, int]:
         """DC bus voltage, V (51)."""
-
-    async def close(self) -> None:
-        """Close the Bus if the device opened it (a shared Bus stays open)."""
 
     @property
     def control_mode(self) -> Coroutine[Any, Any, PblControlMode]:
@@ -975,41 +824,6 @@ class PblDriveMembers:
     async def read_parameters(self, start: int | str, count: int) -> list[int]:
         """Reads `count` parameters from `start` (in as few requests as allowed)."""
 
-    async def record(
-        self,
-        duration: float,
-        interval: float,
-        *,
-        columns: Iterable[str] | None = None,
-        clock: Callable[[], float] = ...,
-        sleep: Callable[[float], None] = ...,
-    ) -> Recording:
-        """Take :meth:`sample` every ``interval`` seconds for ``duration`` seconds.
-
-        ::
-
-            rec = drive.record(5.0, 0.05)     # 100 samples, 50 ms apart
-            rec.to_pandas().describe()        # or rec.to_csv(path), rec.plot(["speed"])
-
-        Samples are taken on absolute deadlines ``n * interval`` after the start, the
-        last one before ``duration``: time spent on the wire never adds up to drift. A
-        sample that overruns its period skips the deadlines already past (the recording
-        counts them in ``missed``) rather than taking late ones in a burst; when samples
-        take longer than ``interval`` itself, a UserWarning at the end says so, with the
-        period achieved and the count missed. Each sample
-        keeps the time it was actually taken, read from ``clock`` just before its
-        request; ``clock`` and ``sleep`` are injectable for tests.
-
-        ``columns`` keeps only those measurements, in that order (a name the device does
-        not give raises ValueError at the first sample); by default every one. A
-        ``duration`` or ``interval`` that is not a positive, finite number raises
-        TypeError or ValueError before anything is sent; an ``interval`` longer than
-        ``duration`` gives one sample.
-
-        A bus error ends the recording and is raised; the samples taken before it are in
-        the exception's ``recording`` attribute. Ctrl-C ends it and returns the samples
-        taken so far, with the recording's ``interrupted`` set."""
-
     async def restore_defaults(self) -> None:
         """Ask for the factory defaults (1511 to parameter 214).
 
@@ -1022,10 +836,6 @@ class PblDriveMembers:
     async def sample(self) -> dict[str, float]:
         """Speed (rpm), bus voltage (V), analog speed input (mV), current (A) and power (W):
         parameters 50..54, in one request."""
-
-    def sample_units(self) -> dict[str, str]:
-        """The unit of each field :meth:`sample` gives, from the family's table (``""`` for
-        none): ``{"speed": "rpm", ...}``, what ``benchbus monitor`` and recordings show."""
 
     async def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
@@ -1065,19 +875,8 @@ class PblDriveMembers:
         """Parameters 0..99 (status and measurements) by name, in two requests: a dict, shown
         as a table in notebooks."""
 
-    @property
-    def unit(self) -> int:
-        """The device's unit address."""
-
     def units(self) -> dict[str, str]:
         """The unit of each parameter by name, from :meth:`table` (``""`` for none)."""
-
-    async def verify_identity(self) -> None:
-        """Checks now, if not done yet, that the unit is of the device's family (what the
-        device's first exchange does): ``WrongDevice`` if it answers as another family, a
-        timeout if it does not answer (it is checked again on the next call). Nothing to
-        check for a device made with ``check_identity=False`` or without an identity (an
-        ``Instrument``, a profile's ``Device``)."""
 
     async def write_parameter(self, key: int | str, value: int) -> None:
         """Writes one parameter, by number or name, checked against the table first."""

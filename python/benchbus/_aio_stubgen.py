@@ -14,6 +14,11 @@ the same order of rules:
 - anything else readable (a property, a register descriptor): a read-only property whose
   value is a ``Coroutine`` of the sync value.
 
+Each is declared once, on the members class that mirrors the sync class declaring it: what
+every family inherits (from ``BusDevice``, the compiled ``_Station``) on the base that each
+family's members class extends (``BusDeviceMembers``), a family's own or overriding
+declaration on the family's.
+
 The declarations are read from the source where they are written: the Python modules for
 the Python classes, ``_core.pyi`` for the compiled bases (annotations as written, each name
 imported from the module that defines it). A register descriptor is declared with its
@@ -71,7 +76,6 @@ class StubError(Exception):
 class _Source:
     """A module's parsed declarations."""
 
-    name: str
     tree: ast.Module
     #: Names the module defines at its top level.
     defined: frozenset[str]
@@ -81,34 +85,27 @@ class _Source:
     lines: tuple[str, ...] = ()
 
 
-def _top_level(tree: ast.Module) -> list[ast.stmt]:
-    """The module's top-level statements, those under a top-level ``if`` included."""
-    out: list[ast.stmt] = []
-    todo = list(tree.body)
-    while todo:
-        stmt = todo.pop(0)
-        if isinstance(stmt, ast.If):
-            todo[:0] = [*stmt.body, *stmt.orelse]
-        else:
-            out.append(stmt)
-    return out
+def _flat(stmts: list[ast.stmt]) -> list[ast.stmt]:
+    """``stmts`` with those under an ``if`` (either branch) in its place."""
+    return [
+        one
+        for stmt in stmts
+        for one in (_flat([*stmt.body, *stmt.orelse]) if isinstance(stmt, ast.If) else [stmt])
+    ]
 
 
 @functools.cache
 def _source(module: str) -> _Source:
     """The declarations of ``module`` (``benchbus._core``'s from its stub)."""
-    if module == "benchbus._core":
-        path = _CORE_STUB
-    else:
-        found = inspect.getsourcefile(sys.modules[module])
-        if found is None:
-            raise StubError(f"{module} has no source to read declarations from")
-        path = Path(found)
+    found = _CORE_STUB if module == "benchbus._core" else inspect.getsourcefile(sys.modules[module])
+    if found is None:
+        raise StubError(f"{module} has no source to read declarations from")
+    path = Path(found)
     text = path.read_text(encoding="utf-8")
     tree = ast.parse(text, filename=str(path))
     defined: set[str] = set()
     imported: dict[str, tuple[str, str | None]] = {}
-    for stmt in _top_level(tree):
+    for stmt in _flat(tree.body):
         if isinstance(stmt, (ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
             defined.add(stmt.name)
         elif isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
@@ -122,7 +119,7 @@ def _source(module: str) -> _Source:
             for alias in stmt.names:
                 local = alias.asname or alias.name.partition(".")[0]
                 imported[local] = (alias.name if alias.asname else local, None)
-    return _Source(module, tree, frozenset(defined), imported, tuple(text.splitlines()))
+    return _Source(tree, frozenset(defined), imported, tuple(text.splitlines()))
 
 
 def _origin(module: str, name: str) -> tuple[str, str | None]:
@@ -159,12 +156,8 @@ class _Imports:
         """The import statements (ruff sorts them)."""
         out = []
         for local, (module, name) in sorted(self._by_name.items()):
-            if name is None:
-                out.append(f"import {module}" if module == local else f"import {module} as {local}")
-            elif name == local:
-                out.append(f"from {module} import {name}")
-            else:
-                out.append(f"from {module} import {name} as {local}")
+            line = f"import {module}" if name is None else f"from {module} import {name}"
+            out.append(line if local == (name or module) else f"{line} as {local}")
         return out
 
 
@@ -203,23 +196,15 @@ def _decorators(node: ast.FunctionDef) -> list[str]:
     return names
 
 
-def _is_setter(node: ast.stmt) -> bool:
-    """Whether ``node`` is a property's setter or deleter."""
-    return isinstance(node, ast.FunctionDef) and any(
-        isinstance(d, ast.Attribute) and d.attr in ("setter", "deleter")
-        for d in node.decorator_list
-    )
-
-
 def _members(stmts: list[ast.stmt]) -> dict[str, ast.stmt]:
-    """The declarations of a class body by name (under ``if`` blocks too)."""
+    """The declarations of a class body by name (under ``if`` blocks too; a property's
+    setter or deleter declares nothing)."""
     found: dict[str, ast.stmt] = {}
-    todo = list(stmts)
-    while todo:
-        stmt = todo.pop(0)
-        if isinstance(stmt, ast.If):
-            todo[:0] = [*stmt.body, *stmt.orelse]
-        elif isinstance(stmt, ast.FunctionDef) and not _is_setter(stmt):
+    for stmt in _flat(stmts):
+        if isinstance(stmt, ast.FunctionDef) and not any(
+            isinstance(d, ast.Attribute) and d.attr in ("setter", "deleter")
+            for d in stmt.decorator_list
+        ):
             found.setdefault(stmt.name, stmt)
         elif isinstance(stmt, ast.AnnAssign) and isinstance(stmt.target, ast.Name):
             found.setdefault(stmt.target.id, stmt)
@@ -237,7 +222,7 @@ def _class_body(klass: type) -> dict[str, ast.stmt]:
     if klass.__module__ == "builtins":
         return {}
     source = _source(klass.__module__)
-    for stmt in _top_level(source.tree):
+    for stmt in _flat(source.tree.body):
         if isinstance(stmt, ast.ClassDef) and stmt.name == klass.__qualname__:
             return _members(stmt.body)
     raise StubError(f"no declaration of {klass.__qualname__} in {klass.__module__}")
@@ -258,6 +243,13 @@ def _body(doc: str | None) -> list[ast.stmt]:
     return [ast.Expr(ast.Constant(doc if doc else Ellipsis))]
 
 
+def _node(kind: type[ast.stmt], **fields: Any) -> ast.stmt:
+    """A class or function declaration (without type parameters, where Python has them)."""
+    if "type_params" in kind._fields:
+        fields["type_params"] = []
+    return kind(**fields)
+
+
 def _function(
     node: ast.FunctionDef,
     module: str,
@@ -265,10 +257,9 @@ def _function(
     doc: str | None,
     *,
     is_async: bool,
-    returns: ast.expr | None = None,
 ) -> ast.stmt:
-    """``node`` as a stub declaration: its parameters with their annotations, its result
-    (or ``returns``), ``async`` if asked, its decorators."""
+    """``node`` as a stub declaration: its parameters with their annotations, its result,
+    ``async`` if asked, its decorators."""
     what = f"{module}.{node.name}"
     args = copy.deepcopy(node.args)
     for arg in [*args.posonlyargs, *args.args, *args.kwonlyargs, args.vararg, args.kwarg]:
@@ -276,17 +267,14 @@ def _function(
             arg.annotation = _annotation(arg.annotation, module, imports, what)
     args.defaults = [d for d in map(_default, args.defaults) if d is not None]
     args.kw_defaults = [_default(d) for d in args.kw_defaults]
-    fields: dict[str, Any] = {
-        "name": node.name,
-        "args": args,
-        "body": _body(doc),
-        "decorator_list": [ast.Name(d) for d in _decorators(node)],
-        "returns": returns or _annotation(node.returns, module, imports, what),
-    }
-    kind = ast.AsyncFunctionDef if is_async else ast.FunctionDef
-    if "type_params" in kind._fields:
-        fields["type_params"] = []
-    return kind(**fields)
+    return _node(
+        ast.AsyncFunctionDef if is_async else ast.FunctionDef,
+        name=node.name,
+        args=args,
+        body=_body(doc),
+        decorator_list=[ast.Name(d) for d in _decorators(node)],
+        returns=_annotation(node.returns, module, imports, what),
+    )
 
 
 def _value_type(node: ast.stmt, module: str, imports: _Imports, what: str) -> ast.expr:
@@ -304,18 +292,17 @@ def _value_type(node: ast.stmt, module: str, imports: _Imports, what: str) -> as
 
 def _property(name: str, returns: ast.expr, doc: str | None) -> ast.stmt:
     """A read-only property declaration."""
-    fields: dict[str, Any] = {
-        "name": name,
-        "args": ast.arguments(
-            posonlyargs=[], args=[ast.arg("self")], kwonlyargs=[], kw_defaults=[], defaults=[]
-        ),
-        "body": _body(doc),
-        "decorator_list": [ast.Name("property")],
-        "returns": returns,
-    }
-    if "type_params" in ast.FunctionDef._fields:
-        fields["type_params"] = []
-    return ast.FunctionDef(**fields)
+    self = ast.arguments(
+        posonlyargs=[], args=[ast.arg("self")], kwonlyargs=[], kw_defaults=[], defaults=[]
+    )
+    return _node(
+        ast.FunctionDef,
+        name=name,
+        args=self,
+        body=_body(doc),
+        decorator_list=[ast.Name("property")],
+        returns=returns,
+    )
 
 
 def _doc(sync: type, name: str) -> str | None:
@@ -323,12 +310,10 @@ def _doc(sync: type, name: str) -> str | None:
     found = inspect.getattr_static(sync, name, None)
     if isinstance(found, (staticmethod, classmethod)):
         found = found.__func__
-    if found is None or not (inspect.isroutine(found) or inspect.isdatadescriptor(found)):
+    if not (inspect.isroutine(found) or inspect.isdatadescriptor(found)):
         return None
     doc = found.__doc__
-    if not isinstance(doc, str) or not doc.strip():
-        return None
-    return _wrapped(doc)
+    return _wrapped(doc) if isinstance(doc, str) and doc.strip() else None
 
 
 def _wrapped(doc: str) -> str:
@@ -354,7 +339,7 @@ def _comment(klass: type, node: ast.stmt) -> str | None:
     return " ".join(found) or None
 
 
-def _member(sync: type, name: str, imports: _Imports) -> ast.stmt | list[ast.stmt]:
+def _member(sync: type, name: str, imports: _Imports) -> list[ast.stmt]:
     """The declaration of ``name`` on the async device of ``sync``: the rules of
     ``AsyncDevice.__getattr__``."""
     what = f"{sync.__name__}.{name}"
@@ -365,20 +350,20 @@ def _member(sync: type, name: str, imports: _Imports) -> ast.stmt | list[ast.stm
     if name in aio._LOCAL or isinstance(found, (staticmethod, classmethod)):
         if isinstance(node, ast.FunctionDef):
             if "property" in _decorators(node):
-                return _property(name, _value_type(node, module, imports, what), doc)
-            return _function(node, module, imports, doc, is_async=False)
+                return [_property(name, _value_type(node, module, imports, what), doc)]
+            return [_function(node, module, imports, doc, is_async=False)]
         return _attribute(sync, name, imports)
     if found is None:
         raise StubError(f"{what} is neither in the class nor local")
     if inspect.isroutine(found):
         if not isinstance(node, ast.FunctionDef) or _decorators(node):
             raise StubError(f"{what}: a method declared as {ast.dump(node)[:60]}")
-        return _function(node, module, imports, doc, is_async=True)
+        return [_function(node, module, imports, doc, is_async=True)]
     value = _value_type(node, module, imports, what)
     imports.need("Coroutine", ("collections.abc", "Coroutine"))
     imports.need("Any", ("typing", "Any"))
     coroutine = ast.parse(f"Coroutine[Any, Any, {ast.unparse(value)}]", mode="eval").body
-    return _property(name, coroutine, doc)
+    return [_property(name, coroutine, doc)]
 
 
 def _attribute(sync: type, name: str, imports: _Imports) -> list[ast.stmt]:
@@ -413,14 +398,25 @@ def _public_names(sync: type) -> list[str]:
     return sorted(names)
 
 
-def _classes() -> list[tuple[str, type[aio.AsyncDevice[Any]]]]:
-    """Each members class's name and the async device class it is for."""
+def _classes() -> list[tuple[type, type[aio.AsyncDevice[Any]]]]:
+    """Each family's members class and the async device class it is for."""
     out = []
-    for members in _aio_members.__all__:
-        device = getattr(aio, members.removesuffix("Members"))
-        if members not in {k.__name__ for k in device.__mro__}:
-            raise StubError(f"aio.{device.__name__} does not inherit {members}")
+    for name in _aio_members.__all__:
+        members, device = getattr(_aio_members, name), getattr(aio, name.removesuffix("Members"))
+        if members not in device.__mro__:
+            raise StubError(f"aio.{device.__name__} does not inherit {name}")
         out.append((members, device))
+    return out
+
+
+def _layers() -> dict[type, frozenset[type]]:
+    """Each members class (a family's, or a base that several extend) and the sync classes
+    that every family it is for inherits: it declares the members they declare."""
+    out: dict[type, frozenset[type]] = {}
+    for members, device in _classes():
+        syncs = frozenset(device.SYNC.__mro__[:-1])
+        for klass in members.__mro__[:-1]:
+            out[klass] = out.get(klass, syncs) & syncs
     return out
 
 
@@ -442,38 +438,34 @@ def generate() -> str:
     """The text of ``_aio_members.pyi`` for the sync classes as they are now."""
     _source.cache_clear()  # read the sources as they are now
     imports = _Imports()
-    classes = []
+    layers = _layers()
+    bodies: dict[type, dict[str, list[ast.stmt]]] = {klass: {} for klass in layers}
     for members, device in _classes():
         own = set(dir(device))  # what the async class itself defines, or its base
-        body: list[ast.stmt] = [
-            ast.Expr(ast.Constant(inspect.getdoc(getattr(_aio_members, members))))
-        ]
-        for name in _public_names(device.SYNC):
-            if name not in own:
-                member = _member(device.SYNC, name, imports)
-                body.extend(member if isinstance(member, list) else [member])
-        fields: dict[str, Any] = {
-            "name": members,
-            "bases": [],
-            "keywords": [],
-            "body": body,
-            "decorator_list": [],
-        }
-        if "type_params" in ast.ClassDef._fields:
-            fields["type_params"] = []
-        tree = ast.Module(body=[ast.ClassDef(**fields)], type_ignores=[])
-        classes.append(ast.unparse(ast.fix_missing_locations(tree)))
-    all_names = "".join(f"    {m!r},\n" for m, _ in _classes())
-    text = "\n".join(
-        [
-            _HEADER,
-            *imports.lines(),
-            "",
-            f"__all__ = [\n{all_names}]",
-            "",
-            *("\n" + c + "\n" for c in classes),
-        ]
-    )
+        for name in (n for n in _public_names(device.SYNC) if n not in own):
+            member = _member(device.SYNC, name, imports)
+            # Declared once: on the most general members class whose families all inherit
+            # the sync class that declares it.
+            where = _declaration(device.SYNC, name)[0]
+            home = next(k for k in reversed(members.__mro__[:-1]) if where in layers[k])
+            known = bodies[home].setdefault(name, member)
+            if [ast.dump(n) for n in known] != [ast.dump(n) for n in member]:
+                raise StubError(f"{members.__name__}.{name} differs from {home.__name__}'s")
+    classes = [
+        _node(
+            ast.ClassDef,
+            name=klass.__name__,
+            bases=[ast.Name(b.__name__) for b in klass.__bases__ if b is not object],
+            keywords=[],
+            body=[ast.Expr(ast.Constant(inspect.getdoc(klass)))]
+            + [n for _, member in sorted(bodies[klass].items()) for n in member],
+            decorator_list=[],
+        )
+        for klass in sorted(layers, key=lambda k: (len(k.__mro__), k.__name__))
+    ]
+    declared = ast.unparse(ast.fix_missing_locations(ast.Module(classes, type_ignores=[])))
+    all_names = [members.__name__ for members, _ in _classes()]
+    text = "\n".join([_HEADER, *imports.lines(), f"__all__ = {all_names!r}", declared])
     text = _ruff(text, "check", "--fix", "--select", "I", "--quiet", "--exit-zero")
     return _ruff(text, "format", "--quiet")
 

@@ -85,7 +85,8 @@ def test_the_type_information_ships() -> None:
     package = Path(bb.__file__).parent
     for name in ("py.typed", "_core.pyi", "_aio_members.pyi"):
         assert (package / name).is_file(), name
-    assert "class DriveMembers:" in (package / "_aio_members.pyi").read_text(encoding="utf-8")
+    members = (package / "_aio_members.pyi").read_text(encoding="utf-8")
+    assert "class DriveMembers(BusDeviceMembers):" in members
 
 
 def test_the_family_files_ship_and_are_the_exports() -> None:
