@@ -16,10 +16,13 @@ VENV := .venv
 endif
 PYTHON := $(VENV)/bin/python
 PIP := $(PYTHON) -m pip install --quiet --editable
-# pytest's workers (pytest-xdist): one more than the cores, as most of a test's time is
-# spent waiting on a line. The tests that keep a line's time (tests/conftest.py,
-# TIMING_FILES, marked timing) run after the others, in one process, by themselves.
-TEST_WORKERS ?= $(shell echo $$(( $$(nproc 2>/dev/null || echo 1) + 1 )))
+# pytest's workers (pytest-xdist): twice the cores, as most of a test's time is spent
+# waiting on a line. The tests that keep a line's time (marked timing: tests/conftest.py,
+# TIMING_FILES) run after the others, by themselves, on one worker a core: each takes a
+# fraction of a core, and none may be starved by a build or a browser beside it.
+CORES := $(shell nproc 2>/dev/null || echo 1)
+TEST_WORKERS ?= $(shell echo $$(( $(CORES) * 2 )))
+TIMING_WORKERS ?= $(CORES)
 
 .PHONY: install demo test lint fmt example bench cross wheel wheel-smoke docs docs-serve
 
@@ -42,7 +45,7 @@ test: install
 	.ci/need.sh 'chromium|chromium-browser=chromium'
 	cargo test --quiet
 	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) -m "not timing"
-	$(PYTHON) -m pytest -q -m timing
+	$(PYTHON) -m pytest -q -n $(TIMING_WORKERS) -m timing
 
 lint: install
 	cargo fmt --check

@@ -542,6 +542,7 @@ def drive_in_another_process() -> Iterator[str]:
         proc.communicate(timeout=10)
 
 
+@pytest.mark.timing
 def test_loop_lag_during_a_100hz_poll_of_another_process(drive_in_another_process: str) -> None:
     """A 1 ms ticker's p99 lag during a 100 Hz poll stays within 0.5 ms of its idle p99.
 
@@ -582,6 +583,7 @@ class CountingSelector(selectors.DefaultSelector):
         return events
 
 
+@pytest.mark.timing
 def test_on_the_default_loop_each_call_wakes_the_loop_once(drive_in_another_process: str) -> None:
     """On asyncio's default loop (epoll on Linux) each wake-up between two timers costs the
     next timer up to a millisecond, so what benchbus can do for the loop's lag there is to
