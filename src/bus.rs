@@ -1875,7 +1875,9 @@ impl Bus {
         unit: u8,
         opts: &TxOptions,
     ) -> Result<(u16, u16, u16, Vec<u8>)> {
-        self.ask(unit, &Request::GetCommEventLog, opts, pick!(Response::CommEventLog { status, event_count, message_count, events } => (status, event_count, message_count, events)))
+        let log = pick!(Response::CommEventLog { status, event_count, message_count, events } =>
+            (status, event_count, message_count, events));
+        self.ask(unit, &Request::GetCommEventLog, opts, log)
     }
 
     /// Reads file records (0x14): for each group `(file, record, length)`, `length`

@@ -1,5 +1,5 @@
 """The simulators' table-driven unit (``benchbus.sim._device.TableDevice``): one set of
-checks, with each family's manual kept as data, so that each family answers as it did.
+checks, with each family's manual kept as data and its rules as hooks.
 
 Where the families differ in the order of their refusals within one write, the manual
 decides: a drive applies a 0x10 write register by register (a refusal there is the first
@@ -11,6 +11,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from pathlib import Path
+from types import MappingProxyType
 
 import pytest
 
@@ -103,3 +104,18 @@ def test_a_profile_write_looks_at_every_address_first(profile: ProfileDevice) ->
     assert answer(lambda: profile.write_holding(0, [10, 0, 7])) == 0
     assert profile.value("total") == 7 and profile.value("level") == 10
     assert answer(lambda: profile.read_holding(2, 2)) == 2  # 3 is no register
+
+
+def test_a_subclass_changes_the_words_at_power_up_through_defaults() -> None:
+    """``DEFAULTS`` is the class's: a subclass's values are what the unit starts with."""
+
+    class Pbl(PblDevice):
+        DEFAULTS = MappingProxyType({**PblDevice.DEFAULTS, 205: 7})
+
+    class J2(J2Device):
+        DEFAULTS = MappingProxyType({**J2Device.DEFAULTS, "SV": 42.5})
+
+    assert Pbl(clock=still).read_holding(205, 1) == [7]
+    assert PblDevice(clock=still).read_holding(205, 1) != [7]
+    assert J2(clock=still, write_interval=0.0).read_holding(SV, 1) == [425]
+    assert J2(clock=still, write_interval=0.0).value("SV") == 42.5

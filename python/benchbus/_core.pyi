@@ -714,10 +714,11 @@ class DriveCore(_Station):
     def block_reads(self) -> bool | None:
         """Whether the drive answers multi-register reads; None until one was tried."""
     def get(self, name: str) -> int | float:
-        """Read any register of the drive's table by name (see :meth:`registers`): an int, or
-        a float for a scaled register."""
+        """Reads the register called ``name`` (see the table), in engineering units: an
+        int, or a float for a scaled register."""
     def set(self, name: str, value: float) -> None:
-        """Write any writable register of the drive's table by name, in engineering units."""
+        """Writes ``value`` (engineering units) to the register called ``name``, checked
+        against its range, steps, access and the family's rules before anything is sent."""
     def forward(self) -> None:
         """Run forward at the speed setpoint (command 1)."""
     def reverse(self) -> None:
@@ -814,9 +815,11 @@ class PblCore(_Station):
         """Attaches the drive at ``unit`` to ``bus`` (what ``PblDrive.__init__`` does);
         ``timeout`` / ``retries`` replace the Bus's."""
     def get(self, name: str) -> int:
-        """Reads the parameter called ``name``."""
+        """Reads the register called ``name`` (see the table), in engineering units: an
+        int, or a float for a scaled register."""
     def set(self, name: str, value: float) -> None:
-        """Writes ``value`` to the parameter called ``name``."""
+        """Writes ``value`` (engineering units) to the register called ``name``, checked
+        against its range, steps, access and the family's rules before anything is sent."""
     def read_parameter(self, key: int | str) -> int:
         """Reads one parameter, by number or name."""
     def write_parameter(self, key: int | str, value: int) -> None:
@@ -882,9 +885,11 @@ class J2Core(_Station):
         """Attaches the controller at ``unit`` (1..255) to ``bus`` (what
         ``J2Controller.__init__`` does); ``timeout`` / ``retries`` replace the Bus's."""
     def get(self, name: str) -> int | float:
-        """Reads the parameter called ``name``."""
+        """Reads the register called ``name`` (see the table), in engineering units: an
+        int, or a float for a scaled register."""
     def set(self, name: str, value: float) -> None:
-        """Writes ``value`` to the parameter called ``name``, with the manual's rules."""
+        """Writes ``value`` (engineering units) to the register called ``name``, checked
+        against its range, steps, access and the family's rules before anything is sent."""
     def read(self, name: str) -> int | float:
         """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
         signed table, an int for the unsigned one."""

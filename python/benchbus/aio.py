@@ -787,9 +787,9 @@ class AsyncDevice(AsyncScoped, Generic[D]):
     async def aclose(self) -> None:
         """Close what the device opened (its Bus, its keepalive), after the calls queued
         before; cannot be cancelled half-way."""
-        await self._leave(lambda: self._sync.close())
+        await self._run_then_end(lambda: self._sync.close())
 
-    async def _leave(self, fn: Callable[[], None]) -> None:
+    async def _run_then_end(self, fn: Callable[[], None]) -> None:
         """Run ``fn`` in the bus's threads (after what is queued, and whatever happens to
         the awaiting task), then end the threads if they are the device's. In a child made
         by fork, ``fn`` here and now (its calls raise at once there; closing sends
@@ -811,7 +811,7 @@ class AsyncDevice(AsyncScoped, Generic[D]):
         a motor, stop it (also after an exception or on cancellation: the stop is shielded),
         then close what it opened."""
         info = (None, None, None) if exc is None else (type(exc), exc, exc.__traceback__)
-        await self._leave(lambda: self._sync.__exit__(*info))
+        await self._run_then_end(lambda: self._sync.__exit__(*info))
 
     def __repr__(self) -> str:
         """The sync device's, marked async."""

@@ -498,7 +498,7 @@ pub struct Drive {
 }
 
 on_station!(Drive);
-tabled!(Drive, |d, name| d.register(name));
+tabled!(Drive, self.register);
 
 impl Drive {
     /// The drive at `unit` on `bus`. `write_ack` is false for a drive set to F08.06 = 1,

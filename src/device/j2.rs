@@ -126,7 +126,7 @@ pub struct J2 {
 }
 
 on_station!(J2);
-tabled!(J2, |_j2, name| by_name(name));
+tabled!(J2, by_name);
 
 impl J2 {
     /// The controller at `unit` on `bus`.

@@ -315,16 +315,24 @@ pub trait Tabled: Device {
     fn set(&self, name: &str, value: f64) -> Result<()>;
 }
 
-/// `impl Tabled` for a family struct from its own `get` and `set` and a row lookup.
+/// `impl Tabled` for a family struct from its own `get` and `set`, and `row`: the family's
+/// `fn(name)` that finds a row by name (`tabled!(Pbl, by_name)`), or with `self`, its
+/// method that does (`tabled!(Drive, self.register)`).
 macro_rules! tabled {
-    ($device:ty, |$this:ident, $name:ident| $row:expr) => {
+    ($device:ty, self.$row:ident) => {
+        $crate::device::tabled!($device, |device, name| device.$row(name));
+    };
+    ($device:ty, $row:path) => {
+        $crate::device::tabled!($device, |_device, name| $row(name));
+    };
+    ($device:ty, |$this:ident, $name:ident| $find:expr) => {
         impl $crate::device::Tabled for $device {
             fn row(
                 &self,
                 $name: &str,
             ) -> $crate::Result<&'static $crate::device::Register<String>> {
                 let $this = self;
-                $row
+                $find
             }
 
             fn get(&self, name: &str) -> $crate::Result<f64> {

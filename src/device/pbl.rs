@@ -97,7 +97,7 @@ pub struct Pbl {
 }
 
 on_station!(Pbl);
-tabled!(Pbl, |_pbl, name| by_name(name));
+tabled!(Pbl, by_name);
 
 impl Pbl {
     /// The drive at `unit` on `bus`.

@@ -168,7 +168,8 @@ tabled;
         function: Py<PyAny>,
     ) -> PyResult<()> {
         let choices = [(0x06, false), (0x10, true)];
-        let multiple = int_choice(function.bind(py), "function", "an int", "0x06 or 0x10", &choices)?;
+        let function = function.bind(py);
+        let multiple = int_choice(function, "function", "an int", "0x06 or 0x10", &choices)?;
         let p = param(py, name)?;
         let v = number(value, &p.name)?;
         self.dev.wire(py, move |j| j.set_as(&p.name, v, multiple))

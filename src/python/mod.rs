@@ -263,9 +263,10 @@ macro_rules! device_methods {
                 retries: Option<&Bound<'_, PyAny>>,
             ) -> PyResult<()> {
                 let station = slf.as_super().get();
+                let units = $crate::python::unit_arg;
                 slf.get()
                     .dev
-                    .attach(station, bus, unit, super::unit_arg, timeout, retries, |b, u| Ok($new(b, u)))
+                    .attach(station, bus, unit, units, timeout, retries, |b, u| Ok($new(b, u)))
             }
         }
     };
@@ -275,20 +276,29 @@ macro_rules! device_methods {
 
             /// Reads the register called ``name`` (see the table), in engineering units: an
             /// int, or a float for a scaled register.
-            fn get<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-                let name = super::row_name(name)?;
-                let (row, raw) = self.dev.wire(py, move |d| {
-                    Ok((crate::device::Tabled::row(d, &name)?, crate::device::Tabled::get(d, &name)?))
-                })?;
-                Ok(super::shown(py, row, raw))
+            fn get<'py>(
+                &self,
+                py: Python<'py>,
+                name: &Bound<'py, PyAny>,
+            ) -> PyResult<Bound<'py, PyAny>> {
+                use $crate::device::Tabled;
+                let name = $crate::python::row_name(name)?;
+                let read = move |d: &_| Ok((Tabled::row(d, &name)?, Tabled::get(d, &name)?));
+                let (row, raw) = self.dev.wire(py, read)?;
+                Ok($crate::python::shown(py, row, raw))
             }
 
             /// Writes ``value`` (engineering units) to the register called ``name``, checked
             /// against its range, steps, access and the family's rules before anything is sent.
-            fn set(&self, py: Python<'_>, name: &Bound<'_, PyAny>, value: &Bound<'_, PyAny>) -> PyResult<()> {
-                let name = super::row_name(name)?;
-                let value = super::number(value, &name)?;
-                self.dev.wire(py, move |d| crate::device::Tabled::set(d, &name, value))
+            fn set(
+                &self,
+                py: Python<'_>,
+                name: &Bound<'_, PyAny>,
+                value: &Bound<'_, PyAny>,
+            ) -> PyResult<()> {
+                let name = $crate::python::row_name(name)?;
+                let value = $crate::python::number(value, &name)?;
+                self.dev.wire(py, move |d| $crate::device::Tabled::set(d, &name, value))
             }
 
             $($body)*
@@ -685,7 +695,6 @@ fn int_in(obj: &Bound<'_, PyAny>, name: &str, lo: i64, hi: i64) -> PyResult<i64>
     }
 }
 
-/// A number (int or float, not bool) as f64: TypeError for anything else.
 /// `obj`, an int (not a bool) that `choices` lists, as the value listed with it: TypeError
 /// ("`name` must be `kind`") for another type, ValueError ("must be `allowed`") for an int
 /// not listed.
@@ -716,7 +725,7 @@ fn int_choice<T: Copy>(
 fn row_name(name: &Bound<'_, PyAny>) -> PyResult<String> {
     if !name.is_instance_of::<PyString>() {
         return Err(PyTypeError::new_err(format!(
-            "a register is named by a str (\"speed\"), got {}",
+            "a register is named by a str, got {}",
             name.get_type().name()?
         )));
     }
@@ -737,6 +746,7 @@ fn shown<'py>(
     }
 }
 
+/// A number (int or float, not bool) as f64: TypeError for anything else.
 fn number(obj: &Bound<'_, PyAny>, name: &str) -> PyResult<f64> {
     if obj.is_instance_of::<PyBool>()
         || !(obj.is_instance_of::<PyInt>() || obj.is_instance_of::<PyFloat>())

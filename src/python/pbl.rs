@@ -146,7 +146,8 @@ tabled;
     #[setter]
     fn set_direction(&self, py: Python<'_>, direction: &Bound<'_, PyAny>) -> PyResult<()> {
         let allowed = "Direction.FORWARD or REVERSE";
-        let reverse = int_choice(direction, "direction", "a Direction", allowed, &[(0, false), (1, true)])?;
+        let choices = [(0, false), (1, true)];
+        let reverse = int_choice(direction, "direction", "a Direction", allowed, &choices)?;
         self.dev.wire(py, move |p| p.set_reverse(reverse))
     }
 

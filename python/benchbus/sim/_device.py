@@ -302,13 +302,15 @@ class ClockedModel:
     speedup: float = 1.0
 
     def _start_clock(self, clock: Callable[[], float]) -> None:
-        """Run the model on ``clock`` (seconds) from now; also makes ``self._lock``."""
+        """Run the model on ``clock`` (seconds) from now; makes ``self._lock`` (an RLock)
+        unless the device has one (a :class:`TableDevice`'s, which its checks take too)."""
         if not callable(clock):
             raise TypeError("clock must be a callable returning seconds")
         self._clock = clock
         self._clock_start = float(clock())
         self._offset = 0.0
-        self._lock = threading.RLock()
+        if not hasattr(self, "_lock"):
+            self._lock = threading.RLock()
 
     def _now(self) -> float:
         """Model seconds since the start: the clock's, times :attr:`speedup`, plus advances."""
@@ -486,7 +488,10 @@ class TableDevice(SimDevice):
         self._words[address] = value
 
     def _save(self) -> object:
-        """What :meth:`_restore` puts back if a write in turn is refused."""
+        """What :meth:`_restore` puts back if a write is refused after a :meth:`_store`
+        (a write in turn, or a :meth:`_store` that refuses after an earlier one of the
+        same write took its word): a family whose ``_store`` can refuse keeps here what it
+        changes. None by default: every check but ``_store``'s comes before any store."""
         return None
 
     def _restore(self, saved: object) -> None:

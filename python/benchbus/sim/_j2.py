@@ -360,6 +360,9 @@ class J2Device(ClockedModel, TableDevice):
         #: Each too-short interval between two write requests, seconds (answered with 6).
         self.write_violations: list[float] = []
         super().__init__(_ROWS)
+        for name, value in self.DEFAULTS.items():  # the class's, which a subclass may change
+            if name not in _LIVE:
+                self._words[_PARAMS[name].address] = round(value * _PARAMS[name].scale) & 0xFFFF
         self._start_clock(clock)
         self._core = _Core(temperature=ambient, previous=ambient, setpoint=0.0)
         self._core.setpoint = self._target()

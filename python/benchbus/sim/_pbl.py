@@ -245,6 +245,7 @@ class PblDevice(ClockedModel, TableDevice):
         #: The analog speed input, mV (registers 52 and 72).
         self.analog_input_mv: int = 0
         super().__init__(_ROWS)
+        self._words.update(self.DEFAULTS)  # the class's, which a subclass may change
         self._start_clock(clock)
         self._core = _Core(t=self._now())
 
