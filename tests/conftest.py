@@ -156,8 +156,9 @@ def hook(name: str) -> types.ModuleType:
 #: The files whose tests hold the library to a line's time (a simulated slave keeping the
 #: wire's timing, upper bounds on how long a call takes), marked ``timing`` (a test of
 #: another file may carry the marker itself): ``make test`` runs the other tests on
-#: pytest-xdist's workers, then these by themselves, one worker a core (a machine loaded by
-#: builds and browsers delays a simulated slave's bytes past what a line allows).
+#: pytest-xdist's workers, then these by themselves, in one process (a machine loaded by
+#: builds, browsers or another of them delays a simulated slave's bytes past what a line
+#: allows).
 TIMING_FILES = frozenset(
     {
         "test_bench.py",
