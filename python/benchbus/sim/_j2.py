@@ -136,8 +136,9 @@ _LIVE = frozenset({"MV", "PV", "RAPNF", "AT"})  # values the model keeps, not st
 
 
 def _row(p: _Param) -> Row:
-    """The table's row of ``p``: its power-up word, unless the model keeps the value."""
-    default = None if p.name in _LIVE else round(_DEFAULTS.get(p.name, 0.0) * p.scale) & 0xFFFF
+    """The table's row of ``p``: a stored word (its power-up value is the device's
+    ``DEFAULTS``), unless the model keeps the value."""
+    default = None if p.name in _LIVE else 0
     access = "rw" if p.writable else "r"
     return Row(access, p.low, p.high, default, signed=p.scale == _SIGNED_SCALE)
 
@@ -362,7 +363,7 @@ class J2Device(ClockedModel, TableDevice):
         super().__init__(_ROWS)
         for name, value in self.DEFAULTS.items():  # the class's, which a subclass may change
             if name not in _LIVE:
-                self._words[_PARAMS[name].address] = round(value * _PARAMS[name].scale) & 0xFFFF
+                self._put(name, round(value * _PARAMS[name].scale))
         self._start_clock(clock)
         self._core = _Core(temperature=ambient, previous=ambient, setpoint=0.0)
         self._core.setpoint = self._target()

@@ -120,7 +120,7 @@ _ROWS = {
     _CONTROL_LOW: Row(),
     _CONTROL_HIGH: Row(),
     **dict.fromkeys(range(_CONTROL_HIGH + 1, _FIRST_SETTING), Row("r", default=None)),
-    **{a: Row(low=lo, high=hi, default=_DEFAULTS.get(a, 0)) for a, (lo, hi) in _RANGES.items()},
+    **{a: Row(low=lo, high=hi) for a, (lo, hi) in _RANGES.items()},  # at power-up: DEFAULTS
 }
 
 #: Hall sensor states in the order a 120-degree sensor set steps through them going forward.
