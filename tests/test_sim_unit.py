@@ -9,25 +9,16 @@ look at every address of the write before any value.
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from pathlib import Path
 from types import MappingProxyType
 
 import pytest
+from test_sim_tables import answer
 
-from benchbus.sim import DriveDevice, J2Device, PblDevice, ProfileDevice, SimException
+from benchbus.sim import DriveDevice, J2Device, PblDevice, ProfileDevice
 
 DRIVE_SETPOINT, POSITION_REFERENCE = 0x2001, 0x2010
 SV = 6
-
-
-def answer(action: Callable[[], object]) -> int:
-    """0 when the unit takes the request, else the exception code it answers."""
-    try:
-        action()
-    except SimException as exc:
-        return int(exc.code)
-    return 0
 
 
 def still() -> float:
