@@ -273,6 +273,7 @@ CLIENT = textwrap.dedent(
 )
 
 
+@pytest.mark.timing  # each client's write to the paced J2 must come back within 1 s
 def test_several_processes_share_one_line_through_the_gateway() -> None:
     devices: dict[int, RegisterDevice | J2Device] = {
         u: RegisterDevice({0x10: 0}) for u in (1, 2, 3)
