@@ -3,7 +3,7 @@ line and the pytest plugin give one message, the lab-framework integrations anot
 
 from __future__ import annotations
 
-__all__ = ["SIM_MODULES", "framework_missing", "sim_missing"]
+__all__ = ["SIM_MODULES", "need_framework", "sim_missing"]
 
 #: The top-level modules the ``sim`` extra installs (pymodbus, pyserial).
 SIM_MODULES = ("pymodbus", "serial")
@@ -24,14 +24,16 @@ def sim_missing(exc: ImportError) -> ModuleNotFoundError | None:
     )
 
 
-def framework_missing(
-    module: str, needs: str, extra: str, package: str, cause: ImportError
-) -> ImportError:
-    """The error ``module`` (``benchbus.qcodes``, ``benchbus.ophyd``) raises when used
-    without the framework it wraps (``needs``: the import ``package``, installed by the
-    extra ``extra``), which failed to import with ``cause``. Its message says what to
-    install."""
-    return ImportError(
-        f"{module} needs {needs} (Python 3.11 or later): pip install 'benchbus[{extra}]' ({cause})",
-        name=package,
-    )
+def need_framework(
+    module: str, needs: str, extra: str, package: str, missing: ImportError | None
+) -> None:
+    """Raise the ImportError ``module`` (``benchbus.qcodes``, ``benchbus.ophyd``) raises when
+    used without the framework it wraps (``needs``: the import ``package``, installed by
+    the extra ``extra``), if that failed to import with ``missing`` (None: it is there).
+    Its message says what to install."""
+    if missing is not None:
+        raise ImportError(
+            f"{module} needs {needs} (Python 3.11 or later): pip install 'benchbus[{extra}]' "
+            f"({missing})",
+            name=package,
+        ) from missing

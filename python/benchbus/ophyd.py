@@ -42,7 +42,7 @@ from typing import TYPE_CHECKING, Any, NamedTuple, Protocol
 
 from benchbus._core import CancelToken
 from benchbus._device import member_name
-from benchbus._extras import framework_missing
+from benchbus._extras import need_framework
 from benchbus.exceptions import BenchbusError
 
 if TYPE_CHECKING:
@@ -247,10 +247,7 @@ def asynchronous(device: RegisterSource) -> AsyncRegisterDevice:
 
 def _needs_ophyd() -> None:
     """ImportError saying what to install, when ophyd-async or Bluesky is missing."""
-    if _MISSING is not None:
-        raise framework_missing(
-            "benchbus.ophyd", "ophyd-async and Bluesky", "bluesky", "ophyd_async", _MISSING
-        ) from _MISSING
+    need_framework("benchbus.ophyd", "ophyd-async and Bluesky", "bluesky", "ophyd_async", _MISSING)
 
 
 def _whole(register: ProfileRegister) -> bool:

@@ -23,7 +23,7 @@ import math
 from collections.abc import Hashable, Mapping
 from typing import TYPE_CHECKING, Any, Protocol
 
-from benchbus._extras import framework_missing
+from benchbus._extras import need_framework
 
 if TYPE_CHECKING:
     from benchbus._core import Profile
@@ -62,10 +62,7 @@ class RegisterDevice(Protocol):
 
 def _needs_qcodes() -> None:
     """ImportError saying what to install, when QCoDeS is missing."""
-    if _MISSING is not None:
-        raise framework_missing(
-            "benchbus.qcodes", "QCoDeS", "qcodes", "qcodes", _MISSING
-        ) from _MISSING
+    need_framework("benchbus.qcodes", "QCoDeS", "qcodes", "qcodes", _MISSING)
 
 
 def _plain(value: Any) -> Any:
