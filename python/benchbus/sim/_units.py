@@ -15,12 +15,15 @@ import logging
 import math
 import threading
 from collections.abc import Callable, Collection
+from typing import TypeVar
 
 from benchbus.sim._device import BASIC_FUNCTIONS, STANDARD_FUNCTIONS
 
 __all__ = ["SERVER_FUNCTIONS", "WRITE_FUNCTIONS", "Job", "UnitHooks", "refusal"]
 
 log = logging.getLogger("benchbus.sim")
+
+_T = TypeVar("_T")
 
 #: Functions the server can take; any other is answered exception 1 by the forwarder.
 SERVER_FUNCTIONS = STANDARD_FUNCTIONS
@@ -79,33 +82,35 @@ class UnitHooks:
         self._reply_delay = reply_delay
         self._shape_reply = shape_reply
 
+    def _ask(self, name: str, unit: int, ask: Callable[[], _T], fallback: _T, means: str) -> _T:
+        """``ask()``, the callback ``name`` asked about ``unit``; if it fails, logged and
+        ``fallback`` (``means``: what that is, for the log)."""
+        try:
+            return ask()
+        except Exception:
+            log.exception("%s: unit %d: %s failed; %s", self.who, unit, name, means)
+            return fallback
+
     def answers_broadcast(self, unit: int) -> bool:
         """Whether ``unit`` replies to a broadcast (False if the callback fails)."""
-        try:
-            return bool(self._answers_broadcast(unit))
-        except Exception:
-            log.exception("%s: unit %d: answers_broadcast failed; not answering", self.who, unit)
-            return False
+        hook = self._answers_broadcast
+        return self._ask(
+            "answers_broadcast", unit, lambda: bool(hook(unit)), False, "not answering"
+        )
 
     def answers_writes(self, unit: int) -> bool:
         """Whether ``unit`` replies to a write (True if the callback fails)."""
-        if self._answers_writes is None:
+        hook = self._answers_writes
+        if hook is None:
             return True
-        try:
-            return bool(self._answers_writes(unit))
-        except Exception:
-            log.exception("%s: unit %d: answers_writes failed; answering", self.who, unit)
-            return True
+        return self._ask("answers_writes", unit, lambda: bool(hook(unit)), True, "answering")
 
     def reply_delay(self, unit: int) -> float:
         """How long ``unit`` holds its replies back (0 if the callback fails)."""
-        if self._reply_delay is None:
+        hook = self._reply_delay
+        if hook is None:
             return 0.0
-        try:
-            delay = float(self._reply_delay(unit))
-        except Exception:
-            log.exception("%s: unit %d: reply_delay failed; no delay", self.who, unit)
-            return 0.0
+        delay = self._ask("reply_delay", unit, lambda: float(hook(unit)), 0.0, "no delay")
         if not (math.isfinite(delay) and delay >= 0.0):
             log.error("%s: unit %d: reply_delay %r is not >= 0; no delay", self.who, unit, delay)
             return 0.0
@@ -113,25 +118,26 @@ class UnitHooks:
 
     def functions(self, unit: int) -> Collection[int]:
         """The function codes ``unit`` serves (the basic ones if the callback fails)."""
-        if self._functions is None:
+        hook = self._functions
+        if hook is None:
             return BASIC_FUNCTIONS
-        try:
-            functions = self._functions(unit)
-            return frozenset(int(f) for f in functions)
-        except Exception:
-            log.exception("%s: unit %d: functions failed; the basic ones", self.who, unit)
-            return BASIC_FUNCTIONS
+        return self._ask(
+            "functions",
+            unit,
+            lambda: frozenset(int(f) for f in hook(unit)),
+            BASIC_FUNCTIONS,
+            "the basic ones",
+        )
 
     def shape(self, unit: int, request: bytes, reply: bytes) -> bytes:
         """``unit``'s own form of the server's RTU ``reply`` to ``request`` (``reply`` if the
         callback fails)."""
-        if self._shape_reply is None:
+        hook = self._shape_reply
+        if hook is None:
             return reply
-        try:
-            shaped = self._shape_reply(unit, request, reply)
-        except Exception:
-            log.exception("%s: unit %d: shape_reply failed; reply unchanged", self.who, unit)
-            return reply
+        shaped = self._ask(
+            "shape_reply", unit, lambda: hook(unit, request, reply), reply, "reply unchanged"
+        )
         if not isinstance(shaped, (bytes, bytearray)) or len(shaped) < 4:
             log.error("%s: unit %d: shape_reply gave %r; reply unchanged", self.who, unit, shaped)
             return reply
