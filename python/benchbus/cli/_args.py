@@ -225,24 +225,27 @@ class Parser(argparse.ArgumentParser):
         self.exit(2, f"{PROG}: {text} (see {self.prog} --help)\n")
 
 
-_S = argparse.SUPPRESS
+def _option_group_parser() -> Parser:
+    """A parent parser for options that commands share, each left out of the namespace
+    unless given: a command's own default would overwrite one given before it (the
+    general options stand on both sides), and a line option left out takes the family's
+    or profile's default (:func:`benchbus.cli._line.opt`)."""
+    return Parser(add_help=False, argument_default=argparse.SUPPRESS)
 
 
 def general_options() -> Parser:
     """The options every command takes: ``--verbose``, ``--traceback``."""
-    parent = Parser(add_help=False)
+    parent = _option_group_parser()
     group = parent.add_argument_group("general options")
     group.add_argument(
         "-v",
         "--verbose",
         action="store_true",
-        default=_S,
         help="log every frame sent and received, in hex, on stderr",
     )
     group.add_argument(
         "--traceback",
         action="store_true",
-        default=_S,
         help="on an error, show the Python traceback instead of one line",
     )
     return parent
@@ -268,14 +271,12 @@ def _framing_options(group: argparse._ArgumentGroup) -> None:
         "--framing",
         type=framing,
         metavar="rtu|ascii",
-        default=_S,
         help="Modbus RTU (default) or Modbus ASCII; ASCII's line format is 7E1 unless given",
     )
     group.add_argument(
         "--bytesize",
         type=integer(7, 8, "bytesize"),
         metavar="7|8",
-        default=_S,
         help="data bits (default 8; 7 with --framing ascii)",
     )
 
@@ -284,42 +285,33 @@ def line_options(unit: bool, rs485: bool = True, framing: bool = True) -> Parser
     """The line options (``--port``, ``--baudrate``...; ``--unit`` with ``unit``, the RS485
     ones with ``rs485``, ``--framing`` and ``--bytesize`` with ``framing``), each left out of
     the namespace unless given."""
-    parent = Parser(add_help=False)
+    parent = _option_group_parser()
     group = parent.add_argument_group(
         "line options (defaults: the device family's line format and timing)"
     )
     group.add_argument(
         "--port",
         metavar="PORT",
-        default=_S,
         help=f"serial port, tcp://HOST[:PORT] or rtu+tcp://HOST:PORT (default ${PORT_ENV})",
     )
-    group.add_argument(
-        "--baudrate", type=integer(50, 4_000_000, "baudrate"), metavar="BPS", default=_S
-    )
-    group.add_argument("--parity", type=parity, metavar="N|E|O", default=_S)
-    group.add_argument("--stopbits", type=integer(1, 2, "stopbits"), metavar="1|2", default=_S)
+    group.add_argument("--baudrate", type=integer(50, 4_000_000, "baudrate"), metavar="BPS")
+    group.add_argument("--parity", type=parity, metavar="N|E|O")
+    group.add_argument("--stopbits", type=integer(1, 2, "stopbits"), metavar="1|2")
     if framing:
         _framing_options(group)
     if unit:
-        group.add_argument(
-            "--unit", type=integer(0, 255, "unit"), metavar="N", default=_S, help="default 1"
-        )
-    group.add_argument(
-        "--timeout", type=seconds, metavar="S", default=_S, help="seconds to wait for a reply"
-    )
+        group.add_argument("--unit", type=integer(0, 255, "unit"), metavar="N", help="default 1")
+    group.add_argument("--timeout", type=seconds, metavar="S", help="seconds to wait for a reply")
     group.add_argument(
         "--retries",
         type=integer(0, 10, "retries"),
         metavar="N",
-        default=_S,
         help="repeats after a timeout or a corrupt reply",
     )
     if rs485:
         group.add_argument(
             "--rs485",
             action="store_true",
-            default=_S,
             help="open a board UART in the Linux kernel's RS485 mode (RTS drives the "
             "transceiver; a USB adapter switches by itself and needs none)",
         )
@@ -327,7 +319,6 @@ def line_options(unit: bool, rs485: bool = True, framing: bool = True) -> Parser
             "--rts-delay",
             type=_rts_delay,
             metavar="BEFORE,AFTER",
-            default=_S,
             help="with --rs485: seconds from RTS on to the first bit, and after the last",
         )
     return parent
@@ -335,12 +326,11 @@ def line_options(unit: bool, rs485: bool = True, framing: bool = True) -> Parser
 
 def family_options() -> Parser:
     """``--family BLD|C20``, for the commands that talk to a drive."""
-    parent = Parser(add_help=False)
+    parent = _option_group_parser()
     parent.add_argument(
         "--family",
         type=str.upper,
         choices=("BLD", "C20"),
-        default=_S,
         help="BLD (BLD2, BLD3H; the default) or C20 (ZBLD.C20)",
     )
     return parent
