@@ -9,7 +9,7 @@ import contextlib
 import dataclasses
 import os
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, TypeVar
 
 import benchbus as bb
 from benchbus._device import BusDevice
@@ -17,6 +17,8 @@ from benchbus._families import check_identity, command_families, family
 from benchbus._profile import profile_line
 from benchbus.cli._args import PORT_ENV
 from benchbus.cli._errors import UsageError
+
+_D = TypeVar("_D", bound=BusDevice)
 
 
 @dataclasses.dataclass(frozen=True)
@@ -212,3 +214,18 @@ def check_family(device: BusDevice, key: str) -> None:
         device.verify_identity()
     else:
         check_identity(key, device.bus, device.unit)
+
+
+@contextlib.contextmanager
+def commanded(args: argparse.Namespace, key: str, kind: type[_D]) -> Iterator[_D]:
+    """The device of the family ``key`` (a ``kind``) at the unit given, for its command's
+    action: on a Bus opened at the family's line and closed after the block, its family
+    checked first for ``status`` (:func:`check_family`)."""
+    with open_bus(args, key) as bus:
+        # Not the device's own `with`: a drive's would stop the motor on leaving.
+        device = open_device(bus, args, key)
+        if not isinstance(device, kind):
+            raise TypeError(f"the {key} family's device is a {type(device).__name__}")
+        if args.action == "status":
+            check_family(device, key)
+        yield device

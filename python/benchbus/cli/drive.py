@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import argparse
 
+import benchbus as bb
 from benchbus._core import DriveCore
 from benchbus.cli._args import Parser, add_command, integer
-from benchbus.cli._line import check_family, open_bus, open_drive, refused_as_usage
+from benchbus.cli._line import commanded, refused_as_usage
 from benchbus.cli._output import enum_name, measured, print_table
 
 __all__ = ["HELP", "add_arguments", "run"]
@@ -14,11 +15,9 @@ __all__ = ["HELP", "add_arguments", "run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus drive`` as ``args`` say; the exit status."""
-    with open_bus(args, "drive") as bus:
-        drive = open_drive(bus, args)  # not a `with`: that would stop the motor on leaving
+    with commanded(args, "drive", bb.Drive) as drive:
         unit = drive.unit
         if args.action == "status":
-            check_family(drive, "drive")
             status = drive.status()
             t = drive.telemetry()
             u = drive.units()

@@ -8,7 +8,7 @@ import enum
 import benchbus as bb
 from benchbus.cli._args import PROG, Parser, add_command, number
 from benchbus.cli._errors import UsageError
-from benchbus.cli._line import check_family, open_bus, refused_as_usage, unit_of
+from benchbus.cli._line import commanded, refused_as_usage
 from benchbus.cli._output import enum_name, fmt, measured, print_table
 
 __all__ = ["HELP", "add_arguments", "run"]
@@ -16,11 +16,9 @@ __all__ = ["HELP", "add_arguments", "run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus j2`` as ``args`` say; the exit status."""
-    with open_bus(args, "j2") as bus:
-        j2 = bb.J2Controller(bus, unit_of(args, "j2"))
+    with commanded(args, "j2", bb.J2Controller) as j2:
         unit = j2.unit
         if args.action == "status":
-            check_family(j2, "j2")
             names = ["PV", "SV", "MV", "AM", "LSP", "USP", "AT", "RAPNF", "INP"]
             v = dict(zip(names, j2.read_many(names)))
             u = j2.units()

@@ -7,7 +7,7 @@ import argparse
 import benchbus as bb
 from benchbus.cli._args import Parser, add_command, integer
 from benchbus.cli._errors import UsageError
-from benchbus.cli._line import check_family, open_bus, refused_as_usage, unit_of
+from benchbus.cli._line import commanded, refused_as_usage
 from benchbus.cli._output import enum_name, measured, print_table
 
 __all__ = ["HELP", "add_arguments", "run"]
@@ -15,11 +15,9 @@ __all__ = ["HELP", "add_arguments", "run"]
 
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus pbl`` as ``args`` say; the exit status."""
-    with open_bus(args, "pbl") as bus:
-        pbl = bb.PblDrive(bus, unit_of(args, "pbl"))
+    with commanded(args, "pbl", bb.PblDrive) as pbl:
         unit = pbl.unit
         if args.action == "status":
-            check_family(pbl, "pbl")
             status = pbl.status()
             sample = pbl.sample()
             alarms = sorted(pbl.alarms)
