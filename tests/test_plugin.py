@@ -17,6 +17,9 @@ from pathlib import Path
 
 import pytest
 
+import benchbus as bb
+from benchbus import pytest_plugin
+from benchbus._families import FAMILIES, Family
 from benchbus.sim import DriveDevice, J2Device, Simulator
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -168,6 +171,60 @@ def test_sim_fixtures_give_device_simulator_and_model(pytester: pytest.Pytester)
     pytester.makepyfile(test_inner_sim=SIM_TESTS, test_inner_c20=C20_TESTS)
     result = pytester.runpytest_inprocess("-p", "no:cacheprovider")
     result.assert_outcomes(passed=6)
+
+
+def test_each_family_of_the_registry_has_its_three_fixtures_documented(
+    pytester: pytest.Pytester,
+) -> None:
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider", "--fixtures")
+    listed = result.stdout.str()
+    for of in FAMILIES:
+        names = [f"sim_{of.key}_model", f"sim_{of.key}", f"bench_{of.key}"]
+        for name in names:
+            assert (f"\n{name} -- " in listed) == (of.device is not None), (name, listed)
+        if of.device is not None:
+            # Each says what it gives: the simulator and how it is made, the class.
+            assert f"benchbus.sim.{of.simulator}(" in listed
+            assert f"benchbus.{of.device.__name__}" in listed
+
+
+XY_TESTS = """
+import benchbus as bb
+from benchbus.sim import TaisongDevice
+
+
+def test_sim(sim_xy):
+    meter, sim, model = sim_xy
+    assert isinstance(meter, bb.Instrument) and isinstance(model, TaisongDevice)
+    assert model.speedup == 5.0
+    meter.write_register(0x0005, 321)
+    assert model.sv == 321
+
+
+def test_bench(bench_xy, sim_xy_model):
+    assert isinstance(bench_xy, bb.Instrument) and sim_xy_model.speedup == 5.0
+    sim_xy_model.hold(77)
+    assert bench_xy.read_register(0x0000) == 77
+"""
+
+
+def test_a_family_added_to_the_registry_gets_its_fixtures(
+    pytester: pytest.Pytester, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    xy = Family(
+        "xy",
+        "an XY meter",
+        bb.Instrument,
+        "TaisongDevice",
+        ("speedup",),
+        bench_model={"speedup": 5.0},
+    )
+    for name in ("sim_xy_model", "sim_xy", "bench_xy"):
+        monkeypatch.setattr(pytest_plugin, name, None, raising=False)  # gone after the test
+    pytest_plugin._add_fixtures(xy)
+    pytester.makepyfile(test_inner_xy=XY_TESTS)
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider")
+    result.assert_outcomes(passed=2)
 
 
 def test_a_failing_test_still_closes_everything(pytester: pytest.Pytester) -> None:

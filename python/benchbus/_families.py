@@ -15,7 +15,7 @@ commands, ``sim``, ``scan``'s model guess and the family check of ``status`` and
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import TYPE_CHECKING, Any
 
 from benchbus._core import Bus
@@ -56,6 +56,11 @@ class Family:
     model: Callable[[Probe], str | None] | None = None
     #: Whether the command line has a command for it (``benchbus drive``, ...).
     command: bool = False
+    #: The keywords of its simulator for the pytest plugin's simulated device under test
+    #: (``sim_<key>_model``); empty: the simulator's defaults.
+    bench_model: Mapping[str, Any] = dataclasses.field(default_factory=dict, compare=False)
+    #: The options its class is opened with on a simulated unit, from that unit.
+    opened_with: Callable[[Any], dict[str, Any]] = lambda model: {}
 
     @property
     def line(self) -> LineDefaults:
@@ -99,6 +104,11 @@ class Family:
             return None
 
 
+def _drive_family(model: Any) -> dict[str, Any]:
+    """The ``family`` a :class:`Drive` takes for a simulated drive of ``model``."""
+    return {"family": "C20" if model.model == "C20" else "BLD"}
+
+
 #: The families, in the order they are tried when naming what a unit looks like.
 FAMILIES = (
     Family(
@@ -110,6 +120,8 @@ FAMILIES = (
         test=is_drive,
         model=drive_model,
         command=True,
+        bench_model={"model": "BLD2"},
+        opened_with=_drive_family,
     ),
     Family("pbl", "a PBL drive", PblDrive, "PblDevice", test=is_pbl, label="PBL", command=True),
     Family(
@@ -121,6 +133,7 @@ FAMILIES = (
         test=is_j2,
         label="J2",
         command=True,
+        bench_model={"speedup": 100.0},
     ),
     Family(
         "instrument",
@@ -130,6 +143,7 @@ FAMILIES = (
         ("speedup",),
         test=is_taisong,
         label="Taisong",
+        bench_model={"speedup": 10.0},
     ),
     Family("atv31", "the Taisong manual's ATV31 drive", None, "Atv31Device"),
 )

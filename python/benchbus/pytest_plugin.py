@@ -117,24 +117,16 @@ import pytest
 
 from benchbus._core import Bus, Profile
 from benchbus._device import BusDevice, MotorDevice
-from benchbus._drive import Drive
 from benchbus._extras import sim_missing
-from benchbus._families import FAMILIES, family
-from benchbus._instrument import Instrument
-from benchbus._j2 import J2Controller
-from benchbus._pbl import PblDrive
+from benchbus._families import FAMILIES, Family, family
 from benchbus.exceptions import FrameError, ResponseTimeout
 
 if TYPE_CHECKING:
     from benchbus._profile import Device
     from benchbus.sim import (
-        DriveDevice,
-        J2Device,
-        PblDevice,
         ProfileDevice,
         SimDevice,
         Simulator,
-        TaisongDevice,
     )
 
 __all__ = [
@@ -152,9 +144,9 @@ KINDS = tuple(f.key for f in FAMILIES if f.device is not None)
 #: The unit address of every simulated device.
 SIM_UNIT = 1
 #: How many times faster than real time the simulated J2 controller's process runs.
-J2_SPEEDUP = 100.0
+J2_SPEEDUP = float(family("j2").bench_model["speedup"])
 #: How many times faster than real time the simulated instrument's measured value moves.
-INSTRUMENT_SPEEDUP = 10.0
+INSTRUMENT_SPEEDUP = float(family("instrument").bench_model["speedup"])
 
 _DEFAULT_UNIT = 1  # on the real port
 _SKIP_REASON = "needs a real device: run with --benchbus-port PATH"
@@ -368,97 +360,20 @@ def _require_sim() -> None:
         pytest.fail(str(sim_missing(exc) or exc), pytrace=False)
 
 
-def _model(kind: str, **options: Any) -> Any:
-    """A new simulated device of the family ``kind`` (its simulator in the families'
-    registry), made with ``options``."""
-    _require_sim()
-    return family(kind).simulate(**options)
-
-
-@pytest.fixture
-def sim_drive_model() -> DriveDevice:
-    """The simulated drive for ``sim_drive`` / ``bench_drive``: a BLD2. Override to change."""
-    model: DriveDevice = _model("drive", model="BLD2")
-    return model
-
-
-@pytest.fixture
-def sim_pbl_model() -> PblDevice:
-    """The simulated PBL drive for ``sim_pbl`` / ``bench_pbl``. Override to change."""
-    model: PblDevice = _model("pbl")
-    return model
-
-
-@pytest.fixture
-def sim_j2_model() -> J2Device:
-    """The simulated J2 controller for ``sim_j2`` / ``bench_j2``, :data:`J2_SPEEDUP` times
-    faster than real time. Override to change."""
-    model: J2Device = _model("j2", speedup=J2_SPEEDUP)
-    return model
-
-
-@pytest.fixture
-def sim_instrument_model() -> TaisongDevice:
-    """The simulated instrument for ``sim_instrument`` / ``bench_instrument``: a Taisong
-    panel meter, :data:`INSTRUMENT_SPEEDUP` times faster than real time. Override to change."""
-    model: TaisongDevice = _model("instrument", speedup=INSTRUMENT_SPEEDUP)
-    return model
-
-
 @contextlib.contextmanager
-def _simulated(kind: str, model: ModelT, **options: Any) -> Iterator[SimBench[Any, ModelT]]:
-    """``model`` at :data:`SIM_UNIT` on a running Simulator, the ``kind`` device opened on
-    it with ``options``; afterwards the device closed and the simulator stopped."""
+def _simulated(of: Family, model: ModelT) -> Iterator[SimBench[Any, ModelT]]:
+    """``model`` at :data:`SIM_UNIT` on a running Simulator, the device of the family ``of``
+    opened on it as the family opens a simulated unit; afterwards the device closed and the
+    simulator stopped."""
     _require_sim()
     from benchbus.sim import Simulator
 
-    of = family(kind)
     with Simulator({SIM_UNIT: model}, baudrate=of.line.baudrate) as sim:
-        device = of.open(sim.port, SIM_UNIT, **options)
+        device = of.open(sim.port, SIM_UNIT, **of.opened_with(model))
         try:
             yield SimBench(device, sim, model)
         finally:
             device.close()
-
-
-def _drive_options(model: DriveDevice) -> dict[str, Any]:
-    """The simulated drive's family, as :class:`benchbus.Drive` takes it."""
-    return {"family": "C20" if model.model == "C20" else "BLD"}
-
-
-@pytest.fixture
-def sim_drive(sim_drive_model: DriveDevice) -> Iterator[SimBench[Drive, DriveDevice]]:
-    """The drive of ``sim_drive_model`` (a BLD2) on a simulator, as a :class:`SimBench`:
-    ``.device`` (:class:`benchbus.Drive`), ``.sim``, ``.model``. Closed and stopped after."""
-    with _simulated("drive", sim_drive_model, **_drive_options(sim_drive_model)) as bench:
-        yield bench
-
-
-@pytest.fixture
-def sim_pbl(sim_pbl_model: PblDevice) -> Iterator[SimBench[PblDrive, PblDevice]]:
-    """The drive of ``sim_pbl_model`` on a simulator, as a :class:`SimBench`: ``.device``
-    (:class:`benchbus.PblDrive`), ``.sim``, ``.model``. Closed and stopped after."""
-    with _simulated("pbl", sim_pbl_model) as bench:
-        yield bench
-
-
-@pytest.fixture
-def sim_j2(sim_j2_model: J2Device) -> Iterator[SimBench[J2Controller, J2Device]]:
-    """The controller of ``sim_j2_model`` on a simulator, as a :class:`SimBench`: ``.device``
-    (:class:`benchbus.J2Controller`), ``.sim``, ``.model``. Closed and stopped after."""
-    with _simulated("j2", sim_j2_model) as bench:
-        yield bench
-
-
-@pytest.fixture
-def sim_instrument(
-    sim_instrument_model: TaisongDevice,
-) -> Iterator[SimBench[Instrument, TaisongDevice]]:
-    """The meter of ``sim_instrument_model`` on a simulator, as a :class:`SimBench`:
-    ``.device`` (:class:`benchbus.Instrument`), ``.sim``, ``.model``. Closed and stopped
-    after."""
-    with _simulated("instrument", sim_instrument_model) as bench:
-        yield bench
 
 
 def _serve_profile(
@@ -596,22 +511,17 @@ def _in_use(device: DevT) -> Iterator[DevT]:
             device.close()
 
 
-def _bench(
-    request: pytest.FixtureRequest,
-    kind: str,
-    sim_options: Callable[[Any], dict[str, Any]] = lambda model: {},
-) -> Iterator[Any]:
-    """The ``kind`` device under test: on ``--benchbus-port`` with the family's timeout,
-    else on the simulated ``sim_<kind>_model`` (opened with ``sim_options(model)``); in use
-    until the test ends (see :func:`_in_use`)."""
+def _bench(request: pytest.FixtureRequest, of: Family) -> Iterator[Any]:
+    """The device of the family ``of`` under test: on ``--benchbus-port`` with the family's
+    timeout, else on the simulated ``sim_<key>_model``; in use until the test ends (see
+    :func:`_in_use`)."""
     line = _real_line(request)
     if line is None:
-        model = request.getfixturevalue(f"sim_{kind}_model")
-        with _simulated(kind, model, **sim_options(model)) as bench, _in_use(bench.device):
+        model = request.getfixturevalue(f"sim_{of.key}_model")
+        with _simulated(of, model) as bench, _in_use(bench.device):
             yield bench.device
     else:
-        bus, unit, timeout = line.open(kind)
-        of = family(kind)
+        bus, unit, timeout = line.open(of.key)
         options = {}
         if of.device is not None and of.device.IDENTITY is not None:
             options["check_identity"] = request.config.stash[_SETTINGS].check_identity
@@ -622,25 +532,52 @@ def _bench(
             yield device
 
 
-@pytest.fixture
-def bench_drive(request: pytest.FixtureRequest) -> Iterator[Drive]:
-    """The drive under test: on ``--benchbus-port``, or a simulated BLD2. Stopped after."""
-    yield from _bench(request, "drive", _drive_options)
+# ---- each family's fixtures ----------------------------------------------------------------------
 
 
-@pytest.fixture
-def bench_pbl(request: pytest.FixtureRequest) -> Iterator[PblDrive]:
-    """The PBL drive under test: on ``--benchbus-port``, or simulated. Stopped after."""
-    yield from _bench(request, "pbl")
+def _add_fixtures(of: Family) -> None:
+    """Add the fixtures of the family ``of`` to this module, where pytest finds them:
+    ``sim_<key>_model`` (its simulated unit, made as its registry row says),
+    ``sim_<key>`` (that unit on a simulator, with the device on it) and ``bench_<key>`` (the
+    device under test, real or simulated)."""
+    kind, cls = of.key, f":class:`benchbus.{getattr(of.device, '__name__', '')}`"
+    noun = of.name.split(" ", 1)[-1]  # "a BLD drive": "BLD drive"
+    keywords = ", ".join(f"{key}={value!r}" for key, value in of.bench_model.items())
+
+    def model() -> SimDevice:
+        _require_sim()
+        return of.simulate(**of.bench_model)
+
+    def simulated(request: pytest.FixtureRequest) -> Iterator[SimBench[Any, Any]]:
+        with _simulated(of, request.getfixturevalue(f"sim_{kind}_model")) as bench:
+            yield bench
+
+    def bench(request: pytest.FixtureRequest) -> Iterator[BusDevice]:
+        yield from _bench(request, of)
+
+    docs: dict[str, tuple[Callable[..., object], str]] = {
+        f"sim_{kind}_model": (
+            model,
+            f"The simulated {noun} for ``sim_{kind}`` / ``bench_{kind}``: "
+            f"``benchbus.sim.{of.simulator}({keywords})``. Override to change.",
+        ),
+        f"sim_{kind}": (
+            simulated,
+            f"The {noun} of ``sim_{kind}_model`` on a simulator, as a :class:`SimBench`: "
+            f"``.device`` ({cls}), ``.sim``, ``.model``. Closed and stopped after.",
+        ),
+        f"bench_{kind}": (
+            bench,
+            f"The {noun} under test ({cls}): on ``--benchbus-port``, or the simulated "
+            f"``sim_{kind}_model``. Stopped (a motor) and closed after.",
+        ),
+    }
+    for name, (function, doc) in docs.items():
+        function.__name__ = function.__qualname__ = name
+        function.__doc__ = doc
+        globals()[name] = pytest.fixture(function)
 
 
-@pytest.fixture
-def bench_j2(request: pytest.FixtureRequest) -> Iterator[J2Controller]:
-    """The J2 controller under test: on ``--benchbus-port``, or simulated (sped up)."""
-    yield from _bench(request, "j2")
-
-
-@pytest.fixture
-def bench_instrument(request: pytest.FixtureRequest) -> Iterator[Instrument]:
-    """The instrument under test: on ``--benchbus-port``, or a simulated Taisong meter."""
-    yield from _bench(request, "instrument")
+for _family in FAMILIES:
+    if _family.device is not None:
+        _add_fixtures(_family)
