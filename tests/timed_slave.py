@@ -1,10 +1,13 @@
 """A Modbus RTU slave on a pseudo-terminal pair that keeps a real line's time, and misbehaves
 in time on request: for the tests of a line that falls out of step.
 
-The library opens :attr:`TimedSlave.port`; the slave serves the other end in a thread. A
-pty carries bytes at once, so the slave reckons the wire itself: a request ends one
-character time a byte after its first byte came (as the master reckons it too), and each
-byte of a reply leaves one character time after the one before, never two frames at once.
+The library opens :attr:`TimedSlave.port`; the slave serves the other end in a process of
+its own (this file run as a script), so that it keeps the line's time whatever the test's
+process does: a thread would wait for the GIL while the test's thread holds it, and be late
+by up to the interpreter's switch interval (5 ms), the size of the gaps it keeps. A pty
+carries bytes at once, so the slave reckons the wire itself: a request ends one character
+time a byte after its first byte came (as the master reckons it too), and each byte of a
+reply leaves one character time after the one before, never two frames at once.
 
 What it can do wrong, each a constructor option:
 
@@ -25,15 +28,19 @@ echo) are answered; other units stay silent.
 from __future__ import annotations
 
 import contextlib
+import json
 import os
 import random
 import select
+import subprocess
+import sys
 import termios
-import threading
 import time
 import tty
 from collections import deque
+from pathlib import Path
 from types import TracebackType
+from typing import Any
 
 from conftest import crc
 
@@ -53,7 +60,82 @@ def request_length(buf: bytes | bytearray) -> int | None:
 
 
 class TimedSlave:
-    """A slave on a pty pair that answers in the line's time (see the module's text)."""
+    """A slave on a pty pair that answers in the line's time (see the module's text), run in
+    a process of its own; its options are :class:`Line`'s."""
+
+    def __init__(self, baud: int = 9600, bits: int = 10, **options: Any) -> None:
+        config = {"baud": baud, "bits": bits, **options}
+        if "units" in config:
+            config["units"] = sorted(config["units"])
+        self._process = subprocess.Popen(
+            [sys.executable, __file__, json.dumps(config)],
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            text=True,
+            cwd=Path(__file__).parent,
+        )
+        #: The pseudo-terminal the library opens.
+        self.port: str = self._ask({"port": None})
+
+    def _ask(self, command: dict[str, Any]) -> Any:
+        """Send ``command`` to the slave's process; its answer."""
+        assert self._process.stdin is not None and self._process.stdout is not None
+        self._process.stdin.write(json.dumps(command) + "\n")
+        self._process.stdin.flush()
+        answer = self._process.stdout.readline()
+        if not answer:
+            raise RuntimeError(f"the timed slave ended ({self._process.wait(5)})")
+        return json.loads(answer)
+
+    @property
+    def turnaround(self) -> float:
+        """The turnaround; set it on the fly: the next request's reply takes the new one."""
+        value: float = self._ask({"turnaround": None})
+        return value
+
+    @turnaround.setter
+    def turnaround(self, value: float) -> None:
+        self._ask({"turnaround": value})
+
+    @property
+    def copies(self) -> int:
+        """How many copies of replies were sent."""
+        value: int = self._ask({"copies": None})
+        return value
+
+    @property
+    def requests(self) -> list[tuple[float, bytes]]:
+        """Requests as they came: (when the first byte came, the bytes)."""
+        got = self._ask({"requests": None})
+        return [(first, bytes.fromhex(frame)) for first, frame in got]
+
+    def __enter__(self) -> TimedSlave:
+        return self
+
+    def __exit__(
+        self,
+        kind: type[BaseException] | None,
+        error: BaseException | None,
+        tb: TracebackType | None,
+    ) -> None:
+        self.close()
+
+    def close(self) -> None:
+        """Stop serving: the process ends and closes both ends of the pair."""
+        with contextlib.suppress(OSError, ValueError):
+            assert self._process.stdin is not None
+            self._process.stdin.close()  # end of commands: the process ends
+        try:
+            self._process.wait(5)
+        except subprocess.TimeoutExpired:
+            self._process.kill()
+            self._process.wait()
+        if self._process.stdout is not None:
+            self._process.stdout.close()
+
+
+class Line:
+    """The slave itself, in the process of its own."""
 
     def __init__(
         self,
@@ -72,7 +154,7 @@ class TimedSlave:
         self.turnaround = turnaround
         self.jitter = jitter
         self._random = random.Random(1)
-        self.units = units
+        self.units = frozenset(units)
         self.copy_every = copy_every
         self.copy_gap = copy_gap
         self.service = service
@@ -92,28 +174,16 @@ class TimedSlave:
         self._free_at = 0.0  # when the last scheduled byte ends on the wire
         self._busy_until: dict[int, float] = {}  # a queuing unit: when it is done with its last
         self._replies = 0
-        self._stop = threading.Event()
-        self._thread = threading.Thread(target=self._run, daemon=True)
-        self._thread.start()
 
-    def __enter__(self) -> TimedSlave:
-        return self
-
-    def __exit__(
-        self,
-        kind: type[BaseException] | None,
-        error: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
-
-    def close(self) -> None:
-        """Stop serving and close both ends of the pair."""
-        self._stop.set()
-        self._thread.join(5)
-        for fd in (self.master, self._slave):
-            with contextlib.suppress(OSError):
-                os.close(fd)
+    def _command(self, line: str) -> str:
+        """Carry out one command of the test's process: ``{name: value}`` sets ``name`` (a
+        value of null reads it); the answer is its value, as JSON."""
+        [(name, value)] = json.loads(line).items()
+        if name == "turnaround" and value is not None:
+            self.turnaround = float(value)
+        if name == "requests":
+            return json.dumps([(first, frame.hex()) for first, frame in self.requests])
+        return json.dumps(getattr(self, name))
 
     def _answer(self, request: bytes) -> bytes | None:
         if len(request) != 8 or crc(request[:-2]) != request[-2:] or request[0] not in self.units:
@@ -157,20 +227,28 @@ class TimedSlave:
             self.copies += 1
             self._send(reply, reply_end + self.copy_gap)
 
-    def _run(self) -> None:
+    def run(self, commands: Any, answers: Any) -> None:
+        """Serve the line, and the test's ``commands`` (one JSON object a line, each answered
+        on ``answers``), until ``commands`` ends."""
         buf = bytearray()
         first = 0.0
-        while not self._stop.is_set():
+        while True:
             now = time.monotonic()
             wait = 0.05
             if self._out:
                 wait = min(wait, max(0.0, self._out[0][0] - now))
             try:
-                readable = select.select([self.master], [], [], wait)[0]
+                readable = select.select([self.master, commands], [], [], wait)[0]
             except (OSError, ValueError):
                 return
             now = time.monotonic()
-            if readable:
+            if commands in readable:
+                command = commands.readline()
+                if not command:
+                    return
+                answers.write(self._command(command) + "\n")
+                answers.flush()
+            if self.master in readable:
                 try:
                     data = os.read(self.master, 4096)
                 except BlockingIOError:
@@ -196,3 +274,7 @@ class TimedSlave:
                     os.write(self.master, bytes(due))
                 except OSError:
                     return
+
+
+if __name__ == "__main__":
+    Line(**json.loads(sys.argv[1])).run(sys.stdin, sys.stdout)
