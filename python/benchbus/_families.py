@@ -54,7 +54,8 @@ class Family:
     #: What ``scan`` calls a unit of the family, from reads of its own, instead of
     #: ``label`` after the test (None: not one of the family).
     model: Callable[[Probe], str | None] | None = None
-    #: Whether the command line has a command for it (``benchbus drive``, ...).
+    #: Whether the command line has a command for it (``benchbus drive``, ...): the module
+    #: ``benchbus.cli.<key>``.
     command: bool = False
     #: The keywords of its simulator for the pytest plugin's simulated device under test
     #: (``sim_<key>_model``); empty: the simulator's defaults.

@@ -44,20 +44,20 @@ order ``--help`` shows them.
 from __future__ import annotations
 
 import argparse
+import importlib
 import logging
 import os
 import sys
+import types
 
 import benchbus as bb
 from benchbus._device import NOTED
+from benchbus._families import command_families
 from benchbus.cli import (
     demo,
     doctor,
-    drive,
     gateway,
-    j2,
     monitor,
-    pbl,
     ports,
     profile,
     read,
@@ -98,8 +98,21 @@ __all__ = [
     "parse_units",
 ]
 
-#: The commands, in the order ``--help`` lists them.
-COMMANDS = (scan, read, write, drive, pbl, j2, monitor, sim, gateway, profile, ports, doctor, demo)
+#: The commands, in the order ``--help`` lists them: after ``write``, those of the families
+#: the registry gives a command (``benchbus drive``...), each the module named by its key.
+COMMANDS: tuple[types.ModuleType, ...] = (
+    scan,
+    read,
+    write,
+    *(importlib.import_module(f"{__name__}.{f.key}") for f in command_families()),
+    monitor,
+    sim,
+    gateway,
+    profile,
+    ports,
+    doctor,
+    demo,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:
