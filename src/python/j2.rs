@@ -2,7 +2,9 @@
 //! which adds only what belongs to Python (enums, the status object, named tuples, reprs).
 
 use super::device_methods;
-use super::{int_choice, member, number, public, shown, to_pyerr, Attached, PyBus, PyStation};
+use super::{
+    int_choice, member, number, public, row_name, shown, to_pyerr, Attached, PyBus, PyStation,
+};
 
 /// The Python module of the family's public types.
 const PY: &str = "benchbus._j2";
@@ -88,13 +90,7 @@ impl PyJ2Core {
 
 /// A parameter name (str), checked against the table.
 fn param(py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<&'static Register<String>> {
-    if !name.is_instance_of::<PyString>() {
-        return Err(PyTypeError::new_err(format!(
-            "a J2 parameter is named by a str (\"SV\"), got {}",
-            name.get_type().name()?
-        )));
-    }
-    by_name(&name.extract::<String>()?).map_err(|e| to_pyerr(py, e))
+    by_name(&row_name(name)?).map_err(|e| to_pyerr(py, e))
 }
 
 /// `obj` as a list of its items; TypeError naming `name` for a str, bytes or a non-iterable.
