@@ -235,7 +235,9 @@ def test_readme_drive_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert abs(int(out[0]) - 1500) <= 30
     assert out[1] == "DriveState.FORWARD None"
     frequency = float(out[2].split()[0])
-    assert abs(frequency - int(out[0]) * 2 / 60) < 0.02  # 2 pole pairs by default
+    # 2 pole pairs by default. Of the speed reached, not of the one printed: that was read
+    # within 30 rpm of it, maybe still ramping, and a loaded machine reads the telemetry later.
+    assert abs(frequency - 1500 * 2 / 60) < 0.02
     assert out[3] == "5000"
 
 
