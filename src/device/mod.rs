@@ -371,9 +371,9 @@ pub enum Access {
     Write,
 }
 
-/// One register: where it is and how its raw word maps to an engineering value. The
-/// built-in families' `const` tables hold `&'static str` names and units (the default); a
-/// device profile read from a file ([`profile`]) holds its own `String`s.
+/// One register: where it is and how its raw word maps to an engineering value. A profile
+/// ([`profile`], the built-in families' files too) holds its own `String`s; a `const` row
+/// (`&'static str`, the default) serves tests and code that names a register at compile time.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Register<S = &'static str> {
     /// The name it has in the Python API (`speed_setpoint`).
@@ -401,20 +401,6 @@ impl<S: AsRef<str>> Register<S> {
             f64::from(raw)
         };
         scaled(raw, self.scale)
-    }
-
-    /// The same register holding its own name and unit (a `const` table's row as a
-    /// profile's).
-    pub fn owned(&self) -> Register<String> {
-        Register {
-            name: self.name.as_ref().to_string(),
-            address: self.address,
-            scale: self.scale,
-            signed: self.signed,
-            unit: self.unit.as_ref().to_string(),
-            access: self.access,
-            range: self.range,
-        }
     }
 
     /// Whether values of this register are whole numbers (a scale of 1).

@@ -1433,7 +1433,7 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
         let text = "[device]\nname = \"pbl\"\n[[register]]\nname = \"max_speed\"\n\
                     address = 124\nunit = \"rpm\"\n";
         let p = Profile::parse("pbl.toml", text).unwrap();
-        assert_eq!(p.registers[0].register, row.owned());
+        assert_eq!(&p.registers[0].register, row);
         assert_eq!(
             p.registers[0].register.encode(3000.0).ok(),
             row.encode(3000.0).ok()
