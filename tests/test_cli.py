@@ -381,6 +381,16 @@ def test_scan_over_tcp_shows_the_transport_and_identifies_units() -> None:
     ]
 
 
+def test_scan_auto_over_a_serial_converter_tries_one_line_format() -> None:
+    # rtu+tcp:// reaches a converter whose serial side keeps its own line format: no format
+    # the scan could set is tried, only the one it was given (default or not).
+    with Simulator({1: DriveDevice("BLD2")}, network="rtu+tcp") as sim:
+        done = run("scan", "--port", sim.port, "--units", "2-3", "--auto", "--timeout", "0.05")
+    assert done.returncode == 1
+    tried = done.stderr.strip().rpartition("(at ")[2].rstrip(")")
+    assert tried.count(",") == 0 and tried, done.stderr
+
+
 # ---- read / write --------------------------------------------------------------------------------
 
 

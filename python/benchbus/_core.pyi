@@ -36,6 +36,7 @@ __all__ = [
     "_Ticks",
     "__version__",
     "_did_you_mean",
+    "_endpoint_kind",
     "_panic_on_wire",
     "_request_rules",
     "crc16",
@@ -100,6 +101,10 @@ def refresh_logging() -> None:
 
 def _did_you_mean(name: str, known: list[str]) -> str:
     """``; did you mean 'a' or 'b'?`` naming the closest of ``known`` to ``name``, or ""."""
+
+def _endpoint_kind(port: str) -> str:
+    """What ``port`` reaches, read as a Bus reads it: "serial", "tcp" (Modbus TCP) or
+    "rtu+tcp"; ValueError for a port string a Bus refuses."""
 
 def _request_rules(function: int, data: bytes) -> tuple[tuple[int, str] | None, int | None, bool]:
     """What a server needs to forward the request PDU ``function`` / ``data``, by the core's

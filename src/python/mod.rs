@@ -1982,6 +1982,19 @@ fn _did_you_mean(name: &str, known: Vec<String>) -> String {
     crate::device::suggest::did_you_mean(name, known.iter().map(String::as_str))
 }
 
+/// What `port` reaches, read as a Bus reads it: "serial", "tcp" (Modbus TCP) or "rtu+tcp";
+/// ValueError for a port string a Bus refuses. For the command line, which decides before
+/// it opens a Bus.
+#[pyfunction]
+fn _endpoint_kind(port: &str) -> PyResult<&'static str> {
+    use crate::transport::Endpoint;
+    match crate::transport::parse_endpoint(port).map_err(PyValueError::new_err)? {
+        Endpoint::Serial(_) => Ok("serial"),
+        Endpoint::ModbusTcp { .. } => Ok("tcp"),
+        Endpoint::RtuOverTcp { .. } => Ok("rtu+tcp"),
+    }
+}
+
 /// Panics on the path every wire call takes, to show that the panic comes out as a
 /// BenchbusError (for the test suite; not part of the API).
 #[pyfunction]
@@ -2020,6 +2033,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(refresh_logging, m)?)?;
     m.add_function(wrap_pyfunction!(_panic_on_wire, m)?)?;
     m.add_function(wrap_pyfunction!(_did_you_mean, m)?)?;
+    m.add_function(wrap_pyfunction!(_endpoint_kind, m)?)?;
     m.add_function(wrap_pyfunction!(_request_rules, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

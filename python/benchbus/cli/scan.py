@@ -8,6 +8,7 @@ import sys
 from typing import IO
 
 import benchbus as bb
+from benchbus._core import _endpoint_kind
 from benchbus._families import FAMILIES
 from benchbus._recognise import Probe
 from benchbus.cli._args import Parser, integer, units_type
@@ -105,10 +106,12 @@ def run(args: argparse.Namespace) -> int:
     formats = (
         [(b, p) for b, p, _ in AUTO_FORMATS] if args.auto else [(options.baudrate, options.parity)]
     )
-    # Over Modbus TCP the server (or gateway) keeps the line: there is no line format to try,
-    # and a request it left unanswered is its own doing, not a unit's.
-    tcp = port.lower().startswith("tcp://")
-    if tcp:
+    # Over the network the server (or gateway, or converter) keeps the line: there is no line
+    # format to try; and over Modbus TCP a request it left unanswered is its own doing, not a
+    # unit's.
+    kind = _endpoint_kind(port)  # a port string a Bus refuses: its ValueError, as the Bus's
+    tcp = kind == "tcp"
+    if kind != "serial":
         formats = formats[:1]
     units: list[int] = args.units
     progress = Progress(
