@@ -517,6 +517,23 @@ EXPLICIT: list[Case] = [
     *calls("Drive", "set", ValueError, "speed_setpoint", A("speed_setpoint", NAN)),
     *calls("Drive", "set", TypeError, "speed_setpoint", A("speed_setpoint", "x")),
     *calls("Drive", "set", TypeError, "name", A(5, 1)),
+    # Several: every value checked before the first is sent (the first here is good).
+    *calls("Drive", "get_many", TypeError, "names", A("speed"), A(5), A(None)),
+    *calls("Drive", "get_many", TypeError, "named by a str", A(["speed", 5])),
+    *calls("Drive", "get_many", ValueError, "nope", A(["speed", "nope"])),
+    *calls("Drive", "set_many", TypeError, "values", A(5), A("speed_setpoint"), A([5])),
+    *calls("Drive", "set_many", ValueError, "values", A([("speed_setpoint",)])),
+    *calls(
+        "Drive",
+        "set_many",
+        ValueError,
+        "speed_setpoint",
+        A({"accel_time": 1.0, "speed_setpoint": NAN}),
+    ),
+    *calls(
+        "Drive", "set_many", ValueError, r"\bspeed\b", A([("speed_setpoint", 100), ("speed", 1)])
+    ),
+    *calls("Drive", "set_many", ValueError, "nope", A({"speed_setpoint": 100, "nope": 1})),
     *calls("C20", "brake", ValueError, "brake", A()),  # BLD only
     *calls("C20", "clear_hall_count", ValueError, "hall_count", A()),  # BLD only
     *sets("C20", "stop_mode", ValueError, "stop_mode", bb.StopMode.COAST),  # BLD only
@@ -593,6 +610,19 @@ EXPLICIT: list[Case] = [
     *calls("PblDrive", "set", ValueError, "control_mode", A("control_mode", 3)),
     *calls("PblDrive", "set", ValueError, "nope", A("nope", 1)),
     *calls("PblDrive", "set", TypeError, "control_mode", A("control_mode", "1")),
+    *calls("PblDrive", "get_many", TypeError, "names", A("speed"), A(None)),
+    *calls("PblDrive", "get_many", ValueError, "nope", A(["speed", "nope"])),
+    *calls("PblDrive", "set_many", TypeError, "values", A(5), A([5])),
+    *calls(
+        "PblDrive", "set_many", ValueError, "control_mode", A({"pole_pairs": 2, "control_mode": 3})
+    ),
+    *calls(
+        "PblDrive",
+        "set_many",
+        TypeError,
+        "control_mode",
+        A([("pole_pairs", 2), ("control_mode", "1")]),
+    ),
     *calls("PblDrive", "record", ValueError, "duration", A(NAN, 0.1)),
     *calls("PblDrive", "record", ValueError, "nope", A(1, 0.1, columns=["nope"])),
     # -- J2Controller
@@ -628,6 +658,11 @@ EXPLICIT: list[Case] = [
     *calls("J2Controller", "set", ValueError, r"\bSV\b", A("SV", NAN)),
     *calls("J2Controller", "set", TypeError, r"\bSV\b", A("SV", "x")),
     *calls("J2Controller", "set", TypeError, "named by a str", A(5, 10)),
+    *calls("J2Controller", "get_many", TypeError, "names", A("SV"), A(None)),
+    *calls("J2Controller", "get_many", ValueError, "NOPE", A(["SV", "NOPE"])),
+    *calls("J2Controller", "set_many", TypeError, "values", A(5), A([5])),
+    *calls("J2Controller", "set_many", ValueError, r"\bAL2\b", A({"AL1": 10, "AL2": NAN})),
+    *calls("J2Controller", "set_many", ValueError, r"\bPV\b", A([("AL1", 10), ("PV", 1)])),
     *calls("J2Controller", "read", TypeError, "named by a str", A(5), A(None)),
     *calls("J2Controller", "read", ValueError, "parameter", A("NOPE"), A("")),
     *calls("J2Controller", "write", ValueError, "function", A("SV", 10, function=3)),
@@ -835,6 +870,12 @@ EXPLICIT: list[Case] = [
     *calls("Device", "write", ValueError, "nope", A("nope", 1)),
     *calls("Device", "set", ValueError, "gain", A("gain", 0.4), A("gain", NAN)),
     *calls("Device", "set", ValueError, "NOPE", A("NOPE", 1)),
+    *calls("Device", "get_many", ValueError, "nope", A(["flow", "nope"])),
+    *calls("Device", "get_many", TypeError, "int", A(5)),
+    *calls("Device", "set_many", TypeError, "values", A(5), A([5])),
+    *calls("Device", "set_many", ValueError, "gain", A({"setpoint": 1, "gain": 0.4})),
+    *calls("Device", "set_many", ValueError, "flow", A([("setpoint", 1), ("flow", 1.0)])),
+    *calls("Device", "set_many", ValueError, "nope", A({"setpoint": 1, "nope": 1})),
     *calls("Device", "record", ValueError, "duration", A(NAN, 0.1)),
     *calls("Device", "record", ValueError, "nope", A(1, 0.1, columns=["nope"])),
 ]

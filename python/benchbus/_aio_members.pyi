@@ -130,6 +130,9 @@ class DeviceMembers(BusDeviceMembers):
     async def get(self, name: str) -> Any:
         """:meth:`read`, under the name every benchbus device reads a register by."""
 
+    async def get_many(self, names: Iterable[str]) -> dict[str, Any]:
+        """:meth:`read_many`, under the name every benchbus device reads registers by."""
+
     @property
     def profile(self) -> Profile:
         """The profile the device follows."""
@@ -148,6 +151,10 @@ class DeviceMembers(BusDeviceMembers):
 
     async def set(self, name: str, value: Any) -> None:
         """:meth:`write`, under the name every benchbus device writes a register by."""
+
+    async def set_many(self, values: Mapping[str, Any] | Iterable[tuple[str, Any]]) -> None:
+        """Write ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each as
+        :meth:`write` does; every value is checked before the first is sent."""
 
     def units(self) -> dict[str, str]:
         """The unit of every register by name ("" for none)."""
@@ -234,6 +241,10 @@ class DriveMembers(BusDeviceMembers):
     async def get(self, name: str) -> int | float:
         """Reads the register called ``name`` (see the table), in engineering units: an
         int, or a float for a scaled register."""
+
+    async def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
+        """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
+        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
 
     async def jog_forward(self) -> None:
         """Jog forward (command 3)."""
@@ -329,6 +340,12 @@ class DriveMembers(BusDeviceMembers):
         """Store a new line speed (0x2009; stopped only): 1200..115200 (C20 up to 57600).
 
         The drive talks at the new speed from then on: open a new Bus at it."""
+
+    async def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
+        as :meth:`set` does. Every value is checked against its register (range,
+        steps, access) before the first is sent; the family's rules are checked write
+        by write, so a refusal there leaves the earlier writes done."""
 
     async def set_station_address(self, address: int) -> None:
         """Store a new station address (0x2008; stopped only; BLD 1..127, C20 1..247).
@@ -618,6 +635,10 @@ class J2ControllerMembers(BusDeviceMembers):
         """Reads the register called ``name`` (see the table), in engineering units: an
         int, or a float for a scaled register."""
 
+    async def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
+        """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
+        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+
     @property
     def input_type(self) -> Coroutine[Any, Any, InputType]:
         """Input type (INP)."""
@@ -681,6 +702,12 @@ class J2ControllerMembers(BusDeviceMembers):
     async def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
+
+    async def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
+        as :meth:`set` does. Every value is checked against its register (range,
+        steps, access) before the first is sent; the family's rules are checked write
+        by write, so a refusal there leaves the earlier writes done."""
 
     async def set_output(self, percent: float, switch_to_manual: bool = False) -> None:
         """Set the output MV to ``percent`` (0..100).
@@ -789,6 +816,10 @@ class PblDriveMembers(BusDeviceMembers):
         """Reads the register called ``name`` (see the table), in engineering units: an
         int, or a float for a scaled register."""
 
+    async def get_many(self, names: Iterable[str]) -> dict[str, int]:
+        """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
+        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+
     @property
     def hall_state(self) -> Coroutine[Any, Any, int]:
         """Hall sensor state (6)."""
@@ -840,6 +871,12 @@ class PblDriveMembers(BusDeviceMembers):
     async def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
+
+    async def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
+        as :meth:`set` does. Every value is checked against its register (range,
+        steps, access) before the first is sent; the family's rules are checked write
+        by write, so a refusal there leaves the earlier writes done."""
 
     @property
     def speed(self) -> Coroutine[Any, Any, int]:

@@ -724,6 +724,14 @@ class DriveCore(_Station):
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
+    def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
+        """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
+        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+    def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
+        as :meth:`set` does. Every value is checked against its register (range, steps,
+        access) before the first is sent; the family's rules are checked write by write,
+        so a refusal there leaves the earlier writes done."""
     def forward(self) -> None:
         """Run forward at the speed setpoint (command 1)."""
     def reverse(self) -> None:
@@ -825,6 +833,14 @@ class PblCore(_Station):
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
+    def get_many(self, names: Iterable[str]) -> dict[str, int]:
+        """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
+        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+    def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
+        as :meth:`set` does. Every value is checked against its register (range, steps,
+        access) before the first is sent; the family's rules are checked write by write,
+        so a refusal there leaves the earlier writes done."""
     def read_parameter(self, key: int | str) -> int:
         """Reads one parameter, by number or name."""
     def write_parameter(self, key: int | str, value: int) -> None:
@@ -895,6 +911,14 @@ class J2Core(_Station):
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
+    def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
+        """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
+        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+    def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
+        """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
+        as :meth:`set` does. Every value is checked against its register (range, steps,
+        access) before the first is sent; the family's rules are checked write by write,
+        so a refusal there leaves the earlier writes done."""
     def read(self, name: str) -> int | float:
         """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
         signed table, an int for the unsigned one."""
@@ -1207,6 +1231,9 @@ class ProfileCore(_Station):
     def _read(self, names: Sequence[str]) -> list[Any]:
         """The values of the registers ``names``, in that order, read in the fewest requests
         the profile's limits allow; enum registers as their numbers."""
+    def _write_many(self, values: Mapping[str, Any] | Iterable[tuple[str, Any]]) -> None:
+        """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order; every
+        value is checked before the first is sent."""
     def _write(self, name: str, value: Any) -> None:
         """Writes ``value`` to the register ``name``, every check made before anything is
         sent."""

@@ -333,6 +333,15 @@ class Device(ProfileCore, BusDevice):
         """:meth:`write`, under the name every benchbus device writes a register by."""
         self.write(name, value)
 
+    def get_many(self, names: Iterable[str]) -> dict[str, Any]:
+        """:meth:`read_many`, under the name every benchbus device reads registers by."""
+        return self.read_many(names)
+
+    def set_many(self, values: Mapping[str, Any] | Iterable[tuple[str, Any]]) -> None:
+        """Write ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each as
+        :meth:`write` does; every value is checked before the first is sent."""
+        self._write_many(values)
+
     def sample(self) -> dict[str, Any]:
         """Every readable register but strings, ``{name: value}`` in the profile's order, in
         the fewest requests the profile allows: what :meth:`record` and ``benchbus

@@ -19,7 +19,7 @@ use super::family;
 use super::profile::{Profile, ProfileRegister, ProfileValue};
 use super::profiled::read_planned;
 use super::suggest::did_you_mean;
-use super::{on_station, tabled};
+use super::{on_station, Tabled};
 use super::{Access, Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::error::{Error, Result};
@@ -126,7 +126,25 @@ pub struct J2 {
 }
 
 on_station!(J2);
-tabled!(J2, by_name);
+
+impl Tabled for J2 {
+    fn row(&self, name: &str) -> Result<&'static Register<String>> {
+        by_name(name)
+    }
+
+    fn get(&self, name: &str) -> Result<f64> {
+        J2::get(self, name)
+    }
+
+    fn set(&self, name: &str, value: f64) -> Result<()> {
+        J2::set(self, name, value)
+    }
+
+    /// In as few requests as the file's limits allow, as [`J2::get_many`].
+    fn get_many(&self, names: &[String]) -> Result<Vec<f64>> {
+        J2::get_many(self, &names.iter().map(String::as_str).collect::<Vec<_>>())
+    }
+}
 
 impl J2 {
     /// The controller at `unit` on `bus`.

@@ -313,6 +313,33 @@ pub trait Tabled: Device {
     /// # Errors
     /// Any [`Error`]; [`Error::InvalidArgument`] for a bad value or a read-only row.
     fn set(&self, name: &str, value: f64) -> Result<()>;
+
+    /// Reads the rows called `names`, in that order, one [`get`](Self::get) each; every
+    /// name is looked up before the first is read.
+    ///
+    /// # Errors
+    /// Any [`Error`]; the first stops the reads.
+    fn get_many(&self, names: &[String]) -> Result<Vec<f64>> {
+        for name in names {
+            self.row(name)?;
+        }
+        names.iter().map(|name| self.get(name)).collect()
+    }
+
+    /// Writes `values` in order, each as [`set`](Self::set) does. Every value is checked
+    /// against its row (range, steps, access) before the first is sent; the checks that need
+    /// the device (a family's rules) are made write by write.
+    ///
+    /// # Errors
+    /// As [`set`](Self::set); a failure stops the sequence (the earlier writes stay).
+    fn set_many(&self, values: &[(String, f64)]) -> Result<()> {
+        for (name, value) in values {
+            self.row(name)?.encode(*value)?;
+        }
+        values
+            .iter()
+            .try_for_each(|(name, value)| self.set(name, *value))
+    }
 }
 
 /// `impl Tabled` for a family struct from its own `get` and `set`, and `row`: the family's

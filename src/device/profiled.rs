@@ -421,6 +421,20 @@ impl ProfiledDevice {
         read_planned(&self.station, &self.profile, indices)
     }
 
+    /// Writes `values` (register index, value) in order, each as [`write`](Self::write)
+    /// does; every value is checked against its register before the first is sent.
+    ///
+    /// # Errors
+    /// As [`write`](Self::write); a failure stops the sequence (the earlier writes stay).
+    pub fn write_many(&self, values: &[(usize, ProfileValue)]) -> Result<()> {
+        for (index, value) in values {
+            self.register(*index)?.encode(value)?;
+        }
+        values
+            .iter()
+            .try_for_each(|(index, value)| self.write(*index, value))
+    }
+
     /// Writes `value` to the register at `index`, every check made before anything is
     /// sent; a bit of a holding register is read, changed and written back as one sequence.
     ///

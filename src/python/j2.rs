@@ -3,7 +3,8 @@
 
 use super::device_methods;
 use super::{
-    int_choice, member, number, public, row_name, shown, to_pyerr, Attached, PyBus, PyStation,
+    int_choice, listed, member, named_pairs, number, public, row_name, shown, to_pyerr, Attached,
+    PyBus, PyStation,
 };
 
 /// The Python module of the family's public types.
@@ -14,7 +15,7 @@ use crate::device::j2::{
 use crate::device::{Access, Register};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
-use pyo3::types::{PyBool, PyBytes, PyDict, PyInt, PyList, PyMapping, PyString, PyTuple};
+use pyo3::types::{PyBool, PyDict, PyInt, PyList, PyString, PyTuple};
 
 /// The compiled base of `benchbus.J2Controller`: the parameter table, the manual's rules and
 /// every call to the controller.
@@ -91,27 +92,6 @@ impl PyJ2Core {
 /// A parameter name (str), checked against the table.
 fn param(py: Python<'_>, name: &Bound<'_, PyAny>) -> PyResult<&'static Register<String>> {
     by_name(&row_name(name)?).map_err(|e| to_pyerr(py, e))
-}
-
-/// `obj` as a list of its items; TypeError naming `name` for a str, bytes or a non-iterable.
-fn listed<'py>(
-    obj: &Bound<'py, PyAny>,
-    name: &str,
-    what: &str,
-) -> PyResult<Vec<Bound<'py, PyAny>>> {
-    let refuse = || -> PyResult<PyErr> {
-        Ok(PyTypeError::new_err(format!(
-            "{name} must be {what}, got {}",
-            obj.get_type().name()?
-        )))
-    };
-    if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
-        return Err(refuse()?);
-    }
-    match obj.try_iter() {
-        Ok(items) => items.collect(),
-        Err(_) => Err(refuse()?),
-    }
 }
 
 /// `obj` as exactly `N` items: TypeError as [`listed`] says, ValueError for another count
@@ -193,23 +173,10 @@ tabled;
     /// controller (SV within its limits, MV in manual mode) are made write by write, so a
     /// refusal there leaves the earlier writes done.
     fn write_many(&self, py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<()> {
-        let what = "{name: value} or (name, value) pairs";
-        let items = match values.cast::<PyMapping>() {
-            Ok(mapping) => listed(mapping.items()?.as_any(), "values", what)?,
-            Err(_) => listed(values, "values", what)?,
-        };
-        let mut pairs = Vec::with_capacity(items.len());
-        for item in &items {
-            let pair = listed(item, "values", what)?;
-            if pair.len() != 2 {
-                return Err(PyValueError::new_err(format!(
-                    "values must be {what}, got an item of {}: {}",
-                    pair.len(),
-                    PyTuple::new(py, &pair)?.repr()?
-                )));
-            }
-            let p = param(py, &pair[0])?;
-            pairs.push((p.name.as_str(), number(&pair[1], &p.name)?));
+        let mut pairs = Vec::new();
+        for (name, value) in named_pairs(py, values)? {
+            let p = by_name(&name).map_err(|e| to_pyerr(py, e))?;
+            pairs.push((p.name.as_str(), number(&value, &p.name)?));
         }
         self.dev.wire(py, move |j| j.set_many(&pairs))
     }

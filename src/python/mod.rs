@@ -32,7 +32,9 @@ use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
-use pyo3::types::{PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyModule, PyString};
+use pyo3::types::{
+    PyBool, PyByteArray, PyBytes, PyDict, PyFloat, PyInt, PyMapping, PyModule, PyString, PyTuple,
+};
 use std::sync::{Arc, OnceLock};
 use std::time::Duration;
 
@@ -244,7 +246,7 @@ fn over_modbus_tcp(bus: Option<&bus::Bus>, err: Error) -> Error {
 /// an empty object made by `$make` (a closure from the [`Attached`] to the class), which
 /// takes any arguments so that the Python class's `__init__` may have its own, and attaches
 /// it (`_attach`). After `tabled;`, also `get` and `set` of any row by name, the same for
-/// every family with a table ([`crate::device::Tabled`]). After `attach = Xy::new;`, the
+/// every family with a table ([`crate::device::Tabled`]), and `get_many` / `set_many`. After `attach = Xy::new;`, the
 /// `_attach` of a family whose core takes only the Bus and the unit (1..=255).
 macro_rules! device_methods {
     ($class:ident = $make:expr; attach = $new:path; $($body:tt)*) => {
@@ -299,6 +301,43 @@ macro_rules! device_methods {
                 let name = $crate::python::row_name(name)?;
                 let value = $crate::python::number(value, &name)?;
                 self.dev.wire(py, move |d| $crate::device::Tabled::set(d, &name, value))
+            }
+
+            /// Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
+            /// each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests).
+            fn get_many<'py>(
+                &self,
+                py: Python<'py>,
+                names: &Bound<'py, PyAny>,
+            ) -> PyResult<Bound<'py, PyDict>> {
+                use $crate::device::Tabled;
+                let names = $crate::python::name_list(names)?;
+                let read = move |d: &_| {
+                    let values = Tabled::get_many(d, &names)?;
+                    names
+                        .iter()
+                        .zip(values)
+                        .map(|(n, v)| Ok((Tabled::row(d, n)?, v)))
+                        .collect::<$crate::Result<Vec<_>>>()
+                };
+                let out = PyDict::new(py);
+                for (row, value) in self.dev.wire(py, read)? {
+                    out.set_item(&row.name, $crate::python::shown(py, row, value))?;
+                }
+                Ok(out)
+            }
+
+            /// Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
+            /// as :meth:`set` does. Every value is checked against its register (range,
+            /// steps, access) before the first is sent; the family's rules are checked write
+            /// by write, so a refusal there leaves the earlier writes done.
+            fn set_many(&self, py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<()> {
+                let mut pairs = Vec::new();
+                for (name, value) in $crate::python::named_pairs(py, values)? {
+                    let value = $crate::python::number(&value, &name)?;
+                    pairs.push((name, value));
+                }
+                self.dev.wire(py, move |d| $crate::device::Tabled::set_many(d, &pairs))
             }
 
             $($body)*
@@ -730,6 +769,59 @@ fn row_name(name: &Bound<'_, PyAny>) -> PyResult<String> {
         )));
     }
     name.extract()
+}
+
+/// `obj` as a list of its items; TypeError naming `name` for a str, bytes or a non-iterable.
+fn listed<'py>(
+    obj: &Bound<'py, PyAny>,
+    name: &str,
+    what: &str,
+) -> PyResult<Vec<Bound<'py, PyAny>>> {
+    let refuse = || -> PyResult<PyErr> {
+        Ok(PyTypeError::new_err(format!(
+            "{name} must be {what}, got {}",
+            obj.get_type().name()?
+        )))
+    };
+    if obj.is_instance_of::<PyString>() || obj.is_instance_of::<PyBytes>() {
+        return Err(refuse()?);
+    }
+    match obj.try_iter() {
+        Ok(items) => items.collect(),
+        Err(_) => Err(refuse()?),
+    }
+}
+
+/// `values`, ``{name: value}`` or ``(name, value)`` pairs, as (name, value) in order: each
+/// name a str ([`row_name`]), the values as given, for the caller to convert.
+fn named_pairs<'py>(
+    py: Python<'py>,
+    values: &Bound<'py, PyAny>,
+) -> PyResult<Vec<(String, Bound<'py, PyAny>)>> {
+    let what = "{name: value} or (name, value) pairs";
+    let items = match values.cast::<PyMapping>() {
+        Ok(mapping) => listed(mapping.items()?.as_any(), "values", what)?,
+        Err(_) => listed(values, "values", what)?,
+    };
+    let mut pairs = Vec::with_capacity(items.len());
+    for item in &items {
+        let pair = listed(item, "values", what)?;
+        if pair.len() != 2 {
+            return Err(PyValueError::new_err(format!(
+                "values must be {what}, got an item of {}: {}",
+                pair.len(),
+                PyTuple::new(py, &pair)?.repr()?
+            )));
+        }
+        pairs.push((row_name(&pair[0])?, pair[1].clone()));
+    }
+    Ok(pairs)
+}
+
+/// `names`, a list of register names (not one str), each checked a str.
+fn name_list(names: &Bound<'_, PyAny>) -> PyResult<Vec<String>> {
+    let names = listed(names, "names", "a list of names ([\"speed\", \"current\"])")?;
+    names.iter().map(row_name).collect()
 }
 
 /// A value of `register` as Python shows it: an int for a whole-number register, else a

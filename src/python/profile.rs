@@ -2,7 +2,7 @@
 //! `benchbus.ProfileError`) and `ProfileCore`, the compiled base of `benchbus.Device`.
 
 use super::device_methods;
-use super::{public, Attached, PyBus, PyStation, EXCEPTIONS};
+use super::{named_pairs, public, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::export::{family_note, FAMILIES};
 use crate::device::family;
 use crate::device::profile::{
@@ -536,6 +536,23 @@ PyProfileCore = |dev| PyProfileCore {
         };
         let values = self.dev.wire(py, move |d| d.read(&indices))?;
         values.iter().map(|v| to_object(py, v)).collect()
+    }
+
+    /// Writes `values` ({name: value} or (name, value) pairs) in order; every value is
+    /// checked before the first is sent.
+    fn _write_many(&self, py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<()> {
+        let profile = self.profile_ref()?.get();
+        let mut pairs = Vec::new();
+        for (name, value) in named_pairs(py, values)? {
+            let index = profile.index(&name)?;
+            let register = profile
+                .profile
+                .registers
+                .get(index)
+                .ok_or_else(|| PyValueError::new_err(format!("no register {name:?}")))?;
+            pairs.push((index, value_arg(register, &value)?));
+        }
+        self.dev.wire(py, move |d| d.write_many(&pairs))
     }
 
     /// Writes `value` to the register `name`, every check made before anything is sent.
