@@ -999,7 +999,8 @@ import asyncio, sys, time
 from benchbus import aio
 
 async def main(port):
-    async with aio.AsyncBus(port, timeout=0.05, retries=0) as bus:
+    # A timeout long enough that a loaded machine's slow reply is not one: a hang is.
+    async with aio.AsyncBus(port, timeout=1.0, retries=0) as bus:
         end = time.monotonic() + 1.5
         async def hammer():
             while time.monotonic() < end:
