@@ -439,6 +439,70 @@ def test_the_j2_class_reads_a_simulated_profile_device_serving_its_file(tmp_path
         assert sim.errors == []
 
 
+# ---- write_echo: a device that answers a 0x06 write with a register count ----------------
+
+COUNTING = """
+[device]
+name = "counting"
+[limits]
+write_echo = "{echo}"
+[[register]]
+name = "setpoint"
+address = 3
+max = 1000
+"""
+
+
+def test_a_device_answering_writes_with_a_count_is_written_with_write_echo_count(
+    tmp_path: Path,
+) -> None:
+    """The PBL drives' reply to a 0x06 write: a register count of 1 where the value was.
+    Declared, it is taken (and the value is written); not declared, it is a wrong echo."""
+    path = tmp_path / "counting.toml"
+    path.write_text(COUNTING.format(echo="count"), encoding="utf-8")
+    assert bb.Profile(path).limits.write_echo == "count"
+    assert 'write_echo = "count"' in bb.Profile(path).to_toml()
+    for sim, dev, model in rig(path, setpoint=5):
+        before = len(sim.requests)
+        dev.setpoint = 300
+        assert sent_by(sim, before) == [frame(0x06, 0, 3, 0x01, 0x2C)]
+        assert sim.replies[-1] == frame(0x06, 0, 3, 0, 1)  # the count, not 0x012C
+        assert model.value("setpoint") == 300
+        assert dev.bus.stats.frame_errors == 0
+    # The same device under a profile that expects the Modbus echo: refused.
+    strict = tmp_path / "strict.toml"
+    strict.write_text(COUNTING.format(echo="strict"), encoding="utf-8")
+    model = ProfileDevice(path, values={"setpoint": 5})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, timeout=0.3, retries=0) as bus:
+        device = bb.Device.from_profile(strict, bus, unit=1)
+        with pytest.raises(bb.FrameError, match="echo"):
+            device.setpoint = 300
+
+
+def test_write_echo_misuse_is_refused_by_the_parser_and_the_simulator(tmp_path: Path) -> None:
+    path = tmp_path / "counting.toml"
+    path.write_text(COUNTING.format(echo="value"), encoding="utf-8")
+    with pytest.raises(bb.ProfileError, match="write_echo"):
+        bb.Profile(path)
+    with pytest.raises(ValueError, match="write_echo must be 'strict' or 'count'"):
+        ProfileDevice(path)
+
+
+def test_a_device_of_the_pbl_file_writes_to_a_simulated_pbl(tmp_path: Path) -> None:
+    """The PBL file says how the drive answers a write, so a profile's Device made from it
+    writes to a PBL (the family's simulator, written from the manual) as PblDrive does."""
+    from benchbus.sim import PblDevice
+
+    path = tmp_path / "pbl.toml"
+    path.write_text(bb.Profile.family("pbl").to_toml(), encoding="utf-8")
+    model = PblDevice()
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, timeout=0.3) as bus:
+        dev = bb.Device.from_profile(path, bus, unit=1)
+        dev.acceleration = 750
+        assert sim.replies[-1][4:6] == b"\x00\x01"  # the drive's count
+        assert bus.read_holding_registers(1, 209, 1) == [750]
+
+
 STATUS_WORD = """
 [device]
 name = "pump"

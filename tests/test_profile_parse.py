@@ -73,6 +73,7 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "min_write_interval": 0.0,
         "block_reads": True,
         "read_gaps": None,
+        "write_echo": None,
     }
     temperature, mode = p.registers
     assert temperature._asdict() == {

@@ -71,6 +71,10 @@ class ProfileLimits(NamedTuple):
     #: Whether one request may also read unlisted addresses between two registers (default
     #: False).
     read_gaps: bool | None = None
+    #: What a write's reply carries: ``"strict"``, the Modbus echo (the default), or
+    #: ``"count"``, a register count of 1 in place of the value for a 0x06 write (as PBL
+    #: drives answer).
+    write_echo: str | None = None
 
 
 #: The whole numbers each integer type holds, exactly (a profile's ``min`` / ``max`` are

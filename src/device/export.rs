@@ -7,7 +7,7 @@
 
 use super::drive::{self, Family};
 use super::profile::{
-    access_name, full_range, table_name, Limits, LineSettings, Profile, ProfileRegister,
+    access_name, echo_name, full_range, table_name, Limits, LineSettings, Profile, ProfileRegister,
     ProfileValue, ValueType,
 };
 use super::value::{Kind, Layout};
@@ -127,6 +127,7 @@ fn limits_section(out: &mut String, l: &Limits) {
         ("min_write_interval", l.min_write_interval.map(number)),
         ("block_reads", l.block_reads.map(|b| b.to_string())),
         ("read_gaps", l.read_gaps.map(|b| b.to_string())),
+        ("write_echo", l.write_echo.map(|e| quote(echo_name(e)))),
     ];
     section(out, "[limits]", keys);
 }

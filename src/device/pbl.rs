@@ -9,12 +9,11 @@
 //! this family only; they also act on and answer a broadcast, which the Bus never waits for.
 
 use super::family;
-use super::profile::ProfileRegister;
+use super::profile::{Profile, ProfileRegister};
 use super::suggest::did_you_mean;
 use super::{on_station, tabled};
 use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
-use crate::codec::Echo;
 use crate::error::{Error, Result};
 use std::sync::Arc;
 
@@ -102,8 +101,12 @@ tabled!(Pbl, by_name);
 impl Pbl {
     /// The drive at `unit` on `bus`.
     pub fn new(bus: Arc<Bus>, unit: u8) -> Pbl {
+        // The file's echo rule: a 0x06 write is answered with a register count (a file the
+        // parser refused fails every call anyway).
         let opts = TxOptions {
-            echo: Echo::CountForSingleWrite,
+            echo: family::profile("pbl")
+                .map(Profile::echo)
+                .unwrap_or_default(),
             ..TxOptions::default()
         };
         Pbl {

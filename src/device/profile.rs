@@ -6,6 +6,7 @@
 
 use super::value::{Kind, Layout};
 use super::{Access, Register, Table};
+use crate::codec::Echo;
 use pieces::Pieces;
 use std::collections::{BTreeMap, HashSet};
 use std::ops::Range;
@@ -165,6 +166,10 @@ pub struct Limits {
     /// Whether one request may also read the addresses between two registers that the
     /// profile does not list (a device that answers them, as the J2's empty "NC" ones).
     pub read_gaps: Option<bool>,
+    /// What the device's reply to a write carries (`write_echo`): the Modbus echo
+    /// ("strict"), or for a 0x06 write a register count of 1 in place of the value
+    /// ("count", as PBL drives answer).
+    pub write_echo: Option<Echo>,
 }
 
 /// A device described by a profile file.
@@ -460,6 +465,20 @@ fn int_range(kind: Kind) -> Option<(i128, i128)> {
     }
 }
 
+/// The values of `[limits] write_echo`, each with the rule it names.
+pub const ECHOES: [(&str, Echo); 2] = [
+    ("strict", Echo::Strict),
+    ("count", Echo::CountForSingleWrite),
+];
+
+/// The name `[limits] write_echo` gives `echo`.
+pub fn echo_name(echo: Echo) -> &'static str {
+    ECHOES
+        .iter()
+        .find(|(_, e)| *e == echo)
+        .map_or("strict", |(name, _)| name)
+}
+
 const TOP_KEYS: &[&str] = &["device", "line", "limits", "register"];
 const DEVICE_KEYS: &[&str] = &["name", "description", "models"];
 const LINE_KEYS: &[&str] = &[
@@ -471,6 +490,7 @@ const LIMIT_KEYS: &[&str] = &[
     "min_write_interval",
     "block_reads",
     "read_gaps",
+    "write_echo",
 ];
 const REGISTER_KEYS: &[&str] = &[
     "name",
@@ -846,6 +866,14 @@ fn limits(s: &Section<'_, '_, '_>) -> Parsed<Limits> {
         min_write_interval: interval,
         block_reads,
         read_gaps,
+        write_echo: s
+            .choice("write_echo", &ECHOES.map(|(name, _)| name))?
+            .and_then(|name| {
+                ECHOES
+                    .iter()
+                    .find(|(n, _)| *n == name)
+                    .map(|(_, echo)| *echo)
+            }),
     })
 }
 

@@ -8,6 +8,7 @@ use super::value::Number;
 use super::{fmt_num, unit_suffix, Access, Station, Table};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::pdu::{MAX_READ_BITS, MAX_READ_COUNT, MAX_WRITE_BITS, MAX_WRITE_COUNT};
+use crate::codec::Echo;
 use crate::error::{Error, Result};
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -64,6 +65,12 @@ impl Profile {
     pub fn write_interval(&self) -> Duration {
         let interval = self.limits.min_write_interval.unwrap_or(0.0);
         Duration::try_from_secs_f64(interval).unwrap_or_default()
+    }
+
+    /// What a write's reply must carry: `[limits] write_echo` (the Modbus echo if not
+    /// given).
+    pub fn echo(&self) -> Echo {
+        self.limits.write_echo.unwrap_or_default()
     }
 
     /// Whether a write-only register of `table` has a word at an address in `addresses`.
@@ -384,6 +391,7 @@ impl ProfiledDevice {
     pub fn new(bus: Arc<Bus>, unit: u8, profile: Arc<Profile>) -> ProfiledDevice {
         let opts = TxOptions {
             write_interval: profile.write_interval(),
+            echo: profile.echo(),
             ..TxOptions::default()
         };
         ProfiledDevice {

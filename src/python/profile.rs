@@ -399,6 +399,8 @@ impl PyProfile {
         kwargs.set_item("min_write_interval", l.min_write_interval)?;
         kwargs.set_item("block_reads", l.block_reads)?;
         kwargs.set_item("read_gaps", l.read_gaps)?;
+        let echo = l.write_echo.map(crate::device::profile::echo_name);
+        kwargs.set_item("write_echo", echo)?;
         public(py, ROWS, "ProfileLimits", (), Some(&kwargs))
     }
 

@@ -16,7 +16,7 @@ from collections.abc import Callable, Mapping
 from types import MappingProxyType
 
 from benchbus.sim._device import ClockedModel, Row, TableDevice
-from benchbus.sim._rtu import with_crc
+from benchbus.sim._rtu import count_echo
 
 __all__ = ["PblDevice"]
 
@@ -256,9 +256,7 @@ class PblDevice(ClockedModel, TableDevice):
 
     def shape_reply(self, request: bytes, reply: bytes) -> bytes:
         """A 0x06 reply carries a register count of 1 instead of the value, unless echoing."""
-        if self.echo_writes or len(reply) != 8 or reply[1] != 0x06:
-            return reply
-        return with_crc(reply[:4] + b"\x00\x01")
+        return reply if self.echo_writes else count_echo(reply)
 
     # ---- test access ----------------------------------------------------------------------
 

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 from typing import Any, Union
 
 from benchbus.sim._device import RegisterDevice, Row, SimException
+from benchbus.sim._rtu import count_echo
 
 # The standard library's TOML reader from Python 3.11, its original (tomli) before.
 _toml = importlib.import_module("tomllib" if sys.version_info >= (3, 11) else "tomli")
@@ -28,7 +29,14 @@ Value = Union[int, float, bool, str]
 _TOP_KEYS = {"device", "line", "limits", "register"}
 _DEVICE_KEYS = {"name", "description", "models"}
 _LINE_KEYS = {"baudrate", "parity", "stopbits", "timeout", "framing", "bytesize"}
-_LIMIT_KEYS = {"max_read", "max_write", "min_write_interval", "block_reads", "read_gaps"}
+_LIMIT_KEYS = {
+    "max_read",
+    "max_write",
+    "min_write_interval",
+    "block_reads",
+    "read_gaps",
+    "write_echo",
+}
 _REGISTER_KEYS = {
     "name",
     "address",
@@ -321,6 +329,11 @@ class ProfileDevice(RegisterDevice):
                 raise SimException(SimException.ILLEGAL_DATA_VALUE)
         super().write_holding(address, values)
 
+    def shape_reply(self, request: bytes, reply: bytes) -> bytes:
+        """With ``[limits] write_echo = "count"``, a 0x06 write is answered with a register
+        count of 1 in place of the value."""
+        return count_echo(reply) if self.limits.get("write_echo") == "count" else reply
+
     def __repr__(self) -> str:
         """Class name, the profile's device name and its register count."""
         return f"{type(self).__name__}({self.name!r}, {len(self._regs)} registers)"
@@ -404,6 +417,9 @@ def _check_limits(path: str, limits: dict[str, Any]) -> None:
             raise ValueError(f"{path}: [limits] {key} must be true or false")
     if limits.get("read_gaps") and limits.get("block_reads") is False:
         raise ValueError(f"{path}: [limits] read_gaps needs block reads")
+    echo = limits.get("write_echo", "strict")
+    if echo not in ("strict", "count"):
+        raise ValueError(f"{path}: [limits] write_echo must be 'strict' or 'count', not {echo!r}")
 
 
 def _check_models(path: str, index: int, row: dict[str, Any], models: tuple[str, ...]) -> None:

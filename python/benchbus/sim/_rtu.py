@@ -147,3 +147,11 @@ def _device_identification_length(buf: bytes) -> int | None:
             return 0
         pos += 2 + buf[pos + 1]
     return pos + 2
+
+
+def count_echo(reply: bytes) -> bytes:
+    """``reply`` as a unit that answers a 0x06 write with the address and a register count
+    of 1 in place of the value sends it (a PBL drive); any other reply as it is."""
+    if len(reply) != 8 or reply[1] != 0x06:
+        return reply
+    return with_crc(reply[:4] + b"\x00\x01")
