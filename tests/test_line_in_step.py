@@ -59,6 +59,9 @@ def reads(bus: bb.Bus, n: int, units: tuple[int, ...] = (1,), count: int = 1) ->
 
 # ---- a stray copy of a reply ------------------------------------------------------------
 
+#: How much later than asked a copy may leave the slave and still be sooner than any answer.
+LATE = 0.002
+
 
 @pytest.mark.parametrize("baud", [9600, 19200])
 def test_a_copy_of_every_tenth_reply_costs_at_most_the_value_it_replaces(baud: int) -> None:
@@ -91,7 +94,13 @@ def test_a_copy_that_comes_before_the_request_is_over_is_dropped(baud: int, gap:
         bb.Bus(slave.port, baudrate=baud, timeout=0.1) as bus,
     ):
         run = reads(bus, 105)
-        assert (run.wrong, run.errors) == (0, 0), run.results
+        # A copy the slave's process sent late (a loaded machine) is no longer sooner than an
+        # answer, and may cost the value it replaces, as in the test below; every copy sent
+        # on time is dropped.
+        late = sum(1 for lateness in slave.copy_lateness if lateness > LATE)
+        assert run.errors == 0, run.results
+        assert run.wrong <= late, (late, run.results)
+        assert run.longest_wrong_run <= 1, run.results
         assert bus.stats.resyncs >= slave.copies == 10
 
 

@@ -104,6 +104,12 @@ class TimedSlave:
         return value
 
     @property
+    def copy_lateness(self) -> list[float]:
+        """For each copy sent, how much later than due its first byte left, in seconds."""
+        value: list[float] = self._ask({"copy_lateness": None})
+        return value
+
+    @property
     def requests(self) -> list[tuple[float, bytes]]:
         """Requests as they came: (when the first byte came, the bytes)."""
         got = self._ask({"requests": None})
@@ -170,7 +176,10 @@ class Line:
         #: Frames sent, the copies among them: (when the first byte left, the bytes).
         self.sent: list[tuple[float, bytes]] = []
         self.copies = 0
-        self._out: deque[tuple[float, int]] = deque()  # (when due, byte)
+        #: For each copy, how much later than due its first byte left (the slave's process
+        #: may be late on a loaded machine: a copy then comes later than asked).
+        self.copy_lateness: list[float] = []
+        self._out: deque[tuple[float, int, bool]] = deque()  # (when due, byte, a copy's first)
         self._free_at = 0.0  # when the last scheduled byte ends on the wire
         self._busy_until: dict[int, float] = {}  # a queuing unit: when it is done with its last
         self._replies = 0
@@ -200,13 +209,14 @@ class Line:
             pdu = bytes((unit, function, len(data))) + data
         return pdu + crc(pdu)
 
-    def _send(self, frame: bytes, start: float) -> float:
-        """Schedule ``frame`` to start at ``start`` (or when the line is free); its end."""
+    def _send(self, frame: bytes, start: float, copy: bool = False) -> float:
+        """Schedule ``frame`` (a ``copy`` of a reply, or not) to start at ``start`` (or when
+        the line is free); its end."""
         t = max(start, self._free_at)
         self.sent.append((t, frame))
-        for b in frame:
+        for i, b in enumerate(frame):
             t += self.char_time
-            self._out.append((t, b))
+            self._out.append((t, b, copy and i == 0))
         self._free_at = t
         return t
 
@@ -225,7 +235,7 @@ class Line:
         self._replies += 1
         if self.copy_every and self._replies % self.copy_every == 0:
             self.copies += 1
-            self._send(reply, reply_end + self.copy_gap)
+            self._send(reply, reply_end + self.copy_gap, copy=True)
 
     def run(self, commands: Any, answers: Any) -> None:
         """Serve the line, and the test's ``commands`` (one JSON object a line, each answered
@@ -268,7 +278,10 @@ class Line:
                     first = now
             due = bytearray()
             while self._out and self._out[0][0] <= now:
-                due.append(self._out.popleft()[1])
+                at, byte, copy = self._out.popleft()
+                due.append(byte)
+                if copy:
+                    self.copy_lateness.append(now - at)
             if due:
                 try:
                     os.write(self.master, bytes(due))
