@@ -3,6 +3,7 @@ benchmark runs (its figures are not judged here: CI machines differ)."""
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import subprocess
@@ -122,11 +123,16 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
     figures = report["figures"]
     scenarios = {f["scenario"][0] for f in figures}
     assert scenarios == set("abcdefghijkl")
+    # modbus-rs where its wheel installed (CPython 3.11 on x86-64 Linux).
+    rust_peer = {"modbus-rs"} if importlib.util.find_spec("modbus_rs") else set()
+    assert tuple(report["libraries"]) == bench_run.LIBRARIES
+    assert set(bench_run.LIBRARIES) == {"benchbus", "minimalmodbus", "pymodbus"} | rust_peer
     for letter in "abcdefghijk":
         libraries = {f["library"] for f in figures if f["scenario"][0] == letter}
         # minimalmodbus has no asyncio client for (j) and (k).
         everyone = {"benchbus", "pymodbus"} | ({"minimalmodbus"} if letter < "j" else set())
-        assert libraries == everyone, letter
+        # modbus-rs's answers do not fit the scans' 50 ms timeout: it is left out of them.
+        assert libraries == everyone | (rust_peer if letter not in "dh" else set()), letter
     # (l) loads profiles, which only benchbus reads: every step, timed and its memory.
     loads = {f["metric"] for f in figures if f["scenario"][0] == "l"}
     assert loads == {m for step in bench_run.PROFILE_STEPS for m in (step, f"{step}: peak memory")}
@@ -141,13 +147,14 @@ def test_quick_benchmark_runs_every_scenario_for_every_library(tmp_path: Path) -
         if f["metric"] == "ratio to wire limit":
             # The emulator holds every library that keeps t3.5 to the wire: none of them
             # can beat the limit. (pymodbus's asyncio client sends inside t3.5, and so can.)
-            assert f["max"] > 0.3, f
+            # modbus-rs waits some 35 ms after each reply: a fifth of the limit at 19200.
+            assert f["max"] > (0.3 if f["library"] == "benchbus" else 0.05), f
             if early_by.get((f["scenario"], f["library"])) == 0 or f["library"] == "benchbus":
                 assert f["max"] <= 1.02, f
     # Every target of the issue is judged (met or not: figures are the machine's).
     judged = {t["target"].split(")")[0] + ")" for t in report["targets"]}
     early = [f for f in figures if f["metric"] == "requests < t3.5 after a reply"]
-    assert {f["library"] for f in early} == {"benchbus", "minimalmodbus", "pymodbus"}
+    assert {f["library"] for f in early} == {"benchbus", "minimalmodbus", "pymodbus"} | rust_peer
     assert judged == {f"({x})" for x in "abcdeghijkl"}
     assert all(v == 0 for (scenario, lib), v in early_by.items() if lib == "benchbus")
     assert all(isinstance(t["met"], bool) for t in report["targets"])
