@@ -1,7 +1,7 @@
 # One command each: `make demo` installs benchbus and runs its demo on simulated devices,
 # `make test` installs and runs every test, `make lint` every check, `make docs` builds the
 # documentation site into site/ (`make docs-serve`: a live preview), `make bench` the
-# benchmark beside minimalmodbus and pymodbus, `make cross` the checks for other systems
+# benchmark beside minimalmodbus, pymodbus and modbus-rs, `make cross` the checks for other systems
 # (Windows: cross-built, run under wine; it installs what it needs).
 #
 # Every target installs into a virtual environment: the active one if there is one
