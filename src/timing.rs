@@ -266,20 +266,26 @@ const TURNAROUND_KNOWN: usize = 4;
 /// The least slack a reply may come sooner by than the unit's recent least and still be taken
 /// (the slack is half the least turnaround, and at least this): scheduling and an adapter's
 /// latency make the arrival of a reply later than on the wire, never earlier, but not always
-/// equally late.
-const TURNAROUND_SLACK_FLOOR: Duration = Duration::from_millis(1);
+/// equally late. A desktop system's scheduler, loaded, wakes a waiting thread a millisecond
+/// or two late now and then; less than this dropped good replies of a fast device (one that
+/// answers at t3.5) on a busy machine.
+const TURNAROUND_SLACK_FLOOR: Duration = Duration::from_millis(2);
 
 /// How soon each unit has answered lately, to tell its replies from frames that cannot be
 /// one: a copy of an earlier reply, or an earlier request's answer come late. Each function
 /// of a unit is timed apart (a device may write its flash slowly and read at once).
 ///
 /// A reply is timed from the request it answers twice: from its start, and from its
-/// reckoned end on the wire (which, on a pseudo-terminal that carries bytes at once, a reply
-/// can precede). Over the last 16 vouched replies of a unit to a function the least of each
-/// is kept, once 4 have come. A frame that begins sooner than both, by more than the slack
-/// (half the least time from the end, at least 1 ms), is too soon to answer the request: a
-/// device does not get much faster from one request to the next, and nothing on the way (an
-/// adapter, a scheduler) makes a reply arrive earlier than it was sent.
+/// reckoned end on the wire. Over the last 16 vouched replies of a unit to a function the
+/// least of each is kept, once 4 have come. A frame that begins sooner than both, by more
+/// than the slack (half the least time from the end, at least 2 ms), is too soon to answer
+/// the request: a device does not get much faster from one request to the next, and nothing
+/// on the way (an adapter, a scheduler) makes a reply arrive earlier than it was sent.
+///
+/// A unit that has lately answered before its request's reckoned end is not on a line that
+/// keeps the wire's time (a pseudo-terminal to a simulator, which answers at once): its
+/// times are its host's scheduling, which a load changes from one request to the next, and
+/// nothing of it is judged.
 ///
 /// Pure bookkeeping: it is told when things happened and never reads a clock.
 #[derive(Debug, Clone, Default)]
@@ -342,6 +348,9 @@ impl Turnarounds {
         else {
             return false;
         };
+        if least_end < 0 {
+            return false;
+        }
         let slack = (least_end / 2).max(TURNAROUND_SLACK_FLOOR.as_nanos() as i128);
         signed_nanos(start, first) < least_start - slack
             && signed_nanos(end, first) < least_end - slack
@@ -626,9 +635,29 @@ mod tests {
     }
 
     #[test]
+    fn a_fast_device_woken_for_late_is_judged_by_the_end_of_the_request() {
+        // A device that answers at t3.5 (1.75 ms), each reply seen a scheduler's 1.5 ms late:
+        // the one seen on time is an answer.
+        let us = Duration::from_micros;
+        let t0 = Instant::now();
+        let mut t = Turnarounds::new();
+        for i in 0..16u64 {
+            let start = t0 + us(10_000 * i);
+            t.answered(1, 3, start, start + us(700), start + us(700 + 1750 + 1500));
+        }
+        let start = t0 + us(1_000_000);
+        let end = start + us(700);
+        assert!(!t.too_soon(1, 3, start, end, end + us(1750)));
+        assert!(!t.too_soon(1, 3, start, end, end + us(1500)));
+        // Two milliseconds sooner than any seen: sooner than the device answers.
+        assert!(t.too_soon(1, 3, start, end, end + us(1000)));
+        assert!(t.too_soon(1, 3, start, end, end - us(300)));
+    }
+
+    #[test]
     fn on_a_line_without_wire_time_nothing_is_too_soon() {
         // A pseudo-terminal: the reply comes 0.3 ms after the request starts, before its
-        // reckoned end, whatever its length; the 1 ms floor keeps jitter from counting.
+        // reckoned end, whatever its length: its times are not the wire's, none is judged.
         let ms = Duration::from_millis;
         let us = Duration::from_micros;
         let t0 = Instant::now();
