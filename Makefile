@@ -23,6 +23,11 @@ PIP := $(PYTHON) -m pip install --quiet --editable
 # 10 on 2 cores), which no line does.
 CORES := $(shell nproc 2>/dev/null || echo 1)
 TEST_WORKERS ?= $(shell echo $$(( $(CORES) * 2 )))
+# Bytecode is written even where the environment says not to (PYTHONDONTWRITEBYTECODE):
+# each simulator and command a test starts runs in a process of its own, and each would
+# compile the package again, as each pytest run would rewrite the tests' asserts (some
+# 15 s of a run). It goes to __pycache__ folders, which git ignores.
+unexport PYTHONDONTWRITEBYTECODE
 
 .PHONY: install demo test lint fmt example bench cross wheel wheel-smoke docs docs-serve
 
@@ -44,7 +49,7 @@ demo: $(VENV)/bin/python
 test: install
 	.ci/need.sh 'chromium|chromium-browser=chromium'
 	cargo test --quiet
-	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) -m "not timing"
+	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not timing"
 	$(PYTHON) -m pytest -q -m timing
 
 lint: install

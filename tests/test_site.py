@@ -35,6 +35,11 @@ import benchbus.aio
 from benchbus.cli import build_parser
 from conftest import hook
 
+# Every test of this file on one pytest worker (make test runs them with --dist loadgroup):
+# its builds (the site, a broken copy, a grown copy: 20 s each) are then made once, not
+# once in each worker.
+pytestmark = pytest.mark.xdist_group("site")
+
 ROOT = Path(__file__).resolve().parent.parent
 
 
