@@ -818,8 +818,11 @@ def test_instrument_counters_files_and_fifo(sim: Simulator[RegisterDevice]) -> N
     async def main() -> None:
         async with aio.AsyncBus(sim.port) as bus:
             unit = aio.Instrument(bus, unit=2)
-            assert await unit.get_comm_event_counter() == bb.CommEventCounter(0, 0)
-            assert (await unit.get_comm_event_log()).events == b""
+            counter = await unit.get_comm_event_counter()
+            log = await unit.get_comm_event_log()
+            # The 0x0B between them: a message and not an event, logged (sent 40, received 80).
+            assert counter.status == log.status == 0
+            assert log.event_count == counter.event_count and log.events[:2] == b"\x40\x80"
             await unit.write_file_record([(1, 0, [5, 6])])
             assert await unit.read_file_record([(1, 1, 1)]) == [[6]]
             assert await unit.read_fifo_queue(0) == []

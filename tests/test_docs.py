@@ -163,7 +163,7 @@ def test_counters_files_and_fifo_example(capsys: pytest.CaptureFixture[str]) -> 
         exec(block.replace("/dev/ttyUSB1", sim.port), {})
     assert capsys.readouterr().out.splitlines() == [
         "CommEventCounter(status=65535, event_count=264)",
-        "289 20 00",
+        "290 40 80 20 00",  # the 0x0B before it: a message, logged (sent, received)
         "[[1711, 1214, 4109], [13261, 64]]",
         "[440, 4740]",
     ]

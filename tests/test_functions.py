@@ -362,8 +362,9 @@ def test_the_counters_files_and_fifo_against_the_simulator(network: str | None) 
         assert counter == bb.CommEventCounter(status=0, event_count=264)
         device.comm_busy = True
         assert bus.get_comm_event_counter(1).status == 0xFFFF
+        # The unit counted the two 0x0B requests as messages, not events, and logged each.
         log = bus.get_comm_event_log(1)
-        assert log == bb.CommEventLog(0xFFFF, 264, 289, b"\x20\x00")
+        assert log == bb.CommEventLog(0xFFFF, 264, 291, bytes.fromhex("40 80 40 80 20 00"))
         assert isinstance(log.events, bytes)
         bus.write_file_record(1, [(4, 7, [0x06AF, 0x04BE, 0x100D]), (3, 0x270F, [9])])
         assert device.files[4][7:10] == [0x06AF, 0x04BE, 0x100D]

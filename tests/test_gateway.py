@@ -1064,7 +1064,9 @@ def test_counters_files_and_fifo_through_the_gateway(
     with connect(gateway) as client:
         for request, reply in SPEC_EXAMPLES:
             if request.startswith("0C"):
-                device.comm_busy = False
+                # The example's unit: not busy, and without the 0x0B just counted and logged.
+                device.comm_busy, device.comm_message_count = False, 0x0121
+                device.comm_events = b"\x20\x00"
             got = ask(client, 2, bytes.fromhex(request))
             assert got.hex(" ") == bytes.fromhex(reply).hex(" "), request
         # Malformed: a byte count that is not the groups', a reference type other than 6, a
@@ -1078,8 +1080,10 @@ def test_counters_files_and_fifo_through_the_gateway(
     assert [f[1:-2].hex(" ").upper() for f in sim.requests] == [r for r, _ in SPEC_EXAMPLES]
     # And benchbus's own client, over Modbus TCP, has the typed calls.
     with bb.Bus(gateway.url, timeout=2.0, retries=0) as bus:
-        assert bus.get_comm_event_counter(2) == (0, 0x0108)
-        assert bus.get_comm_event_log(2).events == b"\x20\x00"
+        # The unit counted the 0x0C, 0x15, 0x14 and 0x18 since as events, and logged them
+        # and this 0x0B (send 40 and receive 80 each, the newest first).
+        assert bus.get_comm_event_counter(2) == (0, 0x010C)
+        assert bus.get_comm_event_log(2).events == bytes.fromhex("40 80" * 5 + "20 00")
         assert bus.read_file_record(2, [(4, 7, 3)]) == [[0x06AF, 0x04BE, 0x100D]]
         assert bus.read_fifo_queue(2, 0x04DE) == [0x01B8, 0x1284]
         device.registers[0x04DE] = 32  # more than a FIFO holds: the unit's exception 3

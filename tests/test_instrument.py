@@ -437,7 +437,8 @@ def test_counters_files_and_fifo_of_a_generic_instrument() -> None:
         inst = bb.Instrument(bus, 1, min_write_interval=0.1)
         counter = inst.get_comm_event_counter()
         assert isinstance(counter, bb.CommEventCounter) and counter == (0, 7)
-        assert inst.get_comm_event_log() == bb.CommEventLog(0, 7, 9, b"\x20")
+        # The 0x0B request: a message (not an event), logged.
+        assert inst.get_comm_event_log() == bb.CommEventLog(0, 7, 10, b"\x40\x80\x20")
         inst.write_file_record([(2, 10, [1, 2, 3])])
         inst.write_file_record([(2, 13, [4])])  # paced as the instrument's other writes
         assert inst.read_file_record([(2, 10, 4), (1, 0, 1)]) == [[1, 2, 3, 4], [0]]

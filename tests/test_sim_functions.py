@@ -773,6 +773,67 @@ def test_listen_only_mode_until_restart_communications() -> None:
             client.close()
 
 
+def test_a_unit_counts_and_logs_its_comm_events_as_the_specification_says() -> None:
+    # 6.9, 6.10 and 6.8.1, worked by hand: a message is each request the unit takes, an
+    # event each one it answers without an exception (Get Comm Event Counter's own not
+    # counted), and the log holds a receive event (80; C0 a broadcast, A0 in the listen
+    # only mode) and then a send event (40; 41 after exception 1..3) for each, newest first.
+    with Simulator({1: RegisterDevice({5: 1}), 2: RegisterDevice()}) as sim:
+        client = Client(sim.port)
+        try:
+            assert client.transact(frame("01 0B"), 8) == frame("01 0B 00 00 00 00")
+            assert client.transact(frame("01 03 00 05 00 01"), 7) == frame("01 03 02 00 01")
+            assert client.transact(frame("01 06 00 06 00 07"), 8) == frame("01 06 00 06 00 07")
+            assert client.transact(frame("01 03 00 05 00 01"), 7) == frame("01 03 02 00 01")
+            assert exception_of(client, "01 03 FF FF 00 02") == frame("01 83 02")
+            assert client.transact(frame("01 0B"), 8) == frame("01 0B 00 00 00 03")
+            log = "40 80 41 80 40 80 40 80 40 80 40 80"
+            assert client.transact(frame("01 0C"), 23) == frame(f"01 0C 12 00 00 00 03 00 06 {log}")
+            # A broadcast is a message and an event of every unit, with its own receive event.
+            client.send(frame("00 06 00 07 00 01"))
+            client.assert_quiet()
+            log = f"40 C0 40 80 {log}"
+            assert client.transact(frame("01 0C"), 27) == frame(f"01 0C 16 00 00 00 05 00 08 {log}")
+            two = sim.devices[2]
+            assert (two.comm_event_count, two.comm_message_count) == (1, 1)
+            assert two.comm_events == bytes.fromhex("40 C0")
+            # Restart communications with FF 00: counters and log cleared, the restart logged.
+            restart = frame("01 08 00 01 FF 00")
+            assert client.transact(restart, 8) == restart
+            assert client.transact(frame("01 0B"), 8) == frame("01 0B 00 00 00 00")
+            log = "40 80 00"
+            assert client.transact(frame("01 0C"), 14) == frame(f"01 0C 09 00 00 00 00 00 01 {log}")
+            # The listen only mode: entering it is logged (04), a request there is a message
+            # with the mode's receive event, and restart communications (00 00: the log
+            # kept) ends it, clearing the counters.
+            client.send(frame("01 08 00 04 00 00"))
+            client.assert_quiet()
+            client.send(frame("01 03 00 05 00 01"))
+            client.assert_quiet()
+            client.send(frame("01 08 00 01 00 00"))
+            client.assert_quiet()
+            log = "00 A0 04 40 80 40 80 00"
+            assert client.transact(frame("01 0C"), 19) == frame(f"01 0C 0E 00 00 00 00 00 00 {log}")
+            assert sim.errors == []
+        finally:
+            client.close()
+
+
+def test_the_comm_counters_wrap_and_the_log_keeps_the_newest_64_events() -> None:
+    device = RegisterDevice()
+    device.comm_event_count = device.comm_message_count = 0xFFFF
+    device.comm_events = bytes(range(64))
+    with Simulator({1: device}) as sim:
+        client = Client(sim.port)
+        try:
+            assert client.transact(frame("01 03 00 00 00 01"), 7) == frame("01 03 02 00 00")
+            assert client.transact(frame("01 0B"), 8) == frame("01 0B 00 00 00 00")
+            assert device.comm_message_count == 1
+            assert device.comm_events == bytes.fromhex("40 80 40 80") + bytes(range(60))
+        finally:
+            client.close()
+
+
 def test_listen_only_mode_behind_a_modbus_tcp_gateway() -> None:
     with Simulator(RegisterDevice({5: 1}), network="tcp") as sim:
         client = TcpClient(sim)

@@ -104,7 +104,8 @@ class SimDevice:
     - 0x14 and 0x15 :meth:`read_file_record` / :meth:`write_file_record` (one call a
       group), 0x18 :meth:`read_fifo_queue`;
     - 0x0B and 0x0C read :attr:`comm_busy`, :attr:`comm_event_count`,
-      :attr:`comm_message_count` and :attr:`comm_events`;
+      :attr:`comm_message_count` and :attr:`comm_events`, which the unit keeps as the
+      specification says (each request counted and logged once it is answered);
     - 0x07 reads :attr:`exception_status`, 0x11 :attr:`server_id`, :attr:`run_indicator`
       and :attr:`additional_data`; 0x08 (Diagnostics) is answered without asking the
       device: sub-function 0x0000 (return query data) echoes the request, 0x0004 (force
@@ -173,15 +174,23 @@ class SimDevice:
     #: answers 0xFFFF (a program command still being processed), False 0x0000.
     comm_busy: bool = False
 
-    #: The event counter of 0x0B and 0x0C, 0..0xFFFF: a test sets it to what the device
-    #: under study would have counted (successful messages since its restart).
+    #: The event counter of 0x0B and 0x0C, 0..0xFFFF: the requests the unit answered
+    #: without an exception since the start or a restart of communications (0x08 / 0x0001),
+    #: Get Comm Event Counter's own not counted. The unit counts, once each request is
+    #: answered; a test may set it (to a device's count under study) between requests.
     comm_event_count: int = 0
 
-    #: The message counter of Get Comm Event Log (0x0C), 0..0xFFFF, set as
-    #: :attr:`comm_event_count` is.
+    #: The message counter of Get Comm Event Log (0x0C), 0..0xFFFF: every request the unit
+    #: took, broadcasts and those of the listen only mode included, since the start or a
+    #: restart of communications. Counted and settable as :attr:`comm_event_count`.
     comm_message_count: int = 0
 
-    #: The events of Get Comm Event Log (0x0C), one byte each, the newest first, at most 64.
+    #: The events of Get Comm Event Log (0x0C), one byte each, the newest first, at most 64:
+    #: for each request a receive event (0x80; + 0x40 a broadcast, + 0x20 in the listen only
+    #: mode), then once answered a send event (0x40; + 0x01 for exception 1..3, 0x02 for 4,
+    #: 0x04 for 5 or 6, 0x08 for 7); 0x00 a restart of communications (0xFF00 clears the log
+    #: first), 0x04 the listen only mode entered. Logged and settable as
+    #: :attr:`comm_event_count`.
     comm_events: bytes = b""
 
     #: Whether this unit answers a broadcast (unit 0) as if it had been addressed itself, with

@@ -27,6 +27,7 @@ __all__ = [
     "RESTART_COMMUNICATIONS",
     "pack_bits",
     "serve",
+    "took",
 ]
 
 #: The spec's quantity limits: bits a read (0x01, 0x02) and a write (0x0F) may carry,
@@ -49,6 +50,15 @@ READ_FILE_BYTES, WRITE_FILE_BYTES = range(0x07, 0xF6), range(0x09, 0xFC)
 MAX_FIFO, MAX_EVENTS = 31, 64
 #: The status word of 0x0B and 0x0C: a program command still being processed, or not.
 BUSY, READY = 0xFFFF, 0x0000
+#: The comm event log's bytes (6.10): a receive event (bit 7), with bit 6 for a broadcast
+#: and bit 5 for the listen only mode; a send event (bit 6), with bit 0 for a read
+#: exception sent (codes 1..3), bit 1 a server abort (4), bit 2 a busy exception (5, 6),
+#: bit 3 a program NAK (7) and bit 5 the listen only mode; a communications restart; the
+#: listen only mode entered (04 by the event bytes' definitions; the spec's example of 6.10
+#: calls its 20 hex that, which is the listen only flag of a send event).
+RECEIVED, RECEIVED_BROADCAST, SENT, IN_LISTEN_ONLY = 0x80, 0x40, 0x40, 0x20
+RESTARTED, ENTERED_LISTEN_ONLY = 0x00, 0x04
+_SENT_EXCEPTION = {1: 0x01, 2: 0x01, 3: 0x01, 4: 0x02, 5: 0x04, 6: 0x04, 7: 0x08}
 
 _SPACE = 0x10000
 _ILLEGAL_FUNCTION = SimException.ILLEGAL_FUNCTION
@@ -198,8 +208,8 @@ def _diagnostics(device: SimDevice, data: bytes) -> bytes:
     sub_function = _word(data, 0)
     _need(sub_function in (RETURN_QUERY_DATA, RESTART_COMMUNICATIONS), _ILLEGAL_FUNCTION)
     if sub_function == RESTART_COMMUNICATIONS:
-        # Out of the listen only mode (the router's business): the echo, then a restart
-        # (nothing to restart here). 0xFF00 would also clear an event log, kept by none.
+        # Out of the listen only mode (the router's business): the echo, then a restart,
+        # which clears the counters (and with 0xFF00 the event log: see took()).
         _need(len(data) == 4 and _word(data, 2) in (0x0000, 0xFF00), _ILLEGAL_VALUE)
     return data  # the query data, echoed
 
@@ -343,3 +353,44 @@ def serve(device: SimDevice, function: int, data: bytes) -> bytes:
     if handler is None:
         raise SimException(_ILLEGAL_FUNCTION)
     return handler(device, bytes(data))
+
+
+def took(
+    device: SimDevice, pdu: bytes, reply: bytes | None, *, broadcast: bool, listen_only: bool
+) -> None:
+    """Count the request ``pdu`` that ``device`` took, as the spec's Get Comm Event Counter
+    and Get Comm Event Log (6.9, 6.10) and Diagnostics' restart (6.8) say: answered
+    ``reply`` (a PDU), or None in the listen only mode (``listen_only``), where it takes no
+    action.
+
+    Every request is a message (:attr:`SimDevice.comm_message_count`); one that succeeds
+    (not an exception, and not Get Comm Event Counter itself) is an event
+    (:attr:`SimDevice.comm_event_count`); each logs its receive and send events
+    (:attr:`SimDevice.comm_events`, newest first, 64 at most). Restart communications
+    (0x08 / 0x0001) clears the counters, and with data 0xFF00 the log, then logs the
+    restart; force listen only mode (0x08 / 0x0004) logs entering it. A request is counted
+    once it is answered, so a 0x0B or 0x0C reply gives the counts from before it.
+    """
+    sub = _word(pdu, 1) if len(pdu) >= 3 and pdu[0] == DIAGNOSTICS else None
+    if sub == RESTART_COMMUNICATIONS and (reply is None or reply[:1] == pdu[:1]):
+        device.comm_event_count = device.comm_message_count = 0
+        if len(pdu) >= 5 and _word(pdu, 3) == 0xFF00:
+            device.comm_events = b""
+        _log(device, RESTARTED)
+        return
+    device.comm_message_count = (_counter(device, "comm_message_count") + 1) % _SPACE
+    if sub == FORCE_LISTEN_ONLY and listen_only:
+        _log(device, ENTERED_LISTEN_ONLY)
+        return
+    mode = IN_LISTEN_ONLY if listen_only else 0
+    _log(device, RECEIVED | (RECEIVED_BROADCAST if broadcast else 0) | mode)
+    if reply is None:
+        return
+    exception = reply[1] if len(reply) >= 2 and reply[0] & 0x80 else None
+    if exception is None and pdu[:1] != b"\x0b":
+        device.comm_event_count = (_counter(device, "comm_event_count") + 1) % _SPACE
+    _log(device, SENT | _SENT_EXCEPTION.get(exception or 0, 0))
+
+
+def _log(device: SimDevice, event: int) -> None:
+    device.comm_events = (bytes([event]) + bytes(device.comm_events))[:MAX_EVENTS]

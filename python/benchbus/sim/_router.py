@@ -320,9 +320,13 @@ class Router:
             return
         sub_function = self._diagnostic(unit, f.pdu(frame))
         with state.lock:
-            if state.is_silent(unit) or self._listens_only(unit, sub_function):
+            if state.is_silent(unit):
                 return
-            forced = state.take_exception(unit)
+            listening = self._listens_only(unit, sub_function)
+            forced = None if listening else state.take_exception(unit)
+        if listening:
+            self._hooks.took(unit, f.pdu(frame), None, broadcast=False, listen_only=True)
+            return
         if forced is not None:
             self.queue(Job(frame, True, made_reply=f.exception(frame, forced)))
         else:
@@ -332,14 +336,16 @@ class Router:
         pdu = self._f.pdu(frame)
         subs = {unit: self._diagnostic(unit, pdu) for unit in self._units}
         with self._state.lock:
-            units = [
-                u
-                for u in sorted(self._units)
-                if not (self._state.is_silent(u) or self._listens_only(u, subs[u]))
-            ]
-        for unit in units:
+            awake = [u for u in sorted(self._units) if not self._state.is_silent(u)]
+            listening = {u for u in awake if self._listens_only(u, subs[u])}
+        for unit in awake:
+            if unit in listening:
+                self._hooks.took(unit, pdu, None, broadcast=True, listen_only=True)
+                continue
             request = self._f.make(unit, pdu, frame)
-            self.queue(self._unit_job(request, deliver=self._hooks.answers_broadcast(unit)))
+            job = self._unit_job(request, deliver=self._hooks.answers_broadcast(unit))
+            job.broadcast = True
+            self.queue(job)
 
     def _diagnostic(self, unit: int, pdu: bytes) -> int | None:
         """The Diagnostics (0x08) sub-function of ``pdu``, if ``unit`` serves 0x08."""
@@ -413,6 +419,15 @@ class Router:
         if job is None:
             return
         job.reply = reply
+        unit = self._f.unit(job.frame)
+        if job.done is None and unit in self._units:
+            self._hooks.took(
+                unit,
+                self._f.pdu(job.frame),
+                None if reply is None else self._f.pdu(reply),
+                broadcast=job.broadcast,
+                listen_only=False,
+            )
         if job.done is not None:
             job.done.set()
         elif job.deliver and reply is not None:

@@ -12,7 +12,7 @@ from benchbus import _mbap
 from benchbus._scope import Scoped
 from benchbus.sim._device import SimDevice, SimException
 from benchbus.sim._faults import FAULT_KINDS, Faults
-from benchbus.sim._functions import serve
+from benchbus.sim._functions import serve, took
 from benchbus.sim._line import LOG_SIZE, Forwarder, PtyPair, SimState
 from benchbus.sim._network import NETWORKS, NetworkProxy, NetworkState, probe
 from benchbus.sim._pymodbus import PymodbusServer, SerialServer, TcpServer
@@ -259,6 +259,9 @@ class Simulator(Scoped, Generic[D]):
             reply_delay=lambda unit: float(self.devices[unit].reply_delay),
             shape_reply=self._shape_reply,
             functions=lambda unit: self.devices[unit].functions,
+            took=lambda unit, pdu, reply, broadcast, listen_only: took(
+                self.devices[unit], pdu, reply, broadcast=broadcast, listen_only=listen_only
+            ),
         )
 
     def _start_network(self, network: str) -> None:

@@ -53,6 +53,7 @@ class Job:
     delay: float = 0.0  # the unit's own reply delay, read when the job is dispatched
     done: threading.Event | None = None  # the line's internal probe: set when answered
     reply: bytes | None = None  # the probe's reply
+    broadcast: bool = False  # a broadcast's request, readdressed to one unit
 
 
 class UnitHooks:
@@ -67,15 +68,19 @@ class UnitHooks:
         reply_delay: Callable[[int], float] | None = None,
         shape_reply: Callable[[int, bytes, bytes], bytes] | None = None,
         functions: Callable[[int], Collection[int]] | None = None,
+        took: Callable[[int, bytes, bytes | None, bool, bool], None] | None = None,
     ) -> None:
         """``who`` names the caller in the log (``"simulator"``, ``"simulator gateway"``).
 
         ``answers_writes(unit)`` defaults to True, ``reply_delay(unit)`` to 0,
         ``shape_reply(unit, request, reply)``, on RTU frames, to the reply as is, and
         ``functions(unit)``, the function codes the unit serves, to the basic ones (0x03,
-        0x06, 0x10, 0x2B).
+        0x06, 0x10, 0x2B). ``took(unit, pdu, reply_pdu, broadcast, listen_only)`` is told
+        of each request a unit took, once handled (``reply_pdu`` None: kept in the listen
+        only mode), for its comm event counters.
         """
         self.who = who
+        self._took = took
         self._functions = functions
         self._answers_broadcast = answers_broadcast
         self._answers_writes = answers_writes
@@ -142,6 +147,21 @@ class UnitHooks:
             log.error("%s: unit %d: shape_reply gave %r; reply unchanged", self.who, unit, shaped)
             return reply
         return bytes(shaped)
+
+    def took(
+        self, unit: int, pdu: bytes, reply: bytes | None, *, broadcast: bool, listen_only: bool
+    ) -> None:
+        """Tell ``unit`` it took the request ``pdu`` (and answered ``reply``, a PDU; None if
+        it took no action, in the listen only mode)."""
+        hook = self._took
+        if hook is not None:
+            self._ask(
+                "counting",
+                unit,
+                lambda: hook(unit, pdu, reply, broadcast, listen_only),
+                None,
+                "not counted",
+            )
 
     def settle(self, job: Job, unit: int, pdu: bytes) -> None:
         """Ask ``unit``, just before it handles ``job`` (its ``pdu``), how its reply goes out."""
