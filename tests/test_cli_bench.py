@@ -6,6 +6,7 @@ the command line's own commands rather than Python code."""
 from __future__ import annotations
 
 import csv
+import re
 import time
 from pathlib import Path
 
@@ -200,6 +201,23 @@ def test_every_suggestion_the_library_makes_in_python_has_a_command_line_wording
     ).replace("\\ ", "")
     for python, _ in cli._errors.CLI_WORDS:
         assert python in text, python
+    # And the other way: every Bus option the core's messages ask for has its wording.
+    asked = set(re.findall(r"open the Bus with \w+=True", text))
+    assert asked >= {"open the Bus with echo=True", "open the Bus with rs485=True"}
+    for phrase in asked:
+        assert any(phrase in python for python, _ in cli._errors.CLI_WORDS), phrase
+
+
+def test_an_echoing_adapter_is_read_with_echo_as_the_doctor_says() -> None:
+    with Simulator({1: RegisterDevice({0: 7})}, echo=True) as sim:
+        found = ok(run("doctor", "--port", sim.port, "--timeout", "0.2"))
+        (echo,) = [line for line in found if line.split()[1:2] == ["echo"]]
+        assert echo.startswith("warn") and echo.endswith("fix: give the commands --echo")
+        assert "bb.Bus(" not in "\n".join(found)
+        assert ok(run("read", "0", "--port", sim.port, "--echo")) == ["0x0000 (0) = 7"]
+        # Without it the reply begins with the request: the message says what to give.
+        line = one_line_error(run("read", "0", "--port", sim.port, "--retries", "0"), 1)
+        assert "give the commands --echo" in line and "echo=True" not in line
 
 
 # ---- the CSV path: checked before the port opens -------------------------------------------------

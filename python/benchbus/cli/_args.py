@@ -321,6 +321,12 @@ def line_options(unit: bool, rs485: bool = True, framing: bool = True) -> Parser
             metavar="BEFORE,AFTER",
             help="with --rs485: seconds from RTS on to the first bit, and after the last",
         )
+        group.add_argument(
+            "--echo",
+            action="store_true",
+            help="the adapter hears its own requests (a local echo, which 'benchbus doctor' "
+            "finds): each is read back and checked before the reply",
+        )
     return parent
 
 

@@ -38,6 +38,9 @@ CLI_WORDS = (
         "run the command again once it is back",
     ),
     ("call reopen() once it is back", "run the command again once it is back"),
+    ("open the Bus with echo=True: bb.Bus(port, echo=True)", "give the commands --echo"),
+    ("open the Bus with echo=True", "give the commands --echo"),
+    ("open the Bus with rs485=True", "give the commands --rs485"),
     (
         "switch with mode = manual, or set_output(percent, switch_to_manual=True)",
         "run 'benchbus j2 manual' first, or add --manual to set-output",

@@ -120,12 +120,13 @@ def refused_as_usage() -> Iterator[None]:
 Defaults = str | BusOptions
 
 
-def rs485_options(args: argparse.Namespace) -> dict[str, Any]:
-    """The Bus's ``rs485`` and ``rts_delay`` from ``--rs485`` and ``--rts-delay``."""
+def adapter_options(args: argparse.Namespace) -> dict[str, Any]:
+    """The Bus's ``rs485``, ``rts_delay`` and ``echo`` from ``--rs485``, ``--rts-delay`` and
+    ``--echo``."""
     rs485, delay = bool(opt(args, "rs485", False)), opt(args, "rts_delay")
     if delay is not None and not rs485:
         raise UsageError("--rts-delay goes with --rs485")
-    return {"rs485": rs485, "rts_delay": delay}
+    return {"rs485": rs485, "rts_delay": delay, "echo": bool(opt(args, "echo", False))}
 
 
 def opt(args: argparse.Namespace, name: str, default: Any = None) -> Any:
@@ -180,7 +181,7 @@ def open_bus(args: argparse.Namespace, family: Defaults, *, reconnect: bool = Fa
         reconnect=reconnect,
         framing=options.framing,
         bytesize=options.bytesize,
-        **rs485_options(args),
+        **adapter_options(args),
     )
 
 

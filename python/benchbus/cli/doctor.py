@@ -6,6 +6,7 @@ import argparse
 
 import benchbus as bb
 from benchbus.cli._args import Parser
+from benchbus.cli._errors import in_cli_words
 from benchbus.cli._line import bus_options_of, opt, port_of, unit_of
 
 _S = argparse.SUPPRESS
@@ -27,7 +28,7 @@ def run(args: argparse.Namespace) -> int:
         proc_root=args.proc_root,
     )
     for finding in findings:
-        print(finding)
+        print(in_cli_words(str(finding)))
     return 1 if any(f.verdict == "fail" for f in findings) else 0
 
 

@@ -13,7 +13,14 @@ from benchbus._families import FAMILIES
 from benchbus._recognise import Probe
 from benchbus.cli._args import Parser, integer, units_type
 from benchbus.cli._errors import CliError, UsageError, interrupted
-from benchbus.cli._line import BusOptions, bus_options_of, opt, port_of, rs485_options, stopbits_of
+from benchbus.cli._line import (
+    BusOptions,
+    adapter_options,
+    bus_options_of,
+    opt,
+    port_of,
+    stopbits_of,
+)
 from benchbus.cli._output import print_table
 
 __all__ = ["AUTO_FORMATS", "HELP", "add_arguments", "guess_model", "run"]
@@ -136,7 +143,7 @@ def run(args: argparse.Namespace) -> int:
                 # Over the network the identification gets the scan's own time, once.
                 timeout=options.timeout if tcp else max(options.timeout, 0.1),
                 retries=0 if tcp else 1,
-                **rs485_options(args),
+                **adapter_options(args),
             ) as bus:
                 for unit in units:
                     done += 1
