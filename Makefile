@@ -49,7 +49,7 @@ demo: $(VENV)/bin/python
 test: install
 	.ci/need.sh 'chromium|chromium-browser=chromium'
 	cargo test --quiet
-	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) --dist loadgroup -m "not timing"
+	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) -m "not timing"
 	$(PYTHON) -m pytest -q -m timing
 
 lint: install

@@ -223,6 +223,28 @@ def unlisted() -> list[tuple[str, Callable[[bb.Bus], Any], int, Callable[[Any], 
             lambda d: d.mode,
             bb.J2Mode,
         ),
+        # By name, as the attribute reads it.
+        (
+            "drive get",
+            lambda bus: bb.Drive(bus, 1, check_identity=False),
+            0x2100,
+            lambda d: d.get("state"),
+            bb.DriveState,
+        ),
+        (
+            "pbl get_many",
+            lambda bus: bb.PblDrive(bus, 1, check_identity=False),
+            address(bb.PblDrive.table(), "control_mode"),
+            lambda d: d.get_many(["control_mode"])["control_mode"],
+            bb.PblControlMode,
+        ),
+        (
+            "j2 read",
+            lambda bus: bb.J2Controller(bus, 1, check_identity=False),
+            address(bb.J2Controller.table(), "AM"),
+            lambda d: d.read("am"),
+            bb.J2Mode,
+        ),
     ]
 
 
@@ -246,6 +268,16 @@ def test_a_value_its_enum_does_not_list_reads_as_unknown_in_every_family(
     for again in (pickle.loads(pickle.dumps(value)), copy.deepcopy(value)):
         assert type(again) is enum and again == 57 and bb.is_unknown(again)
     assert not bb.is_unknown(next(iter(enum))) and not bb.is_unknown(57)
+
+
+def test_get_and_get_many_read_an_enum_register_as_its_attribute_does() -> None:
+    with Simulator({1: DriveDevice()}) as sim, bb.Drive(sim.port) as drive:
+        state = drive.get("state")
+        assert type(state) is bb.DriveState and state is drive.state
+        got = drive.get_many(["state", "speed_setpoint", "command_source"])
+        assert got == {"state": state, "speed_setpoint": 0, "command_source": 2}
+        assert type(got["command_source"]) is bb.CommandSource
+        assert type(got["speed_setpoint"]) is int
 
 
 def test_a_profile_enum_reads_its_unlisted_value_as_unknown(tmp_path: Path) -> None:

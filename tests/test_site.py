@@ -23,7 +23,7 @@ import threading
 import time
 import types
 import zlib
-from collections.abc import Iterable, Iterator
+from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,11 +34,6 @@ import benchbus
 import benchbus.aio
 from benchbus.cli import build_parser
 from conftest import hook
-
-# Every test of this file on one pytest worker (make test runs them with --dist loadgroup):
-# its builds (the site, a broken copy, a grown copy: 20 s each) are then made once, not
-# once in each worker.
-pytestmark = pytest.mark.xdist_group("site")
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -63,6 +58,28 @@ class Build:
     seconds: float
 
 
+def once(factory: pytest.TempPathFactory, name: str, make: Callable[[Path], Build]) -> Build:
+    """The build ``name``, made by ``make(folder)`` once for the whole run: under
+    pytest-xdist the first worker to ask makes it while the others wait on a lock, then
+    read its result (each build takes some 20 s of a core)."""
+    import fcntl  # the site's tests run where chromium and mkdocs do: not on Windows
+
+    root = factory.getbasetemp()
+    if "PYTEST_XDIST_WORKER" in os.environ:
+        root = root.parent  # the run's, shared by its workers
+    folder, result = root / f"build-{name}", root / f"build-{name}.json"
+    with (root / f"build-{name}.lock").open("w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        if result.exists():
+            made = json.loads(result.read_text("utf-8"))
+            return Build(Path(made["site"]), made["returncode"], made["output"], made["seconds"])
+        folder.mkdir(exist_ok=True)
+        built = make(folder)
+        fields = {**built.__dict__, "site": str(built.site)}
+        result.write_text(json.dumps(fields), "utf-8")
+        return built
+
+
 def build_site(config: Path, site: Path) -> Build:
     """Build the site of ``config`` into ``site``, strictly, as ``make docs`` does."""
     env = {**os.environ, "NO_MKDOCS_2_WARNING": "1"}
@@ -83,8 +100,8 @@ def build_site(config: Path, site: Path) -> Build:
 
 @pytest.fixture(scope="session")
 def site(tmp_path_factory: pytest.TempPathFactory) -> Build:
-    """The site, built once for the session."""
-    built = build_site(ROOT / "mkdocs.yml", tmp_path_factory.mktemp("site") / "site")
+    """The site, built once for the run."""
+    built = once(tmp_path_factory, "site", lambda f: build_site(ROOT / "mkdocs.yml", f / "site"))
     print(f"mkdocs build --strict: {built.seconds:.1f} s", file=sys.stderr)
     return built
 
@@ -134,7 +151,11 @@ BROKEN_LINKS = {
 def broken(tmp_path_factory: pytest.TempPathFactory) -> Build:
     """One build of a copy whose home page has each of :data:`BROKEN_LINKS` (a strict build
     reports every warning before it fails, so one build shows them all)."""
-    tmp_path = tmp_path_factory.mktemp("broken")
+    return once(tmp_path_factory, "broken", build_broken)
+
+
+def build_broken(tmp_path: Path) -> Build:
+    """The build of :func:`broken`, in ``tmp_path``."""
     copy = copy_of_the_docs(tmp_path / "src")
     index = copy / "docs" / "index.md"
     links = "".join(f"\nSee {link}.\n" for link, _ in BROKEN_LINKS.values())
@@ -155,7 +176,11 @@ def test_a_broken_link_fails_the_build(broken: Build, kind: str) -> None:
 def grown(tmp_path_factory: pytest.TempPathFactory) -> Build:
     """One build of a copy whose home page includes a file of the tree and whose package's
     ``aio`` docstring names reStructuredText roles the reference does not link."""
-    tmp_path = tmp_path_factory.mktemp("grown")
+    return once(tmp_path_factory, "grown", build_grown)
+
+
+def build_grown(tmp_path: Path) -> Build:
+    """The build of :func:`grown`, in ``tmp_path``."""
     copy = copy_of_the_docs(tmp_path / "src")
     index = copy / "docs" / "index.md"
     index.write_text(index.read_text("utf-8") + '\n```toml\n--8<-- "Cargo.toml"\n```\n', "utf-8")

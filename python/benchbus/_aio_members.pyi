@@ -240,7 +240,8 @@ class DriveMembers(BusDeviceMembers):
 
     async def get(self, name: str) -> int | float:
         """Reads the register called ``name`` (see the table), in engineering units: an
-        int, or a float for a scaled register."""
+        int, or a float for a scaled register; a member of its enum where the
+        device's class names its values."""
 
     async def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
@@ -633,7 +634,8 @@ class J2ControllerMembers(BusDeviceMembers):
 
     async def get(self, name: str) -> int | float:
         """Reads the register called ``name`` (see the table), in engineering units: an
-        int, or a float for a scaled register."""
+        int, or a float for a scaled register; a member of its enum where the
+        device's class names its values."""
 
     async def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
@@ -688,7 +690,7 @@ class J2ControllerMembers(BusDeviceMembers):
 
     async def read(self, name: str) -> int | float:
         """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
-        signed table, an int for the unsigned one."""
+        signed table, an int for the unsigned one (a member of its enum, as :meth:`get`)."""
 
     async def read_many(self, names: Iterable[str]) -> list[int | float]:
         """Several parameters by name, in as few requests as the 16-register limit allows."""
@@ -814,7 +816,8 @@ class PblDriveMembers(BusDeviceMembers):
 
     async def get(self, name: str) -> int:
         """Reads the register called ``name`` (see the table), in engineering units: an
-        int, or a float for a scaled register."""
+        int, or a float for a scaled register; a member of its enum where the
+        device's class names its values."""
 
     async def get_many(self, names: Iterable[str]) -> dict[str, int]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,

@@ -720,7 +720,8 @@ class DriveCore(_Station):
         """Whether the drive answers multi-register reads; None until one was tried."""
     def get(self, name: str) -> int | float:
         """Reads the register called ``name`` (see the table), in engineering units: an
-        int, or a float for a scaled register."""
+        int, or a float for a scaled register; a member of its enum where the
+        device's class names its values."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
@@ -829,7 +830,8 @@ class PblCore(_Station):
         ``timeout`` / ``retries`` replace the Bus's."""
     def get(self, name: str) -> int:
         """Reads the register called ``name`` (see the table), in engineering units: an
-        int, or a float for a scaled register."""
+        int, or a float for a scaled register; a member of its enum where the
+        device's class names its values."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
@@ -907,7 +909,8 @@ class J2Core(_Station):
         ``J2Controller.__init__`` does); ``timeout`` / ``retries`` replace the Bus's."""
     def get(self, name: str) -> int | float:
         """Reads the register called ``name`` (see the table), in engineering units: an
-        int, or a float for a scaled register."""
+        int, or a float for a scaled register; a member of its enum where the
+        device's class names its values."""
     def set(self, name: str, value: float) -> None:
         """Writes ``value`` (engineering units) to the register called ``name``, checked
         against its range, steps, access and the family's rules before anything is sent."""
@@ -921,7 +924,7 @@ class J2Core(_Station):
         so a refusal there leaves the earlier writes done."""
     def read(self, name: str) -> int | float:
         """One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
-        signed table, an int for the unsigned one."""
+        signed table, an int for the unsigned one (a member of its enum, as :meth:`get`)."""
     def write(self, name: str, value: float, *, function: int = 0x06) -> None:
         """Write one parameter by name, with the manual's rules; ``function`` is 0x06 or
         0x10 (the manual shows both for SV)."""

@@ -331,6 +331,17 @@ def _no_such(device: object, name: str, tail: str = "") -> AttributeError:
     return error
 
 
+@functools.cache
+def _converters(cls: type) -> dict[str, Callable[[Any, Any], Any]]:
+    """The converters of ``cls``'s register properties, by register name."""
+    found: dict[str, Callable[[Any, Any], Any]] = {}
+    for klass in reversed(cls.__mro__):
+        for attribute in vars(klass).values():
+            if isinstance(attribute, _Backed):
+                found[attribute.register] = attribute.convert
+    return found
+
+
 class BusDevice(Scoped, metaclass=_DeviceType):
     """A device on a Bus: its identity, and a context manager that closes what it opened.
 
@@ -375,6 +386,16 @@ class BusDevice(Scoped, metaclass=_DeviceType):
             if name.startswith("_") or _declared(type(self), name):
                 raise _no_such(self, name)
             raise _unknown_attribute(self, name, "")
+
+    def _named(self, name: str, value: Any) -> Any:
+        """``value`` of the register ``name`` as the class's property of that register reads
+        it, where that is an enum's (a member, or the enum's ``UNKNOWN`` value): so that
+        ``get``, ``get_many`` and the attribute agree; otherwise ``value`` as it is."""
+        convert = _converters(type(self)).get(name)
+        if convert is None:
+            return value
+        named = convert(self, value)
+        return named if isinstance(named, enum.Enum) else value
 
     def _on_line(
         self,

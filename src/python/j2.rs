@@ -126,9 +126,13 @@ tabled;
 
 
     /// One parameter by its manual name ("SV", "AL1", "INP"; any case): a float for the
-    /// signed table, an int for the unsigned one.
-    fn read<'py>(&self, py: Python<'py>, name: &Bound<'py, PyAny>) -> PyResult<Bound<'py, PyAny>> {
-        self.get(py, name)
+    /// signed table, an int for the unsigned one (a member of its enum, as :meth:`get`).
+    fn read<'py>(
+        slf: &Bound<'py, Self>,
+        py: Python<'py>,
+        name: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        Self::get(slf, py, name)
     }
 
     /// Write one parameter by name, with the manual's rules (see the class).

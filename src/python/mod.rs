@@ -277,17 +277,18 @@ macro_rules! device_methods {
             $class = $make;
 
             /// Reads the register called ``name`` (see the table), in engineering units: an
-            /// int, or a float for a scaled register.
+            /// int, or a float for a scaled register; a member of its enum where the
+            /// device's class names its values.
             fn get<'py>(
-                &self,
+                slf: &Bound<'py, Self>,
                 py: Python<'py>,
                 name: &Bound<'py, PyAny>,
             ) -> PyResult<Bound<'py, PyAny>> {
                 use $crate::device::Tabled;
                 let name = $crate::python::row_name(name)?;
                 let read = move |d: &_| Ok((Tabled::row(d, &name)?, Tabled::get(d, &name)?));
-                let (row, raw) = self.dev.wire(py, read)?;
-                Ok($crate::python::shown(py, row, raw))
+                let (row, raw) = slf.get().dev.wire(py, read)?;
+                $crate::python::named(slf.as_any(), &row.name, $crate::python::shown(py, row, raw))
             }
 
             /// Writes ``value`` (engineering units) to the register called ``name``, checked
@@ -306,7 +307,7 @@ macro_rules! device_methods {
             /// Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
             /// each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests).
             fn get_many<'py>(
-                &self,
+                slf: &Bound<'py, Self>,
                 py: Python<'py>,
                 names: &Bound<'py, PyAny>,
             ) -> PyResult<Bound<'py, PyDict>> {
@@ -321,8 +322,9 @@ macro_rules! device_methods {
                         .collect::<$crate::Result<Vec<_>>>()
                 };
                 let out = PyDict::new(py);
-                for (row, value) in self.dev.wire(py, read)? {
-                    out.set_item(&row.name, $crate::python::shown(py, row, value))?;
+                for (row, value) in slf.get().dev.wire(py, read)? {
+                    let shown = $crate::python::shown(py, row, value);
+                    out.set_item(&row.name, $crate::python::named(slf.as_any(), &row.name, shown)?)?;
                 }
                 Ok(out)
             }
@@ -822,6 +824,19 @@ fn named_pairs<'py>(
 fn name_list(names: &Bound<'_, PyAny>) -> PyResult<Vec<String>> {
     let names = listed(names, "names", "a list of names ([\"speed\", \"current\"])")?;
     names.iter().map(row_name).collect()
+}
+
+/// `value` of the row `name` as `device`'s class names it: what its `_named(name, value)`
+/// gives (a family's Python class: a member of the register's enum), else as it is.
+fn named<'py>(
+    device: &Bound<'py, PyAny>,
+    name: &str,
+    value: Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
+    match device.getattr(intern!(device.py(), "_named")) {
+        Ok(hook) => hook.call1((name, value)),
+        Err(_) => Ok(value),
+    }
 }
 
 /// A value of `register` as Python shows it: an int for a whole-number register, else a
