@@ -105,12 +105,15 @@ unplugged=$served
 for com in com5 com12 com6; do link_sim "$com"; done
 # The unplug test's far end: gone at once when the test asks (SIGKILL, as an adapter pulled
 # out: a SIGTERM lets the simulator stop its server first, which under wine has held the
-# pseudo-terminal open past the test's 10 s), then served again on the same name.
+# pseudo-terminal open past the test's 10 s), then served again on the same name once the
+# test has met the loss (served sooner, on the same pseudo-terminal number, the reopen
+# could hide it).
 (
     trap 'kill "$served" 2>/dev/null; exit 0' TERM
     for _ in $(seq 600); do [ -e "$control/unplug" ] && break; sleep 0.05; done
     kill -KILL "$unplugged"
     wait "$unplugged" 2>/dev/null || true
+    for _ in $(seq 600); do [ -e "$control/lost" ] && break; sleep 0.05; done
     start_sim com6
     link_sim com6
     touch "$control/replugged"

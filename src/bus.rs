@@ -950,7 +950,9 @@ impl Bus {
         // attempt may be its answer (the same request), so it is timed from there.
         let mut first_unanswered: Option<Sent> = None;
         for attempt in 0..attempts {
-            if attempt > 0 && self.interrupted() {
+            // Between attempts; and before an urgent request, the way out after an error (a
+            // motor's stop after a Ctrl-C): a second Ctrl-C cuts it short, nothing more sent.
+            if (attempt > 0 || urgent) && self.interrupted() {
                 return Err(interrupted(unit, request, attempt));
             }
             // A repeated write is a write command too: it keeps the interval.

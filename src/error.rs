@@ -98,11 +98,11 @@ pub enum Error {
         /// The exception reply frame.
         frame: Vec<u8>,
     },
-    /// The caller asked the call to stop between two attempts (see
-    /// [`crate::bus::BusConfig::interrupted`]: a signal handler raised, in Python a Ctrl-C).
-    /// The attempts made were whole, and a late reply to them is listened for as after any
-    /// timeout, so the line stays in step.
-    #[error("unit {unit}, function {function:#04x}: interrupted after {attempts} attempt{}", if *.attempts == 1 { "" } else { "s" })]
+    /// The caller asked the call to stop between two attempts, or before an urgent write
+    /// was sent (`attempts` 0) (see [`crate::bus::BusConfig::interrupted`]: a signal handler
+    /// raised, in Python a Ctrl-C). The attempts made were whole, and a late reply to them
+    /// is listened for as after any timeout, so the line stays in step.
+    #[error("unit {unit}, function {function:#04x}: interrupted {}", cancelled_after(*.attempts))]
     Interrupted {
         /// Unit asked.
         unit: u8,

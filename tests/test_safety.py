@@ -368,6 +368,52 @@ def test_ctrl_c_on_a_silent_drive_leaves_the_block_within_two_timeouts(tmp_path:
     assert took < 2 * SILENT_TIMEOUT + 1.0, took
 
 
+#: The silent drive of SILENT_SCRIPT, jogging.
+JOGGING_SCRIPT = SILENT_SCRIPT.replace("drive.forward()", "drive.jog_forward()")
+
+
+def test_a_second_ctrl_c_during_the_jog_stop_cuts_the_way_out_short(tmp_path: Path) -> None:
+    """A jogging drive leaves its block by a jog stop and a stop; a second Ctrl-C while the
+    jog stop waits on a silent drive is raised once that request is over, and the stop after
+    it is not sent: the block is left within two timeouts of the first Ctrl-C, not three."""
+    script = tmp_path / "jogging.py"
+    script.write_text(JOGGING_SCRIPT)
+    with simulated("BLD2") as (motor, sim):
+        proc = subprocess.Popen(
+            [sys.executable, str(script), sim.port, str(SILENT_TIMEOUT)],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            cwd=tmp_path,
+        )
+        try:
+            assert read_line(proc, STEP_TIMEOUT) == "running"
+            sim.set_silent(motor.unit)
+            silent_from = sim.request_count
+            deadline = time.monotonic() + STEP_TIMEOUT
+            while sim.request_count < silent_from + 2 and time.monotonic() < deadline:
+                time.sleep(0.01)
+            proc.send_signal(signal.SIGINT)
+            sent = time.monotonic()
+            jog_stop = bytes.fromhex("20000008")
+            while time.monotonic() < deadline and not any(
+                r[1] == 0x06 and r[2:6] == jog_stop for r in sim.requests
+            ):
+                time.sleep(0.01)
+            time.sleep(0.2)  # the jog stop is on its way: its one attempt waits
+            proc.send_signal(signal.SIGINT)
+            _, err = proc.communicate(timeout=STEP_TIMEOUT * 2)
+            took = time.monotonic() - sent
+        finally:
+            if proc.poll() is None:
+                proc.kill()
+                proc.wait()
+        stderr = err.decode(errors="replace")
+        commands = [r[5] for r in sim.requests if r[1] == 0x06 and r[2:4] == b"\x20\x00"]
+    assert proc.returncode == -signal.SIGINT, stderr
+    assert commands == [3, 8], commands  # the jog, its stop on leaving, and no stop after
+    assert took < 2 * SILENT_TIMEOUT + 1.0, took
+
+
 # ---- a signal in the middle of a transaction ---------------------------------------------------
 
 
