@@ -98,6 +98,12 @@ def request_length(buf: bytes) -> int | None:
         return 0 if len(buf) < 3 else 5 + buf[2]
     if function in (0x01, 0x02, 0x03, 0x04, 0x05, 0x06):
         return 8
+    if function == 0x08:
+        # Every Diagnostics sub-function but return query data (any length) carries one
+        # word: a request the next one follows closely is not taken together with it.
+        if len(buf) < 4:
+            return 0
+        return None if buf[2:4] == b"\x00\x00" else 8
     if function == 0x16:
         return 10
     if function in (0x0F, 0x10):
