@@ -568,7 +568,7 @@ class Plan:
 
 
 FULL = Plan(5, 2.0, 10, range(1, 248), 0.05, 5.0, 5, 10)
-QUICK = Plan(2, 0.2, 2, range(1, 11), 0.05, 0.5, 1, 2)
+QUICK = Plan(1, 0.2, 2, range(1, 11), 0.05, 0.5, 1, 2)
 
 N81_19200 = LineSpec(19200, "N")
 E81_115200 = LineSpec(115200, "E")
