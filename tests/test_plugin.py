@@ -472,6 +472,32 @@ def test_reads(bench_drive):
 """
 
 
+ABSENT_BENCH = """
+def test_nothing_yet(bench_drive):
+    assert bench_drive.unit == 3
+"""
+
+
+def test_a_bench_device_that_does_not_answer_is_not_refused_at_setup(
+    pytester: pytest.Pytester,
+    rig: tuple[Simulator[DriveDevice | J2Device], DriveDevice, J2Device],
+) -> None:
+    # No unit 3 on the line: the check at setup times out, which says nothing of its family,
+    # so the test runs (the drive is checked when it first answers); the stop at teardown
+    # is what meets the silence.
+    sim, _, _ = rig
+    pytester.makepyfile(test_inner_absent=ABSENT_BENCH)
+    args = ["--benchbus-port", sim.port, "--benchbus-unit", "drive=3"]
+    args += ["--benchbus-baudrate", "19200"]
+    result = pytester.runpytest_inprocess("-p", "no:cacheprovider", *args)
+    result.assert_outcomes(passed=1, errors=1)
+    assert "WrongDevice" not in result.stdout.str()
+    result.stdout.fnmatch_lines(["*ERROR at teardown of test_nothing_yet*", "*ResponseTimeout*"])
+    assert [f[1] for f in sim.requests if f[0] == 3] and not [
+        f for f in sim.requests if f[0] == 3 and f[1] in (0x06, 0x10)
+    ]
+
+
 @pytest.mark.parametrize("checked", [True, False])
 def test_a_bench_device_of_another_family_fails_the_setup(
     pytester: pytest.Pytester,
