@@ -950,9 +950,7 @@ impl Bus {
         // attempt may be its answer (the same request), so it is timed from there.
         let mut first_unanswered: Option<Sent> = None;
         for attempt in 0..attempts {
-            // Between attempts; and before an urgent request, the way out after an error (a
-            // motor's stop after a Ctrl-C): a second Ctrl-C cuts it short, nothing more sent.
-            if (attempt > 0 || urgent) && self.interrupted() {
+            if attempt > 0 && self.interrupted() {
                 return Err(interrupted(unit, request, attempt));
             }
             // A repeated write is a write command too: it keeps the interval.
@@ -1579,7 +1577,9 @@ impl Bus {
     }
 
     /// Whether the caller asks the call in progress to stop before its next attempt.
-    fn interrupted(&self) -> bool {
+    /// Whether the caller asks the call in progress to stop ([`BusConfig::interrupted`]:
+    /// in Python, a signal handler that raised, Ctrl-C's).
+    pub fn interrupted(&self) -> bool {
         self.config.interrupted.is_some_and(|asked| asked())
     }
 

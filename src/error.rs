@@ -98,9 +98,10 @@ pub enum Error {
         /// The exception reply frame.
         frame: Vec<u8>,
     },
-    /// The caller asked the call to stop between two attempts, or before an urgent write
-    /// was sent (`attempts` 0) (see [`crate::bus::BusConfig::interrupted`]: a signal handler
-    /// raised, in Python a Ctrl-C). The attempts made were whole, and a late reply to them
+    /// The caller asked the call to stop between two attempts, or, on the way out of a
+    /// motor's block, before a stop a silent drive would not have answered (`attempts` 0)
+    /// (see [`crate::bus::BusConfig::interrupted`]: a signal handler raised, in Python a
+    /// Ctrl-C). The attempts made were whole, and a late reply to them
     /// is listened for as after any timeout, so the line stays in step.
     #[error("unit {unit}, function {function:#04x}: interrupted {}", cancelled_after(*.attempts))]
     Interrupted {

@@ -635,6 +635,22 @@ mod tests {
     }
 
     #[test]
+    fn a_unit_that_answers_before_the_reckoned_end_is_not_judged() {
+        // A simulator on a pseudo-terminal, a long request (50 ms reckoned): its replies
+        // come 5 ms after the start, before the end; one that comes sooner (the simulator's
+        // host less loaded) is no copy.
+        let ms = Duration::from_millis;
+        let t0 = Instant::now();
+        let mut t = Turnarounds::new();
+        for i in 0..16u64 {
+            let start = t0 + ms(100 * i);
+            t.answered(1, 16, start, start + ms(50), start + ms(5));
+        }
+        let start = t0 + ms(10_000);
+        assert!(!t.too_soon(1, 16, start, start + ms(50), start + ms(2)));
+    }
+
+    #[test]
     fn a_fast_device_woken_for_late_is_judged_by_the_end_of_the_request() {
         // A device that answers at t3.5 (1.75 ms), each reply seen a scheduler's 1.5 ms late:
         // the one seen on time is an answer.

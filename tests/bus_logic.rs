@@ -1045,42 +1045,6 @@ fn an_interrupt_between_attempts_ends_the_call_and_keeps_the_line_in_step() {
 }
 
 #[test]
-fn an_urgent_write_asked_to_stop_before_it_goes_is_not_sent() {
-    use std::sync::atomic::Ordering;
-    fn asked() -> bool {
-        URGENT_INTERRUPT.load(Ordering::SeqCst)
-    }
-    // The way out of a motor's block after a Ctrl-C is urgent writes; a second Ctrl-C
-    // before one is sent ends it there. A plain write's first attempt goes all the same.
-    let echo = with_crc(&[1, 6, 0x20, 0x00, 0x00, 0x05]);
-    let (t, mut cfg) = common::mock(vec![Act::Reply(echo)], 2);
-    cfg.interrupted = Some(asked);
-    let bus = benchbus::Bus::with_transport(cfg, Box::new(t.clone()));
-    let urgent = TxOptions {
-        urgent: true,
-        ..TxOptions::default()
-    };
-    URGENT_INTERRUPT.store(true, Ordering::SeqCst);
-    let err = bus.write_register(1, 0x2000, 5, &urgent).unwrap_err();
-    assert!(
-        matches!(err, Error::Interrupted { attempts: 0, .. }),
-        "{err:?}"
-    );
-    assert_eq!(
-        err.to_string(),
-        "unit 1, function 0x06: interrupted before it was sent"
-    );
-    assert!(common::sent(&t).is_empty());
-    let plain = bus.write_register(1, 0x2000, 5, &TxOptions::default());
-    URGENT_INTERRUPT.store(false, Ordering::SeqCst);
-    plain.unwrap();
-    assert_eq!(common::sent(&t).len(), 1);
-}
-
-/// Set by the test above; read by its Bus's `interrupted` hook.
-static URGENT_INTERRUPT: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
-
-#[test]
 fn an_urgent_write_goes_once_at_once_and_an_owed_answer_never_passes_for_its_echo() {
     // Unit 1 timed out on a read (its answer, 7, is owed); then the stop on leaving a block
     // on an error: an urgent write, on a Bus with 2 retries. It goes out at once (no wait

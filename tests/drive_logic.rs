@@ -256,6 +256,50 @@ fn leaving_ends_a_jog_this_object_started_then_stops() {
     assert_eq!(sent(&t), frames.map(hex).to_vec());
 }
 
+/// Set by the test below; read by its Bus's `interrupted` hook.
+static SECOND_CTRL_C: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+#[test]
+fn a_second_ctrl_c_skips_the_stop_only_after_a_jog_stop_the_drive_did_not_answer() {
+    use std::sync::atomic::Ordering;
+    fn asked() -> bool {
+        SECOND_CTRL_C.load(Ordering::SeqCst)
+    }
+    let jog_stop = "01 06 20 00 00 08 83 CC";
+    let stop = "01 06 20 00 00 05 42 09";
+    let jogging = |acts: Vec<Act>| {
+        let (t, mut cfg) = common::mock(acts, 0);
+        cfg.interrupted = Some(asked);
+        let bus = Arc::new(benchbus::Bus::with_transport(cfg, Box::new(t.clone())));
+        let d = Drive::new(bus, 1, Family::Bld, true);
+        d.command(Command::JogForward).expect("jog");
+        (d, t)
+    };
+    let jog = || echo("01 06 20 00 00 03 C2 0B");
+    // A silent drive, asked to stop meanwhile: the jog stop only, and the interrupt.
+    let (d, t) = jogging(vec![jog(), Act::Silent]);
+    SECOND_CTRL_C.store(true, Ordering::SeqCst);
+    let err = d.stop_on_exit(true).unwrap_err();
+    SECOND_CTRL_C.store(false, Ordering::SeqCst);
+    assert!(
+        matches!(err, Error::Interrupted { attempts: 0, .. }),
+        "{err:?}"
+    );
+    assert_eq!(sent(&t).last(), Some(&hex(jog_stop)));
+    assert_eq!(sent(&t).len(), 2);
+    // A drive that answered the jog stop is sent the stop, asked or not.
+    let (d, t) = jogging(vec![jog(), echo(jog_stop), echo(stop)]);
+    SECOND_CTRL_C.store(true, Ordering::SeqCst);
+    let done = d.stop_on_exit(true);
+    SECOND_CTRL_C.store(false, Ordering::SeqCst);
+    done.expect("exit");
+    assert_eq!(sent(&t)[1..], [hex(jog_stop), hex(stop)]);
+    // Not asked: the stop follows the unanswered jog stop.
+    let (d, t) = jogging(vec![jog(), Act::Silent, Act::Silent]);
+    assert!(matches!(d.stop_on_exit(true), Err(Error::Timeout { .. })));
+    assert_eq!(sent(&t)[1..], [hex(jog_stop), hex(stop)]);
+}
+
 #[test]
 fn a_refused_jog_is_not_counted_as_started() {
     let refusal = Act::Reply(with_crc(&[1, 0x86, 0x01]));

@@ -202,10 +202,11 @@ def test_every_suggestion_the_library_makes_in_python_has_a_command_line_wording
     for python, _ in cli._errors.CLI_WORDS:
         assert python in text, python
     # And the other way: every Bus option the core's messages ask for has its wording.
-    asked = set(re.findall(r"open the Bus with \w+=True", text))
+    asked = set(re.findall(r"open the Bus with(?:out)? \w+=True|\w+=True (?:is for|sets)", text))
     assert asked >= {"open the Bus with echo=True", "open the Bus with rs485=True"}
     for phrase in asked:
         assert any(phrase in python for python, _ in cli._errors.CLI_WORDS), phrase
+    assert "open the Bus without echo=True" in asked and "echo=True is for" in asked
 
 
 def test_an_echoing_adapter_is_read_with_echo_as_the_doctor_says() -> None:

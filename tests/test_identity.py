@@ -278,6 +278,9 @@ def test_get_and_get_many_read_an_enum_register_as_its_attribute_does() -> None:
         assert got == {"state": state, "speed_setpoint": 0, "command_source": 2}
         assert type(got["command_source"]) is bb.CommandSource
         assert type(got["speed_setpoint"]) is int
+    with Simulator({1: J2Device()}) as sim, bb.J2Controller(sim.port) as j2:
+        mode, sv = j2.read_many(["am", "SV"])
+        assert (type(mode), mode) == (bb.J2Mode, j2.mode) and type(sv) is float
 
 
 def test_a_profile_enum_reads_its_unlisted_value_as_unknown(tmp_path: Path) -> None:

@@ -806,17 +806,17 @@ def test_a_unit_counts_and_logs_its_comm_events_as_the_specification_says() -> N
             assert client.transact(frame("01 0B"), 8) == frame("01 0B 00 00 00 00")
             log = "40 80 00"
             assert client.transact(frame("01 0C"), 14) == frame(f"01 0C 09 00 00 00 00 00 01 {log}")
-            # The listen only mode: entering it is logged (04), a request there is a message
-            # with the mode's receive event, and restart communications (00 00: the log
-            # kept) ends it, clearing the counters.
+            # The listen only mode: the request is received (80), entering the mode logged
+            # (04); a request there is a message with the mode's receive event (A0); restart
+            # communications (00 00: the log kept) ends it, clearing the counters.
             client.send(frame("01 08 00 04 00 00"))
             client.assert_quiet()
             client.send(frame("01 03 00 05 00 01"))
             client.assert_quiet()
             client.send(frame("01 08 00 01 00 00"))
             client.assert_quiet()
-            log = "00 A0 04 40 80 40 80 00"
-            assert client.transact(frame("01 0C"), 19) == frame(f"01 0C 0E 00 00 00 00 00 00 {log}")
+            log = "00 A0 04 80 40 80 40 80 00"
+            assert client.transact(frame("01 0C"), 20) == frame(f"01 0C 0F 00 00 00 00 00 00 {log}")
             assert sim.errors == []
         finally:
             client.close()

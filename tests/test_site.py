@@ -74,9 +74,14 @@ def once(factory: pytest.TempPathFactory, name: str, make: Callable[[Path], Buil
             made = json.loads(result.read_text("utf-8"))
             return Build(Path(made["site"]), made["returncode"], made["output"], made["seconds"])
         folder.mkdir(exist_ok=True)
-        built = make(folder)
+        try:
+            built = make(folder)
+        except Exception as error:  # a build that timed out: failed once, for every worker
+            built = Build(folder, -1, f"{type(error).__name__}: {error}", 0.0)
         fields = {**built.__dict__, "site": str(built.site)}
-        result.write_text(json.dumps(fields), "utf-8")
+        partial = result.with_suffix(".partial")
+        partial.write_text(json.dumps(fields), "utf-8")
+        partial.replace(result)
         return built
 
 

@@ -693,7 +693,8 @@ class J2ControllerMembers(BusDeviceMembers):
         signed table, an int for the unsigned one (a member of its enum, as :meth:`get`)."""
 
     async def read_many(self, names: Iterable[str]) -> list[int | float]:
-        """Several parameters by name, in as few requests as the 16-register limit allows."""
+        """Several parameters by name, in as few requests as the 16-register limit allows (each
+        as :meth:`read` gives it)."""
 
     async def sample(self) -> dict[str, float]:
         """PV, SV and MV (``{"pv": .., "sv": .., "mv": ..}``), in one request."""

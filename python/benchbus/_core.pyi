@@ -929,7 +929,8 @@ class J2Core(_Station):
         """Write one parameter by name, with the manual's rules; ``function`` is 0x06 or
         0x10 (the manual shows both for SV)."""
     def read_many(self, names: Iterable[str]) -> list[int | float]:
-        """Several parameters by name, in as few requests as the 16-register limit allows."""
+        """Several parameters by name, in as few requests as the 16-register limit allows (each
+        as :meth:`read` gives it)."""
     def write_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
         """Write several parameters in order, each as :meth:`write` does; every value is
         checked against its fixed range before the first is sent."""

@@ -565,7 +565,7 @@ class MotorDevice(BusDevice):
         answers the drive still owes (a write's reply must echo it, so such an answer is
         never taken for the stop's), so the block is left within one timeout (a jog this
         object started adds its jog stop). A second Ctrl-C raises once the request in
-        flight is over, and nothing is sent after it.
+        flight is over (after a jog stop the drive did not answer, the stop is not sent).
 
         If stopping fails while another exception is on its way out, that exception goes
         on, carrying the failure as a note (``__notes__``, shown in its traceback), and the

@@ -13,6 +13,7 @@ use super::suggest::did_you_mean;
 use super::{on_station, tabled};
 use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
+use crate::codec::pdu::WRITE_SINGLE_REGISTER;
 use crate::codec::{exception_meaning, FrameError};
 use crate::error::{Error, Result};
 use std::sync::atomic::{AtomicBool, AtomicU8, Ordering};
@@ -618,7 +619,9 @@ impl Drive {
     /// What leaving a `with` block sends: a jog stop if this object started a jog, then the
     /// stop. `urgent` (leaving on an error, Ctrl-C): each is sent once and at once (see
     /// [`TxOptions::urgent`](crate::bus::TxOptions::urgent)), and the stop is sent even if
-    /// the jog stop failed.
+    /// the jog stop failed, but for one case: the drive did not answer the jog stop and the
+    /// caller asks to stop meanwhile ([`Bus::interrupted`], a second Ctrl-C), which ends it
+    /// there ([`Error::Interrupted`], `attempts` 0).
     ///
     /// # Errors
     /// Any [`Error`] of either command (urgent: the stop's, else the jog stop's).
@@ -638,6 +641,16 @@ impl Drive {
         } else {
             Ok(())
         };
+        // A drive silent to the jog stop, and a second Ctrl-C meanwhile: the stop would wait
+        // out one more timeout, and the user asked to be out. A drive that answered the jog
+        // stop is sent the stop all the same.
+        if matches!(jog, Err(Error::Timeout { .. })) && self.station.bus().interrupted() {
+            return Err(Error::Interrupted {
+                unit: self.station.unit(),
+                function: WRITE_SINGLE_REGISTER,
+                attempts: 0,
+            });
+        }
         self.station.write_urgent(COMMAND, Command::Stop.code())?;
         jog
     }

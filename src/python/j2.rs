@@ -3,8 +3,8 @@
 
 use super::device_methods;
 use super::{
-    int_choice, listed, member, named_pairs, number, public, row_name, shown, to_pyerr, Attached,
-    PyBus, PyStation,
+    int_choice, listed, member, named, named_pairs, number, public, row_name, shown, to_pyerr,
+    Attached, PyBus, PyStation,
 };
 
 /// The Python module of the family's public types.
@@ -155,9 +155,10 @@ tabled;
         self.dev.wire(py, move |j| j.set_as(&p.name, v, multiple))
     }
 
-    /// Several parameters by name, in as few requests as the 16-register limit allows.
+    /// Several parameters by name, in as few requests as the 16-register limit allows (each
+    /// as :meth:`read` gives it).
     fn read_many<'py>(
-        &self,
+        slf: &Bound<'py, Self>,
         py: Python<'py>,
         names: &Bound<'py, PyAny>,
     ) -> PyResult<Vec<Bound<'py, PyAny>>> {
@@ -167,7 +168,12 @@ tabled;
             ));
         }
         let names = listed(names, "names", "a list of names ([\"SV\", \"PV\"])")?;
-        self.read_names(py, &names)
+        let values = slf.get().read_names(py, &names)?;
+        names
+            .iter()
+            .zip(values)
+            .map(|(name, value)| named(slf.as_any(), &param(py, name)?.name, value))
+            .collect()
     }
 
     /// Write several parameters in order, each as :meth:`write` does.

@@ -28,7 +28,7 @@ use crate::device::Device;
 use crate::error::Error;
 use crate::timing::{LineFormat, Parity};
 use crate::transport::tuning::Rs485;
-use pyo3::exceptions::{PyRuntimeError, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyAttributeError, PyRuntimeError, PyTypeError, PyValueError};
 use pyo3::intern;
 use pyo3::prelude::*;
 use pyo3::sync::PyOnceLock;
@@ -833,9 +833,11 @@ fn named<'py>(
     name: &str,
     value: Bound<'py, PyAny>,
 ) -> PyResult<Bound<'py, PyAny>> {
-    match device.getattr(intern!(device.py(), "_named")) {
+    let py = device.py();
+    match device.getattr(intern!(py, "_named")) {
         Ok(hook) => hook.call1((name, value)),
-        Err(_) => Ok(value),
+        Err(e) if e.is_instance_of::<PyAttributeError>(py) => Ok(value),
+        Err(e) => Err(e),
     }
 }
 

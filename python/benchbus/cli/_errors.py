@@ -41,6 +41,11 @@ CLI_WORDS = (
     ("open the Bus with echo=True: bb.Bus(port, echo=True)", "give the commands --echo"),
     ("open the Bus with echo=True", "give the commands --echo"),
     ("open the Bus with rs485=True", "give the commands --rs485"),
+    ("open the Bus without echo=True", "leave out --echo"),
+    ("echo=True is for a serial line", "--echo is for a serial line"),
+    ("rs485=True is for a local serial port", "--rs485 is for a local serial port"),
+    ("rs485=True sets the Linux kernel's RS485 mode", "--rs485 sets the Linux kernel's RS485 mode"),
+    ("leave rs485 off", "leave out --rs485"),
     (
         "switch with mode = manual, or set_output(percent, switch_to_manual=True)",
         "run 'benchbus j2 manual' first, or add --manual to set-output",

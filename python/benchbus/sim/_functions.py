@@ -372,7 +372,8 @@ def took(
     once it is answered, so a 0x0B or 0x0C reply gives the counts from before it.
     """
     sub = _word(pdu, 1) if len(pdu) >= 3 and pdu[0] == DIAGNOSTICS else None
-    if sub == RESTART_COMMUNICATIONS and (reply is None or reply[:1] == pdu[:1]):
+    restarted = listen_only if reply is None else reply[:1] == pdu[:1]
+    if sub == RESTART_COMMUNICATIONS and restarted:
         device.comm_event_count = device.comm_message_count = 0
         if len(pdu) >= 5 and _word(pdu, 3) == 0xFF00:
             device.comm_events = b""
@@ -380,6 +381,7 @@ def took(
         return
     device.comm_message_count = (_counter(device, "comm_message_count") + 1) % _SPACE
     if sub == FORCE_LISTEN_ONLY and listen_only:
+        _log(device, RECEIVED | (RECEIVED_BROADCAST if broadcast else 0))
         _log(device, ENTERED_LISTEN_ONLY)
         return
     mode = IN_LISTEN_ONLY if listen_only else 0
