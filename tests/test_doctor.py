@@ -329,7 +329,7 @@ def test_the_command_line_asks_for_rs485_mode_with_a_flag(pty: str) -> None:
     line = one_line_error(run("read", "0", "--port", pty, "--rs485", "--rts-delay", "0.001,0"), 1)
     assert line == (
         f"benchbus: port {pty}: cannot open: this port has no kernel RS485 mode (a USB RS485 "
-        "adapter switches direction by itself: leave rs485 off)"
+        "adapter switches direction by itself: leave out --rs485)"
     )
     line = one_line_error(run("read", "0", "--port", pty, "--rts-delay", "0.001,0"), 2)
     assert line == "benchbus: read: --rts-delay goes with --rs485"
