@@ -438,7 +438,10 @@ def test_unanswered_writes() -> None:
         quiet.forward()
         assert time.monotonic() - start < 0.2  # no timeout waited
         assert len(sim.replies) == replies
-        assert device.peek(0x2001) == 1200 and quiet.state == bb.DriveState.FORWARD
+        # The read comes after the writes, answered once the simulator has taken them: only
+        # then is the register looked at (the writes wait for nothing).
+        assert quiet.state == bb.DriveState.FORWARD
+        assert device.peek(0x2001) == 1200
         quiet.coast()  # F08.06 is W/R*: stopped only
         quiet.write_parameter("F08.06", 0)  # answered again, so the stop on exit is too
         assert device.params[0x0806] == 0
