@@ -221,9 +221,11 @@ def test_an_absent_unit_holds_its_next_call_three_timeouts_and_others_not_at_all
         requests = [first for first, frame in slave.requests if frame[0] == 5]
         assert len(requests) == 4
         # The second call's first request waited out the first call's window: three
-        # timeouts after its last attempt timed out.
+        # timeouts after its last attempt timed out (the request's own wire time, 4 ms,
+        # on top). Less 10 ms: the slave, a process of its own, can see the earlier request
+        # that much late on a loaded machine (5.5 ms seen with four timing tests at once).
         gap = requests[2] - requests[1]
-        assert 4 * timeout <= gap < 6 * timeout, gap
+        assert 4 * timeout - 0.010 <= gap < 6 * timeout, gap
 
 
 def test_the_resyncs_are_counted_in_the_stats() -> None:
