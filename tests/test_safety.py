@@ -328,16 +328,17 @@ with bb.Drive(bus, unit=1) as drive:
 SILENT_TIMEOUT = 1.5
 
 
-def test_ctrl_c_on_a_silent_drive_leaves_the_block_within_two_timeouts(tmp_path: Path) -> None:
-    """Ctrl-C while the drive has fallen silent: the read in flight ends (one timeout), then
-    the stop is sent once, at once (no retries, no wait for the read's owed answer): the
-    block is left within two timeouts of the Ctrl-C, not after the owed answer's window and
-    four attempts of the stop (about nine timeouts)."""
-    script = tmp_path / "silent.py"
-    script.write_text(SILENT_SCRIPT)
+@contextlib.contextmanager
+def gone_silent(tmp_path: Path, script: str) -> Iterator[tuple[subprocess.Popen[bytes], Any]]:
+    """Run ``script`` (:data:`SILENT_SCRIPT` or a variant) on a simulated BLD2 drive, make
+    the drive fall silent once the script says "running", and wait until the script's read
+    is into its retries (the drive owes answers, as after any timeout): yields the script's
+    process and the simulator; the process is killed on the way out if still running."""
+    path = tmp_path / "silent.py"
+    path.write_text(script)
     with simulated("BLD2") as (motor, sim):
         proc = subprocess.Popen(
-            [sys.executable, str(script), sim.port, str(SILENT_TIMEOUT)],
+            [sys.executable, str(path), sim.port, str(SILENT_TIMEOUT)],
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             cwd=tmp_path,
@@ -347,20 +348,28 @@ def test_ctrl_c_on_a_silent_drive_leaves_the_block_within_two_timeouts(tmp_path:
             sim.set_silent(motor.unit)
             silent_from = sim.request_count
             deadline = time.monotonic() + STEP_TIMEOUT
-            # Into the read's retries: the drive owes answers, as after any timeout.
             while sim.request_count < silent_from + 2 and time.monotonic() < deadline:
                 time.sleep(0.01)
-            time.sleep(0.2)
-            proc.send_signal(signal.SIGINT)
-            sent = time.monotonic()
-            _, err = proc.communicate(timeout=STEP_TIMEOUT * 2)
-            took = time.monotonic() - sent
+            yield proc, sim
         finally:
             if proc.poll() is None:
                 proc.kill()
                 proc.wait()
-        stderr = err.decode(errors="replace")
+
+
+def test_ctrl_c_on_a_silent_drive_leaves_the_block_within_two_timeouts(tmp_path: Path) -> None:
+    """Ctrl-C while the drive has fallen silent: the read in flight ends (one timeout), then
+    the stop is sent once, at once (no retries, no wait for the read's owed answer): the
+    block is left within two timeouts of the Ctrl-C, not after the owed answer's window and
+    four attempts of the stop (about nine timeouts)."""
+    with gone_silent(tmp_path, SILENT_SCRIPT) as (proc, sim):
+        time.sleep(0.2)
+        proc.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        _, err = proc.communicate(timeout=STEP_TIMEOUT * 2)
+        took = time.monotonic() - sent
         stops = [r for r in sim.requests if r[1] == 0x06 and r[2:6] == bytes.fromhex("20000005")]
+    stderr = err.decode(errors="replace")
     assert proc.returncode == -signal.SIGINT, stderr
     # The stop went unanswered: the interrupt goes on, the failure noted on it.
     assert "\nKeyboardInterrupt\nunit 1: could not stop the motor" in stderr, stderr
@@ -376,39 +385,21 @@ def test_a_second_ctrl_c_during_the_jog_stop_cuts_the_way_out_short(tmp_path: Pa
     """A jogging drive leaves its block by a jog stop and a stop; a second Ctrl-C while the
     jog stop waits on a silent drive is raised once that request is over, and the stop after
     it is not sent: the block is left within two timeouts of the first Ctrl-C, not three."""
-    script = tmp_path / "jogging.py"
-    script.write_text(JOGGING_SCRIPT)
-    with simulated("BLD2") as (motor, sim):
-        proc = subprocess.Popen(
-            [sys.executable, str(script), sim.port, str(SILENT_TIMEOUT)],
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            cwd=tmp_path,
-        )
-        try:
-            assert read_line(proc, STEP_TIMEOUT) == "running"
-            sim.set_silent(motor.unit)
-            silent_from = sim.request_count
-            deadline = time.monotonic() + STEP_TIMEOUT
-            while sim.request_count < silent_from + 2 and time.monotonic() < deadline:
-                time.sleep(0.01)
-            proc.send_signal(signal.SIGINT)
-            sent = time.monotonic()
-            jog_stop = bytes.fromhex("20000008")
-            while time.monotonic() < deadline and not any(
-                r[1] == 0x06 and r[2:6] == jog_stop for r in sim.requests
-            ):
-                time.sleep(0.01)
-            time.sleep(0.2)  # the jog stop is on its way: its one attempt waits
-            proc.send_signal(signal.SIGINT)
-            _, err = proc.communicate(timeout=STEP_TIMEOUT * 2)
-            took = time.monotonic() - sent
-        finally:
-            if proc.poll() is None:
-                proc.kill()
-                proc.wait()
-        stderr = err.decode(errors="replace")
+    with gone_silent(tmp_path, JOGGING_SCRIPT) as (proc, sim):
+        proc.send_signal(signal.SIGINT)
+        sent = time.monotonic()
+        jog_stop = bytes.fromhex("20000008")
+        deadline = sent + STEP_TIMEOUT
+        while time.monotonic() < deadline and not any(
+            r[1] == 0x06 and r[2:6] == jog_stop for r in sim.requests
+        ):
+            time.sleep(0.01)
+        time.sleep(0.2)  # the jog stop is on its way: its one attempt waits
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=STEP_TIMEOUT * 2)
+        took = time.monotonic() - sent
         commands = [r[5] for r in sim.requests if r[1] == 0x06 and r[2:4] == b"\x20\x00"]
+    stderr = err.decode(errors="replace")
     assert proc.returncode == -signal.SIGINT, stderr
     assert commands == [3, 8], commands  # the jog, its stop on leaving, and no stop after
     assert took < 2 * SILENT_TIMEOUT + 1.0, took

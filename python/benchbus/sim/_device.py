@@ -189,9 +189,8 @@ class SimDevice:
     #: for each request a receive event (0x80; + 0x40 a broadcast, + 0x20 in the listen only
     #: mode), then once answered a send event (0x40; + 0x01 for exception 1..3, 0x02 for 4,
     #: 0x04 for 5 or 6, 0x08 for 7); 0x00 a restart of communications (0xFF00 clears the log
-    #: first), 0x04 the listen only mode entered (after its request's receive event). Logged
-    #: and settable as
-    #: :attr:`comm_event_count`.
+    #: first), 0x04 the listen only mode entered (after its request's receive event).
+    #: Logged and settable as :attr:`comm_event_count`.
     comm_events: bytes = b""
 
     #: Whether this unit answers a broadcast (unit 0) as if it had been addressed itself, with

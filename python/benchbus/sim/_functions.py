@@ -39,6 +39,8 @@ COIL_ON, COIL_OFF = 0xFF00, 0x0000
 #: communications and 0x0004 force listen only mode (the listen only mode is the router's,
 #: ``benchbus.sim._router``: it keeps the requests from the unit).
 DIAGNOSTICS = 0x08
+#: Get Comm Event Counter (6.9): the one request that succeeds without counting an event.
+GET_COMM_EVENT_COUNTER = 0x0B
 RETURN_QUERY_DATA, RESTART_COMMUNICATIONS, FORCE_LISTEN_ONLY = 0x0000, 0x0001, 0x0004
 #: Most bytes a Report Server ID reply's data may take (a PDU is at most 253 bytes).
 MAX_SERVER_ID_DATA = 251
@@ -324,7 +326,7 @@ _HANDLERS: dict[int, Callable[[SimDevice, bytes], bytes]] = {
     0x05: _write_coil,
     0x07: _read_exception_status,
     DIAGNOSTICS: _diagnostics,
-    0x0B: _get_comm_event_counter,
+    GET_COMM_EVENT_COUNTER: _get_comm_event_counter,
     0x0C: _get_comm_event_log,
     0x0F: _write_coils,
     0x11: _report_server_id,
@@ -389,7 +391,7 @@ def took(
     if reply is None:
         return
     exception = reply[1] if len(reply) >= 2 and reply[0] & 0x80 else None
-    if exception is None and pdu[:1] != b"\x0b":
+    if exception is None and pdu[:1] != bytes((GET_COMM_EVENT_COUNTER,)):
         device.comm_event_count = (_counter(device, "comm_event_count") + 1) % _SPACE
     _log(device, SENT | _SENT_EXCEPTION.get(exception or 0, 0))
 
