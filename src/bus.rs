@@ -1167,7 +1167,7 @@ impl Bus {
         let mut hard_end = answer_by + line.frame_time(self.max_frame());
         // When the last byte of the reply so far arrived: the line is quiet since then.
         let mut last_byte = None;
-        // When the first byte of the frame being read arrived.
+        // When the first byte of the frame being read crossed the wire, at the latest.
         let mut first_byte = None;
         // Whether a frame was dropped as too soon in this attempt.
         let mut dropped_too_soon = false;
@@ -1211,7 +1211,9 @@ impl Bus {
                     }
                     stats.stale_bytes += n as u64;
                     buf.drain(..n);
-                    first_byte = (!buf.is_empty()).then_some(at);
+                    let rest = buf.len();
+                    first_byte =
+                        (rest > 0).then(|| if serial { line.first_of(rest, at) } else { at });
                     silence.busy_until(at);
                     // The line was taken until then; this unit's answer may follow it.
                     if serial {
@@ -1313,8 +1315,15 @@ impl Bus {
                     first_byte = None;
                 }
             }
+            // When the frame began: on a serial line, the bytes of this read crossed the wire
+            // one after another, the first of them that much before it (a copy read late, all
+            // at once, still shows as begun while the request was going out).
             if first_byte.is_none() && !buf.is_empty() {
-                first_byte = Some(now);
+                first_byte = Some(if serial {
+                    line.first_of(buf.len(), now)
+                } else {
+                    now
+                });
             }
         }
         // What crossed the wire (over Modbus TCP the MBAP frame), for the log and errors.

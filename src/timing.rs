@@ -112,6 +112,15 @@ impl LineFormat {
         self.chars(n as f64)
     }
 
+    /// When the first of `n` characters read together at `read` crossed the wire, at the
+    /// latest: each crossed a character time after the one before, so the first was there
+    /// `n - 1` character times before the read at least (a master slow to read, or an
+    /// adapter that hands bytes over in bursts, still sees when a frame began).
+    pub fn first_of(&self, n: usize, read: Instant) -> Instant {
+        let behind = self.frame_time(n.saturating_sub(1));
+        read.checked_sub(behind).unwrap_or(read)
+    }
+
     /// Longest gap allowed inside a frame.
     pub fn t1_5(&self) -> Duration {
         self.gap(1.5, Duration::from_micros(750))
@@ -593,6 +602,23 @@ pub fn monotonic_now() -> Option<(Instant, f64)> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn bytes_read_together_began_a_character_time_apart_before_the_read() {
+        // 9600 8N1: 10 bits a character, 1.0417 ms.
+        let line = LineFormat::new(9600, Parity::None, 1);
+        let read = Instant::now() + ms(100);
+        assert_eq!(line.first_of(1, read), read);
+        assert_eq!(line.first_of(0, read), read);
+        let seven = read - line.first_of(7, read);
+        assert!(
+            (seven.as_secs_f64() - 6.0 * 10.0 / 9600.0).abs() < 1e-6,
+            "{seven:?}"
+        );
+        // A read too near the clock's start stays the read.
+        let now = Instant::now();
+        assert!(line.first_of(usize::MAX, now) <= now);
+    }
 
     #[test]
     fn a_frame_sooner_than_the_units_recent_replies_is_too_soon() {

@@ -104,6 +104,25 @@ def test_a_copy_that_comes_before_the_request_is_over_is_dropped(baud: int, gap:
         assert bus.stats.resyncs >= slave.copies == 10
 
 
+@pytest.mark.parametrize(("baud", "gap"), [(9600, 0.010), (19200, 0.006)])
+def test_a_copy_read_only_once_it_is_over_is_still_dropped(baud: int, gap: float) -> None:
+    # A master slow to read (a loaded machine, an adapter's latency timer) gets a copy whole,
+    # after the request is over: read then, it would look as late as an answer. But bytes
+    # that come together crossed the wire a character time apart at least, so the copy's
+    # first byte was there that much before the read, while the request was still going
+    # out (its first byte is at the same time as in the test above): it is dropped.
+    with (
+        TimedSlave(baud, turnaround=0.005, copy_every=10, copy_gap=gap, burst_copies=True) as slave,
+        bb.Bus(slave.port, baudrate=baud, timeout=0.1) as bus,
+    ):
+        run = reads(bus, 105)
+        late = sum(1 for lateness in slave.copy_lateness if lateness > LATE)
+        assert slave.copies == 10
+        assert run.errors == 0, run.results
+        assert run.wrong <= late, (late, run.results)
+        assert bus.stats.resyncs >= slave.copies - late
+
+
 @pytest.mark.parametrize(("baud", "gap"), [(9600, 0.015), (19200, 0.015), (9600, 0.030)])
 def test_a_copy_that_comes_as_late_as_an_answer_costs_one_value(baud: int, gap: float) -> None:
     # Later, a byte-identical copy cannot be told from an answer (no RTU master can): it

@@ -18,7 +18,10 @@ What it can do wrong, each a constructor option:
   the end of the first (a repeater, a gateway on the line, a firmware that repeats);
 - ``service``: each unit works on one request at a time, each taking ``service`` seconds
   from its end (or from the end of the one before, whichever is later), and answers every
-  request it got, in order (a slow device that queues its master's retries).
+  request it got, in order (a slow device that queues its master's retries);
+- ``burst_copies``: each copy is handed over whole when its last byte has crossed the wire,
+  as a master slow to read (a loaded machine) or an adapter's latency timer sees it: its
+  first byte is on the wire as early as ever, but read only once the copy is over.
 
 Register ``a`` of unit ``u`` holds :func:`value` ``(u, a)``, so a reply taken for another
 request's answer shows as a wrong value. Reads (0x03, 0x04) and single writes (0x06, the
@@ -154,8 +157,10 @@ class Line:
         copy_every: int = 0,
         copy_gap: float = 0.010,
         service: float = 0.0,
+        burst_copies: bool = False,
     ) -> None:
         self.char_time = bits / baud
+        self.burst_copies = burst_copies
         #: The turnaround (changed on the fly: the next request's reply takes the new one).
         self.turnaround = turnaround
         self.jitter = jitter
@@ -177,7 +182,8 @@ class Line:
         self.sent: list[tuple[float, bytes]] = []
         self.copies = 0
         #: For each copy, how much later than due its first byte left (the slave's process
-        #: may be late on a loaded machine: a copy then comes later than asked).
+        #: may be late on a loaded machine: a copy then comes later than asked; a burst
+        #: copy's first byte is due with its last).
         self.copy_lateness: list[float] = []
         self._out: deque[tuple[float, int, bool]] = deque()  # (when due, byte, a copy's first)
         self._free_at = 0.0  # when the last scheduled byte ends on the wire
@@ -214,11 +220,13 @@ class Line:
         the line is free); its end."""
         t = max(start, self._free_at)
         self.sent.append((t, frame))
+        end = t + len(frame) * self.char_time
+        burst = copy and self.burst_copies
         for i, b in enumerate(frame):
             t += self.char_time
-            self._out.append((t, b, copy and i == 0))
-        self._free_at = t
-        return t
+            self._out.append((end if burst else t, b, copy and i == 0))
+        self._free_at = end
+        return end
 
     def _on_request(self, request: bytes, first: float) -> None:
         self.requests.append((first, request))
