@@ -1315,9 +1315,13 @@ impl Bus {
                     first_byte = None;
                 }
             }
-            // When the frame began: on a serial line, the bytes of this read crossed the wire
-            // one after another, the first of them that much before it (a copy read late, all
-            // at once, still shows as begun while the request was going out).
+            // When the frame began: on a serial line, the bytes of this read (the first of the
+            // frame: at most 5 bytes of RTU, 11 characters of ASCII, as `reply_needed` asks)
+            // crossed the wire one after another, the first of them that much before it (a
+            // copy of a short reply read late, all at once, still shows as begun while the
+            // request was going out). Only the first read counts: a simulator on a
+            // pseudo-terminal hands over whole frames at once, and back-dating by a whole
+            // long reply would make its answers look too soon.
             if first_byte.is_none() && !buf.is_empty() {
                 first_byte = Some(if serial {
                     line.first_of(buf.len(), now)

@@ -85,7 +85,8 @@ pub enum FrameError {
          taken, and no other reply followed"
     )]
     TooSoon {
-        /// When the frame began to arrive, from the start of the request.
+        /// When the frame began on the wire at the latest (reckoned from the bytes of its
+        /// first read), from the start of the request.
         after: std::time::Duration,
         /// The unit's least time lately, from the start of a request to its reply.
         usual: std::time::Duration,
