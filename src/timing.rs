@@ -615,9 +615,9 @@ mod tests {
             (seven.as_secs_f64() - 6.0 * 10.0 / 9600.0).abs() < 1e-6,
             "{seven:?}"
         );
-        // Further back than the clock goes: the read itself.
+        // However far back (a count no read gives), no panic: at most the read itself.
         let now = Instant::now();
-        assert_eq!(line.first_of(usize::MAX, now), now);
+        assert!(line.first_of(usize::MAX, now) <= now);
     }
 
     #[test]
