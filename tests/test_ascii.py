@@ -303,7 +303,7 @@ def test_the_cli_reads_writes_and_scans_in_ascii() -> None:
         # 7N1 is refused before anything is sent.
         sim.clear_log()
         bad = run("read", *port, "0x10", "--framing", "ascii", "--parity", "N", "--stopbits", "1")
-        assert "7N1 is not allowed" in one_line_error(bad, 1)
+        assert "7N1 is not allowed" in one_line_error(bad, 2)
         assert sim.request_count == 0
 
 

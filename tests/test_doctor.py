@@ -324,6 +324,15 @@ def test_rs485_over_the_network_is_refused() -> None:
         bb.Bus("tcp://127.0.0.1:1", rs485=True)
 
 
+def test_line_options_the_bus_refuses_together_are_a_usage_error() -> None:
+    # Refused before anything is sent or any port opens: exit 2, as the guide says, with the
+    # command named and the options worded as the command line's.
+    line = one_line_error(run("read", "0", "--port", "tcp://127.0.0.1:1", "--echo"), 2)
+    assert line.startswith("benchbus: read: --echo is for a serial line"), line
+    line = one_line_error(run("scan", "--port", "tcp://127.0.0.1:1", "--rs485", "--units", "1"), 2)
+    assert line.startswith("benchbus: scan: --rs485 is for a local serial port"), line
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="the kernel RS485 mode is Linux's")
 def test_the_command_line_asks_for_rs485_mode_with_a_flag(pty: str) -> None:
     line = one_line_error(run("read", "0", "--port", pty, "--rs485", "--rts-delay", "0.001,0"), 1)

@@ -169,9 +169,10 @@ def stopbits_of(args: argparse.Namespace, options: BusOptions) -> int:
 
 
 def open_bus(args: argparse.Namespace, family: Defaults, *, reconnect: bool = False) -> bb.Bus:
-    """A Bus on the port at the ``family``'s line with the options given."""
+    """A Bus on the port at the ``family``'s line with the options given (see
+    :func:`new_bus`)."""
     options = bus_options_of(args, family)
-    return bb.Bus(
+    return new_bus(
         port_of(args),
         baudrate=options.baudrate,
         parity=options.parity,
@@ -183,6 +184,15 @@ def open_bus(args: argparse.Namespace, family: Defaults, *, reconnect: bool = Fa
         bytesize=options.bytesize,
         **adapter_options(args),
     )
+
+
+def new_bus(port: str, **options: Any) -> bb.Bus:
+    """``bb.Bus(port, **options)``; options the Bus refuses together (``--echo`` over
+    ``tcp://``...) are a UsageError: nothing was sent."""
+    try:
+        return bb.Bus(port, **options)
+    except ValueError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def unit_of(args: argparse.Namespace, family: Defaults, *, broadcast: bool = False) -> int:

@@ -17,6 +17,7 @@ from benchbus.cli._line import (
     BusOptions,
     adapter_options,
     bus_options_of,
+    new_bus,
     opt,
     port_of,
     stopbits_of,
@@ -133,7 +134,7 @@ def run(args: argparse.Namespace) -> int:
             line = dataclasses.replace(options, baudrate=baudrate, parity=parity)
             stopbits = stopbits_of(args, line)
             fmt = "tcp" if tcp else line.describe(stopbits)
-            with bb.Bus(
+            with new_bus(
                 port,
                 baudrate=baudrate,
                 parity=parity,
