@@ -431,8 +431,10 @@ def occupied(
     sim: Simulator[RegisterDevice | J2Device], gw: bb.Gateway, client: socket.socket
 ) -> None:
     """Make ``client`` busy being served: it asks absent unit 9, which the gateway's Bus
-    waits its timeout for; returns once the request is on the line."""
+    waits its timeout for; returns once the request is on the line. The client then waits
+    up to 5 s for a reply: its answer (0x0B) comes after the gateway Bus's timeout."""
     client.sendall(struct.pack(">HHHB", 1, 0, len(READ) + 1, 9) + READ)
+    client.settimeout(5.0)
     deadline = time.monotonic() + 2.0
     while not any(frame[0] == 9 for frame in sim.requests):
         assert time.monotonic() < deadline, "the request did not reach the line"
