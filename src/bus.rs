@@ -1169,6 +1169,9 @@ impl Bus {
         let mut last_byte = None;
         // When the first byte of the frame being read crossed the wire, at the latest.
         let mut first_byte = None;
+        // When the first of `n` bytes that came together at `at` crossed the wire: on a
+        // serial line they crossed one after another, the first that much before `at`.
+        let began = |n: usize, at: Instant| if serial { line.first_of(n, at) } else { at };
         // Whether a frame was dropped as too soon in this attempt.
         let mut dropped_too_soon = false;
         let mut too_soon_after = None;
@@ -1211,9 +1214,7 @@ impl Bus {
                     }
                     stats.stale_bytes += n as u64;
                     buf.drain(..n);
-                    let rest = buf.len();
-                    first_byte =
-                        (rest > 0).then(|| if serial { line.first_of(rest, at) } else { at });
+                    first_byte = (!buf.is_empty()).then(|| began(buf.len(), at));
                     silence.busy_until(at);
                     // The line was taken until then; this unit's answer may follow it.
                     if serial {
@@ -1323,11 +1324,7 @@ impl Bus {
             // pseudo-terminal hands over whole frames at once, and back-dating by a whole
             // long reply would make its answers look too soon.
             if first_byte.is_none() && !buf.is_empty() {
-                first_byte = Some(if serial {
-                    line.first_of(buf.len(), now)
-                } else {
-                    now
-                });
+                first_byte = Some(began(buf.len(), now));
             }
         }
         // What crossed the wire (over Modbus TCP the MBAP frame), for the log and errors.
