@@ -258,7 +258,7 @@ CLIENT = textwrap.dedent(
     import benchbus as bb
 
     url, index = sys.argv[1], int(sys.argv[2])
-    with bb.Bus(url, timeout=1.0, retries=0) as bus:
+    with bb.Bus(url, timeout=5.0, retries=0) as bus:
         for n in range(60):
             value = index * 1000 + n
             bus.write_register(index, 0x10, value)
@@ -273,7 +273,7 @@ CLIENT = textwrap.dedent(
 )
 
 
-@pytest.mark.timing  # each client's write to the paced J2 must come back within 1 s
+@pytest.mark.timing  # each client's writes to the paced J2 wait behind the others' (5 s allowed)
 def test_several_processes_share_one_line_through_the_gateway() -> None:
     devices: dict[int, RegisterDevice | J2Device] = {
         u: RegisterDevice({0x10: 0}) for u in (1, 2, 3)
