@@ -156,9 +156,9 @@ def hook(name: str) -> types.ModuleType:
 #: The files whose tests hold the library to a line's time (a simulated slave keeping the
 #: wire's timing, upper bounds on how long a call takes), marked ``timing`` (a test of
 #: another file may carry the marker itself): ``make test`` runs the other tests on
-#: pytest-xdist's workers, then these by themselves, in one process (a machine loaded by
-#: builds, browsers or another of them delays a simulated slave's bytes past what a line
-#: allows).
+#: pytest-xdist's workers, then these by themselves, one worker a core (a machine loaded by
+#: builds, browsers or more of them than it has cores delays a simulated slave's bytes
+#: past what a line allows).
 TIMING_FILES = frozenset(
     {
         "test_bench.py",
@@ -168,7 +168,6 @@ TIMING_FILES = frozenset(
         "test_line_in_step.py",
         "test_live_timing.py",
         "test_poll.py",
-        "test_record.py",
         "test_safety.py",
         "test_ticks.py",
     }
@@ -179,3 +178,30 @@ def pytest_itemcollected(item: pytest.Item) -> None:
     """Mark the tests of :data:`TIMING_FILES` ``timing``."""
     if item.path.name in TIMING_FILES:
         item.add_marker(pytest.mark.timing)
+
+
+#: The site's builds (tests/test_site.py's fixtures), each made once for the run while the
+#: workers that need it wait (some 15 s of a core each).
+BUILDS = ("site", "broken", "grown")
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Run the first test of each of :data:`BUILDS` first and the builds' other tests last.
+
+    pytest-xdist hands the first tests out one to each worker in turn: so the builds start
+    at once, side by side on workers of their own, and are made by the time the other tests
+    that read them come, instead of holding the workers that wait for them idle."""
+
+    def needs(item: pytest.Item) -> str | None:
+        if item.path.name != "test_site.py":
+            return None
+        return next((b for b in BUILDS if b in getattr(item, "fixturenames", ())), None)
+
+    first: dict[str, pytest.Item] = {}
+    for item in items:
+        build = needs(item)
+        if build is not None:
+            first.setdefault(build, item)
+    starters = list(first.values())
+    rest = [i for i in items if i not in starters]
+    items[:] = starters + sorted(rest, key=lambda i: needs(i) is not None)

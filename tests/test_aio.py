@@ -969,6 +969,7 @@ def test_a_cancelled_device_method_sends_nothing_more(sim: Simulator[RegisterDev
     run(main)
 
 
+@pytest.mark.timing  # the absent unit's 50 ms timeout, and equal shares measured in 2 s
 def test_four_present_units_are_served_alike_beside_an_absent_one() -> None:
     """4 tasks polling 4 present units, a fifth an absent one (retried): the present units'
     completed calls per second are within 10 % of their mean."""

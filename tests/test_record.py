@@ -4,7 +4,8 @@ simulators, the Recording's exports and the notebook displays of status objects.
 Timing is checked two ways: with a fake clock and sleep, where every deadline and every
 sample time is known exactly, and in real time on a simulated drive, where the deadlines
 are still exact and the actual times are held to bounds generous enough for a loaded CI
-machine.
+machine. The tests in real time, and those whose line has a short timeout, are marked
+``timing`` (run by themselves, see tests/conftest.py).
 """
 
 from __future__ import annotations
@@ -153,6 +154,7 @@ def test_a_missing_value_in_a_later_sample_is_nan() -> None:
 # ---- record() in real time on the simulators ----------------------------------------------------
 
 
+@pytest.mark.timing
 def test_record_a_drive_spinning_up_in_real_time() -> None:
     with drive_line(single_register_reads=False) as (sim, drive, _):  # one request a sample
         drive.accel_time = 1.0  # 0..3000 rpm in 1 s: 1500 rpm after 0.5 s
@@ -194,6 +196,7 @@ def test_record_a_drive_spinning_up_in_real_time() -> None:
         assert hz == pytest.approx(rpm * 2 / 60, abs=0.03)
 
 
+@pytest.mark.timing
 def test_record_a_j2_heating_matches_the_simulator(monkeypatch: pytest.MonkeyPatch) -> None:
     process = ProcessClock()
     controller = J2Device(clock=process)
@@ -230,6 +233,7 @@ def test_record_a_pbl_drive() -> None:
     assert rec.device == "PblDrive unit 17"
 
 
+@pytest.mark.timing
 def test_a_bus_error_ends_the_recording_and_keeps_what_was_sampled(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
