@@ -123,6 +123,14 @@ def test_coils_and_an_ascii_line_from_the_profile(tmp_path: Path) -> None:
             assert bus.read_holding_registers(1, 7, 1) == [1234]
 
 
+def test_a_sigterm_as_soon_as_the_port_is_out_is_a_clean_stop() -> None:
+    """Whoever stops the simulator once it has read the port gets exit status 0, however
+    soon: SIGTERM's handler is in place before the port is printed."""
+    for _ in range(3):
+        with serving("--profile", RELAYS) as (port, _):
+            assert port.startswith("/dev/")
+
+
 def test_a_profiles_mistake_is_a_usage_error_and_nothing_is_served(tmp_path: Path) -> None:
     bad = tmp_path / "bad.toml"
     bad.write_text('[device]\nname = "x"\n\n[[register]]\nname = "sample"\naddress = 1\n')
