@@ -11,8 +11,10 @@
 //!
 //! The line is shared fairly: a call waits for its turn in arrival order and runs one attempt
 //! per turn; a retry takes a new turn at the back of the queue, so an absent unit's retries
-//! never hold the line while others wait. A [`CancelToken`] stops a call between attempts, or
-//! takes it out of the queue.
+//! never hold the line while others wait; a write waits until the writes made before it to
+//! its unit are over, and one made before an urgent write or a broadcast is not sent again
+//! after it (`src/bus/writes.rs`). A [`CancelToken`] stops a call between attempts, or takes it
+//! out of the queue.
 //!
 //! Stale bytes in the input buffer are dropped (and counted) before each request; the reply
 //! is read by its expected length ([`Framing::reply_needed`]), never by waiting for a timeout; only a
@@ -40,10 +42,12 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard};
 use std::time::{Duration, Instant};
+use writes::Writes;
 
 mod owed;
 mod owner;
 mod queue;
+mod writes;
 
 /// How many timeouts an owed answer may take after the frame before it (see [`owed`]): the
 /// documented limit of a unit's reply time.
@@ -289,7 +293,7 @@ struct State {
 }
 
 /// A Modbus RTU master on one line. Thread-safe: callers take turns, one attempt each, in
-/// the order they asked.
+/// the order they asked (a write after the earlier writes to its unit are over).
 pub struct Bus {
     config: BusConfig,
     /// The reply timeout per attempt, in nanoseconds: the config's, then as set
@@ -305,6 +309,9 @@ pub struct Bus {
     queue: Arc<Queue>,
     /// The number of the next call (see [`owed::Owed::call`]).
     calls: AtomicU64,
+    /// The writes in progress, so that each waits for the earlier ones to its unit (see
+    /// [`writes`]).
+    writes: Writes,
     /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]).
     sequences: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
     /// The process that opened the Bus, the only one that may use it (see [`Bus::owned`]).
@@ -371,6 +378,7 @@ impl Bus {
             }),
             queue: Arc::new(Queue::default()),
             calls: AtomicU64::new(0),
+            writes: Writes::default(),
             sequences: Mutex::new(HashMap::new()),
             owner: std::process::id(),
         }
@@ -846,7 +854,8 @@ impl Bus {
         }
         request.validate()?;
         let frame = self.framing.encode_request(BROADCAST, request);
-        let call = self.calls.fetch_add(1, Ordering::Relaxed);
+        // The earlier writes are not sent again after it (see `writes`).
+        let call = self.writes.overrule(None, &self.calls);
         let ready = |st: &State| {
             let late = st.late_until(BROADCAST, call);
             st.pacing.broadcast_ready(write_interval).max(late)
@@ -912,7 +921,9 @@ impl Bus {
     /// One request, retried after a timeout or a corrupt frame, and its checked response.
     ///
     /// Each attempt has its own turn on the line: a retry waits at the back of the queue,
-    /// behind the callers that asked meanwhile. A paced write waits for its interval, and a
+    /// behind the callers that asked meanwhile, but a write waits until the writes made
+    /// before it to its unit are over, and is not sent again after an urgent write or a
+    /// broadcast made after it (`src/bus/writes.rs`). A paced write waits for its interval, and a
     /// request to a unit that still owes answers to another call's timed-out attempts waits
     /// for them (up to three timeouts each), without a turn while it can. A frame that
     /// comes too soon to answer an attempt is dropped ([`Turnarounds`]). Under a cancelled
@@ -932,11 +943,19 @@ impl Bus {
         request.validate()?;
         let frame = self.framing.encode_request(unit, request);
         let cancel = Cancel::current();
-        let call = self.calls.fetch_add(1, Ordering::Relaxed);
-        let paced = is_write(request) && !opts.write_interval.is_zero();
-        let timeout = opts.timeout.unwrap_or_else(|| self.timeout());
         // An urgent request is sent once, and does not wait for what its unit owes.
         let urgent = opts.urgent && is_write(request);
+        // Another write keeps its place among the writes to its unit; an urgent one
+        // overrules the retries of those made before it (see `writes`).
+        let mut writing =
+            (is_write(request) && !urgent).then(|| self.writes.enter(unit, &self.calls));
+        let call = match &writing {
+            Some(writing) => writing.call(),
+            None if urgent => self.writes.overrule(Some(unit), &self.calls),
+            None => self.calls.fetch_add(1, Ordering::Relaxed),
+        };
+        let paced = is_write(request) && !opts.write_interval.is_zero();
+        let timeout = opts.timeout.unwrap_or_else(|| self.timeout());
         let attempts = if request.is_answered() && !urgent {
             opts.retries
                 .unwrap_or_else(|| self.retries())
@@ -949,9 +968,17 @@ impl Bus {
         // The first of this call's attempts that got no answer: a frame that comes in a later
         // attempt may be its answer (the same request), so it is timed from there.
         let mut first_unanswered: Option<Sent> = None;
+        let mut made = 0;
         for attempt in 0..attempts {
             if attempt > 0 && self.interrupted() {
                 return Err(interrupted(unit, request, attempt));
+            }
+            if attempt > 0 && writing.as_ref().is_some_and(|w| self.writes.overruled(w)) {
+                log::debug!(
+                    target: "benchbus::wire",
+                    "not sent again: an urgent write or a broadcast to unit {unit} came after it"
+                );
+                break;
             }
             // A repeated write is a write command too: it keeps the interval.
             let ready = |st: &State| {
@@ -963,12 +990,17 @@ impl Bus {
                 } else {
                     st.late_until(unit, call)
                 };
-                pacing.max(late)
+                let earlier_write = writing
+                    .as_ref()
+                    .filter(|_| self.writes.behind(unit, call))
+                    .map(|_| Instant::now() + writes::POLL);
+                pacing.max(late).max(earlier_write)
             };
             let Some(mut st) = self.line(&cancel, ready) else {
                 return Err(cancelled(unit, request, attempt));
             };
             st.serving = call;
+            made = attempt + 1;
             if attempt > 0 {
                 st.stats.retries += 1;
             }
@@ -999,7 +1031,11 @@ impl Bus {
             }
             let error = match outcome {
                 Err(e) if e.is_retryable() => e,
-                ended => return ended,
+                ended => {
+                    // Over while it holds the line: the next write to the unit goes on.
+                    drop(writing.take());
+                    return ended;
+                }
             };
             if unanswered(request, opts) && attempt + 1 < attempts {
                 log::debug!(target: "benchbus::wire", "unanswered write, sent again: {error}");
@@ -1007,7 +1043,7 @@ impl Bus {
             last_error = Some(error);
         }
         if let Some(Error::Timeout { attempts: n, .. }) = &mut last_error {
-            *n = attempts;
+            *n = made;
         }
         Err(last_error.unwrap_or_else(|| Error::InvalidArgument("no attempt made".into())))
     }

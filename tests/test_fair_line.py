@@ -170,6 +170,56 @@ def test_a_late_reply_coming_while_another_caller_has_the_line_is_dropped_there(
     assert stats.stale_bytes >= 7
 
 
+def test_a_write_sent_again_is_not_overtaken_by_a_later_write_to_its_unit(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """The first of four writes to one register, made one after the other from four threads,
+    gets a garbled reply: the device has carried it out, and it is sent again at the back of
+    the queue. The later writes to that unit wait for it, so the device takes them in the
+    order they were made and keeps the last value; a read of another unit, made after them,
+    goes on meanwhile."""
+    sim.devices[1].reply_delay = 0.2  # the later writes are made while the first is out
+    sim.corrupt_next(1)
+    with open_bus(sim, timeout=0.5) as bus:
+        calls = []
+        for value in (100, 101, 102, 103):
+            token = bb.CancelToken()
+            calls.append(Call(lambda value=value: bus.write_register(1, 40, value), token))
+            # Each write holds its place in line before the next is made.
+            wait_for(lambda token=token: token.queued)
+        assert sim.replies == []  # all four made while the first was still out
+        assert bus.read_holding_registers(2, 3, 1) == [203]
+        assert [call.outcome() for call in calls] == [None] * 4
+        assert bus.stats.crc_errors == 1
+    order = [(r[0], r[1], r[4:6]) for r in sim.requests]
+    writes = [int.from_bytes(value, "big") for unit, _, value in order if unit == 1]
+    assert writes == [100, 100, 101, 102, 103]
+    assert sim.peek(1, 40) == [103]
+    # The read did not wait for the writes: it went out before the first one's second try.
+    second_try = [i for i, (unit, _, _) in enumerate(order) if unit == 1][1]
+    assert [unit for unit, _, _ in order[:second_try]] == [1, 2]
+
+
+def test_a_write_overtaken_by_a_broadcast_is_not_sent_again_after_it(
+    sim: Simulator[RegisterDevice],
+) -> None:
+    """A write whose reply comes garbled, overtaken by a broadcast made while it was out, is
+    not sent again after the broadcast (which would undo it on its unit): it fails with its
+    garbled reply, and every unit keeps the broadcast's value."""
+    sim.devices[1].reply_delay = 0.2
+    sim.corrupt_next(1)
+    with open_bus(sim, timeout=0.5) as bus:
+        token = bb.CancelToken()
+        write = Call(lambda: bus.write_register(1, 40, 100), token)
+        wait_for(lambda: token.queued)
+        assert sim.replies == []  # the broadcast is made while the write is still out
+        bus.broadcast_write_register(40, 7)
+        assert isinstance(write.outcome(), bb.CrcError)
+        assert bus.stats.retries == 0
+    assert [r[0] for r in sim.requests] == [1, 0]
+    assert [sim.peek(u, 40) for u in PRESENT] == [[7]] * len(PRESENT)
+
+
 # ---- cancellation ------------------------------------------------------------------------------
 
 
