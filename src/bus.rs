@@ -854,8 +854,8 @@ impl Bus {
         }
         request.validate()?;
         let frame = self.framing.encode_request(BROADCAST, request);
-        // The earlier writes are not sent again after it (see `writes`).
-        let call = self.writes.overrule(None, &self.calls);
+        // Once gone out, the writes made before it do not go out (see `writes`).
+        let call = self.writes.number(&self.calls);
         let ready = |st: &State| {
             let late = st.late_until(BROADCAST, call);
             st.pacing.broadcast_ready(write_interval).max(late)
@@ -864,7 +864,8 @@ impl Bus {
             return Err(cancelled(BROADCAST, request, 0));
         };
         st.serving = call;
-        self.on_port(&mut st, &mut CallPort::default(), |st| {
+        let frames_before = st.frames_out;
+        let done = self.on_port(&mut st, &mut CallPort::default(), |st| {
             let sent = self.send(st, &frame, request, self.timeout(), false);
             let sent_end = match &sent {
                 Ok(end) => *end,
@@ -888,7 +889,11 @@ impl Bus {
                 return Err(e);
             }
             Ok(())
-        })
+        });
+        if st.frames_out != frames_before {
+            self.writes.overrule(None, call);
+        }
+        done
     }
 
     /// Whether `unit` answers a read of one register at `address` within `timeout` (an
@@ -945,13 +950,13 @@ impl Bus {
         let cancel = Cancel::current();
         // An urgent request is sent once, and does not wait for what its unit owes.
         let urgent = opts.urgent && is_write(request);
-        // Another write keeps its place among the writes to its unit; an urgent one
-        // overrules the retries of those made before it (see `writes`).
+        // Another write keeps its place among the writes to its unit; once gone out, an
+        // urgent one keeps those made before it from going out (see `writes`).
         let mut writing =
-            (is_write(request) && !urgent).then(|| self.writes.enter(unit, &self.calls));
+            (changes_device(request) && !urgent).then(|| self.writes.enter(unit, &self.calls));
         let call = match &writing {
             Some(writing) => writing.call(),
-            None if urgent => self.writes.overrule(Some(unit), &self.calls),
+            None if urgent => self.writes.number(&self.calls),
             None => self.calls.fetch_add(1, Ordering::Relaxed),
         };
         let paced = is_write(request) && !opts.write_interval.is_zero();
@@ -973,13 +978,6 @@ impl Bus {
             if attempt > 0 && self.interrupted() {
                 return Err(interrupted(unit, request, attempt));
             }
-            if attempt > 0 && writing.as_ref().is_some_and(|w| self.writes.overruled(w)) {
-                log::debug!(
-                    target: "benchbus::wire",
-                    "not sent again: an urgent write or a broadcast to unit {unit} came after it"
-                );
-                break;
-            }
             // A repeated write is a write command too: it keeps the interval.
             let ready = |st: &State| {
                 let pacing = paced
@@ -999,8 +997,21 @@ impl Bus {
             let Some(mut st) = self.line(&cancel, ready) else {
                 return Err(cancelled(unit, request, attempt));
             };
+            // An urgent write or a broadcast made after this write has gone out: sent now,
+            // this one would undo it. Told while holding the line, as they are sent.
+            if writing.as_ref().is_some_and(|w| self.writes.overruled(w)) {
+                log::debug!(
+                    target: "benchbus::wire",
+                    "not sent: an urgent write or a broadcast to unit {unit} made after it went out"
+                );
+                if last_error.is_none() {
+                    return Err(cancelled(unit, request, 0));
+                }
+                break;
+            }
             st.serving = call;
             made = attempt + 1;
+            let frames_before = st.frames_out;
             if attempt > 0 {
                 st.stats.retries += 1;
             }
@@ -1015,6 +1026,9 @@ impl Bus {
                     &mut first_unanswered,
                 )
             });
+            if urgent && st.frames_out != frames_before {
+                self.writes.overrule(Some(unit), call);
+            }
             // The attempt timed out, so its answer is owed: it may still come, and a device
             // that queues requests answers every attempt, one after the other. RTU replies
             // carry no transaction id, but they name their unit: the next request of another
@@ -1832,6 +1846,17 @@ fn unanswered(request: &Request, opts: &TxOptions) -> bool {
 /// Whether `request` may write (reads are always answered; writes are paced).
 fn is_write(request: &Request) -> bool {
     !request.is_read()
+}
+
+/// Whether `request` may change the device, also as a raw request: what keeps its order
+/// among the writes to its unit (see `writes`). The reading functions (0x01 to 0x04, 0x07,
+/// 0x0B, 0x0C, 0x11, 0x14, 0x18, 0x2B) do not, whoever builds them.
+fn changes_device(request: &Request) -> bool {
+    is_write(request)
+        && !matches!(
+            request.function(),
+            0x01..=0x04 | 0x07 | 0x0B | 0x0C | 0x11 | 0x14 | 0x18 | 0x2B
+        )
 }
 
 /// A duration in whole nanoseconds, as an atomic holds it (saturating, past 584 years).

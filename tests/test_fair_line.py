@@ -178,43 +178,56 @@ def test_a_write_sent_again_is_not_overtaken_by_a_later_write_to_its_unit(
     the queue. The later writes to that unit wait for it, so the device takes them in the
     order they were made and keeps the last value; a read of another unit, made after them,
     goes on meanwhile."""
-    sim.devices[1].reply_delay = 0.2  # the later writes are made while the first is out
+    sim.devices[1].reply_delay = 0.2  # the others are made while the first write is out
     sim.corrupt_next(1)
     with open_bus(sim, timeout=0.5) as bus:
+        jobs: list[Callable[[], Any]] = [
+            *(lambda value=value: bus.write_register(1, 40, value) for value in range(100, 104)),
+            lambda: bus.read_holding_registers(2, 3, 1),
+        ]
         calls = []
-        for value in (100, 101, 102, 103):
+        for job in jobs:
             token = bb.CancelToken()
-            calls.append(Call(lambda value=value: bus.write_register(1, 40, value), token))
-            # Each write holds its place in line before the next is made.
+            calls.append(Call(job, token))
+            # Each call holds its place in line before the next is made.
             wait_for(lambda token=token: token.queued)
-        assert sim.replies == []  # all four made while the first was still out
-        assert bus.read_holding_registers(2, 3, 1) == [203]
-        assert [call.outcome() for call in calls] == [None] * 4
+        assert sim.replies == []  # all made while the first write was still out
+        assert [call.outcome() for call in calls] == [None] * 5
+        assert calls[-1].result == [203]
         assert bus.stats.crc_errors == 1
-    order = [(r[0], r[1], r[4:6]) for r in sim.requests]
-    writes = [int.from_bytes(value, "big") for unit, _, value in order if unit == 1]
+    order = [(r[0], r[4:6]) for r in sim.requests]
+    writes = [int.from_bytes(value, "big") for unit, value in order if unit == 1]
     assert writes == [100, 100, 101, 102, 103]
     assert sim.peek(1, 40) == [103]
     # The read did not wait for the writes: it went out before the first one's second try.
-    second_try = [i for i, (unit, _, _) in enumerate(order) if unit == 1][1]
-    assert [unit for unit, _, _ in order[:second_try]] == [1, 2]
+    assert [unit for unit, _ in order[:3]] == [1, 2, 1]
 
 
-def test_a_write_overtaken_by_a_broadcast_is_not_sent_again_after_it(
+def test_the_writes_made_before_a_broadcast_do_not_go_out_after_it(
     sim: Simulator[RegisterDevice],
 ) -> None:
-    """A write whose reply comes garbled, overtaken by a broadcast made while it was out, is
-    not sent again after the broadcast (which would undo it on its unit): it fails with its
-    garbled reply, and every unit keeps the broadcast's value."""
+    """A write whose reply comes garbled, and another to its unit waiting for it, both made
+    before a broadcast to the same register: neither goes out after the broadcast (which
+    they would undo on their unit). The first fails with its garbled reply, the second is
+    cancelled unsent, and every unit keeps the broadcast's value."""
     sim.devices[1].reply_delay = 0.2
     sim.corrupt_next(1)
     with open_bus(sim, timeout=0.5) as bus:
-        token = bb.CancelToken()
-        write = Call(lambda: bus.write_register(1, 40, 100), token)
-        wait_for(lambda: token.queued)
-        assert sim.replies == []  # the broadcast is made while the write is still out
-        bus.broadcast_write_register(40, 7)
-        assert isinstance(write.outcome(), bb.CrcError)
+        jobs: list[Callable[[], Any]] = [
+            lambda: bus.write_register(1, 40, 100),
+            lambda: bus.write_register(1, 40, 101),
+            lambda: bus.broadcast_write_register(40, 7),
+        ]
+        calls = []
+        for job in jobs:
+            token = bb.CancelToken()
+            calls.append(Call(job, token))
+            wait_for(lambda token=token: token.queued)
+        assert sim.replies == []  # all made while the first write was still out
+        first, second, broadcast = (call.outcome() for call in calls)
+        assert isinstance(first, bb.CrcError)
+        assert isinstance(second, bb.Cancelled)
+        assert broadcast is None
         assert bus.stats.retries == 0
     assert [r[0] for r in sim.requests] == [1, 0]
     assert [sim.peek(u, 40) for u in PRESENT] == [[7]] * len(PRESENT)

@@ -24,7 +24,8 @@ adds is the queue in front of those threads and cancellation:
   the devices made on it. Several calls may be under way at once, and they reach the line
   in the order they were made: a thread lets its call go only once the call before it
   holds its place in the line's queue (``CancelToken.queued``). The core serves them one
-  attempt at a time, in that order.
+  attempt at a time, in that order, but for a write to a unit whose earlier write is not
+  over yet, which waits for it.
 - A task cancelled while its call still waits in the queue (no thread has taken it) takes
   the call out of the queue: nothing is sent. A task cancelled while its call is in a thread
   gets ``CancelledError`` at once, and the call's :class:`benchbus.CancelToken` is

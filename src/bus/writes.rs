@@ -1,6 +1,6 @@
 //! The order of writes to one unit: a write goes to the line only once the writes made
-//! before it to the same unit are over, and a write is not sent again once an urgent write
-//! or a broadcast made after it has come.
+//! before it to the same unit are over, and not at all once an urgent write or a broadcast
+//! made after it has gone out.
 //!
 //! A call that must try again takes a new turn at the back of the line's queue (see
 //! [`super::queue`]). For a read that costs nothing, but a write whose reply was lost or
@@ -8,13 +8,14 @@
 //! it would leave the device with the earlier value while every call succeeded. So a write
 //! made later to that unit waits, without a turn, until the earlier one is over: the device
 //! takes the writes in the order they were made, the last one last. Reads (functions 0x01
-//! to 0x04), other units and urgent writes (a motor's stop) are not held up; an urgent
-//! write or a broadcast goes at once instead, and the earlier writes it overtakes are not
-//! sent again after it (a drive's run command sent again after the stop would start the
-//! motor again): they fail with their last attempt's error.
+//! to 0x04 and the other reading functions, also as raw requests), other units and urgent
+//! writes (a motor's stop) are not held up. An urgent write or a broadcast goes at once
+//! instead; a write made before it that has not gone out by then, or would go out again,
+//! does not (a drive's run command sent after the stop would start the motor again): it
+//! fails, cancelled or with its last attempt's error.
 //!
 //! A write made on the thread of an earlier one (a signal handler's, run between that
-//! one's attempts) does not wait for it: it would wait for itself.
+//! one's attempts) waits only for what that one waits for: it would wait for itself.
 
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -50,7 +51,7 @@ pub(crate) struct Writing<'a> {
 impl Writes {
     /// Numbers a write call to `unit` from `calls` and records it, both at once, so that the
     /// numbers of one unit's writes are the order they were made in.
-    pub(crate) fn enter<'a>(&'a self, unit: u8, calls: &AtomicU64) -> Writing<'a> {
+    pub(crate) fn enter(&self, unit: u8, calls: &AtomicU64) -> Writing<'_> {
         let mut book = self.lock();
         let call = calls.fetch_add(1, Ordering::Relaxed);
         book.writing.push((unit, call, thread::current().id()));
@@ -61,31 +62,44 @@ impl Writes {
         }
     }
 
-    /// Numbers an urgent write to `unit` (None: a broadcast) from `calls` and records it:
-    /// the writes made before it are not sent again from now on.
-    pub(crate) fn overrule(&self, unit: Option<u8>, calls: &AtomicU64) -> u64 {
+    /// Numbers a call that overrules the writes made before it (an urgent write or a
+    /// broadcast) from `calls`, in the order of the writes' numbers.
+    pub(crate) fn number(&self, calls: &AtomicU64) -> u64 {
+        let _book = self.lock();
+        calls.fetch_add(1, Ordering::Relaxed)
+    }
+
+    /// Records that the urgent write `call` to `unit` (None: the broadcast `call`) has gone
+    /// out: the writes made before it do not go out from now on.
+    pub(crate) fn overrule(&self, unit: Option<u8>, call: u64) {
         let mut book = self.lock();
-        let call = calls.fetch_add(1, Ordering::Relaxed);
         match unit {
             Some(unit) => {
-                book.urgent.insert(unit, call);
+                let last = book.urgent.entry(unit).or_insert(call);
+                *last = (*last).max(call);
             }
-            None => book.broadcast = Some(call),
+            None => book.broadcast = book.broadcast.max(Some(call)),
         }
-        call
     }
 
-    /// Whether a write to `unit` made before `call`, on another thread, is still in
-    /// progress.
+    /// Whether a write to `unit` made before `call` on another thread is still in progress
+    /// (on the thread of `call`: made before the first write of that thread to `unit` still
+    /// in progress, which is what that one waits for).
     pub(crate) fn behind(&self, unit: u8, call: u64) -> bool {
         let me = thread::current().id();
-        self.lock()
+        let book = self.lock();
+        let mine = book
             .writing
             .iter()
-            .any(|&(u, c, t)| u == unit && c < call && t != me)
+            .filter(|&&(u, _, t)| u == unit && t == me);
+        let limit = mine.map(|&(_, c, _)| c).fold(call, u64::min);
+        book.writing
+            .iter()
+            .any(|&(u, c, t)| u == unit && c < limit && t != me)
     }
 
-    /// Whether an urgent write to the unit of `writing`, or a broadcast, was made after it.
+    /// Whether an urgent write to the unit of `writing`, or a broadcast, made after it has
+    /// gone out.
     pub(crate) fn overruled(&self, writing: &Writing<'_>) -> bool {
         let book = self.lock();
         let urgent = book.urgent.get(&writing.unit).copied();
@@ -124,6 +138,11 @@ impl Drop for Writing<'_> {
 mod tests {
     use super::*;
 
+    /// [`Writes::behind`] asked on another thread.
+    fn elsewhere(writes: &Writes, unit: u8, call: u64) -> bool {
+        thread::scope(|s| s.spawn(|| writes.behind(unit, call)).join().unwrap())
+    }
+
     #[test]
     fn a_write_waits_only_for_earlier_writes_to_its_unit_from_other_threads() {
         let (writes, calls) = (Writes::default(), AtomicU64::new(7));
@@ -134,29 +153,66 @@ mod tests {
         assert!(first.call() < later.call());
         assert!(!writes.behind(1, later.call()));
         // On another, it does, until the earlier ones are over.
-        let elsewhere = |writes: &Writes, call: u64| {
-            thread::scope(|s| s.spawn(|| writes.behind(1, call)).join().unwrap_or(false))
-        };
-        assert!(elsewhere(&writes, later.call()));
-        assert!(!elsewhere(&writes, first.call()));
+        assert!(elsewhere(&writes, 1, later.call()));
+        assert!(!elsewhere(&writes, 1, first.call()));
         drop(first);
-        assert!(elsewhere(&writes, later.call() + 1));
+        assert!(elsewhere(&writes, 1, later.call() + 1));
         drop(later);
-        assert!(!elsewhere(&writes, u64::MAX));
+        assert!(!elsewhere(&writes, 1, u64::MAX));
         assert!(!writes.behind(2, other_unit.call()));
         drop(other_unit);
         assert!(writes.lock().writing.is_empty());
     }
 
     #[test]
-    fn an_urgent_write_or_a_broadcast_overrules_only_the_writes_made_before_it() {
+    fn a_write_nested_in_an_earlier_one_waits_only_for_what_that_one_waits_for() {
+        // Thread A's write, then thread B's, then A's again (a signal handler's, run while
+        // A's first is between attempts): A's second must not wait for B's, which waits for
+        // A's first, which waits for the handler.
+        let (writes, calls) = (Writes::default(), AtomicU64::new(0));
+        let early = thread::scope(|s| {
+            s.spawn(|| {
+                let b = writes.enter(1, &calls);
+                let call = b.call();
+                std::mem::forget(b); // B's stays in progress
+                call
+            })
+            .join()
+            .unwrap()
+        });
+        let a = writes.enter(1, &calls);
+        let b_late = thread::scope(|s| {
+            s.spawn(|| {
+                let b = writes.enter(1, &calls);
+                let call = b.call();
+                std::mem::forget(b);
+                call
+            })
+            .join()
+            .unwrap()
+        });
+        let nested = writes.enter(1, &calls);
+        assert!(early < a.call() && a.call() < b_late && b_late < nested.call());
+        // Both of A's wait for B's earlier write, neither for B's later one.
+        assert!(writes.behind(1, a.call()));
+        assert!(writes.behind(1, nested.call()));
+        writes.lock().writing.retain(|&(_, c, _)| c != early);
+        assert!(!writes.behind(1, nested.call()));
+        assert!(elsewhere(&writes, 1, b_late));
+    }
+
+    #[test]
+    fn an_urgent_write_or_a_broadcast_gone_out_overrules_only_the_writes_made_before_it() {
         let (writes, calls) = (Writes::default(), AtomicU64::new(0));
         let (one, two) = (writes.enter(1, &calls), writes.enter(2, &calls));
-        writes.overrule(Some(1), &calls);
+        let urgent = writes.number(&calls);
         let after = writes.enter(1, &calls);
+        assert!(!writes.overruled(&one), "numbered, not gone out yet");
+        writes.overrule(Some(1), urgent);
         assert!(writes.overruled(&one));
         assert!(!writes.overruled(&two) && !writes.overruled(&after));
-        writes.overrule(None, &calls);
+        let broadcast = writes.number(&calls);
+        writes.overrule(None, broadcast);
         assert!(writes.overruled(&two) && writes.overruled(&after));
     }
 }
