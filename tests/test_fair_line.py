@@ -77,6 +77,17 @@ def wait_for(condition: Callable[[], bool]) -> None:
         time.sleep(0.002)
 
 
+def in_line(jobs: list[Callable[[], Any]]) -> list[Call]:
+    """Each of ``jobs`` in a thread of its own, made one after the other: each holds its
+    place in the line's queue before the next is made."""
+    calls = []
+    for job in jobs:
+        token = bb.CancelToken()
+        calls.append(Call(job, token))
+        wait_for(lambda token=token: token.queued)
+    return calls
+
+
 # ---- fairness ----------------------------------------------------------------------------------
 
 
@@ -185,12 +196,7 @@ def test_a_write_sent_again_is_not_overtaken_by_a_later_write_to_its_unit(
             *(lambda value=value: bus.write_register(1, 40, value) for value in range(100, 104)),
             lambda: bus.read_holding_registers(2, 3, 1),
         ]
-        calls = []
-        for job in jobs:
-            token = bb.CancelToken()
-            calls.append(Call(job, token))
-            # Each call holds its place in line before the next is made.
-            wait_for(lambda token=token: token.queued)
+        calls = in_line(jobs)
         assert sim.replies == []  # all made while the first write was still out
         assert [call.outcome() for call in calls] == [None] * 5
         assert calls[-1].result == [203]
@@ -218,11 +224,7 @@ def test_the_writes_made_before_a_broadcast_do_not_go_out_after_it(
             lambda: bus.write_register(1, 40, 101),
             lambda: bus.broadcast_write_register(40, 7),
         ]
-        calls = []
-        for job in jobs:
-            token = bb.CancelToken()
-            calls.append(Call(job, token))
-            wait_for(lambda token=token: token.queued)
+        calls = in_line(jobs)
         assert sim.replies == []  # all made while the first write was still out
         first, second, broadcast = (call.outcome() for call in calls)
         assert isinstance(first, bb.CrcError)
