@@ -952,8 +952,8 @@ impl Bus {
         let urgent = opts.urgent && is_write(request);
         // Another write keeps its place among the writes to its unit; once gone out, an
         // urgent one keeps those made before it from going out (see `writes`).
-        let mut writing =
-            (changes_device(request) && !urgent).then(|| self.writes.enter(unit, &self.calls));
+        let mut writing = (writes::changes_device(request) && !urgent)
+            .then(|| self.writes.enter(unit, &self.calls));
         let call = match &writing {
             Some(writing) => writing.call(),
             None if urgent => self.writes.number(&self.calls),
@@ -1846,17 +1846,6 @@ fn unanswered(request: &Request, opts: &TxOptions) -> bool {
 /// Whether `request` may write (reads are always answered; writes are paced).
 fn is_write(request: &Request) -> bool {
     !request.is_read()
-}
-
-/// Whether `request` may change the device, also as a raw request: what keeps its order
-/// among the writes to its unit (see `writes`). The reading functions (0x01 to 0x04, 0x07,
-/// 0x0B, 0x0C, 0x11, 0x14, 0x18, 0x2B) do not, whoever builds them.
-fn changes_device(request: &Request) -> bool {
-    is_write(request)
-        && !matches!(
-            request.function(),
-            0x01..=0x04 | 0x07 | 0x0B | 0x0C | 0x11 | 0x14 | 0x18 | 0x2B
-        )
 }
 
 /// A duration in whole nanoseconds, as an atomic holds it (saturating, past 584 years).

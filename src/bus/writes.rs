@@ -17,6 +17,8 @@
 //! A write made on the thread of an earlier one (a signal handler's, run between that
 //! one's attempts) waits only for what that one waits for: it would wait for itself.
 
+use crate::codec::pdu::decode::decode;
+use crate::codec::Request;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Mutex, MutexGuard};
@@ -26,6 +28,18 @@ use std::time::Duration;
 /// How often a write held behind an earlier one to its unit looks again (waiting without a
 /// turn, so the line serves the others meanwhile).
 pub(crate) const POLL: Duration = Duration::from_millis(1);
+
+/// Whether `request` may change the device: a write, whose order among the writes to its
+/// unit is kept. A raw request is what the codec decodes it to, so that a read built by hand
+/// (as the gateway forwards its clients' requests) is a read.
+pub(crate) fn changes_device(request: &Request) -> bool {
+    match request {
+        Request::Raw { function, data, .. } => {
+            decode(*function, data).map_or(true, |decoded| !decoded.is_read())
+        }
+        other => !other.is_read(),
+    }
+}
 
 /// The writes of a Bus: those in progress, and the calls that overrule them.
 #[derive(Default)]
@@ -199,6 +213,30 @@ mod tests {
         writes.lock().writing.retain(|&(_, c, _)| c != early);
         assert!(!writes.behind(1, nested.call()));
         assert!(elsewhere(&writes, 1, b_late));
+    }
+
+    #[test]
+    fn a_raw_request_changes_the_device_as_what_it_decodes_to() {
+        let raw = |function: u8, data: &[u8]| Request::Raw {
+            function,
+            data: data.to_vec(),
+            reply_length: None,
+        };
+        assert!(!changes_device(&raw(0x03, &[0, 5, 0, 1])));
+        assert!(!changes_device(&raw(0x04, &[0, 5, 0, 2])));
+        assert!(changes_device(&raw(0x06, &[0, 5, 0, 1])));
+        // Not a read the codec knows (a wrong length, a function of a device's own): held.
+        assert!(changes_device(&raw(0x03, &[0, 5])));
+        assert!(changes_device(&raw(0x41, &[1, 2])));
+        let read = Request::ReadHoldingRegisters {
+            address: 5,
+            count: 1,
+        };
+        let write = Request::WriteSingleRegister {
+            address: 5,
+            value: 1,
+        };
+        assert!(!changes_device(&read) && changes_device(&write));
     }
 
     #[test]
