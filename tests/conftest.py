@@ -156,9 +156,9 @@ def hook(name: str) -> types.ModuleType:
 #: The files whose tests hold the library to a line's time (a simulated slave keeping the
 #: wire's timing, upper bounds on how long a call takes), marked ``timing`` (a test of
 #: another file may carry the marker itself): ``make test`` runs the other tests on
-#: pytest-xdist's workers, then these by themselves, one worker a core (a machine loaded by
-#: builds, browsers or more of them than it has cores delays a simulated slave's bytes
-#: past what a line allows).
+#: pytest-xdist's workers, then these by themselves, three workers for two cores (a machine
+#: loaded by builds, browsers or more of them delays a simulated slave's bytes past what a
+#: line allows).
 TIMING_FILES = frozenset(
     {
         "test_bench.py",
@@ -184,13 +184,19 @@ def pytest_itemcollected(item: pytest.Item) -> None:
 #: workers that need it wait (some 15 s of a core each).
 BUILDS = ("site", "broken", "grown")
 
+#: The longest single tests of the parallel run (the quick benchmark: some 35 s), which
+#: start first so that the others fill the workers around them.
+LONGEST = ("test_bench.py::test_quick_benchmark_runs_every_scenario_for_every_library",)
+
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Run the first test of each of :data:`BUILDS` first and the builds' other tests last.
+    """Run :data:`LONGEST` and the first test of each of :data:`BUILDS` first, and the
+    builds' other tests last.
 
-    pytest-xdist hands the first tests out one to each worker in turn: so the builds start
-    at once, side by side on workers of their own, and are made by the time the other tests
-    that read them come, instead of holding the workers that wait for them idle."""
+    pytest-xdist hands the first tests out one to each worker in turn: so the builds and
+    the longest tests start at once, side by side on workers of their own, the builds are
+    made by the time the other tests that read them come (instead of holding the workers
+    that wait for them idle), and no long test starts near the end."""
 
     def needs(item: pytest.Item) -> str | None:
         if item.path.name != "test_site.py":
@@ -202,6 +208,6 @@ def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
         build = needs(item)
         if build is not None:
             first.setdefault(build, item)
-    starters = list(first.values())
+    starters = [i for i in items if i.nodeid.endswith(LONGEST)] + list(first.values())
     rest = [i for i in items if i not in starters]
     items[:] = starters + sorted(rest, key=lambda i: needs(i) is not None)
