@@ -1,11 +1,13 @@
 """A griffe extension for the API reference of the documentation site.
 
-griffe reads benchbus without importing it. Two things it cannot see that way:
+griffe reads benchbus without importing it. Three things it cannot see that way:
 
 - the members ``benchbus.aio.AsyncBus`` makes at import time from the Bus's
   (``read_coils = _awaitable(Bus.read_coils)``, ``port = _BusProperty(Bus.port)``): they are
   given the Bus member's signature and docstring here, the methods marked async, as Python's
   own ``help()`` shows them;
+- the families' async classes ``benchbus.aio`` makes at import time from the registry
+  (``bb.aio.Drive``...): their declarations in ``_aio_members.pyi``, exported by ``aio``;
 - the docstrings' reStructuredText: the inline roles (``:class:`Bus```, ``:meth:``, ``:func:``,
   ``:attr:``, ``:data:``, ``:exc:``, ``:mod:``) become cross-references to the page that
   documents their target (``[Bus][benchbus.Bus]``), or code where the target has no page; a
@@ -144,6 +146,22 @@ def _async_bus(pkg: griffe.Module) -> None:
         new = _bus_member(source, member, is_async=value.startswith("_awaitable"))
         del async_bus.members[name]
         async_bus.set_member(name, new)
+
+
+def _async_families(pkg: griffe.Module) -> None:
+    """Give ``benchbus.aio`` the families' async classes it makes at import time from the
+    registry: ``_aio_members.pyi`` declares them, and exports them for ``aio`` to export."""
+    aio, members = _member(pkg, "aio"), _member(pkg, "_aio_members")
+    if not isinstance(aio, griffe.Module) or not isinstance(members, griffe.Module):
+        raise RuntimeError("benchbus.aio or benchbus._aio_members not found")
+    if not members.exports:
+        raise RuntimeError("benchbus._aio_members exports nothing")
+    for export in members.exports:
+        name = str(export)
+        if name not in members.members:
+            raise RuntimeError(f"benchbus._aio_members exports {name}, which it does not declare")
+        aio.set_member(name, griffe.Alias(name, f"{members.path}.{name}", parent=aio))
+        aio.exports = [*(aio.exports or ()), name]
 
 
 def _constructor(cls: griffe.Class) -> None:
@@ -440,6 +458,7 @@ class BenchbusReference(griffe.Extension):
                 _constructor(obj)
                 _enum_members(obj)
         _async_bus(pkg)
+        _async_families(pkg)
         reference = Reference(pkg)
         for obj in _walk(pkg):
             if obj.docstring is not None:

@@ -20,6 +20,7 @@ from mypy import api
 from benchbus import _aio_stubgen, aio
 from benchbus._device import RegisterProperty, to_int
 from benchbus._drive import Drive
+from benchbus._families import FAMILIES
 from benchbus.sim import DriveDevice, J2Device, PblDevice, ProfileDevice, Simulator, TaisongDevice
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -88,6 +89,27 @@ def test_a_shared_member_that_a_family_would_declare_otherwise_stops_the_generat
         _aio_stubgen.generate()
 
 
+def test_each_family_of_the_registry_has_its_async_class_as_the_stub_declares_it() -> None:
+    """``bb.aio.Drive``... are made from the registry, each on ``AsyncDevice`` of its sync
+    class and its members class; the stub declares each the same way, and ``aio`` exports
+    them."""
+    classes = stub_classes()
+    syncs = [f.device for f in FAMILIES if f.device is not None]
+    assert {"Drive", "PblDrive", "J2Controller", "Instrument"} <= {c.__name__ for c in syncs}
+    for sync in syncs:
+        name = sync.__name__
+        cls = getattr(aio, name)
+        assert cls.SYNC is sync and cls.__module__ == "benchbus.aio", name
+        members = getattr(_aio_stubgen._aio_members, f"{name}Members")
+        assert cls.__bases__ == (aio.AsyncDevice, members), name
+        assert name in aio.__all__ and cls.__doc__ and f"benchbus.{name}`" in cls.__doc__
+        bases = [ast.unparse(b) for b in classes[name].bases]
+        assert bases == [f"AsyncDevice[_Sync{name}]", f"{name}Members"], name
+    assert set(aio.__all__) == {"AsyncBus", "AsyncDevice", "AsyncPoll", "Device"} | {
+        c.__name__ for c in syncs
+    }
+
+
 # ---- the stub declares what the devices serve ---------------------------------------------------
 
 
@@ -98,9 +120,11 @@ def stub_classes() -> dict[str, ast.ClassDef]:
 
 
 def families(classes: dict[str, ast.ClassDef]) -> list[str]:
-    """The members classes the async devices extend: those no class of the stub extends."""
-    extended = {ast.unparse(base) for node in classes.values() for base in node.bases}
-    return [name for name in classes if name not in extended]
+    """The members classes the async devices extend: those no other members class of the
+    stub extends."""
+    members = [node for name, node in classes.items() if name.endswith("Members")]
+    extended = {ast.unparse(base) for node in members for base in node.bases}
+    return [node.name for node in members if node.name not in extended]
 
 
 def chain(name: str, classes: dict[str, ast.ClassDef]) -> list[ast.ClassDef]:

@@ -1,4 +1,4 @@
-"""The members of the async devices (benchbus.aio), for type checkers.
+"""The families' async devices (benchbus.aio) and their members, for type checkers.
 
 Generated from the sync classes by ``python -m benchbus._aio_stubgen``: do not edit.
 """
@@ -7,7 +7,7 @@ from collections.abc import Callable, Coroutine, Iterable, Mapping
 from typing import Any, ClassVar, Literal
 
 from benchbus._core import Profile, _Layout, _Order, _Read
-from benchbus._device import LineDefaults, PrintableIntEnum
+from benchbus._device import BusDevice, LineDefaults, PrintableIntEnum
 from benchbus._drive import (
     C20ControlMode,
     CommandSource,
@@ -21,8 +21,11 @@ from benchbus._drive import (
     SpeedSource,
     StopMode,
 )
+from benchbus._drive import Drive as _SyncDrive
 from benchbus._instrument import Identification
+from benchbus._instrument import Instrument as _SyncInstrument
 from benchbus._j2 import InputType, J2Mode, J2Parameter, J2Status, Limits, Pid
+from benchbus._j2 import J2Controller as _SyncJ2Controller
 from benchbus._keepalive import KeepAlive
 from benchbus._pbl import (
     DecelMode,
@@ -34,16 +37,13 @@ from benchbus._pbl import (
     PblTelemetry,
     StartStopSource,
 )
+from benchbus._pbl import PblDrive as _SyncPblDrive
 from benchbus._record import Recording
 from benchbus._results import CommEventCounter, CommEventLog
+from benchbus.aio import AsyncDevice
 
-__all__ = [
-    "DeviceMembers",
-    "DriveMembers",
-    "InstrumentMembers",
-    "J2ControllerMembers",
-    "PblDriveMembers",
-]
+__all__: list[str] = ["Drive", "Instrument", "J2Controller", "PblDrive"]
+SYNC_CLASSES: tuple[type[BusDevice], ...]
 
 class BusDeviceMembers:
     """The members every async device serves from the sync classes' shared bases
@@ -921,3 +921,15 @@ class PblDriveMembers(BusDeviceMembers):
 
     async def write_parameter(self, key: int | str, value: int) -> None:
         """Writes one parameter, by number or name, checked against the table first."""
+
+class Drive(AsyncDevice[_SyncDrive], DriveMembers):
+    """:class:`benchbus.Drive` for asyncio (see :class:`AsyncDevice`)."""
+
+class Instrument(AsyncDevice[_SyncInstrument], InstrumentMembers):
+    """:class:`benchbus.Instrument` for asyncio (see :class:`AsyncDevice`)."""
+
+class J2Controller(AsyncDevice[_SyncJ2Controller], J2ControllerMembers):
+    """:class:`benchbus.J2Controller` for asyncio (see :class:`AsyncDevice`)."""
+
+class PblDrive(AsyncDevice[_SyncPblDrive], PblDriveMembers):
+    """:class:`benchbus.PblDrive` for asyncio (see :class:`AsyncDevice`)."""

@@ -1,4 +1,4 @@
-"""Writes ``_aio_members.pyi``: the types of the async devices' members, from the sync classes.
+"""Writes ``_aio_members.pyi``: the async devices' members and the families' async classes.
 
 ::
 
@@ -61,7 +61,7 @@ _DECORATORS = frozenset({"property", "staticmethod", "classmethod"})
 #: indented by 8 and quoted).
 _DOC_WIDTH = 88
 
-_HEADER = '''"""The members of the async devices (benchbus.aio), for type checkers.
+_HEADER = '''"""The families' async devices (benchbus.aio) and their members, for type checkers.
 
 Generated from the sync classes by ``python -m benchbus._aio_stubgen``: do not edit.
 """
@@ -399,10 +399,11 @@ def _public_names(sync: type) -> list[str]:
 
 
 def _classes() -> list[tuple[type, type[aio.AsyncDevice[Any]]]]:
-    """Each family's members class and the async device class it is for."""
+    """Each family's members class and the async device class it is for (the profile's
+    ``Device`` first)."""
     out = []
-    for name in _aio_members.__all__:
-        members, device = getattr(_aio_members, name), getattr(aio, name.removesuffix("Members"))
+    for name in ("Device", *_aio_members.__all__):
+        members, device = getattr(_aio_members, f"{name}Members"), getattr(aio, name)
         if members not in device.__mro__:
             raise StubError(f"aio.{device.__name__} does not inherit {name}")
         out.append((members, device))
@@ -463,9 +464,28 @@ def generate() -> str:
         )
         for klass in sorted(layers, key=lambda k: (len(k.__mro__), k.__name__))
     ]
+    imports.need("AsyncDevice", ("benchbus.aio", "AsyncDevice"))
+    for name in _aio_members.__all__:  # the families' async classes, which aio makes
+        device = getattr(aio, name)
+        imports.need(f"_Sync{name}", (device.SYNC.__module__, device.SYNC.__name__))
+        base = ast.parse(f"AsyncDevice[_Sync{name}]", mode="eval").body
+        classes.append(
+            _node(
+                ast.ClassDef,
+                name=name,
+                bases=[base, ast.Name(f"{name}Members")],
+                keywords=[],
+                body=[ast.Expr(ast.Constant(inspect.getdoc(device)))],
+                decorator_list=[],
+            )
+        )
+    imports.need("BusDevice", ("benchbus._device", "BusDevice"))
     declared = ast.unparse(ast.fix_missing_locations(ast.Module(classes, type_ignores=[])))
-    all_names = [members.__name__ for members, _ in _classes()]
-    text = "\n".join([_HEADER, *imports.lines(), f"__all__ = {all_names!r}", declared])
+    head = [
+        f"__all__: list[str] = {sorted(_aio_members.__all__)!r}",
+        "SYNC_CLASSES: tuple[type[BusDevice], ...]",
+    ]
+    text = "\n".join([_HEADER, *imports.lines(), *head, declared])
     text = _ruff(text, "check", "--fix", "--select", "I", "--quiet", "--exit-zero")
     return _ruff(text, "format", "--quiet")
 

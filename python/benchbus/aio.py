@@ -48,23 +48,14 @@ import inspect
 import os
 import threading
 import time
+import types
 from collections.abc import Callable, Coroutine, Iterable
 from typing import TYPE_CHECKING, Any, ClassVar, Generic, TypeVar, overload
 
-from benchbus import _core
-from benchbus._aio_members import (
-    DeviceMembers,
-    DriveMembers,
-    InstrumentMembers,
-    J2ControllerMembers,
-    PblDriveMembers,
-)
+from benchbus import _aio_members, _core
+from benchbus._aio_members import DeviceMembers
 from benchbus._core import Bus, CancelToken, _Ticks
 from benchbus._device import BusDevice, did_you_mean, forked
-from benchbus._drive import Drive as _SyncDrive
-from benchbus._instrument import Instrument as _SyncInstrument
-from benchbus._j2 import J2Controller as _SyncJ2Controller
-from benchbus._pbl import PblDrive as _SyncPblDrive
 from benchbus._profile import Device as _SyncDevice
 from benchbus._scope import AsyncScoped
 from benchbus.exceptions import PortError
@@ -74,16 +65,7 @@ if TYPE_CHECKING:
 
     P = ParamSpec("P")
 
-__all__ = [
-    "AsyncBus",
-    "AsyncDevice",
-    "AsyncPoll",
-    "Device",
-    "Drive",
-    "Instrument",
-    "J2Controller",
-    "PblDrive",
-]
+__all__ = ["AsyncBus", "AsyncDevice", "AsyncPoll", "Device"]  # and the families': see the end
 
 R = TypeVar("R")
 
@@ -819,40 +801,6 @@ class AsyncDevice(AsyncScoped, Generic[D]):
         return f"<async {self._sync!r}>"
 
 
-class Drive(AsyncDevice[_SyncDrive], DriveMembers):
-    """:class:`benchbus.Drive` for asyncio (see :class:`AsyncDevice`). For
-    example::
-
-        async with bb.aio.Drive(bus, unit=1) as drive:
-            await drive.set("speed_setpoint", 1500)
-            await drive.forward()
-    """
-
-    #: The synchronous class this one wraps.
-    SYNC = _SyncDrive
-
-
-class PblDrive(AsyncDevice[_SyncPblDrive], PblDriveMembers):
-    """:class:`benchbus.PblDrive` for asyncio (see :class:`AsyncDevice`)."""
-
-    #: The synchronous class this one wraps.
-    SYNC = _SyncPblDrive
-
-
-class J2Controller(AsyncDevice[_SyncJ2Controller], J2ControllerMembers):
-    """:class:`benchbus.J2Controller` for asyncio (see :class:`AsyncDevice`)."""
-
-    #: The synchronous class this one wraps.
-    SYNC = _SyncJ2Controller
-
-
-class Instrument(AsyncDevice[_SyncInstrument], InstrumentMembers):
-    """:class:`benchbus.Instrument` for asyncio (see :class:`AsyncDevice`)."""
-
-    #: The synchronous class this one wraps.
-    SYNC = _SyncInstrument
-
-
 class Device(AsyncDevice[_SyncDevice], DeviceMembers):
     """:class:`benchbus.Device` (a device described by a profile) for asyncio (see
     :class:`AsyncDevice`)::
@@ -882,3 +830,30 @@ class Device(AsyncDevice[_SyncDevice], DeviceMembers):
         """The device ``profile`` describes at ``unit``, on an AsyncBus or a port (as
         :meth:`benchbus.Device.from_profile`)."""
         return cls(profile, port_or_bus, unit, timeout=timeout, retries=retries)
+
+
+# ---- the families' async classes, from the registry -------------------------------------------
+
+
+def _family_class(sync: type[BusDevice]) -> type[AsyncDevice[Any]]:
+    """The async class of a family's sync class ``sync``: of the same name, extending
+    :class:`AsyncDevice` and the family's members class (``benchbus._aio_members``)."""
+    name = sync.__name__
+    namespace = {
+        "__doc__": f":class:`benchbus.{name}` for asyncio (see :class:`AsyncDevice`).",
+        "__module__": __name__,
+        "__qualname__": name,
+        "SYNC": sync,
+    }
+    bases = (AsyncDevice[sync], getattr(_aio_members, f"{name}Members"))  # type: ignore[valid-type]
+    return types.new_class(name, bases, {}, lambda ns: ns.update(namespace))
+
+
+#: ``Drive``, ``PblDrive``... one a family of the registry (``_aio_members.SYNC_CLASSES``).
+#: ``_aio_members.pyi`` declares them, with their members' types, for type checkers.
+_FAMILY_CLASSES = {c.__name__: _family_class(c) for c in _aio_members.SYNC_CLASSES}
+globals().update(_FAMILY_CLASSES)
+vars(_aio_members).update(_FAMILY_CLASSES)  # where the stub declares them
+if TYPE_CHECKING:
+    from benchbus._aio_members import *  # noqa: F403
+__all__ += _aio_members.__all__

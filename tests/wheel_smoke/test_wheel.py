@@ -81,12 +81,14 @@ def test_every_module_compiles_and_imports_on_this_python() -> None:
 
 
 def test_the_type_information_ships() -> None:
-    """PEP 561: the marker, the compiled module's stub and the async devices' members."""
+    """PEP 561: the marker, the compiled module's stub and the async devices' members and
+    classes (the families' are made at import, so type checkers read them there)."""
     package = Path(bb.__file__).parent
     for name in ("py.typed", "_core.pyi", "_aio_members.pyi"):
         assert (package / name).is_file(), name
     members = (package / "_aio_members.pyi").read_text(encoding="utf-8")
     assert "class DriveMembers(BusDeviceMembers):" in members
+    assert "class Drive(AsyncDevice[_SyncDrive], DriveMembers):" in members
 
 
 def test_the_family_files_ship_and_are_the_exports() -> None:
