@@ -974,6 +974,9 @@ impl Bus {
         // attempt may be its answer (the same request), so it is timed from there.
         let mut first_unanswered: Option<Sent> = None;
         let mut made = 0;
+        if let Some(writing) = &writing {
+            self.after_earlier_writes(unit, writing.call(), request, &cancel)?;
+        }
         for attempt in 0..attempts {
             if attempt > 0 && self.interrupted() {
                 return Err(interrupted(unit, request, attempt));
@@ -988,11 +991,7 @@ impl Bus {
                 } else {
                     st.late_until(unit, call)
                 };
-                let earlier_write = writing
-                    .as_ref()
-                    .filter(|_| self.writes.behind(unit, call))
-                    .map(|_| Instant::now() + writes::POLL);
-                pacing.max(late).max(earlier_write)
+                pacing.max(late)
             };
             let Some(mut st) = self.line(&cancel, ready) else {
                 return Err(cancelled(unit, request, attempt));
@@ -1636,7 +1635,6 @@ impl Bus {
         }
     }
 
-    /// Whether the caller asks the call in progress to stop before its next attempt.
     /// Whether the caller asks the call in progress to stop ([`BusConfig::interrupted`]:
     /// in Python, a signal handler that raised, Ctrl-C's).
     pub fn interrupted(&self) -> bool {
@@ -1764,6 +1762,37 @@ impl Bus {
         };
         let _held = lock.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
         f()
+    }
+
+    /// Waits, without a turn, until the writes to `unit` made before the write `call` are
+    /// over (see [`writes`]): the write is then cancelled, or interrupted (asked every
+    /// [`writes::ASK`]), as a call that has not been sent, and the earlier writes' retries
+    /// do not hold a Ctrl-C up.
+    fn after_earlier_writes(
+        &self,
+        unit: u8,
+        call: u64,
+        request: &Request,
+        cancel: &Cancel,
+    ) -> Result<()> {
+        if !self.writes.behind(unit, call) {
+            return Ok(());
+        }
+        // Its place among the unit's writes is taken: the calls made after it may go.
+        cancel.queued();
+        let mut asked = Instant::now();
+        while self.writes.behind(unit, call) {
+            if asked.elapsed() >= writes::ASK {
+                if self.interrupted() {
+                    return Err(interrupted(unit, request, 0));
+                }
+                asked = Instant::now();
+            }
+            if !self.queue.wait_until(Instant::now() + writes::POLL, cancel) {
+                return Err(cancelled(unit, request, 0));
+            }
+        }
+        Ok(())
     }
 
     fn lock(&self) -> MutexGuard<'_, State> {

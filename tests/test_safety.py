@@ -508,6 +508,40 @@ def test_ctrl_c_is_honoured_between_attempts(raises: bool) -> None:
         assert bus.read_holding_registers(1, 0x10, 1) == [111]
 
 
+def test_ctrl_c_stops_a_write_waiting_behind_another_threads_write_to_its_unit() -> None:
+    """A write to unit 9 (absent) from another thread has four attempts of 0.4 s; a write to
+    the same unit made after it waits for it (the device takes a unit's writes in the order
+    they were made). Ctrl-C while it waits raises at once, not once the other write's
+    attempts are over, and it was never sent; the other write goes on to its four attempts."""
+    with (
+        Simulator(RegisterDevice({0x10: 111})) as sim,
+        bb.Bus(sim.port, timeout=0.4, retries=3) as bus,
+    ):
+        token, errors = bb.CancelToken(), []
+
+        def earlier() -> None:
+            with token, pytest.raises(bb.ResponseTimeout) as caught:
+                bus.write_register(9, 0x10, 1)
+            errors.append(caught.value)
+
+        other = threading.Thread(target=earlier)
+        other.start()
+        while not token.queued:
+            time.sleep(0.001)
+        started = time.monotonic()
+        with (
+            signal_during_the_next_call(signal.SIGUSR2, ctrl_c, 0.2) as seen,
+            pytest.raises(KeyboardInterrupt),
+        ):
+            bus.write_register(9, 0x10, 2)
+        elapsed = time.monotonic() - started
+        other.join(5)
+        assert seen == [signal.SIGUSR2] and len(errors) == 1
+        assert elapsed < 0.2 + 0.4, elapsed  # the other write's attempts end at 1.6 s
+        assert [r[4:6] for r in sim.requests if r[0] == 9] == [b"\x00\x01"] * 4
+        assert bus.read_holding_registers(1, 0x10, 1) == [111]
+
+
 CLI_READ_SLOW = """
 import sys
 from benchbus.cli import main

@@ -183,7 +183,8 @@ class CancelToken:
     @property
     def queued(self) -> bool:
         """Whether a call made under this token has taken its place in a Bus's queue for the
-        line (its first turn asked for)."""
+        line (its first turn asked for; a write waiting for the earlier writes to its unit,
+        its place among them)."""
     def __enter__(self) -> Self: ...
     def __exit__(
         self,

@@ -158,7 +158,8 @@ impl CancelToken {
     }
 
     /// Whether a call made under this token has taken its place in a line's queue (its
-    /// first turn asked for): a caller that hands calls to several threads can let the
+    /// first turn asked for, or, for a write waiting for the earlier writes to its unit,
+    /// its place among them): a caller that hands calls to several threads can let the
     /// next one go only then, so that they reach the line in the order they were made.
     pub fn has_queued(&self) -> bool {
         self.0.queued.load(Ordering::SeqCst)
@@ -240,8 +241,9 @@ impl Cancel {
         Cancel(SCOPE.with(|scope| scope.borrow().clone()))
     }
 
-    /// Marks the tokens: a call under them has taken a ticket.
-    fn queued(&self) {
+    /// Marks the tokens: a call under them has taken a ticket, or its place among the
+    /// writes to its unit (see [`super::writes`]), which it waits for without a ticket.
+    pub(super) fn queued(&self) {
         for token in &self.0 {
             token.0.queued.store(true, Ordering::SeqCst);
         }

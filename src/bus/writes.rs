@@ -7,7 +7,8 @@
 //! garbled has usually been carried out: sent again behind a later write to the same unit,
 //! it would leave the device with the earlier value while every call succeeded. So a write
 //! made later to that unit waits, without a turn, until the earlier one is over: the device
-//! takes the writes in the order they were made, the last one last. Reads (functions 0x01
+//! takes the writes in the order they were made, the last one last (and a cancelled or
+//! interrupted call stops waiting at once, unsent). Reads (functions 0x01
 //! to 0x04 and the other reading functions, also as raw requests), other units and urgent
 //! writes (a motor's stop) are not held up. An urgent write or a broadcast goes at once
 //! instead; a write made before it that has not gone out by then, or would go out again,
@@ -28,6 +29,10 @@ use std::time::Duration;
 /// How often a write held behind an earlier one to its unit looks again (waiting without a
 /// turn, so the line serves the others meanwhile).
 pub(crate) const POLL: Duration = Duration::from_millis(1);
+
+/// How often a write held behind an earlier one asks whether its caller wants it to stop
+/// (Ctrl-C: in Python that takes the GIL for a moment, so not at every look).
+pub(crate) const ASK: Duration = Duration::from_millis(20);
 
 /// Whether `request` may change the device: a write, whose order among the writes to its
 /// unit is kept. A raw request is what the codec decodes it to, so that a read built by hand

@@ -38,7 +38,8 @@ impl PyCancelToken {
     }
 
     /// Whether a call made under this token has taken its place in a Bus's queue for the
-    /// line (its first turn asked for).
+    /// line (its first turn asked for; a write waiting for the earlier writes to its unit,
+    /// its place among them).
     #[getter]
     fn queued(&self) -> bool {
         self.token.has_queued()
