@@ -975,7 +975,7 @@ impl Bus {
         let mut first_unanswered: Option<Sent> = None;
         let mut made = 0;
         if let Some(writing) = &writing {
-            self.after_earlier_writes(unit, writing.call(), request, &cancel)?;
+            self.after_earlier_writes(unit, writing, request, &cancel)?;
         }
         for attempt in 0..attempts {
             if attempt > 0 && self.interrupted() {
@@ -1764,31 +1764,34 @@ impl Bus {
         f()
     }
 
-    /// Waits, without a turn, until the writes to `unit` made before the write `call` are
-    /// over (see [`writes`]): the write is then cancelled, or interrupted (asked every
-    /// [`writes::ASK`]), as a call that has not been sent, and the earlier writes' retries
+    /// Waits, without a turn, until the writes to `unit` made before `writing` are over
+    /// (see [`writes`]). Meanwhile the write fails unsent, and at once, if it is cancelled,
+    /// interrupted (asked every [`writes::ASK`]) or overruled: the earlier writes' retries
     /// do not hold a Ctrl-C up.
     fn after_earlier_writes(
         &self,
         unit: u8,
-        call: u64,
+        writing: &writes::Writing<'_>,
         request: &Request,
         cancel: &Cancel,
     ) -> Result<()> {
+        let call = writing.call();
         if !self.writes.behind(unit, call) {
             return Ok(());
         }
         // Its place among the unit's writes is taken: the calls made after it may go.
         cancel.queued();
-        let mut asked = Instant::now();
+        let mut asked: Option<Instant> = None;
         while self.writes.behind(unit, call) {
-            if asked.elapsed() >= writes::ASK {
+            if asked.is_none_or(|at| at.elapsed() >= writes::ASK) {
                 if self.interrupted() {
                     return Err(interrupted(unit, request, 0));
                 }
-                asked = Instant::now();
+                asked = Some(Instant::now());
             }
-            if !self.queue.wait_until(Instant::now() + writes::POLL, cancel) {
+            if self.writes.overruled(writing)
+                || !self.queue.wait_until(Instant::now() + writes::POLL, cancel)
+            {
                 return Err(cancelled(unit, request, 0));
             }
         }

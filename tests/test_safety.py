@@ -537,7 +537,7 @@ def test_ctrl_c_stops_a_write_waiting_behind_another_threads_write_to_its_unit()
         elapsed = time.monotonic() - started
         other.join(5)
         assert seen == [signal.SIGUSR2] and len(errors) == 1
-        assert elapsed < 0.2 + 0.4, elapsed  # the other write's attempts end at 1.6 s
+        assert elapsed < 1.0, elapsed  # the other write's attempts end at 1.6 s
         assert [r[4:6] for r in sim.requests if r[0] == 9] == [b"\x00\x01"] * 4
         assert bus.read_holding_registers(1, 0x10, 1) == [111]
 

@@ -852,6 +852,8 @@ def _family_class(sync: type[BusDevice]) -> type[AsyncDevice[Any]]:
 #: ``Drive``, ``PblDrive``... one a family of the registry (``_aio_members.SYNC_CLASSES``).
 #: ``_aio_members.pyi`` declares them, with their members' types, for type checkers.
 _FAMILY_CLASSES = {c.__name__: _family_class(c) for c in _aio_members.SYNC_CLASSES}
+if len(_FAMILY_CLASSES) < len(_aio_members.SYNC_CLASSES) or {*_FAMILY_CLASSES} & {*__all__}:
+    raise RuntimeError(f"a family's class name is taken in benchbus.aio: {[*_FAMILY_CLASSES]}")
 globals().update(_FAMILY_CLASSES)
 vars(_aio_members).update(_FAMILY_CLASSES)  # where the stub declares them
 if TYPE_CHECKING:
