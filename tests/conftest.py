@@ -182,7 +182,7 @@ def pytest_itemcollected(item: pytest.Item) -> None:
 
 #: The site's builds (tests/test_site.py's fixtures), each made once for the run while the
 #: workers that need it wait (some 15 s of a core each).
-BUILDS = ("site", "broken", "grown")
+BUILDS = ("site", "broken")
 
 #: The longest single tests of the parallel run (the quick benchmark: some 35 s), which
 #: start first so that the others fill the workers around them.

@@ -154,8 +154,10 @@ BROKEN_LINKS = {
 
 @pytest.fixture(scope="module")
 def broken(tmp_path_factory: pytest.TempPathFactory) -> Build:
-    """One build of a copy whose home page has each of :data:`BROKEN_LINKS` (a strict build
-    reports every warning before it fails, so one build shows them all)."""
+    """One build of a copy whose home page has each of :data:`BROKEN_LINKS` and includes a
+    file of the tree, and whose package's ``aio`` docstring names reStructuredText roles the
+    reference does not link (a strict build reports every warning before it fails, and
+    writes the pages: so one build shows them all)."""
     return once(tmp_path_factory, "broken", build_broken)
 
 
@@ -164,31 +166,9 @@ def build_broken(tmp_path: Path) -> Build:
     copy = copy_of_the_docs(tmp_path / "src")
     index = copy / "docs" / "index.md"
     links = "".join(f"\nSee {link}.\n" for link, _ in BROKEN_LINKS.values())
-    index.write_text(index.read_text("utf-8") + links, "utf-8")
-    return build_site(copy / "mkdocs.yml", tmp_path / "site")
-
-
-@pytest.mark.parametrize("kind", BROKEN_LINKS)
-def test_a_broken_link_fails_the_build(broken: Build, kind: str) -> None:
-    assert broken.returncode != 0, broken.output
-    complaint = BROKEN_LINKS[kind][1]
-    # Its own warning line, so that another link's cannot stand for it.
-    warnings = [line for line in broken.output.splitlines() if "WARNING" in line]
-    assert any(complaint in line for line in warnings), broken.output
-
-
-@pytest.fixture(scope="module")
-def grown(tmp_path_factory: pytest.TempPathFactory) -> Build:
-    """One build of a copy whose home page includes a file of the tree and whose package's
-    ``aio`` docstring names reStructuredText roles the reference does not link."""
-    return once(tmp_path_factory, "grown", build_grown)
-
-
-def build_grown(tmp_path: Path) -> Build:
-    """The build of :func:`grown`, in ``tmp_path``."""
-    copy = copy_of_the_docs(tmp_path / "src")
-    index = copy / "docs" / "index.md"
-    index.write_text(index.read_text("utf-8") + '\n```toml\n--8<-- "Cargo.toml"\n```\n', "utf-8")
+    index.write_text(
+        index.read_text("utf-8") + links + '\n```toml\n--8<-- "Cargo.toml"\n```\n', "utf-8"
+    )
     (copy / "python").unlink()
     shutil.copytree(ROOT / "python" / "benchbus", copy / "python" / "benchbus")
     aio = copy / "python" / "benchbus" / "aio.py"
@@ -201,11 +181,28 @@ def build_grown(tmp_path: Path) -> Build:
     return build_site(copy / "mkdocs.yml", tmp_path / "site")
 
 
-def test_the_copy_builds_with_a_file_of_the_tree_included(grown: Build) -> None:
+def warnings_of(build: Build) -> list[str]:
+    """The build's warning lines."""
+    return [line for line in build.output.splitlines() if "WARNING" in line]
+
+
+@pytest.mark.parametrize("kind", BROKEN_LINKS)
+def test_a_broken_link_fails_the_build(broken: Build, kind: str) -> None:
+    assert broken.returncode != 0, broken.output
+    complaint = BROKEN_LINKS[kind][1]
+    # Its own warning line, so that another link's cannot stand for it.
+    assert any(complaint in line for line in warnings_of(broken)), broken.output
+
+
+def test_the_copy_builds_with_a_file_of_the_tree_included(broken: Build) -> None:
     """The copy the tests above break has every file a page may include (a missing one
-    fails the build), so that they fail for the break they make and no other reason."""
-    assert grown.returncode == 0, grown.output
-    assert "[package]" in (grown.site / "index.html").read_text("utf-8")
+    would warn too), so that they fail for the break they make and no other reason: each
+    warning is one of the breaks'."""
+    complaints = [complaint for _, complaint in BROKEN_LINKS.values()]
+    assert warnings_of(broken), broken.output
+    for line in warnings_of(broken):
+        assert any(complaint in line for complaint in complaints), broken.output
+    assert "[package]" in (broken.site / "index.html").read_text("utf-8")
 
 
 # ---- every public name: a docstring and an entry -------------------------------------------------
@@ -448,11 +445,10 @@ def test_no_rest_roles_are_left_and_they_link(site: Build) -> None:
     assert 'href="../benchbus/#benchbus.Bus"' in aio
 
 
-def test_a_leftover_role_is_found(grown: Build) -> None:
+def test_a_leftover_role_is_found(broken: Build) -> None:
     """Roles the reference does not turn into links (``:ref:``, ``:term:``) in a docstring are
     found, as Markdown renders them and as written."""
-    assert grown.returncode == 0, grown.output
-    left = [entry.partition(": ")[2] for entry in leftover_roles(grown.site)]
+    left = [entry.partition(": ")[2] for entry in leftover_roles(broken.site)]
     assert left == [":ref:<code>", ":term:<code>"]
     assert LEFTOVER_ROLE.search("a :py:any:`Bus` as written")
 
