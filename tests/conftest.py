@@ -184,8 +184,8 @@ def pytest_itemcollected(item: pytest.Item) -> None:
 #: workers that need it wait (some 15 s of a core each).
 BUILDS = ("site", "broken")
 
-#: The longest single tests of the parallel run (the quick benchmark: some 35 s), which
-#: start first so that the others fill the workers around them.
+#: The longest single tests (the quick benchmark, a timing test: some 35 s of a busy core),
+#: which start first so that the others fill the workers around them.
 LONGEST = ("test_bench.py::test_quick_benchmark_runs_every_scenario_for_every_library",)
 
 

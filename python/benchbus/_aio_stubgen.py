@@ -405,7 +405,7 @@ def _classes() -> list[tuple[type, type[aio.AsyncDevice[Any]]]]:
     for name in ("Device", *_aio_members.__all__):
         members, device = getattr(_aio_members, f"{name}Members"), getattr(aio, name)
         if members not in device.__mro__:
-            raise StubError(f"aio.{device.__name__} does not inherit {name}")
+            raise StubError(f"aio.{name} does not inherit {members.__name__}")
         out.append((members, device))
     return out
 
