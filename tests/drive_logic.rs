@@ -4,7 +4,7 @@
 mod common;
 
 use benchbus::device::drive::{Command, Drive, Family};
-use benchbus::device::Device;
+use benchbus::device::{Device, Tabled};
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, Act, Scripted};
 use std::sync::Arc;
@@ -306,4 +306,45 @@ fn a_refused_jog_is_not_counted_as_started() {
     let (d, _t) = drive(vec![refusal], Family::Bld, true);
     assert!(d.command(Command::JogReverse).is_err());
     assert!(!d.jogging());
+}
+
+#[test]
+fn get_many_reads_neighbours_in_one_request_and_the_rest_apart() {
+    // speed_setpoint (0x2001, rpm), pole_pairs and accel_time (0x2003, tenths of s) are
+    // one block, asked in any order; state (0x2100) is a block of its own.
+    let acts = vec![registers_reply(&[1500, 2, 25]), registers_reply(&[3])];
+    let (d, t) = drive(acts, Family::Bld, true);
+    let names = ["accel_time", "speed_setpoint", "state", "pole_pairs"];
+    let got = d.get_many(&names).expect("four registers");
+    assert_eq!(got, vec![2.5, 1500.0, 3.0, 2.0]);
+    assert_eq!(
+        sent(&t),
+        vec![
+            with_crc(&[1, 3, 0x20, 0x01, 0x00, 3]),
+            with_crc(&[1, 3, 0x21, 0x00, 0x00, 1]),
+        ]
+    );
+}
+
+#[test]
+fn get_many_on_a_drive_that_refuses_block_reads_reads_one_register_a_request() {
+    let acts = vec![
+        Act::Reply(with_crc(&[1, 0x83, 0x03])),
+        registers_reply(&[1500]),
+        registers_reply(&[4]),
+    ];
+    let (d, t) = drive(acts, Family::C20, true);
+    let got = d.get_many(&["speed_setpoint", "pole_pairs"]).expect("two");
+    assert_eq!(got, vec![1500.0, 4.0]);
+    assert_eq!(d.block_reads(), Some(false));
+    assert_eq!(sent(&t)[2], with_crc(&[1, 3, 0x20, 0x02, 0x00, 1]));
+    // Remembered: the next read of two neighbours goes register by register at once.
+    t.0.lock().map(|mut s| s.sent.clear()).ok();
+    let acts = [1400u16, 5].map(|w| registers_reply(&[w]));
+    t.0.lock().map(|mut s| s.acts.extend(acts)).ok();
+    assert_eq!(
+        d.get_many(&["speed_setpoint", "pole_pairs"]).ok(),
+        Some(vec![1400.0, 5.0])
+    );
+    assert_eq!(sent(&t).len(), 2);
 }

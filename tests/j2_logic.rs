@@ -6,7 +6,7 @@ mod common;
 use benchbus::bus::TxOptions;
 use benchbus::codec::Request;
 use benchbus::device::j2::{index, profile, J2};
-use benchbus::device::Device;
+use benchbus::device::{Device, Tabled};
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::{mpsc, Arc};

@@ -46,8 +46,8 @@ access = "r"
 
 
 @contextlib.contextmanager
-def device_of(kind: str, tmp_path: Path) -> Iterator[Any]:
-    """The device of ``kind`` at unit 1 on its simulator."""
+def device_of(kind: str, tmp_path: Path, **options: Any) -> Iterator[Any]:
+    """The device of ``kind`` at unit 1 on its simulator (given ``options``)."""
     if kind == "profile":
         path = tmp_path / "verbs.toml"
         path.write_text(PROFILE, encoding="utf-8")
@@ -58,7 +58,7 @@ def device_of(kind: str, tmp_path: Path) -> Iterator[Any]:
             yield device
         return
     of = family(kind)
-    model = of.simulate(**of.bench_model)
+    model = of.simulate(**{**of.bench_model, **options})
     with Simulator({1: model}, baudrate=of.line.baudrate) as sim:
         device = of.open(sim.port, 1, **of.opened_with(model))
         try:
@@ -109,3 +109,31 @@ def test_every_device_with_a_table_has_the_same_verbs(kind: str, tmp_path: Path)
         assert isinstance(device.profile, bb.Profile)
         # The profile's rows are the names get and set take, with their units.
         assert set(device.units()) == {r.name for r in device.profile.registers}
+
+
+#: For each family: registers at neighbouring addresses (the J2's tables hold a parameter
+#: every other address, and its file reads across the empty ones), which ``get_many`` reads
+#: in one request, and one far from them, which takes a request of its own. (A drive that
+#: refuses block reads is read one register a request: ``tests/drive_logic.rs``.)
+NEIGHBOURS: dict[str, tuple[list[str], str]] = {
+    "drive": (["pole_pairs", "speed_setpoint", "accel_time"], "state"),
+    "pbl": (["speed_gain", "pole_pairs", "p2_group_switch"], "status"),
+    "j2": (["AL2", "AL1"], "AM"),
+    "profile": (["gain", "setpoint", "temperature"], ""),
+}
+
+
+@pytest.mark.parametrize("kind", NEIGHBOURS)
+def test_get_many_reads_neighbouring_registers_in_one_request(kind: str, tmp_path: Path) -> None:
+    near, far = NEIGHBOURS[kind]
+    options = {"single_register_reads": False} if kind == "drive" else {}
+    with device_of(kind, tmp_path, **options) as device:
+        alone = {name: device.get(name) for name in near}
+        before = device.bus.stats.transactions
+        assert device.get_many(near) == alone
+        assert device.bus.stats.transactions - before == 1
+        if far:
+            before = device.bus.stats.transactions
+            got = device.get_many([*near, far])
+            assert got == {**alone, far: device.get(far)}
+            assert device.bus.stats.transactions - before == 2 + 1  # two plans, one get

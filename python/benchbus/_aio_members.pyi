@@ -245,7 +245,8 @@ class DriveMembers(BusDeviceMembers):
 
     async def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
-        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+        each as :meth:`get` gives it,
+        in as few requests as the table's limits allow (neighbours share one)."""
 
     async def jog_forward(self) -> None:
         """Jog forward (command 3)."""
@@ -639,7 +640,8 @@ class J2ControllerMembers(BusDeviceMembers):
 
     async def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
-        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+        each as :meth:`get` gives it,
+        in as few requests as the table's limits allow (neighbours share one)."""
 
     @property
     def input_type(self) -> Coroutine[Any, Any, InputType]:
@@ -822,7 +824,8 @@ class PblDriveMembers(BusDeviceMembers):
 
     async def get_many(self, names: Iterable[str]) -> dict[str, int]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
-        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+        each as :meth:`get` gives it,
+        in as few requests as the table's limits allow (neighbours share one)."""
 
     @property
     def hall_state(self) -> Coroutine[Any, Any, int]:

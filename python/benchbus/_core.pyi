@@ -728,7 +728,8 @@ class DriveCore(_Station):
         against its range, steps, access and the family's rules before anything is sent."""
     def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
-        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+        each as :meth:`get` gives it,
+        in as few requests as the table's limits allow (neighbours share one)."""
     def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
         """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
         as :meth:`set` does. Every value is checked against its register (range, steps,
@@ -838,7 +839,8 @@ class PblCore(_Station):
         against its range, steps, access and the family's rules before anything is sent."""
     def get_many(self, names: Iterable[str]) -> dict[str, int]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
-        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+        each as :meth:`get` gives it,
+        in as few requests as the table's limits allow (neighbours share one)."""
     def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
         """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
         as :meth:`set` does. Every value is checked against its register (range, steps,
@@ -917,7 +919,8 @@ class J2Core(_Station):
         against its range, steps, access and the family's rules before anything is sent."""
     def get_many(self, names: Iterable[str]) -> dict[str, int | float]:
         """Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
-        each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests)."""
+        each as :meth:`get` gives it,
+        in as few requests as the table's limits allow (neighbours share one)."""
     def set_many(self, values: Mapping[str, float] | Iterable[tuple[str, float]]) -> None:
         """Writes ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each
         as :meth:`set` does. Every value is checked against its register (range, steps,

@@ -9,8 +9,9 @@
 
 use super::family;
 use super::profile::Profile;
+use super::profiled::Block;
 use super::suggest::did_you_mean;
-use super::{on_station, tabled};
+use super::{on_station, Tabled};
 use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::codec::pdu::WRITE_SINGLE_REGISTER;
@@ -499,7 +500,45 @@ pub struct Drive {
 }
 
 on_station!(Drive);
-tabled!(Drive, self.register);
+
+impl Tabled for Drive {
+    fn table(&self) -> Result<&'static Profile> {
+        table(self.family)
+    }
+
+    fn index(&self, name: &str) -> Result<usize> {
+        let own = table(self.family)?;
+        if let Some(i) = own.index(name) {
+            return Ok(i);
+        }
+        let file = family::profile("drive")?;
+        match file.index(name).map(|i| &file.registers[i]) {
+            Some(r) => Err(Error::InvalidArgument(format!(
+                "{name} ({:#06x}) exists on {} drives only, not on the {}",
+                r.register.address,
+                r.models.join(" and "),
+                self.family.name()
+            ))),
+            None => {
+                let names = own.registers.iter().map(|r| r.register.name.as_str());
+                let hint = did_you_mean(name, names);
+                Err(Error::InvalidArgument(format!(
+                    "the drive has no register {name:?}{hint}"
+                )))
+            }
+        }
+    }
+
+    fn set(&self, name: &str, value: f64) -> Result<()> {
+        Drive::set(self, name, value)
+    }
+
+    /// A block of holding registers as the drive allows: in one request, or one register a
+    /// request on a drive that refuses block reads ([`Drive::block_reads`]).
+    fn read_block(&self, block: &Block) -> Result<Vec<u16>> {
+        self.read(block.start, block.count)
+    }
+}
 
 impl Drive {
     /// The drive at `unit` on `bus`. `write_ack` is false for a drive set to F08.06 = 1,
@@ -549,41 +588,12 @@ impl Drive {
     /// # Errors
     /// [`Error::InvalidArgument`] if there is no such register, or not on this family.
     pub fn register(&self, name: &str) -> Result<&'static Register<String>> {
-        let own = table(self.family)?;
-        if let Some(i) = own.index(name) {
-            return Ok(&own.registers[i].register);
-        }
-        let file = family::profile("drive")?;
-        match file.index(name).map(|i| &file.registers[i]) {
-            Some(r) => Err(Error::InvalidArgument(format!(
-                "{name} ({:#06x}) exists on {} drives only, not on the {}",
-                r.register.address,
-                r.models.join(" and "),
-                self.family.name()
-            ))),
-            None => {
-                let names = own.registers.iter().map(|r| r.register.name.as_str());
-                let hint = did_you_mean(name, names);
-                Err(Error::InvalidArgument(format!(
-                    "the drive has no register {name:?}{hint}"
-                )))
-            }
-        }
+        self.row(name)
     }
 
     /// The address of the row called `name` of this drive's table.
     fn address(&self, name: &str) -> Result<u16> {
         Ok(self.register(name)?.address)
-    }
-
-    /// Reads the register called `name`, in engineering units.
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn get(&self, name: &str) -> Result<f64> {
-        let register = self.register(name)?;
-        let raw = self.read(register.address, 1)?;
-        Ok(register.decode(raw.first().copied().unwrap_or_default()))
     }
 
     /// Writes `value` (engineering units) to the register called `name`, checked against
@@ -660,9 +670,13 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn status(&self) -> Result<Status> {
-        let words = self.read(self.address(STATE)?, 3)?;
-        match words[..] {
-            [state, word, fault] => Ok(Status::decode(self.family, state, word, fault)),
+        match self.get_many(&[STATE, "status_word", "fault_code"])?[..] {
+            [state, word, fault] => Ok(Status::decode(
+                self.family,
+                state as u16,
+                word as u16,
+                fault as u16,
+            )),
             _ => Err(self.station.short_reply()),
         }
     }
@@ -672,8 +686,7 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn model(&self) -> Result<std::result::Result<Model, u16>> {
-        let address = self.register("model_id")?.address;
-        let id = self.read(address, 1)?.first().copied().unwrap_or_default();
+        let id = self.get("model_id")? as u16;
         Ok(Model::from_id(self.family, id).ok_or(id))
     }
 
@@ -685,40 +698,34 @@ impl Drive {
     /// Any [`Error`].
     pub fn telemetry(&self) -> Result<Telemetry> {
         let with_hall = self.hall_registers.get() != Support::No;
-        let first = self.address(FIRST_MEASUREMENT)?;
-        let mut wanted = measurements(self.family, with_hall)?;
-        let words = match self.read(first, wanted.len() as u16) {
-            Ok(words) => {
+        let read = match self.measured(with_hall) {
+            Ok(read) => {
                 if with_hall {
                     self.hall_registers.set(Support::Yes);
                 }
-                words
+                read
             }
             Err(Error::Exception { code: 0x02, .. })
                 if with_hall && self.hall_registers.get() == Support::Unknown =>
             {
-                wanted = measurements(self.family, false)?;
-                let words = self.read(first, wanted.len() as u16)?;
+                let read = self.measured(false)?;
                 log::debug!(
                     target: "benchbus::device",
                     "unit {}: no registers 0x3012 to 0x3014 on this firmware", self.unit()
                 );
                 self.hall_registers.set(Support::No);
-                words
+                read
             }
             Err(e) => return Err(e),
         };
-        if words.len() != wanted.len() {
-            return Err(self.station.short_reply());
-        }
-        let mut values = Vec::with_capacity(wanted.len());
+        let mut values = Vec::with_capacity(read.len());
         let mut hall = (None, None);
-        for (register, &raw) in wanted.iter().zip(&words) {
+        for (register, value) in read {
             match register.name.as_str() {
                 "reserved_3012" => {}
-                "hall_count_high" => hall.0 = Some(u32::from(raw)),
-                "hall_count_low" => hall.1 = Some(u32::from(raw)),
-                name => values.push((name, register.decode(raw), register.unit.as_str())),
+                "hall_count_high" => hall.0 = Some(value as u32),
+                "hall_count_low" => hall.1 = Some(value as u32),
+                name => values.push((name, value, register.unit.as_str())),
             }
         }
         let hall_count = match hall {
@@ -726,6 +733,15 @@ impl Drive {
             _ => None,
         };
         Ok(Telemetry { values, hall_count })
+    }
+
+    /// The measurement registers (with 0x3012..0x3014 if `hall`) and their values, read as
+    /// the planner groups them (one request where the drive allows).
+    fn measured(&self, hall: bool) -> Result<Vec<(&'static Register<String>, f64)>> {
+        let wanted = measurements(self.family, hall)?;
+        let names: Vec<&str> = wanted.iter().map(|r| r.name.as_str()).collect();
+        let values = self.get_many(&names)?;
+        Ok(wanted.into_iter().zip(values).collect())
     }
 
     /// The line speed stored in 0x2009, in bits per second (None for a code the manuals do

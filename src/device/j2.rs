@@ -16,8 +16,7 @@
 //! -1999..=3276.7, and the controller itself refuses what it does not take.
 
 use super::family;
-use super::profile::{Profile, ProfileRegister, ProfileValue};
-use super::profiled::read_planned;
+use super::profile::{Profile, ProfileRegister};
 use super::suggest::did_you_mean;
 use super::{on_station, Tabled};
 use super::{Access, Device, Register, Station};
@@ -128,21 +127,16 @@ pub struct J2 {
 on_station!(J2);
 
 impl Tabled for J2 {
-    fn row(&self, name: &str) -> Result<&'static Register<String>> {
-        by_name(name)
+    fn table(&self) -> Result<&'static Profile> {
+        profile()
     }
 
-    fn get(&self, name: &str) -> Result<f64> {
-        J2::get(self, name)
+    fn index(&self, name: &str) -> Result<usize> {
+        index(name)
     }
 
     fn set(&self, name: &str, value: f64) -> Result<()> {
         J2::set(self, name, value)
-    }
-
-    /// In as few requests as the file's limits allow, as [`J2::get_many`].
-    fn get_many(&self, names: &[String]) -> Result<Vec<f64>> {
-        J2::get_many(self, &names.iter().map(String::as_str).collect::<Vec<_>>())
     }
 }
 
@@ -157,34 +151,6 @@ impl J2 {
         J2 {
             station: Station::new(bus, unit, opts),
         }
-    }
-
-    /// Reads the parameter called `name`, in engineering units.
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn get(&self, name: &str) -> Result<f64> {
-        match self.get_many(&[name])?[..] {
-            [value] => Ok(value),
-            _ => Err(self.station.short_reply()),
-        }
-    }
-
-    /// Reads the parameters called `names`, in as few requests as the file's limits allow
-    /// (16 registers, across the empty addresses: [`Profile::plan`]).
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn get_many(&self, names: &[&str]) -> Result<Vec<f64>> {
-        let indices = names.iter().map(|n| index(n)).collect::<Result<Vec<_>>>()?;
-        read_planned(&self.station, profile()?, &indices)?
-            .iter()
-            .map(|v| match v {
-                ProfileValue::Int(n) => Ok(*n as f64),
-                ProfileValue::Float(f) => Ok(*f),
-                other => Err(Error::Internal(format!("a J2 parameter read as {other:?}"))),
-            })
-            .collect()
     }
 
     /// Every parameter of both tables, `(name, value)` in address order, in six requests

@@ -16,6 +16,8 @@ pub mod value;
 use crate::bus::{Bus, TxOptions};
 use crate::codec::FrameError;
 use crate::error::{Error, Result};
+use profile::{Profile, ProfileValue};
+use profiled::{read_block, read_planned, Block};
 use std::sync::Arc;
 use std::time::Duration;
 
@@ -293,19 +295,29 @@ pub trait Device: Send + Sync {
 
 /// A device family whose registers are a table (its profile file): any row read and
 /// written by name, in engineering units, with the family's rules. What the bindings'
-/// `get` and `set` serve, once for every family.
+/// `get` and `set` serve, once for every family; reads go through the one block-read
+/// planner ([`Profile::plan`]).
 pub trait Tabled: Device {
-    /// The row called `name`, as the family spells its names (the J2's in any case).
+    /// The table (this model's, for a family with models).
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] if there is none (on this model).
-    fn row(&self, name: &str) -> Result<&'static Register<String>>;
+    /// As [`family::profile`].
+    fn table(&self) -> Result<&'static Profile>;
 
-    /// Reads the row called `name`, in engineering units.
+    /// The index in [`table`](Self::table) of the row called `name`, as the family spells
+    /// its names (the J2's in any case).
     ///
     /// # Errors
-    /// Any [`Error`].
-    fn get(&self, name: &str) -> Result<f64>;
+    /// [`Error::InvalidArgument`] if there is none (on this model), naming close ones.
+    fn index(&self, name: &str) -> Result<usize>;
+
+    /// The row called `name`.
+    ///
+    /// # Errors
+    /// As [`index`](Self::index).
+    fn row(&self, name: &str) -> Result<&'static Register<String>> {
+        Ok(&self.table()?.registers[self.index(name)?].register)
+    }
 
     /// Writes `value` (engineering units) to the row called `name`, checked (range, steps,
     /// access and the family's rules) before anything is sent.
@@ -314,16 +326,46 @@ pub trait Tabled: Device {
     /// Any [`Error`]; [`Error::InvalidArgument`] for a bad value or a read-only row.
     fn set(&self, name: &str, value: f64) -> Result<()>;
 
-    /// Reads the rows called `names`, in that order, one [`get`](Self::get) each; every
-    /// name is looked up before the first is read.
+    /// Reads one block of a plan: the station's read, unless the family reads its own way
+    /// (a drive that refuses block reads, one register a request).
+    ///
+    /// # Errors
+    /// Any [`Error`] of a request.
+    fn read_block(&self, block: &Block) -> Result<Vec<u16>> {
+        read_block(self.station(), block)
+    }
+
+    /// Reads the row called `name`, in engineering units (a bool as 1 or 0).
+    ///
+    /// # Errors
+    /// Any [`Error`].
+    fn get(&self, name: &str) -> Result<f64> {
+        let index = self.index(name)?;
+        let values = read_planned(self.station(), self.table()?, &[index], |b| {
+            self.read_block(b)
+        })?;
+        values
+            .first()
+            .ok_or_else(|| self.station().short_reply())?
+            .number()
+    }
+
+    /// Reads the rows called `names`, in that order, in as few requests as the table's
+    /// limits allow ([`Profile::plan`]); every name is looked up before the first is read.
     ///
     /// # Errors
     /// Any [`Error`]; the first stops the reads.
-    fn get_many(&self, names: &[String]) -> Result<Vec<f64>> {
-        for name in names {
-            self.row(name)?;
-        }
-        names.iter().map(|name| self.get(name)).collect()
+    fn get_many<S: AsRef<str>>(&self, names: &[S]) -> Result<Vec<f64>> {
+        let indices = names
+            .iter()
+            .map(|name| self.index(name.as_ref()))
+            .collect::<Result<Vec<_>>>()?;
+        read_planned(self.station(), self.table()?, &indices, |b| {
+            self.read_block(b)
+        })?
+        .iter()
+        .map(ProfileValue::number)
+        .collect()
     }
 
     /// Writes `values` in order, each as [`set`](Self::set) does. Every value is checked
@@ -341,38 +383,6 @@ pub trait Tabled: Device {
             .try_for_each(|(name, value)| self.set(name, *value))
     }
 }
-
-/// `impl Tabled` for a family struct from its own `get` and `set`, and `row`: the family's
-/// `fn(name)` that finds a row by name (`tabled!(Pbl, by_name)`), or with `self`, its
-/// method that does (`tabled!(Drive, self.register)`).
-macro_rules! tabled {
-    ($device:ty, self.$row:ident) => {
-        $crate::device::tabled!($device, |device, name| device.$row(name));
-    };
-    ($device:ty, $row:path) => {
-        $crate::device::tabled!($device, |_device, name| $row(name));
-    };
-    ($device:ty, |$this:ident, $name:ident| $find:expr) => {
-        impl $crate::device::Tabled for $device {
-            fn row(
-                &self,
-                $name: &str,
-            ) -> $crate::Result<&'static $crate::device::Register<String>> {
-                let $this = self;
-                $find
-            }
-
-            fn get(&self, name: &str) -> $crate::Result<f64> {
-                <$device>::get(self, name)
-            }
-
-            fn set(&self, name: &str, value: f64) -> $crate::Result<()> {
-                <$device>::set(self, name, value)
-            }
-        }
-    };
-}
-pub(crate) use tabled;
 
 /// `raw` x `scale`, exactly where `scale` is one over a whole number: divided by 10 rather
 /// than multiplied by 0.1, so 3 tenths are 0.3, not 0.30000000000000004.

@@ -11,7 +11,7 @@
 use super::family;
 use super::profile::{Profile, ProfileRegister};
 use super::suggest::did_you_mean;
-use super::{on_station, tabled};
+use super::{on_station, Tabled};
 use super::{Device, Register, Station};
 use crate::bus::{Bus, TxOptions};
 use crate::error::{Error, Result};
@@ -57,11 +57,18 @@ pub fn table() -> Result<&'static [ProfileRegister]> {
 /// # Errors
 /// [`Error::InvalidArgument`] if there is none.
 pub fn by_name(name: &str) -> Result<&'static Register<String>> {
+    Ok(&table()?[index(name)?].register)
+}
+
+/// The index in [`table`] (its number) of the parameter called `name`.
+///
+/// # Errors
+/// [`Error::InvalidArgument`] if there is none, naming close ones.
+pub fn index(name: &str) -> Result<usize> {
     let profile = family::profile("pbl")?;
-    let table = &profile.registers;
-    let found = profile.index(name).map(|i| &table[i].register);
-    found.ok_or_else(|| {
-        let hint = did_you_mean(name, table.iter().map(|p| p.register.name.as_str()));
+    profile.index(name).ok_or_else(|| {
+        let names = profile.registers.iter().map(|p| p.register.name.as_str());
+        let hint = did_you_mean(name, names);
         Error::InvalidArgument(format!("a PBL drive has no parameter {name:?}{hint}"))
     })
 }
@@ -96,7 +103,20 @@ pub struct Pbl {
 }
 
 on_station!(Pbl);
-tabled!(Pbl, by_name);
+
+impl Tabled for Pbl {
+    fn table(&self) -> Result<&'static Profile> {
+        family::profile("pbl")
+    }
+
+    fn index(&self, name: &str) -> Result<usize> {
+        index(name)
+    }
+
+    fn set(&self, name: &str, value: f64) -> Result<()> {
+        Pbl::set(self, name, value)
+    }
+}
 
 impl Pbl {
     /// The drive at `unit` on `bus`.
@@ -112,15 +132,6 @@ impl Pbl {
         Pbl {
             station: Station::new(bus, unit, opts),
         }
-    }
-
-    /// Reads the parameter called `name`.
-    ///
-    /// # Errors
-    /// Any [`Error`].
-    pub fn get(&self, name: &str) -> Result<f64> {
-        let p = by_name(name)?;
-        Ok(p.decode(self.read_parameter(p.address)?))
     }
 
     /// Writes `value` to the parameter called `name`, checked before anything is sent.

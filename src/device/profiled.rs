@@ -148,6 +148,23 @@ pub enum Encoded {
     },
 }
 
+impl ProfileValue {
+    /// The value as a number: an int or a float as itself, a bool as 1 or 0.
+    ///
+    /// # Errors
+    /// [`Error::InvalidArgument`] for text.
+    pub fn number(&self) -> Result<f64> {
+        match self {
+            ProfileValue::Int(n) => Ok(*n as f64),
+            ProfileValue::Float(f) => Ok(*f),
+            ProfileValue::Bool(b) => Ok(f64::from(u8::from(*b))),
+            ProfileValue::Text(t) => Err(Error::InvalidArgument(format!(
+                "{t:?} is text, not a number"
+            ))),
+        }
+    }
+}
+
 impl ProfileRegister {
     fn name(&self) -> &str {
         &self.register.name
@@ -332,9 +349,22 @@ fn register(profile: &Profile, index: usize) -> Result<&ProfileRegister> {
         .ok_or_else(|| Error::InvalidArgument(format!("no register {index}")))
 }
 
+/// The words of one block of a plan, read from `station` (bits as words of 0 or 1).
+///
+/// # Errors
+/// Any [`Error`] of the request.
+pub fn read_block(station: &Station, block: &Block) -> Result<Vec<u16>> {
+    if block.table.holds_bits() {
+        let bits = station.read_bits(block.table, block.start, block.count)?;
+        return Ok(bits.into_iter().map(u16::from).collect());
+    }
+    station.read_table(block.table, block.start, block.count)
+}
+
 /// The engineering values of the registers `indices` of `profile`, in that order, read from
 /// `station` as [`Profile::plan`] groups them (the one block-read planner of every device
-/// with a table).
+/// with a table), each block by `read` ([`read_block`], or a family's own way of reading
+/// one).
 ///
 /// # Errors
 /// [`Error::InvalidArgument`] for an index past the profile; any [`Error`] of a request
@@ -343,20 +373,13 @@ pub fn read_planned(
     station: &Station,
     profile: &Profile,
     indices: &[usize],
+    mut read: impl FnMut(&Block) -> Result<Vec<u16>>,
 ) -> Result<Vec<ProfileValue>> {
     // Only those asked for, by index (a slot for every register of the profile made each
     // read cost the profile's length).
     let mut values: HashMap<usize, ProfileValue> = HashMap::with_capacity(indices.len());
     for block in profile.plan(indices) {
-        let words: Vec<u16> = if block.table.holds_bits() {
-            station
-                .read_bits(block.table, block.start, block.count)?
-                .into_iter()
-                .map(u16::from)
-                .collect()
-        } else {
-            station.read_table(block.table, block.start, block.count)?
-        };
+        let words = read(&block)?;
         for i in &block.members {
             let r = register(profile, *i)?;
             let from = usize::from(r.register.address - block.start);
@@ -426,7 +449,9 @@ impl ProfiledDevice {
                 )));
             }
         }
-        read_planned(&self.station, &self.profile, indices)
+        read_planned(&self.station, &self.profile, indices, |b| {
+            read_block(&self.station, b)
+        })
     }
 
     /// Writes `values` (register index, value) in order, each as [`write`](Self::write)

@@ -9,7 +9,7 @@ use crate::device::drive::{
     command_doc, drive_commands, fault_name, table as drive_table, Command, Drive, Family, Model,
     Telemetry,
 };
-use crate::device::{Access, Device};
+use crate::device::{Access, Device, Tabled};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyInt, PyList, PyTuple};

@@ -12,7 +12,7 @@ const PY: &str = "benchbus._j2";
 use crate::device::j2::{
     by_name, table, HELD_TO_LIMITS, J2, LIMITS, PID, PID2, RAPNF, SAMPLE, STATUS,
 };
-use crate::device::{Access, Register};
+use crate::device::{Access, Register, Tabled};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyInt, PyList, PyString, PyTuple};

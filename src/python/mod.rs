@@ -305,7 +305,8 @@ macro_rules! device_methods {
             }
 
             /// Reads the registers called ``names`` (a list), ``{name: value}`` in that order,
-            /// each as :meth:`get` gives it (:meth:`sample` reads a sample in fewer requests).
+            /// each as :meth:`get` gives it,
+            /// in as few requests as the table's limits allow (neighbours share one).
             fn get_many<'py>(
                 slf: &Bound<'py, Self>,
                 py: Python<'py>,
