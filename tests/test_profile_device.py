@@ -562,6 +562,68 @@ def test_a_status_word_and_its_flags_are_read_in_one_request(tmp_path: Path) -> 
         assert dev.start is False
 
 
+FIELDS = """
+[device]
+name = "drive"
+
+[[register]]
+name = "status"
+address = 2
+access = "r"
+
+[[register]]
+name = "source"
+address = 2
+bits = [5, 6]
+access = "r"
+enum = { 0 = "keypad", 1 = "terminals", 2 = "communication" }
+
+[[register]]
+name = "mode"
+address = 7
+bits = [2, 4]
+max = 5
+
+[[register]]
+name = "gain"
+address = 7
+bits = [8, 11]
+scale = 0.5
+"""
+
+
+def test_fields_of_a_word_read_and_write_only_their_bits(tmp_path: Path) -> None:
+    """A field (``bits``) is its bits of the word as an unsigned number, an enum or a scaled
+    value; written by read-modify-write, its word's other bits kept; a value beyond its
+    bits or its range is refused before anything is sent."""
+    path = tmp_path / "fields.toml"
+    path.write_text(FIELDS, encoding="utf-8")
+    rows = {r.name: r for r in bb.Profile(path).registers}
+    assert (rows["source"].bits, rows["gain"].bits, rows["status"].bits) == ((5, 6), (8, 11), None)
+    assert (rows["gain"].min, rows["gain"].max) == (0.0, 7.5)
+    assert "bits = [5, 6]" in bb.Profile(path).to_toml()
+    # 0x8041: bit 15, bits 5..6 = 2 (communication), bit 0; control word 0xF003.
+    for sim, dev, model in rig(path, status=0x8041, mode=0, gain=0):
+        model.set_value("mode", 0)
+        dev.bus.write_register(1, 7, 0xF003)
+        before = len(sim.requests)
+        assert dev.read_many(["status", "source"]) == {
+            "status": 0x8041,
+            "source": dev.enums["source"].communication,
+        }
+        assert sent_by(sim, before) == [frame(0x03, 0, 2, 0, 1)]
+        assert (dev.mode, dev.gain) == (0, 0.0)
+        dev.mode = 5  # bits 2..4 of 0xF003
+        dev.gain = 2.5  # bits 8..11
+        assert dev.bus.read_holding_registers(1, 7, 1) == [0xF003 & ~0x0F1C | 5 << 2 | 5 << 8]
+        assert (dev.mode, dev.gain) == (5, 2.5)
+        before = len(sim.requests)
+        for name, value in (("mode", 6), ("gain", 8.0), ("gain", 0.25)):
+            with pytest.raises(ValueError, match=name):
+                setattr(dev, name, value)
+        assert len(sim.requests) == before
+
+
 def test_only_a_one_word_number_shares_its_address_with_bits(tmp_path: Path) -> None:
     """A u32 under a flag, or two whole words at one address: refused by the parser and by
     the simulator, each on its own reading of the file."""

@@ -96,6 +96,7 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "line": 15,
         "models": (),
         "ranges": {},
+        "bits": None,
     }
     assert mode.address == 0x0101
     assert mode.table == "holding"
@@ -212,6 +213,10 @@ CASES = [
     (REG + 'table = "coil"\nbit = 0\n', 7, "register[0].bit"),
     (REG + 'type = "i16"\nbit = 0\n', 7, "register[0].bit"),
     (REG + 'type = "bool"\nbit = 16\n', 7, "register[0].bit"),
+    (REG + "bits = [3, 2]\n", 6, "register[0].bits"),
+    (REG + 'type = "i16"\nbits = [0, 1]\n', 7, "register[0].bits"),
+    (REG + "bits = [0, 1]\nmax = 4\n", 7, "register[0].max"),
+    (REG + 'bits = [0, 1]\nenum = { 4 = "x" }\n', 7, "register[0].enum.4"),
     (REG + 'type = "string"\n', 3, "register[0].length"),
     (REG + 'enum = { one = "a" }\n', 6, "register[0].enum.one"),
     (REG + 'type = "i16"\nenum = { 32768 = "big" }\n', 7, "register[0].enum.32768"),

@@ -131,12 +131,19 @@ class ProfileRegister(NamedTuple):
     models: tuple[str, ...] = ()
     #: Its write range ``(min, max)`` on a model where it differs from ``min`` / ``max``.
     ranges: Mapping[str, tuple[float, float]] = MappingProxyType({})
+    #: A field of the register's bits ``(first, last)``, an unsigned number (``bits``), or
+    #: None for the whole word.
+    bits: tuple[int, int] | None = None
 
     def integer_range(self) -> tuple[int, int] | None:
         """The exact range of an unscaled integer register's type (its engineering values
-        are then whole numbers); None for a float, a scaled value, a bool or a string."""
+        are then whole numbers), or of its field of bits; None for a float, a scaled value,
+        a bool or a string."""
         if self.scale != 1.0 or self.offset != 0.0:
             return None
+        if self.bits is not None:
+            first, last = self.bits
+            return (0, (1 << (last - first + 1)) - 1)
         return INTEGER_RANGES.get(self.type)
 
 

@@ -7,8 +7,8 @@
 
 use super::drive::{self, Family};
 use super::profile::{
-    access_name, echo_name, full_range, table_name, Limits, LineSettings, Profile, ProfileRegister,
-    ProfileValue, ValueType,
+    access_name, echo_name, field_range, full_range, table_name, Limits, LineSettings, Profile,
+    ProfileRegister, ProfileValue, ValueType,
 };
 use super::value::{Kind, Layout};
 use super::{family, Table};
@@ -170,6 +170,9 @@ fn register(out: &mut String, r: &ProfileRegister) {
         }
         _ => {}
     }
+    if let Some((first, last)) = r.bits {
+        let _ = writeln!(out, "bits = [{first}, {last}]");
+    }
     if r.layout != Layout::Abcd {
         let _ = writeln!(out, "order = {}", quote(r.layout.name()));
     }
@@ -194,7 +197,10 @@ fn register(out: &mut String, r: &ProfileRegister) {
         let _ = writeln!(out, "access = {}", quote(access));
     }
     if let ValueType::Number(kind) = r.value {
-        let (lo, hi) = full_range(kind, reg.scale, r.offset);
+        let (lo, hi) = match r.bits {
+            Some((first, last)) => field_range(first, last, reg.scale, r.offset),
+            None => full_range(kind, reg.scale, r.offset),
+        };
         if reg.range.0 != lo {
             let _ = writeln!(out, "min = {}", number(reg.range.0));
         }
@@ -379,6 +385,20 @@ bit = 15
 access = "r"
 
 [[register]]
+name = "source"
+address = 0x60
+bits = [4, 6]
+enum = { 0 = "off", 5 = "auto" }
+
+[[register]]
+name = "stage"
+address = 0x60
+bits = [8, 11]
+scale = 0.5
+max = 6
+access = "r"
+
+[[register]]
 name = "whole"
 address = 0x61
 type = "bool"
@@ -407,7 +427,7 @@ default = -2.5e-8
     #[test]
     fn hand_made_edge_cases_come_back_the_same() {
         let p = Profile::parse("edges.toml", EDGES).unwrap();
-        assert_eq!(p.registers.len(), 14);
+        assert_eq!(p.registers.len(), 16);
         round_trip(&p);
         let empty = Profile::parse("e.toml", "[device]\nname = \"e\"\n").unwrap();
         round_trip(&empty);

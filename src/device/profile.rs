@@ -133,6 +133,9 @@ pub struct ProfileRegister {
     pub models: Vec<String>,
     /// The write range on a model where it differs from [`Register::range`] (`ranges`).
     pub ranges: Vec<(String, (f64, f64))>,
+    /// A field of a register's bits, `(first, last)` (`bits`): an unsigned number of
+    /// `last - first + 1` bits (a status word's mode or source), None for the whole word.
+    pub bits: Option<(u8, u8)>,
 }
 
 /// How the device's own line is set up (each None: the caller's default).
@@ -508,6 +511,7 @@ const REGISTER_KEYS: &[&str] = &[
     "enum",
     "default",
     "bit",
+    "bits",
     "length",
     "models",
     "ranges",
@@ -890,10 +894,10 @@ struct RegisterSet {
 /// In [`RegisterSet::taken`], for a register taken whole (not one of its bits).
 const WHOLE: u8 = 16;
 
-/// Whether a value is one whole register read as a number: the word its bits may be
-/// declared beside (`bit`), a status word and its flags.
-fn is_word(value: &ValueType) -> bool {
-    matches!(value, ValueType::Number(Kind::U16 | Kind::I16))
+/// Whether a register is one whole word read as a number: the word its bits may be
+/// declared beside (`bit`, `bits`), a status word and its flags and fields.
+fn is_word(r: &ProfileRegister) -> bool {
+    r.bits.is_none() && matches!(r.value, ValueType::Number(Kind::U16 | Kind::I16))
 }
 
 impl RegisterSet {
@@ -921,22 +925,25 @@ impl RegisterSet {
                 ));
             }
             let table_id = reg.table as u8;
-            let bit = match reg.value {
-                ValueType::Bool { bit } => bit,
+            // The bits it takes of its register (a bool's bit, a field's), or None: whole.
+            let bits = match (reg.value, reg.bits) {
+                (ValueType::Bool { bit: Some(b) }, _) => Some(b..=b),
+                (_, Some((first, last))) => Some(first..=last),
                 _ => None,
             };
             let first = u32::from(reg.register.address);
             for address in first..first + reg.value.width() {
-                // A bit shares its register with other bits, and with the one-word number
-                // that is the whole of it (a status word beside its bits), nothing else.
+                // Bits share their register with other bits, and with the one-word number
+                // that is the whole of it (a status word beside its fields), nothing else.
                 let at = |b: u8| (table_id, address, b);
                 let whole = self.taken.get(&at(WHOLE)).copied();
-                let other = match bit {
-                    None if is_word(&reg.value) => whole,
+                let other = match &bits {
+                    None if is_word(&reg) => whole,
                     None => self.taken.range(at(0)..=at(WHOLE)).map(|(_, i)| *i).min(),
-                    Some(b) => self.taken.get(&at(b)).copied().or_else(|| {
-                        whole.filter(|i| self.out.get(*i).is_none_or(|w| !is_word(&w.value)))
-                    }),
+                    Some(own) => own
+                        .clone()
+                        .find_map(|b| self.taken.get(&at(b)).copied())
+                        .or_else(|| whole.filter(|i| self.out.get(*i).is_none_or(|w| !is_word(w)))),
                 };
                 if let Some(other) = other {
                     let other_name = self.out.get(other).map_or("", |r| r.register.name.as_str());
@@ -946,7 +953,14 @@ impl RegisterSet {
                         format!("{address:#06x} overlaps {other_name:?}"),
                     ));
                 }
-                self.taken.insert(at(bit.unwrap_or(WHOLE)), index);
+                match &bits {
+                    Some(own) => own.clone().for_each(|b| {
+                        self.taken.insert(at(b), index);
+                    }),
+                    None => {
+                        self.taken.insert(at(WHOLE), index);
+                    }
+                }
             }
             self.out.push(reg);
         }
@@ -1050,7 +1064,6 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
             "an enum register takes no scale or offset",
         ));
     }
-    let default = default(s, value, (range, scale, offset), &members)?;
     let ranges = match kind {
         Some(kind) => model_ranges(s, kind, scale, offset)?,
         None if s.get("ranges").is_some() => {
@@ -1062,6 +1075,12 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         }
         None => Vec::new(),
     };
+    let bits = bits(s, table, value)?;
+    let range = match bits {
+        Some(field) => checked_field_range(s, field, (scale, offset), range, &ranges, &members)?,
+        None => range,
+    };
+    let default = default(s, value, (range, scale, offset), &members)?;
     Ok(ProfileRegister {
         register: Register {
             name: name.to_string(),
@@ -1082,7 +1101,114 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         line,
         models: s.strings("models")?,
         ranges,
+        bits,
     })
+}
+
+/// The largest number bits `first..=last` hold (all of them set), before the shift.
+pub(crate) fn field_top(first: u8, last: u8) -> u16 {
+    (((1u32 << (last - first + 1)) - 1) & 0xFFFF) as u16
+}
+
+/// The engineering values bits `first..=last` hold, `(low, high)`.
+pub(crate) fn field_range(first: u8, last: u8, scale: f64, offset: f64) -> (f64, f64) {
+    let top = super::scaled(f64::from(field_top(first, last)), scale) + offset;
+    (offset.min(top), offset.max(top))
+}
+
+/// A register's `bits`: `[first, last]`, a field of a holding or input register's bits
+/// (0..15), read as an unsigned number (type u16).
+fn bits(s: &Section<'_, '_, '_>, table: Table, value: ValueType) -> Parsed<Option<(u8, u8)>> {
+    let Some(spanned) = s.get("bits") else {
+        return Ok(None);
+    };
+    let span = spanned.span();
+    let pair = match spanned.get_ref() {
+        DeValue::Array(items) if items.len() == 2 => {
+            let int = |v: &Spanned<DeValue<'_>>| match v.get_ref() {
+                DeValue::Integer(i) => i128::from_str_radix(i.as_str(), i.radix()).ok(),
+                _ => None,
+            };
+            int(&items[0]).zip(int(&items[1]))
+        }
+        _ => None,
+    };
+    let Some((first, last)) = pair else {
+        return Err(s.fail(
+            "bits",
+            span,
+            wrong("[first, last]: two bit numbers", spanned.get_ref()),
+        ));
+    };
+    if !(0..=15).contains(&first) || !(0..=15).contains(&last) || first > last {
+        return Err(s.fail(
+            "bits",
+            span,
+            format!("must be [first, last], 0 <= first <= last <= 15, got [{first}, {last}]"),
+        ));
+    }
+    if table.holds_bits() || value != ValueType::Number(Kind::U16) {
+        return Err(s.fail(
+            "bits",
+            span,
+            "only a u16 on a holding or input register takes bits (a single bit: a bool's bit)",
+        ));
+    }
+    Ok(Some((first as u8, last as u8)))
+}
+
+/// The range of a field of bits (`bits`): `min` / `max` (and `ranges`, and the enum's
+/// numbers) within what its bits hold; without them, all it holds.
+fn checked_field_range(
+    s: &Section<'_, '_, '_>,
+    (first, last): (u8, u8),
+    (scale, offset): (f64, f64),
+    range: (f64, f64),
+    ranges: &[(String, (f64, f64))],
+    members: &[(i128, String)],
+) -> Parsed<(f64, f64)> {
+    let top = field_top(first, last);
+    let holds_field = field_range(first, last, scale, offset);
+    let outside = |key: &str, v: f64| {
+        s.fail(
+            key,
+            s.span_of(key),
+            format!(
+                "{v} is outside what bits {first}..{last} hold ({} to {})",
+                holds_field.0, holds_field.1
+            ),
+        )
+    };
+    for (key, given) in [("min", range.0), ("max", range.1)] {
+        if s.get(key).is_some() && !holds(holds_field, given) {
+            return Err(outside(key, given));
+        }
+    }
+    for (_, (lo, hi)) in ranges {
+        for v in [lo, hi] {
+            if !holds(holds_field, *v) {
+                return Err(outside("ranges", *v));
+            }
+        }
+    }
+    if let Some((number, _)) = members.iter().find(|(n, _)| *n > i128::from(top)) {
+        return Err(s.fail(
+            &format!("enum.{number}"),
+            s.span_of("enum"),
+            format!("{number} does not fit bits {first}..{last} (0 to {top})"),
+        ));
+    }
+    let min = if s.get("min").is_some() {
+        range.0
+    } else {
+        holds_field.0
+    };
+    let max = if s.get("max").is_some() {
+        range.1
+    } else {
+        holds_field.1
+    };
+    Ok((min, max))
 }
 
 /// A register's `ranges`: `{ MODEL = [min, max] }`, each within what its type holds.
@@ -1624,6 +1750,29 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             let p = Profile::parse("d.toml", &format!("[device]\nname = \"d\"\n{text}")).unwrap();
             assert_eq!(p.plan(&[0, 1]).len(), 1);
         }
+        // A field of bits overlaps a bit or a field it shares a bit with, not the word.
+        let field = |n: &str, f: u8, l: u8| {
+            format!("[[register]]\nname = \"{n}\"\naddress = 5\nbits = [{f}, {l}]\n")
+        };
+        fails(
+            &format!("{}{}", field("a", 4, 6), bit("b", 6)),
+            9,
+            "register[1].address",
+        );
+        fails(
+            &format!("{}{}", field("a", 4, 6), field("b", 0, 4)),
+            9,
+            "register[1].address",
+        );
+        let text = format!(
+            "[device]\nname = \"d\"\n{word}{}{}{}",
+            field("f", 4, 6),
+            field("g", 0, 3),
+            bit("b", 7)
+        );
+        let p = Profile::parse("d.toml", &text).unwrap();
+        assert_eq!(p.registers[1].bits, Some((4, 6)));
+        assert_eq!(p.plan(&[0, 1, 2, 3]).len(), 1);
         // Distinct bits share a register; other tables are apart.
         let text = format!("[device]\nname = \"d\"\n{}{}", bit("a", 1), bit("b", 2));
         assert!(Profile::parse("d.toml", &text).is_ok());
@@ -1665,6 +1814,39 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
             7,
             "register[0].bit",
         );
+        // bits: [first, last] within 0..15, on a u16 of a holding or input register.
+        for bad in ["3", "[1]", "[2, 1]", "[0, 16]", "[\"a\", 2]"] {
+            fails(&format!("{R}bits = {bad}\n"), 6, "register[0].bits");
+        }
+        for other in ["type = \"i16\"", "type = \"bool\"", "table = \"coil\""] {
+            fails(
+                &format!("{R}{other}\nbits = [0, 1]\n"),
+                7,
+                "register[0].bits",
+            );
+        }
+        // Its range, enum and default within what the bits hold.
+        fails(
+            &format!("{R}bits = [0, 1]\nmax = 4\n"),
+            7,
+            "register[0].max",
+        );
+        fails(
+            &format!("{R}bits = [0, 1]\nenum = {{ 4 = \"x\" }}\n"),
+            7,
+            "register[0].enum.4",
+        );
+        fails(
+            &format!("{R}bits = [0, 1]\ndefault = 4\n"),
+            7,
+            "register[0].default",
+        );
+        let p = Profile::parse(
+            "d.toml",
+            &format!("[device]\nname = \"d\"\n{R}bits = [2, 4]\nscale = 0.5\n"),
+        )
+        .unwrap();
+        assert_eq!(p.registers[0].register.range, (0.0, 3.5));
         fails(&format!("{R}type = \"string\"\n"), 3, "register[0].length");
         fails(&format!("{R}length = 2\n"), 6, "register[0].length");
         fails(

@@ -3,7 +3,7 @@
 //! [`Station`] like the built-in families.
 
 use super::on_station;
-use super::profile::{Profile, ProfileRegister, ProfileValue, ValueType};
+use super::profile::{field_top, Profile, ProfileRegister, ProfileValue, ValueType};
 use super::value::Number;
 use super::{fmt_num, unit_suffix, Access, Station, Table};
 use crate::bus::{Bus, TxOptions};
@@ -139,12 +139,13 @@ pub enum Encoded {
     Words(Vec<u16>),
     /// One coil (0x05).
     Coil(bool),
-    /// One bit of a holding register: read the word, set or clear the bit, write it back.
-    Bit {
-        /// The bit, 0..15.
-        bit: u8,
-        /// Set or clear.
-        on: bool,
+    /// Bits of a holding register (a bool's bit, a field's bits): read the word, put
+    /// `value` in place of its bits `mask`, write it back.
+    Bits {
+        /// The bits written.
+        mask: u16,
+        /// Their new value, in place (bits outside `mask` are 0).
+        value: u16,
     },
 }
 
@@ -192,6 +193,11 @@ impl ProfileRegister {
                 let kept = bytes.len() - bytes.iter().rev().take_while(|b| **b == 0).count();
                 ProfileValue::Text(bytes[..kept].iter().map(|b| char::from(*b)).collect())
             }
+            ValueType::Number(_) if self.bits.is_some() => {
+                let (first, last) = self.bits.unwrap_or((0, 15));
+                let field = words[0] >> first & field_top(first, last);
+                self.engineering(Number::Int(i128::from(field)))
+            }
             ValueType::Number(kind) => {
                 let number = kind
                     .decode(words, self.layout)?
@@ -233,6 +239,22 @@ impl ProfileRegister {
     /// # Errors
     /// [`Error::InvalidArgument`] for a read-only register or a value it cannot take.
     pub fn encode(&self, value: &ProfileValue) -> Result<Encoded> {
+        let whole = self.encode_whole(value)?;
+        match (self.bits, whole) {
+            (Some((first, last)), Encoded::Words(words)) if words.len() == 1 => {
+                let mask = field_top(first, last) << first;
+                Ok(Encoded::Bits {
+                    mask,
+                    value: words[0] << first & mask,
+                })
+            }
+            (_, whole) => Ok(whole),
+        }
+    }
+
+    /// What writing `value` sends to the whole of the register's words (see
+    /// [`encode`](Self::encode)).
+    fn encode_whole(&self, value: &ProfileValue) -> Result<Encoded> {
         let name = self.name();
         if self.register.access == Access::Read {
             return Err(Error::InvalidArgument(format!("{name} is read-only")));
@@ -244,7 +266,10 @@ impl ProfileRegister {
             (ValueType::Bool { .. }, ProfileValue::Bool(on)) => {
                 Ok(match (self.table, self.value) {
                     (Table::Coils, _) => Encoded::Coil(*on),
-                    (_, ValueType::Bool { bit: Some(bit) }) => Encoded::Bit { bit, on: *on },
+                    (_, ValueType::Bool { bit: Some(bit) }) => Encoded::Bits {
+                        mask: 1 << bit,
+                        value: u16::from(*on) << bit,
+                    },
                     _ => Encoded::Words(vec![u16::from(*on)]),
                 })
             }
@@ -469,7 +494,8 @@ impl ProfiledDevice {
     }
 
     /// Writes `value` to the register at `index`, every check made before anything is
-    /// sent; a bit of a holding register is read, changed and written back as one sequence.
+    /// sent; a bit or a field of bits of a holding register is read, changed and written
+    /// back as one sequence.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for a read-only register or a value it cannot take
@@ -481,15 +507,13 @@ impl ProfiledDevice {
             Encoded::Coil(on) => self.station.write_coil(address, on),
             Encoded::Words(words) if words.len() == 1 => self.station.write(address, words[0]),
             Encoded::Words(words) => self.station.write_many(address, &words),
-            Encoded::Bit { bit, on } => self.station.exclusive(|| {
+            Encoded::Bits { mask, value } => self.station.exclusive(|| {
                 let word = *self
                     .station
                     .read(address, 1)?
                     .first()
                     .ok_or_else(|| self.station.short_reply())?;
-                let mask = 1u16 << bit;
-                let word = if on { word | mask } else { word & !mask };
-                self.station.write(address, word)
+                self.station.write(address, word & !mask | value)
             }),
         }
     }
@@ -646,6 +670,48 @@ address = 4
         );
         assert!(s.encode(&ProfileValue::Text("ABCDE".into())).is_err());
         assert!(s.encode(&ProfileValue::Text("\u{263A}".into())).is_err());
+    }
+
+    #[test]
+    fn a_field_of_bits_decodes_and_encodes_in_place() {
+        let p = profile(
+            "",
+            "[[register]]\nname = \"source\"\naddress = 0\nbits = [5, 6]\n\
+             enum = { 0 = \"keypad\", 1 = \"terminals\", 2 = \"communication\" }\n\
+             [[register]]\nname = \"level\"\naddress = 0\nbits = [8, 11]\nscale = 0.5\n\
+             [[register]]\nname = \"ready\"\naddress = 0\ntype = \"bool\"\nbit = 0\n",
+        );
+        let (source, level, ready) = (&p.registers[0], &p.registers[1], &p.registers[2]);
+        // 0x2141: bits 5..6 = 2, bits 8..11 = 1, bit 0 set, bit 14 (no field) set too.
+        let word = 0x4000 | 0x0100 | 0x0040 | 0x0001;
+        assert_eq!(source.decode(&[word]).unwrap(), ProfileValue::Int(2));
+        assert_eq!(level.decode(&[word]).unwrap(), ProfileValue::Float(0.5));
+        assert_eq!(ready.decode(&[word]).unwrap(), ProfileValue::Bool(true));
+        assert_eq!(
+            source
+                .encode(&ProfileValue::Text("terminals".into()))
+                .unwrap(),
+            Encoded::Bits {
+                mask: 0x0060,
+                value: 0x0020
+            }
+        );
+        assert_eq!(
+            level.encode(&ProfileValue::Float(7.5)).unwrap(),
+            Encoded::Bits {
+                mask: 0x0F00,
+                value: 0x0F00
+            }
+        );
+        assert_eq!(
+            ready.encode(&ProfileValue::Bool(false)).unwrap(),
+            Encoded::Bits {
+                mask: 0x0001,
+                value: 0
+            }
+        );
+        assert!(level.encode(&ProfileValue::Float(8.0)).is_err());
+        assert!(source.encode(&ProfileValue::Int(3)).is_err());
     }
 
     #[test]

@@ -225,6 +225,7 @@ impl PyProfile {
             ranges.set_item(model.as_str(), *range)?;
         }
         kwargs.set_item(intern!(py, "ranges"), ranges)?;
+        kwargs.set_item(intern!(py, "bits"), r.bits)?;
         row_type.call((), Some(&kwargs))
     }
 }

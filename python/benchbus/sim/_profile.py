@@ -52,6 +52,7 @@ _REGISTER_KEYS = {
     "description",
     "enum",
     "bit",
+    "bits",
     "length",
     "default",
     "models",
@@ -94,6 +95,8 @@ class _Register:
     bit: int | None
     length: int
     description: str
+    #: A field of the register's bits, (first, last), or None.
+    bits: tuple[int, int] | None = None
 
     @property
     def width(self) -> int:
@@ -111,6 +114,15 @@ class _Register:
     @property
     def scaled(self) -> bool:
         return self.scale != 1 or self.offset != 0
+
+    @property
+    def own_bits(self) -> set[int] | None:
+        """The bits of its word it takes (a bool's bit, a field's), None for all of them."""
+        if self.bit is not None:
+            return {self.bit}
+        if self.bits is not None:
+            return set(range(self.bits[0], self.bits[1] + 1))
+        return None
 
 
 class ProfileDevice(RegisterDevice):
@@ -132,7 +144,8 @@ class ProfileDevice(RegisterDevice):
     registers in reverse order, ``BADC`` the two bytes of each register swapped, ``DCBA``
     both; a ``string`` as ``length`` registers of two characters each (first character in
     the high byte, padded with NUL bytes); a ``bool`` on a register as its ``bit`` (the
-    whole register 0 / 1 without one); an ``enum`` register as the member's number.
+    whole register 0 / 1 without one); a ``u16`` with ``bits = [first, last]`` as those
+    bits of its word; an ``enum`` register as the member's number.
 
     Initial values: a register's ``default``, then ``values`` (engineering values by
     register name, an enum member by name or number), which win; others are 0.
@@ -340,12 +353,14 @@ class ProfileDevice(RegisterDevice):
 
 
 def _may_share(a: _Register, b: _Register) -> bool:
-    """Whether two registers may be declared at one address: two different bits of it, or
-    a bit and the one-word number that is the whole word (a status word and its flags)."""
-    if a.bit is not None and b.bit is not None:
-        return a.bit != b.bit
-    bit, word = (a, b) if a.bit is not None else (b, a)
-    return bit.bit is not None and word.type in ("u16", "i16")
+    """Whether two registers may be declared at one address: different bits of it (bools'
+    bits, fields), or bits and the one-word number that is the whole word (a status word
+    and its flags and fields)."""
+    a_bits, b_bits = a.own_bits, b.own_bits
+    if a_bits is not None and b_bits is not None:
+        return not a_bits & b_bits
+    part, word = (a, b) if a_bits is not None else (b, a)
+    return part.own_bits is not None and word.type in ("u16", "i16")
 
 
 def _access(regs: list[_Register]) -> str:
@@ -532,6 +547,17 @@ def _register(path: str, index: int, row: dict[str, Any]) -> _Register:
             raise fail("bit is for a bool on a holding or input register")
         if isinstance(bit, bool) or not isinstance(bit, int) or not 0 <= bit <= 15:
             raise fail(f"bit must be 0..15, not {bit!r}")
+    bits = row.get("bits")
+    if bits is not None:
+        ints = isinstance(bits, list) and all(type(b) is int for b in bits)
+        if not ints or len(bits) != 2 or not 0 <= bits[0] <= bits[1] <= 15:
+            raise fail(f"bits must be [first, last], 0 <= first <= last <= 15, not {bits!r}")
+        if kind != "u16" or table in _BIT_TABLES:
+            raise fail("bits is for a u16 on a holding or input register")
+        top = (1 << (bits[1] - bits[0] + 1)) - 1
+        if any(not 0 <= n <= top for n in members or {}):
+            raise fail(f"an enum member does not fit bits {bits[0]}..{bits[1]}")
+        bits = (bits[0], bits[1])
     length = row.get("length")
     if kind == "string":
         if isinstance(length, bool) or not isinstance(length, int) or not 1 <= length <= 125:
@@ -556,6 +582,7 @@ def _register(path: str, index: int, row: dict[str, Any]) -> _Register:
         max=None if high is None else float(high),
         enum=members,
         bit=bit,
+        bits=bits,
         length=length or 0,
         description=description,
     )
@@ -595,6 +622,9 @@ def _decode(reg: _Register, words: list[int]) -> Value:
     if reg.type == "string":
         return data.rstrip(b"\0").decode("latin-1")
     raw: int | float = struct.unpack(">" + _NUMERIC[reg.type][0], data)[0]
+    if reg.bits is not None:
+        first, last = reg.bits
+        raw = int(raw) >> first & (1 << (last - first + 1)) - 1
     if reg.enum is not None:
         return reg.enum.get(int(raw), raw)
     if not reg.scaled:
@@ -647,6 +677,12 @@ def _encode(reg: _Register, value: Value, current: list[int]) -> list[int]:
         raw = (value - reg.offset) / reg.scale
     if code not in "fd":
         raw = round(raw)
+    if reg.bits is not None:
+        first, last = reg.bits
+        top = (1 << (last - first + 1)) - 1
+        if not 0 <= raw <= top:
+            raise ValueError(f"{reg.name} does not fit bits {first}..{last}: {value!r}")
+        return [current[0] & ~(top << first) | int(raw) << first]
     try:
         data = struct.pack(">" + code, raw)
     except (struct.error, OverflowError):
