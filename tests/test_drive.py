@@ -192,6 +192,16 @@ def test_bld_status_word_2_is_the_manuals_example(bld: Rig) -> None:
     assert drive.get("status_word") == 0x41
     assert sim.requests[-1] == h("01 03 21 01 00 01 DF F6")
     assert sim.replies[-1] == h("01 03 02 00 41 78 74")
+    # Its fields by name, from the same reply (bit 0, bits 5..6 = 2, bit 7), and as
+    # status() gives them.
+    before = len(sim.requests)
+    fields = drive.get_many(["bus_voltage_ready", "control_source", "keypad_connected"])
+    assert fields == {"bus_voltage_ready": True, "control_source": 2, "keypad_connected": False}
+    assert sim.requests[before:] == [h("01 03 21 01 00 01 DF F6")]
+    status = drive.status()
+    assert (status.bus_voltage_ready, status.keypad_connected) == (True, False)
+    assert status.control_source == bb.CommandSource.COMMUNICATION
+    assert status.overloaded is False
 
 
 # ---- properties -------------------------------------------------------------------------------

@@ -289,22 +289,22 @@ pub struct Status {
 }
 
 impl Status {
-    /// Decodes the three status words as `family` defines them.
-    pub fn decode(family: Family, state: u16, word: u16, fault_code: u16) -> Status {
+    /// The rows a status read takes, in order (the BLD's table adds `keypad_connected`):
+    /// 0x2100..0x2102 and the fields of status word 2 the drive file declares.
+    const ROWS: [&'static str; 5] = [
+        STATE,
+        "status_word",
+        "fault_code",
+        "bus_voltage_ready",
+        "control_source",
+    ];
+
+    /// Status word 2 bit 4 as `family` gives it: 1 is overloaded on the BLD, 0 on the C20.
+    pub fn overloaded(family: Family, word: u16) -> bool {
         let bit4 = word & 0x10 != 0;
-        Status {
-            state,
-            bus_voltage_ready: word & 0x01 != 0,
-            overloaded: match family {
-                Family::Bld => bit4,
-                Family::C20 => !bit4,
-            },
-            control_source: (word >> 5) & 0x03,
-            keypad_connected: match family {
-                Family::Bld => Some(word & 0x80 != 0),
-                Family::C20 => None,
-            },
-            fault_code,
+        match family {
+            Family::Bld => bit4,
+            Family::C20 => !bit4,
         }
     }
 }
@@ -670,13 +670,17 @@ impl Drive {
     /// # Errors
     /// Any [`Error`].
     pub fn status(&self) -> Result<Status> {
-        match self.get_many(&[STATE, "status_word", "fault_code"])?[..] {
-            [state, word, fault] => Ok(Status::decode(
-                self.family,
-                state as u16,
-                word as u16,
-                fault as u16,
-            )),
+        let keypad = (self.family == Family::Bld).then_some("keypad_connected");
+        let names: Vec<&str> = Status::ROWS.into_iter().chain(keypad).collect();
+        match self.get_many(&names)?[..] {
+            [state, word, fault, ready, source, ref keypad @ ..] => Ok(Status {
+                state: state as u16,
+                bus_voltage_ready: ready != 0.0,
+                overloaded: Status::overloaded(self.family, word as u16),
+                control_source: source as u16,
+                keypad_connected: keypad.first().map(|k| *k != 0.0),
+                fault_code: fault as u16,
+            }),
             _ => Err(self.station.short_reply()),
         }
     }
@@ -939,24 +943,23 @@ mod tests {
     }
 
     #[test]
-    fn status_word_2_polarity_differs_by_family() {
-        // The manuals' example: 0x0041 = bus voltage up, communication control, bit 4 = 0.
-        let bld = Status::decode(Family::Bld, 5, 0x0041, 0);
-        assert!(bld.bus_voltage_ready && !bld.overloaded);
-        assert_eq!(bld.control_source, 2);
-        assert_eq!(bld.keypad_connected, Some(false));
-        let c20 = Status::decode(Family::C20, 5, 0x0041, 0);
-        assert!(c20.overloaded);
-        assert_eq!(c20.keypad_connected, None);
-        assert!(!Status::decode(Family::C20, 3, 0x0051, 0).overloaded);
+    fn status_word_2_bit_4_polarity_differs_by_family() {
+        // The manuals' example: 0x0041 has bit 4 = 0.
+        assert!(!Status::overloaded(Family::Bld, 0x0041));
+        assert!(Status::overloaded(Family::C20, 0x0041));
+        assert!(!Status::overloaded(Family::C20, 0x0051));
+        assert!(Status::overloaded(Family::Bld, 0x0051));
     }
 
     #[test]
     fn table_is_sorted_unique_and_fits_sixteen_bits() {
         let file = family::profile("drive").unwrap();
         assert_eq!(file.models, ["BLD", "C20"]);
+        // In address order; one address twice only for status word 2 and its fields.
         for pair in file.registers.windows(2) {
-            assert!(pair[0].register.address < pair[1].register.address);
+            let (a, b) = (&pair[0].register, &pair[1].register);
+            assert!(a.address <= b.address, "{}", b.name);
+            assert!(a.address < b.address || b.address == 0x2101, "{}", b.name);
         }
         for entry in &file.registers {
             let r = &entry.register;
@@ -968,7 +971,7 @@ mod tests {
         }
         let (bld, c20) = (table(Family::Bld).unwrap(), table(Family::C20).unwrap());
         assert_eq!(bld.registers.len(), file.registers.len());
-        assert_eq!(c20.registers.len(), file.registers.len() - 6);
+        assert_eq!(c20.registers.len(), file.registers.len() - 7);
         let on = |t: &Profile, name: &str| {
             t.registers
                 .iter()
