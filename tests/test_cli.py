@@ -681,6 +681,18 @@ def test_profile_check_prints_the_table_and_refuses_a_mistake_with_its_line(
     assert "No such file" in one_line_error(run("profile", "check", tmp_path / "none.toml"), 2)
 
 
+def test_profile_check_shows_a_flag_and_a_field_of_a_status_word(tmp_path: Path) -> None:
+    path = tmp_path / "status.toml"
+    path.write_text(
+        '[device]\nname = "x"\n[[register]]\nname = "status"\naddress = 1\naccess = "r"\n'
+        '[[register]]\nname = "ready"\naddress = 1\ntype = "bool"\nbit = 0\naccess = "r"\n'
+        '[[register]]\nname = "mode"\naddress = 1\nbits = [5, 6]\naccess = "r"\n'
+    )
+    rows = {line.split()[0]: line for line in ok(run("profile", "check", path))[3:]}
+    assert "bool bit 0" in rows["ready"]
+    assert "u16 bits 5..6" in rows["mode"] and rows["mode"].rstrip().endswith("0..3")
+
+
 def test_profile_check_refuses_an_enum_member_python_keeps_for_itself(tmp_path: Path) -> None:
     bad = tmp_path / "enum.toml"
     bad.write_text(

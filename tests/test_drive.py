@@ -197,6 +197,7 @@ def test_bld_status_word_2_is_the_manuals_example(bld: Rig) -> None:
     before = len(sim.requests)
     fields = drive.get_many(["bus_voltage_ready", "control_source", "keypad_connected"])
     assert fields == {"bus_voltage_ready": True, "control_source": 2, "keypad_connected": False}
+    assert [type(v) for v in fields.values()] == [bool, int, bool]
     assert sim.requests[before:] == [h("01 03 21 01 00 01 DF F6")]
     status = drive.status()
     assert (status.bus_voltage_ready, status.keypad_connected) == (True, False)

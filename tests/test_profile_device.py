@@ -639,3 +639,28 @@ def test_only_a_one_word_number_shares_its_address_with_bits(tmp_path: Path) -> 
             bb.Profile(path)
         with pytest.raises(ValueError, match="is also"):
             ProfileDevice(path)
+
+
+@pytest.mark.parametrize(
+    "extra",
+    [
+        "bits = [3, 2]",
+        'bits = [0, 3]\ntype = "i16"',
+        'bits = [0, 3]\norder = "BADC"',
+        "bits = [0, 1]\nmax = 4",
+        "bits = [0, 1]\nscale = 0.5\nmin = -1",
+        'bits = [0, 1]\nenum = { 4 = "four" }',
+    ],
+)
+def test_a_field_its_bits_cannot_hold_is_refused_by_both_readers(
+    tmp_path: Path, extra: str
+) -> None:
+    """The core and the simulator each refuse, on their own reading of the file, a field
+    with its bits reversed, on another type, with a byte order, or a range or enum member
+    beyond what its bits hold."""
+    path = tmp_path / "bad.toml"
+    path.write_text(f'[device]\nname = "d"\n[[register]]\nname = "f"\naddress = 1\n{extra}\n')
+    with pytest.raises(bb.ProfileError):
+        bb.Profile(path)
+    with pytest.raises(ValueError, match="bits|byte order"):
+        ProfileDevice(path)

@@ -588,7 +588,7 @@ impl Drive {
     /// # Errors
     /// [`Error::InvalidArgument`] if there is no such register, or not on this family.
     pub fn register(&self, name: &str) -> Result<&'static Register<String>> {
-        self.row(name)
+        Ok(&self.row(name)?.register)
     }
 
     /// The address of the row called `name` of this drive's table.

@@ -61,6 +61,8 @@ pub fn registers(key: &str) -> Result<&'static [ProfileRegister]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::device::profile::ValueType;
+    use crate::device::Access;
 
     #[test]
     fn every_file_reads() {
@@ -68,6 +70,15 @@ mod tests {
             let p = profile(key).unwrap();
             assert!(!p.registers.is_empty(), "{key}");
             assert!(p.line.baudrate.is_some(), "{key}: its line is the file's");
+            // A family's set writes whole words: its flags and fields are read-only.
+            for r in &p.registers {
+                let part = r.bits.is_some() || matches!(r.value, ValueType::Bool { .. });
+                assert!(
+                    !part || r.register.access == Access::Read,
+                    "{}",
+                    r.register.name
+                );
+            }
         }
         assert!(text("nope").is_none() && note("nope").is_none());
         let note = note("drive").unwrap();

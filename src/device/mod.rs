@@ -16,7 +16,7 @@ pub mod value;
 use crate::bus::{Bus, TxOptions};
 use crate::codec::FrameError;
 use crate::error::{Error, Result};
-use profile::{Profile, ProfileValue};
+use profile::{Profile, ProfileRegister, ProfileValue};
 use profiled::{read_block, read_planned, Block};
 use std::sync::Arc;
 use std::time::Duration;
@@ -315,8 +315,8 @@ pub trait Tabled: Device {
     ///
     /// # Errors
     /// As [`index`](Self::index).
-    fn row(&self, name: &str) -> Result<&'static Register<String>> {
-        Ok(&self.table()?.registers[self.index(name)?].register)
+    fn row(&self, name: &str) -> Result<&'static ProfileRegister> {
+        Ok(&self.table()?.registers[self.index(name)?])
     }
 
     /// Writes `value` (engineering units) to the row called `name`, checked (range, steps,
@@ -376,7 +376,7 @@ pub trait Tabled: Device {
     /// As [`set`](Self::set); a failure stops the sequence (the earlier writes stay).
     fn set_many(&self, values: &[(String, f64)]) -> Result<()> {
         for (name, value) in values {
-            self.row(name)?.encode(*value)?;
+            self.row(name)?.register.encode(*value)?;
         }
         values
             .iter()

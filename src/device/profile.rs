@@ -1107,7 +1107,8 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
 
 /// The largest number bits `first..=last` hold (all of them set), before the shift.
 pub(crate) fn field_top(first: u8, last: u8) -> u16 {
-    (((1u32 << (last - first + 1)) - 1) & 0xFFFF) as u16
+    let width = u32::from(last.saturating_sub(first)) + 1;
+    u16::MAX.checked_shr(16 - width.min(16)).unwrap_or(u16::MAX)
 }
 
 /// The engineering values bits `first..=last` hold, `(low, high)`.
@@ -1152,6 +1153,13 @@ fn bits(s: &Section<'_, '_, '_>, table: Table, value: ValueType) -> Parsed<Optio
             "bits",
             span,
             "only a u16 on a holding or input register takes bits (a single bit: a bool's bit)",
+        ));
+    }
+    if s.get("order").is_some() {
+        return Err(s.fail(
+            "order",
+            s.span_of("order"),
+            "a field of bits has no byte order: its bits are the word's",
         ));
     }
     Ok(Some((first as u8, last as u8)))

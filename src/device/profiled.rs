@@ -186,7 +186,9 @@ impl ProfileRegister {
             )));
         }
         Ok(match self.value {
-            ValueType::Bool { bit: Some(bit) } => ProfileValue::Bool(words[0] >> bit & 1 == 1),
+            ValueType::Bool { bit: Some(bit) } => {
+                ProfileValue::Bool(words[0].checked_shr(u32::from(bit)).unwrap_or(0) & 1 == 1)
+            }
             ValueType::Bool { bit: None } => ProfileValue::Bool(words[0] != 0),
             ValueType::Text { .. } => {
                 let bytes = self.layout.from_registers(words);
@@ -195,7 +197,8 @@ impl ProfileRegister {
             }
             ValueType::Number(_) if self.bits.is_some() => {
                 let (first, last) = self.bits.unwrap_or((0, 15));
-                let field = words[0] >> first & field_top(first, last);
+                let word = words[0].checked_shr(u32::from(first)).unwrap_or(0);
+                let field = word & field_top(first, last);
                 self.engineering(Number::Int(i128::from(field)))
             }
             ValueType::Number(kind) => {
@@ -242,10 +245,11 @@ impl ProfileRegister {
         let whole = self.encode_whole(value)?;
         match (self.bits, whole) {
             (Some((first, last)), Encoded::Words(words)) if words.len() == 1 => {
-                let mask = field_top(first, last) << first;
+                let shift = |w: u16| w.checked_shl(u32::from(first)).unwrap_or(0);
+                let mask = shift(field_top(first, last));
                 Ok(Encoded::Bits {
                     mask,
-                    value: words[0] << first & mask,
+                    value: shift(words[0]) & mask,
                 })
             }
             (_, whole) => Ok(whole),
@@ -266,10 +270,13 @@ impl ProfileRegister {
             (ValueType::Bool { .. }, ProfileValue::Bool(on)) => {
                 Ok(match (self.table, self.value) {
                     (Table::Coils, _) => Encoded::Coil(*on),
-                    (_, ValueType::Bool { bit: Some(bit) }) => Encoded::Bits {
-                        mask: 1 << bit,
-                        value: u16::from(*on) << bit,
-                    },
+                    (_, ValueType::Bool { bit: Some(bit) }) => {
+                        let mask = 1u16.checked_shl(u32::from(bit)).unwrap_or(0);
+                        Encoded::Bits {
+                            mask,
+                            value: if *on { mask } else { 0 },
+                        }
+                    }
                     _ => Encoded::Words(vec![u16::from(*on)]),
                 })
             }
@@ -682,7 +689,7 @@ address = 4
              [[register]]\nname = \"ready\"\naddress = 0\ntype = \"bool\"\nbit = 0\n",
         );
         let (source, level, ready) = (&p.registers[0], &p.registers[1], &p.registers[2]);
-        // 0x2141: bits 5..6 = 2, bits 8..11 = 1, bit 0 set, bit 14 (no field) set too.
+        // 0x4141: bits 5..6 = 2, bits 8..11 = 1, bit 0 set, bit 14 (no field) set too.
         let word = 0x4000 | 0x0100 | 0x0040 | 0x0001;
         assert_eq!(source.decode(&[word]).unwrap(), ProfileValue::Int(2));
         assert_eq!(level.decode(&[word]).unwrap(), ProfileValue::Float(0.5));

@@ -288,7 +288,8 @@ macro_rules! device_methods {
                 let name = $crate::python::row_name(name)?;
                 let read = move |d: &_| Ok((Tabled::row(d, &name)?, Tabled::get(d, &name)?));
                 let (row, raw) = slf.get().dev.wire(py, read)?;
-                $crate::python::named(slf.as_any(), &row.name, $crate::python::shown(py, row, raw))
+                let shown = $crate::python::shown_row(py, row, raw);
+                $crate::python::named(slf.as_any(), &row.register.name, shown)
             }
 
             /// Writes ``value`` (engineering units) to the register called ``name``, checked
@@ -324,8 +325,9 @@ macro_rules! device_methods {
                 };
                 let out = PyDict::new(py);
                 for (row, value) in slf.get().dev.wire(py, read)? {
-                    let shown = $crate::python::shown(py, row, value);
-                    out.set_item(&row.name, $crate::python::named(slf.as_any(), &row.name, shown)?)?;
+                    let shown = $crate::python::shown_row(py, row, value);
+                    let name = &row.register.name;
+                    out.set_item(name, $crate::python::named(slf.as_any(), name, shown)?)?;
                 }
                 Ok(out)
             }
@@ -853,6 +855,20 @@ fn shown<'py>(
         PyInt::new(py, value as i64).into_any()
     } else {
         PyFloat::new(py, value).into_any()
+    }
+}
+
+/// A row's value as Python shows it: a flag (a bool row) as a bool, else as [`shown`].
+fn shown_row<'py>(
+    py: Python<'py>,
+    row: &crate::device::profile::ProfileRegister,
+    value: f64,
+) -> Bound<'py, PyAny> {
+    match row.value {
+        crate::device::profile::ValueType::Bool { .. } => {
+            PyBool::new(py, value != 0.0).to_owned().into_any()
+        }
+        _ => shown(py, &row.register, value),
     }
 }
 

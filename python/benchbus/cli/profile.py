@@ -26,9 +26,11 @@ def _range(row: ProfileRegister) -> str:
 
 
 def _kind(row: ProfileRegister) -> str:
-    """The register's type, with its bit, length or order where it has one."""
+    """The register's type, with its bit, bits, length or order where it has one."""
     if row.bit is not None:
         return f"bool bit {row.bit}"
+    if row.bits is not None:
+        return f"u16 bits {row.bits[0]}..{row.bits[1]}"
     if row.length is not None:
         return f"string x{row.length}"
     if row.type in ("u16", "i16", "bool"):

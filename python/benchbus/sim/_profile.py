@@ -554,9 +554,16 @@ def _register(path: str, index: int, row: dict[str, Any]) -> _Register:
             raise fail(f"bits must be [first, last], 0 <= first <= last <= 15, not {bits!r}")
         if kind != "u16" or table in _BIT_TABLES:
             raise fail("bits is for a u16 on a holding or input register")
+        if "order" in row:
+            raise fail("a field of bits has no byte order")
         top = (1 << (bits[1] - bits[0] + 1)) - 1
         if any(not 0 <= n <= top for n in members or {}):
             raise fail(f"an enum member does not fit bits {bits[0]}..{bits[1]}")
+        ends = sorted((offset, top * scale + offset))
+        given = [low, high, *(v for r in row.get("ranges", {}).values() for v in r)]
+        slack = abs(scale) * 1e-6
+        if any(v is not None and not ends[0] - slack <= v <= ends[1] + slack for v in given):
+            raise fail(f"a range beyond what bits {bits[0]}..{bits[1]} hold ({ends[0]}..{ends[1]})")
         bits = (bits[0], bits[1])
     length = row.get("length")
     if kind == "string":
