@@ -139,7 +139,7 @@ fn a_unit_its_vouch_refuses_gets_nothing_but_an_urgent_stop() {
 
 /// Reads `name` through the one interface every family with a table has.
 fn by_name(device: &impl Tabled, name: &str) -> benchbus::Result<(u16, f64)> {
-    Ok((device.row(name)?.address, device.get(name)?))
+    Ok((device.row(name)?.register.address, device.get(name)?))
 }
 
 #[test]

@@ -662,5 +662,5 @@ def test_a_field_its_bits_cannot_hold_is_refused_by_both_readers(
     path.write_text(f'[device]\nname = "d"\n[[register]]\nname = "f"\naddress = 1\n{extra}\n')
     with pytest.raises(bb.ProfileError):
         bb.Profile(path)
-    with pytest.raises(ValueError, match="bits|byte order"):
+    with pytest.raises(ValueError, match=r"bits|byte order"):
         ProfileDevice(path)
