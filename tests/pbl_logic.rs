@@ -4,7 +4,7 @@
 mod common;
 
 use benchbus::device::pbl::{table, Pbl};
-use benchbus::device::Device;
+use benchbus::device::{Device, Tabled};
 use benchbus::Error;
 use common::{bus, hex, sent, with_crc, words, Act, Scripted};
 use std::sync::Arc;

@@ -529,8 +529,12 @@ impl Tabled for Drive {
         }
     }
 
+    /// Writes `value` (engineering units) to the register called `name`, checked against
+    /// its range and resolution before anything is sent.
     fn set(&self, name: &str, value: f64) -> Result<()> {
-        Drive::set(self, name, value)
+        let register = self.register(name)?;
+        let raw = register.encode(value)?;
+        self.write(register.address, raw)
     }
 
     /// A block of holding registers as the drive allows: in one request, or one register a
@@ -594,17 +598,6 @@ impl Drive {
     /// The address of the row called `name` of this drive's table.
     fn address(&self, name: &str) -> Result<u16> {
         Ok(self.register(name)?.address)
-    }
-
-    /// Writes `value` (engineering units) to the register called `name`, checked against
-    /// its range and resolution before anything is sent.
-    ///
-    /// # Errors
-    /// Any [`Error`]; [`Error::InvalidArgument`] for a bad value or a read-only register.
-    pub fn set(&self, name: &str, value: f64) -> Result<()> {
-        let register = self.register(name)?;
-        let raw = register.encode(value)?;
-        self.write(register.address, raw)
     }
 
     /// Sends a command to 0x2000.

@@ -135,8 +135,12 @@ impl Tabled for J2 {
         index(name)
     }
 
+    /// Writes `value` to the parameter called `name`, applying the manual's rules: the range
+    /// is checked first (an "LSP~USP" range against the limits read from the controller);
+    /// MV needs manual mode; RAPNF is written 0 before a ramp parameter; LSP may not go
+    /// above USP nor USP below LSP. Writes are paced 150 ms apart by the Bus.
     fn set(&self, name: &str, value: f64) -> Result<()> {
-        J2::set(self, name, value)
+        self.set_as(name, value, false)
     }
 }
 
@@ -164,23 +168,12 @@ impl J2 {
         Ok(names.into_iter().zip(values).collect())
     }
 
-    /// Writes `value` to the parameter called `name`, applying the manual's rules: the range
-    /// is checked first (an "LSP~USP" range against the limits read from the controller);
-    /// MV needs manual mode; RAPNF is written 0 before a ramp parameter; LSP may not go
-    /// above USP nor USP below LSP. Writes are paced 150 ms apart by the Bus.
+    /// As [`Tabled::set`], with function 0x10 (one register) instead of 0x06 when
+    /// `multiple`: the manual shows both for SV.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for a bad name or value (nothing sent);
     /// [`Error::State`] for MV in automatic mode (nothing written); any other [`Error`].
-    pub fn set(&self, name: &str, value: f64) -> Result<()> {
-        self.set_as(name, value, false)
-    }
-
-    /// As [`set`](Self::set), with function 0x10 (one register) instead of 0x06 when
-    /// `multiple`: the manual shows both for SV.
-    ///
-    /// # Errors
-    /// As [`set`](Self::set).
     pub fn set_as(&self, name: &str, value: f64, multiple: bool) -> Result<()> {
         let p = by_name(name)?;
         let raw = encode(p, value)?;

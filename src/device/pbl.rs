@@ -113,8 +113,11 @@ impl Tabled for Pbl {
         index(name)
     }
 
+    /// Writes `value` to the parameter called `name`, checked before anything is sent.
     fn set(&self, name: &str, value: f64) -> Result<()> {
-        Pbl::set(self, name, value)
+        let p = by_name(name)?;
+        let raw = p.encode(value)?;
+        self.write(p.address, raw)
     }
 }
 
@@ -132,16 +135,6 @@ impl Pbl {
         Pbl {
             station: Station::new(bus, unit, opts),
         }
-    }
-
-    /// Writes `value` to the parameter called `name`, checked before anything is sent.
-    ///
-    /// # Errors
-    /// Any [`Error`]; [`Error::InvalidArgument`] for a read-only parameter or a bad value.
-    pub fn set(&self, name: &str, value: f64) -> Result<()> {
-        let p = by_name(name)?;
-        let raw = p.encode(value)?;
-        self.write(p.address, raw)
     }
 
     /// Reads parameter `number`.
