@@ -996,12 +996,13 @@ impl Bus {
             let Some(mut st) = self.line(&cancel, ready) else {
                 return Err(cancelled(unit, request, attempt));
             };
-            // An urgent write or a broadcast made after this write has gone out: sent now,
-            // this one would undo it. Told while holding the line, as they are sent.
+            // An urgent write, a write nested in this one (a signal handler's) or a broadcast
+            // made after this write has gone out: sent now, this one would undo it. Told
+            // while holding the line, as they are sent.
             if writing.as_ref().is_some_and(|w| self.writes.overruled(w)) {
                 log::debug!(
                     target: "benchbus::wire",
-                    "not sent: an urgent write or a broadcast to unit {unit} made after it went out"
+                    "not sent: an urgent or nested write or a broadcast to unit {unit} made after it went out"
                 );
                 if last_error.is_none() {
                     return Err(cancelled(unit, request, 0));
@@ -1025,7 +1026,8 @@ impl Bus {
                     &mut first_unanswered,
                 )
             });
-            if urgent && st.frames_out != frames_before {
+            let overrules = urgent || writing.as_ref().is_some_and(writes::Writing::nested);
+            if overrules && st.frames_out != frames_before {
                 self.writes.overrule(Some(unit), call);
             }
             // The attempt timed out, so its answer is owed: it may still come, and a device

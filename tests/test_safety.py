@@ -542,6 +542,34 @@ def test_ctrl_c_stops_a_write_waiting_behind_another_threads_write_to_its_unit()
         assert bus.read_holding_registers(1, 0x10, 1) == [111]
 
 
+def test_a_handlers_write_is_not_undone_by_the_write_it_interrupted() -> None:
+    """Unit 9 is absent; a write to it has three attempts of 0.25 s. A signal handler that
+    writes another value to the same unit, run between the first write's attempts, makes
+    the later write: its three attempts go out, and the first write's remaining attempts
+    are not sent after them (they would leave the device with the value it replaced)."""
+    with (
+        Simulator(RegisterDevice({0x10: 111})) as sim,
+        bb.Bus(sim.port, timeout=0.25, retries=2) as bus,
+    ):
+        errors: list[Exception] = []
+
+        def handler() -> None:
+            try:
+                bus.write_register(9, 0x10, 2)
+            except bb.ResponseTimeout as exc:
+                errors.append(exc)
+
+        with (
+            signal_during_the_next_call(signal.SIGUSR2, handler, 0.05) as seen,
+            pytest.raises(bb.ResponseTimeout),
+        ):
+            bus.write_register(9, 0x10, 1)
+        values = [r[4:6] for r in sim.requests if r[0] == 9]
+        assert seen == [signal.SIGUSR2] and len(errors) == 1
+        assert values == [b"\x00\x01"] + [b"\x00\x02"] * 3
+        assert bus.read_holding_registers(1, 0x10, 1) == [111]
+
+
 CLI_READ_SLOW = """
 import sys
 from benchbus.cli import main

@@ -15,8 +15,10 @@
 //! does not (a drive's run command sent after the stop would start the motor again): it
 //! fails, cancelled or with its last attempt's error.
 //!
-//! A write made on the thread of an earlier one (a signal handler's, run between that
-//! one's attempts) waits only for what that one waits for: it would wait for itself.
+//! A write made on the thread of an earlier one to its unit (a signal handler's, run while
+//! that one waits or between its attempts) waits only for what that one waits for: it
+//! would wait for itself. Once gone out, it overrules the writes made before it, as an
+//! urgent write does: the earlier one, resumed after the handler, would undo it.
 
 use crate::codec::pdu::decode::decode;
 use crate::codec::Request;
@@ -65,6 +67,8 @@ pub(crate) struct Writing<'a> {
     writes: &'a Writes,
     unit: u8,
     call: u64,
+    /// Made on the thread of an earlier write to its unit still in progress (nested in it).
+    nested: bool,
 }
 
 impl Writes {
@@ -73,11 +77,14 @@ impl Writes {
     pub(crate) fn enter(&self, unit: u8, calls: &AtomicU64) -> Writing<'_> {
         let mut book = self.lock();
         let call = calls.fetch_add(1, Ordering::Relaxed);
-        book.writing.push((unit, call, thread::current().id()));
+        let me = thread::current().id();
+        let nested = book.writing.iter().any(|&(u, _, t)| u == unit && t == me);
+        book.writing.push((unit, call, me));
         Writing {
             writes: self,
             unit,
             call,
+            nested,
         }
     }
 
@@ -141,6 +148,12 @@ impl Writing<'_> {
     pub(crate) fn call(&self) -> u64 {
         self.call
     }
+
+    /// Whether it was made on the thread of an earlier write to its unit still in progress
+    /// (a signal handler's): once gone out, it overrules the writes made before it.
+    pub(crate) fn nested(&self) -> bool {
+        self.nested
+    }
 }
 
 impl Drop for Writing<'_> {
@@ -170,6 +183,8 @@ mod tests {
         // On this thread, a later write does not wait for the earlier one.
         let later = writes.enter(1, &calls);
         assert!(first.call() < later.call());
+        // Made while the first is in progress on its thread: nested, and it overrules it.
+        assert!(later.nested() && !first.nested() && !other_unit.nested());
         assert!(!writes.behind(1, later.call()));
         // On another, it does, until the earlier ones are over.
         assert!(elsewhere(&writes, 1, later.call()));
