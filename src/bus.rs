@@ -927,8 +927,9 @@ impl Bus {
     ///
     /// Each attempt has its own turn on the line: a retry waits at the back of the queue,
     /// behind the callers that asked meanwhile, but a write waits until the writes made
-    /// before it to its unit are over, and is not sent again after an urgent write or a
-    /// broadcast made after it (`src/bus/writes.rs`). A paced write waits for its interval, and a
+    /// before it to its unit are over, and is not sent again after an urgent write, a write
+    /// nested in it or a broadcast made after it (`src/bus/writes.rs`). A paced write waits
+    /// for its interval, and a
     /// request to a unit that still owes answers to another call's timed-out attempts waits
     /// for them (up to three timeouts each), without a turn while it can. A frame that
     /// comes too soon to answer an attempt is dropped ([`Turnarounds`]). Under a cancelled

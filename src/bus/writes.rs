@@ -1,6 +1,6 @@
 //! The order of writes to one unit: a write goes to the line only once the writes made
-//! before it to the same unit are over, and not at all once an urgent write or a broadcast
-//! made after it has gone out.
+//! before it to the same unit are over, and not at all once an urgent write, a write
+//! nested in it (a signal handler's) or a broadcast made after it has gone out.
 //!
 //! A call that must try again takes a new turn at the back of the line's queue (see
 //! [`super::queue`]). For a read that costs nothing, but a write whose reply was lost or
@@ -17,8 +17,9 @@
 //!
 //! A write made on the thread of an earlier one to its unit (a signal handler's, run while
 //! that one waits or between its attempts) waits only for what that one waits for: it
-//! would wait for itself. Once gone out, it overrules the writes made before it, as an
-//! urgent write does: the earlier one, resumed after the handler, would undo it.
+//! would wait for itself. Once gone out, it overrules the writes made before it to its
+//! unit, whatever their addresses, as an urgent write does: the earlier one, resumed after
+//! the handler, would otherwise go out after it, out of the order they were made in.
 
 use crate::codec::pdu::decode::decode;
 use crate::codec::Request;
@@ -56,7 +57,7 @@ pub(crate) struct Writes(Mutex<Book>);
 struct Book {
     /// The write calls in progress: their unit, call number and thread.
     writing: Vec<(u8, u64, ThreadId)>,
-    /// The last urgent write to each unit, by call number.
+    /// The last urgent or nested write to each unit that has gone out, by call number.
     urgent: HashMap<u8, u64>,
     /// The last broadcast, by call number.
     broadcast: Option<u64>,
@@ -95,8 +96,8 @@ impl Writes {
         calls.fetch_add(1, Ordering::Relaxed)
     }
 
-    /// Records that the urgent write `call` to `unit` (None: the broadcast `call`) has gone
-    /// out: the writes made before it do not go out from now on.
+    /// Records that the urgent or nested write `call` to `unit` (None: the broadcast `call`)
+    /// has gone out: the writes made before it do not go out from now on.
     pub(crate) fn overrule(&self, unit: Option<u8>, call: u64) {
         let mut book = self.lock();
         match unit {
@@ -124,8 +125,8 @@ impl Writes {
             .any(|&(u, c, t)| u == unit && c < limit && t != me)
     }
 
-    /// Whether an urgent write to the unit of `writing`, or a broadcast, made after it has
-    /// gone out.
+    /// Whether an urgent or nested write to the unit of `writing`, or a broadcast, made
+    /// after it has gone out.
     pub(crate) fn overruled(&self, writing: &Writing<'_>) -> bool {
         let book = self.lock();
         let urgent = book.urgent.get(&writing.unit).copied();
@@ -183,7 +184,8 @@ mod tests {
         // On this thread, a later write does not wait for the earlier one.
         let later = writes.enter(1, &calls);
         assert!(first.call() < later.call());
-        // Made while the first is in progress on its thread: nested, and it overrules it.
+        // Made while the first is in progress on its thread: nested (once gone out, the Bus
+        // records it as overruling the writes before it).
         assert!(later.nested() && !first.nested() && !other_unit.nested());
         assert!(!writes.behind(1, later.call()));
         // On another, it does, until the earlier ones are over.
