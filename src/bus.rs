@@ -929,12 +929,11 @@ impl Bus {
     /// behind the callers that asked meanwhile, but a write waits until the writes made
     /// before it to its unit are over, and is not sent again after an urgent write, a write
     /// nested in it or a broadcast made after it (`src/bus/writes.rs`). A paced write waits
-    /// for its interval, and a
-    /// request to a unit that still owes answers to another call's timed-out attempts waits
-    /// for them (up to three timeouts each), without a turn while it can. A frame that
-    /// comes too soon to answer an attempt is dropped ([`Turnarounds`]). Under a cancelled
-    /// [`CancelToken`] the call starts no further attempt and fails with
-    /// [`Error::Cancelled`].
+    /// for its interval, and a request to a unit that still owes answers to another call's
+    /// timed-out attempts waits for them (up to three timeouts each), without a turn while
+    /// it can. A frame that comes too soon to answer an attempt is dropped
+    /// ([`Turnarounds`]). Under a cancelled [`CancelToken`] the call starts no further
+    /// attempt and fails with [`Error::Cancelled`].
     ///
     /// # Errors
     /// Any [`Error`]: bad arguments before anything is sent, then port, timeout (after the

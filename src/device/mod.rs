@@ -340,14 +340,11 @@ pub trait Tabled: Device {
     /// # Errors
     /// Any [`Error`].
     fn get(&self, name: &str) -> Result<f64> {
-        let index = self.index(name)?;
-        let values = read_planned(self.station(), self.table()?, &[index], |b| {
-            self.read_block(b)
-        })?;
+        let values = self.get_many(&[name])?;
         values
             .first()
-            .ok_or_else(|| self.station().short_reply())?
-            .number()
+            .copied()
+            .ok_or_else(|| self.station().short_reply())
     }
 
     /// Reads the rows called `names`, in that order, in as few requests as the table's

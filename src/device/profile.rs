@@ -926,11 +926,7 @@ impl RegisterSet {
             }
             let table_id = reg.table as u8;
             // The bits it takes of its register (a bool's bit, a field's), or None: whole.
-            let bits = match (reg.value, reg.bits) {
-                (ValueType::Bool { bit: Some(b) }, _) => Some(b..=b),
-                (_, Some((first, last))) => Some(first..=last),
-                _ => None,
-            };
+            let bits = reg.part_of_word().map(|(first, last)| first..=last);
             let first = u32::from(reg.register.address);
             for address in first..first + reg.value.width() {
                 // Bits share their register with other bits, and with the one-word number

@@ -171,6 +171,15 @@ impl ProfileRegister {
         &self.register.name
     }
 
+    /// The bits of its register it is, `(first, last)`: a bool's `bit`, a field's `bits`;
+    /// None for whole words.
+    pub fn part_of_word(&self) -> Option<(u8, u8)> {
+        match self.value {
+            ValueType::Bool { bit: Some(bit) } => Some((bit, bit)),
+            _ => self.bits,
+        }
+    }
+
     /// The engineering value of the register's words (for a bool on a table of bits, the
     /// one word 0 or 1).
     ///
@@ -185,21 +194,20 @@ impl ProfileRegister {
                 words.len()
             )));
         }
+        if let Some((first, last)) = self.part_of_word() {
+            let word = words[0].checked_shr(u32::from(first)).unwrap_or(0);
+            let part = word & field_top(first, last);
+            return Ok(match self.value {
+                ValueType::Bool { .. } => ProfileValue::Bool(part != 0),
+                _ => self.engineering(Number::Int(i128::from(part))),
+            });
+        }
         Ok(match self.value {
-            ValueType::Bool { bit: Some(bit) } => {
-                ProfileValue::Bool(words[0].checked_shr(u32::from(bit)).unwrap_or(0) & 1 == 1)
-            }
-            ValueType::Bool { bit: None } => ProfileValue::Bool(words[0] != 0),
+            ValueType::Bool { .. } => ProfileValue::Bool(words[0] != 0),
             ValueType::Text { .. } => {
                 let bytes = self.layout.from_registers(words);
                 let kept = bytes.len() - bytes.iter().rev().take_while(|b| **b == 0).count();
                 ProfileValue::Text(bytes[..kept].iter().map(|b| char::from(*b)).collect())
-            }
-            ValueType::Number(_) if self.bits.is_some() => {
-                let (first, last) = self.bits.unwrap_or((0, 15));
-                let word = words[0].checked_shr(u32::from(first)).unwrap_or(0);
-                let field = word & field_top(first, last);
-                self.engineering(Number::Int(i128::from(field)))
             }
             ValueType::Number(kind) => {
                 let number = kind
@@ -243,7 +251,7 @@ impl ProfileRegister {
     /// [`Error::InvalidArgument`] for a read-only register or a value it cannot take.
     pub fn encode(&self, value: &ProfileValue) -> Result<Encoded> {
         let whole = self.encode_whole(value)?;
-        match (self.bits, whole) {
+        match (self.part_of_word(), whole) {
             (Some((first, last)), Encoded::Words(words)) if words.len() == 1 => {
                 let shift = |w: u16| w.checked_shl(u32::from(first)).unwrap_or(0);
                 let mask = shift(field_top(first, last));
@@ -270,13 +278,6 @@ impl ProfileRegister {
             (ValueType::Bool { .. }, ProfileValue::Bool(on)) => {
                 Ok(match (self.table, self.value) {
                     (Table::Coils, _) => Encoded::Coil(*on),
-                    (_, ValueType::Bool { bit: Some(bit) }) => {
-                        let mask = 1u16.checked_shl(u32::from(bit)).unwrap_or(0);
-                        Encoded::Bits {
-                            mask,
-                            value: if *on { mask } else { 0 },
-                        }
-                    }
                     _ => Encoded::Words(vec![u16::from(*on)]),
                 })
             }

@@ -116,6 +116,13 @@ class _Register:
         return self.scale != 1 or self.offset != 0
 
     @property
+    def field_top(self) -> int:
+        """The largest number its field of bits holds (0 without ``bits``)."""
+        if self.bits is None:
+            return 0
+        return (1 << (self.bits[1] - self.bits[0] + 1)) - 1
+
+    @property
     def own_bits(self) -> set[int] | None:
         """The bits of its word it takes (a bool's bit, a field's), None for all of them."""
         if self.bit is not None:
@@ -630,8 +637,7 @@ def _decode(reg: _Register, words: list[int]) -> Value:
         return data.rstrip(b"\0").decode("latin-1")
     raw: int | float = struct.unpack(">" + _NUMERIC[reg.type][0], data)[0]
     if reg.bits is not None:
-        first, last = reg.bits
-        raw = int(raw) >> first & (1 << (last - first + 1)) - 1
+        raw = int(raw) >> reg.bits[0] & reg.field_top
     if reg.enum is not None:
         return reg.enum.get(int(raw), raw)
     if not reg.scaled:
@@ -685,10 +691,9 @@ def _encode(reg: _Register, value: Value, current: list[int]) -> list[int]:
     if code not in "fd":
         raw = round(raw)
     if reg.bits is not None:
-        first, last = reg.bits
-        top = (1 << (last - first + 1)) - 1
+        first, top = reg.bits[0], reg.field_top
         if not 0 <= raw <= top:
-            raise ValueError(f"{reg.name} does not fit bits {first}..{last}: {value!r}")
+            raise ValueError(f"{reg.name} does not fit bits {first}..{reg.bits[1]}: {value!r}")
         return [current[0] & ~(top << first) | int(raw) << first]
     try:
         data = struct.pack(">" + code, raw)
