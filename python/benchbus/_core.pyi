@@ -1213,6 +1213,12 @@ class Profile:
         """Whether a register is called ``key``."""
     def __len__(self) -> int:
         """How many registers."""
+    def check(self, name: str, value: object) -> None:
+        """Checks ``value`` for the register ``name`` as writing it would, and sends nothing:
+        ValueError for no such register, a read-only one, a value out of range, off the
+        scale's steps, not a member or more than the type holds; TypeError for a value of
+        the wrong kind. A family's rules that ask the device (a drive's registers that take
+        writes only while stopped, the J2's SV within LSP..USP) are checked when writing."""
     def plan(self, names: Sequence[str]) -> list[tuple[str, int, int, list[str]]]:
         """The requests that read the registers ``names`` (repeats once): ``(table, start,
         count, names)`` each, tables apart, neighbours together where the limits allow."""

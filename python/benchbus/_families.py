@@ -62,6 +62,9 @@ class Family:
     bench_model: Mapping[str, Any] = dataclasses.field(default_factory=dict, compare=False)
     #: The options its class is opened with on a simulated unit, from that unit.
     opened_with: Callable[[Any], dict[str, Any]] = lambda model: {}
+    #: Its class's methods that act and take no arguments (a drive's commands), which
+    #: :mod:`benchbus.epics` serves as records whose processing runs them.
+    actions: tuple[str, ...] = ()
 
     @property
     def line(self) -> LineDefaults:
@@ -123,8 +126,18 @@ FAMILIES = (
         command=True,
         bench_model={"model": "BLD2"},
         opened_with=_drive_family,
+        actions=tuple(name for name, _ in Drive.commands()),
     ),
-    Family("pbl", "a PBL drive", PblDrive, "PblDevice", test=is_pbl, label="PBL", command=True),
+    Family(
+        "pbl",
+        "a PBL drive",
+        PblDrive,
+        "PblDevice",
+        test=is_pbl,
+        label="PBL",
+        command=True,
+        actions=("start", "stop"),
+    ),
     Family(
         "j2",
         "a J2 controller",
@@ -135,6 +148,7 @@ FAMILIES = (
         label="J2",
         command=True,
         bench_model={"speedup": 100.0},
+        actions=("start_ramp", "stop_ramp"),
     ),
     Family(
         "instrument",

@@ -2,7 +2,7 @@
 //! `benchbus.ProfileError`) and `ProfileCore`, the compiled base of `benchbus.Device`.
 
 use super::device_methods;
-use super::{named_pairs, public, Attached, PyBus, PyStation, EXCEPTIONS};
+use super::{named_pairs, public, to_pyerr, Attached, PyBus, PyStation, EXCEPTIONS};
 use crate::device::export::{family_note, FAMILIES};
 use crate::device::family;
 use crate::device::profile::{
@@ -171,6 +171,18 @@ impl PyProfile {
                 self.profile.name
             ))
         })
+    }
+
+    /// The index of the register called `name` and `obj` as a value for it (ValueError for
+    /// no such register, TypeError for a value of the wrong kind).
+    fn value_for(&self, name: &str, obj: &Bound<'_, PyAny>) -> PyResult<(usize, ProfileValue)> {
+        let index = self.index(name)?;
+        let register = self
+            .profile
+            .registers
+            .get(index)
+            .ok_or_else(|| PyValueError::new_err(format!("no register {name:?}")))?;
+        Ok((index, value_arg(register, obj)?))
     }
 
     /// The ``ProfileRegister`` class rows are made of.
@@ -437,6 +449,22 @@ impl PyProfile {
         self.profile.registers.len()
     }
 
+    /// Checks ``value`` for the register ``name`` as writing it would, and sends nothing:
+    /// ValueError for no such register, a read-only one, a value out of range, off the
+    /// scale's steps, not a member or more than the type holds; TypeError for a value of
+    /// the wrong kind. A family's rules that ask the device (a drive's registers that take
+    /// writes only while stopped, the J2's SV within LSP..USP) are checked when writing.
+    fn check(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let (index, value) = self.value_for(name, value)?;
+        match self.profile.registers.get(index) {
+            Some(register) => register
+                .encode(&value)
+                .map(|_| ())
+                .map_err(|e| to_pyerr(py, e)),
+            None => Err(PyValueError::new_err(format!("no register {name:?}"))),
+        }
+    }
+
     /// The requests that read the registers `names` (repeats once): ``(table, start, count,
     /// names)`` each, tables apart, neighbours together where the limits allow.
     fn plan(&self, names: Vec<String>) -> PyResult<Vec<PlannedRead>> {
@@ -545,29 +573,16 @@ PyProfileCore = |dev| PyProfileCore {
     /// checked before the first is sent.
     fn _write_many(&self, py: Python<'_>, values: &Bound<'_, PyAny>) -> PyResult<()> {
         let profile = self.profile_ref()?.get();
-        let mut pairs = Vec::new();
-        for (name, value) in named_pairs(py, values)? {
-            let index = profile.index(&name)?;
-            let register = profile
-                .profile
-                .registers
-                .get(index)
-                .ok_or_else(|| PyValueError::new_err(format!("no register {name:?}")))?;
-            pairs.push((index, value_arg(register, &value)?));
-        }
+        let pairs = named_pairs(py, values)?
+            .iter()
+            .map(|(name, value)| profile.value_for(name, value))
+            .collect::<PyResult<Vec<_>>>()?;
         self.dev.wire(py, move |d| d.write_many(&pairs))
     }
 
     /// Writes `value` to the register `name`, every check made before anything is sent.
     fn _write(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
-        let profile = self.profile_ref()?.get();
-        let index = profile.index(name)?;
-        let register = profile
-            .profile
-            .registers
-            .get(index)
-            .ok_or_else(|| PyValueError::new_err(format!("no register {name:?}")))?;
-        let value = value_arg(register, value)?;
+        let (index, value) = self.profile_ref()?.get().value_for(name, value)?;
         self.dev.wire(py, move |d| d.write(index, &value))
     }
 }

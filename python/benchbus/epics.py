@@ -1,0 +1,750 @@
+"""benchbus devices as EPICS process variables, served over Channel Access and PV Access.
+
+::
+
+    import benchbus as bb
+    from benchbus.epics import Ioc
+
+    bus = bb.Bus("/dev/ttyUSB0")
+    ioc = Ioc(period=0.5)
+    ioc.add("LAB:XY:", bb.Device.from_profile("xy_md02.toml", bus, unit=1))
+    ioc.add("LAB:SPINDLE:", bb.Drive(bus, 2))
+    ioc.run()          # serves until SIGINT / SIGTERM; ioc.start() serves in the background
+
+Every register of a device's profile becomes records named ``PREFIX`` + its name: an input
+record for a read-only register, an output record for a writable one, plus an input record
+``PREFIX`` + name + ``_RBV`` where it is also readable (``--read-only``: only the input
+records). A family's actions (a drive's ``forward``, ``stop``...) are records whose
+processing runs them, and each device has records of its own under ``PREFIX`` +
+``ioc:`` (``connected``, ``polls``, ``failures``, ``error`` and its line's counters).
+
+One poller per line reads each device's readable registers in the fewest requests its
+limits allow, every ``period`` seconds, and pushes the values with the time of the read. A
+failed read puts that device's input records into INVALID severity with COMM status until
+the next good read. A put is checked against the register's range, steps and access before
+anything is sent (a refused value leaves the record as it was); a refusal found while
+writing (a family's rule, the device's exception, a lost line) restores the record's previous
+value and raises its WRITE alarm, and the IOC's log says why.
+
+Needs pythonSoftIOC (``pip install 'benchbus[epics]'``). Without it the module still
+imports, and :class:`Ioc` raises an ImportError that says what to install. An EPICS IOC is
+one per process, and its records exist before it starts.
+"""
+
+from __future__ import annotations
+
+import atexit
+import dataclasses
+import enum
+import importlib
+import ipaddress
+import logging
+import math
+import os
+import signal
+import threading
+import time
+from collections.abc import Callable, Iterable, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Protocol
+
+from benchbus._device import MotorDevice, is_unknown, member_name
+from benchbus._families import FAMILIES
+from benchbus.exceptions import BenchbusError, ModbusException, PortError
+
+if TYPE_CHECKING:
+    from benchbus._core import Bus, Profile
+    from benchbus._profile import ProfileRegister
+
+__all__ = [
+    "EGU_MAX",
+    "IOC",
+    "PV_NAME_MAX",
+    "RBV",
+    "STATE_MAX",
+    "Ioc",
+    "Pv",
+    "ServedDevice",
+    "pvs",
+]
+
+log = logging.getLogger("benchbus.epics")
+
+#: The longest PV name EPICS takes (a record's name).
+PV_NAME_MAX = 60
+#: The longest state string of an ``mbbi`` / ``mbbo`` record (longer names are shortened).
+STATE_MAX = 25
+#: The longest engineering unit (``EGU``; longer units are shortened).
+EGU_MAX = 15
+#: The longest text of a ``stringin`` / ``stringout`` record; longer strings get a long
+#: string record.
+STRING_MAX = 39
+#: The longest description (``DESC``; longer ones are cut).
+DESC_MAX = 40
+#: The most states an ``mbbi`` / ``mbbo`` record has; an enum with more members is served as
+#: its number (``longin`` / ``longout``) and its member's name (a string record, ``_STR``).
+MBB_STATES = 16
+#: Decimal places shown for a float register whose scale asks for none (``PREC``).
+FLOAT_PRECISION = 3
+#: The largest single-precision float: a float register's range when it declares none.
+FLOAT32_MAX = 3.4028234663852886e38
+#: The suffix of the readback of a writable register.
+RBV = "_RBV"
+#: The suffix of the record that names the member of an enum served as its number.
+MEMBER_NAME = "_STR"
+#: Where a device's own records go, after its prefix: a profile's names cannot hold ``:``.
+IOC = "ioc:"
+#: The names the state records of a bool register show, for 0 and 1.
+BOOL_STATES = ("false", "true")
+
+
+class ServedDevice(Protocol):
+    """What :meth:`Ioc.add` serves: any benchbus device with its register table as
+    ``profile``, registers read with ``get`` / ``get_many`` and written with ``set``, on a
+    ``bus``."""
+
+    @property
+    def profile(self) -> Profile:
+        """The device's registers (a :class:`benchbus.Profile`)."""
+        ...
+
+    @property
+    def bus(self) -> Bus:
+        """The Bus the device is on."""
+        ...
+
+    def get(self, name: str) -> Any:
+        """The register ``name``, in engineering units."""
+        ...
+
+    def get_many(self, names: Iterable[str]) -> dict[str, Any]:
+        """The registers ``names``, read in the fewest requests."""
+        ...
+
+    def set(self, name: str, value: Any) -> None:
+        """Write ``value`` to the register ``name``."""
+        ...
+
+
+@dataclasses.dataclass
+class Pv:
+    """One record an :class:`Ioc` serves: its name, its kind and fields, and what it shows or
+    does."""
+
+    #: The PV name (the prefix included).
+    name: str
+    #: The builder function of ``softioc.builder`` that makes it (``"aIn"``, ``"mbbOut"``...).
+    kind: str
+    #: The record's fields (``EGU``, ``PREC``, ``LOPR``, ``HOPR``, ``ZNAM``...).
+    fields: dict[str, Any] = dataclasses.field(default_factory=dict)
+    #: The register it shows or writes (None: an action or a record of the device's own).
+    register: str | None = None
+    #: The device's method its processing runs (an action).
+    action: str | None = None
+    #: An mbb record's state strings.
+    states: tuple[str, ...] = ()
+    #: The enum number at each state index of an mbb record.
+    numbers: tuple[int, ...] = ()
+    #: Whether it shows the member's name of an enum served as its number.
+    member_name: bool = False
+
+    @property
+    def output(self) -> bool:
+        """Whether a client writes it (an output record)."""
+        return self.kind.endswith("Out") or self.kind == "Action"
+
+    @property
+    def base(self) -> str:
+        """Its kind without ``In`` / ``Out``: ``a``, ``long``, ``int64``, ``bool``, ``mbb``,
+        ``string``, ``longString``, ``Action``."""
+        return self.kind.removesuffix("In").removesuffix("Out")
+
+    def shown(self, value: Any) -> Any:
+        """A register's value as the record holds it; None for a value it cannot show (an
+        enum's number the profile does not list)."""
+        if is_unknown(value):
+            return None
+        if self.member_name:
+            return (member_name(value) if isinstance(value, enum.Enum) else str(value))[:STRING_MAX]
+        base = self.base
+        if base == "mbb":
+            number = int(value)
+            return self.numbers.index(number) if number in self.numbers else None
+        if base == "bool":
+            return int(bool(value))
+        if base in ("long", "int64"):
+            return int(value)
+        if base == "string":
+            return str(value)[:STRING_MAX]
+        if base == "longString":
+            return str(value)
+        return float(value)
+
+    def written(self, value: Any) -> Any:
+        """What a put of ``value`` writes to the register (ValueError for an mbb state
+        index that names no member)."""
+        base = self.base
+        if base == "mbb":
+            index = int(value)
+            if not 0 <= index < len(self.numbers):
+                raise ValueError(f"{self.name}: state {index} names no member")
+            return self.numbers[index]
+        if base == "bool":
+            return bool(value)
+        if base in ("long", "int64"):
+            return int(value)
+        if base in ("string", "longString"):
+            return str(value)
+        return float(value)
+
+
+def _shortened(text: str, most: int, what: str, warnings: list[str]) -> str:
+    """``text`` cut to ``most`` characters, with a warning saying so."""
+    if len(text) <= most:
+        return text
+    warnings.append(f"{what} {text!r} is longer than {most} characters: shown as {text[:most]!r}")
+    return text[:most]
+
+
+def _decimals(x: float) -> int:
+    """The decimal places ``x`` needs (9 at most)."""
+    for places in range(10):
+        scaled = abs(x) * 10**places
+        if math.isclose(scaled, round(scaled), abs_tol=1e-6):
+            return places
+    return 9
+
+
+def _whole_type(register: ProfileRegister, low: float, high: float) -> bool:
+    """Whether ``low..high`` is all its type holds (no range of its own to display)."""
+    if register.type in ("f32", "f64"):
+        return max(abs(low), abs(high)) >= FLOAT32_MAX
+    whole = register.integer_range()
+    return whole is not None and (float(low), float(high)) == (float(whole[0]), float(whole[1]))
+
+
+def _numeric(register: ProfileRegister, egu: str) -> tuple[str, dict[str, Any]]:
+    """The record kind of a number register and its fields (units, display limits, the
+    precision its scale asks for)."""
+    fields: dict[str, Any] = {"EGU": egu}
+    whole = register.integer_range()
+    low, high = register.min, register.max
+    if low is not None and high is not None and not _whole_type(register, low, high):
+        fields["LOPR"], fields["HOPR"] = low, high
+    if whole is not None:
+        low, high = whole
+        limits: dict[str, Any] = {k: int(fields[k]) for k in ("LOPR", "HOPR") if k in fields}
+        if low >= -(2**31) and high < 2**31:
+            return "long", {**fields, **limits, "MDEL": 0}
+        if low >= -(2**63) and high < 2**63:
+            return "int64", {**fields, **limits, "MDEL": 0}
+    if register.type in ("f32", "f64") and register.scale == 1.0 and register.offset == 0.0:
+        places = FLOAT_PRECISION
+    else:
+        places = max(_decimals(register.scale), _decimals(register.offset))
+    return "a", {**fields, "PREC": places}
+
+
+def _kinds(register: ProfileRegister, warnings: list[str]) -> tuple[str, dict[str, Any]]:
+    """The record kind (the builder's name without ``In`` / ``Out``) of a register and the
+    fields both its records share."""
+    fields: dict[str, Any] = {}
+    if register.description:
+        fields["DESC"] = register.description[:DESC_MAX]
+    if register.type == "bool":
+        return "bool", {**fields, "ZNAM": BOOL_STATES[0], "ONAM": BOOL_STATES[1]}
+    if register.type == "string":
+        chars = 2 * (register.length or 0)
+        if chars <= STRING_MAX:
+            return "string", fields
+        return "longString", {**fields, "length": chars + 1}
+    if register.enum and len(register.enum) <= MBB_STATES:
+        return "mbb", fields
+    egu = _shortened(register.unit, EGU_MAX, f"{register.name}: unit", warnings)
+    kind, numeric = _numeric(register, egu)
+    return kind, {**fields, **numeric}
+
+
+def pvs(
+    prefix: str,
+    profile: Profile,
+    *,
+    read_only: bool = False,
+    actions: Sequence[str] = (),
+    stats: Sequence[str] = (),
+) -> tuple[list[Pv], list[str]]:
+    """The records that serve a device of ``profile`` under ``prefix``, and warnings for
+    what was shortened (state strings, units).
+
+    ``actions``: the device's methods served as records whose processing runs them;
+    ``stats``: its line's counters, served as ``PREFIX ioc:<name>``. ``read_only``: only
+    the input records. ValueError for a PV name longer than :data:`PV_NAME_MAX`, naming the
+    register.
+    """
+    made: list[Pv] = []
+    warnings: list[str] = []
+    for register in profile.registers:
+        readable = register.access != "w"
+        writable = register.access != "r"
+        kind, fields = _kinds(register, warnings)
+        states: tuple[str, ...] = ()
+        numbers: tuple[int, ...] = ()
+        if kind == "mbb":
+            numbers = tuple(register.enum)
+            states = tuple(
+                _shortened(n, STATE_MAX, f"{register.name}: state", warnings)
+                for n in register.enum.values()
+            )
+        name = prefix + register.name
+        if writable and not read_only:
+            made.append(Pv(name, kind + "Out", dict(fields), register.name, None, states, numbers))
+        if readable:
+            shown = name + RBV if writable else name
+            made.append(Pv(shown, kind + "In", dict(fields), register.name, None, states, numbers))
+            if register.enum and not states:
+                made.append(
+                    Pv(shown + MEMBER_NAME, "stringIn", register=register.name, member_name=True)
+                )
+    if not read_only:
+        made += [Pv(prefix + a, "Action", action=a) for a in actions]
+    own_records = [
+        Pv(prefix + IOC + "connected", "boolIn", {"ZNAM": "disconnected", "ONAM": "connected"}),
+        Pv(prefix + IOC + "polls", "longIn", {"MDEL": 0}),
+        Pv(prefix + IOC + "failures", "longIn", {"MDEL": 0}),
+        Pv(prefix + IOC + "error", "stringIn"),
+        *(Pv(prefix + IOC + s, "longIn", {"MDEL": 0}) for s in stats),
+    ]
+    made += own_records
+    for pv in made:
+        if len(pv.name) > PV_NAME_MAX:
+            what = pv.register or pv.action or pv.name[len(prefix) :]
+            raise ValueError(
+                f"{what}: the PV name {pv.name!r} is {len(pv.name)} characters, over EPICS's "
+                f"{PV_NAME_MAX}: give a shorter prefix"
+            )
+    return made, warnings
+
+
+def _actions(device: object) -> tuple[str, ...]:
+    """The actions of the family ``device`` belongs to (none for a profile's device)."""
+    for f in FAMILIES:
+        if f.device is not None and isinstance(device, f.device):
+            return f.actions
+    return ()
+
+
+def _softioc() -> None:
+    """Import pythonSoftIOC now; ImportError saying what to install."""
+    try:
+        importlib.import_module("softioc.softioc")
+    except ImportError as exc:
+        raise ImportError(
+            f"benchbus.epics needs pythonSoftIOC: pip install 'benchbus[epics]' ({exc})",
+            name="softioc",
+        ) from exc
+
+
+#: What a failed read or write on the line is (its records then show COMM).
+_LINE_FAILURES = (BenchbusError, OSError)
+
+
+class _Served:
+    """One device an IOC serves: its records, and its poll."""
+
+    def __init__(self, prefix: str, device: ServedDevice, made: list[Pv], period: float) -> None:
+        self.prefix = prefix
+        self.device = device
+        self.pvs = made
+        self.period = period
+        self.records: dict[str, Any] = {}
+        #: The last value each output record was given or read (what a refusal restores).
+        self.last: dict[str, Any] = {}
+        self.inputs = [p for p in made if not p.output and p.register is not None]
+        self.names = list(dict.fromkeys(p.register for p in self.inputs if p.register))
+        #: The registers read one a request since the device refused a read of them.
+        self.alone: set[str] = set()
+        self.polls = 0
+        self.failures = 0
+        self.connected: bool | None = None
+
+    def own(self, name: str) -> Any:
+        """The device's own record ``ioc:<name>``."""
+        return self.records[self.prefix + IOC + name]
+
+    def read(self) -> tuple[dict[str, Any], dict[str, BaseException]]:
+        """The readable registers' values, and the registers the device refused with the
+        exception it gave; a failure of the line is raised."""
+        values: dict[str, Any] = {}
+        refused: dict[str, BaseException] = {}
+        together = [n for n in self.names if n not in self.alone]
+        if together:
+            try:
+                values.update(self.device.get_many(together))
+            except ModbusException:
+                self.alone.update(together)
+        for name in self.names:
+            if name in self.alone:
+                try:
+                    values[name] = self.device.get(name)
+                except ModbusException as exc:
+                    refused[name] = exc
+        return values, refused
+
+    def poll(self, alarm: Any) -> None:
+        """Read the device once and show what was read (or the failure) in its records."""
+        try:
+            values, refused = self.read()
+        except _LINE_FAILURES as exc:
+            self.failed(exc, alarm)
+            return
+        when = time.time()
+        self.polls += 1
+        for pv in self.inputs:
+            record = self.records[pv.name]
+            if pv.register in refused:
+                record.set_alarm(alarm.INVALID_ALARM, alarm.READ_ALARM, timestamp=when)
+                continue
+            value = pv.shown(values[pv.register or ""])
+            if value is None:  # an enum number the profile does not list
+                record.set_alarm(alarm.INVALID_ALARM, alarm.STATE_ALARM, timestamp=when)
+            else:
+                record.set(value, timestamp=when)
+        for pv in self.pvs:
+            if pv.output and pv.register is not None and pv.name not in self.last:
+                value = pv.shown(values.get(pv.register)) if pv.register in values else None
+                if value is not None:
+                    # The device's value, shown without writing it back; processing with
+                    # the same value clears the alarm of an output record never written.
+                    self.last[pv.name] = value
+                    record = self.records[pv.name]
+                    record.set(value, process=False)
+                    record.set_alarm(alarm.NO_ALARM, alarm.NO_ALARM)
+        if not self.connected:
+            if self.connected is False:
+                log.info("%s is answering again", self.prefix)
+            self.connected = True
+            self.own("connected").set(1)
+            self.own("error").set("")
+        self.counters()
+
+    def failed(self, exc: BaseException, alarm: Any) -> None:
+        """A read failed on the line: every input record INVALID / COMM, at once."""
+        self.failures += 1
+        text = f"{type(exc).__name__}: {exc}"
+        if self.connected is not False:
+            log.warning("%s does not answer: %s", self.prefix, text)
+        self.connected = False
+        for pv in self.inputs:
+            self.records[pv.name].set_alarm(alarm.INVALID_ALARM, alarm.COMM_ALARM)
+        self.own("connected").set(0)
+        self.own("error").set(text[:STRING_MAX])
+        self.counters()
+
+    def counters(self) -> None:
+        """The device's poll counters and its line's counters, in their records."""
+        self.own("polls").set(self.polls)
+        self.own("failures").set(self.failures)
+        try:
+            stats = self.device.bus.stats.as_dict()
+        except _LINE_FAILURES:
+            return
+        for name, count in stats.items():
+            record = self.records.get(self.prefix + IOC + name)
+            if record is not None:
+                record.set(min(count, 2**31 - 1))
+
+    def write(self, pv: Pv, value: Any, alarm: Any) -> None:
+        """Write a put of ``value`` to the device (or run the action); a refusal restores
+        the record's previous value with a WRITE alarm, and the log says why."""
+        record = self.records[pv.name]
+        try:
+            if pv.action is not None:
+                getattr(self.device, pv.action)()
+            elif pv.register is not None:
+                self.device.set(pv.register, pv.written(value))
+        except (BenchbusError, ValueError, TypeError, OSError) as exc:
+            line = isinstance(exc, (PortError, OSError)) or not isinstance(
+                exc, (ModbusException, ValueError, TypeError)
+            )
+            severity = alarm.INVALID_ALARM if line else alarm.MAJOR_ALARM
+            log.warning("%s: put %r refused: %s: %s", pv.name, value, type(exc).__name__, exc)
+            previous = self.last.get(pv.name, 0 if pv.action else value)
+            record.set(previous, process=False, severity=severity, alarm=alarm.WRITE_ALARM)
+            return
+        if pv.action is None:
+            self.last[pv.name] = value
+        record.set(0 if pv.action else value, process=False)
+
+
+def _loopback(addresses: str) -> bool:
+    """Whether every address of an ``EPICS_*_INTF_ADDR_LIST`` is a loopback one."""
+    try:
+        return all(ipaddress.ip_address(a).is_loopback for a in addresses.split())
+    except ValueError:
+        return False
+
+
+def serve_on(interface: str | None) -> str:
+    """Set the addresses the Channel Access and PV Access servers listen on: ``interface``;
+    absent, the standard ``EPICS_CAS_INTF_ADDR_LIST`` / ``EPICS_PVAS_INTF_ADDR_LIST`` if set,
+    else loopback (with beacons to loopback too). The address served on (a warning, once,
+    when it is beyond loopback)."""
+    if interface is not None:
+        os.environ["EPICS_CAS_INTF_ADDR_LIST"] = interface
+        os.environ["EPICS_PVAS_INTF_ADDR_LIST"] = interface
+    elif not os.environ.get("EPICS_CAS_INTF_ADDR_LIST"):
+        os.environ["EPICS_CAS_INTF_ADDR_LIST"] = "127.0.0.1"
+        os.environ.setdefault("EPICS_PVAS_INTF_ADDR_LIST", "127.0.0.1")
+    served = os.environ["EPICS_CAS_INTF_ADDR_LIST"]
+    pva = os.environ.setdefault("EPICS_PVAS_INTF_ADDR_LIST", served)
+    if _loopback(served) and _loopback(pva):
+        os.environ.setdefault("EPICS_CAS_AUTO_BEACON_ADDR_LIST", "NO")
+        os.environ.setdefault("EPICS_CAS_BEACON_ADDR_LIST", "127.255.255.255")
+        os.environ.setdefault("EPICS_PVAS_AUTO_BEACON_ADDR_LIST", "NO")
+        os.environ.setdefault("EPICS_PVAS_BEACON_ADDR_LIST", "127.255.255.255")
+    else:
+        log.warning(
+            "serving EPICS on %s (Channel Access) and %s (PV Access), beyond loopback: "
+            "any host that reaches them may read and write the devices "
+            "(see --read-only and --access-security)",
+            served,
+            pva,
+        )
+    return served
+
+
+class Ioc:
+    """An EPICS IOC in this process that serves benchbus devices as process variables.
+
+    ``period``: seconds between two reads of a device (each device may have its own);
+    ``read_only``: serve only input records (a writable register's ``_RBV``);
+    ``interface``: the address to serve on (default loopback, or the standard
+    ``EPICS_CAS_INTF_ADDR_LIST``); ``access_security``: an EPICS access-security file.
+
+    An IOC is one per process (a second raises RuntimeError), and its records exist before
+    it starts: :meth:`add` every device, then :meth:`start` (serves in the background) or
+    :meth:`run` (serves until SIGINT or SIGTERM, then stops the motors, closes the ports and
+    ends the process). ImportError, saying what to install, without pythonSoftIOC.
+    """
+
+    _made: ClassVar[bool] = False
+
+    def __init__(
+        self,
+        period: float = 1.0,
+        *,
+        read_only: bool = False,
+        interface: str | None = None,
+        access_security: str | os.PathLike[str] | None = None,
+    ) -> None:
+        """An IOC with nothing to serve yet."""
+        self.period = _seconds(period, "period")
+        if interface is not None and not isinstance(interface, str):
+            raise TypeError(f"interface must be an address (str), got {type(interface).__name__}")
+        if access_security is not None and not os.path.isfile(access_security):
+            raise FileNotFoundError(f"no access-security file {os.fspath(access_security)!r}")
+        _softioc()
+        if Ioc._made:
+            raise RuntimeError(
+                "an EPICS IOC is one per process and this process has one: serve every "
+                "device from it (run another IOC in a process of its own)"
+            )
+        Ioc._made = True
+        #: Whether only input records are served.
+        self.read_only = read_only
+        self._interface = interface
+        self._security = None if access_security is None else os.fspath(access_security)
+        self._served: list[_Served] = []
+        self._names: dict[str, str] = {}
+        self._started = False
+        self._stopping = threading.Event()
+        self._pollers: list[threading.Thread] = []
+        self._stopped = False
+
+    @property
+    def started(self) -> bool:
+        """Whether the IOC serves (its records are fixed)."""
+        return self._started
+
+    @property
+    def names(self) -> list[str]:
+        """Every PV name served, in the order the records were added."""
+        return list(self._names)
+
+    def add(self, prefix: str, device: ServedDevice, *, period: float | None = None) -> None:
+        """Serve ``device`` under ``prefix`` (``"LAB:XY:"``), read every ``period`` seconds
+        (default: the IOC's).
+
+        RuntimeError once the IOC has started; TypeError for a device without a profile;
+        ValueError for a PV name over :data:`PV_NAME_MAX` characters or one served
+        already. What is shortened (state strings, units) is logged as a warning."""
+        if self._started:
+            raise RuntimeError(
+                "the IOC has started and EPICS takes no records after that: add() every "
+                "device before start()"
+            )
+        if not isinstance(prefix, str) or not prefix:
+            raise ValueError(f"prefix must be a non-empty str, got {prefix!r}")
+        every = self.period if period is None else _seconds(period, "period")
+        profile = getattr(device, "profile", None)
+        if profile is None or not callable(getattr(device, "get_many", None)):
+            raise TypeError(
+                f"{type(device).__name__} has no register table to serve: give a device with a "
+                "profile (bb.Device.from_profile, bb.Drive, bb.PblDrive, bb.J2Controller)"
+            )
+        stats = tuple(device.bus.stats.as_dict())
+        made, warnings = pvs(
+            prefix, profile, read_only=self.read_only, actions=_actions(device), stats=stats
+        )
+        for pv in made:
+            if pv.name in self._names:
+                raise ValueError(f"{pv.name} is served already (by {self._names[pv.name]})")
+        for text in warnings:
+            log.warning("%s%s", prefix, text)
+        for pv in made:
+            self._names[pv.name] = f"{prefix} {type(device).__name__} unit {device_unit(device)}"
+        self._served.append(_Served(prefix, device, made, every))
+
+    def start(self) -> None:
+        """Make the records, start the IOC serving them and the pollers reading the
+        devices, in the background. RuntimeError if started already or with nothing
+        added."""
+        if self._started:
+            raise RuntimeError("the IOC has started already")
+        if not self._served:
+            raise RuntimeError("nothing to serve: add() a device before start()")
+        serve_on(self._interface)
+        _softioc()
+        from softioc import alarm, asyncio_dispatcher, builder, softioc
+
+        self._alarm = alarm
+        for served in self._served:
+            for pv in served.pvs:
+                served.records[pv.name] = self._record(builder, served, pv)
+        builder.LoadDatabase()
+        if self._security is not None:
+            from epicscorelibs.ioc import dbCore
+
+            dbCore.asSetFilename(self._security.encode())
+        self._dispatcher = asyncio_dispatcher.AsyncioDispatcher()
+        softioc.iocInit(self._dispatcher)
+        self._started = True
+        atexit.register(self.stop)
+        lines: dict[int, list[_Served]] = {}
+        for served in self._served:
+            lines.setdefault(id(served.device.bus), []).append(served)
+        for on_line in lines.values():
+            poller = threading.Thread(
+                target=self._poll, args=(on_line,), name="benchbus-ioc-poller", daemon=True
+            )
+            self._pollers.append(poller)
+            poller.start()
+
+    def _record(self, builder: Any, served: _Served, pv: Pv) -> Any:
+        """The softioc record of ``pv``."""
+        make: Callable[..., Any] = getattr(builder, pv.kind)
+        fields = {k: v for k, v in pv.fields.items() if v not in (None, "")}
+        if not pv.output:
+            return make(pv.name, *pv.states, **fields)
+        alarm = self._alarm
+
+        def check(_record: Any, value: Any) -> bool:
+            if pv.register is None:
+                return True
+            try:
+                served.device.profile.check(pv.register, pv.written(value))
+            except (ValueError, TypeError) as exc:
+                log.warning("%s: put %r refused before sending: %s", pv.name, value, exc)
+                return False
+            return True
+
+        async def put(value: Any) -> None:
+            import asyncio
+
+            await asyncio.get_running_loop().run_in_executor(None, served.write, pv, value, alarm)
+
+        if pv.kind == "Action":
+            return make(pv.name, on_update=put, blocking=True)
+        return make(pv.name, *pv.states, validate=check, on_update=put, blocking=True, **fields)
+
+    def _poll(self, served: list[_Served]) -> None:
+        """One line's poller: each device read on its own absolute deadlines."""
+        start = time.monotonic()
+        due = {id(s): start for s in served}
+        while not self._stopping.is_set():
+            device = min(served, key=lambda s: due[id(s)])
+            wait = due[id(device)] - time.monotonic()
+            if wait > 0 and self._stopping.wait(wait):
+                return
+            try:
+                device.poll(self._alarm)
+            except Exception:  # a poller must outlive any one read
+                log.exception("%s: reading the device failed", device.prefix)
+            now = time.monotonic()
+            due[id(device)] += device.period * max(
+                1, math.ceil((now - due[id(device)]) / device.period)
+            )
+
+    def stop(self) -> None:
+        """Stop the pollers, stop the motors served (as a ``with`` block does), close the
+        devices' ports. The records stay served until the process ends (EPICS cannot
+        stop an IOC); idempotent."""
+        if self._stopped:
+            return
+        self._stopped = True
+        self._stopping.set()
+        for served in self._served:
+            if isinstance(served.device, MotorDevice):
+                try:
+                    served.device._stop_on_exit(urgent=True)
+                except Exception as exc:
+                    log.error("%s: could not stop the motor: %s", served.prefix, exc)
+        deadline = time.monotonic() + 1.5
+        for poller in self._pollers:
+            poller.join(max(0.0, deadline - time.monotonic()))
+        for served in self._served:
+            try:
+                served.device.bus.close()
+            except _LINE_FAILURES as exc:
+                log.debug("closing %s: %s", served.prefix, exc)
+
+    def run(self, *, shell: bool = False) -> NoReturn:
+        """Start (if not started) and serve until SIGINT or SIGTERM, then :meth:`stop` and end
+        the process (EPICS ends it: Python's own clean-up does not run, so the stop
+        happens here). ``shell``: an interactive Python shell with EPICS's commands
+        (``dbl()``...) and ``ioc`` meanwhile; leaving it ends the IOC. From the main
+        thread."""
+        if not self._started:
+            self.start()
+        from softioc import softioc
+
+        quit = threading.Event()
+
+        def on_signal(signum: int, _frame: Any) -> None:
+            if shell:
+                self.stop()
+                softioc.safeEpicsExit(0)
+            quit.set()
+
+        signal.signal(signal.SIGTERM, on_signal)
+        if shell:
+            softioc.interactive_ioc({"ioc": self}, call_exit=False)
+        else:
+            signal.signal(signal.SIGINT, on_signal)
+            quit.wait()
+        self.stop()
+        softioc.safeEpicsExit(0)
+        raise SystemExit(0)  # not reached: EPICS has ended the process
+
+
+def device_unit(device: object) -> object:
+    """The unit of ``device`` (None if it has none)."""
+    return getattr(device, "unit", None)
+
+
+def _seconds(value: object, name: str) -> float:
+    """``value`` as a positive, finite number of seconds."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise TypeError(f"{name} must be a number of seconds, got {type(value).__name__}")
+    if not math.isfinite(value) or value <= 0:
+        raise ValueError(f"{name} must be a positive number of seconds, got {value}")
+    return float(value)
