@@ -107,13 +107,20 @@ def wait_for(what: str, check: Callable[[], Any], timeout: float = 10.0) -> Any:
 
 @contextlib.contextmanager
 def served(
-    args: list[str], env: dict[str, str], ready: str, context: Any
+    args: list[str],
+    env: dict[str, str],
+    ready: str,
+    context: Any,
+    command: list[str] | None = None,
+    stop: signal.Signals = signal.SIGTERM,
 ) -> Iterator[subprocess.Popen[str]]:
-    """``benchbus ioc ARGS`` in a process of its own until the block ends, once ``ready``
-    (a PV) reads 1; SIGTERM then, which must end it cleanly within 2 s."""
+    """``benchbus ioc ARGS`` (or ``command``) in a process of its own, with no standard
+    input (as a service runs), until the block ends, once ``ready`` (a PV) reads 1; then
+    ``stop`` (SIGTERM), which must end it cleanly within 2 s."""
     process = subprocess.Popen(
-        [sys.executable, "-m", "benchbus", "ioc", *args],
+        command or [sys.executable, "-m", "benchbus", "ioc", *args],
         env={**os.environ, **env},
+        stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
@@ -127,13 +134,13 @@ def served(
         _, err = process.communicate(timeout=10)
         print(err)
         raise
-    process.send_signal(signal.SIGTERM)
+    process.send_signal(stop)
     started = time.monotonic()
-    _, err = process.communicate(timeout=10)
+    out, err = process.communicate(timeout=10)
     took = time.monotonic() - started
     assert process.returncode == 0, err
-    assert took < 2.0, f"SIGTERM took {took:.1f} s"
-    process.stderr_text = err  # type: ignore[attr-defined]
+    assert took < 2.0, f"{stop.name} took {took:.1f} s"
+    process.stdout_text, process.stderr_text = out, err  # type: ignore[attr-defined]
 
 
 def read(context: Any, name: str, kind: str = "control") -> Any:
@@ -243,6 +250,90 @@ def test_a_pv_name_over_60_characters_is_an_error_naming_the_register() -> None:
         pvs(prefix, profile)
 
 
+# ---- a bench file --------------------------------------------------------------------------
+
+GOOD_BENCH = f"""[ioc]
+period = 0.5
+
+[[line]]
+name = "rs485"
+port = "/dev/ttyNONE0"
+baudrate = 9600
+
+[[device]]
+line = "rs485"
+family = "drive"
+unit = 1
+prefix = "LAB:SPINDLE:"
+options = {{ family = "C20" }}
+
+[[device]]
+line = "rs485"
+profile = "{SENSOR}"
+unit = 2
+prefix = "LAB:XY:"
+period = 2.0
+"""
+
+
+def test_a_bench_file_gives_its_lines_and_devices() -> None:
+    from benchbus._bench import read_bench
+
+    path = Path(os.environ.get("TMPDIR", "/tmp")) / f"bench-{os.getpid()}.toml"
+    path.write_text(GOOD_BENCH)
+    try:
+        bench = read_bench(path)
+    finally:
+        path.unlink()
+    assert bench.period == 0.5 and bench.read_only is False
+    (line,) = bench.lines
+    assert (line.name, line.port, line.options) == ("rs485", "/dev/ttyNONE0", {"baudrate": 9600})
+    drive, sensor = bench.devices
+    assert (drive.family, drive.unit, drive.prefix, drive.options) == (
+        "drive",
+        1,
+        "LAB:SPINDLE:",
+        {"family": "C20"},
+    )
+    assert sensor.profile is not None and sensor.profile.name == "XY-MD02"
+    assert (sensor.unit, sensor.period) == (2, 2.0)
+    assert drive.line_defaults().baudrate == 19200 and sensor.line_defaults().baudrate == 9600
+
+
+@pytest.mark.parametrize(
+    ("change", "where"),
+    [
+        (("unit = 2", "unit = 300"), ":19: device[1].unit: must be 1 to 247, got 300"),
+        (("unit = 2", 'unit = "2"'), ":19: device[1].unit: must be int, got '2'"),
+        (('line = "rs485"\nprofile', 'line = "rs232"\nprofile'), ":17: device[1].line: no line"),
+        (('family = "drive"', 'family = "lamp"'), ":11: device[0].family: no family 'lamp'"),
+        (('{ family = "C20" }', '{ colour = "red" }'), ":14: device[0].options: "),
+        (("period = 2.0", "period = -1"), ":21: device[1].period: must be a positive"),
+        (('prefix = "LAB:XY:"', 'prefix = "LAB:SPINDLE:"'), ":20: device[1].prefix: 'LAB:SP"),
+        (("baudrate = 9600", "speed = 9600"), ":7: line[0].speed: unknown key"),
+        (("period = 0.5", "period = 0"), ":2: ioc.period: must be a positive"),
+        ((f'profile = "{SENSOR}"', 'profile = "nowhere.toml"'), ":18: device[1].profile: "),
+        (('family = "drive"\n', ""), ":9: device[0]: give family or profile"),
+    ],
+)
+def test_a_bench_files_mistake_names_its_file_line_and_key_before_any_port_opens(
+    tmp_path: Path, change: tuple[str, str], where: str
+) -> None:
+    path = tmp_path / "bench.toml"
+    old, new = change
+    assert old in GOOD_BENCH
+    path.write_text(GOOD_BENCH.replace(old, new, 1))
+    result = subprocess.run(
+        [sys.executable, "-m", "benchbus", "ioc", str(path)],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert result.returncode == 2, result.stderr
+    assert f"{path}{where}" in result.stderr
+    assert "ttyNONE0" not in result.stderr  # nothing tried to open the port
+
+
 # ---- Channel Access, against a simulated device ------------------------------------------
 
 
@@ -293,6 +384,25 @@ def test_every_record_kind_reads_with_its_value_units_precision_and_limits(
         # An output record starts at what the device holds, with no alarm.
         setpoint = read(ctx, "FC:setpoint", "time")
         assert (setpoint.data[0], setpoint.metadata.severity) == (75.5, 0)
+
+
+def test_bools_are_bi_and_bo_records_with_their_two_states(epics: Epics) -> None:
+    model = ProfileDevice(RELAYS)
+    ctx = epics.client()
+    with (
+        Simulator({1: model}) as sim,
+        served(ioc_args(sim, RELAYS, "RB:", "--period", "0.2"), epics.env, "RB:ioc:connected", ctx),
+    ):
+        relay = read(ctx, "RB:relay1_RBV")
+        assert [s.decode() for s in relay.metadata.enum_strings] == ["false", "true"]
+        assert relay.data[0] == int(model.value("relay1"))
+        put(ctx, "RB:relay1", 1)
+        assert model.value("relay1") is True
+        wait_for("the readback", lambda: read(ctx, "RB:relay1_RBV").data[0] == 1)
+        put(ctx, "RB:relay8", 1)  # write-only: an output record alone
+        assert model.value("relay8") is True
+        model.set_value("input3", True)
+        wait_for("an input follows", lambda: read(ctx, "RB:input3").data[0] == 1)
 
 
 def test_puts_reach_the_wire_and_a_refused_put_sends_nothing_and_changes_nothing(
@@ -352,15 +462,14 @@ def test_a_put_the_device_refuses_restores_the_record_and_raises_its_write_alarm
 
 
 def test_a_silent_device_goes_invalid_comm_at_once_while_its_neighbour_keeps_updating(
-    epics: Epics,
+    epics: Epics, tmp_path: Path
 ) -> None:
     near, far = ProfileDevice(SENSOR), ProfileDevice(SENSOR)
     ctx = epics.client()
     period, timeout = 0.2, 0.1
-    bench = epics_bench(epics, [("A:", 1), ("B:", 2)], SENSOR, period, timeout)
     with Simulator({1: near, 2: far}) as sim:
-        bench_file = bench(sim.port)
-        with served([str(bench_file)], epics.env, "B:ioc:connected", ctx):
+        bench = bench_file(tmp_path, sim.port, [("A:", 1), ("B:", 2)], SENSOR, period, timeout)
+        with served([str(bench)], epics.env, "B:ioc:connected", ctx):
             wait_for("A connected", lambda: read(ctx, "A:ioc:connected").data[0] == 1)
             sim.set_silent(1)
             silenced = time.monotonic()
@@ -385,24 +494,317 @@ def test_a_silent_device_goes_invalid_comm_at_once_while_its_neighbour_keeps_upd
             assert read(ctx, "A:ioc:failures").data[0] >= 1
 
 
-def epics_bench(
-    epics: Epics, units: list[tuple[str, int]], profile: Path, period: float, timeout: float
-) -> Callable[[str], Path]:
-    """A function that writes a bench file of ``units`` (prefix, unit) of ``profile`` on one
-    line at ``port``."""
+def bench_file(
+    folder: Path,
+    port: str,
+    units: list[tuple[str, int]],
+    profile: Path,
+    period: float,
+    timeout: float,
+) -> Path:
+    """A bench file of ``units`` (prefix, unit) of ``profile`` on one line at ``port``."""
+    devices = "".join(
+        f'[[device]]\nline = "main"\nprofile = "{profile}"\nunit = {unit}\n'
+        f'prefix = "{prefix}"\nperiod = {period}\n'
+        for prefix, unit in units
+    )
+    path = folder / "bench.toml"
+    path.write_text(f'[[line]]\nname = "main"\nport = "{port}"\ntimeout = {timeout}\n{devices}')
+    return path
 
-    def write(port: str) -> Path:
-        folder = Path(os.environ.get("PYTEST_TMP", "/tmp"))
-        path = folder / f"bench-{epics.ca_port}.toml"
-        devices = "".join(
-            f'[[device]]\nline = "main"\nprofile = "{profile}"\nunit = {unit}\n'
-            f'prefix = "{prefix}"\nperiod = {period}\n'
-            for prefix, unit in units
-        )
-        path.write_text(f'[[line]]\nname = "main"\nport = "{port}"\ntimeout = {timeout}\n{devices}')
-        return path
 
-    return write
+def invalid_comm(context: Any, name: str) -> bool:
+    """Whether the PV ``name`` is in INVALID severity with COMM status."""
+    md = read(context, name, "time").metadata
+    return bool((md.severity, md.status) == (3, 9))
+
+
+def test_a_lost_port_puts_every_record_in_comm_alarm_and_its_return_clears_it(
+    epics: Epics, tmp_path: Path
+) -> None:
+    model = ProfileDevice(SENSOR)
+    sim = Simulator({1: model, 2: ProfileDevice(SENSOR)})
+    link = tmp_path / "ttyUSB0"
+    sim.start()
+    link.symlink_to(sim.port)
+    period, timeout = 0.2, 0.1
+    bench = bench_file(tmp_path, str(link), [("A:", 1), ("B:", 2)], SENSOR, period, timeout)
+    ctx = epics.client()
+    try:
+        with served([str(bench)], epics.env, "B:ioc:connected", ctx):
+            sim.stop()  # the adapter unplugged
+            link.unlink()
+            lost = time.monotonic()
+            for name in ("A:temperature", "A:humidity", "B:temperature", "A:unit_address_RBV"):
+                wait_for(f"{name} INVALID/COMM", lambda n=name: invalid_comm(ctx, n), timeout=3)
+            assert time.monotonic() - lost < period + 3 * timeout + 0.5
+            assert read(ctx, "A:ioc:connected").data[0] == 0
+            assert "PortError" in read(ctx, "A:ioc:error").data[0].decode()
+            model.set_value("temperature", 30.5)
+            sim.start()  # plugged in again: a new pty behind the same path
+            link.symlink_to(sim.port)
+            wait_for("A back", lambda: read(ctx, "A:temperature", "time").metadata.severity == 0)
+            assert read(ctx, "A:temperature").data[0] == 30.5
+            assert read(ctx, "A:ioc:connected").data[0] == 1
+            assert read(ctx, "A:ioc:reopens").data[0] >= 1
+    finally:
+        sim.stop()
+
+
+def eight_registers(folder: Path) -> Path:
+    """A profile of 8 neighbouring holding registers, the first one writable."""
+    rows = "".join(
+        f'[[register]]\nname = "r{i}"\naddress = {i}\naccess = "{"rw" if i == 0 else "r"}"\n'
+        for i in range(8)
+    )
+    path = folder / "eight.toml"
+    path.write_text(f'[device]\nname = "eight"\n{rows}')
+    return path
+
+
+@pytest.mark.timing
+def test_a_put_during_the_polls_of_10_devices_waits_behind_at_most_one_request(
+    epics: Epics, tmp_path: Path
+) -> None:
+    profile = eight_registers(tmp_path)
+    models = {unit: ProfileDevice(profile) for unit in range(1, 11)}
+    ctx = epics.client()
+    units = [(f"D{unit}:", unit) for unit in models]
+    with Simulator(models) as sim:
+        bench = bench_file(tmp_path, sim.port, units, profile, 0.001, 0.2)
+        with served([str(bench)], epics.env, "D10:ioc:connected", ctx):
+            (target,) = ctx.get_pvs("D1:r0", timeout=2)
+            waits: list[int] = []
+            for value in range(1, 21):
+                time.sleep(0.013 * (value % 5))  # land at different points of a poll
+                sent = time.monotonic()
+                target.write([value], wait=True, timeout=5)
+                assert models[1].value("r0") == value
+                frames, times = sim.requests, sim.request_times
+                at = max(i for i, f in enumerate(frames) if f[1] == 0x06 and f[0] == 1)
+                before = [t for f, t in zip(frames[:at], times[:at]) if t > sent]
+                waits.append(len(before))
+            # The polls read one request a device (10 a cycle), without a pause between
+            # them: a put waits for the request on the line (and, at most, the one that
+            # started while the put crossed Channel Access), never for the cycle.
+            cycle = [t for f, t in zip(sim.requests, sim.request_times) if f[0] == 1 and f[1] == 3]
+            assert len(cycle) > 20  # the line was kept busy by the polls
+            print("requests a put waited behind:", waits)
+            assert max(waits) <= 2, waits
+
+
+#: An IOC made from Python, its misuses tried on the way (an IOC is one per process).
+SCRIPT = """
+import sys
+import benchbus as bb
+from benchbus.epics import Ioc
+
+bus = bb.Bus(sys.argv[1], timeout=0.3)
+device = bb.Device.from_profile(sys.argv[2], bus, unit=1)
+ioc = Ioc(period=0.2)
+for misuse in (lambda: Ioc(), lambda: ioc.add("X:", object()), lambda: ioc.start()):
+    try:
+        misuse()
+    except (RuntimeError, TypeError) as exc:
+        print(type(exc).__name__, exc)
+ioc.add("X:", device)
+try:
+    ioc.add("Y:", bb.Device.from_profile(sys.argv[2], bus, unit=1))
+    ioc.add("Y:", device)
+except ValueError as exc:
+    print(type(exc).__name__, exc)
+ioc.start()
+try:
+    ioc.add("Z:", device)
+except RuntimeError as exc:
+    print(type(exc).__name__, exc)
+print("serving", len(ioc.names), flush=True)
+ioc.run()
+"""
+
+
+def test_an_ioc_made_from_python_is_one_per_process_and_takes_devices_before_it_starts(
+    epics: Epics,
+) -> None:
+    ctx = epics.client()
+    with Simulator({1: ProfileDevice(SENSOR)}) as sim:
+        command = [sys.executable, "-c", SCRIPT, sim.port, str(SENSOR)]
+        with served([], epics.env, "X:ioc:connected", ctx, command) as process:
+            assert read(ctx, "X:temperature").data[0] == 21.5
+            assert read(ctx, "Y:temperature").data[0] == 21.5
+    said = ("RuntimeError", "TypeError", "ValueError", "serving")  # not EPICS's own lines
+    lines = [n for n in process.stdout_text.splitlines() if n.startswith(said)]  # type: ignore[attr-defined]
+    assert lines[0].startswith("RuntimeError an EPICS IOC is one per process")
+    assert lines[1].startswith("TypeError object has no register table to serve")
+    assert lines[2] == "RuntimeError nothing to serve: add() a device before start()"
+    assert lines[3].startswith("ValueError Y:temperature is served already (by Y: Device unit 1)")
+    assert lines[4].startswith("RuntimeError the IOC has started and EPICS takes no records")
+    assert lines[5].startswith("serving ")
+
+
+def test_read_only_serves_readbacks_alone_and_access_security_refuses_writes(
+    epics: Epics, controller: tuple[Simulator[ProfileDevice], ProfileDevice], tmp_path: Path
+) -> None:
+    sim, model = controller
+    ctx = epics.client()
+    with served(
+        ioc_args(sim, CONTROLLER, "RO:", "--read-only"), epics.env, "RO:ioc:connected", ctx
+    ):
+        assert read(ctx, "RO:setpoint_RBV").data[0] == 75.5
+        with pytest.raises(caproto_client.CaprotoTimeoutError):
+            ctx.get_pvs("RO:setpoint", timeout=1)[0].wait_for_connection(timeout=1)
+    rules = tmp_path / "readers.acf"
+    rules.write_text("ASG(DEFAULT) {\n    RULE(1, READ)\n}\n")
+    args = ioc_args(sim, CONTROLLER, "AS:", "--access-security", str(rules))
+    with served(args, epics.env, "AS:ioc:connected", ctx):
+        (setpoint,) = ctx.get_pvs("AS:setpoint", timeout=2)
+        setpoint.wait_for_connection(timeout=3)
+        before = len(writes(sim))
+        assert setpoint.channel.access_rights == 1  # read, not write
+        response = setpoint.write([60.0], wait=True, timeout=3)
+        assert response.status.name == "ECA_NOWTACCESS"
+        assert len(writes(sim)) == before and model.value("setpoint") == 75.5
+        assert setpoint.read(timeout=3).data[0] == 75.5
+
+
+def test_serving_beyond_loopback_is_said_once_and_loopback_is_the_default(
+    monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
+) -> None:
+    from benchbus.epics import serve_on
+
+    for key in ("EPICS_CAS_INTF_ADDR_LIST", "EPICS_PVAS_INTF_ADDR_LIST"):
+        monkeypatch.delenv(key, raising=False)
+    for key in ("CAS_AUTO_BEACON", "CAS_BEACON", "PVAS_AUTO_BEACON", "PVAS_BEACON"):
+        monkeypatch.delenv(f"EPICS_{key}_ADDR_LIST", raising=False)
+    with caplog.at_level("WARNING", logger="benchbus.epics"):
+        assert serve_on(None) == "127.0.0.1"
+    assert os.environ["EPICS_PVAS_INTF_ADDR_LIST"] == "127.0.0.1"
+    assert os.environ["EPICS_CAS_BEACON_ADDR_LIST"] == "127.255.255.255"
+    assert caplog.records == []
+    with caplog.at_level("WARNING", logger="benchbus.epics"):
+        assert serve_on("192.0.2.7") == "192.0.2.7"  # documentation address: nothing binds
+    assert os.environ["EPICS_CAS_INTF_ADDR_LIST"] == "192.0.2.7"
+    assert os.environ["EPICS_PVAS_INTF_ADDR_LIST"] == "192.0.2.7"
+    (warning,) = caplog.records
+    assert "beyond loopback" in warning.getMessage()
+
+
+# ---- PV Access -----------------------------------------------------------------------------
+
+
+def test_pv_access_reads_values_with_their_metadata_and_puts_reach_the_wire(
+    epics: Epics, controller: tuple[Simulator[ProfileDevice], ProfileDevice]
+) -> None:
+    from p4p.client.thread import Context as PvaContext
+
+    sim, model = controller
+    env = epics.env
+    conf = {
+        key: env[key]
+        for key in ("EPICS_PVA_ADDR_LIST", "EPICS_PVA_AUTO_ADDR_LIST", "EPICS_PVA_BROADCAST_PORT")
+    }
+    with served(
+        ioc_args(sim, CONTROLLER, "FC:", "--period", "0.2"), env, "FC:ioc:connected", epics.client()
+    ):
+        pva = PvaContext("pva", conf=conf, useenv=False)
+        try:
+            setpoint = pva.get("FC:setpoint_RBV", timeout=5)
+            assert setpoint == 75.5
+            assert setpoint.raw.display.units == "sccm"
+            assert setpoint.raw.display.precision == 3
+            assert (setpoint.raw.display.limitLow, setpoint.raw.display.limitHigh) == (0.0, 200.0)
+            assert setpoint.severity == 0
+            total = pva.get("FC:total", timeout=5)
+            assert math.isclose(total, model.value("total"))
+            assert total.raw.display.precision == 2 and total.raw.display.units == "scc"
+            mode = pva.get("FC:mode_RBV", timeout=5)
+            assert list(mode.raw.value.choices) == ["off", "control", "purge", "close"]
+            assert mode.raw.value.choices[mode.raw.value.index] == model.value("mode")
+            name = pva.get("FC:device_name_RBV", timeout=5)
+            assert name == model.value("device_name")
+            pva.put("FC:setpoint", 42.5, wait=True, timeout=5)
+            assert model.value("setpoint") == 42.5
+            pva.put("FC:mode", "off", wait=True, timeout=5)
+            assert model.value("mode") == "off"
+        finally:
+            pva.close()
+
+
+def test_two_iocs_on_two_lines_each_with_its_port_are_read_by_one_client(
+    monkeypatch: pytest.MonkeyPatch,
+) -> None:
+    ports = [free_port(), free_port()]
+    envs = [epics_env([p], free_port(), free_port()) for p in ports]
+    both = epics_env(ports, free_port(), free_port())
+    for key, value in both.items():
+        monkeypatch.setenv(key, value)
+    ctx = caproto_client.Context()
+    first, second = ProfileDevice(SENSOR), ProfileDevice(SENSOR)
+    first.set_value("temperature", 21.5)
+    second.set_value("temperature", 23.0)
+    with Simulator({1: first}) as a, Simulator({1: second}) as b:
+        with served(ioc_args(a, SENSOR, "BENCH1:"), envs[0], "BENCH1:ioc:connected", ctx):
+            second = ioc_args(b, SENSOR, "BENCH2:")
+            with served(second, envs[1], "BENCH2:ioc:connected", ctx, stop=signal.SIGINT):
+                assert read(ctx, "BENCH1:temperature").data[0] == 21.5
+                assert read(ctx, "BENCH2:temperature").data[0] == 23.0
+
+
+# ---- ophyd-async's EPICS backend in a Bluesky plan -------------------------------------------
+
+
+def test_an_ophyd_async_epics_device_counts_and_moves_through_the_ioc(
+    epics: Epics,
+) -> None:
+    import asyncio
+
+    import bluesky.plan_stubs as bps
+    from bluesky import RunEngine
+    from bluesky.plans import count
+    from ophyd_async.core import StandardReadable, StandardReadableFormat
+    from ophyd_async.epics.core import epics_signal_r, epics_signal_rw_rbv
+
+    class Sensor(StandardReadable):
+        def __init__(self, prefix: str, name: str = "") -> None:
+            with self.add_children_as_readables():
+                self.temperature = epics_signal_r(float, f"ca://{prefix}temperature")
+                self.humidity = epics_signal_r(float, f"ca://{prefix}humidity")
+            with self.add_children_as_readables(StandardReadableFormat.CONFIG_SIGNAL):
+                self.correction = epics_signal_rw_rbv(float, f"ca://{prefix}temperature_correction")
+            super().__init__(name=name)
+
+    model = ProfileDevice(SENSOR)
+    model.set_value("temperature", 19.5)
+    engine = RunEngine(call_returns_result=True)
+    try:
+        with (
+            Simulator({1: model}) as sim,
+            served(
+                ioc_args(sim, SENSOR, "XY:", "--period", "0.2"),
+                epics.env,
+                "XY:ioc:connected",
+                epics.client(),
+            ),
+        ):
+            sensor = Sensor("XY:", name="sensor")
+            asyncio.run_coroutine_threadsafe(sensor.connect(timeout=10), engine.loop).result(20)
+            docs: list[tuple[str, dict[str, Any]]] = []
+            engine(count([sensor], num=2), lambda name, doc: docs.append((name, doc)))
+            descriptor = next(d for n, d in docs if n == "descriptor")
+            assert descriptor["data_keys"]["sensor-temperature"]["units"] == "degC"
+            assert descriptor["data_keys"]["sensor-temperature"]["source"].endswith(
+                "XY:temperature"
+            )
+            events = [d for n, d in docs if n == "event"]
+            assert [e["data"]["sensor-temperature"] for e in events] == [19.5, 19.5]
+            assert events[0]["data"]["sensor-humidity"] == model.value("humidity")
+            configuration = descriptor["configuration"]["sensor"]["data"]
+            assert configuration["sensor-correction"] == model.value("temperature_correction")
+            engine(bps.mv(sensor.correction, -1.5))
+            assert model.value("temperature_correction") == -1.5
+    finally:
+        engine.loop.call_soon_threadsafe(engine.loop.stop)
+        engine._th.join(timeout=5)
 
 
 # ---- a built-in family ---------------------------------------------------------------------
@@ -432,5 +834,7 @@ def test_a_drives_action_records_move_the_motor_and_sigterm_stops_it(epics: Epic
             wait_for("the motor stops", lambda: model.state == stopped)
             put(ctx, "SP:reverse", 1)
             wait_for("the motor runs again", lambda: model.speed < -1000)
-        # SIGTERM stopped the motor before the IOC ended.
+        # SIGTERM stopped the motor before the IOC ended, and released the port.
         wait_for("the motor stops on SIGTERM", lambda: model.state == stopped, timeout=2)
+        with bb.Drive(sim.port) as drive:
+            assert drive.speed == 0

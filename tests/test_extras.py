@@ -1,6 +1,7 @@
 """Without the ``sim`` extra (pymodbus, pyserial), ``import benchbus.sim``, the command line
 and the pytest plugin all say the same thing: ``pip install 'benchbus[sim]'``; without their
-framework, ``benchbus.qcodes`` and ``benchbus.ophyd`` say which extra to install.
+framework, ``benchbus.qcodes``, ``benchbus.ophyd`` and ``benchbus.epics`` say which extra to
+install.
 
 Each case runs in a fresh interpreter in which a finder placed first on ``sys.meta_path``
 makes the module look uninstalled (``ModuleNotFoundError``, as Python raises for a module
@@ -128,13 +129,19 @@ def test_the_pytest_plugin_gives_the_same_message(tmp_path: Path) -> None:
             "benchbus.ophyd needs ophyd-async and Bluesky (Python 3.11 or later): "
             "pip install 'benchbus[bluesky]'",
         ),
+        (
+            "epics",
+            "softioc",
+            "epics.Ioc()",
+            "benchbus.epics needs pythonSoftIOC: pip install 'benchbus[epics]'",
+        ),
     ],
 )
 def test_a_framework_integration_without_its_extra_says_what_to_install(
     module: str, hidden: str, call: str, message: str
 ) -> None:
-    """``benchbus.qcodes`` and ``benchbus.ophyd`` import without their framework (the
-    package imports them all), and say what to install when used."""
+    """``benchbus.qcodes``, ``benchbus.ophyd`` and ``benchbus.epics`` import without their
+    framework (the package imports them all), and say what to install when used."""
     done = run_python(
         HIDE.format(module=hidden)
         + textwrap.dedent(

@@ -257,7 +257,7 @@ def read_bench(path: str | os.PathLike[str]) -> Bench:
         if key is not None:
             cls = family(key).device or BusDevice
             try:
-                inspect.signature(cls).bind(None, 1, **options)
+                inspect.signature(cls.__init__).bind(None, None, 1, **options)
             except TypeError as exc:
                 raise where.error("device", n, "options", str(exc)) from None
         period = _period(where, "device", n, device.get("period"))
