@@ -494,6 +494,32 @@ def test_a_silent_device_goes_invalid_comm_at_once_while_its_neighbour_keeps_upd
             assert read(ctx, "A:ioc:failures").data[0] >= 1
 
 
+def test_a_register_the_device_refuses_alarms_its_record_alone(
+    epics: Epics, tmp_path: Path
+) -> None:
+    # The IOC's profile has a register beside the sensor's two that the sensor lacks.
+    extra = '[[register]]\nname = "extra"\naddress = 0x0003\ntable = "input"\n'
+    profile = tmp_path / "more.toml"
+    profile.write_text(SENSOR.read_text() + "\n" + extra)
+    model = ProfileDevice(SENSOR)
+    ctx = epics.client()
+    with (
+        Simulator({1: model}) as sim,
+        served(ioc_args(sim, profile, "S:", "--period", "0.2"), epics.env, "S:ioc:connected", ctx),
+    ):
+        (extra_pv,) = ctx.get_pvs("S:extra", timeout=2)
+        wait_for(
+            "INVALID/READ on the refused register",
+            lambda: (lambda m: (m.severity, m.status) == (3, 1))(
+                extra_pv.read(data_type="time", timeout=1).metadata
+            ),
+        )
+        model.set_value("temperature", 24.5)
+        wait_for("its neighbours read on", lambda: read(ctx, "S:temperature").data[0] == 24.5)
+        for name in ("S:temperature", "S:humidity", "S:ioc:connected"):
+            assert read(ctx, name, "time").metadata.severity == 0, name
+
+
 def bench_file(
     folder: Path,
     port: str,

@@ -49,7 +49,14 @@ from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Protocol
 
 from benchbus._device import MotorDevice, is_unknown, member_name
 from benchbus._families import FAMILIES
-from benchbus.exceptions import BenchbusError, ModbusException, PortError
+from benchbus.exceptions import (
+    BenchbusError,
+    Cancelled,
+    FrameError,
+    ModbusException,
+    PortError,
+    ResponseTimeout,
+)
 
 if TYPE_CHECKING:
     from benchbus._core import Bus, Profile
@@ -355,12 +362,16 @@ class _Served:
         self.device = device
         self.pvs = made
         self.period = period
+        self.profile = device.profile
         self.records: dict[str, Any] = {}
-        #: The last value each output record was given or read (what a refusal restores).
-        self.last: dict[str, Any] = {}
+        #: What each output record held before the put being written (what a refusal
+        #: restores).
+        self.before: dict[str, Any] = {}
+        #: The output records given the device's value once (at its first good read).
+        self.shown: set[str] = set()
         self.inputs = [p for p in made if not p.output and p.register is not None]
         self.names = list(dict.fromkeys(p.register for p in self.inputs if p.register))
-        #: The registers read one a request since the device refused a read of them.
+        #: The registers read one a request: the device refused them when read alone.
         self.alone: set[str] = set()
         self.polls = 0
         self.failures = 0
@@ -375,18 +386,20 @@ class _Served:
         exception it gave; a failure of the line is raised."""
         values: dict[str, Any] = {}
         refused: dict[str, BaseException] = {}
-        together = [n for n in self.names if n not in self.alone]
+        alone = set(self.alone)
+        together = [n for n in self.names if n not in alone]
         if together:
             try:
                 values.update(self.device.get_many(together))
             except ModbusException:
-                self.alone.update(together)
+                alone.update(together)  # this time, one a request: which one is refused?
         for name in self.names:
-            if name in self.alone:
+            if name in alone:
                 try:
                     values[name] = self.device.get(name)
                 except ModbusException as exc:
                     refused[name] = exc
+        self.alone = set(refused)
         return values, refused
 
     def poll(self, alarm: Any) -> None:
@@ -409,12 +422,12 @@ class _Served:
             else:
                 record.set(value, timestamp=when)
         for pv in self.pvs:
-            if pv.output and pv.register is not None and pv.name not in self.last:
-                value = pv.shown(values.get(pv.register)) if pv.register in values else None
+            if pv.output and pv.register is not None and pv.name not in self.shown:
+                value = pv.shown(values[pv.register]) if pv.register in values else None
                 if value is not None:
                     # The device's value, shown without writing it back; processing with
                     # the same value clears the alarm of an output record never written.
-                    self.last[pv.name] = value
+                    self.shown.add(pv.name)
                     record = self.records[pv.name]
                     record.set(value, process=False)
                     record.set_alarm(alarm.NO_ALARM, alarm.NO_ALARM)
@@ -454,7 +467,9 @@ class _Served:
 
     def write(self, pv: Pv, value: Any, alarm: Any) -> None:
         """Write a put of ``value`` to the device (or run the action); a refusal restores
-        the record's previous value with a WRITE alarm, and the log says why."""
+        what the record held before with a WRITE alarm (MAJOR: the device or its family's
+        rule said no; INVALID: the line failed, so the write may have been done), and the
+        log says why."""
         record = self.records[pv.name]
         try:
             if pv.action is not None:
@@ -462,17 +477,13 @@ class _Served:
             elif pv.register is not None:
                 self.device.set(pv.register, pv.written(value))
         except (BenchbusError, ValueError, TypeError, OSError) as exc:
-            line = isinstance(exc, (PortError, OSError)) or not isinstance(
-                exc, (ModbusException, ValueError, TypeError)
-            )
-            severity = alarm.INVALID_ALARM if line else alarm.MAJOR_ALARM
+            on_line = isinstance(exc, (ResponseTimeout, FrameError, PortError, Cancelled, OSError))
+            severity = alarm.INVALID_ALARM if on_line else alarm.MAJOR_ALARM
             log.warning("%s: put %r refused: %s: %s", pv.name, value, type(exc).__name__, exc)
-            previous = self.last.get(pv.name, 0 if pv.action else value)
+            previous = self.before.get(pv.name, 0)
             record.set(previous, process=False, severity=severity, alarm=alarm.WRITE_ALARM)
             return
-        if pv.action is None:
-            self.last[pv.name] = value
-        record.set(0 if pv.action else value, process=False)
+        record.set(0 if pv.action is not None else value, process=False)
 
 
 def _loopback(addresses: str) -> bool:
@@ -647,14 +658,14 @@ class Ioc:
             return make(pv.name, *pv.states, **fields)
         alarm = self._alarm
 
-        def check(_record: Any, value: Any) -> bool:
-            if pv.register is None:
-                return True
+        def check(record: Any, value: Any) -> bool:
+            """softioc's validate: the core's checks of a write, nothing sent."""
             try:
-                served.device.profile.check(pv.register, pv.written(value))
+                served.profile.check(pv.register or "", pv.written(value))
             except (ValueError, TypeError) as exc:
                 log.warning("%s: put %r refused before sending: %s", pv.name, value, exc)
                 return False
+            served.before[pv.name] = record.get()
             return True
 
         async def put(value: Any) -> None:
