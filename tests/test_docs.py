@@ -60,6 +60,7 @@ PICKED_BY = (
     "benchbus.qcodes",
     "bb.aio.AsyncBus(",
     "benchbus.ophyd",
+    "benchbus.epics",
     "Faults(",
     "bb.WrongDevice as",
     "bb.is_unknown(",
@@ -339,6 +340,45 @@ def test_readme_ophyd_example(capsys: pytest.CaptureFixture[str]) -> None:
     assert drive.peek(0x2001) == 1500
     # Forward, the stop at the end of the plan, and the one leaving the with block sends.
     assert drive.commands == [1, 5, 5]
+
+
+def test_epics_guide_example(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The IOC made from Python, in a process of its own (an IOC is one per process), on a
+    simulated sensor and drive; read over Channel Access, then stopped by SIGTERM, which
+    stops the drive."""
+    from epics_clients import epics_env, free_port, read, served
+
+    from benchbus.epics import pvs
+    from benchbus.sim import ProfileDevice
+
+    (block,) = [b for b in doc_blocks() if "benchbus.epics" in b]
+    env = epics_env([free_port()], free_port(), free_port())
+    for key, value in env.items():
+        monkeypatch.setenv(key, value)
+    sensor = ProfileDevice(ROOT / "examples" / "profiles" / "xy_md02.toml")
+    drive = DriveDevice()
+    with Simulator({1: sensor, 2: drive}) as sim:
+        code = block.replace("examples/profiles/", f"{ROOT}/examples/profiles/")
+        code = code.replace("/dev/ttyUSB0", sim.port)
+        import caproto.threading.client as caproto_client
+
+        ctx = caproto_client.Context()
+        command = [sys.executable, "-c", code]
+        with served([], env, "LAB:SPINDLE:ioc:connected", ctx, command) as process:
+            assert read(ctx, "LAB:XY:temperature").data[0] == sensor.value("temperature")
+            read(ctx, "LAB:SPINDLE:speed_setpoint")  # the drive's records are there
+            ctx.get_pvs("LAB:SPINDLE:forward")[0].write([1], wait=True, timeout=5)
+            assert drive.commands == [1]
+        assert drive.commands == [1, 5]  # SIGTERM stopped it
+        assert sim.errors == []
+        with bb.Bus(sim.port) as bus:  # the IOC released the port
+            stats = tuple(bus.stats.as_dict())
+    profile = bb.Profile(ROOT / "examples" / "profiles" / "xy_md02.toml")
+    actions = tuple(name for name, _ in bb.Drive.commands())
+    served_pvs = pvs("LAB:XY:", profile, stats=stats)[0]
+    served_pvs += pvs("LAB:SPINDLE:", bb.Profile.family("drive"), actions=actions, stats=stats)[0]
+    said = [n for n in process.stdout_text.splitlines() if "PVs" in n]  # type: ignore[attr-defined]
+    assert said == [f"{len(served_pvs)} PVs, such as LAB:XY:temperature"]
 
 
 def test_readme_values_example(capsys: pytest.CaptureFixture[str]) -> None:

@@ -63,8 +63,11 @@ if TYPE_CHECKING:
     from benchbus._profile import ProfileRegister
 
 __all__ = [
+    "BOOL_STATES",
     "EGU_MAX",
     "IOC",
+    "MBB_STATES",
+    "MEMBER_NAME",
     "PV_NAME_MAX",
     "RBV",
     "STATE_MAX",
@@ -72,6 +75,7 @@ __all__ = [
     "Pv",
     "ServedDevice",
     "pvs",
+    "serve_on",
 ]
 
 log = logging.getLogger("benchbus.epics")
@@ -612,7 +616,7 @@ class Ioc:
         for text in warnings:
             log.warning("%s%s", prefix, text)
         for pv in made:
-            self._names[pv.name] = f"{prefix} {type(device).__name__} unit {device_unit(device)}"
+            self._names[pv.name] = f"{prefix} {type(device).__name__} unit {_unit(device)}"
         self._served.append(_Served(prefix, device, made, every))
 
     def start(self) -> None:
@@ -747,7 +751,7 @@ class Ioc:
         raise SystemExit(0)  # not reached: EPICS has ended the process
 
 
-def device_unit(device: object) -> object:
+def _unit(device: object) -> object:
     """The unit of ``device`` (None if it has none)."""
     return getattr(device, "unit", None)
 

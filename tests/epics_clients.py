@@ -1,0 +1,138 @@
+"""EPICS clients for the tests: ports of a test's own on loopback, ``benchbus ioc`` run in a
+process of its own, and reads and puts with caproto (Channel Access)."""
+
+from __future__ import annotations
+
+import contextlib
+import dataclasses
+import os
+import signal
+import socket
+import subprocess
+import sys
+import time
+from collections.abc import Callable, Iterator
+from typing import Any
+
+import caproto.threading.client as caproto_client
+import pytest
+
+from benchbus.sim import Simulator
+
+#: Function codes that write.
+WRITES = {0x05, 0x06, 0x0F, 0x10, 0x16, 0x17}
+
+
+def free_port() -> int:
+    """A port free on loopback for both TCP and UDP now."""
+    while True:
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as tcp:
+            tcp.bind(("127.0.0.1", 0))
+            port = int(tcp.getsockname()[1])
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
+                try:
+                    udp.bind(("127.0.0.1", port))
+                except OSError:
+                    continue
+        return port
+
+
+@dataclasses.dataclass
+class Epics:
+    """The EPICS environment of one test: its own ports, loopback only."""
+
+    ca_port: int
+    env: dict[str, str]
+
+    def client(self) -> Any:
+        """A caproto Channel Access client context searching this test's IOCs."""
+        return caproto_client.Context()
+
+
+def epics_env(ca_ports: list[int], pva_port: int, pva_broadcast: int) -> dict[str, str]:
+    """The variables that keep servers and clients on loopback and on these ports."""
+    return {
+        "EPICS_CAS_INTF_ADDR_LIST": "127.0.0.1",
+        "EPICS_CA_ADDR_LIST": " ".join(f"127.0.0.1:{p}" for p in ca_ports),
+        "EPICS_CA_AUTO_ADDR_LIST": "NO",
+        "EPICS_CA_SERVER_PORT": str(ca_ports[0]),
+        "EPICS_CA_REPEATER_PORT": str(free_port()),
+        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
+        "EPICS_PVA_ADDR_LIST": "127.0.0.1",
+        "EPICS_PVA_AUTO_ADDR_LIST": "NO",
+        "EPICS_PVAS_SERVER_PORT": str(pva_port),
+        "EPICS_PVA_SERVER_PORT": str(pva_port),
+        "EPICS_PVAS_BROADCAST_PORT": str(pva_broadcast),
+        "EPICS_PVA_BROADCAST_PORT": str(pva_broadcast),
+    }
+
+
+def wait_for(what: str, check: Callable[[], Any], timeout: float = 10.0) -> Any:
+    """``check()``'s first true result within ``timeout`` s; fails naming ``what``."""
+    deadline = time.monotonic() + timeout
+    last: Any = None
+    while time.monotonic() < deadline:
+        try:
+            last = check()
+        except Exception as exc:  # a PV not yet connected, a read timed out
+            last = exc
+        else:
+            if last:
+                return last
+        time.sleep(0.05)
+    pytest.fail(f"{what}: not within {timeout} s (last: {last!r})")
+
+
+@contextlib.contextmanager
+def served(
+    args: list[str],
+    env: dict[str, str],
+    ready: str,
+    context: Any,
+    command: list[str] | None = None,
+    stop: signal.Signals = signal.SIGTERM,
+) -> Iterator[subprocess.Popen[str]]:
+    """``benchbus ioc ARGS`` (or ``command``) in a process of its own, with no standard
+    input (as a service runs), until the block ends, once ``ready`` (a PV) reads 1; then
+    ``stop`` (SIGTERM), which must end it cleanly within 2 s."""
+    process = subprocess.Popen(
+        command or [sys.executable, "-m", "benchbus", "ioc", *args],
+        env={**os.environ, **env},
+        stdin=subprocess.DEVNULL,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        (pv,) = context.get_pvs(ready, timeout=2)
+        wait_for(f"{ready} = 1", lambda: pv.read(timeout=1).data[0] == 1, timeout=20)
+        yield process
+    except BaseException:
+        process.kill()
+        _, err = process.communicate(timeout=10)
+        print(err)
+        raise
+    process.send_signal(stop)
+    started = time.monotonic()
+    out, err = process.communicate(timeout=10)
+    took = time.monotonic() - started
+    assert process.returncode == 0, err
+    assert took < 2.0, f"{stop.name} took {took:.1f} s"
+    process.stdout_text, process.stderr_text = out, err  # type: ignore[attr-defined]
+
+
+def read(context: Any, name: str, kind: str = "control") -> Any:
+    """One read of the PV ``name`` with its ``kind`` of metadata."""
+    (pv,) = context.get_pvs(name, timeout=2)
+    return pv.read(data_type=kind, timeout=3)
+
+
+def put(context: Any, name: str, value: Any) -> None:
+    """A put that waits for the IOC to have processed it (put-callback)."""
+    (pv,) = context.get_pvs(name, timeout=2)
+    pv.write(value if isinstance(value, list) else [value], wait=True, timeout=5)
+
+
+def writes(sim: Simulator[Any]) -> list[bytes]:
+    """The write requests the simulator has received."""
+    return [f for f in sim.requests if len(f) > 1 and f[1] in WRITES]
