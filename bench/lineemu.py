@@ -17,7 +17,8 @@ reads at ``0x8000`` and above get exception 2; units not in ``--units`` stay sil
 
 It prints one JSON line ``{"ports": [...]}`` and then answers commands on stdin, one per line:
 ``stats`` prints (and clears) what it measured since the last ``stats``: per line the time the
-first byte of each request arrived, the gap on the wire between the end of each reply and the
+first byte of each request arrived and its unit, when each reply's last byte reached the
+master, the gap on the wire between the end of each reply and the
 next request, how many requests came less than t3.5 after a reply, the slave's own
 turnaround, and how late the last byte of each frame left the forwarder (its own error);
 ``quit`` (or end of input) stops it.
@@ -215,6 +216,8 @@ class EmulatedLine:
             self.up = Direction(self.b_master, self.char_time)  # master -> slave
             self.down = Direction(self.a_master, self.char_time)  # slave -> master
         self.requests: list[float] = []
+        self.units: list[int] = []  # the unit each request is addressed to
+        self.replies: list[float] = []  # when each reply's last byte reached the master
         self.gaps: list[float] = []
         self.late: list[float] = []
         self.early = 0  # requests less than t3.5 after a reply's last byte
@@ -234,6 +237,7 @@ class EmulatedLine:
             # Whatever the slave holds of an earlier frame is abandoned (resynchronised).
             self.slave.buf.clear()
             self.requests.append(now)
+            self.units.append(data[0])
             if self.reply_end is not None:
                 self.gaps.append(now - self.reply_end)
                 # 20 us of grace for the clocks' reading: the reply's end is stamped just before
@@ -279,18 +283,22 @@ class EmulatedLine:
         if self.down is not None and (late := self.down.release(now)) is not None:
             self.late.append(late)
             self.reply_end = self.down.written
+            self.replies.append(self.down.written)
 
     def take_stats(self) -> dict[str, object]:
         """What was measured since the last call, and clear it."""
         stats = {
             "port": self.port,
             "requests": self.requests,
+            "units": self.units,
+            "replies": self.replies,
             "gaps": self.gaps,
             "turnarounds": self.slave.turnarounds,
             "late": self.late,
             "early": self.early,
         }
         self.requests, self.gaps, self.slave.turnarounds, self.late = [], [], [], []
+        self.units, self.replies = [], []
         self.early = 0
         return stats
 

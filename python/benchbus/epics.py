@@ -380,10 +380,30 @@ class _Served:
         self.polls = 0
         self.failures = 0
         self.connected: bool | None = None
+        #: What each input record shows: (value, severity, status).
+        self.held: dict[str, tuple[Any, int, int]] = {}
 
-    def own(self, name: str) -> Any:
-        """The device's own record ``ioc:<name>``."""
-        return self.records[self.prefix + IOC + name]
+    def show(
+        self, name: str, value: Any, severity: int = 0, status: int = 0, when: float | None = None
+    ) -> None:
+        """Give the input record ``name`` ``value`` (None: the one it has) and an alarm,
+        stamped ``when``, if that changes what it shows: a record processes, and its
+        monitors fire, on a change only (so its time is that of the read that changed it)."""
+        held = self.held.get(name)
+        if value is None and held is not None:
+            value = held[0]
+        if held == (value, severity, status):
+            return
+        self.held[name] = (value, severity, status)
+        record = self.records[name]
+        if value is None:
+            record.set_alarm(severity, status, timestamp=when)
+        else:
+            record.set(value, severity=severity, alarm=status, timestamp=when)
+
+    def own(self, name: str, value: Any) -> None:
+        """Show ``value`` in the device's own record ``ioc:<name>``."""
+        self.show(self.prefix + IOC + name, value)
 
     def read(self) -> tuple[dict[str, Any], dict[str, BaseException]]:
         """The readable registers' values, and the registers the device refused with the
@@ -416,15 +436,14 @@ class _Served:
         when = time.time()
         self.polls += 1
         for pv in self.inputs:
-            record = self.records[pv.name]
             if pv.register in refused:
-                record.set_alarm(alarm.INVALID_ALARM, alarm.READ_ALARM, timestamp=when)
+                self.show(pv.name, None, alarm.INVALID_ALARM, alarm.READ_ALARM, when)
                 continue
             value = pv.shown(values[pv.register or ""])
             if value is None:  # an enum number the profile does not list
-                record.set_alarm(alarm.INVALID_ALARM, alarm.STATE_ALARM, timestamp=when)
+                self.show(pv.name, None, alarm.INVALID_ALARM, alarm.STATE_ALARM, when)
             else:
-                record.set(value, timestamp=when)
+                self.show(pv.name, value, when=when)
         for pv in self.pvs:
             if pv.output and pv.register is not None and pv.name not in self.shown:
                 value = pv.shown(values[pv.register]) if pv.register in values else None
@@ -439,8 +458,8 @@ class _Served:
             if self.connected is False:
                 log.info("%s is answering again", self.prefix)
             self.connected = True
-            self.own("connected").set(1)
-            self.own("error").set("")
+            self.own("connected", 1)
+            self.own("error", "")
         self.counters()
 
     def failed(self, exc: BaseException, alarm: Any) -> None:
@@ -451,23 +470,22 @@ class _Served:
             log.warning("%s does not answer: %s", self.prefix, text)
         self.connected = False
         for pv in self.inputs:
-            self.records[pv.name].set_alarm(alarm.INVALID_ALARM, alarm.COMM_ALARM)
-        self.own("connected").set(0)
-        self.own("error").set(text[:STRING_MAX])
+            self.show(pv.name, None, alarm.INVALID_ALARM, alarm.COMM_ALARM)
+        self.own("connected", 0)
+        self.own("error", text[:STRING_MAX])
         self.counters()
 
     def counters(self) -> None:
         """The device's poll counters and its line's counters, in their records."""
-        self.own("polls").set(self.polls)
-        self.own("failures").set(self.failures)
+        self.own("polls", self.polls)
+        self.own("failures", self.failures)
         try:
             stats = self.device.bus.stats.as_dict()
         except _LINE_FAILURES:
             return
         for name, count in stats.items():
-            record = self.records.get(self.prefix + IOC + name)
-            if record is not None:
-                record.set(min(count, 2**31 - 1))
+            if self.prefix + IOC + name in self.records:
+                self.own(name, min(count, 2**31 - 1))
 
     def write(self, pv: Pv, value: Any, alarm: Any) -> None:
         """Write a put of ``value`` to the device (or run the action); a refusal restores
