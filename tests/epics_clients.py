@@ -91,10 +91,11 @@ def served(
     context: Any,
     command: list[str] | None = None,
     stop: signal.Signals = signal.SIGTERM,
+    ready_value: int = 1,
 ) -> Iterator[subprocess.Popen[str]]:
     """``benchbus ioc ARGS`` (or ``command``) in a process of its own, with no standard
-    input (as a service runs), until the block ends, once ``ready`` (a PV) reads 1; then
-    ``stop`` (SIGTERM), which must end it cleanly within 2 s."""
+    input (as a service runs), until the block ends, once ``ready`` (a PV) reads
+    ``ready_value``; then ``stop`` (SIGTERM), which must end it cleanly within 2 s."""
     process = subprocess.Popen(
         command or [sys.executable, "-m", "benchbus", "ioc", *args],
         env={**os.environ, **env},
@@ -105,7 +106,11 @@ def served(
     )
     try:
         (pv,) = context.get_pvs(ready, timeout=2)
-        wait_for(f"{ready} = 1", lambda: pv.read(timeout=1).data[0] == 1, timeout=20)
+        wait_for(
+            f"{ready} = {ready_value}",
+            lambda: pv.read(timeout=1).data[0] == ready_value,
+            timeout=20,
+        )
         yield process
     except BaseException:
         process.kill()

@@ -32,6 +32,7 @@ def test_each_command_is_a_module_that_parses_and_runs_it() -> None:
             "monitor",
             "sim",
             "gateway",
+            "ioc",
             "profile",
             "ports",
             "doctor",

@@ -30,6 +30,7 @@ from epics_clients import (
 )
 
 import benchbus as bb
+from benchbus._families import Family, command_families
 from benchbus.epics import IOC, PV_NAME_MAX, RBV, pvs
 from benchbus.sim import DriveDevice, ProfileDevice, Simulator
 
@@ -83,8 +84,6 @@ def test_each_register_gives_its_records_by_its_access_and_type() -> None:
         -1000000,
         1000000,
     )
-    for p in made:  # an output record never clamps a put to its drive limits
-        assert "DRVL" not in p.fields and "DRVH" not in p.fields
     mode = next(p for p in made if p.name == "FC:mode")
     assert mode.states == ("off", "control", "purge", "close")
     # --read-only: no output record, no action.
@@ -191,7 +190,7 @@ def test_a_bench_file_gives_its_lines_and_devices() -> None:
 @pytest.mark.parametrize(
     ("change", "where"),
     [
-        (("unit = 2", "unit = 300"), ":19: device[1].unit: must be 1 to 247, got 300"),
+        (("unit = 2", "unit = 300"), ":19: device[1].unit: must be 1 to 255, got 300"),
         (("unit = 2", 'unit = "2"'), ":19: device[1].unit: must be int, got '2'"),
         (('line = "rs485"\nprofile', 'line = "rs232"\nprofile'), ":17: device[1].line: no line"),
         (('family = "drive"', 'family = "lamp"'), ":11: device[0].family: no family 'lamp'"),
@@ -199,6 +198,8 @@ def test_a_bench_file_gives_its_lines_and_devices() -> None:
         (("period = 2.0", "period = -1"), ":21: device[1].period: must be a positive"),
         (('prefix = "LAB:XY:"', 'prefix = "LAB:SPINDLE:"'), ":20: device[1].prefix: 'LAB:SP"),
         (("baudrate = 9600", "speed = 9600"), ":7: line[0].speed: unknown key"),
+        (("baudrate = 9600", 'parity = "X"'), ':7: line[0].parity: must be "N", "E" or "O"'),
+        (("baudrate = 9600", "timeout = 0"), ":7: line[0].timeout: must be a positive"),
         (("period = 0.5", "period = 0"), ":2: ioc.period: must be a positive"),
         ((f'profile = "{SENSOR}"', 'profile = "nowhere.toml"'), ":18: device[1].profile: "),
         (('family = "drive"\n', ""), ":9: device[0]: give family or profile"),
@@ -231,6 +232,10 @@ def controller() -> Iterator[tuple[Simulator[ProfileDevice], ProfileDevice]]:
     with Simulator({1: model}) as sim:
         yield sim, model
         assert sim.errors == []
+
+
+def command_families_by_key() -> dict[str, Family]:
+    return {f.key: f for f in command_families()}
 
 
 def ioc_args(sim: Simulator[Any], profile: Path, prefix: str, *more: str) -> list[str]:
@@ -304,6 +309,9 @@ def test_puts_reach_the_wire_and_a_refused_put_sends_nothing_and_changes_nothing
         put(ctx, "FC:setpoint", 80.25)
         assert model.value("setpoint") == 80.25
         wait_for("the readback", lambda: read(ctx, "FC:setpoint_RBV").data[0] == 80.25)
+        model.set_value("setpoint", 60.0)  # changed at the device itself
+        put(ctx, "FC:setpoint", 80.25)  # the value the record shows, written again
+        assert model.value("setpoint") == 80.25
         put(ctx, "FC:zero_offset", -12345)
         assert model.value("zero_offset") == -12345
         put(ctx, "FC:device_name", "bench 7")
@@ -319,6 +327,95 @@ def test_puts_reach_the_wire_and_a_refused_put_sends_nothing_and_changes_nothing
         assert model.value("setpoint") == 80.25 and model.value("gain") == 1.0
         reading = read(ctx, "FC:setpoint", "time")
         assert (reading.data[0], reading.metadata.severity) == (80.25, 0)
+
+
+def test_puts_that_come_while_a_write_is_on_the_wire_are_written_in_their_order(
+    epics: Epics, controller: tuple[Simulator[ProfileDevice], ProfileDevice]
+) -> None:
+    sim, model = controller
+    ctx = epics.client()
+    with served(
+        ioc_args(sim, CONTROLLER, "FC:", "--period", "0.2"), epics.env, "FC:ioc:connected", ctx
+    ):
+        setpoint, mode = ctx.get_pvs("FC:setpoint", "FC:mode", timeout=2)
+        model.reply_delay = 0.1  # each write stays on the wire that long (the timeout: 0.2 s)
+        before = len(writes(sim))
+        setpoint.write([61.0], wait=False)  # plain puts, as a screen's slider sends
+        time.sleep(0.05)
+        setpoint.write([62.0], wait=False)  # waits in the record while 61 is written
+        mode.write([0], wait=False)  # another record: processed, and queued, at once
+        wait_for("every put written", lambda: len(writes(sim)) >= before + 3)
+        model.reply_delay = 0.0
+        assert model.value("setpoint") == 62.0 and model.value("mode") == "off"
+        # In the order the records processed them: 61, the mode, then 62 once 61 was over.
+        frames = writes(sim)[before:]
+        assert [f[1] for f in frames] == [0x10, 0x06, 0x10]
+        assert frames[0][7:11] != frames[2][7:11]  # two values: 62 was not lost
+        wait_for("the record shows the last put", lambda: read(ctx, "FC:setpoint").data[0] == 62.0)
+        assert read(ctx, "FC:setpoint", "time").metadata.severity == 0
+
+
+SPARSE = """[device]
+name = "sparse"
+[[register]]
+name = "speed"
+address = 0
+access = "rw"
+enum = { 0 = "off", 10 = "slow", 20 = "fast", 99 = "boost" }
+[[register]]
+name = "label"
+address = 1
+type = "string"
+length = 8
+access = "rw"
+[[register]]
+name = "note"
+address = 9
+type = "string"
+length = 12
+"""
+
+
+def test_an_enum_of_numbers_not_0_1_2_and_latin1_text_cross_channel_access_as_held(
+    epics: Epics, tmp_path: Path
+) -> None:
+    profile = tmp_path / "sparse.toml"
+    profile.write_text(SPARSE)
+    model = ProfileDevice(profile)
+    model.set_value("speed", "fast")  # 20: state 2
+    model.set_value("label", "Messgerät °C")  # Latin-1, more bytes in UTF-8
+    model.set_value("note", "température élevée arrêt")  # 24 characters, a long string
+    ctx = epics.client()
+    with (
+        Simulator({1: model}) as sim,
+        served(
+            ioc_args(sim, profile, "SP:", "--period", "0.2"), epics.env, "SP:ioc:connected", ctx
+        ),
+    ):
+        speed = read(ctx, "SP:speed_RBV")
+        assert speed.data[0] == 2
+        assert speed.metadata.enum_strings[2].decode() == "fast"
+        put(ctx, "SP:speed", 3)  # state 3 is member 99
+        assert model.value("speed") == "boost"
+        wait_for("the readback", lambda: read(ctx, "SP:speed_RBV").data[0] == 3)
+        assert read(ctx, "SP:label_RBV").data[0].decode() == "Messgerät °C"
+        note = read(ctx, "SP:note", "native").data
+        assert bytes(note).rstrip(b"\0").decode() == "température élevée arrêt"
+        model.set_value("speed", "off")
+        wait_for("state 0", lambda: read(ctx, "SP:speed_RBV").data[0] == 0)
+
+
+def test_a_gateways_no_answer_is_the_line_failing_not_a_register_refused(epics: Epics) -> None:
+    ctx = epics.client()
+    with (
+        Simulator({1: ProfileDevice(SENSOR)}) as sim,
+        served(ioc_args(sim, SENSOR, "GW:", "--period", "0.2"), epics.env, "GW:ioc:connected", ctx),
+    ):
+        sim.answer_exception(0x0B, n=1000, unit=1)  # target device failed to respond
+        wait_for("COMM", lambda: invalid_comm(ctx, "GW:temperature"))
+        assert invalid_comm(ctx, "GW:humidity")
+        assert read(ctx, "GW:ioc:connected").data[0] == 0
+        assert "GatewayError" in read(ctx, "GW:ioc:error").data[0].decode()
 
 
 def test_a_put_the_device_refuses_restores_the_record_and_raises_its_write_alarm(
@@ -342,9 +439,12 @@ def test_a_put_the_device_refuses_restores_the_record_and_raises_its_write_alarm
         reading = read(ctx, "FC:setpoint", "time")
         assert reading.data[0] == 75.5
         assert reading.metadata.status == 2 and reading.metadata.severity == 2  # WRITE, MAJOR
-        put(ctx, "FC:setpoint", 90.0)  # the next good put clears the alarm
+        before = len(writes(sim))
+        put(ctx, "FC:setpoint", 75.5)  # the value it shows: written all the same
+        assert len(writes(sim)) == before + 1
         reading = read(ctx, "FC:setpoint", "time")
-        assert (reading.data[0], reading.metadata.severity, reading.metadata.status) == (90.0, 0, 0)
+        assert (reading.data[0], reading.metadata.severity, reading.metadata.status) == (75.5, 0, 0)
+        put(ctx, "FC:setpoint", 90.0)
         assert model.value("setpoint") == 90.0
     said = "FC:setpoint: put 250.0 refused: ModbusException: unit 1, function 0x10: exception 0x03"
     assert said in process.stderr_text  # type: ignore[attr-defined]
@@ -381,6 +481,24 @@ def test_a_silent_device_goes_invalid_comm_at_once_while_its_neighbour_keeps_upd
                 lambda: temperature.read(data_type="time", timeout=1).metadata.severity == 0,
             )
             assert read(ctx, "A:ioc:failures").data[0] >= 1
+
+
+def test_before_its_first_read_a_record_is_invalid_and_no_value_is_trusted(
+    epics: Epics,
+) -> None:
+    ctx = epics.client()
+    model = ProfileDevice(SENSOR)
+    model.reply_delay = 4.0  # the first read takes that long
+    with Simulator({1: model}) as sim:
+        args = ioc_args(sim, SENSOR, "U:", "--timeout", "5", "--retries", "0")
+        with served(args, epics.env, "U:ioc:connected", ctx, ready_value=0):
+            for name in ("U:temperature", "U:humidity", "U:unit_address_RBV"):
+                md = read(ctx, name, "time").metadata
+                assert (md.severity, md.status) == (3, 17), name  # INVALID, UDF
+            model.reply_delay = 0.0
+            wait_for("the first read", lambda: read(ctx, "U:ioc:connected").data[0] == 1)
+            reading = read(ctx, "U:temperature", "time")
+            assert (reading.data[0], reading.metadata.severity) == (21.5, 0)
 
 
 def test_a_register_the_device_refuses_alarms_its_record_alone(
@@ -450,7 +568,9 @@ def test_a_lost_port_puts_every_record_in_comm_alarm_and_its_return_clears_it(
             sim.stop()  # the adapter unplugged
             link.unlink()
             lost = time.monotonic()
-            for name in ("A:temperature", "A:humidity", "B:temperature", "A:unit_address_RBV"):
+            inputs = [p.name for p in pvs("A:", bb.Profile(SENSOR))[0] if p.kind.endswith("In")]
+            inputs = [n for n in inputs if ":ioc:" not in n]
+            for name in [*inputs, "B:temperature"]:
                 wait_for(f"{name} INVALID/COMM", lambda n=name: invalid_comm(ctx, n), timeout=3)
             assert time.monotonic() - lost < period + 3 * timeout + 0.5
             assert read(ctx, "A:ioc:connected").data[0] == 0
@@ -478,7 +598,7 @@ def eight_registers(folder: Path) -> Path:
 
 
 @pytest.mark.timing
-def test_a_put_during_the_polls_of_10_devices_waits_behind_at_most_one_request(
+def test_a_put_during_the_polls_of_10_devices_waits_for_the_request_on_the_line_not_the_cycle(
     epics: Epics, tmp_path: Path
 ) -> None:
     profile = eight_registers(tmp_path)
@@ -501,7 +621,7 @@ def test_a_put_during_the_polls_of_10_devices_waits_behind_at_most_one_request(
                 waits.append(len(before))
             # The polls read one request a device (10 a cycle), without a pause between
             # them: a put waits for the request on the line (and, at most, the one that
-            # started while the put crossed Channel Access), never for the cycle.
+            # started while the put crossed Channel Access), never for the cycle of 10.
             cycle = [t for f, t in zip(sim.requests, sim.request_times) if f[0] == 1 and f[1] == 3]
             assert len(cycle) > 20  # the line was kept busy by the polls
             print("requests a put waited behind:", waits)
@@ -582,7 +702,42 @@ def test_read_only_serves_readbacks_alone_and_access_security_refuses_writes(
         assert setpoint.read(timeout=3).data[0] == 75.5
 
 
-def test_serving_beyond_loopback_is_said_once_and_loopback_is_the_default(
+def test_an_access_security_file_epics_cannot_read_is_an_error_not_a_silent_ioc(
+    epics: Epics, tmp_path: Path
+) -> None:
+    rules = tmp_path / "broken.acf"
+    rules.write_text("ASG(DEFAULT) {\n    RULE(1, WRITE\n")  # a parenthesis short
+    with Simulator({1: ProfileDevice(SENSOR)}) as sim:
+        args = ioc_args(sim, SENSOR, "AS:", "--access-security", str(rules))
+        done = subprocess.run(
+            [sys.executable, "-m", "benchbus", "ioc", *args],
+            env={**os.environ, **epics.env},
+            stdin=subprocess.DEVNULL,
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+        with bb.Bus(sim.port) as bus:  # closed: free for the next program
+            assert bus.read_input_registers(1, 1, 1) == [215]
+    assert done.returncode == 1, done.stderr
+    assert "benchbus: the IOC did not start" in done.stderr
+    assert "serving" not in done.stderr
+
+
+def test_an_empty_interface_is_refused(epics: Epics) -> None:
+    args = ["--profile", str(SENSOR), "--prefix", "X:", "--interface", " "]
+    done = subprocess.run(
+        [sys.executable, "-m", "benchbus", "ioc", *args],
+        env={**os.environ, **epics.env},
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert done.returncode == 2
+    assert "interface must name an address" in done.stderr
+
+
+def test_serving_beyond_loopback_is_said_and_loopback_is_the_default(
     monkeypatch: pytest.MonkeyPatch, caplog: pytest.LogCaptureFixture
 ) -> None:
     from benchbus.epics import serve_on
@@ -602,6 +757,11 @@ def test_serving_beyond_loopback_is_said_once_and_loopback_is_the_default(
     assert os.environ["EPICS_PVAS_INTF_ADDR_LIST"] == "192.0.2.7"
     (warning,) = caplog.records
     assert "beyond loopback" in warning.getMessage()
+    monkeypatch.setenv("EPICS_CAS_INTF_ADDR_LIST", "127.0.0.1")
+    monkeypatch.setenv("EPICS_PVAS_INTF_ADDR_LIST", "")  # empty: every interface, to EPICS
+    with caplog.at_level("WARNING", logger="benchbus.epics"):
+        serve_on(None)
+    assert len(caplog.records) == 2 and "beyond loopback" in caplog.records[1].getMessage()
 
 
 # ---- PV Access -----------------------------------------------------------------------------
@@ -727,6 +887,26 @@ def test_an_ophyd_async_epics_device_counts_and_moves_through_the_ioc(
 
 
 # ---- a built-in family ---------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("key", [f.key for f in command_families()])
+def test_every_families_table_is_served_and_read_without_an_alarm(epics: Epics, key: str) -> None:
+    """Each built-in family by name: every input record of its table read, none in alarm,
+    its actions served."""
+    family = command_families_by_key()[key]
+    model = family.simulate(**family.bench_model)
+    ctx = epics.client()
+    with Simulator({1: model}) as sim:
+        args = [key, "--port", sim.port, "--prefix", "F:", "--period", "0.2"]
+        with served(args, epics.env, "F:ioc:connected", ctx):
+            made, _ = pvs("F:", bb.Profile.family(key), actions=family.actions)
+            inputs = [p.name for p in made if not p.output and p.register is not None]
+            assert len(inputs) >= 20
+            for name in inputs:
+                reading = read(ctx, name, "time")
+                assert (reading.metadata.severity, reading.metadata.status) == (0, 0), name
+            for action in family.actions:
+                assert read(ctx, f"F:{action}", "native") is not None
 
 
 def test_a_drives_action_records_move_the_motor_and_sigterm_stops_it(epics: Epics) -> None:

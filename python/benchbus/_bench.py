@@ -67,6 +67,17 @@ LINE_KEYS: dict[str, tuple[type, ...]] = {
     "echo": (bool,),
     "rs485": (bool,),
 }
+#: What the values of a ``[[line]]``'s keys may be, beyond their types (``bb.Bus`` checks
+#: them again when it opens the line).
+LINE_VALUES: dict[str, tuple[str, Any]] = {
+    "baudrate": ("a positive number", lambda v: v > 0),
+    "parity": ('"N", "E" or "O"', lambda v: v in ("N", "E", "O")),
+    "stopbits": ("1 or 2", lambda v: v in (1, 2)),
+    "bytesize": ("7 or 8", lambda v: v in (7, 8)),
+    "framing": ('"rtu" or "ascii"', lambda v: v in ("rtu", "ascii")),
+    "timeout": ("a positive number of seconds", lambda v: math.isfinite(v) and v > 0),
+    "retries": ("0 or more", lambda v: v >= 0),
+}
 #: The keys of a ``[[device]]``; ``line``, ``unit``, ``prefix`` and one of ``family`` and
 #: ``profile`` are required.
 DEVICE_KEYS: dict[str, tuple[type, ...]] = {
@@ -106,6 +117,8 @@ class BenchDevice:
     period: float | None
     #: Keywords of the family's class.
     options: dict[str, Any]
+    #: Where the file declares it, for messages: ``bench.toml:9: device[0]``.
+    at: str = ""
 
     def line_defaults(self) -> LineDefaults:
         """The line format the device opens its own port at."""
@@ -144,6 +157,11 @@ class _Where:
                     return i
                 seen += 1
         return None
+
+    def at(self, kind: str, n: int) -> str:
+        """``FILE:LINE: kind[n]``: where the ``n``-th ``[[kind]]`` starts."""
+        start = self._start(kind, n)
+        return f"{self.path}:{'?' if start is None else start + 1}: {kind}[{n}]"
 
     def error(self, kind: str, n: int, key: str | None, text: str) -> ProfileError:
         """A ProfileError for ``text``, at the key ``key`` of the ``n``-th ``[[kind]]``."""
@@ -215,6 +233,9 @@ def read_bench(path: str | os.PathLike[str]) -> Bench:
         for required in ("name", "port"):
             if required not in line:
                 raise where.error("line", n, None, f"{required} is required")
+        for option, (wanted, fits) in LINE_VALUES.items():
+            if option in line and not fits(line[option]):
+                raise where.error("line", n, option, f"must be {wanted}, got {line[option]!r}")
         if any(line["name"] == other.name for other in lines):
             raise where.error("line", n, "name", f"a line is called {line['name']!r} already")
         name, port = line.pop("name"), line.pop("port")
@@ -233,8 +254,8 @@ def read_bench(path: str | os.PathLike[str]) -> Bench:
         if not any(device["line"] == line.name for line in lines):
             named = ", ".join(line.name for line in lines)
             raise where.error("device", n, "line", f"no line {device['line']!r}: one of {named}")
-        if not 1 <= device["unit"] <= 247:
-            raise where.error("device", n, "unit", f"must be 1 to 247, got {device['unit']}")
+        if not 1 <= device["unit"] <= 255:
+            raise where.error("device", n, "unit", f"must be 1 to 255, got {device['unit']}")
         if not device["prefix"]:
             raise where.error("device", n, "prefix", "must not be empty")
         if any(device["prefix"] == other.prefix for other in devices):
@@ -261,11 +282,11 @@ def read_bench(path: str | os.PathLike[str]) -> Bench:
             except TypeError as exc:
                 raise where.error("device", n, "options", str(exc)) from None
         period = _period(where, "device", n, device.get("period"))
-        devices.append(
-            BenchDevice(
-                device["line"], device["unit"], device["prefix"], key, profile, period, options
-            )
+        at = where.at("device", n)
+        made = BenchDevice(
+            device["line"], device["unit"], device["prefix"], key, profile, period, options, at
         )
+        devices.append(made)
     if not devices:
         raise ProfileError(f"{file}: no [[device]]: a bench needs a device", path=str(file))
     return Bench(
@@ -303,10 +324,14 @@ def open_bench(bench: Bench) -> list[tuple[str, BusDevice, float | None]]:
         for device in bench.devices:
             bus = buses[device.line]
             made_device: BusDevice
-            if device.profile is not None:
-                made_device = Device.from_profile(device.profile, bus, device.unit)
-            else:
-                made_device = family(device.family or "").open(bus, device.unit, **device.options)
+            try:
+                if device.profile is not None:
+                    made_device = Device.from_profile(device.profile, bus, device.unit)
+                else:
+                    maker = family(device.family or "")
+                    made_device = maker.open(bus, device.unit, **device.options)
+            except (ValueError, TypeError) as exc:  # an option's value the class refuses
+                raise ProfileError(f"{device.at}: {exc}", path=str(bench.path)) from None
             made.append((device.prefix, made_device, device.period))
     except BaseException:
         for bus in buses.values():

@@ -34,6 +34,7 @@ one per process, and its records exist before it starts.
 from __future__ import annotations
 
 import atexit
+import concurrent.futures
 import dataclasses
 import enum
 import importlib
@@ -47,12 +48,14 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Protocol
 
+from benchbus._core import CancelToken
 from benchbus._device import MotorDevice, is_unknown, member_name
 from benchbus._families import FAMILIES
 from benchbus.exceptions import (
     BenchbusError,
     Cancelled,
     FrameError,
+    GatewayError,
     ModbusException,
     PortError,
     ResponseTimeout,
@@ -185,9 +188,9 @@ class Pv:
         if base in ("long", "int64"):
             return int(value)
         if base == "string":
-            return str(value)[:STRING_MAX]
+            return _fit(str(value), STRING_MAX)
         if base == "longString":
-            return str(value)
+            return _fit(str(value), int(self.fields["length"]) - 1)
         return float(value)
 
     def written(self, value: Any) -> Any:
@@ -208,12 +211,32 @@ class Pv:
         return float(value)
 
 
+def _fit(text: str, most: int) -> str:
+    """``text`` cut to what ``most`` bytes of UTF-8 hold: EPICS counts a string's bytes."""
+    data = text.encode()
+    return text if len(data) <= most else data[:most].decode(errors="ignore")
+
+
 def _shortened(text: str, most: int, what: str, warnings: list[str]) -> str:
-    """``text`` cut to ``most`` characters, with a warning saying so."""
-    if len(text) <= most:
-        return text
-    warnings.append(f"{what} {text!r} is longer than {most} characters: shown as {text[:most]!r}")
-    return text[:most]
+    """``text`` cut to ``most`` bytes (:func:`_fit`), with a warning saying so."""
+    fitted = _fit(text, most)
+    if fitted != text:
+        warnings.append(f"{what} {text!r} is longer than {most} bytes: shown as {fitted!r}")
+    return fitted
+
+
+def _states(register: ProfileRegister, warnings: list[str]) -> tuple[str, ...]:
+    """The state strings of an enum register: its members' names, shortened to
+    :data:`STATE_MAX` and kept apart (``~2``, ``~3``... where two would read the same)."""
+    made: list[str] = []
+    for name in register.enum.values():
+        state = _shortened(name, STATE_MAX, f"{register.name}: state", warnings)
+        copy = 2
+        while state in made:
+            state = _fit(name, STATE_MAX - len(f"~{copy}")) + f"~{copy}"
+            copy += 1
+        made.append(state)
+    return tuple(made)
 
 
 def _decimals(x: float) -> int:
@@ -260,14 +283,15 @@ def _kinds(register: ProfileRegister, warnings: list[str]) -> tuple[str, dict[st
     fields both its records share."""
     fields: dict[str, Any] = {}
     if register.description:
-        fields["DESC"] = register.description[:DESC_MAX]
+        fields["DESC"] = _fit(register.description, DESC_MAX)
     if register.type == "bool":
         return "bool", {**fields, "ZNAM": BOOL_STATES[0], "ONAM": BOOL_STATES[1]}
     if register.type == "string":
-        chars = 2 * (register.length or 0)
-        if chars <= STRING_MAX:
+        # Two Latin-1 characters a register, each up to two bytes of UTF-8, and a NUL.
+        most = 2 * 2 * (register.length or 0)
+        if most <= STRING_MAX:
             return "string", fields
-        return "longString", {**fields, "length": chars + 1}
+        return "longString", {**fields, "length": most + 1}
     if register.enum and len(register.enum) <= MBB_STATES:
         return "mbb", fields
     egu = _shortened(register.unit, EGU_MAX, f"{register.name}: unit", warnings)
@@ -301,10 +325,7 @@ def pvs(
         numbers: tuple[int, ...] = ()
         if kind == "mbb":
             numbers = tuple(register.enum)
-            states = tuple(
-                _shortened(n, STATE_MAX, f"{register.name}: state", warnings)
-                for n in register.enum.values()
-            )
+            states = _states(register, warnings)
         name = prefix + register.name
         if writable and not read_only:
             made.append(Pv(name, kind + "Out", dict(fields), register.name, None, states, numbers))
@@ -325,7 +346,12 @@ def pvs(
         *(Pv(prefix + IOC + s, "longIn", {"MDEL": 0}) for s in stats),
     ]
     made += own_records
+    named: dict[str, Pv] = {}
     for pv in made:
+        other = named.setdefault(pv.name, pv)
+        if other is not pv:
+            both = [p.register or p.action or "the device's own" for p in (other, pv)]
+            raise ValueError(f"{pv.name} would be two records ({both[0]} and {both[1]})")
         if len(pv.name) > PV_NAME_MAX:
             what = pv.register or pv.action or pv.name[len(prefix) :]
             raise ValueError(
@@ -356,27 +382,71 @@ def _softioc() -> None:
 
 #: What a failed read or write on the line is (its records then show COMM).
 _LINE_FAILURES = (BenchbusError, OSError)
+#: The failures of the line itself, not a refusal by the device: a reply that did not
+#: come or came spoiled, a lost port, a gateway whose device did not answer.
+_ON_LINE = (ResponseTimeout, FrameError, PortError, GatewayError, Cancelled, OSError)
+#: Polls a block the device refused is read one register a request (none of them refused
+#: alone) before it is tried as one request again.
+SPLIT_POLLS = 50
+
+
+# softioc 4.7's output records, where its API says nothing: the value VAL holds now (a put
+# that came while a write was on the wire waits there, to be processed next).
+def _held_in_val(record: Any) -> Any:
+    """What the output record's VAL holds now."""
+    return record._epics_to_value(record._read_value(record._record))
+
+
+def _alarm_now(record: Any, severity: int, status: int) -> None:
+    """Give the output record this alarm as its processing ends, the value in its VAL kept
+    (a later put waiting there is not lost)."""
+    record.set(_held_in_val(record), process=False, severity=severity, alarm=status)
+
+
+def _running() -> bool:
+    """Whether EPICS's ``iocInit`` ended with the IOC running (it returns no status of its
+    own through softioc: ``interruptAccept`` is set once records may process)."""
+    import ctypes
+
+    from epicscorelibs.ioc import dbCore
+
+    return bool(ctypes.c_int.in_dll(dbCore, "interruptAccept").value)
 
 
 class _Served:
-    """One device an IOC serves: its records, and its poll."""
+    """One device an IOC serves: its records, its poll and its writes."""
 
-    def __init__(self, prefix: str, device: ServedDevice, made: list[Pv], period: float) -> None:
+    def __init__(
+        self,
+        prefix: str,
+        device: ServedDevice,
+        made: list[Pv],
+        period: float,
+        stopping: threading.Event,
+    ) -> None:
         self.prefix = prefix
         self.device = device
         self.pvs = made
         self.period = period
         self.profile = device.profile
+        self.stopping = stopping
         self.records: dict[str, Any] = {}
-        #: What each output record held before the put being written (what a refusal
-        #: restores).
-        self.before: dict[str, Any] = {}
-        #: The output records given the device's value once (at its first good read).
-        self.shown: set[str] = set()
+        #: The value each output record's register holds, as the record shows it: the
+        #: device's at the first good read, then each write that worked (what a refused
+        #: write restores).
+        self.good: dict[str, Any] = {}
+        #: The output records a client has put to (the first read no longer sets them).
+        self.put_to: set[str] = set()
+        #: The value each output record is being given from the device (not written back).
+        self.syncing: dict[str, Any] = {}
+        #: The output records in WRITE alarm.
+        self.alarmed: set[str] = set()
         self.inputs = [p for p in made if not p.output and p.register is not None]
         self.names = list(dict.fromkeys(p.register for p in self.inputs if p.register))
         #: The registers read one a request: the device refused them when read alone.
         self.alone: set[str] = set()
+        #: Polls left before a block the device refused is tried as one request again.
+        self.split = 0
         self.polls = 0
         self.failures = 0
         self.connected: bool | None = None
@@ -394,12 +464,12 @@ class _Served:
             value = held[0]
         if held == (value, severity, status):
             return
-        self.held[name] = (value, severity, status)
         record = self.records[name]
         if value is None:
             record.set_alarm(severity, status, timestamp=when)
         else:
             record.set(value, severity=severity, alarm=status, timestamp=when)
+        self.held[name] = (value, severity, status)
 
     def own(self, name: str, value: Any) -> None:
         """Show ``value`` in the device's own record ``ioc:<name>``."""
@@ -407,22 +477,31 @@ class _Served:
 
     def read(self) -> tuple[dict[str, Any], dict[str, BaseException]]:
         """The readable registers' values, and the registers the device refused with the
-        exception it gave; a failure of the line is raised."""
+        exception it gave; a failure of the line (a gateway's exception among them) is
+        raised."""
         values: dict[str, Any] = {}
         refused: dict[str, BaseException] = {}
-        alone = set(self.alone)
+        alone = set(self.alone) if self.split <= 0 else set(self.names)
+        self.split -= 1
         together = [n for n in self.names if n not in alone]
         if together:
             try:
                 values.update(self.device.get_many(together))
+            except GatewayError:
+                raise
             except ModbusException:
                 alone.update(together)  # this time, one a request: which one is refused?
+                self.split = SPLIT_POLLS
         for name in self.names:
             if name in alone:
                 try:
                     values[name] = self.device.get(name)
+                except GatewayError:
+                    raise
                 except ModbusException as exc:
                     refused[name] = exc
+        if refused:
+            self.split = 0  # the refused ones alone, the others together again
         self.alone = set(refused)
         return values, refused
 
@@ -430,6 +509,8 @@ class _Served:
         """Read the device once and show what was read (or the failure) in its records."""
         try:
             values, refused = self.read()
+        except Cancelled:
+            return  # the IOC is stopping
         except _LINE_FAILURES as exc:
             self.failed(exc, alarm)
             return
@@ -445,15 +526,8 @@ class _Served:
             else:
                 self.show(pv.name, value, when=when)
         for pv in self.pvs:
-            if pv.output and pv.register is not None and pv.name not in self.shown:
-                value = pv.shown(values[pv.register]) if pv.register in values else None
-                if value is not None:
-                    # The device's value, shown without writing it back; processing with
-                    # the same value clears the alarm of an output record never written.
-                    self.shown.add(pv.name)
-                    record = self.records[pv.name]
-                    record.set(value, process=False)
-                    record.set_alarm(alarm.NO_ALARM, alarm.NO_ALARM)
+            if pv.output and pv.register in values and pv.name not in self.put_to:
+                self.sync(pv, pv.shown(values[pv.register or ""]))
         if not self.connected:
             if self.connected is False:
                 log.info("%s is answering again", self.prefix)
@@ -461,6 +535,69 @@ class _Served:
             self.own("connected", 1)
             self.own("error", "")
         self.counters()
+
+    def sync(self, pv: Pv, value: Any) -> None:
+        """Give the output record ``pv`` the device's ``value`` once, at the first good
+        read, without writing it back: processed (its UDF alarm cleared), its check and its
+        write skipped for that one value."""
+        if value is None:
+            return
+        self.put_to.add(pv.name)
+        self.good[pv.name] = value
+        self.syncing[pv.name] = value
+        record = self.records[pv.name]
+        record.set(value, process=False)  # stored with no alarm: the processing clears UDF
+        record.set(value)
+
+    def check(self, pv: Pv, value: Any) -> bool:
+        """softioc's validate of a put: the core's checks of the write, nothing sent."""
+        if self.syncing.get(pv.name, _NONE) == value:
+            return True
+        if self.stopping.is_set():
+            log.warning("%s: put %r refused: the IOC is stopping", pv.name, value)
+            return False
+        if pv.register is not None:
+            try:
+                self.profile.check(pv.register, pv.written(value))
+            except (ValueError, TypeError) as exc:
+                log.warning("%s: put %r refused before sending: %s", pv.name, value, exc)
+                return False
+        self.put_to.add(pv.name)
+        return True
+
+    def write(self, pv: Pv, value: Any, alarm: Any) -> None:
+        """Write a put of ``value`` to the device (or run the action), on the line's one
+        writer thread, in the order of the puts. A refusal restores the register's value
+        (a later put waiting in the record stays) with a WRITE alarm: MAJOR where the device
+        or its family's rule said no, INVALID where the line failed (the write may have
+        been done); the log says why. The next write that works clears it."""
+        if self.syncing.get(pv.name, _NONE) == value:
+            del self.syncing[pv.name]
+            return
+        self.syncing.pop(pv.name, None)
+        record = self.records[pv.name]
+        try:
+            if self.stopping.is_set():
+                raise Cancelled("the IOC is stopping")
+            if pv.action is not None:
+                getattr(self.device, pv.action)()
+            elif pv.register is not None:
+                self.device.set(pv.register, pv.written(value))
+        except Exception as exc:  # whatever stopped the write, the record says so
+            severity = alarm.INVALID_ALARM if isinstance(exc, _ON_LINE) else alarm.MAJOR_ALARM
+            log.warning("%s: put %r refused: %s: %s", pv.name, value, type(exc).__name__, exc)
+            previous = 0 if pv.action is not None else self.good.get(pv.name)
+            if previous is not None and _held_in_val(record) == value:
+                record.set(previous, process=False, severity=severity, alarm=alarm.WRITE_ALARM)
+            else:  # a later put waits in VAL, or no value of the device is known
+                _alarm_now(record, severity, alarm.WRITE_ALARM)
+            self.alarmed.add(pv.name)
+            return
+        if pv.action is None:
+            self.good[pv.name] = value
+        if pv.name in self.alarmed:
+            self.alarmed.discard(pv.name)
+            _alarm_now(record, alarm.NO_ALARM, alarm.NO_ALARM)
 
     def failed(self, exc: BaseException, alarm: Any) -> None:
         """A read failed on the line: every input record INVALID / COMM, at once."""
@@ -472,7 +609,7 @@ class _Served:
         for pv in self.inputs:
             self.show(pv.name, None, alarm.INVALID_ALARM, alarm.COMM_ALARM)
         self.own("connected", 0)
-        self.own("error", text[:STRING_MAX])
+        self.own("error", _fit(text, STRING_MAX))
         self.counters()
 
     def counters(self) -> None:
@@ -487,31 +624,16 @@ class _Served:
             if self.prefix + IOC + name in self.records:
                 self.own(name, min(count, 2**31 - 1))
 
-    def write(self, pv: Pv, value: Any, alarm: Any) -> None:
-        """Write a put of ``value`` to the device (or run the action); a refusal restores
-        what the record held before with a WRITE alarm (MAJOR: the device or its family's
-        rule said no; INVALID: the line failed, so the write may have been done), and the
-        log says why."""
-        record = self.records[pv.name]
-        try:
-            if pv.action is not None:
-                getattr(self.device, pv.action)()
-            elif pv.register is not None:
-                self.device.set(pv.register, pv.written(value))
-        except (BenchbusError, ValueError, TypeError, OSError) as exc:
-            on_line = isinstance(exc, (ResponseTimeout, FrameError, PortError, Cancelled, OSError))
-            severity = alarm.INVALID_ALARM if on_line else alarm.MAJOR_ALARM
-            log.warning("%s: put %r refused: %s: %s", pv.name, value, type(exc).__name__, exc)
-            previous = self.before.get(pv.name, 0)
-            record.set(previous, process=False, severity=severity, alarm=alarm.WRITE_ALARM)
-            return
-        record.set(0 if pv.action is not None else value, process=False)
+
+#: No value (a value may be None).
+_NONE = object()
 
 
 def _loopback(addresses: str) -> bool:
     """Whether every address of an ``EPICS_*_INTF_ADDR_LIST`` is a loopback one."""
+    listed = addresses.split()  # none: EPICS serves on every interface
     try:
-        return all(ipaddress.ip_address(a).is_loopback for a in addresses.split())
+        return bool(listed) and all(ipaddress.ip_address(a).is_loopback for a in listed)
     except ValueError:
         return False
 
@@ -573,6 +695,8 @@ class Ioc:
         self.period = _seconds(period, "period")
         if interface is not None and not isinstance(interface, str):
             raise TypeError(f"interface must be an address (str), got {type(interface).__name__}")
+        if interface is not None and not interface.split():
+            raise ValueError("interface must name an address, got an empty one")
         if access_security is not None and not os.path.isfile(access_security):
             raise FileNotFoundError(f"no access-security file {os.fspath(access_security)!r}")
         _softioc()
@@ -590,7 +714,13 @@ class Ioc:
         self._names: dict[str, str] = {}
         self._started = False
         self._stopping = threading.Event()
+        #: The pollers' reads and the writers' writes are made under these: stopping
+        #: cancels their further attempts.
+        self._reads = CancelToken()
+        self._writes = CancelToken()
         self._pollers: list[threading.Thread] = []
+        #: Each line's writer: one thread, so puts reach the line in the order they came.
+        self._writers: dict[int, concurrent.futures.ThreadPoolExecutor] = {}
         self._stopped = False
 
     @property
@@ -635,7 +765,7 @@ class Ioc:
             log.warning("%s%s", prefix, text)
         for pv in made:
             self._names[pv.name] = f"{prefix} {type(device).__name__} unit {_unit(device)}"
-        self._served.append(_Served(prefix, device, made, every))
+        self._served.append(_Served(prefix, device, made, every, self._stopping))
 
     def start(self) -> None:
         """Make the records, start the IOC serving them and the pollers reading the
@@ -651,6 +781,11 @@ class Ioc:
 
         self._alarm = alarm
         for served in self._served:
+            line = id(served.device.bus)
+            if line not in self._writers:
+                self._writers[line] = concurrent.futures.ThreadPoolExecutor(
+                    1, thread_name_prefix="benchbus-ioc-writer"
+                )
             for pv in served.pvs:
                 served.records[pv.name] = self._record(builder, served, pv)
         builder.LoadDatabase()
@@ -660,8 +795,16 @@ class Ioc:
             dbCore.asSetFilename(self._security.encode())
         self._dispatcher = asyncio_dispatcher.AsyncioDispatcher()
         softioc.iocInit(self._dispatcher)
+        if not _running():
+            raise RuntimeError(
+                "the IOC did not start (EPICS said why above: an access-security file it "
+                "cannot read?); nothing is served"
+            )
         self._started = True
         atexit.register(self.stop)
+        for served in self._served:  # nothing read yet: no value to trust
+            for pv in served.inputs:
+                served.show(pv.name, None, alarm.INVALID_ALARM, alarm.UDF_ALARM)
         lines: dict[int, list[_Served]] = {}
         for served in self._served:
             lines.setdefault(id(served.device.bus), []).append(served)
@@ -673,34 +816,44 @@ class Ioc:
             poller.start()
 
     def _record(self, builder: Any, served: _Served, pv: Pv) -> Any:
-        """The softioc record of ``pv``."""
+        """The softioc record of ``pv``: an output record checks a put (softioc's
+        ``validate``) and hands it to its line's writer; the put completes (a client's
+        put-callback returns) once the write is over. Every put is written, also one of
+        the value the record shows."""
         make: Callable[..., Any] = getattr(builder, pv.kind)
         fields = {k: v for k, v in pv.fields.items() if v not in (None, "")}
         if not pv.output:
             return make(pv.name, *pv.states, **fields)
-        alarm = self._alarm
+        writer = self._writers[id(served.device.bus)]
 
-        def check(record: Any, value: Any) -> bool:
-            """softioc's validate: the core's checks of a write, nothing sent."""
-            try:
-                served.profile.check(pv.register or "", pv.written(value))
-            except (ValueError, TypeError) as exc:
-                log.warning("%s: put %r refused before sending: %s", pv.name, value, exc)
-                return False
-            served.before[pv.name] = record.get()
-            return True
+        def write(value: Any) -> None:
+            with self._writes:
+                served.write(pv, value, self._alarm)
 
         async def put(value: Any) -> None:
             import asyncio
 
-            await asyncio.get_running_loop().run_in_executor(None, served.write, pv, value, alarm)
+            await asyncio.get_running_loop().run_in_executor(writer, write, value)
 
         if pv.kind == "Action":
-            return make(pv.name, on_update=put, blocking=True)
-        return make(pv.name, *pv.states, validate=check, on_update=put, blocking=True, **fields)
+            return make(pv.name, on_update=put, blocking=True, initial_value=0)
+        return make(
+            pv.name,
+            *pv.states,
+            validate=lambda _record, value: served.check(pv, value),
+            on_update=put,
+            blocking=True,
+            always_update=True,
+            **fields,
+        )
 
     def _poll(self, served: list[_Served]) -> None:
         """One line's poller: each device read on its own absolute deadlines."""
+        with self._reads:
+            self._poll_on_line(served)
+
+    def _poll_on_line(self, served: list[_Served]) -> None:
+        """:meth:`_poll`'s loop, under the pollers' token."""
         start = time.monotonic()
         due = {id(s): start for s in served}
         while not self._stopping.is_set():
@@ -724,7 +877,11 @@ class Ioc:
         if self._stopped:
             return
         self._stopped = True
-        self._stopping.set()
+        self._stopping.set()  # puts are refused from now on
+        self._reads.cancel()  # no read starts an attempt now
+        self._writes.cancel()  # nor a write; the one on the wire ends before the stops
+        for writer in self._writers.values():
+            writer.shutdown(wait=True, cancel_futures=True)
         for served in self._served:
             if isinstance(served.device, MotorDevice):
                 try:

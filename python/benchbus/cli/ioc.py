@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING, cast
 from benchbus._bench import Bench, open_bench, read_bench
 from benchbus._families import command_families
 from benchbus.cli._args import PROG, Parser, add_profile_option, seconds
-from benchbus.cli._errors import UsageError
+from benchbus.cli._errors import CliError, UsageError
 from benchbus.cli._line import (
     open_bus,
     open_device,
@@ -19,10 +19,28 @@ from benchbus.cli._line import (
     profile_of,
     profile_options,
 )
-from benchbus.exceptions import ProfileError
+from benchbus.exceptions import BenchbusError, ProfileError
 
 if TYPE_CHECKING:
-    from benchbus.epics import ServedDevice
+    from benchbus._device import BusDevice
+    from benchbus.epics import Ioc, ServedDevice
+
+#: The options a bench file says for itself (its lines' and devices'), refused beside one.
+BENCH_SAYS = (
+    "port",
+    "baudrate",
+    "parity",
+    "stopbits",
+    "framing",
+    "bytesize",
+    "unit",
+    "timeout",
+    "retries",
+    "rs485",
+    "rts_delay",
+    "echo",
+    "family",
+)
 
 __all__ = ["EPILOG", "HELP", "LINE_OPTIONS", "add_arguments", "run"]
 
@@ -105,6 +123,12 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError("--prefix is required: the start of every PV name, e.g. LAB:XY:")
     elif profile is not None or args.prefix:
         raise UsageError("a bench file names its devices and prefixes: no --profile or --prefix")
+    else:
+        given = [
+            f"--{o.replace('_', '-')}" for o in BENCH_SAYS if opt(args, o) not in (None, False)
+        ]
+        if given:
+            raise UsageError(f"a bench file says its lines and units: no {', '.join(given)}")
     security = args.access_security
     if security is not None and not os.path.isfile(security):
         raise UsageError(f"--access-security: no file {security!r}")
@@ -114,31 +138,50 @@ def run(args: argparse.Namespace) -> int:
 
     try:
         ioc = Ioc(period, read_only=read_only, interface=args.interface, access_security=security)
-    except ImportError as exc:
+    except (ImportError, ValueError) as exc:
         raise UsageError(str(exc)) from None
     if bench is not None:
-        devices = open_bench(bench)
+        try:
+            devices = open_bench(bench)
+        except ProfileError as exc:  # an option's value the family's class refuses
+            raise UsageError(str(exc)) from None
     else:
         line = target if profile is None else profile_options(profile)
         bus = open_bus(args, line, reconnect=True)
-        one = (
-            open_device(bus, args, target) if profile is None else open_profiled(bus, args, profile)
-        )
+        try:
+            one = (
+                open_device(bus, args, target)
+                if profile is None
+                else open_profiled(bus, args, profile)
+            )
+        except BaseException:
+            bus.close()
+            raise
         devices = [(args.prefix, one, None)]
     try:
         for prefix, device, every in devices:
             ioc.add(prefix, cast("ServedDevice", device), period=every)
-    except ValueError as exc:
+        ioc.start()
+        _said(devices, ioc)
+        ioc.run(shell=args.shell)
+    except BaseException as exc:
         for _, device, _ in devices:
             device.bus.close()
-        raise UsageError(str(exc)) from None
+        if isinstance(exc, ValueError) and not isinstance(exc, BenchbusError):
+            raise UsageError(str(exc)) from None
+        if isinstance(exc, RuntimeError):  # the IOC did not start
+            raise CliError(str(exc)) from None
+        raise
+
+
+def _said(devices: list[tuple[str, BusDevice, float | None]], ioc: Ioc) -> None:
+    """The line that says what is served, on standard error."""
     units = ", ".join(f"{prefix} (unit {d.unit} on {d.bus.port})" for prefix, d, _ in devices)
     print(
         f"{PROG}: ioc: serving {len(ioc.names)} PVs of {units} (Ctrl-C or SIGTERM to stop)",
         file=sys.stderr,
         flush=True,
     )
-    ioc.run(shell=args.shell)
 
 
 def _bench_of(target: str) -> Bench:
