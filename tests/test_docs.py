@@ -371,7 +371,7 @@ def test_epics_guide_example(monkeypatch: pytest.MonkeyPatch) -> None:
             assert drive.commands == [1]
         assert drive.commands == [1, 5]  # SIGTERM stopped it
         assert sim.errors == []
-        with bb.Bus(sim.port) as bus:  # the IOC released the port
+        with bb.Bus(sim.port) as bus:  # the line works for the next program
             stats = tuple(bus.stats.as_dict())
     profile = bb.Profile(ROOT / "examples" / "profiles" / "xy_md02.toml")
     actions = tuple(name for name, _ in bb.Drive.commands())

@@ -717,7 +717,7 @@ def test_an_access_security_file_epics_cannot_read_is_an_error_not_a_silent_ioc(
             text=True,
             timeout=60,
         )
-        with bb.Bus(sim.port) as bus:  # closed: free for the next program
+        with bb.Bus(sim.port) as bus:  # the line works for the next program
             assert bus.read_input_registers(1, 1, 1) == [215]
     assert done.returncode == 1, done.stderr
     assert "benchbus: the IOC did not start" in done.stderr
@@ -933,7 +933,7 @@ def test_a_drives_action_records_move_the_motor_and_sigterm_stops_it(epics: Epic
             wait_for("the motor stops", lambda: model.state == stopped)
             put(ctx, "SP:reverse", 1)
             wait_for("the motor runs again", lambda: model.speed < -1000)
-        # SIGTERM stopped the motor before the IOC ended, and released the port.
+        # SIGTERM stopped the motor before the IOC ended.
         wait_for("the motor stops on SIGTERM", lambda: model.state == stopped, timeout=2)
         with bb.Drive(sim.port) as drive:
             assert drive.speed == 0

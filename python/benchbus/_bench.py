@@ -97,8 +97,11 @@ IOC_KEYS: dict[str, tuple[type, ...]] = {"period": (int, float), "read_only": (b
 class BenchLine:
     """A line of the bench: its port and the ``bb.Bus`` keywords it is opened with."""
 
+    #: What its devices call it.
     name: str
+    #: The port, as ``bb.Bus`` takes it.
     port: str
+    #: The line's format and timing given (``baudrate``, ``timeout``...).
     options: dict[str, Any]
 
 
@@ -106,8 +109,11 @@ class BenchLine:
 class BenchDevice:
     """A device of the bench: a family's class or a profile, at a unit on a line."""
 
+    #: The line it is on.
     line: str
+    #: Its unit address.
     unit: int
+    #: The start of its PV names.
     prefix: str
     #: The family's key, or None for a profile's device.
     family: str | None
@@ -131,8 +137,11 @@ class BenchDevice:
 class Bench:
     """A bench file, read and checked."""
 
+    #: The file.
     path: Path
+    #: Its lines, in its order.
     lines: list[BenchLine]
+    #: Its devices, in its order.
     devices: list[BenchDevice]
     #: ``[ioc]``'s period (None: not given).
     period: float | None

@@ -692,6 +692,7 @@ class Ioc:
         access_security: str | os.PathLike[str] | None = None,
     ) -> None:
         """An IOC with nothing to serve yet."""
+        #: Seconds between two reads of a device that has no period of its own.
         self.period = _seconds(period, "period")
         if interface is not None and not isinstance(interface, str):
             raise TypeError(f"interface must be an address (str), got {type(interface).__name__}")
