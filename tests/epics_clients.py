@@ -6,6 +6,7 @@ from __future__ import annotations
 import contextlib
 import dataclasses
 import os
+import select
 import signal
 import socket
 import subprocess
@@ -92,19 +93,27 @@ def served(
     command: list[str] | None = None,
     stop: signal.Signals = signal.SIGTERM,
     ready_value: int = 1,
+    serving: tuple[str, str] = ("stderr", "benchbus: ioc: serving"),
 ) -> Iterator[subprocess.Popen[str]]:
     """``benchbus ioc ARGS`` (or ``command``) in a process of its own, with no standard
     input (as a service runs), until the block ends, once ``ready`` (a PV) reads
-    ``ready_value``; then ``stop`` (SIGTERM), which must end it cleanly within 2 s."""
+    ``ready_value``; then ``stop`` (SIGTERM), which must end it cleanly within 2 s.
+    ``serving``: the stream and the start of the line the process says it serves with
+    (``benchbus ioc``'s, on standard error)."""
     process = subprocess.Popen(
         command or [sys.executable, "-m", "benchbus", "ioc", *args],
-        env={**os.environ, **env},
+        env={**os.environ, **env, "PYTHONUNBUFFERED": "1"},
         stdin=subprocess.DEVNULL,
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
     )
+    said = ""
+    stream, line = serving
     try:
+        # Searching for a PV once the IOC serves finds it at once (a search that misses is
+        # repeated later and later).
+        said = _until(process, stream, line, 20)
         (pv,) = context.get_pvs(ready, timeout=2)
         wait_for(
             f"{ready} = {ready_value}",
@@ -115,15 +124,49 @@ def served(
     except BaseException:
         process.kill()
         _, err = process.communicate(timeout=10)
-        print(err)
+        print(said, err)
         raise
     process.send_signal(stop)
     started = time.monotonic()
     out, err = process.communicate(timeout=10)
+    if stream == "stdout":
+        out = said + out
+    else:
+        err = said + err
     took = time.monotonic() - started
     assert process.returncode == 0, err
     assert took < 2.0, f"{stop.name} took {took:.1f} s"
     process.stdout_text, process.stderr_text = out, err  # type: ignore[attr-defined]
+
+
+def _until(process: subprocess.Popen[str], stream: str, line: str, timeout: float) -> str:
+    """What ``process`` writes to ``stream`` (``"stdout"``, ``"stderr"``) up to and with a
+    line that starts with ``line``; fails if it ends or ``timeout`` s pass first."""
+    pipe = process.stdout if stream == "stdout" else process.stderr
+    assert pipe is not None
+    deadline = time.monotonic() + timeout
+    said: list[str] = []
+    fd = pipe.fileno()
+    os.set_blocking(fd, False)
+    pending = b""
+    try:
+        while time.monotonic() < deadline:
+            ready, _, _ = select.select([fd], [], [], 0.05)
+            if not ready:
+                if process.poll() is not None:
+                    break
+                continue
+            chunk = os.read(fd, 65536)
+            if not chunk:
+                break
+            pending += chunk
+            *lines, pending = pending.split(b"\n")
+            said += [n.decode(errors="replace") + "\n" for n in lines]
+            if any(n.startswith(line) for n in said):
+                return "".join(said) + pending.decode(errors="replace")
+    finally:
+        os.set_blocking(fd, True)
+    pytest.fail(f"the IOC never said {line!r}: {''.join(said)}")
 
 
 def read(context: Any, name: str, kind: str = "control") -> Any:

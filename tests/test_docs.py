@@ -364,7 +364,8 @@ def test_epics_guide_example(monkeypatch: pytest.MonkeyPatch) -> None:
 
         ctx = caproto_client.Context()
         command = [sys.executable, "-c", code]
-        with served([], env, "LAB:SPINDLE:ioc:connected", ctx, command) as process:
+        says = ("stdout", "")  # the block's first line of its own
+        with served([], env, "LAB:SPINDLE:ioc:connected", ctx, command, serving=says) as process:
             assert read(ctx, "LAB:XY:temperature").data[0] == sensor.value("temperature")
             read(ctx, "LAB:SPINDLE:speed_setpoint")  # the drive's records are there
             ctx.get_pvs("LAB:SPINDLE:forward")[0].write([1], wait=True, timeout=5)

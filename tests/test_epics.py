@@ -609,6 +609,8 @@ def test_a_put_during_the_polls_of_10_devices_waits_for_the_request_on_the_line_
         bench = bench_file(tmp_path, sim.port, units, profile, 0.001, 0.2)
         with served([str(bench)], epics.env, "D10:ioc:connected", ctx):
             (target,) = ctx.get_pvs("D1:r0", timeout=2)
+            target.wait_for_connection(timeout=5)
+            began = time.monotonic()
             waits: list[int] = []
             for value in range(1, 21):
                 time.sleep(0.013 * (value % 5))  # land at different points of a poll
@@ -622,8 +624,9 @@ def test_a_put_during_the_polls_of_10_devices_waits_for_the_request_on_the_line_
             # The polls read one request a device (10 a cycle), without a pause between
             # them: a put waits for the request on the line (and, at most, the one that
             # started while the put crossed Channel Access), never for the cycle of 10.
-            cycle = [t for f, t in zip(sim.requests, sim.request_times) if f[0] == 1 and f[1] == 3]
-            assert len(cycle) > 20  # the line was kept busy by the polls
+            frames = zip(sim.requests, sim.request_times)
+            polls = [f[0] for f, t in frames if t > began and f[1] == 0x03]
+            assert set(polls) == set(models) and len(polls) > 40  # the polls kept the line busy
             print("requests a put waited behind:", waits)
             assert max(waits) <= 2, waits
 
@@ -664,7 +667,8 @@ def test_an_ioc_made_from_python_is_one_per_process_and_takes_devices_before_it_
     ctx = epics.client()
     with Simulator({1: ProfileDevice(SENSOR)}) as sim:
         command = [sys.executable, "-c", SCRIPT, sim.port, str(SENSOR)]
-        with served([], epics.env, "X:ioc:connected", ctx, command) as process:
+        says = ("stdout", "serving")
+        with served([], epics.env, "X:ioc:connected", ctx, command, serving=says) as process:
             assert read(ctx, "X:temperature").data[0] == 21.5
             assert read(ctx, "Y:temperature").data[0] == 21.5
     said = ("RuntimeError", "TypeError", "ValueError", "serving")  # not EPICS's own lines
@@ -700,6 +704,21 @@ def test_read_only_serves_readbacks_alone_and_access_security_refuses_writes(
         assert response.status.name == "ECA_NOWTACCESS"
         assert len(writes(sim)) == before and model.value("setpoint") == 75.5
         assert setpoint.read(timeout=3).data[0] == 75.5
+
+
+def test_the_shell_is_asked_for_and_leaving_it_ends_the_ioc(epics: Epics) -> None:
+    with Simulator({1: ProfileDevice(SENSOR)}) as sim:
+        done = subprocess.run(
+            [sys.executable, "-m", "benchbus", "ioc", *ioc_args(sim, SENSOR, "SH:", "--shell")],
+            env={**os.environ, **epics.env},
+            input="print('served', len(ioc.names), ioc.started)\ndbl()\n",
+            capture_output=True,
+            text=True,
+            timeout=60,
+        )
+    assert done.returncode == 0, done.stderr
+    assert "served 24 True" in done.stdout
+    assert "SH:temperature" in done.stdout  # EPICS's dbl() lists the record
 
 
 def test_an_access_security_file_epics_cannot_read_is_an_error_not_a_silent_ioc(
