@@ -1152,7 +1152,7 @@ def scenario_m(res: Results, plan: Plan, name: str) -> None:
                 time.sleep(0.3)  # the first update is the value at subscription
                 emu.stats()
                 updates.clear()
-                time.sleep(max(1.0, 5 * plan.seconds))
+                time.sleep(max(0.5, 5 * plan.seconds))
                 subscription.clear()
                 st = emu.stats()[0]
                 requests, units = st["requests"], st["units"]

@@ -113,7 +113,7 @@ def served(
     try:
         # Searching for a PV once the IOC serves finds it at once (a search that misses is
         # repeated later and later).
-        said = _until(process, stream, line, 20)
+        said = until(process, stream, line, 20)
         (pv,) = context.get_pvs(ready, timeout=2)
         wait_for(
             f"{ready} = {ready_value}",
@@ -139,7 +139,7 @@ def served(
     process.stdout_text, process.stderr_text = out, err  # type: ignore[attr-defined]
 
 
-def _until(process: subprocess.Popen[str], stream: str, line: str, timeout: float) -> str:
+def until(process: subprocess.Popen[str], stream: str, line: str, timeout: float) -> str:
     """What ``process`` writes to ``stream`` (``"stdout"``, ``"stderr"``) up to and with a
     line that starts with ``line``; fails if it ends or ``timeout`` s pass first."""
     pipe = process.stdout if stream == "stdout" else process.stderr

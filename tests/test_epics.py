@@ -25,6 +25,7 @@ from epics_clients import (
     put,
     read,
     served,
+    until,
     wait_for,
     writes,
 )
@@ -704,6 +705,57 @@ def test_read_only_serves_readbacks_alone_and_access_security_refuses_writes(
         assert response.status.name == "ECA_NOWTACCESS"
         assert len(writes(sim)) == before and model.value("setpoint") == 75.5
         assert setpoint.read(timeout=3).data[0] == 75.5
+
+
+STOPPING = """
+import os, sys, time
+import benchbus as bb
+from benchbus.epics import Ioc
+
+bus = bb.Bus(sys.argv[1], timeout=0.3)
+ioc = Ioc(period=0.2)
+ioc.add("ST:", bb.Device.from_profile(sys.argv[2], bus, unit=1))
+ioc.start()
+print("serving", flush=True)
+while not os.path.exists(sys.argv[3]):
+    time.sleep(0.02)
+ioc.stop()
+print("stopped", flush=True)
+time.sleep(60)
+"""
+
+
+def test_once_stopping_the_ioc_refuses_puts_before_sending_anything(
+    epics: Epics, tmp_path: Path
+) -> None:
+    model = ProfileDevice(SENSOR)
+    go = tmp_path / "stop-now"
+    ctx = epics.client()
+    with Simulator({1: model}) as sim:
+        command = [sys.executable, "-c", STOPPING, sim.port, str(SENSOR), str(go)]
+        process = subprocess.Popen(
+            command,
+            env={**os.environ, **epics.env, "PYTHONUNBUFFERED": "1"},
+            stdin=subprocess.DEVNULL,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            until(process, "stdout", "serving", 20)
+            put(ctx, "ST:temperature_correction", -1.0)
+            assert model.value("temperature_correction") == -1.0
+            go.touch()
+            until(process, "stdout", "stopped", 20)
+            before = len(writes(sim))
+            put(ctx, "ST:temperature_correction", 2.0)
+            assert len(writes(sim)) == before
+            assert model.value("temperature_correction") == -1.0
+            assert read(ctx, "ST:temperature_correction").data[0] == -1.0
+        finally:
+            process.kill()
+            _, err = process.communicate(timeout=10)
+    assert "put 2.0 refused: the IOC is stopping" in err
 
 
 def test_the_shell_is_asked_for_and_leaving_it_ends_the_ioc(epics: Epics) -> None:
