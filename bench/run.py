@@ -1064,37 +1064,6 @@ IOC_UNITS = tuple(range(1, 11))
 IOC_REGISTERS = 8
 
 
-def _free_port() -> int:
-    """A loopback port free for both TCP and UDP now."""
-    import socket
-
-    while True:
-        with socket.socket() as tcp:
-            tcp.bind(("127.0.0.1", 0))
-            port = int(tcp.getsockname()[1])
-            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
-                try:
-                    udp.bind(("127.0.0.1", port))
-                except OSError:
-                    continue
-        return port
-
-
-def _ioc_env() -> dict[str, str]:
-    """EPICS on loopback, on ports of this run's own (Channel Access; PV Access unused)."""
-    ca = _free_port()
-    return {
-        "EPICS_CAS_INTF_ADDR_LIST": "127.0.0.1",
-        "EPICS_CA_ADDR_LIST": f"127.0.0.1:{ca}",
-        "EPICS_CA_AUTO_ADDR_LIST": "NO",
-        "EPICS_CA_SERVER_PORT": str(ca),
-        "EPICS_CA_REPEATER_PORT": str(_free_port()),
-        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
-        "EPICS_PVAS_SERVER_PORT": str(_free_port()),
-        "EPICS_PVAS_BROADCAST_PORT": str(_free_port()),
-    }
-
-
 def scenario_m(res: Results, plan: Plan, name: str) -> None:
     """(m) ``benchbus ioc`` polling 10 devices of 8 registers on one line at 19200 8N1 as fast
     as it can: the line's busy time against what the wire allows (a request of 8 characters,
@@ -1107,10 +1076,12 @@ def scenario_m(res: Results, plan: Plan, name: str) -> None:
 
     from caproto.threading.client import Context
 
+    from benchbus.epics import loopback_env
+
     line = N81_19200
     key = f"m: EPICS IOC, 10 devices x {IOC_REGISTERS} registers, {line}"
     request, reply = 8, 5 + 2 * IOC_REGISTERS
-    env = _ioc_env()
+    env = loopback_env()
     os.environ.update({k: v for k, v in env.items() if k.startswith("EPICS_CA_")})
     with Emulator(line, units=IOC_UNITS) as emu, tempfile.TemporaryDirectory() as folder:
         profile = Path(folder) / "eight.toml"

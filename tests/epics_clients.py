@@ -1,5 +1,6 @@
-"""EPICS clients for the tests: ports of a test's own on loopback, ``benchbus ioc`` run in a
-process of its own, and reads and puts with caproto (Channel Access)."""
+"""EPICS clients for the tests: ``benchbus ioc`` run in a process of its own (on loopback, on
+ports of a test's own: ``benchbus.epics.loopback_env``), and reads and puts with caproto
+(Channel Access)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,6 @@ import dataclasses
 import os
 import select
 import signal
-import socket
 import subprocess
 import sys
 import time
@@ -24,48 +24,15 @@ from benchbus.sim import Simulator
 WRITES = {0x05, 0x06, 0x0F, 0x10, 0x16, 0x17}
 
 
-def free_port() -> int:
-    """A port free on loopback for both TCP and UDP now."""
-    while True:
-        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as tcp:
-            tcp.bind(("127.0.0.1", 0))
-            port = int(tcp.getsockname()[1])
-            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
-                try:
-                    udp.bind(("127.0.0.1", port))
-                except OSError:
-                    continue
-        return port
-
-
 @dataclasses.dataclass
 class Epics:
     """The EPICS environment of one test: its own ports, loopback only."""
 
-    ca_port: int
     env: dict[str, str]
 
     def client(self) -> Any:
         """A caproto Channel Access client context searching this test's IOCs."""
         return caproto_client.Context()
-
-
-def epics_env(ca_ports: list[int], pva_port: int, pva_broadcast: int) -> dict[str, str]:
-    """The variables that keep servers and clients on loopback and on these ports."""
-    return {
-        "EPICS_CAS_INTF_ADDR_LIST": "127.0.0.1",
-        "EPICS_CA_ADDR_LIST": " ".join(f"127.0.0.1:{p}" for p in ca_ports),
-        "EPICS_CA_AUTO_ADDR_LIST": "NO",
-        "EPICS_CA_SERVER_PORT": str(ca_ports[0]),
-        "EPICS_CA_REPEATER_PORT": str(free_port()),
-        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
-        "EPICS_PVA_ADDR_LIST": "127.0.0.1",
-        "EPICS_PVA_AUTO_ADDR_LIST": "NO",
-        "EPICS_PVAS_SERVER_PORT": str(pva_port),
-        "EPICS_PVA_SERVER_PORT": str(pva_port),
-        "EPICS_PVAS_BROADCAST_PORT": str(pva_broadcast),
-        "EPICS_PVA_BROADCAST_PORT": str(pva_broadcast),
-    }
 
 
 def wait_for(what: str, check: Callable[[], Any], timeout: float = 10.0) -> Any:

@@ -346,13 +346,13 @@ def test_epics_guide_example(monkeypatch: pytest.MonkeyPatch) -> None:
     """The IOC made from Python, in a process of its own (an IOC is one per process), on a
     simulated sensor and drive; read over Channel Access, then stopped by SIGTERM, which
     stops the drive."""
-    from epics_clients import epics_env, free_port, read, served
+    from epics_clients import read, served
 
-    from benchbus.epics import pvs
+    from benchbus.epics import loopback_env, pvs
     from benchbus.sim import ProfileDevice
 
     (block,) = [b for b in doc_blocks() if "benchbus.epics" in b]
-    env = epics_env([free_port()], free_port(), free_port())
+    env = loopback_env()
     for key, value in env.items():
         monkeypatch.setenv(key, value)
     sensor = ProfileDevice(ROOT / "examples" / "profiles" / "xy_md02.toml")

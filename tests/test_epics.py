@@ -20,8 +20,6 @@ import pytest
 from caproto import ChannelType
 from epics_clients import (
     Epics,
-    epics_env,
-    free_port,
     put,
     read,
     served,
@@ -32,7 +30,7 @@ from epics_clients import (
 
 import benchbus as bb
 from benchbus._families import Family, command_families
-from benchbus.epics import IOC, PV_NAME_MAX, RBV, pvs
+from benchbus.epics import IOC, PV_NAME_MAX, RBV, loopback_env, pvs
 from benchbus.sim import DriveDevice, ProfileDevice, Simulator
 
 PROFILES = Path(__file__).resolve().parent.parent / "examples" / "profiles"
@@ -43,11 +41,10 @@ RELAYS = PROFILES / "relay_board.toml"
 
 @pytest.fixture
 def epics(monkeypatch: pytest.MonkeyPatch) -> Epics:
-    ca = free_port()
-    env = epics_env([ca], free_port(), free_port())
+    env = loopback_env()
     for key, value in env.items():
         monkeypatch.setenv(key, value)
-    return Epics(ca, env)
+    return Epics(env)
 
 
 # ---- the records a declaration gives ------------------------------------------------------
@@ -243,41 +240,50 @@ def ioc_args(sim: Simulator[Any], profile: Path, prefix: str, *more: str) -> lis
     return ["--profile", str(profile), "--port", sim.port, "--prefix", prefix, *more]
 
 
-def test_every_record_kind_reads_with_its_value_units_precision_and_limits(
+@pytest.fixture
+def fc_served(
     epics: Epics, controller: tuple[Simulator[ProfileDevice], ProfileDevice]
-) -> None:
+) -> Iterator[tuple[Simulator[ProfileDevice], ProfileDevice, Any]]:
+    """The simulated flow controller served by ``benchbus ioc`` under ``FC:`` (read every
+    0.2 s), with a client: ``(sim, model, client)``."""
     sim, model = controller
     ctx = epics.client()
+    args = ioc_args(sim, CONTROLLER, "FC:", "--period", "0.2")
+    with served(args, epics.env, "FC:ioc:connected", ctx):
+        yield sim, model, ctx
+
+
+def test_every_record_kind_reads_with_its_value_units_precision_and_limits(
+    fc_served: tuple[Simulator[ProfileDevice], ProfileDevice, Any],
+) -> None:
+    _, model, ctx = fc_served
     profile = bb.Profile(CONTROLLER)
-    with served(
-        ioc_args(sim, CONTROLLER, "FC:", "--period", "0.2"), epics.env, "FC:ioc:connected", ctx
-    ):
-        for r in profile.registers:
-            if r.access == "w":
-                continue
-            name = f"FC:{r.name}" + (RBV if r.access != "r" else "")
-            reading = read(ctx, name)
-            md = reading.metadata
-            truth = model.value(r.name)
-            assert md.severity == 0, name
-            if r.enum:
-                assert [s.decode() for s in md.enum_strings] == list(r.enum.values())
-                assert md.enum_strings[reading.data[0]].decode() == truth
-            elif r.type == "string":
-                assert reading.data[0].decode() == truth
-            else:
-                assert math.isclose(float(reading.data[0]), float(truth), rel_tol=1e-6), name
-                assert md.units.decode() == r.unit
-                if r.name in ("setpoint", "gain", "zero_offset"):
-                    assert (md.lower_disp_limit, md.upper_disp_limit) == (r.min, r.max)
-                    # No drive limits: an output record does not clamp a put.
-                    for field in ("DRVL", "DRVH"):
-                        assert read(ctx, f"FC:{r.name}.{field}", "native").data[0] == 0
-        assert read(ctx, "FC:total").metadata.precision == 2
-        assert read(ctx, "FC:flow").metadata.precision == 3
-        # An output record starts at what the device holds, with no alarm.
-        setpoint = read(ctx, "FC:setpoint", "time")
-        assert (setpoint.data[0], setpoint.metadata.severity) == (75.5, 0)
+    for r in profile.registers:
+        if r.access == "w":
+            continue
+        name = f"FC:{r.name}" + (RBV if r.access != "r" else "")
+        reading = read(ctx, name)
+        md = reading.metadata
+        truth = model.value(r.name)
+        assert md.severity == 0, name
+        if r.enum:
+            assert [s.decode() for s in md.enum_strings] == list(r.enum.values())
+            assert md.enum_strings[reading.data[0]].decode() == truth
+        elif r.type == "string":
+            assert reading.data[0].decode() == truth
+        else:
+            assert math.isclose(float(reading.data[0]), float(truth), rel_tol=1e-6), name
+            assert md.units.decode() == r.unit
+            if r.name in ("setpoint", "gain", "zero_offset"):
+                assert (md.lower_disp_limit, md.upper_disp_limit) == (r.min, r.max)
+                # No drive limits: an output record does not clamp a put.
+                for field in ("DRVL", "DRVH"):
+                    assert read(ctx, f"FC:{r.name}.{field}", "native").data[0] == 0
+    assert read(ctx, "FC:total").metadata.precision == 2
+    assert read(ctx, "FC:flow").metadata.precision == 3
+    # An output record starts at what the device holds, with no alarm.
+    setpoint = read(ctx, "FC:setpoint", "time")
+    assert (setpoint.data[0], setpoint.metadata.severity) == (75.5, 0)
 
 
 def test_bools_are_bi_and_bo_records_with_their_two_states(epics: Epics) -> None:
@@ -295,65 +301,59 @@ def test_bools_are_bi_and_bo_records_with_their_two_states(epics: Epics) -> None
         wait_for("the readback", lambda: read(ctx, "RB:relay1_RBV").data[0] == 1)
         put(ctx, "RB:relay8", 1)  # write-only: an output record alone
         assert model.value("relay8") is True
+        # Nothing read to show before that put (INVALID / UDF); once written, no alarm.
+        assert read(ctx, "RB:relay8", "time").metadata.severity == 0
         model.set_value("input3", True)
         wait_for("an input follows", lambda: read(ctx, "RB:input3").data[0] == 1)
 
 
 def test_puts_reach_the_wire_and_a_refused_put_sends_nothing_and_changes_nothing(
-    epics: Epics, controller: tuple[Simulator[ProfileDevice], ProfileDevice]
+    fc_served: tuple[Simulator[ProfileDevice], ProfileDevice, Any],
 ) -> None:
-    sim, model = controller
-    ctx = epics.client()
-    with served(
-        ioc_args(sim, CONTROLLER, "FC:", "--period", "0.2"), epics.env, "FC:ioc:connected", ctx
-    ):
-        put(ctx, "FC:setpoint", 80.25)
-        assert model.value("setpoint") == 80.25
-        wait_for("the readback", lambda: read(ctx, "FC:setpoint_RBV").data[0] == 80.25)
-        model.set_value("setpoint", 60.0)  # changed at the device itself
-        put(ctx, "FC:setpoint", 80.25)  # the value the record shows, written again
-        assert model.value("setpoint") == 80.25
-        put(ctx, "FC:zero_offset", -12345)
-        assert model.value("zero_offset") == -12345
-        put(ctx, "FC:device_name", "bench 7")
-        assert model.value("device_name") == "bench 7"
-        # Enums by state string: the member's number goes on the wire.
-        (mode,) = ctx.get_pvs("FC:mode", timeout=2)
-        mode.write(["close"], data_type=ChannelType.STRING, wait=True, timeout=5)
-        assert model.value("mode") == "close"
-        before = len(writes(sim))
-        for name, bad in (("setpoint", 5000.0), ("gain", 0.1), ("zero_offset", 2_000_000)):
-            put(ctx, f"FC:{name}", bad)
-        assert len(writes(sim)) == before
-        assert model.value("setpoint") == 80.25 and model.value("gain") == 1.0
-        reading = read(ctx, "FC:setpoint", "time")
-        assert (reading.data[0], reading.metadata.severity) == (80.25, 0)
+    sim, model, ctx = fc_served
+    put(ctx, "FC:setpoint", 80.25)
+    assert model.value("setpoint") == 80.25
+    wait_for("the readback", lambda: read(ctx, "FC:setpoint_RBV").data[0] == 80.25)
+    model.set_value("setpoint", 60.0)  # changed at the device itself
+    put(ctx, "FC:setpoint", 80.25)  # the value the record shows, written again
+    assert model.value("setpoint") == 80.25
+    put(ctx, "FC:zero_offset", -12345)
+    assert model.value("zero_offset") == -12345
+    put(ctx, "FC:device_name", "bench 7")
+    assert model.value("device_name") == "bench 7"
+    # Enums by state string: the member's number goes on the wire.
+    (mode,) = ctx.get_pvs("FC:mode", timeout=2)
+    mode.write(["close"], data_type=ChannelType.STRING, wait=True, timeout=5)
+    assert model.value("mode") == "close"
+    before = len(writes(sim))
+    for name, bad in (("setpoint", 5000.0), ("gain", 0.1), ("zero_offset", 2_000_000)):
+        put(ctx, f"FC:{name}", bad)
+    assert len(writes(sim)) == before
+    assert model.value("setpoint") == 80.25 and model.value("gain") == 1.0
+    reading = read(ctx, "FC:setpoint", "time")
+    assert (reading.data[0], reading.metadata.severity) == (80.25, 0)
 
 
 def test_puts_that_come_while_a_write_is_on_the_wire_are_written_in_their_order(
-    epics: Epics, controller: tuple[Simulator[ProfileDevice], ProfileDevice]
+    fc_served: tuple[Simulator[ProfileDevice], ProfileDevice, Any],
 ) -> None:
-    sim, model = controller
-    ctx = epics.client()
-    with served(
-        ioc_args(sim, CONTROLLER, "FC:", "--period", "0.2"), epics.env, "FC:ioc:connected", ctx
-    ):
-        setpoint, mode = ctx.get_pvs("FC:setpoint", "FC:mode", timeout=2)
-        model.reply_delay = 0.1  # each write stays on the wire that long (the timeout: 0.2 s)
-        before = len(writes(sim))
-        setpoint.write([61.0], wait=False)  # plain puts, as a screen's slider sends
-        time.sleep(0.05)
-        setpoint.write([62.0], wait=False)  # waits in the record while 61 is written
-        mode.write([0], wait=False)  # another record: processed, and queued, at once
-        wait_for("every put written", lambda: len(writes(sim)) >= before + 3)
-        model.reply_delay = 0.0
-        assert model.value("setpoint") == 62.0 and model.value("mode") == "off"
-        # In the order the records processed them: 61, the mode, then 62 once 61 was over.
-        frames = writes(sim)[before:]
-        assert [f[1] for f in frames] == [0x10, 0x06, 0x10]
-        assert frames[0][7:11] != frames[2][7:11]  # two values: 62 was not lost
-        wait_for("the record shows the last put", lambda: read(ctx, "FC:setpoint").data[0] == 62.0)
-        assert read(ctx, "FC:setpoint", "time").metadata.severity == 0
+    sim, model, ctx = fc_served
+    setpoint, mode = ctx.get_pvs("FC:setpoint", "FC:mode", timeout=2)
+    model.reply_delay = 0.1  # each write stays on the wire that long (the timeout: 0.2 s)
+    before = len(writes(sim))
+    setpoint.write([61.0], wait=False)  # plain puts, as a screen's slider sends
+    time.sleep(0.05)
+    setpoint.write([62.0], wait=False)  # waits in the record while 61 is written
+    mode.write([0], wait=False)  # another record: processed, and queued, at once
+    wait_for("every put written", lambda: len(writes(sim)) >= before + 3)
+    model.reply_delay = 0.0
+    assert model.value("setpoint") == 62.0 and model.value("mode") == "off"
+    # In the order the records processed them: 61, the mode, then 62 once 61 was over.
+    frames = writes(sim)[before:]
+    assert [f[1] for f in frames] == [0x10, 0x06, 0x10]
+    assert frames[0][7:11] != frames[2][7:11]  # two values: 62 was not lost
+    wait_for("the record shows the last put", lambda: read(ctx, "FC:setpoint").data[0] == 62.0)
+    assert read(ctx, "FC:setpoint", "time").metadata.severity == 0
 
 
 SPARSE = """[device]
@@ -393,6 +393,8 @@ def test_an_enum_of_numbers_not_0_1_2_and_latin1_text_cross_channel_access_as_he
             ioc_args(sim, profile, "SP:", "--period", "0.2"), epics.env, "SP:ioc:connected", ctx
         ),
     ):
+        wait_for("the label's record", lambda: read(ctx, "SP:label", "time").metadata.severity == 0)
+        assert writes(sim) == []  # showing the device's values wrote nothing back
         speed = read(ctx, "SP:speed_RBV")
         assert speed.data[0] == 2
         assert speed.metadata.enum_strings[2].decode() == "fast"
@@ -404,6 +406,25 @@ def test_an_enum_of_numbers_not_0_1_2_and_latin1_text_cross_channel_access_as_he
         assert bytes(note).rstrip(b"\0").decode() == "température élevée arrêt"
         model.set_value("speed", "off")
         wait_for("state 0", lambda: read(ctx, "SP:speed_RBV").data[0] == 0)
+
+
+def test_text_after_a_nul_is_not_shown_and_showing_it_writes_nothing(
+    epics: Epics, tmp_path: Path
+) -> None:
+    profile = tmp_path / "sparse.toml"
+    profile.write_text(SPARSE)
+    model = ProfileDevice(profile)
+    model.set_value("label", "PUMP\0old")  # a C string and what its buffer held before
+    ctx = epics.client()
+    with Simulator({1: model}) as sim:
+        args = ioc_args(sim, profile, "NU:", "--period", "0.2")
+        with served(args, epics.env, "NU:ioc:connected", ctx):
+            wait_for("the label", lambda: read(ctx, "NU:label", "time").metadata.severity == 0)
+            assert read(ctx, "NU:label").data[0].decode() == "PUMP"
+            assert read(ctx, "NU:label_RBV").data[0].decode() == "PUMP"
+            time.sleep(0.5)  # a few polls
+            assert writes(sim) == []
+            assert model.value("label") == "PUMP\0old"
 
 
 def test_a_gateways_no_answer_is_the_line_failing_not_a_register_refused(epics: Epics) -> None:
@@ -773,6 +794,33 @@ def test_the_shell_is_asked_for_and_leaving_it_ends_the_ioc(epics: Epics) -> Non
     assert "SH:temperature" in done.stdout  # EPICS's dbl() lists the record
 
 
+def test_leaving_the_shell_with_exit_stops_the_motor(epics: Epics) -> None:
+    model = DriveDevice(model="BLD2")
+    forward, stopped = 1, 3
+    ctx = epics.client()
+    with Simulator({1: model}) as sim:
+        args = ["drive", "--port", sim.port, "--prefix", "SH:", "--shell"]
+        process = subprocess.Popen(
+            [sys.executable, "-m", "benchbus", "ioc", *args],
+            env={**os.environ, **epics.env, "PYTHONUNBUFFERED": "1"},
+            stdin=subprocess.PIPE,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        try:
+            until(process, "stderr", "benchbus: ioc: serving", 20)
+            put(ctx, "SH:decel_time", 0.1)
+            put(ctx, "SH:speed_setpoint", 900)
+            put(ctx, "SH:forward", 1)
+            wait_for("the motor runs", lambda: model.state == forward)
+            _, err = process.communicate("exit()\n", timeout=10)
+        finally:
+            process.kill()
+        assert process.returncode == 0, err
+        wait_for("the motor stops", lambda: model.state == stopped, timeout=2)
+
+
 def test_an_access_security_file_epics_cannot_read_is_an_error_not_a_silent_ioc(
     epics: Epics, tmp_path: Path
 ) -> None:
@@ -839,49 +887,46 @@ def test_serving_beyond_loopback_is_said_and_loopback_is_the_default(
 
 
 def test_pv_access_reads_values_with_their_metadata_and_puts_reach_the_wire(
-    epics: Epics, controller: tuple[Simulator[ProfileDevice], ProfileDevice]
+    epics: Epics, fc_served: tuple[Simulator[ProfileDevice], ProfileDevice, Any]
 ) -> None:
     from p4p.client.thread import Context as PvaContext
 
-    sim, model = controller
+    _, model, _ = fc_served
     env = epics.env
     conf = {
         key: env[key]
         for key in ("EPICS_PVA_ADDR_LIST", "EPICS_PVA_AUTO_ADDR_LIST", "EPICS_PVA_BROADCAST_PORT")
     }
-    with served(
-        ioc_args(sim, CONTROLLER, "FC:", "--period", "0.2"), env, "FC:ioc:connected", epics.client()
-    ):
-        pva = PvaContext("pva", conf=conf, useenv=False)
-        try:
-            setpoint = pva.get("FC:setpoint_RBV", timeout=5)
-            assert setpoint == 75.5
-            assert setpoint.raw.display.units == "sccm"
-            assert setpoint.raw.display.precision == 3
-            assert (setpoint.raw.display.limitLow, setpoint.raw.display.limitHigh) == (0.0, 200.0)
-            assert setpoint.severity == 0
-            total = pva.get("FC:total", timeout=5)
-            assert math.isclose(total, model.value("total"))
-            assert total.raw.display.precision == 2 and total.raw.display.units == "scc"
-            mode = pva.get("FC:mode_RBV", timeout=5)
-            assert list(mode.raw.value.choices) == ["off", "control", "purge", "close"]
-            assert mode.raw.value.choices[mode.raw.value.index] == model.value("mode")
-            name = pva.get("FC:device_name_RBV", timeout=5)
-            assert name == model.value("device_name")
-            pva.put("FC:setpoint", 42.5, wait=True, timeout=5)
-            assert model.value("setpoint") == 42.5
-            pva.put("FC:mode", "off", wait=True, timeout=5)
-            assert model.value("mode") == "off"
-        finally:
-            pva.close()
+    pva = PvaContext("pva", conf=conf, useenv=False)
+    try:
+        setpoint = pva.get("FC:setpoint_RBV", timeout=5)
+        assert setpoint == 75.5
+        assert setpoint.raw.display.units == "sccm"
+        assert setpoint.raw.display.precision == 3
+        assert (setpoint.raw.display.limitLow, setpoint.raw.display.limitHigh) == (0.0, 200.0)
+        assert setpoint.severity == 0
+        total = pva.get("FC:total", timeout=5)
+        assert math.isclose(total, model.value("total"))
+        assert total.raw.display.precision == 2 and total.raw.display.units == "scc"
+        mode = pva.get("FC:mode_RBV", timeout=5)
+        assert list(mode.raw.value.choices) == ["off", "control", "purge", "close"]
+        assert mode.raw.value.choices[mode.raw.value.index] == model.value("mode")
+        name = pva.get("FC:device_name_RBV", timeout=5)
+        assert name == model.value("device_name")
+        pva.put("FC:setpoint", 42.5, wait=True, timeout=5)
+        assert model.value("setpoint") == 42.5
+        pva.put("FC:mode", "off", wait=True, timeout=5)
+        assert model.value("mode") == "off"
+    finally:
+        pva.close()
 
 
 def test_two_iocs_on_two_lines_each_with_its_port_are_read_by_one_client(
     monkeypatch: pytest.MonkeyPatch,
 ) -> None:
-    ports = [free_port(), free_port()]
-    envs = [epics_env([p], free_port(), free_port()) for p in ports]
-    both = epics_env(ports, free_port(), free_port())
+    envs = [loopback_env(), loopback_env()]
+    both = loopback_env(*envs)  # a client's: finds both
+    assert both["EPICS_CA_ADDR_LIST"].split()[1:] == [e["EPICS_CA_ADDR_LIST"] for e in envs]
     for key, value in both.items():
         monkeypatch.setenv(key, value)
     ctx = caproto_client.Context()

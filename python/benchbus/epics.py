@@ -35,6 +35,7 @@ from __future__ import annotations
 
 import atexit
 import concurrent.futures
+import contextlib
 import dataclasses
 import enum
 import importlib
@@ -43,9 +44,10 @@ import logging
 import math
 import os
 import signal
+import socket
 import threading
 import time
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Iterator, Mapping, Sequence
 from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Protocol
 
 from benchbus._core import CancelToken
@@ -77,6 +79,7 @@ __all__ = [
     "Ioc",
     "Pv",
     "ServedDevice",
+    "loopback_env",
     "pvs",
     "serve_on",
 ]
@@ -187,10 +190,10 @@ class Pv:
             return int(bool(value))
         if base in ("long", "int64"):
             return int(value)
-        if base == "string":
-            return _fit(str(value), STRING_MAX)
+        if base == "string":  # EPICS's text ends at its first NUL: so does the record's
+            return _fit(str(value).split("\0", 1)[0], STRING_MAX)
         if base == "longString":
-            return _fit(str(value), int(self.fields["length"]) - 1)
+            return _fit(str(value).split("\0", 1)[0], int(self.fields["length"]) - 1)
         return float(value)
 
     def written(self, value: Any) -> Any:
@@ -380,6 +383,9 @@ def _softioc() -> None:
         ) from exc
 
 
+#: No value given (a value may be None).
+_NONE_YET = object()
+
 #: What a failed read or write on the line is (its records then show COMM).
 _LINE_FAILURES = (BenchbusError, OSError)
 #: The failures of the line itself, not a refusal by the device: a reply that did not
@@ -390,17 +396,46 @@ _ON_LINE = (ResponseTimeout, FrameError, PortError, GatewayError, Cancelled, OSE
 SPLIT_POLLS = 50
 
 
-# softioc 4.7's output records, where its API says nothing: the value VAL holds now (a put
-# that came while a write was on the wire waits there, to be processed next).
+# softioc 4.7's records where its API says nothing (its version is pinned): the device
+# support object behind a record (the builder's wrapper takes no attributes), the value VAL
+# holds now (a put that came while a write was on the wire waits there, to be processed
+# next), an alarm given without touching VAL, and EPICS's lock of a record.
+def _support(record: Any) -> Any:
+    """The softioc device support object of ``record``."""
+    from softioc.device_core import LookupRecord
+
+    return LookupRecord(record.name)
+
+
 def _held_in_val(record: Any) -> Any:
     """What the output record's VAL holds now."""
     return record._epics_to_value(record._read_value(record._record))
 
 
-def _alarm_now(record: Any, severity: int, status: int) -> None:
-    """Give the output record this alarm as its processing ends, the value in its VAL kept
-    (a later put waiting there is not lost)."""
-    record.set(_held_in_val(record), process=False, severity=severity, alarm=status)
+def _alarm_now(record: Any, severity: int, status: int, value: Any = _NONE_YET) -> None:
+    """Give the output record this alarm as its processing ends, VAL untouched (a later
+    put waiting there is not lost); ``value``: what softioc restores should that put be
+    refused (default: what it has)."""
+    support = _support(record)
+    kept = support._value[0] if value is _NONE_YET else support._value_to_epics(value)
+    support._value = (kept, severity, status)
+    support._record.NSEV = severity
+    support._record.NSTA = status
+
+
+@contextlib.contextmanager
+def _locked(record: Any) -> Iterator[None]:
+    """EPICS's lock of ``record`` (the one its processing holds), held in the block."""
+    import ctypes
+
+    from epicscorelibs.ioc import dbCore
+
+    address = ctypes.c_void_p(_support(record)._record.record.value)
+    dbCore.dbScanLock(address)
+    try:
+        yield
+    finally:
+        dbCore.dbScanUnlock(address)
 
 
 def _running() -> bool:
@@ -540,14 +575,17 @@ class _Served:
         """Give the output record ``pv`` the device's ``value`` once, at the first good
         read, without writing it back: processed (its UDF alarm cleared), its check and its
         write skipped for that one value."""
-        if value is None:
+        if value is None or (isinstance(value, float) and not math.isfinite(value)):
             return
-        self.put_to.add(pv.name)
-        self.good[pv.name] = value
-        self.syncing[pv.name] = value
         record = self.records[pv.name]
-        record.set(value, process=False)  # stored with no alarm: the processing clears UDF
-        record.set(value)
+        with _locked(record):  # no client's put comes between the test and the set
+            if pv.name in self.put_to or _support(record)._record.PACT:
+                return
+            self.put_to.add(pv.name)
+            self.good[pv.name] = value
+            self.syncing[pv.name] = value
+            record.set(value, process=False)  # stored with no alarm: processing clears UDF
+            record.set(value)
 
     def check(self, pv: Pv, value: Any) -> bool:
         """softioc's validate of a put: the core's checks of the write, nothing sent."""
@@ -567,15 +605,12 @@ class _Served:
 
     def write(self, pv: Pv, value: Any, alarm: Any) -> None:
         """Write a put of ``value`` to the device (or run the action), on the line's one
-        writer thread, in the order of the puts. A refusal restores the register's value
-        (a later put waiting in the record stays) with a WRITE alarm: MAJOR where the device
-        or its family's rule said no, INVALID where the line failed (the write may have
-        been done); the log says why. The next write that works clears it."""
+        writer thread, in the order of the puts; a refusal: :meth:`refuse`. A write that
+        works clears the record's alarm."""
         if self.syncing.get(pv.name, _NONE) == value:
             del self.syncing[pv.name]
             return
         self.syncing.pop(pv.name, None)
-        record = self.records[pv.name]
         try:
             if self.stopping.is_set():
                 raise Cancelled("the IOC is stopping")
@@ -584,20 +619,30 @@ class _Served:
             elif pv.register is not None:
                 self.device.set(pv.register, pv.written(value))
         except Exception as exc:  # whatever stopped the write, the record says so
-            severity = alarm.INVALID_ALARM if isinstance(exc, _ON_LINE) else alarm.MAJOR_ALARM
-            log.warning("%s: put %r refused: %s: %s", pv.name, value, type(exc).__name__, exc)
-            previous = 0 if pv.action is not None else self.good.get(pv.name)
-            if previous is not None and _held_in_val(record) == value:
-                record.set(previous, process=False, severity=severity, alarm=alarm.WRITE_ALARM)
-            else:  # a later put waits in VAL, or no value of the device is known
-                _alarm_now(record, severity, alarm.WRITE_ALARM)
-            self.alarmed.add(pv.name)
+            self.refuse(pv, value, exc, alarm)
             return
         if pv.action is None:
             self.good[pv.name] = value
-        if pv.name in self.alarmed:
-            self.alarmed.discard(pv.name)
-            _alarm_now(record, alarm.NO_ALARM, alarm.NO_ALARM)
+        self.alarmed.discard(pv.name)
+        _alarm_now(self.records[pv.name], alarm.NO_ALARM, alarm.NO_ALARM)
+
+    def refuse(self, pv: Pv, value: Any, exc: BaseException, alarm: Any) -> None:
+        """A put of ``value`` not written: the record back at the register's value (a later
+        put waiting in it stays) with a WRITE alarm, MAJOR where the device or its family's
+        rule said no, INVALID where the line failed (the write may have been done); the log
+        says why. Nothing is sent."""
+        severity = alarm.INVALID_ALARM if isinstance(exc, _ON_LINE) else alarm.MAJOR_ALARM
+        log.warning("%s: put %r refused: %s: %s", pv.name, value, type(exc).__name__, exc)
+        previous = 0 if pv.action is not None else self.good.get(pv.name)
+        record = self.records[pv.name]
+        with _locked(record):
+            if previous is not None and _held_in_val(record) == value:
+                record.set(previous, process=False, severity=severity, alarm=alarm.WRITE_ALARM)
+            elif previous is not None:  # a later put waits in VAL: softioc's value is restored
+                _alarm_now(record, severity, alarm.WRITE_ALARM, previous)
+            else:  # no value of the device is known (a write-only register)
+                _alarm_now(record, severity, alarm.WRITE_ALARM)
+        self.alarmed.add(pv.name)
 
     def failed(self, exc: BaseException, alarm: Any) -> None:
         """A read failed on the line: every input record INVALID / COMM, at once."""
@@ -665,6 +710,51 @@ def serve_on(interface: str | None) -> str:
             pva,
         )
     return served
+
+
+def _free_port() -> int:
+    """A port free on loopback for both TCP and UDP now (Channel Access takes both)."""
+    while True:
+        with socket.socket(socket.AF_INET, socket.SOCK_STREAM) as tcp:
+            tcp.bind(("127.0.0.1", 0))
+            port = int(tcp.getsockname()[1])
+            with socket.socket(socket.AF_INET, socket.SOCK_DGRAM) as udp:
+                try:
+                    udp.bind(("127.0.0.1", port))
+                except OSError:
+                    continue  # taken for UDP: another
+        return port
+
+
+def loopback_env(*also: Mapping[str, str]) -> dict[str, str]:
+    """EPICS's variables for an IOC and its clients on this machine alone, on ports no
+    other IOC uses (free ones, picked now): for tests and benchmarks that run IOCs side by
+    side. Give them to the IOC's process (``benchbus ioc``) and to its clients.
+
+    ``also``: the variables of other IOCs this one's clients should find too (their
+    Channel Access ports are added to its ``EPICS_CA_ADDR_LIST``)::
+
+        first, second = loopback_env(), loopback_env()
+        clients = loopback_env(first, second)   # finds both over Channel Access
+    """
+    ca, pva, broadcast = _free_port(), _free_port(), _free_port()
+    servers = [f"127.0.0.1:{ca}", *(e["EPICS_CA_ADDR_LIST"] for e in also)]
+    return {
+        "EPICS_CAS_INTF_ADDR_LIST": "127.0.0.1",
+        "EPICS_CA_ADDR_LIST": " ".join(servers),
+        "EPICS_CA_AUTO_ADDR_LIST": "NO",
+        "EPICS_CA_SERVER_PORT": str(ca),
+        "EPICS_CA_REPEATER_PORT": str(_free_port()),
+        "EPICS_CAS_AUTO_BEACON_ADDR_LIST": "NO",
+        "EPICS_CAS_BEACON_ADDR_LIST": "127.255.255.255",
+        "EPICS_PVAS_INTF_ADDR_LIST": "127.0.0.1",
+        "EPICS_PVA_ADDR_LIST": "127.0.0.1",
+        "EPICS_PVA_AUTO_ADDR_LIST": "NO",
+        "EPICS_PVAS_SERVER_PORT": str(pva),
+        "EPICS_PVA_SERVER_PORT": str(pva),
+        "EPICS_PVAS_BROADCAST_PORT": str(broadcast),
+        "EPICS_PVA_BROADCAST_PORT": str(broadcast),
+    }
 
 
 class Ioc:
@@ -789,6 +879,10 @@ class Ioc:
                 )
             for pv in served.pvs:
                 served.records[pv.name] = self._record(builder, served, pv)
+                if pv.kind == "longStringOut":  # softioc starts it at "": nothing known yet
+                    served.records[pv.name].set(
+                        "", severity=alarm.INVALID_ALARM, alarm=alarm.UDF_ALARM
+                    )
         builder.LoadDatabase()
         if self._security is not None:
             from epicscorelibs.ioc import dbCore
@@ -834,7 +928,10 @@ class Ioc:
         async def put(value: Any) -> None:
             import asyncio
 
-            await asyncio.get_running_loop().run_in_executor(writer, write, value)
+            try:
+                await asyncio.get_running_loop().run_in_executor(writer, write, value)
+            except RuntimeError:  # the writer has shut down: the IOC is stopping
+                served.refuse(pv, value, Cancelled("the IOC is stopping"), self._alarm)
 
         if pv.kind == "Action":
             return make(pv.name, on_update=put, blocking=True, initial_value=0)
@@ -872,9 +969,10 @@ class Ioc:
             )
 
     def stop(self) -> None:
-        """Stop the pollers, stop the motors served (as a ``with`` block does), close the
-        devices' ports. The records stay served until the process ends (EPICS cannot
-        stop an IOC); idempotent."""
+        """Refuse further puts, finish the writes on the wire, stop the motors served (as a
+        ``with`` block does), stop the pollers and close the devices' ports. The records
+        stay served until the process ends (EPICS cannot stop an IOC), their input records
+        INVALID with DISABLE status (no longer read); idempotent."""
         if self._stopped:
             return
         self._stopped = True
@@ -882,7 +980,7 @@ class Ioc:
         self._reads.cancel()  # no read starts an attempt now
         self._writes.cancel()  # nor a write; the one on the wire ends before the stops
         for writer in self._writers.values():
-            writer.shutdown(wait=True, cancel_futures=True)
+            writer.shutdown(wait=True)  # the puts queued are refused, each at once
         for served in self._served:
             if isinstance(served.device, MotorDevice):
                 try:
@@ -897,6 +995,8 @@ class Ioc:
                 served.device.bus.close()
             except _LINE_FAILURES as exc:
                 log.debug("closing %s: %s", served.prefix, exc)
+            for pv in served.inputs:  # no longer read: no value to trust
+                served.show(pv.name, None, self._alarm.INVALID_ALARM, self._alarm.DISABLE_ALARM)
 
     def run(self, *, shell: bool = False) -> NoReturn:
         """Start (if not started) and serve until SIGINT or SIGTERM, then :meth:`stop` and end
@@ -917,13 +1017,17 @@ class Ioc:
             quit.set()
 
         signal.signal(signal.SIGTERM, on_signal)
-        if shell:
-            softioc.interactive_ioc({"ioc": self}, call_exit=False)
-        else:
-            signal.signal(signal.SIGINT, on_signal)
-            quit.wait()
-        self.stop()
-        softioc.safeEpicsExit(0)
+        try:
+            if shell:
+                softioc.interactive_ioc({"ioc": self}, call_exit=False)
+            else:
+                signal.signal(signal.SIGINT, on_signal)
+                quit.wait()
+        except SystemExit:  # exit() in the shell
+            pass
+        finally:
+            self.stop()
+            softioc.safeEpicsExit(0)
         raise SystemExit(0)  # not reached: EPICS has ended the process
 
 

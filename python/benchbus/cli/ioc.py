@@ -165,6 +165,8 @@ def run(args: argparse.Namespace) -> int:
         _said(devices, ioc)
         ioc.run(shell=args.shell)
     except BaseException as exc:
+        if ioc.started:  # Ctrl-C before serving: the motors stopped first, as run() does
+            ioc.stop()
         for _, device, _ in devices:
             device.bus.close()
         if isinstance(exc, ValueError) and not isinstance(exc, BenchbusError):
