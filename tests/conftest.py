@@ -158,11 +158,14 @@ def hook(name: str) -> types.ModuleType:
 #: another file may carry the marker itself): ``make test`` runs the other tests on
 #: pytest-xdist's workers, then these by themselves, three workers for two cores (a machine
 #: loaded by builds, browsers or more of them delays a simulated slave's bytes past what a
-#: line allows).
+#: line allows). The EPICS tests hold an IOC to its bounds (a stop within 2 s, an alarm
+#: within a period and a timeout) and start a process each, which loads the machine: they
+#: run with these.
 TIMING_FILES = frozenset(
     {
         "test_bench.py",
         "test_concurrency.py",
+        "test_epics.py",
         "test_fair_line.py",
         "test_faults.py",
         "test_line_in_step.py",
