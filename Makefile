@@ -21,7 +21,9 @@ PIP := $(PYTHON) -m pip install --quiet --editable
 # TIMING_FILES) run after the others, by themselves, three workers for two cores
 # (TIMING_WORKERS): they wait on a simulated line most of the time (a third of the cores
 # busy), the quick benchmark, which keeps a core busy, starts first, and more workers than
-# that delay a simulated slave's bytes past the bounds those tests hold a call to.
+# that delay a simulated slave's bytes past the bounds those tests hold a call to. The
+# EPICS tests (marked epics) run last, by themselves: each starts an IOC process, which
+# loads the machine, and holds it to time bounds of its own.
 CORES := $(shell nproc 2>/dev/null || echo 1)
 TEST_WORKERS ?= $(shell echo $$(( $(CORES) * 2 )))
 TIMING_WORKERS ?= $(shell echo $$(( $(CORES) * 3 / 2 )))
@@ -51,8 +53,9 @@ demo: $(VENV)/bin/python
 test: install
 	.ci/need.sh 'chromium|chromium-browser=chromium'
 	cargo test --quiet
-	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) -m "not timing"
-	$(PYTHON) -m pytest -q -n $(TIMING_WORKERS) -m timing
+	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) -m "not timing and not epics"
+	$(PYTHON) -m pytest -q -n $(TIMING_WORKERS) -m "timing and not epics"
+	$(PYTHON) -m pytest -q -n $(TEST_WORKERS) -m epics
 
 lint: install
 	cargo fmt --check

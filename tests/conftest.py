@@ -158,14 +158,11 @@ def hook(name: str) -> types.ModuleType:
 #: another file may carry the marker itself): ``make test`` runs the other tests on
 #: pytest-xdist's workers, then these by themselves, three workers for two cores (a machine
 #: loaded by builds, browsers or more of them delays a simulated slave's bytes past what a
-#: line allows). The EPICS tests hold an IOC to its bounds (a stop within 2 s, an alarm
-#: within a period and a timeout) and start a process each, which loads the machine: they
-#: run with these.
+#: line allows).
 TIMING_FILES = frozenset(
     {
         "test_bench.py",
         "test_concurrency.py",
-        "test_epics.py",
         "test_fair_line.py",
         "test_faults.py",
         "test_line_in_step.py",
@@ -177,10 +174,20 @@ TIMING_FILES = frozenset(
 )
 
 
+#: The files whose tests serve EPICS from an IOC process of their own each, marked
+#: ``epics``: ``make test`` runs them last, by themselves (each process loads the machine,
+#: and an IOC is held to time bounds of its own: a stop within 2 s, an alarm within a
+#: period and a timeout).
+EPICS_FILES = frozenset({"test_epics.py"})
+
+
 def pytest_itemcollected(item: pytest.Item) -> None:
-    """Mark the tests of :data:`TIMING_FILES` ``timing``."""
+    """Mark the tests of :data:`TIMING_FILES` ``timing`` and those of :data:`EPICS_FILES`
+    ``epics``."""
     if item.path.name in TIMING_FILES:
         item.add_marker(pytest.mark.timing)
+    if item.path.name in EPICS_FILES:
+        item.add_marker(pytest.mark.epics)
 
 
 #: The site's builds (tests/test_site.py's fixtures), each made once for the run while the
