@@ -51,6 +51,19 @@ def wait_for(what: str, check: Callable[[], Any], timeout: float = 10.0) -> Any:
     pytest.fail(f"{what}: not within {timeout} s (last: {last!r})")
 
 
+def spawn(command: list[str], env: dict[str, str], stdin: int = subprocess.DEVNULL) -> Any:
+    """``command`` started in a process of its own with ``env`` (Python's output unbuffered:
+    its lines come as they are said), its output and errors piped, as text."""
+    return subprocess.Popen(
+        command,
+        env={**os.environ, **env, "PYTHONUNBUFFERED": "1"},
+        stdin=stdin,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+
+
 @contextlib.contextmanager
 def served(
     args: list[str],
@@ -67,14 +80,7 @@ def served(
     ``ready_value``; then ``stop`` (SIGTERM), which must end it cleanly within 2 s.
     ``serving``: the stream and the start of the line the process says it serves with
     (``benchbus ioc``'s, on standard error)."""
-    process = subprocess.Popen(
-        command or [sys.executable, "-m", "benchbus", "ioc", *args],
-        env={**os.environ, **env, "PYTHONUNBUFFERED": "1"},
-        stdin=subprocess.DEVNULL,
-        stdout=subprocess.PIPE,
-        stderr=subprocess.PIPE,
-        text=True,
-    )
+    process = spawn(command or [sys.executable, "-m", "benchbus", "ioc", *args], env)
     said = ""
     stream, line = serving
     try:

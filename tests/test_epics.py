@@ -23,6 +23,7 @@ from epics_clients import (
     put,
     read,
     served,
+    spawn,
     until,
     wait_for,
     writes,
@@ -754,14 +755,7 @@ def test_once_stopping_the_ioc_refuses_puts_before_sending_anything(
     ctx = epics.client()
     with Simulator({1: model}) as sim:
         command = [sys.executable, "-c", STOPPING, sim.port, str(SENSOR), str(go)]
-        process = subprocess.Popen(
-            command,
-            env={**os.environ, **epics.env, "PYTHONUNBUFFERED": "1"},
-            stdin=subprocess.DEVNULL,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        process = spawn(command, epics.env)
         try:
             until(process, "stdout", "serving", 20)
             put(ctx, "ST:temperature_correction", -1.0)
@@ -800,14 +794,8 @@ def test_leaving_the_shell_with_exit_stops_the_motor(epics: Epics) -> None:
     ctx = epics.client()
     with Simulator({1: model}) as sim:
         args = ["drive", "--port", sim.port, "--prefix", "SH:", "--shell"]
-        process = subprocess.Popen(
-            [sys.executable, "-m", "benchbus", "ioc", *args],
-            env={**os.environ, **epics.env, "PYTHONUNBUFFERED": "1"},
-            stdin=subprocess.PIPE,
-            stdout=subprocess.PIPE,
-            stderr=subprocess.PIPE,
-            text=True,
-        )
+        command = [sys.executable, "-m", "benchbus", "ioc", *args]
+        process = spawn(command, epics.env, stdin=subprocess.PIPE)
         try:
             until(process, "stderr", "benchbus: ioc: serving", 20)
             put(ctx, "SH:decel_time", 0.1)

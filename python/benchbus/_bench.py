@@ -43,7 +43,7 @@ from typing import Any
 
 from benchbus._core import Bus, Profile
 from benchbus._device import BusDevice, LineDefaults
-from benchbus._families import command_families, family
+from benchbus._families import command_keys, family
 from benchbus._profile import Device, profile_line
 from benchbus.exceptions import ProfileError
 
@@ -252,7 +252,7 @@ def read_bench(path: str | os.PathLike[str]) -> Bench:
     if not lines:
         raise ProfileError(f"{file}: no [[line]]: a bench needs a line", path=str(file))
     devices: list[BenchDevice] = []
-    families = [f.key for f in command_families()]
+    families = command_keys()
     for n, table in enumerate(data.get("device", [])):
         device = _checked(where, "device", n, table, DEVICE_KEYS)
         for required in ("line", "unit", "prefix"):

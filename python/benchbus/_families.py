@@ -30,7 +30,15 @@ from benchbus.exceptions import FrameError, ModbusException, ResponseTimeout, Wr
 if TYPE_CHECKING:
     from benchbus.sim import SimDevice
 
-__all__ = ["FAMILIES", "Family", "check_identity", "command_families", "family", "mismatch"]
+__all__ = [
+    "FAMILIES",
+    "Family",
+    "check_identity",
+    "command_families",
+    "command_keys",
+    "family",
+    "mismatch",
+]
 
 
 @dataclasses.dataclass(frozen=True)
@@ -175,6 +183,11 @@ def family(key: str) -> Family:
 def command_families() -> tuple[Family, ...]:
     """The families the command line has a command for, in order."""
     return tuple(f for f in FAMILIES if f.command)
+
+
+def command_keys() -> tuple[str, ...]:
+    """The keys of the families the command line has a command for (``"drive"``...)."""
+    return tuple(f.key for f in command_families())
 
 
 def mismatch(

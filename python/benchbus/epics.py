@@ -53,6 +53,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, NoReturn, Protocol
 from benchbus._core import CancelToken
 from benchbus._device import MotorDevice, is_unknown, member_name
 from benchbus._families import FAMILIES
+from benchbus._record import check_seconds
 from benchbus.exceptions import (
     BenchbusError,
     Cancelled,
@@ -383,8 +384,8 @@ def _softioc() -> None:
         ) from exc
 
 
-#: No value given (a value may be None).
-_NONE_YET = object()
+#: No value (a value may be None).
+_NONE = object()
 
 #: What a failed read or write on the line is (its records then show COMM).
 _LINE_FAILURES = (BenchbusError, OSError)
@@ -412,12 +413,12 @@ def _held_in_val(record: Any) -> Any:
     return record._epics_to_value(record._read_value(record._record))
 
 
-def _alarm_now(record: Any, severity: int, status: int, value: Any = _NONE_YET) -> None:
+def _alarm_now(record: Any, severity: int, status: int, value: Any = _NONE) -> None:
     """Give the output record this alarm as its processing ends, VAL untouched (a later
     put waiting there is not lost); ``value``: what softioc restores should that put be
     refused (default: what it has)."""
     support = _support(record)
-    kept = support._value[0] if value is _NONE_YET else support._value_to_epics(value)
+    kept = support._value[0] if value is _NONE else support._value_to_epics(value)
     support._value = (kept, severity, status)
     support._record.NSEV = severity
     support._record.NSTA = status
@@ -474,9 +475,8 @@ class _Served:
         self.put_to: set[str] = set()
         #: The value each output record is being given from the device (not written back).
         self.syncing: dict[str, Any] = {}
-        #: The output records in WRITE alarm.
-        self.alarmed: set[str] = set()
         self.inputs = [p for p in made if not p.output and p.register is not None]
+        self.outputs = [p for p in made if p.output and p.register is not None]
         self.names = list(dict.fromkeys(p.register for p in self.inputs if p.register))
         #: The registers read one a request: the device refused them when read alone.
         self.alone: set[str] = set()
@@ -560,8 +560,8 @@ class _Served:
                 self.show(pv.name, None, alarm.INVALID_ALARM, alarm.STATE_ALARM, when)
             else:
                 self.show(pv.name, value, when=when)
-        for pv in self.pvs:
-            if pv.output and pv.register in values and pv.name not in self.put_to:
+        for pv in self.outputs:
+            if pv.register in values and pv.name not in self.put_to:
                 self.sync(pv, pv.shown(values[pv.register or ""]))
         if not self.connected:
             if self.connected is False:
@@ -623,7 +623,6 @@ class _Served:
             return
         if pv.action is None:
             self.good[pv.name] = value
-        self.alarmed.discard(pv.name)
         _alarm_now(self.records[pv.name], alarm.NO_ALARM, alarm.NO_ALARM)
 
     def refuse(self, pv: Pv, value: Any, exc: BaseException, alarm: Any) -> None:
@@ -642,7 +641,6 @@ class _Served:
                 _alarm_now(record, severity, alarm.WRITE_ALARM, previous)
             else:  # no value of the device is known (a write-only register)
                 _alarm_now(record, severity, alarm.WRITE_ALARM)
-        self.alarmed.add(pv.name)
 
     def failed(self, exc: BaseException, alarm: Any) -> None:
         """A read failed on the line: every input record INVALID / COMM, at once."""
@@ -668,10 +666,6 @@ class _Served:
         for name, count in stats.items():
             if self.prefix + IOC + name in self.records:
                 self.own(name, min(count, 2**31 - 1))
-
-
-#: No value (a value may be None).
-_NONE = object()
 
 
 def _loopback(addresses: str) -> bool:
@@ -783,7 +777,7 @@ class Ioc:
     ) -> None:
         """An IOC with nothing to serve yet."""
         #: Seconds between two reads of a device that has no period of its own.
-        self.period = _seconds(period, "period")
+        self.period = check_seconds("period", period)
         if interface is not None and not isinstance(interface, str):
             raise TypeError(f"interface must be an address (str), got {type(interface).__name__}")
         if interface is not None and not interface.split():
@@ -838,7 +832,7 @@ class Ioc:
             )
         if not isinstance(prefix, str) or not prefix:
             raise ValueError(f"prefix must be a non-empty str, got {prefix!r}")
-        every = self.period if period is None else _seconds(period, "period")
+        every = self.period if period is None else check_seconds("period", period)
         profile = getattr(device, "profile", None)
         if profile is None or not callable(getattr(device, "get_many", None)):
             raise TypeError(
@@ -855,7 +849,9 @@ class Ioc:
         for text in warnings:
             log.warning("%s%s", prefix, text)
         for pv in made:
-            self._names[pv.name] = f"{prefix} {type(device).__name__} unit {_unit(device)}"
+            self._names[pv.name] = (
+                f"{prefix} {type(device).__name__} unit {getattr(device, 'unit', None)}"
+            )
         self._served.append(_Served(prefix, device, made, every, self._stopping))
 
     def start(self) -> None:
@@ -1029,17 +1025,3 @@ class Ioc:
             self.stop()
             softioc.safeEpicsExit(0)
         raise SystemExit(0)  # not reached: EPICS has ended the process
-
-
-def _unit(device: object) -> object:
-    """The unit of ``device`` (None if it has none)."""
-    return getattr(device, "unit", None)
-
-
-def _seconds(value: object, name: str) -> float:
-    """``value`` as a positive, finite number of seconds."""
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise TypeError(f"{name} must be a number of seconds, got {type(value).__name__}")
-    if not math.isfinite(value) or value <= 0:
-        raise ValueError(f"{name} must be a positive number of seconds, got {value}")
-    return float(value)

@@ -8,7 +8,7 @@ import sys
 from typing import TYPE_CHECKING, cast
 
 from benchbus._bench import Bench, open_bench, read_bench
-from benchbus._families import command_families
+from benchbus._families import command_keys
 from benchbus.cli._args import PROG, Parser, add_profile_option, seconds
 from benchbus.cli._errors import CliError, UsageError
 from benchbus.cli._line import (
@@ -64,14 +64,9 @@ LINE_OPTIONS = {"unit": True}
 FAMILY_OPTION = True
 
 
-def _kinds() -> tuple[str, ...]:
-    """The device families ``ioc`` takes by name."""
-    return tuple(f.key for f in command_families())
-
-
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus ioc`` (``parents``: its option groups, for its actions)."""
-    kinds = _kinds()
+    kinds = command_keys()
     parser.add_argument(
         "device",
         nargs="?",
@@ -113,11 +108,11 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
 def run(args: argparse.Namespace) -> int:
     """Run ``benchbus ioc`` as ``args`` say (serves until SIGINT or SIGTERM)."""
     target = opt(args, "device")
-    bench = _bench_of(target) if target is not None and target not in _kinds() else None
+    bench = _bench_of(target) if target is not None and target not in command_keys() else None
     profile = profile_of(args)
     if bench is None:
         if (profile is None) == (target is None):
-            wanted = f"give a device ({'|'.join(_kinds())}), --profile FILE or a bench file"
+            wanted = f"give a device ({'|'.join(command_keys())}), --profile FILE or a bench file"
             raise UsageError(f"{wanted}, not both" if profile is not None else wanted)
         if not args.prefix:
             raise UsageError("--prefix is required: the start of every PV name, e.g. LAB:XY:")
@@ -191,7 +186,7 @@ def _bench_of(target: str) -> Bench:
     in it (file, line, key) or an unreadable file is a UsageError."""
     if not target.endswith(".toml") and not os.path.isfile(target):
         raise UsageError(
-            f"no device family {target!r}: one of {', '.join(_kinds())}, or a bench file"
+            f"no device family {target!r}: one of {', '.join(command_keys())}, or a bench file"
         )
     try:
         return read_bench(target)

@@ -14,7 +14,7 @@ from typing import IO, Any
 import benchbus as bb
 from benchbus._core import _Ticks as ticks
 from benchbus._display import plural
-from benchbus._families import command_families
+from benchbus._families import command_keys
 from benchbus._record import with_unit
 from benchbus.cli._args import (
     PROG,
@@ -158,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     """Run ``benchbus monitor`` as ``args`` say; the exit status."""
     profile = profile_of(args)
     if (profile is None) == (args.device is None):
-        wanted = f"give a device ({'|'.join(_kinds())}) or --profile FILE"
+        wanted = f"give a device ({'|'.join(command_keys())}) or --profile FILE"
         raise UsageError(f"{wanted}, not both" if profile is not None else wanted)
     if profile is not None and opt(args, "family") is not None:
         raise UsageError("--family goes with drive: a profile says what the device is")
@@ -224,11 +224,6 @@ def _note(table: LiveTable | None, text: str) -> None:
         table.below()
 
 
-def _kinds() -> tuple[str, ...]:
-    """The device families ``monitor`` takes by name."""
-    return tuple(f.key for f in command_families())
-
-
 def _fields(spec: str | None, kind: str, sample: dict[str, Any]) -> list[str]:
     if spec is None or spec.strip() == "all":
         if spec is None and kind == "drive":
@@ -264,7 +259,7 @@ FAMILY_OPTION = True
 
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus monitor`` (``parents``: its option groups, for its actions)."""
-    kinds = _kinds()
+    kinds = command_keys()
     parser.add_argument("device", nargs="?", choices=kinds, metavar="|".join(kinds))
     add_profile_option(parser, "monitor its registers")
     parser.add_argument(
