@@ -44,6 +44,7 @@ from typing import Any
 from benchbus._core import Bus, Profile
 from benchbus._device import BusDevice, LineDefaults
 from benchbus._families import command_keys, family
+from benchbus._library import is_name
 from benchbus._profile import Device, profile_line
 from benchbus.exceptions import ProfileError
 
@@ -276,9 +277,13 @@ def read_bench(path: str | os.PathLike[str]) -> Bench:
                 "device", n, "family", f"no family {key!r}: one of {', '.join(families)}"
             )
         if "profile" in device:
-            profile_path = file.parent / device["profile"]
+            named = str(device["profile"])
+            profile_path = file.parent / named
             try:
-                profile = Profile(profile_path)
+                # A profile's name (no folder, no .toml) unless a file of the bench's has it.
+                profile = Profile(
+                    named if is_name(named) and not profile_path.is_file() else profile_path
+                )
             except (ProfileError, OSError) as exc:
                 raise where.error("device", n, "profile", str(exc)) from None
         options = device.get("options", {})

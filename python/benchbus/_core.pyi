@@ -1160,6 +1160,7 @@ class Profile:
         profile = bb.Profile("xy_md02.toml")
         profile.name, len(profile), profile["temperature"].unit
         profile.plan(["temperature", "humidity"])   # the requests that read them
+        bb.Profile("sdm630").source                 # a shipped profile, by name
 
     Every mistake (unknown keys, duplicate names, overlapping addresses, a name that shadows
     a device member, a type that does not fit its table, a bad enum or range, a value one
@@ -1169,7 +1170,9 @@ class Profile:
 
     def __new__(cls, path: str | os.PathLike[str]) -> Self:
         """Reads and checks the device profile (TOML) at ``path``; ``ProfileError`` (a
-        ``ValueError``) names the file, the line and the key of its first mistake."""
+        ``ValueError``) names the file, the line and the key of its first mistake.
+        ``path`` may also be a profile's name (``"sdm630"``): ``BENCHBUS_PROFILES``'
+        folders, then the profiles the package ships; a file that exists wins."""
     @staticmethod
     def parse(text: str, path: str = "<string>") -> Profile:
         """Checks the profile ``text``; ``path`` names it in errors."""
@@ -1188,6 +1191,20 @@ class Profile:
     @property
     def description(self) -> str:
         """The device's description ("" if the file has none)."""
+    @property
+    def maker(self) -> str:
+        """Who makes the device (``[device] maker``; "" if the file does not say)."""
+    @property
+    def model(self) -> str:
+        """The model or series the file covers (``[device] model``; "")."""
+    @property
+    def kind(self) -> str:
+        """What sort of device it is (``[device] kind``: "energy-meter", "sensor",
+        "temperature-controller"...; "")."""
+    @property
+    def source(self) -> str:
+        """The document its registers were written from (``[device] source``: title,
+        version, sections; "")."""
     @property
     def models(self) -> tuple[str, ...]:
         """The models the file describes (``[device] models``; the first is the one its rows

@@ -426,7 +426,8 @@ def _serve_profile(
 @pytest.fixture
 def sim_profile() -> Iterator[SimProfile]:
     """A factory: ``sim_profile(path, *, unit=1, values=None, baudrate=None, framing=None)``
-    serves the device profile at ``path`` on a simulator of its own and returns a
+    serves the device profile at ``path`` (a file, or a profile's name: ``"sdm630"``) on a
+    simulator of its own and returns a
     :class:`ProfileBench` (``.port``, ``.unit``, ``.bus``, ``.model``, ``.sim``). Every
     simulator it started is stopped after the test, and its Bus closed, also when the test
     fails."""

@@ -196,10 +196,12 @@ if _MISSING is None:
                 )
 
         def get_idn(self) -> dict[str, str | None]:
-            """The profile's name as the model (a Modbus device has no ``*IDN?``)."""
+            """The profile's maker as the vendor and its model (else its name) as the model:
+            a Modbus device has no ``*IDN?``."""
+            profile = self.device.profile
             return {
-                "vendor": None,
-                "model": self.device.profile.name,
+                "vendor": profile.maker or None,
+                "model": profile.model or profile.name,
                 "serial": None,
                 "firmware": None,
             }

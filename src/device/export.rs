@@ -76,6 +76,17 @@ impl Profile {
         if !self.models.is_empty() {
             let _ = writeln!(out, "models = {}", strings(&self.models));
         }
+        let a = &self.about;
+        for (key, text) in [
+            ("maker", &a.maker),
+            ("model", &a.model),
+            ("kind", &a.kind),
+            ("source", &a.source),
+        ] {
+            if !text.is_empty() {
+                let _ = writeln!(out, "{key} = {}", quote(text));
+            }
+        }
         line_section(&mut out, &self.line);
         limits_section(&mut out, &self.limits);
         for r in &self.registers {

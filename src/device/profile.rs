@@ -175,6 +175,21 @@ pub struct Limits {
     pub write_echo: Option<Echo>,
 }
 
+/// What a profile says of the device it describes (`[device] maker`, `model`, `kind`,
+/// `source`): free text but `kind`, a lower-case word (`energy-meter`) that groups the
+/// shipped profiles; empty where the file is silent.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct About {
+    /// Who makes it.
+    pub maker: String,
+    /// The model or series the file covers.
+    pub model: String,
+    /// What sort of device it is: lower-case letters, digits and `-`.
+    pub kind: String,
+    /// The document the registers were written from (title, version, sections).
+    pub source: String,
+}
+
 /// A device described by a profile file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Profile {
@@ -182,6 +197,8 @@ pub struct Profile {
     pub name: String,
     /// Free text.
     pub description: String,
+    /// Its maker, model, kind and source.
+    pub about: About,
     /// `[line]`.
     pub line: LineSettings,
     /// `[limits]`.
@@ -483,7 +500,15 @@ pub fn echo_name(echo: Echo) -> &'static str {
 }
 
 const TOP_KEYS: &[&str] = &["device", "line", "limits", "register"];
-const DEVICE_KEYS: &[&str] = &["name", "description", "models"];
+const DEVICE_KEYS: &[&str] = &[
+    "name",
+    "description",
+    "models",
+    "maker",
+    "model",
+    "kind",
+    "source",
+];
 const LINE_KEYS: &[&str] = &[
     "baudrate", "parity", "stopbits", "timeout", "framing", "bytesize",
 ];
@@ -698,6 +723,7 @@ impl Profile {
         }
         let description = device.string("description")?.unwrap_or("").to_string();
         let models = device.strings("models")?;
+        let about = about(&device)?;
         let line = match sub(top, "line")? {
             Some(s) => line_settings(&s)?,
             None => LineSettings::default(),
@@ -709,6 +735,7 @@ impl Profile {
         let profile = Profile {
             name: name.to_string(),
             description,
+            about,
             line,
             limits,
             models,
@@ -767,6 +794,7 @@ impl Profile {
         Some(Profile {
             name: model.to_string(),
             description: self.description.clone(),
+            about: self.about.clone(),
             line: self.line.clone(),
             limits: self.limits.clone(),
             models: Vec::new(),
@@ -820,6 +848,29 @@ fn sub<'s, 'a, 'i>(parent: &Section<'s, 'a, 'i>, key: &str) -> Parsed<Option<Sec
         })),
         Some((other, span)) => Err(parent.src.fail(span, key, wrong("a table", other))),
     }
+}
+
+/// `[device]`'s `maker`, `model`, `kind` and `source`; a `kind` of other than lower-case
+/// letters, digits and `-` is refused (it names a group of profiles).
+fn about(s: &Section<'_, '_, '_>) -> Parsed<About> {
+    let text = |key| -> Parsed<String> { Ok(s.string(key)?.unwrap_or("").to_string()) };
+    let kind = text("kind")?;
+    let word = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-';
+    if s.get("kind").is_some() && (kind.is_empty() || !kind.chars().all(word)) {
+        return Err(s.fail(
+            "kind",
+            s.span_of("kind"),
+            format!(
+                "{kind:?} is not a kind: lower-case letters, digits and '-' (\"energy-meter\")"
+            ),
+        ));
+    }
+    Ok(About {
+        maker: text("maker")?,
+        model: text("model")?,
+        kind,
+        source: text("source")?,
+    })
 }
 
 fn line_settings(s: &Section<'_, '_, '_>) -> Parsed<LineSettings> {
@@ -1626,6 +1677,28 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
         fails(&format!("{R}scal = 1\n"), 6, "register[0].scal");
         let e = *Profile::parse("d.toml", "[device]\nname = \"d\"\nnick = \"x\"\n").unwrap_err();
         assert_eq!((e.line, e.key.as_str()), (3, "device.nick"));
+    }
+
+    #[test]
+    fn what_a_profile_says_of_its_device() {
+        let text = "[device]\nname = \"d\"\nmaker = \"Acme\"\nmodel = \"X-1\"\n\
+                    kind = \"energy-meter\"\nsource = \"map v2, 1.2\"\n";
+        let p = Profile::parse("d.toml", text).unwrap();
+        let about = About {
+            maker: "Acme".into(),
+            model: "X-1".into(),
+            kind: "energy-meter".into(),
+            source: "map v2, 1.2".into(),
+        };
+        assert_eq!(p.about, about);
+        assert_eq!(Profile::parse("e.toml", &p.to_toml()).unwrap().about, about);
+        let silent = Profile::parse("d.toml", "[device]\nname = \"d\"\n").unwrap();
+        assert_eq!(silent.about, About::default());
+        assert!(!silent.to_toml().contains("kind"));
+        for bad in ["\"Energy meter\"", "\"\"", "\"meter_3\"", "3"] {
+            fails(&format!("kind = {bad}\n"), 3, "device.kind");
+        }
+        fails("maker = 1\n", 3, "device.maker");
     }
 
     #[test]

@@ -293,8 +293,14 @@ impl Names for PyNames<'_> {
 impl PyProfile {
     /// Reads and checks the device profile (TOML) at `path`; ``ProfileError`` (a
     /// ``ValueError``) names the file, the line and the key of its first mistake.
+    /// ``path`` may also be a profile's name (``"sdm630"``): ``BENCHBUS_PROFILES``'
+    /// folders, then the profiles the package ships; a file that exists wins.
     #[new]
     fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+        let path: PathBuf = PyModule::import(py, "benchbus._library")?
+            .getattr("locate")?
+            .call1((path,))?
+            .extract()?;
         let shown = path.display().to_string();
         let loaded = Profile::load_with(&path, &PyNames::new(py)?);
         PyProfile::new_checked(py, shown, loaded)
@@ -352,6 +358,32 @@ impl PyProfile {
     #[getter]
     fn description(&self) -> &str {
         &self.profile.description
+    }
+
+    /// Who makes the device (``[device] maker``; "" if the file does not say).
+    #[getter]
+    fn maker(&self) -> &str {
+        &self.profile.about.maker
+    }
+
+    /// The model or series the file covers (``[device] model``; "").
+    #[getter]
+    fn model(&self) -> &str {
+        &self.profile.about.model
+    }
+
+    /// What sort of device it is (``[device] kind``: "energy-meter", "sensor",
+    /// "temperature-controller"...; "").
+    #[getter]
+    fn kind(&self) -> &str {
+        &self.profile.about.kind
+    }
+
+    /// The document its registers were written from (``[device] source``: title, version,
+    /// sections; "").
+    #[getter]
+    fn source(&self) -> &str {
+        &self.profile.about.source
     }
 
     /// The models the file describes (``[device] models``; the first is the one its rows

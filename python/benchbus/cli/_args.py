@@ -126,7 +126,8 @@ def add_profile_option(parser: argparse.ArgumentParser, what: str) -> None:
     parser.add_argument(
         "--profile",
         metavar="FILE",
-        help=f"a device profile (TOML): {what}; its [line] gives the line defaults",
+        help=f"a device profile (a TOML file, or a profile's name: 'benchbus profile list'):"
+        f" {what}; its [line] gives the line defaults",
     )
 
 

@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import argparse
+import sys
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 from benchbus.cli._args import Parser, add_command
@@ -10,7 +12,7 @@ from benchbus.cli._errors import UsageError
 from benchbus.cli._output import print_table
 
 if TYPE_CHECKING:
-    from benchbus import ProfileRegister
+    from benchbus import Profile, ProfileRegister
 
 __all__ = ["HELP", "add_arguments", "run"]
 
@@ -38,16 +40,22 @@ def _kind(row: ProfileRegister) -> str:
     return f"{row.type} {row.order}"
 
 
-def check(path: str) -> int:
-    """``benchbus profile check``: load ``path`` and print its table (a profile's mistake
-    is a usage error: the file, its line and the key)."""
+def check(path: str, profile: Profile | None = None) -> int:
+    """``benchbus profile check``: load ``path`` (a file or a profile's name) and print its
+    table (a profile's mistake is a usage error: the file, its line and the key);
+    ``profile``: the profile itself, already read."""
     from benchbus._profile import profile_line
     from benchbus.cli._line import read_profile
 
-    profile = read_profile(path)
+    if profile is None:
+        profile = read_profile(path)
     line = profile_line(profile)  # as the device opens its own port
     limits = profile.limits
     print(f"{profile.name}: {profile.description}".rstrip(": "))
+    made = " ".join(part for part in (profile.maker, profile.model) if part)
+    for label, text in (("device", made), ("kind", profile.kind), ("source", profile.source)):
+        if text:
+            print(f"{label}: {text}")
     print(
         f"line {line.baudrate} {line.bytesize}{line.parity}{line.stopbits}"
         f" {line.framing}, timeout {line.timeout:g} s; at most"
@@ -69,6 +77,51 @@ def check(path: str) -> int:
     ]
     print_table(["name", "table", "address", "type", "scale", "unit", "access", "range"], rows)
     return 0
+
+
+#: How much of a profile's source ``list`` shows (``show`` gives all of it).
+SOURCE_SHOWN = 60
+
+
+def _short(text: str) -> str:
+    """``text`` cut to :data:`SOURCE_SHOWN` characters, ``...`` saying so."""
+    return text if len(text) <= SOURCE_SHOWN else text[: SOURCE_SHOWN - 3].rstrip() + "..."
+
+
+def listing() -> int:
+    """``benchbus profile list``: every profile found by name (a lab's ``BENCHBUS_PROFILES``
+    first, then the shipped ones) and the built-in families, with maker, model, kind and
+    source; a file that does not read is listed with its mistake, exit status 1."""
+    from benchbus import Profile, ProfileError
+    from benchbus._library import FAMILIES, SHIPPED, profiles
+
+    rows: list[list[str]] = []
+    broken: list[str] = []
+    for name, path in profiles().items():
+        where = "shipped" if Path(path).parent == SHIPPED else str(Path(path).parent)
+        try:
+            p = Profile(path)
+        except (ProfileError, OSError) as exc:
+            broken.append(str(exc))
+            rows.append([name, "", "", "", "(does not read: see below)", where])
+            continue
+        rows.append([name, p.maker, p.model, p.kind, _short(p.source), where])
+    for key, cls in FAMILIES.items():
+        family = Profile.family(key)
+        rows.append([key, family.maker, family.model, family.kind, _short(family.source), cls])
+    print_table(["name", "maker", "model", "kind", "source", "from"], rows)
+    for error in broken:
+        print(error, file=sys.stderr)
+    return 1 if broken else 0
+
+
+def show(name: str) -> int:
+    """``benchbus profile show``: the profile ``name`` (a name, a built-in family's key or a
+    file) and its table, as ``check`` prints it."""
+    from benchbus import Profile
+    from benchbus._library import FAMILIES
+
+    return check(name, Profile.family(name) if name in FAMILIES else None)
 
 
 def export(key: str, output: str | None) -> int:
@@ -95,13 +148,22 @@ def run(args: argparse.Namespace) -> int:
     """Run ``benchbus profile`` as ``args`` say; the exit status."""
     if args.action == "export":
         return export(args.family, args.output)
+    if args.action == "list":
+        return listing()
+    if args.action == "show":
+        return show(args.name)
     return check(args.path)
 
 
 #: What ``benchbus profile`` does, as ``--help`` says.
-HELP = "check a device profile (a TOML file) and print its register table, or export a family's"
+HELP = (
+    "check a device profile (a TOML file) and print its register table, list and show the"
+    " profiles found by name, or export a family's"
+)
 #: The rest of its ``--help``.
 EPILOG = (
+    "A profile is a TOML file or a name: the folders of BENCHBUS_PROFILES (os.pathsep "
+    "apart) are searched first, then the profiles benchbus ships. "
     "A profile's mistakes (unknown keys, overlapping addresses, a type that does not fit "
     "its table...) are reported with the file, the line and the key, exit status 2. "
     "'export' writes a built-in family's register table as a profile, made from the same "
@@ -113,7 +175,21 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus profile`` (``parents``: its option groups)."""
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     checking = add_command(actions, "check", "validate a profile and print its table", parents)
-    checking.add_argument("path", metavar="FILE", help="the profile (TOML)")
+    checking.add_argument("path", metavar="FILE", help="the profile (TOML), or its name")
+    add_command(
+        actions,
+        "list",
+        "list the profiles found by name (BENCHBUS_PROFILES', the shipped ones) and the"
+        " built-in families",
+        parents,
+    )
+    showing = add_command(actions, "show", "print a profile's table, by name", parents)
+    showing.add_argument(
+        "name",
+        metavar="NAME",
+        help="a profile's name (see 'list'), a built-in family (drive, drive-c20, pbl, j2)"
+        " or a file",
+    )
     exporting = add_command(
         actions, "export", "write a built-in family's register table as a profile", parents
     )

@@ -93,7 +93,7 @@ def run(args: argparse.Namespace) -> int:
         line = profile_line(profile)  # a Device's own line: the profile's, else 9600 8N1
         baudrate: int = args.baudrate or line.baudrate
         served_framing: str = args.framing or line.framing
-        what = f"{profile.name} from {os.path.basename(args.profile)}"
+        what = f"{profile.name} from {os.path.basename(profile.path)}"
     else:
         assert kind is not None
         devices = {u: _sim_device(kind, args) for u in units}
@@ -143,7 +143,8 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     parser.add_argument(
         "--profile",
         metavar="FILE",
-        help="serve the device a profile (TOML) describes, instead of a built-in one",
+        help="serve the device a profile (a TOML file, or a profile's name: 'benchbus profile"
+        " list') describes, instead of a built-in one",
     )
     parser.add_argument(
         "--value",

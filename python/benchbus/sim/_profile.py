@@ -27,7 +27,7 @@ __all__ = ["ProfileDevice"]
 Value = Union[int, float, bool, str]
 
 _TOP_KEYS = {"device", "line", "limits", "register"}
-_DEVICE_KEYS = {"name", "description", "models"}
+_DEVICE_KEYS = {"name", "description", "models", "maker", "model", "kind", "source"}
 _LINE_KEYS = {"baudrate", "parity", "stopbits", "timeout", "framing", "bytesize"}
 _LIMIT_KEYS = {
     "max_read",
@@ -186,11 +186,14 @@ class ProfileDevice(RegisterDevice):
         max_read_bits: int | None = None,
         max_write_bits: int | None = None,
     ) -> None:
-        """Read the profile at ``path`` and serve it; ``values`` by register name win over
-        the profile's ``default`` keys. The limits (``max_read`` ...) given here win over
-        the profile's ``[limits]``; see :class:`RegisterDevice`."""
-        #: The profile's path.
-        self.path: str = os.fspath(path)
+        """Read the profile at ``path`` (or of that name, as ``bb.Profile`` finds it: a
+        lab's ``BENCHBUS_PROFILES``, then the shipped ones) and serve it; ``values`` by
+        register name win over the profile's ``default`` keys. The limits (``max_read``
+        ...) given here win over the profile's ``[limits]``; see :class:`RegisterDevice`."""
+        from benchbus._library import locate
+
+        #: The profile's path (a name's file: ``BENCHBUS_PROFILES``', else a shipped one).
+        self.path: str = locate(path)
         profile = _load(self.path)
         device = _table(self.path, profile, "device", _DEVICE_KEYS)
         #: The profile's ``[device] name`` (the file's stem without one).
