@@ -16,7 +16,7 @@ import os
 import select
 import threading
 import tty
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 
 from pymodbus.datastore import (
@@ -39,9 +39,20 @@ def _block(values: Sequence[int]) -> ModbusSequentialDataBlock:
     return ModbusSequentialDataBlock(1, list(values))
 
 
-def _context() -> ModbusServerContext:
+#: A unit's four tables: ``{"coil": [...], "discrete": [...], "holding": [...], "input":
+#: [...]}``, each from address 0.
+Tables = Mapping[str, Sequence[int]]
+
+#: The tables :func:`pymodbus_server` serves unless given others.
+PEER_TABLES: Tables = {"coil": COILS, "discrete": DISCRETE, "holding": HOLDING, "input": INPUT}
+
+
+def _context(tables: Tables = PEER_TABLES) -> ModbusServerContext:
     device = ModbusDeviceContext(
-        co=_block(COILS), di=_block(DISCRETE), hr=_block(HOLDING), ir=_block(INPUT)
+        co=_block(tables["coil"]),
+        di=_block(tables["discrete"]),
+        hr=_block(tables["holding"]),
+        ir=_block(tables["input"]),
     )
     return ModbusServerContext(devices={1: device}, single=False)
 
@@ -74,14 +85,16 @@ def _serving(create: Callable[[], ModbusBaseServer]) -> Iterator[ModbusBaseServe
 
 
 @contextmanager
-def pymodbus_server(rtu: bool, *, ascii: bool = False) -> Iterator[str]:
-    """A pymodbus TCP server on 127.0.0.1 serving unit 1 (``COILS``, ``DISCRETE``,
-    ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames; with ``ascii``, Modbus
-    ASCII frames) or ``tcp://`` (MBAP)."""
+def pymodbus_server(
+    rtu: bool, *, ascii: bool = False, tables: Tables = PEER_TABLES
+) -> Iterator[str]:
+    """A pymodbus TCP server on 127.0.0.1 serving unit 1 (``tables``: by default
+    ``COILS``, ``DISCRETE``, ``HOLDING``, ``INPUT``): its URL, ``rtu+tcp://`` (RTU frames;
+    with ``ascii``, Modbus ASCII frames) or ``tcp://`` (MBAP)."""
 
     def create() -> ModbusBaseServer:
         return ModbusTcpServer(
-            _context(),
+            _context(tables),
             framer=FramerType.ASCII if ascii else FramerType.RTU if rtu else FramerType.SOCKET,
             address=("127.0.0.1", 0),
         )

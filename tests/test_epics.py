@@ -308,6 +308,20 @@ def test_bools_are_bi_and_bo_records_with_their_two_states(epics: Epics) -> None
         wait_for("an input follows", lambda: read(ctx, "RB:input3").data[0] == 1)
 
 
+def test_a_shipped_profile_is_served_by_its_name(epics: Epics) -> None:
+    model = ProfileDevice("pzem-016", values={"voltage": 229.8, "current": 1.234})
+    ctx = epics.client()
+    args = ["--profile", "pzem-016", "--port", "", "--prefix", "PM:", "--period", "0.2"]
+    with Simulator({1: model}) as sim:
+        args[3] = sim.port
+        with served(args, epics.env, "PM:ioc:connected", ctx):
+            voltage = read(ctx, "PM:voltage")
+            assert (voltage.data[0], voltage.metadata.units.decode()) == (229.8, "V")
+            assert math.isclose(read(ctx, "PM:current").data[0], 1.234, rel_tol=1e-9)
+            put(ctx, "PM:power_alarm_threshold", 1500)
+            assert model.value("power_alarm_threshold") == 1500
+
+
 def test_puts_reach_the_wire_and_a_refused_put_sends_nothing_and_changes_nothing(
     fc_served: tuple[Simulator[ProfileDevice], ProfileDevice, Any],
 ) -> None:

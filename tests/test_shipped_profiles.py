@@ -1,0 +1,372 @@
+"""The profiles benchbus ships (``benchbus/profiles/``), opened by name.
+
+Each is read by the core and round-trips through ``to_toml``; each is served by its
+simulator (``ProfileDevice``, which reads the file itself) and read back through
+``bb.Device.from_profile(name, ...)``. The values worked by hand from each vendor's map
+(``tests/vectors/profiles/NAME.toml``: raw words and what they mean) are put on a
+third-party server, pymodbus's, and read through the profile: a wrong address, word
+order, scale or sign cannot agree with itself there. Then the search path: a lab's
+``BENCHBUS_PROFILES`` wins over the shipped library, a file that exists wins over a name,
+and an unknown name names the close ones, wherever a profile is taken.
+"""
+
+from __future__ import annotations
+
+import importlib
+import math
+import os
+import signal
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from pymodbus_peer import pymodbus_server
+from test_cli import ok, one_line_error, readline, run, start, stop
+
+import benchbus as bb
+from benchbus import _library
+from benchbus.epics import PV_NAME_MAX, pvs
+from benchbus.pytest_plugin import ProfileBench, SimProfile
+from benchbus.sim import ProfileDevice, Simulator
+
+# The standard library's TOML reader from Python 3.11, its original (tomli) before.
+_toml = importlib.import_module("tomllib" if sys.version_info >= (3, 11) else "tomli")
+VECTORS = Path(__file__).resolve().parent / "vectors" / "profiles"
+SHIPPED = sorted(p.stem for p in _library.SHIPPED.glob("*.toml"))
+#: What a shipped profile's ``kind`` may be: the docs have a page of each.
+KINDS = {
+    "energy-meter": "energy meters",
+    "power-monitor": "power monitors",
+    "sensor": "sensors",
+    "temperature-controller": "temperature controllers",
+    "relay-board": "relay boards",
+    "motor-driver": "motor drivers",
+    "flow-controller": "flow controllers",
+    "power-supply": "power supplies",
+}
+SIGNED = {"i16", "i32", "i64", "f32", "f64"}
+WIDE = {"u32", "i32", "u64", "i64", "f32", "f64"}
+FLOATS = {"f32", "f64"}
+
+
+def cases(name: str) -> list[dict[str, Any]]:
+    """The worked values of profile ``name``."""
+    with open(VECTORS / f"{name}.toml", "rb") as f:
+        found: list[dict[str, Any]] = _toml.load(f)["case"]
+    return found
+
+
+def same(read: Any, want: Any, register: bb.ProfileRegister) -> bool:
+    """Whether ``read`` (what the device object gave) is the worked value ``want``: an enum
+    member by its name, a bool as a bool, a number within the float's precision."""
+    if isinstance(want, str) and register.enum:
+        return bool(getattr(read, "name", None) == want)
+    if isinstance(want, bool) or isinstance(read, bool):
+        return read is want
+    if isinstance(want, str):
+        return bool(read == want)
+    return math.isclose(float(read), float(want), rel_tol=1e-6, abs_tol=1e-9)
+
+
+def test_the_library_holds_the_devices_labs_have() -> None:
+    assert len(SHIPPED) >= 10
+    for name in ("sdm630", "sdm120", "xy-md02", "pzem-016", "delta-dtb"):
+        assert name in SHIPPED
+    assert sorted(VECTORS.glob("*.toml")) == [VECTORS / f"{n}.toml" for n in SHIPPED]
+    # Every shipped profile is found by name, at its file in the package.
+    found = _library.profiles()
+    assert {n: found[n] for n in SHIPPED} == {
+        n: str(_library.SHIPPED / f"{n}.toml") for n in SHIPPED
+    }
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_each_reads_says_where_it_comes_from_and_round_trips(name: str) -> None:
+    profile = bb.Profile(name)
+    assert profile.path == str(_library.SHIPPED / f"{name}.toml")
+    assert profile.maker and profile.model and profile.source, name
+    assert profile.kind in KINDS
+    assert len(profile) >= 2
+    for r in profile.registers:
+        assert r.description, f"{name}: {r.name}"
+        if r.access != "r" and r.type not in ("bool", "string") and not r.enum:
+            assert r.min is not None and r.max is not None
+    again = bb.Profile.parse(profile.to_toml(), path=name)
+    assert (again.name, again.description, again.maker, again.model, again.kind) == (
+        profile.name,
+        profile.description,
+        profile.maker,
+        profile.model,
+        profile.kind,
+    )
+    assert (again.source, again.line, again.limits) == (
+        profile.source,
+        profile.line,
+        profile.limits,
+    )
+    assert [r._replace(line=0) for r in again.registers] == [
+        r._replace(line=0) for r in profile.registers
+    ]
+    # Served over EPICS as it is: every record's name fits, under a prefix of 12.
+    records, _ = pvs("LAB:BENCH01:", profile)
+    assert records and all(len(pv.name) <= PV_NAME_MAX for pv in records)
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_each_has_worked_values_of_every_kind_it_holds(name: str) -> None:
+    """A negative value, a value over several registers, a float, where the device has
+    them; each case on a register of the profile, at the table and address it says."""
+    profile = bb.Profile(name)
+    worked = cases(name)
+    assert len(worked) >= 4
+    rows = [profile[c["register"]] for c in worked]
+    for case, row in zip(worked, rows):
+        assert (case["table"], case["address"]) == (row.table, row.address), case
+        width = row.length or {"u32": 2, "i32": 2, "f32": 2, "u64": 4, "i64": 4, "f64": 4}.get(
+            row.type, 1
+        )
+        assert len(case["words"]) == (1 if row.table in ("coil", "discrete") else width), case
+        assert case["why"]
+    types = {r.type for r in profile.registers if r.access != "w"}
+    negative = [
+        c
+        for c, r in zip(worked, rows)
+        if isinstance(c["value"], (int, float))
+        and not isinstance(c["value"], bool)
+        and c["value"] < 0
+    ]
+    if types & SIGNED:
+        assert negative, f"{name}: no negative value worked"
+    if types & WIDE:
+        assert any(r.type in WIDE for r in rows), f"{name}: no value over two registers"
+    if types & FLOATS:
+        assert any(r.type in FLOATS for r in rows), f"{name}: no float worked"
+
+
+def rounds(worked: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:
+    """``worked`` in rounds whose cases hold no address twice (two cases may work one
+    register's two values)."""
+    found: list[tuple[set[tuple[str, int]], list[dict[str, Any]]]] = []
+    for case in worked:
+        held = {(case["table"], case["address"] + i) for i in range(len(case["words"]))}
+        free = next((r for r in found if not r[0] & held), None)
+        if free is None:
+            free = (set(), [])
+            found.append(free)
+        free[0].update(held)
+        free[1].append(case)
+    return [r[1] for r in found]
+
+
+def tables(worked: list[dict[str, Any]]) -> dict[str, list[int]]:
+    """A unit's four tables holding the worked words (0 elsewhere)."""
+    made = {t: [0] * 65536 for t in ("coil", "discrete", "holding", "input")}
+    for case in worked:
+        words = made[case["table"]]
+        for i, word in enumerate(case["words"]):
+            words[case["address"] + i] = word
+    return made
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_the_worked_values_read_from_a_third_party_server(name: str) -> None:
+    profile = bb.Profile(name)
+    ascii = profile.line.framing == "ascii"
+    for worked in rounds(cases(name)):
+        with (
+            pymodbus_server(True, ascii=ascii, tables=tables(worked)) as url,
+            bb.Device.from_profile(name, url, unit=1, retries=0) as device,
+        ):
+            for case in worked:
+                row = profile[case["register"]]
+                read = device.read(row.name)
+                assert same(read, case["value"], row), f"{name}.{row.name}: {read!r}, {case}"
+            # All of them together, in the fewest requests the profile allows.
+            together = device.read_many([c["register"] for c in worked])
+            for case in worked:
+                row = profile[case["register"]]
+                assert same(together[row.name], case["value"], row), case
+
+
+@pytest.mark.parametrize("name", SHIPPED)
+def test_each_serves_its_simulator_and_reads_back_by_name(
+    name: str, sim_profile: SimProfile
+) -> None:
+    bench: ProfileBench = sim_profile(name)
+    assert bench.model.path == str(_library.SHIPPED / f"{name}.toml")
+    device = bb.Device.from_profile(name, bench.bus, unit=bench.unit)
+    sample = device.sample()
+    assert list(sample) == list(device.SAMPLE_FIELDS or ())
+    for field, value in sample.items():
+        truth = bench.model.value(field)
+        row = device.profile[field]
+        if row.enum and isinstance(truth, str):
+            assert value.name == truth, field
+        else:
+            assert same(value, truth, row), f"{field}: {value!r} against {truth!r}"
+    assert bench.sim.errors == []
+
+
+# ---- the search path ---------------------------------------------------------------------
+
+
+LAB_SDM630 = """
+[device]
+name = "Lab SDM630"
+maker = "Eastron"
+kind = "energy-meter"
+source = "the lab's own"
+
+[[register]]
+name = "voltage"
+address = 0
+table = "input"
+type = "f32"
+unit = "V"
+"""
+
+
+@pytest.fixture
+def lab(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Iterator[Path]:
+    """A lab's folder of profiles in ``BENCHBUS_PROFILES`` (after a folder that is not
+    there), with its own ``sdm630`` and a profile of its own."""
+    folder = tmp_path / "profiles"
+    folder.mkdir()
+    (folder / "sdm630.toml").write_text(LAB_SDM630)
+    (folder / "oven.toml").write_text(LAB_SDM630.replace("Lab SDM630", "Oven"))
+    monkeypatch.setenv(_library.ENV, os.pathsep.join([str(tmp_path / "gone"), str(folder)]))
+    monkeypatch.chdir(tmp_path)
+    yield folder
+
+
+def test_a_labs_folder_wins_over_the_shipped_library(lab: Path) -> None:
+    assert bb.Profile("sdm630").name == "Lab SDM630"
+    assert bb.Profile("oven").path == str(lab / "oven.toml")
+    assert bb.Profile("sdm120").path == str(_library.SHIPPED / "sdm120.toml")
+    assert ProfileDevice("sdm630").name == "Lab SDM630"
+    assert _library.profiles()["sdm630"] == str(lab / "sdm630.toml")
+
+
+def test_a_file_that_exists_wins_over_a_name(lab: Path) -> None:
+    (lab.parent / "sdm120").write_text(LAB_SDM630.replace("Lab SDM630", "Here"))
+    assert bb.Profile("sdm120").name == "Here"
+    (lab.parent / "pzem-016").mkdir()  # a folder is no profile: the name holds
+    assert bb.Profile("pzem-016").path == str(_library.SHIPPED / "pzem-016.toml")
+
+
+@pytest.mark.parametrize(
+    ("name", "said"),
+    [
+        ("sdm63", "did you mean 'sdm630'"),
+        ("SDM-120", "'sdm120'"),
+        ("ovne", "'oven'"),
+        ("drive", "a built-in family, used through bb.Drive"),
+        ("pbll", "'pbl'"),
+    ],
+)
+def test_an_unknown_name_names_the_close_ones(lab: Path, name: str, said: str) -> None:
+    with pytest.raises(bb.ProfileError) as refused:
+        bb.Profile(name)
+    assert said in str(refused.value)
+    assert refused.value.path == name
+    if name != "drive":
+        assert "no such folder" in str(refused.value)  # the lab's missing folder, said
+    with pytest.raises(bb.ProfileError, match=said):
+        ProfileDevice(name)
+
+
+def test_a_path_that_is_not_there_stays_a_path() -> None:
+    with pytest.raises(bb.ProfileError, match="cannot read the file"):
+        bb.Profile("nowhere/sdm630.toml")
+    with pytest.raises(bb.ProfileError, match="cannot read the file"):
+        bb.Profile("sdm630.toml")  # a file's name: not looked up
+
+
+def test_a_bench_file_takes_a_name(tmp_path: Path) -> None:
+    from benchbus._bench import read_bench
+
+    bench = tmp_path / "bench.toml"
+    bench.write_text(
+        '[[line]]\nname = "a"\nport = "/dev/ttyNONE0"\n\n'
+        '[[device]]\nline = "a"\nunit = 1\nprefix = "M:"\nprofile = "sdm630"\n'
+    )
+    read = read_bench(bench)
+    assert read.devices[0].profile is not None
+    assert read.devices[0].profile.path == str(_library.SHIPPED / "sdm630.toml")
+
+
+# ---- the command line --------------------------------------------------------------------
+
+
+def test_profile_list_shows_the_library_the_lab_and_the_families(lab: Path) -> None:
+    env = {_library.ENV: str(lab)}
+    lines = ok(run("profile", "list", env=env))
+    header, rows = lines[0].split(), {line.split()[0]: line for line in lines[1:]}
+    assert header == ["name", "maker", "model", "kind", "source", "from"]
+    for name in SHIPPED:
+        assert name in rows
+        if name != "sdm630":
+            assert rows[name].endswith("shipped")
+            assert bb.Profile(name).kind in rows[name]
+    assert rows["sdm630"].endswith(str(lab)) and "the lab's own" in rows["sdm630"]
+    assert rows["oven"].endswith(str(lab))
+    assert rows["pbl"].endswith("bb.PblDrive") and "motor-driver" in rows["pbl"]
+    assert rows["j2"].endswith("bb.J2Controller")
+    # A lab file that does not read is listed, and said.
+    (lab / "broken.toml").write_text("[device]\n")
+    broken = run("profile", "list", env=env)
+    assert broken.returncode == 1
+    assert "broken" in broken.stdout and "broken.toml" in broken.stderr
+
+
+def test_profile_show_prints_the_source_and_the_table() -> None:
+    profile = bb.Profile("pzem-016")
+    lines = ok(run("profile", "show", "pzem-016"))
+    assert lines[0].startswith(f"{profile.name}: ")
+    assert f"source: {profile.source}" in lines
+    assert f"kind: {profile.kind}" in lines
+    names = [
+        line.split()[0]
+        for line in lines[lines.index(next(x for x in lines if x.startswith("name "))) + 1 :]
+    ]
+    assert names == [r.name for r in profile.registers]
+    family = ok(run("profile", "show", "j2"))
+    assert "PV" in [line.split()[0] for line in family]
+    said = one_line_error(run("profile", "show", "pzem016"), 2)
+    assert "did you mean 'pzem-016'" in said
+
+
+def test_sim_and_read_take_a_name() -> None:
+    model = ProfileDevice("xy-md02", values={"temperature": -7.5, "humidity": 61.2})
+    with Simulator({3: model}) as sim:
+        lines = ok(
+            run(
+                "read",
+                "--profile",
+                "xy-md02",
+                "--port",
+                sim.port,
+                "--unit",
+                3,
+                "temperature",
+                "humidity",
+            )
+        )
+        assert sim.errors == []
+    shown = {line.split()[0]: line.split()[1] for line in lines}
+    assert float(shown["temperature"]) == -7.5 and float(shown["humidity"]) == 61.2
+
+
+def test_benchbus_sim_serves_a_shipped_profile_by_name() -> None:
+    proc = start("sim", "--profile", "sdm120", "--value", "voltage=231.5")
+    try:
+        port = readline(proc.stdout).strip()
+        assert readline(proc.stderr).startswith("simulating SDM120 from sdm120.toml (unit 1,")
+        with bb.Device.from_profile("sdm120", port, unit=1) as meter:
+            assert meter.voltage == 231.5
+            assert meter.profile.path == str(_library.SHIPPED / "sdm120.toml")
+    finally:
+        status, _, err = stop(proc, signal.SIGTERM)
+    assert status == 0 and "Traceback" not in err
