@@ -65,6 +65,7 @@ PICKED_BY = (
     "bb.WrongDevice as",
     "bb.is_unknown(",
     "drive.set_many(",
+    'bb.Device.from_profile("sdm630"',
 )
 
 
@@ -213,6 +214,20 @@ def test_readme_profile_device_example(
     ]
     assert sensor.value("temperature_correction") == -0.5
     assert sensor.value("baud") == "b19200"
+
+
+def test_shipped_profiles_example(capsys: pytest.CaptureFixture[str]) -> None:
+    """The shipped SDM630 by name, on its simulator."""
+    (block,) = [b for b in doc_blocks() if 'bb.Device.from_profile("sdm630"' in b]
+    from benchbus.sim import ProfileDevice
+
+    meter = ProfileDevice("sdm630", values={"voltage_l1": 231.5, "import_energy": 1234.5})
+    with Simulator({1: meter}) as sim:
+        exec(block.replace("/dev/ttyUSB0", sim.port), {})
+    assert capsys.readouterr().out.splitlines() == [
+        "231.5 1234.5",
+        bb.Profile("sdm630").source,
+    ]
 
 
 def test_readme_profile_export_example() -> None:

@@ -324,3 +324,42 @@ def test_a_member_made_in_another_form_stops_the_build(tmp_path: Path) -> None:
     loaded = griffe.load("benchbus", search_paths=[str(tmp_path)])
     with pytest.raises(RuntimeError, match=r"AsyncBus.scan = _awaitable\(Bus.scan, timeout=1\)"):
         griffe_benchbus._async_bus(loaded)
+
+
+# ---- the shipped profiles' pages ---------------------------------------------------------------
+
+profile_library = hook("profile_library")
+LIBRARY = Path(__file__).resolve().parent.parent / "docs" / profile_library.FOLDER
+
+
+def test_each_kind_of_shipped_profile_has_its_page_and_each_page_its_kind() -> None:
+    kinds = {p.kind for p in profile_library.shipped().values()}
+    pages = {
+        m.group(1): page.name
+        for page in LIBRARY.glob("*.md")
+        for m in profile_library.MARKER.finditer(page.read_text("utf-8"))
+    }
+    assert set(pages) == kinds | {"all"}
+    for kind in kinds:
+        assert pages[kind] == profile_library.KINDS[kind][0]
+
+
+def test_a_kinds_section_is_made_from_its_files() -> None:
+    profiles = profile_library.shipped()
+    for kind in {p.kind for p in profiles.values()}:
+        text = profile_library.section(kind)
+        for name, p in profiles.items():
+            assert (f"## {name}\n" in text) == (p.kind == kind)
+            if p.kind == kind:
+                assert p.source in text and f'from_profile("{name}"' in text
+                assert f"The {len(p)} registers" in text
+                for r in p.registers:
+                    assert f"| `{r.name}` | {r.table} | 0x{r.address:04X} |" in text
+    listing = profile_library.section("all")
+    for name, p in profiles.items():
+        page, _ = profile_library.KINDS[p.kind]
+        assert f"[`{name}`]({page}#{name})" in listing
+    with pytest.raises(ValueError, match="no kind 'toaster'"):
+        profile_library.section("toaster")
+    with pytest.raises(ValueError, match="no shipped profile is of kind 'power-supply'"):
+        profile_library.section("power-supply")
