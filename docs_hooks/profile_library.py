@@ -98,8 +98,10 @@ def described(name: str, profile: Any) -> str:
         f"Source: {profile.source}.",
         f"Line: {line.baudrate} {line.bytesize}{line.parity}{line.stopbits} {line.framing}"
         f" (the device's own port; a shared Bus keeps its own); at most"
-        f" {limits.max_read or 'the protocol limit of'} registers a read,"
-        f" {limits.max_write or 'the protocol limit of'} a write.",
+        f" {limits.max_read or 'the protocol limit of 125'} registers a read,"
+        f" {limits.max_write or 'the protocol limit of 123'} a write"
+        + ("; every write by 0x10" if limits.write_multiple else "")
+        + ".",
         "```python\n"
         "import benchbus as bb\n\n"
         f'dev = bb.Device.from_profile("{name}", "/dev/ttyUSB0", unit=1)\n'

@@ -29,6 +29,13 @@ if sys.version_info < (3, 11):
     collect_ignore += ["test_qcodes.py", "test_ophyd.py"]
 
 
+@pytest.fixture(autouse=True)
+def _no_labs_profiles(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Profiles by name are the shipped ones in every test, whatever folders of its own the
+    machine's ``BENCHBUS_PROFILES`` names (a test that wants some sets it)."""
+    monkeypatch.delenv("BENCHBUS_PROFILES", raising=False)
+
+
 def read_up_to(fd: int, n: int, timeout: float) -> bytes:
     """Up to ``n`` bytes from ``fd``: whatever has come within ``timeout`` seconds."""
     data = b""

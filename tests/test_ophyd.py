@@ -75,6 +75,18 @@ def controller() -> Iterator[tuple[Simulator[ProfileDevice], RegisterDevice, Pro
 # ---- one signal per register, as the profile describes it -----------------------------------
 
 
+def test_a_shipped_profile_by_name_counts(RE: RunEngine) -> None:  # noqa: N803
+    model = ProfileDevice("xy-md02", values={"temperature": -3.5, "humidity": 40.2})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, timeout=0.5) as bus:
+        dev = device(bb.Device.from_profile("xy-md02", bus), "th")
+        docs = run(RE, count([dev], num=1))
+        event = docs[2][1]["data"]
+        assert event["th-temperature"] == pytest.approx(-3.5)
+        assert event["th-humidity"] == pytest.approx(40.2)
+        assert docs[1][1]["data_keys"]["th-temperature"]["units"] == "degC"
+        assert sim.errors == []
+
+
 @pytest.mark.parametrize("path", [SENSOR, RELAYS, CONTROLLER], ids=lambda p: p.stem)
 def test_every_register_is_a_signal_of_its_access_with_its_unit(
     RE: RunEngine,  # noqa: N803

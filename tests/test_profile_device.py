@@ -664,3 +664,55 @@ def test_a_field_its_bits_cannot_hold_is_refused_by_both_readers(
         bb.Profile(path)
     with pytest.raises(ValueError, match=r"bits|byte order"):
         ProfileDevice(path)
+
+
+@pytest.mark.parametrize("multiple", [True, False])
+def test_write_multiple_sends_every_register_write_by_0x10(tmp_path: Path, multiple: bool) -> None:
+    """A device that takes no 0x06 (Eastron's meters): one word, and a bit written back
+    into its word, go by 0x10; without the key, by 0x06. The simulator reads the key
+    itself and answers 0x06 with exception 1 when it is set."""
+    path = tmp_path / "meter.toml"
+    path.write_text(
+        '[device]\nname = "meter"\n'
+        f"[limits]\nwrite_multiple = {str(multiple).lower()}\n"
+        '[[register]]\nname = "mode"\naddress = 0x10\naccess = "rw"\nmax = 9\n'
+        '[[register]]\nname = "word"\naddress = 0x11\naccess = "rw"\n'
+        '[[register]]\nname = "flag"\naddress = 0x11\ntype = "bool"\nbit = 3\naccess = "rw"\n'
+    )
+    assert bb.Profile(path).limits.write_multiple is multiple
+    assert ("write_multiple = " + str(multiple).lower()) in bb.Profile(path).to_toml()
+    model = ProfileDevice(path, values={"word": 0x8001})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, baudrate=9600, timeout=0.5) as bus:
+        dev = bb.Device.from_profile(path, bus, unit=1)
+        before = len(sim.requests)
+        dev.mode = 7
+        dev.flag = True
+        sent = sent_by(sim, before)
+        if multiple:
+            assert sent == [
+                frame(0x10, 0x00, 0x10, 0x00, 0x01, 0x02, 0x00, 0x07),
+                frame(0x03, 0x00, 0x11, 0x00, 0x01),
+                frame(0x10, 0x00, 0x11, 0x00, 0x01, 0x02, 0x80, 0x09),
+            ]
+            with pytest.raises(bb.ModbusException) as refused:
+                bus.write_register(1, 0x10, 1)
+            assert refused.value.code == 1
+        else:
+            assert sent == [
+                frame(0x06, 0x00, 0x10, 0x00, 0x07),
+                frame(0x03, 0x00, 0x11, 0x00, 0x01),
+                frame(0x06, 0x00, 0x11, 0x80, 0x09),
+            ]
+        assert (model.value("mode"), model.value("word")) == (7, 0x8009)
+        assert sim.errors == []
+
+
+def test_write_multiple_cannot_go_with_a_count_echo(tmp_path: Path) -> None:
+    path = tmp_path / "bad.toml"
+    path.write_text(
+        '[device]\nname = "bad"\n[limits]\nwrite_multiple = true\nwrite_echo = "count"\n'
+    )
+    with pytest.raises(bb.ProfileError, match=r"bad.toml:5: limits.write_echo: .*0x06"):
+        bb.Profile(path)
+    with pytest.raises(ValueError, match="write_echo 'count' is for 0x06"):
+        ProfileDevice(path)

@@ -74,6 +74,7 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "block_reads": True,
         "read_gaps": None,
         "write_echo": None,
+        "write_multiple": None,
     }
     temperature, mode = p.registers
     assert temperature._asdict() == {

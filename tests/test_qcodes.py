@@ -159,6 +159,21 @@ def test_validators_follow_each_registers_kind_and_range(
 # ---- get and set against the simulator ---------------------------------------------------
 
 
+def test_a_shipped_profile_by_name_gives_its_maker_and_model_as_the_idn() -> None:
+    model = ProfileDevice("pzem-016", values={"voltage": 231.4})
+    with Simulator({1: model}) as sim, bb.Bus(sim.port, timeout=0.5) as bus:
+        inst = instrument(bb.Device.from_profile("pzem-016", bus), "mains")
+        profile = bb.Profile("pzem-016")
+        assert inst.IDN() == {
+            "vendor": "Peacefair",
+            "model": profile.model,
+            "serial": None,
+            "firmware": None,
+        }
+        assert inst.voltage() == pytest.approx(231.4) and inst.voltage.unit == "V"
+        assert sim.errors == []
+
+
 @pytest.mark.parametrize("path", [SENSOR, RELAYS, CONTROLLER], ids=lambda p: p.stem)
 def test_every_readable_register_reads_what_the_simulator_holds(path: Path) -> None:
     model = ProfileDevice(path)

@@ -30,22 +30,14 @@ from benchbus import _library
 from benchbus.epics import PV_NAME_MAX, pvs
 from benchbus.pytest_plugin import ProfileBench, SimProfile
 from benchbus.sim import ProfileDevice, Simulator
+from conftest import hook
 
 # The standard library's TOML reader from Python 3.11, its original (tomli) before.
 _toml = importlib.import_module("tomllib" if sys.version_info >= (3, 11) else "tomli")
 VECTORS = Path(__file__).resolve().parent / "vectors" / "profiles"
 SHIPPED = sorted(p.stem for p in _library.SHIPPED.glob("*.toml"))
 #: What a shipped profile's ``kind`` may be: the docs have a page of each.
-KINDS = {
-    "energy-meter": "energy meters",
-    "power-monitor": "power monitors",
-    "sensor": "sensors",
-    "temperature-controller": "temperature controllers",
-    "relay-board": "relay boards",
-    "motor-driver": "motor drivers",
-    "flow-controller": "flow controllers",
-    "power-supply": "power supplies",
-}
+KINDS = hook("profile_library").KINDS
 SIGNED = {"i16", "i32", "i64", "f32", "f64"}
 WIDE = {"u32", "i32", "u64", "i64", "f32", "f64"}
 FLOATS = {"f32", "f64"}
@@ -129,6 +121,10 @@ def test_each_has_worked_values_of_every_kind_it_holds(name: str) -> None:
         )
         assert len(case["words"]) == (1 if row.table in ("coil", "discrete") else width), case
         assert case["why"]
+        # Words that a wrong order or a missed register would read the same cannot judge.
+        assert any(case["words"]), case
+        if len(case["words"]) > 1:
+            assert case["words"] != case["words"][::-1], case
     types = {r.type for r in profile.registers if r.access != "w"}
     negative = [
         c
@@ -249,6 +245,30 @@ def test_a_labs_folder_wins_over_the_shipped_library(lab: Path) -> None:
     assert _library.profiles()["sdm630"] == str(lab / "sdm630.toml")
 
 
+def test_the_labs_folders_are_searched_in_their_order(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    first, second = tmp_path / "first", tmp_path / "second"
+    for folder in (first, second):
+        folder.mkdir()
+        (folder / "oven.toml").write_text(LAB_SDM630.replace("Lab SDM630", folder.name))
+    (second / "kiln.toml").write_text(LAB_SDM630.replace("Lab SDM630", "kiln"))
+    home = tmp_path / "home"
+    monkeypatch.setenv("HOME", str(home))
+    (home / "p").mkdir(parents=True)
+    (home / "p" / "dryer.toml").write_text(LAB_SDM630.replace("Lab SDM630", "dryer"))
+    a_file = tmp_path / "not-a-folder"
+    a_file.write_text("")
+    monkeypatch.setenv(
+        _library.ENV, os.pathsep.join([f" {first} ", str(second), "~/p", str(a_file), ""])
+    )
+    assert bb.Profile("oven").name == "first"
+    assert bb.Profile("kiln").name == "kiln"
+    assert bb.Profile("dryer").name == "dryer"  # ~ is the home folder
+    with pytest.raises(bb.ProfileError, match=f"{a_file}: not a folder"):
+        bb.Profile("ovne")
+
+
 def test_a_file_that_exists_wins_over_a_name(lab: Path) -> None:
     (lab.parent / "sdm120").write_text(LAB_SDM630.replace("Lab SDM630", "Here"))
     assert bb.Profile("sdm120").name == "Here"
@@ -280,21 +300,33 @@ def test_an_unknown_name_names_the_close_ones(lab: Path, name: str, said: str) -
 def test_a_path_that_is_not_there_stays_a_path() -> None:
     with pytest.raises(bb.ProfileError, match="cannot read the file"):
         bb.Profile("nowhere/sdm630.toml")
-    with pytest.raises(bb.ProfileError, match="cannot read the file"):
-        bb.Profile("sdm630.toml")  # a file's name: not looked up
+    for path in ("sdm630.toml", "./sdm630", "sdm630/", ""):  # not names: not looked up
+        with pytest.raises(bb.ProfileError, match="cannot read the file"):
+            bb.Profile(path)
+    with pytest.raises(FileNotFoundError):
+        ProfileDevice("./sdm630")
 
 
-def test_a_bench_file_takes_a_name(tmp_path: Path) -> None:
+def test_a_bench_file_takes_a_name_and_a_file_beside_it_wins(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     from benchbus._bench import read_bench
 
-    bench = tmp_path / "bench.toml"
+    bench_dir = tmp_path / "bench"
+    bench_dir.mkdir()
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "sdm630").write_text("not a profile")  # in the current folder: not the bench's
+    (bench_dir / "sdm120").write_text(LAB_SDM630.replace("Lab SDM630", "Beside"))
+    bench = bench_dir / "bench.toml"
     bench.write_text(
         '[[line]]\nname = "a"\nport = "/dev/ttyNONE0"\n\n'
-        '[[device]]\nline = "a"\nunit = 1\nprefix = "M:"\nprofile = "sdm630"\n'
+        '[[device]]\nline = "a"\nunit = 1\nprefix = "M:"\nprofile = "sdm630"\n\n'
+        '[[device]]\nline = "a"\nunit = 2\nprefix = "N:"\nprofile = "sdm120"\n'
     )
-    read = read_bench(bench)
-    assert read.devices[0].profile is not None
-    assert read.devices[0].profile.path == str(_library.SHIPPED / "sdm630.toml")
+    first, second = read_bench(bench).devices
+    assert first.profile is not None and second.profile is not None
+    assert first.profile.path == str(_library.SHIPPED / "sdm630.toml")
+    assert second.profile.name == "Beside"
 
 
 # ---- the command line --------------------------------------------------------------------
@@ -338,6 +370,29 @@ def test_profile_show_prints_the_source_and_the_table() -> None:
     assert "did you mean 'pzem-016'" in said
 
 
+def test_profile_show_takes_a_labs_file_named_like_a_family_as_profile_does(lab: Path) -> None:
+    (lab / "drive.toml").write_text(LAB_SDM630.replace("Lab SDM630", "Lab drive"))
+    env = {_library.ENV: str(lab)}
+    assert ok(run("profile", "show", "drive", env=env))[0].startswith("Lab drive")
+    assert bb.Profile("drive").name == "Lab drive"
+    family = run("profile", "show", "drive", env={_library.ENV: ""})
+    assert ok(family)[0].startswith("drive: ")  # the family's
+
+
+def test_write_and_monitor_take_a_name() -> None:
+    model = ProfileDevice("sdm630", values={"frequency": 50.02, "voltage_l1": 229.5})
+    with Simulator({1: model}) as sim:
+        line = ["--profile", "sdm630", "--port", sim.port]
+        before = len(sim.requests)
+        ok(run("write", *line, "demand_period", "15"))
+        assert model.value("demand_period") == 15.0
+        ok(run("write", *line, "reset_demand", "0"))  # one register: still 0x10
+        assert [bytes(r)[1] for r in sim.requests[before:]] == [0x10, 0x10]
+        lines = ok(run("monitor", *line, "--count", "1", "--interval", "0.1"))
+        assert sim.errors == []
+    assert "50.02" in "\n".join(lines) and "229.5" in "\n".join(lines)
+
+
 def test_sim_and_read_take_a_name() -> None:
     model = ProfileDevice("xy-md02", values={"temperature": -7.5, "humidity": 61.2})
     with Simulator({3: model}) as sim:
@@ -370,3 +425,19 @@ def test_benchbus_sim_serves_a_shipped_profile_by_name() -> None:
     finally:
         status, _, err = stop(proc, signal.SIGTERM)
     assert status == 0 and "Traceback" not in err
+
+
+async def _aio_read(port: str) -> float:
+    async with bb.aio.AsyncBus(port, timeout=0.5) as bus:
+        meter = bb.aio.Device.from_profile("sdm120", bus, unit=4)
+        value: float = await meter.read("frequency")
+        return value
+
+
+def test_the_async_device_takes_a_name() -> None:
+    import asyncio
+
+    model = ProfileDevice("sdm120", values={"frequency": 49.97})
+    with Simulator({4: model}) as sim:
+        assert asyncio.run(_aio_read(sim.port)) == pytest.approx(49.97, rel=1e-6)
+        assert sim.errors == []

@@ -20,7 +20,8 @@
 
     [[device]]
     line = "rs485"
-    profile = "xy_md02.toml"    # ...or a device profile (relative to this file)
+    profile = "xy_md02.toml"    # ...or a device profile (relative to this file),
+                                # or a profile's name ("sdm630": benchbus profile list)
     unit = 2
     prefix = "LAB:XY:"
     period = 2.0
@@ -44,7 +45,7 @@ from typing import Any
 from benchbus._core import Bus, Profile
 from benchbus._device import BusDevice, LineDefaults
 from benchbus._families import command_keys, family
-from benchbus._library import is_name
+from benchbus._library import locate
 from benchbus._profile import Device, profile_line
 from benchbus.exceptions import ProfileError
 
@@ -277,13 +278,9 @@ def read_bench(path: str | os.PathLike[str]) -> Bench:
                 "device", n, "family", f"no family {key!r}: one of {', '.join(families)}"
             )
         if "profile" in device:
-            named = str(device["profile"])
-            profile_path = file.parent / named
             try:
-                # A profile's name (no folder, no .toml) unless a file of the bench's has it.
-                profile = Profile(
-                    named if is_name(named) and not profile_path.is_file() else profile_path
-                )
+                # A file beside the bench file, else a profile's name (no folder, no .toml).
+                profile = Profile(locate(str(device["profile"]), here=file.parent))
             except (ProfileError, OSError) as exc:
                 raise where.error("device", n, "profile", str(exc)) from None
         options = device.get("options", {})

@@ -1177,6 +1177,10 @@ class Profile:
     def parse(text: str, path: str = "<string>") -> Profile:
         """Checks the profile ``text``; ``path`` names it in errors."""
     @staticmethod
+    def families() -> list[str]:
+        """The keys :meth:`family` takes: the built-in families whose register map is a file
+        ("drive", "drive-c20", "pbl", "j2")."""
+    @staticmethod
     def family(key: str) -> Profile:
         """The built-in family ``key`` ("drive", "pbl" or "j2") as a profile: the family's file
         as the package ships it (``families/``); "drive-c20" is its C20 model

@@ -75,6 +75,9 @@ class ProfileLimits(NamedTuple):
     #: ``"count"``, a register count of 1 in place of the value for a 0x06 write (as PBL
     #: drives answer).
     write_echo: str | None = None
+    #: Whether every register write is function 0x10, also of one register (a device that
+    #: does not take 0x06); None or False: 0x06 for one register.
+    write_multiple: bool | None = None
 
 
 #: The whole numbers each integer type holds, exactly (a profile's ``min`` / ``max`` are
@@ -219,7 +222,8 @@ class _Enums(Mapping[str, type[PrintableIntEnum]]):
 
 
 def as_profile(profile: Profile | str | os.PathLike[str]) -> Profile:
-    """``profile`` itself, or the profile read from the file it names."""
+    """``profile`` itself, or the profile read from the file it names (a path, or a
+    profile's name)."""
     return profile if isinstance(profile, Profile) else Profile(profile)
 
 
@@ -240,6 +244,7 @@ class Device(ProfileCore, BusDevice):
 
         dev = bb.Device.from_profile("xy_md02.toml", "/dev/ttyUSB0", unit=1)
         print(dev.temperature, dev.humidity)      # 21.5 48.2 (degC, %RH)
+        meter = bb.Device.from_profile("sdm630", bus, unit=2)   # a shipped profile
         dev.mode = "heat"                         # an enum: by name, number or member
         dev.read_many(["temperature", "humidity"])
         dev.sample()                              # every readable value, fewest requests
@@ -301,8 +306,9 @@ class Device(ProfileCore, BusDevice):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> Device:
-        """The device ``profile`` (a :class:`Profile` or the path of its TOML file)
-        describes, at ``unit`` on a Bus or on a port opened at the profile's line.
+        """The device ``profile`` (a :class:`Profile`, the path of its TOML file, or a
+        profile's name: ``"sdm630"``, one of a lab's ``BENCHBUS_PROFILES`` or of the
+        package's) describes, at ``unit`` on a Bus or on a port opened at the profile's line.
 
         A profile's mistake raises ``ProfileError`` (file, line, key) before any port is
         opened.

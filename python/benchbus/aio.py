@@ -827,7 +827,8 @@ class Device(AsyncDevice[_SyncDevice], DeviceMembers):
         timeout: float | None = None,
         retries: int | None = None,
     ) -> Device:
-        """The device ``profile`` describes at ``unit``, on an AsyncBus or a port (as
+        """The device ``profile`` (a Profile, a file, or a profile's name: ``"sdm630"``)
+        describes at ``unit``, on an AsyncBus or a port (as
         :meth:`benchbus.Device.from_profile`)."""
         return cls(profile, port_or_bus, unit, timeout=timeout, retries=retries)
 

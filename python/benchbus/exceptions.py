@@ -176,7 +176,8 @@ class ProfileError(BenchbusError, ValueError):
     """
 
     path: str
-    """The file, as it was given."""
+    """The file, as it was given or as a profile's name found it (a name found nowhere:
+    the name)."""
     line: int
     """The line (from 1) of the offending key or value; 0 if the file cannot be read."""
     key: str

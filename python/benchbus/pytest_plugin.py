@@ -407,7 +407,7 @@ def _serve_profile(
         "baudrate": baudrate or line.baudrate,
         "framing": framing or line.framing,
     }
-    model = ProfileDevice(path, values)
+    model = ProfileDevice(profile.path, values)  # the file the name was found at
     sim = stack.enter_context(Simulator({unit: model}, **served))
     bus = stack.enter_context(Bus(sim.port, **served, **options))
     return ProfileBench(

@@ -139,6 +139,7 @@ fn limits_section(out: &mut String, l: &Limits) {
         ("block_reads", l.block_reads.map(|b| b.to_string())),
         ("read_gaps", l.read_gaps.map(|b| b.to_string())),
         ("write_echo", l.write_echo.map(|e| quote(echo_name(e)))),
+        ("write_multiple", l.write_multiple.map(|b| b.to_string())),
     ];
     section(out, "[limits]", keys);
 }

@@ -173,6 +173,9 @@ pub struct Limits {
     /// ("strict"), or for a 0x06 write a register count of 1 in place of the value
     /// ("count", as PBL drives answer).
     pub write_echo: Option<Echo>,
+    /// Whether every write of registers is function 0x10, also of one register
+    /// (`write_multiple`: a device that does not take 0x06, as Eastron's meters).
+    pub write_multiple: Option<bool>,
 }
 
 /// What a profile says of the device it describes (`[device] maker`, `model`, `kind`,
@@ -519,6 +522,7 @@ const LIMIT_KEYS: &[&str] = &[
     "block_reads",
     "read_gaps",
     "write_echo",
+    "write_multiple",
 ];
 const REGISTER_KEYS: &[&str] = &[
     "name",
@@ -794,7 +798,10 @@ impl Profile {
         Some(Profile {
             name: model.to_string(),
             description: self.description.clone(),
-            about: self.about.clone(),
+            about: About {
+                model: model.to_string(),
+                ..self.about.clone()
+            },
             line: self.line.clone(),
             limits: self.limits.clone(),
             models: Vec::new(),
@@ -855,13 +862,20 @@ fn sub<'s, 'a, 'i>(parent: &Section<'s, 'a, 'i>, key: &str) -> Parsed<Option<Sec
 fn about(s: &Section<'_, '_, '_>) -> Parsed<About> {
     let text = |key| -> Parsed<String> { Ok(s.string(key)?.unwrap_or("").to_string()) };
     let kind = text("kind")?;
-    let word = |c: char| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-';
-    if s.get("kind").is_some() && (kind.is_empty() || !kind.chars().all(word)) {
+    // Words of lower-case letters and digits joined by single hyphens, the first a letter.
+    let word = |w: &str| {
+        !w.is_empty()
+            && w.chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit())
+    };
+    let starts = kind.chars().next().is_some_and(|c| c.is_ascii_lowercase());
+    if s.get("kind").is_some() && !(starts && kind.split('-').all(word)) {
         return Err(s.fail(
             "kind",
             s.span_of("kind"),
             format!(
-                "{kind:?} is not a kind: lower-case letters, digits and '-' (\"energy-meter\")"
+                "{kind:?} is not a kind: words of lower-case letters and digits joined by \
+                 '-', the first a letter (\"energy-meter\")"
             ),
         ));
     }
@@ -914,6 +928,15 @@ fn limits(s: &Section<'_, '_, '_>) -> Parsed<Limits> {
             "needs block reads: with block_reads = false every register is read apart",
         ));
     }
+    let write_multiple = s.boolean("write_multiple")?;
+    let echo = s.choice("write_echo", &ECHOES.map(|(name, _)| name))?;
+    if write_multiple == Some(true) && echo == Some("count") {
+        return Err(s.fail(
+            "write_echo",
+            s.span_of("write_echo"),
+            "\"count\" is the reply to a 0x06 write, which write_multiple = true never sends",
+        ));
+    }
     // 2000 bits is the most one read of coils may ask for; 1968 one write of coils.
     Ok(Limits {
         max_read: s.int_in("max_read", 1, 2000)?.map(|v| v as u16),
@@ -921,14 +944,13 @@ fn limits(s: &Section<'_, '_, '_>) -> Parsed<Limits> {
         min_write_interval: interval,
         block_reads,
         read_gaps,
-        write_echo: s
-            .choice("write_echo", &ECHOES.map(|(name, _)| name))?
-            .and_then(|name| {
-                ECHOES
-                    .iter()
-                    .find(|(n, _)| *n == name)
-                    .map(|(_, echo)| *echo)
-            }),
+        write_echo: echo.and_then(|name| {
+            ECHOES
+                .iter()
+                .find(|(n, _)| *n == name)
+                .map(|(_, echo)| *echo)
+        }),
+        write_multiple,
     })
 }
 
@@ -1680,6 +1702,22 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
     }
 
     #[test]
+    fn write_multiple_is_a_bool_and_never_goes_with_a_count_echo() {
+        let text = "[device]\nname = \"d\"\n[limits]\nwrite_multiple = true\n";
+        let p = Profile::parse("d.toml", text).unwrap();
+        assert_eq!(p.limits.write_multiple, Some(true));
+        assert_eq!(Profile::parse("e.toml", &p.to_toml()).unwrap(), p);
+        fails("[limits]\nwrite_multiple = 1\n", 4, "limits.write_multiple");
+        fails(
+            "[limits]\nwrite_multiple = true\nwrite_echo = \"count\"\n",
+            5,
+            "limits.write_echo",
+        );
+        let strict = "[limits]\nwrite_multiple = true\nwrite_echo = \"strict\"\n";
+        assert!(Profile::parse("d.toml", &format!("[device]\nname = \"d\"\n{strict}")).is_ok());
+    }
+
+    #[test]
     fn what_a_profile_says_of_its_device() {
         let text = "[device]\nname = \"d\"\nmaker = \"Acme\"\nmodel = \"X-1\"\n\
                     kind = \"energy-meter\"\nsource = \"map v2, 1.2\"\n";
@@ -1695,7 +1733,16 @@ enum = { 0 = "off", 1 = "heat", 2 = "cool" }
         let silent = Profile::parse("d.toml", "[device]\nname = \"d\"\n").unwrap();
         assert_eq!(silent.about, About::default());
         assert!(!silent.to_toml().contains("kind"));
-        for bad in ["\"Energy meter\"", "\"\"", "\"meter_3\"", "3"] {
+        for bad in [
+            "\"Energy meter\"",
+            "\"\"",
+            "\"meter_3\"",
+            "3",
+            "\"-\"",
+            "\"a--b\"",
+            "\"meter-\"",
+            "\"3d-printer\"",
+        ] {
             fails(&format!("kind = {bad}\n"), 3, "device.kind");
         }
         fails("maker = 1\n", 3, "device.maker");

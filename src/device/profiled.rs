@@ -513,16 +513,26 @@ impl ProfiledDevice {
         let address = r.register.address;
         match r.encode(value)? {
             Encoded::Coil(on) => self.station.write_coil(address, on),
-            Encoded::Words(words) if words.len() == 1 => self.station.write(address, words[0]),
-            Encoded::Words(words) => self.station.write_many(address, &words),
+            Encoded::Words(words) => self.write_words(address, &words),
             Encoded::Bits { mask, value } => self.station.exclusive(|| {
                 let word = *self
                     .station
                     .read(address, 1)?
                     .first()
                     .ok_or_else(|| self.station.short_reply())?;
-                self.station.write(address, word & !mask | value)
+                self.write_words(address, &[word & !mask | value])
             }),
+        }
+    }
+
+    /// Writes `words` from `address`: one word with 0x06 unless the profile says
+    /// `write_multiple`, more (or every write then) with 0x10.
+    fn write_words(&self, address: u16, words: &[u16]) -> Result<()> {
+        match words {
+            [word] if self.profile.limits.write_multiple != Some(true) => {
+                self.station.write(address, *word)
+            }
+            _ => self.station.write_many(address, words),
         }
     }
 }

@@ -296,7 +296,8 @@ impl PyProfile {
     /// ``path`` may also be a profile's name (``"sdm630"``): ``BENCHBUS_PROFILES``'
     /// folders, then the profiles the package ships; a file that exists wins.
     #[new]
-    fn new(py: Python<'_>, path: PathBuf) -> PyResult<Self> {
+    fn new(py: Python<'_>, path: &Bound<'_, PyAny>) -> PyResult<Self> {
+        // The object as given (a str keeps "./x" and "x/", which a path would not).
         let path: PathBuf = PyModule::import(py, "benchbus._library")?
             .getattr("locate")?
             .call1((path,))?
@@ -331,6 +332,13 @@ impl PyProfile {
             file,
             ..PyProfile::made(profile, format!("<{key}>"), note)
         })
+    }
+
+    /// The keys :meth:`family` takes: the built-in families whose register map is a file
+    /// ("drive", "drive-c20", "pbl", "j2").
+    #[staticmethod]
+    fn families() -> Vec<&'static str> {
+        FAMILIES.to_vec()
     }
 
     /// The profile as a TOML file that reads back as the same profile (a built-in family's
@@ -446,6 +454,7 @@ impl PyProfile {
         kwargs.set_item("read_gaps", l.read_gaps)?;
         let echo = l.write_echo.map(crate::device::profile::echo_name);
         kwargs.set_item("write_echo", echo)?;
+        kwargs.set_item("write_multiple", l.write_multiple)?;
         public(py, ROWS, "ProfileLimits", (), Some(&kwargs))
     }
 

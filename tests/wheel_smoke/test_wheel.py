@@ -100,6 +100,24 @@ def test_the_family_files_ship_and_are_the_exports() -> None:
         assert bb.Profile.family(file.stem).to_toml() == text, file.name
 
 
+def test_the_shipped_profiles_ship_and_open_by_name() -> None:
+    """The profiles the package ships are in the wheel, each found by its name there."""
+    shipped = Path(bb.__file__).parent / "profiles"
+    files = sorted(shipped.glob("*.toml"))
+    assert len(files) >= 10 and "sdm630.toml" in [f.name for f in files]
+    for file in files:
+        profile = bb.Profile(file.stem)
+        assert profile.path == str(file) and profile.source, file.name
+    listed = subprocess.run(
+        [sys.executable, "-m", "benchbus", "profile", "list"],
+        capture_output=True,
+        text=True,
+        check=True,
+        timeout=60,
+    ).stdout
+    assert all(f.stem in listed for f in files)
+
+
 @pytest.mark.sim
 def test_the_simulators_import() -> None:
     names = modules("benchbus.sim")

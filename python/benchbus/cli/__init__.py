@@ -18,6 +18,8 @@
     benchbus sim     --profile FILE [--value NAME=VALUE ...] [--unit N] [--seconds S]
     benchbus demo    [--port PATH [--unit N]] [--out FILE.png]
     benchbus profile check FILE  (a device profile's register table, or its mistakes)
+    benchbus profile list        (the profiles found by name: BENCHBUS_PROFILES', shipped)
+    benchbus profile show NAME   (one's register table, maker and source)
     benchbus ports   (the serial ports, with their USB ids, chip, maker and serial number)
     benchbus doctor  --port PATH [--unit N]  (what stands between benchbus and the port)
 
@@ -26,7 +28,8 @@ The line options (``--port``, ``--baudrate``, ``--parity``, ``--stopbits``, ``--
 7E1 unless given; ``--rs485`` and ``--rts-delay BEFORE,AFTER`` for a board UART in the Linux
 kernel's RS485 mode) go anywhere after the command; their defaults are those of the device
 family the command talks to (with ``--profile``, the profile's ``[line]``). ``--port`` falls
-back to ``$BENCHBUS_PORT``. Numbers (addresses, values, units) are decimal or ``0x`` hex.
+back to ``$BENCHBUS_PORT``. ``--profile`` takes a file or a profile's name (``sdm630``:
+``benchbus profile list``). Numbers (addresses, values, units) are decimal or ``0x`` hex.
 
 Errors print one line, ``benchbus: <what went wrong>``, on stderr and exit with 1 (2 for a
 usage error, 130 after Ctrl-C; in ``monitor`` and ``sim`` Ctrl-C is the normal end and exits

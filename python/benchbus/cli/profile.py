@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -89,11 +90,12 @@ def _short(text: str) -> str:
 
 
 def listing() -> int:
-    """``benchbus profile list``: every profile found by name (a lab's ``BENCHBUS_PROFILES``
-    first, then the shipped ones) and the built-in families, with maker, model, kind and
-    source; a file that does not read is listed with its mistake, exit status 1."""
+    """``benchbus profile list``: every profile found by name, sorted by name (where a
+    lab's ``BENCHBUS_PROFILES`` and the shipped ones both have a name, the lab's), then
+    the built-in families, with maker, model, kind, source and where each comes from; a
+    file that does not read is listed and its mistake said, exit status 1."""
     from benchbus import Profile, ProfileError
-    from benchbus._library import FAMILIES, SHIPPED, profiles
+    from benchbus._library import SHIPPED, families, profiles
 
     rows: list[list[str]] = []
     broken: list[str] = []
@@ -106,7 +108,7 @@ def listing() -> int:
             rows.append([name, "", "", "", "(does not read: see below)", where])
             continue
         rows.append([name, p.maker, p.model, p.kind, _short(p.source), where])
-    for key, cls in FAMILIES.items():
+    for key, cls in families().items():
         family = Profile.family(key)
         rows.append([key, family.maker, family.model, family.kind, _short(family.source), cls])
     print_table(["name", "maker", "model", "kind", "source", "from"], rows)
@@ -116,12 +118,13 @@ def listing() -> int:
 
 
 def show(name: str) -> int:
-    """``benchbus profile show``: the profile ``name`` (a name, a built-in family's key or a
-    file) and its table, as ``check`` prints it."""
+    """``benchbus profile show``: the profile ``name`` (a file, a profile's name, else a
+    built-in family's key) and its table, as ``check`` prints it."""
     from benchbus import Profile
-    from benchbus._library import FAMILIES
+    from benchbus._library import families, find
 
-    return check(name, Profile.family(name) if name in FAMILIES else None)
+    family = name in families() and not os.path.isfile(name) and find(name) is None
+    return check(name, Profile.family(name) if family else None)
 
 
 def export(key: str, output: str | None) -> int:
@@ -165,7 +168,8 @@ EPILOG = (
     "A profile is a TOML file or a name: the folders of BENCHBUS_PROFILES (os.pathsep "
     "apart) are searched first, then the profiles benchbus ships. "
     "A profile's mistakes (unknown keys, overlapping addresses, a type that does not fit "
-    "its table...) are reported with the file, the line and the key, exit status 2. "
+    "its table...) are reported with the file, the line and the key, exit status 2; "
+    "'list' lists a file that does not read and exits with status 1. "
     "'export' writes a built-in family's register table as a profile, made from the same "
     "table the family's class uses; the rules its class keeps in code are listed at the top."
 )
@@ -173,6 +177,8 @@ EPILOG = (
 
 def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     """The arguments of ``benchbus profile`` (``parents``: its option groups)."""
+    from benchbus import Profile
+
     actions = parser.add_subparsers(dest="action", metavar="ACTION", required=True)
     checking = add_command(actions, "check", "validate a profile and print its table", parents)
     checking.add_argument("path", metavar="FILE", help="the profile (TOML), or its name")
@@ -187,8 +193,8 @@ def add_arguments(parser: Parser, parents: list[Parser]) -> None:
     showing.add_argument(
         "name",
         metavar="NAME",
-        help="a profile's name (see 'list'), a built-in family (drive, drive-c20, pbl, j2)"
-        " or a file",
+        help="a profile's name (see 'list'), a file, or a built-in family's table"
+        f" ({', '.join(Profile.families())})",
     )
     exporting = add_command(
         actions, "export", "write a built-in family's register table as a profile", parents

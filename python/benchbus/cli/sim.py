@@ -62,7 +62,7 @@ def _profile_devices(
         except UsageError as exc:
             raise UsageError(f"--value {exc}") from None
     try:
-        return {u: ProfileDevice(path, values) for u in units}, profile
+        return {u: ProfileDevice(profile.path, values) for u in units}, profile
     except (ValueError, TypeError) as exc:  # a value out of range, of the wrong kind
         raise UsageError(str(exc)) from None
 

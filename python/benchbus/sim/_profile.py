@@ -36,6 +36,7 @@ _LIMIT_KEYS = {
     "block_reads",
     "read_gaps",
     "write_echo",
+    "write_multiple",
 }
 _REGISTER_KEYS = {
     "name",
@@ -247,6 +248,9 @@ class ProfileDevice(RegisterDevice):
         }
         if self.limits.get("read_gaps"):
             self._read_gaps = "inside"
+        if self.limits.get("write_multiple"):
+            # A device that takes its registers' writes by 0x10 alone: 0x06 is illegal.
+            self.functions = self.functions - {0x06}
         super().__init__(
             identity=identity,
             max_read=chosen["max_read"],
@@ -437,7 +441,7 @@ def _check_limits(path: str, limits: dict[str, Any]) -> None:
     interval = limits.get("min_write_interval", 0.0)
     if not _number(interval) or not interval >= 0:
         raise ValueError(f"{path}: [limits] min_write_interval must be >= 0 s, not {interval!r}")
-    for key in ("block_reads", "read_gaps"):
+    for key in ("block_reads", "read_gaps", "write_multiple"):
         if not isinstance(limits.get(key, False), bool):
             raise ValueError(f"{path}: [limits] {key} must be true or false")
     if limits.get("read_gaps") and limits.get("block_reads") is False:
@@ -445,6 +449,8 @@ def _check_limits(path: str, limits: dict[str, Any]) -> None:
     echo = limits.get("write_echo", "strict")
     if echo not in ("strict", "count"):
         raise ValueError(f"{path}: [limits] write_echo must be 'strict' or 'count', not {echo!r}")
+    if echo == "count" and limits.get("write_multiple"):
+        raise ValueError(f"{path}: [limits] write_echo 'count' is for 0x06, never sent here")
 
 
 def _check_models(path: str, index: int, row: dict[str, Any], models: tuple[str, ...]) -> None:
