@@ -82,7 +82,13 @@ def locate(profile: str | os.PathLike[str], here: str | os.PathLike[str] | None 
     the current folder by default), else the profile of that name in :func:`folders`;
     ProfileError for a name found nowhere (naming the close ones, and where a built-in
     family is meant, its class)."""
-    text = os.fsdecode(os.fspath(profile))
+    try:
+        text = os.fsdecode(os.fspath(profile))
+    except TypeError:
+        raise TypeError(
+            "argument 'path': a file (str or os.PathLike) or a profile's name, not"
+            f" {type(profile).__name__}"
+        ) from None
     given = text if here is None or os.path.isabs(text) else os.path.join(here, text)
     if not is_name(text) or os.path.isfile(given):
         return given
