@@ -88,7 +88,7 @@ def described(name: str, profile: Any) -> str:
     """The Markdown of one profile: a heading, what it is, where it comes from, its notes
     and its registers."""
     from benchbus._profile import profile_line
-    from benchbus.cli.profile import _kind, _range
+    from benchbus.cli.profile import _kind, _range, _scale
 
     line = profile_line(profile)
     limits = profile.limits
@@ -117,13 +117,12 @@ def described(name: str, profile: Any) -> str:
         "|---|---|---|---|---|---|---|---|---|",
     ]
     for r in profile.registers:
-        scale = f"{r.scale:g}" + (f" {r.offset:+g}" if r.offset else "")
         cells = [
             f"`{r.name}`",
             r.table,
             f"0x{r.address:04X}",
             _kind(r),
-            scale,
+            _scale(r),
             r.unit,
             r.access,
             _range(r),

@@ -10,6 +10,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from test_cli import ok, run
 from test_profile_parse import big_profile
 
 import benchbus as bb
@@ -716,3 +717,155 @@ def test_write_multiple_cannot_go_with_a_count_echo(tmp_path: Path) -> None:
         bb.Profile(path)
     with pytest.raises(ValueError, match="write_echo 'count' is for 0x06"):
         ProfileDevice(path)
+
+
+DECIMALS = """
+[device]
+name = "controller"
+
+[[register]]
+name = "pv"
+address = 0x10
+table = "input"
+type = "i16"
+decimals = "dp"
+default = 253
+
+[[register]]
+name = "dp"
+address = 0x11
+table = "input"
+min = 0
+max = 3
+default = 1
+
+[[register]]
+name = "sp"
+address = 0x20
+type = "i16"
+access = "rw"
+min = -1999
+max = 9999
+decimals = "dp"
+default = 1000
+"""
+
+
+@pytest.fixture
+def decimals(tmp_path: Path) -> Iterator[Rig]:
+    """A controller whose PV and SP take their decimal places from ``dp``."""
+    path = tmp_path / "controller.toml"
+    path.write_text(DECIMALS)
+    yield from rig(path)
+
+
+def test_decimals_read_with_the_places_their_register_gives(decimals: Rig) -> None:
+    sim, dev, model = decimals
+    assert dev.profile["pv"].decimals == "dp" and dev.profile["pv"].integer_range() is None
+    before = len(sim.requests)
+    assert dev.pv == 25.3 and dev.sp == 100.0
+    # PV with its places in one request (neighbours); SP with dp in another.
+    assert sent_by(sim, before) == [
+        frame(0x04, 0x00, 0x10, 0x00, 0x02),
+        frame(0x03, 0x00, 0x20, 0x00, 0x01),
+        frame(0x04, 0x00, 0x11, 0x00, 0x01),
+    ]
+    for places, pv in ((0, 253), (2, 2.53), (3, 0.253)):
+        model.input_registers[0x11] = places
+        assert dev.pv == pv and model.value("pv") == pv
+    model.input_registers[0x10] = 0xFFFF - 1998  # -1999 digits at 3 places
+    assert dev.read_many(["pv", "dp"]) == {"pv": -1.999, "dp": 3}
+
+
+def test_decimals_are_read_before_a_write_is_checked_at_them(decimals: Rig) -> None:
+    sim, dev, model = decimals
+    before = len(sim.requests)
+    dev.sp = 30.5
+    assert sent_by(sim, before) == [
+        frame(0x04, 0x00, 0x11, 0x00, 0x01),
+        frame(0x06, 0x00, 0x20, 0x01, 0x31),  # 305 digits
+    ]
+    assert model.registers[0x20] == 305 and model.value("sp") == 30.5
+    for bad, said in ((30.55, "steps"), (1000.0, "999.9")):
+        before = len(sim.requests)
+        with pytest.raises(ValueError, match=said):
+            dev.sp = bad
+        assert sent_by(sim, before) == [frame(0x04, 0x00, 0x11, 0x00, 0x01)]  # no write
+    model.input_registers[0x11] = 0
+    dev.sp = 1000
+    assert model.registers[0x20] == 1000
+    # Checks that need no places are made before anything is sent.
+    before = len(sim.requests)
+    with pytest.raises(TypeError):
+        dev.sp = "hot"
+    with pytest.raises(ValueError, match="read-only"):
+        dev.pv = 1.0
+    assert sent_by(sim, before) == []
+    dev.profile.check("sp", 30.55)  # its steps wait for its places
+    with pytest.raises(TypeError):
+        dev.profile.check("sp", "hot")
+
+
+def test_places_no_count_of_places_reads_as_a_state_error(decimals: Rig) -> None:
+    _, dev, model = decimals
+    model.input_registers[0x11] = 12
+    with pytest.raises(bb.StateError, match=r"pv's decimal places \(dp\) read .*12.*not 0..9"):
+        dev.read("pv")
+    with pytest.raises(bb.StateError):
+        dev.sp = 1.0
+    assert model.registers[0x20] == 1000
+
+
+def test_decimals_round_trip_and_show(tmp_path: Path) -> None:
+    profile = bb.Profile.parse(DECIMALS, "c.toml")
+    again = bb.Profile.parse(profile.to_toml())
+    assert again["sp"].decimals == "dp" and again["sp"] == profile["sp"]._replace(
+        line=again["sp"].line
+    )
+    (tmp_path / "c.toml").write_text(DECIMALS)
+    shown = ok(run("profile", "check", tmp_path / "c.toml"))
+    assert any(line.split()[:5] == ["sp", "holding", "0x0020", "i16", "10^-dp"] for line in shown)
+
+
+@pytest.mark.parametrize(
+    ("change", "key", "said"),
+    [
+        (
+            ('decimals = "dp"\ndefault = 253', 'decimals = "nope"\ndefault = 253'),
+            "register[0].decimals",
+            "no register",
+        ),
+        (
+            ('decimals = "dp"\ndefault = 253', 'decimals = "pv"\ndefault = 253'),
+            "register[0].decimals",
+            "another register",
+        ),
+        (("min = 0\nmax = 3\n", ""), "register[0].decimals", "within 0..9"),
+        (
+            ('type = "i16"\ndecimals = "dp"\ndefault = 253', 'type = "f32"\ndecimals = "dp"'),
+            "register[0].decimals",
+            "integer",
+        ),
+        (
+            (
+                'type = "i16"\ndecimals = "dp"\ndefault = 253',
+                'type = "i16"\nscale = 0.1\ndecimals = "dp"',
+            ),
+            "register[0].decimals",
+            "scale",
+        ),
+        (
+            ('table = "input"\nmin = 0', 'access = "w"\nmin = 0'),
+            "register[0].decimals",
+            "write-only",
+        ),
+    ],
+)
+def test_a_misused_decimals_is_a_profile_error(
+    change: tuple[str, str], key: str, said: str
+) -> None:
+    old, new = change
+    assert old in DECIMALS
+    with pytest.raises(bb.ProfileError, match=said) as refused:
+        bb.Profile.parse(DECIMALS.replace(old, new, 1), "c.toml")
+    assert refused.value.key == key

@@ -98,6 +98,7 @@ def test_the_example_parses(tmp_path: Path) -> None:
         "models": (),
         "ranges": {},
         "bits": None,
+        "decimals": None,
     }
     assert mode.address == 0x0101
     assert mode.table == "holding"

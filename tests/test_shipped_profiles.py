@@ -104,6 +104,12 @@ def test_each_reads_says_where_it_comes_from_and_round_trips(name: str) -> None:
     # Served over EPICS as it is: every record's name fits, under a prefix of 12.
     records, _ = pvs("LAB:BENCH01:", profile)
     assert records and all(len(pv.name) <= PV_NAME_MAX for pv in records)
+    for pv in records:  # a value whose places change: the most of them, no display limits
+        row = profile[pv.register] if pv.register else None
+        if row is not None and row.decimals is not None:
+            places = profile[row.decimals]
+            most = max(places.enum) if places.enum else places.max
+            assert pv.fields["PREC"] == most and "LOPR" not in pv.fields, pv
 
 
 @pytest.mark.parametrize("name", SHIPPED)
@@ -121,6 +127,8 @@ def test_each_has_worked_values_of_every_kind_it_holds(name: str) -> None:
         )
         assert len(case["words"]) == (1 if row.table in ("coil", "discrete") else width), case
         assert case["why"]
+        # A register with decimals is worked at the places its decimals register gives.
+        assert ("decimals_words" in case) == (row.decimals is not None), case
         # Words that a wrong order or a missed register would read the same cannot judge.
         assert any(case["words"]), case
         if len(case["words"]) > 1:
@@ -141,28 +149,39 @@ def test_each_has_worked_values_of_every_kind_it_holds(name: str) -> None:
         assert any(r.type in FLOATS for r in rows), f"{name}: no float worked"
 
 
-def rounds(worked: list[dict[str, Any]]) -> list[list[dict[str, Any]]]:
+def held(case: dict[str, Any], profile: bb.Profile) -> dict[tuple[str, int], int]:
+    """The words a case puts on the server, by (table, address): its register's, and for a
+    register with ``decimals`` the words of the register giving its places."""
+    words = {(case["table"], case["address"] + i): w for i, w in enumerate(case["words"])}
+    row = profile[case["register"]]
+    if row.decimals is not None:
+        places = profile[row.decimals]
+        for i, w in enumerate(case["decimals_words"]):
+            words[(places.table, places.address + i)] = w
+    return words
+
+
+def rounds(worked: list[dict[str, Any]], profile: bb.Profile) -> list[list[dict[str, Any]]]:
     """``worked`` in rounds whose cases hold no address twice (two cases may work one
     register's two values)."""
     found: list[tuple[set[tuple[str, int]], list[dict[str, Any]]]] = []
     for case in worked:
-        held = {(case["table"], case["address"] + i) for i in range(len(case["words"]))}
-        free = next((r for r in found if not r[0] & held), None)
+        its = set(held(case, profile))
+        free = next((r for r in found if not r[0] & its), None)
         if free is None:
             free = (set(), [])
             found.append(free)
-        free[0].update(held)
+        free[0].update(its)
         free[1].append(case)
     return [r[1] for r in found]
 
 
-def tables(worked: list[dict[str, Any]]) -> dict[str, list[int]]:
+def tables(worked: list[dict[str, Any]], profile: bb.Profile) -> dict[str, list[int]]:
     """A unit's four tables holding the worked words (0 elsewhere)."""
     made = {t: [0] * 65536 for t in ("coil", "discrete", "holding", "input")}
     for case in worked:
-        words = made[case["table"]]
-        for i, word in enumerate(case["words"]):
-            words[case["address"] + i] = word
+        for (table, address), word in held(case, profile).items():
+            made[table][address] = word
     return made
 
 
@@ -170,9 +189,9 @@ def tables(worked: list[dict[str, Any]]) -> dict[str, list[int]]:
 def test_the_worked_values_read_from_a_third_party_server(name: str) -> None:
     profile = bb.Profile(name)
     ascii = profile.line.framing == "ascii"
-    for worked in rounds(cases(name)):
+    for worked in rounds(cases(name), profile):
         with (
-            pymodbus_server(True, ascii=ascii, tables=tables(worked)) as url,
+            pymodbus_server(True, ascii=ascii, tables=tables(worked, profile)) as url,
             bb.Device.from_profile(name, url, unit=1, retries=0) as device,
         ):
             for case in worked:

@@ -137,12 +137,15 @@ class ProfileRegister(NamedTuple):
     #: A field of the register's bits ``(first, last)``, an unsigned number (``bits``), or
     #: None for the whole word.
     bits: tuple[int, int] | None = None
+    #: The register whose value is this one's number of decimal places (engineering value
+    #: = raw / 10^places; ``min`` / ``max`` are then in the raw digits), or None.
+    decimals: str | None = None
 
     def integer_range(self) -> tuple[int, int] | None:
         """The exact range of an unscaled integer register's type (its engineering values
-        are then whole numbers), or of its field of bits; None for a float, a scaled value,
-        a bool or a string."""
-        if self.scale != 1.0 or self.offset != 0.0:
+        are then whole numbers), or of its field of bits; None for a float, a scaled value
+        (also one scaled by its ``decimals``), a bool or a string."""
+        if self.scale != 1.0 or self.offset != 0.0 or self.decimals is not None:
             return None
         if self.bits is not None:
             first, last = self.bits

@@ -260,10 +260,21 @@ def _whole_type(register: ProfileRegister, low: float, high: float) -> bool:
     return whole is not None and (float(low), float(high)) == (float(whole[0]), float(whole[1]))
 
 
-def _numeric(register: ProfileRegister, egu: str) -> tuple[str, dict[str, Any]]:
+def _places(register: ProfileRegister, profile: Profile) -> int:
+    """The most decimal places a register with ``decimals`` may read with: the most its
+    places register holds (9 at most)."""
+    given = profile[str(register.decimals)]
+    most = max(given.enum) if given.enum else given.max
+    return min(int(most if most is not None else 9), 9)
+
+
+def _numeric(register: ProfileRegister, egu: str, profile: Profile) -> tuple[str, dict[str, Any]]:
     """The record kind of a number register and its fields (units, display limits, the
-    precision its scale asks for)."""
+    precision its scale asks for; for a register with ``decimals``, the most places it may
+    read with, and no display limits: its range is in digits whose places change)."""
     fields: dict[str, Any] = {"EGU": egu}
+    if register.decimals is not None:
+        return "a", {**fields, "PREC": _places(register, profile)}
     whole = register.integer_range()
     low, high = register.min, register.max
     if low is not None and high is not None and not _whole_type(register, low, high):
@@ -282,7 +293,9 @@ def _numeric(register: ProfileRegister, egu: str) -> tuple[str, dict[str, Any]]:
     return "a", {**fields, "PREC": places}
 
 
-def _kinds(register: ProfileRegister, warnings: list[str]) -> tuple[str, dict[str, Any]]:
+def _kinds(
+    register: ProfileRegister, warnings: list[str], profile: Profile
+) -> tuple[str, dict[str, Any]]:
     """The record kind (the builder's name without ``In`` / ``Out``) of a register and the
     fields both its records share."""
     fields: dict[str, Any] = {}
@@ -299,7 +312,7 @@ def _kinds(register: ProfileRegister, warnings: list[str]) -> tuple[str, dict[st
     if register.enum and len(register.enum) <= MBB_STATES:
         return "mbb", fields
     egu = _shortened(register.unit, EGU_MAX, f"{register.name}: unit", warnings)
-    kind, numeric = _numeric(register, egu)
+    kind, numeric = _numeric(register, egu, profile)
     return kind, {**fields, **numeric}
 
 
@@ -324,7 +337,7 @@ def pvs(
     for register in profile.registers:
         readable = register.access != "w"
         writable = register.access != "r"
-        kind, fields = _kinds(register, warnings)
+        kind, fields = _kinds(register, warnings, profile)
         states: tuple[str, ...] = ()
         numbers: tuple[int, ...] = ()
         if kind == "mbb":

@@ -325,6 +325,7 @@ if _MISSING is None:
                 and register.access != "r"
                 and register.min is not None
                 and register.max is not None
+                and register.decimals is None  # its range is in digits whose places change
             ):
                 metadata["limits"] = Limits(control={"low": register.min, "high": register.max})
             if kind is float and 0 < register.scale < 1:

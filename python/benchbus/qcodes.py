@@ -102,7 +102,9 @@ if _MISSING is None:
         """The QCoDeS validator of a register: ``Bool`` for a bool, ``Strings`` (at most two
         characters a register) for a string, :class:`Members` for an enum, ``Ints`` for an
         unscaled integer and ``Numbers`` for a float or a scaled value, over the register's
-        ``min`` / ``max`` (its type's range where the profile gives none)."""
+        ``min`` / ``max`` (its type's range where the profile gives none; for a register
+        with ``decimals``, its digits' range, the widest its places allow: the device
+        checks the rest when it is written)."""
         if register.type == "bool":
             return vals.Bool()
         if register.type == "string":

@@ -194,6 +194,9 @@ fn register(out: &mut String, r: &ProfileRegister) {
     if r.offset != 0.0 {
         let _ = writeln!(out, "offset = {}", number(r.offset));
     }
+    if let Some(name) = &r.decimals {
+        let _ = writeln!(out, "decimals = {}", quote(name));
+    }
     if !reg.unit.is_empty() {
         let _ = writeln!(out, "unit = {}", quote(&reg.unit));
     }

@@ -136,6 +136,10 @@ pub struct ProfileRegister {
     /// A field of a register's bits, `(first, last)` (`bits`): an unsigned number of
     /// `last - first + 1` bits (a status word's mode or source), None for the whole word.
     pub bits: Option<(u8, u8)>,
+    /// The register whose value is the number of decimal places of this one (`decimals`:
+    /// a controller's decimal point): engineering value = raw / 10^that, its range in the
+    /// raw digits; None for a fixed scale.
+    pub decimals: Option<String>,
 }
 
 /// How the device's own line is set up (each None: the caller's default).
@@ -544,6 +548,7 @@ const REGISTER_KEYS: &[&str] = &[
     "length",
     "models",
     "ranges",
+    "decimals",
 ];
 
 impl Profile {
@@ -747,6 +752,7 @@ impl Profile {
         };
         profile.check_widths(path)?;
         profile.check_models(path)?;
+        profile.check_decimals(path)?;
         Ok(profile)
     }
 
@@ -772,6 +778,48 @@ impl Profile {
             }
         }
         Ok(())
+    }
+
+    /// Refuses a `decimals` naming no register of the profile, itself, a write-only one,
+    /// one that is not an unscaled integer, one with decimals of its own, or one whose
+    /// range reaches past 0..9 places.
+    fn check_decimals(&self, path: &str) -> Parsed<()> {
+        for (index, r) in self.registers.iter().enumerate() {
+            let Some(name) = &r.decimals else { continue };
+            let given = self.registers.iter().find(|g| g.register.name == *name);
+            let refusal = match given {
+                None => Some(format!("no register {name:?} in the file")),
+                Some(g) if g.register.name == r.register.name => {
+                    Some("a register's decimals are another register's value".to_string())
+                }
+                Some(g) if g.register.access == Access::Write => {
+                    Some(format!("{name} is write-only: its value cannot be read"))
+                }
+                Some(g) if !g.is_count() || g.decimals.is_some() => Some(format!(
+                    "{name} must be an unscaled integer without decimals of its own"
+                )),
+                Some(g) if !g.places_only() => Some(format!(
+                    "{name} may hold {}..{}: give it min and max within 0..9 places (or an \
+                     enum of 0..9)",
+                    g.register.range.0, g.register.range.1
+                )),
+                Some(_) => None,
+            };
+            if let Some(message) = refusal {
+                return Err(Box::new(ProfileError {
+                    path: path.to_string(),
+                    line: r.line,
+                    key: format!("register[{index}].decimals"),
+                    message,
+                }));
+            }
+        }
+        Ok(())
+    }
+
+    /// The index of the register called `name`.
+    pub fn index_of(&self, name: &str) -> Option<usize> {
+        self.registers.iter().position(|r| r.register.name == name)
     }
 
     /// The profile of model `model` of `[device] models`, named after it: its registers
@@ -1150,6 +1198,7 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         None => range,
     };
     let default = default(s, value, (range, scale, offset), &members)?;
+    let decimals = decimals(s, kind, (scale, offset), &members, bits)?;
     Ok(ProfileRegister {
         register: Register {
             name: name.to_string(),
@@ -1171,7 +1220,40 @@ fn register(s: &Section<'_, '_, '_>) -> Parsed<ProfileRegister> {
         models: s.strings("models")?,
         ranges,
         bits,
+        decimals,
     })
+}
+
+/// `decimals`: the name of the register giving this one's decimal places; refused beside a
+/// scale, an offset, an enum or bits, or on another than a whole integer (the register it
+/// names is checked once every register is read, [`Profile::check_decimals`]).
+fn decimals(
+    s: &Section<'_, '_, '_>,
+    kind: Option<Kind>,
+    (scale, offset): (f64, f64),
+    members: &[(i128, String)],
+    bits: Option<(u8, u8)>,
+) -> Parsed<Option<String>> {
+    let Some(name) = s.string("decimals")? else {
+        return Ok(None);
+    };
+    let refusal = if kind.is_none_or(|k| k.is_float()) {
+        Some("an integer register's (u16, i16, u32, i32, u64, i64)")
+    } else if scale != 1.0 || offset != 0.0 {
+        Some("a register's without scale or offset: the decimals are its scale")
+    } else if !members.is_empty() || bits.is_some() {
+        Some("a whole number's, not an enum's nor a field of bits'")
+    } else {
+        None
+    };
+    match refusal {
+        Some(what) => Err(s.fail(
+            "decimals",
+            s.span_of("decimals"),
+            format!("decimal places are {what}"),
+        )),
+        None => Ok(Some(name.to_string())),
+    }
 }
 
 /// The largest number bits `first..=last` hold (all of them set), before the shift.

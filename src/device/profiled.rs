@@ -171,6 +171,77 @@ impl ProfileRegister {
         &self.register.name
     }
 
+    /// Whether it is an unscaled integer (a count, a code, a whole word or a field of
+    /// bits): what may give another register its decimal places.
+    pub fn is_count(&self) -> bool {
+        matches!(self.value, ValueType::Number(k) if !k.is_float())
+            && self.register.scale == 1.0
+            && self.offset == 0.0
+    }
+
+    /// Whether every value it may hold is a count of decimal places, 0..9: its range, or
+    /// the numbers of its enum.
+    pub fn places_only(&self) -> bool {
+        let (low, high) = self.register.range;
+        (low >= 0.0 && high <= 9.0)
+            || (!self.members.is_empty() && self.members.iter().all(|(n, _)| (0..=9).contains(n)))
+    }
+
+    /// The register as it reads with `places` decimal places (its `decimals` register's
+    /// value): its scale 10^-places, its range the raw digits' at that scale.
+    ///
+    /// # Errors
+    /// [`Error::State`] (`unit` said) for more than 9 places or fewer than 0: the value
+    /// read for them is no count of places, and nothing is read or written on it.
+    pub fn at_places(&self, places: &ProfileValue, unit: u8) -> Result<ProfileRegister> {
+        let n = match places {
+            ProfileValue::Int(n) if (0..=9).contains(n) => *n as i32,
+            other => {
+                return Err(Error::State {
+                    unit,
+                    message: format!(
+                        "{}'s decimal places ({}) read {other:?}, not 0..9: its value is not \
+                         trusted",
+                        self.name(),
+                        self.decimals.as_deref().unwrap_or("?")
+                    ),
+                })
+            }
+        };
+        let scale = 10f64.powi(-n);
+        let mut view = self.clone();
+        view.register.scale = scale;
+        let (low, high) = self.register.range;
+        view.register.range = (low * scale, high * scale);
+        view.decimals = None;
+        Ok(view)
+    }
+
+    /// The checks of a write that can be made before anything is read: all of
+    /// [`encode`](Self::encode)'s, or for a register with `decimals` (whose range and steps
+    /// wait for its places) its access and the kind of value.
+    ///
+    /// # Errors
+    /// As [`encode`](Self::encode).
+    pub fn precheck(&self, value: &ProfileValue) -> Result<()> {
+        if self.decimals.is_none() {
+            return self.encode(value).map(|_| ());
+        }
+        if self.register.access == Access::Read {
+            return Err(Error::InvalidArgument(format!(
+                "{} is read-only",
+                self.name()
+            )));
+        }
+        match value {
+            ProfileValue::Int(_) | ProfileValue::Float(_) => Ok(()),
+            other => Err(Error::InvalidArgument(format!(
+                "{} takes a number, not {other:?}",
+                self.name()
+            ))),
+        }
+    }
+
     /// The bits of its register it is, `(first, last)`: a bool's `bit`, a field's `bits`;
     /// None for whole words.
     pub fn part_of_word(&self) -> Option<(u8, u8)> {
@@ -482,9 +553,51 @@ impl ProfiledDevice {
                 )));
             }
         }
-        read_planned(&self.station, &self.profile, indices, |b| {
+        // A register with decimals is read with the register giving them, in one request
+        // where the profile allows.
+        let mut wanted = indices.to_vec();
+        for i in indices {
+            if let Some(at) = self.places_of(*i)? {
+                if !wanted.contains(&at) {
+                    wanted.push(at);
+                }
+            }
+        }
+        let read = read_planned(&self.station, &self.profile, &wanted, |b| {
             read_block(&self.station, b)
-        })
+        })?;
+        indices
+            .iter()
+            .zip(&read)
+            .map(|(i, value)| match self.places_of(*i)? {
+                None => Ok(value.clone()),
+                Some(at) => {
+                    let places = wanted
+                        .iter()
+                        .position(|w| *w == at)
+                        .and_then(|p| read.get(p))
+                        .ok_or_else(|| Error::InvalidArgument(format!("no register {at}")))?;
+                    let view = self.register(*i)?.at_places(places, self.station.unit())?;
+                    match value {
+                        ProfileValue::Int(raw) => Ok(view.engineering(Number::Int(*raw))),
+                        other => Ok(other.clone()),
+                    }
+                }
+            })
+            .collect()
+    }
+
+    /// The index of the register giving register `index` its decimal places, if it has
+    /// `decimals`.
+    fn places_of(&self, index: usize) -> Result<Option<usize>> {
+        match &self.register(index)?.decimals {
+            None => Ok(None),
+            Some(name) => self
+                .profile
+                .index_of(name)
+                .map(Some)
+                .ok_or_else(|| Error::InvalidArgument(format!("no register {name:?}"))),
+        }
     }
 
     /// Writes `values` (register index, value) in order, each as [`write`](Self::write)
@@ -494,7 +607,7 @@ impl ProfiledDevice {
     /// As [`write`](Self::write); a failure stops the sequence (the earlier writes stay).
     pub fn write_many(&self, values: &[(usize, ProfileValue)]) -> Result<()> {
         for (index, value) in values {
-            self.register(*index)?.encode(value)?;
+            self.register(*index)?.precheck(value)?;
         }
         values
             .iter()
@@ -503,13 +616,30 @@ impl ProfiledDevice {
 
     /// Writes `value` to the register at `index`, every check made before anything is
     /// sent; a bit or a field of bits of a holding register is read, changed and written
-    /// back as one sequence.
+    /// back as one sequence, and so is a register with `decimals`: its places read, then
+    /// the value checked and encoded at them, then written.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for a read-only register or a value it cannot take
     /// (nothing sent); any [`Error`] of a request.
     pub fn write(&self, index: usize, value: &ProfileValue) -> Result<()> {
         let r = self.register(index)?;
+        if let Some(at) = self.places_of(index)? {
+            // Its places first, then every check at them, then the write: one sequence.
+            r.precheck(value)?;
+            return self.station.exclusive(|| {
+                let places = self.read(&[at])?;
+                let first = places.first().ok_or_else(|| self.station.short_reply())?;
+                let view = r.at_places(first, self.station.unit())?;
+                self.write_encoded(&view, value)
+            });
+        }
+        self.write_encoded(r, value)
+    }
+
+    /// Writes `value` to `r` (the profile's register, or its view at its decimal places),
+    /// every check made before anything is sent.
+    fn write_encoded(&self, r: &ProfileRegister, value: &ProfileValue) -> Result<()> {
         let address = r.register.address;
         match r.encode(value)? {
             Encoded::Coil(on) => self.station.write_coil(address, on),

@@ -238,6 +238,7 @@ impl PyProfile {
         }
         kwargs.set_item(intern!(py, "ranges"), ranges)?;
         kwargs.set_item(intern!(py, "bits"), r.bits)?;
+        kwargs.set_item(intern!(py, "decimals"), r.decimals.as_deref())?;
         row_type.call((), Some(&kwargs))
     }
 }
@@ -494,14 +495,13 @@ impl PyProfile {
     /// ValueError for no such register, a read-only one, a value out of range, off the
     /// scale's steps, not a member or more than the type holds; TypeError for a value of
     /// the wrong kind. A family's rules that ask the device (a drive's registers that take
-    /// writes only while stopped, the J2's SV within LSP..USP) are checked when writing.
+    /// writes only while stopped, the J2's SV within LSP..USP) and the range and steps of
+    /// a register with ``decimals`` (known once its places are read) are checked when
+    /// writing.
     fn check(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let (index, value) = self.value_for(name, value)?;
         match self.profile.registers.get(index) {
-            Some(register) => register
-                .encode(&value)
-                .map(|_| ())
-                .map_err(|e| to_pyerr(py, e)),
+            Some(register) => register.precheck(&value).map_err(|e| to_pyerr(py, e)),
             None => Err(PyValueError::new_err(format!("no register {name:?}"))),
         }
     }

@@ -28,6 +28,13 @@ def _range(row: ProfileRegister) -> str:
     return f"{'' if low is None else f'{low:g}'}..{'' if high is None else f'{high:g}'}"
 
 
+def _scale(row: ProfileRegister) -> str:
+    """The register's scale (and offset), or the register its decimal places come from."""
+    if row.decimals is not None:
+        return f"10^-{row.decimals}"
+    return f"{row.scale:g}" + (f" {row.offset:+g}" if row.offset else "")
+
+
 def _kind(row: ProfileRegister) -> str:
     """The register's type, with its bit, bits, length or order where it has one."""
     if row.bit is not None:
@@ -69,7 +76,7 @@ def check(path: str, profile: Profile | None = None) -> int:
             row.table,
             f"0x{row.address:04X}",
             _kind(row),
-            f"{row.scale:g}" + (f" {row.offset:+g}" if row.offset else ""),
+            _scale(row),
             row.unit,
             row.access,
             _range(row),

@@ -58,6 +58,7 @@ _REGISTER_KEYS = {
     "default",
     "models",
     "ranges",
+    "decimals",
 }
 _TABLES = ("holding", "input", "coil", "discrete")
 _BIT_TABLES = ("coil", "discrete")
@@ -98,6 +99,8 @@ class _Register:
     description: str
     #: A field of the register's bits, (first, last), or None.
     bits: tuple[int, int] | None = None
+    #: The register whose value is this one's number of decimal places, or None.
+    decimals: str | None = None
 
     @property
     def width(self) -> int:
@@ -219,6 +222,13 @@ class ProfileDevice(RegisterDevice):
         for i, row in enumerate(rows):
             _check_models(self.path, i, row, self.models)
         regs = [_register(self.path, i, row) for i, row in enumerate(rows)]
+        names = {reg.name: reg for reg in regs}
+        for reg in regs:
+            places = names.get(str(reg.decimals)) if reg.decimals is not None else None
+            if reg.decimals is not None and (
+                places is None or places is reg or places.access == "w" or places.decimals
+            ):
+                raise ValueError(f"{self.path}: {reg.name}'s decimals name no other register")
         self._regs: dict[str, _Register] = {}
         self._at: dict[str, dict[int, list[_Register]]] = {t: {} for t in _TABLES}
         for reg in regs:
@@ -262,7 +272,10 @@ class ProfileDevice(RegisterDevice):
             if "default" in row:
                 reg = regs[i]
                 try:
-                    self.set_value(reg.name, row["default"])
+                    if reg.decimals is not None:  # in the device's digits, as min / max
+                        self._put_words(reg, row["default"])
+                    else:
+                        self.set_value(reg.name, row["default"])
                 except (TypeError, ValueError) as e:
                     raise ValueError(f"{self.path}: register {reg.name!r}: default: {e}") from e
         for name, value in (values or {}).items():
@@ -311,18 +324,43 @@ class ProfileDevice(RegisterDevice):
         reg = self._reg(name)
         if reg.table in _BIT_TABLES:
             return self._bits(reg.table)[reg.address]
-        return _decode(reg, self._table_words(reg.table)[reg.address : reg.address + reg.width])
+        raw = _decode(reg, self._table_words(reg.table)[reg.address : reg.address + reg.width])
+        if reg.decimals is None:
+            return raw
+        return float(raw) / math.pow(10, self._places(reg))
+
+    def _places(self, reg: _Register) -> int:
+        """The decimal places of ``reg``: the value its ``decimals`` register holds now."""
+        given = self._reg(str(reg.decimals))
+        places = self.value(given.name)
+        if isinstance(places, str) and given.enum:  # an enum's member: its number
+            places = next((n for n, m in given.enum.items() if m == places), places)
+        if isinstance(places, bool) or not isinstance(places, int) or not 0 <= places <= 9:
+            raise ValueError(f"{reg.decimals} holds {places!r}, not 0..9 decimal places")
+        return places
 
     def set_value(self, name: str, value: Value) -> None:
         """Set register ``name`` to an engineering value (whatever its access), as the
         device itself would. ValueError if it does not fit the type, its ``min`` / ``max``
-        or its ``enum``; TypeError for a value of the wrong kind."""
+        or its ``enum``; TypeError for a value of the wrong kind. A register with
+        ``decimals`` is set at the places its decimals register holds now (set that one
+        first), its ``default`` being the device's digits."""
         reg = self._reg(name)
         if reg.table in _BIT_TABLES:
             if not isinstance(value, bool):
                 raise TypeError(f"{name} is True or False, not {value!r}")
             self._bits(reg.table)[reg.address] = value
             return
+        if reg.decimals is not None and _number(value) and not isinstance(value, bool):
+            # In the device's digits at its decimal places now: 25.3 at one place is 253.
+            digits = float(value) * 10 ** self._places(reg)
+            if not math.isclose(digits, round(digits), abs_tol=1e-6):
+                raise ValueError(f"{name} takes {self._places(reg)} decimal places, not {value!r}")
+            value = round(digits)
+        self._put_words(reg, value)
+
+    def _put_words(self, reg: _Register, value: Value) -> None:
+        """Put ``value`` (as the register's words encode it) in ``reg``'s words."""
         words = self._table_words(reg.table)
         current = words[reg.address : reg.address + reg.width]
         words[reg.address : reg.address + reg.width] = _encode(reg, value, current)
@@ -591,6 +629,16 @@ def _register(path: str, index: int, row: dict[str, Any]) -> _Register:
     description = row.get("description", "")
     if not isinstance(unit, str) or not isinstance(description, str):
         raise fail("unit and description are strings")
+    decimals = row.get("decimals")
+    if decimals is not None and (
+        not isinstance(decimals, str)
+        or kind not in ("u16", "i16", "u32", "i32", "u64", "i64")
+        or scale != 1
+        or offset != 0
+        or members is not None
+        or bits is not None
+    ):
+        raise fail("decimals names a register, on a whole integer without scale, enum or bits")
     return _Register(
         name=name,
         address=address,
@@ -608,6 +656,7 @@ def _register(path: str, index: int, row: dict[str, Any]) -> _Register:
         bits=bits,
         length=length or 0,
         description=description,
+        decimals=decimals,
     )
 
 
