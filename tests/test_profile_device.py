@@ -748,6 +748,12 @@ min = -1999
 max = 9999
 decimals = "dp"
 default = 1000
+
+[[register]]
+name = "mode"
+address = 0x21
+access = "rw"
+max = 9
 """
 
 
@@ -773,6 +779,11 @@ def test_decimals_read_with_the_places_their_register_gives(decimals: Rig) -> No
     for places, pv in ((0, 253), (2, 2.53), (3, 0.253)):
         model.input_registers[0x11] = places
         assert dev.pv == pv and model.value("pv") == pv
+        assert isinstance(dev.pv, float)  # whatever the places: a value's type stays
+    assert dev.profile.plan(["pv", "sp"]) == [
+        ("holding", 0x20, 1, ["sp"]),
+        ("input", 0x10, 2, ["pv", "dp"]),
+    ]
     model.input_registers[0x10] = 0xFFFF - 1998  # -1999 digits at 3 places
     assert dev.read_many(["pv", "dp"]) == {"pv": -1.999, "dp": 3}
 
@@ -804,6 +815,40 @@ def test_decimals_are_read_before_a_write_is_checked_at_them(decimals: Rig) -> N
     dev.profile.check("sp", 30.55)  # its steps wait for its places
     with pytest.raises(TypeError):
         dev.profile.check("sp", "hot")
+    # What no places can take is refused before anything is sent, the read of them too.
+    for bad in (float("nan"), 1e12, -2000.0):
+        with pytest.raises(ValueError, match="-1999 to 9999"):
+            dev.sp = bad
+        with pytest.raises(ValueError):
+            dev.profile.check("sp", bad)
+    assert sent_by(sim, before) == []
+
+
+def test_set_many_checks_every_value_at_its_places_before_writing_any(decimals: Rig) -> None:
+    sim, dev, model = decimals
+    before = len(sim.requests)
+    with pytest.raises(ValueError, match="steps"):
+        dev.set_many({"mode": 3, "sp": 30.55})
+    assert sent_by(sim, before) == [frame(0x04, 0x00, 0x11, 0x00, 0x01)]  # no write
+    assert model.registers[0x21] == 0
+    dev.set_many([("mode", 3), ("sp", 30.5)])
+    assert (model.value("mode"), model.value("sp")) == (3, 30.5)
+
+
+def test_a_sequence_that_writes_the_places_writes_the_values_after_at_them(
+    tmp_path: Path,
+) -> None:
+    path = tmp_path / "settable.toml"
+    path.write_text(
+        DECIMALS.replace('table = "input"\nmin = 0', 'access = "rw"\nmin = 0').replace(
+            "address = 0x11", "address = 0x22"
+        )
+    )
+    for rig_ in rig(path):
+        _, dev, model = rig_
+        dev.set_many([("dp", 2), ("sp", 30.55)])  # 3055 digits at the 2 places just written
+        assert model.registers[0x22] == 2 and model.registers[0x20] == 3055
+        assert dev.sp == 30.55
 
 
 def test_places_no_count_of_places_reads_as_a_state_error(decimals: Rig) -> None:
@@ -859,6 +904,17 @@ def test_decimals_round_trip_and_show(tmp_path: Path) -> None:
             "register[0].decimals",
             "write-only",
         ),
+        (
+            ('type = "i16"\ndecimals = "dp"\ndefault = 253', 'type = "bool"\ndecimals = "dp"'),
+            "",
+            "integer",
+        ),
+        (
+            ('decimals = "dp"\ndefault = 253', 'enum = { 1 = "a" }\ndecimals = "dp"'),
+            "",
+            "enum",
+        ),
+        (('table = "input"\nmin = 0', 'table = "input"\nscale = 0.5\nmin = 0'), "", "unscaled"),
     ],
 )
 def test_a_misused_decimals_is_a_profile_error(
@@ -868,4 +924,17 @@ def test_a_misused_decimals_is_a_profile_error(
     assert old in DECIMALS
     with pytest.raises(bb.ProfileError, match=said) as refused:
         bb.Profile.parse(DECIMALS.replace(old, new, 1), "c.toml")
-    assert refused.value.key == key
+    assert refused.value.key == (key or "register[0].decimals")
+
+
+def test_a_places_register_is_on_every_model_its_value_is_on() -> None:
+    models = DECIMALS.replace('name = "controller"', 'name = "c"\nmodels = ["A", "B"]')
+    only_a = models.replace("max = 3\ndefault = 1", 'max = 3\ndefault = 1\nmodels = ["A"]')
+    with pytest.raises(bb.ProfileError, match="not on every model") as refused:
+        bb.Profile.parse(only_a, "c.toml")
+    assert refused.value.key == "register[0].decimals"
+    ranged = models.replace(
+        "max = 3\ndefault = 1", "max = 3\ndefault = 1\nranges = { B = [0, 12] }"
+    )
+    with pytest.raises(bb.ProfileError, match=r"within 0\.\.9"):
+        bb.Profile.parse(ranged, "c.toml")

@@ -154,14 +154,17 @@ class DeviceMembers(BusDeviceMembers):
 
     async def set_many(self, values: Mapping[str, Any] | Iterable[tuple[str, Any]]) -> None:
         """Write ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each as
-        :meth:`write` does; every value is checked before the first is sent."""
+        :meth:`write` does; every value is checked before the first is sent (the decimal
+        places the values need read first)."""
 
     def units(self) -> dict[str, str]:
         """The unit of every register by name ("" for none)."""
 
     async def write(self, name: str, value: Any) -> None:
         """Write ``value`` (engineering units; an enum by member, name or number) to the
-        register ``name``, checked before anything is sent."""
+        register ``name``, checked before anything is sent (for a register with
+        ``decimals``: against the widest range its places allow, then at its places, read
+        first, before it is written)."""
 
 class DriveMembers(BusDeviceMembers):
     """The members of :class:`benchbus.aio.Drive`, for type checkers."""

@@ -1239,12 +1239,14 @@ class Profile:
         ValueError for no such register, a read-only one, a value out of range, off the
         scale's steps, not a member or more than the type holds; TypeError for a value of
         the wrong kind. A family's rules that ask the device (a drive's registers that take
-        writes only while stopped, the J2's SV within LSP..USP) and the range and steps of
-        a register with ``decimals`` (known once its places are read) are checked when
-        writing."""
+        writes only while stopped, the J2's SV within LSP..USP) are checked when writing;
+        a register with ``decimals`` is checked against the widest range its places allow,
+        and at its places (range, steps) when writing."""
     def plan(self, names: Sequence[str]) -> list[tuple[str, int, int, list[str]]]:
         """The requests that read the registers ``names`` (repeats once): ``(table, start,
-        count, names)`` each, tables apart, neighbours together where the limits allow."""
+        count, names)`` each, tables apart, neighbours together where the limits allow;
+        with the registers giving any of them their decimal places (``decimals``), read
+        with them."""
 
 @disjoint_base
 class ProfileCore(_Station):

@@ -261,7 +261,8 @@ class Device(ProfileCore, BusDevice):
     off its scale's steps or not an enum member, raises ValueError (TypeError for the wrong
     kind of value) before anything is sent. A ``bool`` that is one bit of a holding register
     is written by reading the register and writing it back with the bit changed, as one
-    sequence on the Bus.
+    sequence on the Bus; a register with ``decimals`` by reading its decimal places, then
+    checking the value at them (range, steps) and writing it, as one sequence.
 
     An enum register reads as a member of an ``IntEnum`` built from the profile (named
     after the register: ``mode`` gives ``Mode``, in :attr:`enums`); a value the profile does not
@@ -342,7 +343,9 @@ class Device(ProfileCore, BusDevice):
 
     def write(self, name: str, value: Any) -> None:
         """Write ``value`` (engineering units; an enum by member, name or number) to the
-        register ``name``, checked before anything is sent."""
+        register ``name``, checked before anything is sent (for a register with
+        ``decimals``: against the widest range its places allow, then at its places, read
+        first, before it is written)."""
         self._write(self._known(name), value)
 
     def get(self, name: str) -> Any:
@@ -359,7 +362,8 @@ class Device(ProfileCore, BusDevice):
 
     def set_many(self, values: Mapping[str, Any] | Iterable[tuple[str, Any]]) -> None:
         """Write ``values`` (``{name: value}`` or ``(name, value)`` pairs) in order, each as
-        :meth:`write` does; every value is checked before the first is sent."""
+        :meth:`write` does; every value is checked before the first is sent (the decimal
+        places the values need read first)."""
         self._write_many(values)
 
     def sample(self) -> dict[str, Any]:

@@ -378,6 +378,8 @@ if _MISSING is None:
                     raise ValueError(f"{where} takes a whole number, got {value}")
                 value = int(value)
             low, high = register.min, register.max
+            if register.decimals is not None:  # digits whose places change: the device's
+                low = high = None
             if (low is not None and value < low) or (high is not None and value > high):
                 raise ValueError(f"{where} must be {low:g} to {high:g}, got {value}")
             return value

@@ -102,9 +102,9 @@ if _MISSING is None:
         """The QCoDeS validator of a register: ``Bool`` for a bool, ``Strings`` (at most two
         characters a register) for a string, :class:`Members` for an enum, ``Ints`` for an
         unscaled integer and ``Numbers`` for a float or a scaled value, over the register's
-        ``min`` / ``max`` (its type's range where the profile gives none; for a register
-        with ``decimals``, its digits' range, the widest its places allow: the device
-        checks the rest when it is written)."""
+        ``min`` / ``max`` (its type's range where the profile gives none); any number for
+        a register with ``decimals``, whose range is in digits whose places change (the
+        write checks it at them)."""
         if register.type == "bool":
             return vals.Bool()
         if register.type == "string":
@@ -112,6 +112,8 @@ if _MISSING is None:
             return vals.Strings(max_length=2 * length) if length else vals.Strings()
         if register.enum:
             return Members(register.enum)
+        if register.decimals is not None:  # digits whose places change: checked at them
+            return vals.Numbers()
         low = -math.inf if register.min is None else register.min
         high = math.inf if register.max is None else register.max
         whole = register.integer_range()

@@ -72,6 +72,8 @@ mod tests {
             assert!(p.line.baudrate.is_some(), "{key}: its line is the file's");
             // A family's set writes whole words: its flags and fields are read-only.
             for r in &p.registers {
+                // Families read through their own tables, which know no decimal places.
+                assert!(r.decimals.is_none(), "{}", r.register.name);
                 let part = r.bits.is_some() || matches!(r.value, ValueType::Bool { .. });
                 assert!(
                     !part || r.register.access == Access::Read,

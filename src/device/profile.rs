@@ -4,6 +4,7 @@
 //! device's request limits). [`Profile::parse`] checks everything before any port is
 //! opened; every mistake is a [`ProfileError`] naming the file, the line and the key.
 
+use super::instrument::MAX_DECIMALS;
 use super::value::{Kind, Layout};
 use super::{Access, Register, Table};
 use crate::codec::Echo;
@@ -799,10 +800,20 @@ impl Profile {
                     "{name} must be an unscaled integer without decimals of its own"
                 )),
                 Some(g) if !g.places_only() => Some(format!(
-                    "{name} may hold {}..{}: give it min and max within 0..9 places (or an \
-                     enum of 0..9)",
+                    "{name} may hold {}..{} (on some model): give it min and max within \
+                     0..{MAX_DECIMALS} places (or an enum of them)",
                     g.register.range.0, g.register.range.1
                 )),
+                Some(g)
+                    if !g.models.is_empty()
+                        && (r.models.is_empty()
+                            || r.models.iter().any(|m| !g.models.contains(m))) =>
+                {
+                    Some(format!(
+                        "{name} is not on every model {} is on",
+                        r.register.name
+                    ))
+                }
                 Some(_) => None,
             };
             if let Some(message) = refusal {
@@ -815,11 +826,6 @@ impl Profile {
             }
         }
         Ok(())
-    }
-
-    /// The index of the register called `name`.
-    pub fn index_of(&self, name: &str) -> Option<usize> {
-        self.registers.iter().position(|r| r.register.name == name)
     }
 
     /// The profile of model `model` of `[device] models`, named after it: its registers

@@ -2,6 +2,7 @@
 //! profile's limits allow, and written in engineering units after every check, on a
 //! [`Station`] like the built-in families.
 
+use super::instrument::MAX_DECIMALS;
 use super::on_station;
 use super::profile::{field_top, Profile, ProfileRegister, ProfileValue, ValueType};
 use super::value::Number;
@@ -39,6 +40,69 @@ impl Profile {
     /// many names, map them once).
     pub fn index(&self, name: &str) -> Option<usize> {
         self.registers.iter().position(|r| r.register.name == name)
+    }
+
+    /// The index of the register giving register `index` its decimal places (its
+    /// `decimals`), if it has one.
+    pub fn places_register(&self, index: usize) -> Option<usize> {
+        let name = self.registers.get(index)?.decimals.as_deref()?;
+        self.index(name)
+    }
+
+    /// `indices` and, after them, the registers giving any of them their decimal places
+    /// (each once): what reading them reads.
+    pub fn with_places(&self, indices: &[usize]) -> Vec<usize> {
+        let mut wanted = indices.to_vec();
+        for i in indices {
+            if let Some(at) = self.places_register(*i) {
+                if !wanted.contains(&at) {
+                    wanted.push(at);
+                }
+            }
+        }
+        wanted
+    }
+
+    /// The checks of a write of `value` to register `index` that can be made before
+    /// anything is read: all of [`ProfileRegister::encode`]'s, or for a register with
+    /// `decimals` its access, the kind of value, a finite number, and the widest range its
+    /// places allow (its digits' at no places and at the most).
+    ///
+    /// # Errors
+    /// As [`ProfileRegister::encode`].
+    pub fn precheck(&self, index: usize, value: &ProfileValue) -> Result<()> {
+        let r = register(self, index)?;
+        let Some(at) = self.places_register(index) else {
+            return r.encode(value).map(|_| ());
+        };
+        if r.register.access == Access::Read {
+            return Err(Error::InvalidArgument(format!("{} is read-only", r.name())));
+        }
+        let number = match value {
+            ProfileValue::Int(_) | ProfileValue::Float(_) => value.number()?,
+            other => {
+                return Err(Error::InvalidArgument(format!(
+                    "{} takes a number, not {}",
+                    r.name(),
+                    shown(other)
+                )))
+            }
+        };
+        let most = register(self, at)?.most_places().unwrap_or(MAX_DECIMALS);
+        let (low, high) = r.register.range;
+        let finest = 10f64.powi(-i32::from(most));
+        let (low, high) = (low.min(low * finest), high.max(high * finest));
+        if !number.is_finite() || number < low || number > high {
+            return Err(Error::InvalidArgument(format!(
+                "{} must be {} to {}{} (at its decimal places), got {}",
+                r.name(),
+                fmt_num(low),
+                fmt_num(high),
+                unit_suffix(&r.register.unit),
+                shown(value)
+            )));
+        }
+        Ok(())
     }
 
     /// Most registers (or bits) one read of `table` asks for: `max_read`, within Modbus's.
@@ -179,31 +243,55 @@ impl ProfileRegister {
             && self.offset == 0.0
     }
 
-    /// Whether every value it may hold is a count of decimal places, 0..9: its range, or
-    /// the numbers of its enum.
+    /// The most decimal places it may give (its range's top, or its enum's largest
+    /// number), if every value it may hold, on every model, is a count of places
+    /// (0..[`MAX_DECIMALS`]); None otherwise.
+    pub fn most_places(&self) -> Option<u8> {
+        let top = f64::from(MAX_DECIMALS);
+        let fits = |(low, high): (f64, f64)| low >= 0.0 && high <= top;
+        if !self.members.is_empty() {
+            let all = self
+                .members
+                .iter()
+                .all(|(n, _)| (0..=i128::from(MAX_DECIMALS)).contains(n));
+            return all
+                .then(|| self.members.iter().map(|(n, _)| *n as u8).max())
+                .flatten();
+        }
+        let ranges =
+            std::iter::once(self.register.range).chain(self.ranges.iter().map(|(_, r)| *r));
+        let ranges: Vec<(f64, f64)> = ranges.collect();
+        ranges
+            .iter()
+            .all(|r| fits(*r))
+            .then(|| ranges.iter().map(|r| r.1 as u8).max())
+            .flatten()
+    }
+
+    /// Whether every value it may hold is a count of decimal places (see
+    /// [`most_places`](Self::most_places)).
     pub fn places_only(&self) -> bool {
-        let (low, high) = self.register.range;
-        (low >= 0.0 && high <= 9.0)
-            || (!self.members.is_empty() && self.members.iter().all(|(n, _)| (0..=9).contains(n)))
+        self.most_places().is_some()
     }
 
     /// The register as it reads with `places` decimal places (its `decimals` register's
     /// value): its scale 10^-places, its range the raw digits' at that scale.
     ///
     /// # Errors
-    /// [`Error::State`] (`unit` said) for more than 9 places or fewer than 0: the value
-    /// read for them is no count of places, and nothing is read or written on it.
+    /// [`Error::State`] (`unit` said) for a value that is no count of places
+    /// (0..[`MAX_DECIMALS`]): nothing is read or written on it.
     pub fn at_places(&self, places: &ProfileValue, unit: u8) -> Result<ProfileRegister> {
         let n = match places {
-            ProfileValue::Int(n) if (0..=9).contains(n) => *n as i32,
+            ProfileValue::Int(n) if (0..=i128::from(MAX_DECIMALS)).contains(n) => *n as i32,
             other => {
                 return Err(Error::State {
                     unit,
                     message: format!(
-                        "{}'s decimal places ({}) read {other:?}, not 0..9: its value is not \
-                         trusted",
+                        "{}'s decimal places ({}) read {}, not 0..{MAX_DECIMALS}: its value \
+                         is not trusted",
                         self.name(),
-                        self.decimals.as_deref().unwrap_or("?")
+                        self.decimals.as_deref().unwrap_or("?"),
+                        shown(other)
                     ),
                 })
             }
@@ -217,29 +305,25 @@ impl ProfileRegister {
         Ok(view)
     }
 
-    /// The checks of a write that can be made before anything is read: all of
-    /// [`encode`](Self::encode)'s, or for a register with `decimals` (whose range and steps
-    /// wait for its places) its access and the kind of value.
+    /// The engineering value of `raw` (the register's decode, unscaled) at `places`: a
+    /// float whatever the places, so that a value's type does not change with them.
     ///
     /// # Errors
-    /// As [`encode`](Self::encode).
-    pub fn precheck(&self, value: &ProfileValue) -> Result<()> {
-        if self.decimals.is_none() {
-            return self.encode(value).map(|_| ());
-        }
-        if self.register.access == Access::Read {
-            return Err(Error::InvalidArgument(format!(
-                "{} is read-only",
-                self.name()
-            )));
-        }
-        match value {
-            ProfileValue::Int(_) | ProfileValue::Float(_) => Ok(()),
-            other => Err(Error::InvalidArgument(format!(
-                "{} takes a number, not {other:?}",
-                self.name()
-            ))),
-        }
+    /// As [`at_places`](Self::at_places).
+    pub fn read_at_places(
+        &self,
+        raw: &ProfileValue,
+        places: &ProfileValue,
+        unit: u8,
+    ) -> Result<ProfileValue> {
+        let view = self.at_places(places, unit)?;
+        Ok(match raw {
+            ProfileValue::Int(n) => match view.engineering(Number::Int(*n)) {
+                ProfileValue::Int(v) => ProfileValue::Float(v as f64),
+                other => other,
+            },
+            other => other.clone(),
+        })
     }
 
     /// The bits of its register it is, `(first, last)`: a bool's `bit`, a field's `bits`;
@@ -538,11 +622,13 @@ impl ProfiledDevice {
     }
 
     /// The engineering values of the registers `indices`, in that order, read as
-    /// [`Profile::plan`] groups them.
+    /// [`Profile::plan`] groups them, with the registers giving the decimal places of any
+    /// of them ([`Profile::with_places`]; then as one sequence for the unit).
     ///
     /// # Errors
-    /// [`Error::InvalidArgument`] for a write-only register (nothing sent); any [`Error`]
-    /// of a request (the values read before it are lost).
+    /// [`Error::InvalidArgument`] for a write-only register (nothing sent);
+    /// [`Error::State`] for decimal places read outside 0..9; any [`Error`] of a request
+    /// (the values read before it are lost).
     pub fn read(&self, indices: &[usize]) -> Result<Vec<ProfileValue>> {
         for i in indices {
             let r = self.register(*i)?;
@@ -553,23 +639,20 @@ impl ProfiledDevice {
                 )));
             }
         }
-        // A register with decimals is read with the register giving them, in one request
-        // where the profile allows.
-        let mut wanted = indices.to_vec();
-        for i in indices {
-            if let Some(at) = self.places_of(*i)? {
-                if !wanted.contains(&at) {
-                    wanted.push(at);
-                }
-            }
+        let wanted = self.profile.with_places(indices);
+        if wanted.len() == indices.len()
+            && indices
+                .iter()
+                .all(|i| self.profile.places_register(*i).is_none())
+        {
+            return self.read_values(indices);
         }
-        let read = read_planned(&self.station, &self.profile, &wanted, |b| {
-            read_block(&self.station, b)
-        })?;
+        let read = self.station.exclusive(|| self.read_values(&wanted))?;
+        let unit = self.station.unit();
         indices
             .iter()
             .zip(&read)
-            .map(|(i, value)| match self.places_of(*i)? {
+            .map(|(i, value)| match self.profile.places_register(*i) {
                 None => Ok(value.clone()),
                 Some(at) => {
                     let places = wanted
@@ -577,81 +660,110 @@ impl ProfiledDevice {
                         .position(|w| *w == at)
                         .and_then(|p| read.get(p))
                         .ok_or_else(|| Error::InvalidArgument(format!("no register {at}")))?;
-                    let view = self.register(*i)?.at_places(places, self.station.unit())?;
-                    match value {
-                        ProfileValue::Int(raw) => Ok(view.engineering(Number::Int(*raw))),
-                        other => Ok(other.clone()),
-                    }
+                    self.register(*i)?.read_at_places(value, places, unit)
                 }
             })
             .collect()
     }
 
-    /// The index of the register giving register `index` its decimal places, if it has
-    /// `decimals`.
-    fn places_of(&self, index: usize) -> Result<Option<usize>> {
-        match &self.register(index)?.decimals {
-            None => Ok(None),
-            Some(name) => self
-                .profile
-                .index_of(name)
-                .map(Some)
-                .ok_or_else(|| Error::InvalidArgument(format!("no register {name:?}"))),
-        }
+    /// The values of `indices` as their registers decode them (decimal places not
+    /// applied), read as [`Profile::plan`] groups them; no sequence of its own.
+    fn read_values(&self, indices: &[usize]) -> Result<Vec<ProfileValue>> {
+        read_planned(&self.station, &self.profile, indices, |b| {
+            read_block(&self.station, b)
+        })
     }
 
     /// Writes `values` (register index, value) in order, each as [`write`](Self::write)
-    /// does; every value is checked against its register before the first is sent.
+    /// does. Every value is checked before the first is sent; one for a register with
+    /// `decimals` is checked in full once its places are read (the sequence's own write of
+    /// them counting for the values after it), and only then is anything written: the
+    /// whole sequence, reads and writes, is one sequence for the unit.
     ///
     /// # Errors
-    /// As [`write`](Self::write); a failure stops the sequence (the earlier writes stay).
+    /// As [`write`](Self::write); a failure while writing stops the sequence (the earlier
+    /// writes stay).
     pub fn write_many(&self, values: &[(usize, ProfileValue)]) -> Result<()> {
         for (index, value) in values {
-            self.register(*index)?.precheck(value)?;
+            self.profile.precheck(*index, value)?;
         }
-        values
-            .iter()
-            .try_for_each(|(index, value)| self.write(*index, value))
+        let mut needed: Vec<usize> = Vec::new();
+        for (index, _) in values {
+            if let Some(at) = self.profile.places_register(*index) {
+                if !needed.contains(&at) {
+                    needed.push(at);
+                }
+            }
+        }
+        if needed.is_empty() {
+            return values.iter().try_for_each(|(index, value)| {
+                let r = self.register(*index)?;
+                let encoded = r.encode(value)?;
+                self.send(r.register.address, encoded, true)
+            });
+        }
+        self.station.exclusive(|| {
+            let read = self.read_values(&needed)?;
+            let mut places: HashMap<usize, ProfileValue> =
+                needed.iter().copied().zip(read).collect();
+            let unit = self.station.unit();
+            let mut sends = Vec::with_capacity(values.len());
+            for (index, value) in values {
+                let r = self.register(*index)?;
+                let encoded = match self.profile.places_register(*index) {
+                    None => r.encode(value)?,
+                    Some(at) => {
+                        let now = places.get(&at).ok_or_else(|| self.station.short_reply())?;
+                        r.at_places(now, unit)?.encode(value)?
+                    }
+                };
+                // A write of a places register gives the values after it their places.
+                if let (true, Encoded::Words(words)) = (places.contains_key(index), &encoded) {
+                    places.insert(*index, r.decode(words)?);
+                }
+                sends.push((r.register.address, encoded));
+            }
+            sends
+                .into_iter()
+                .try_for_each(|(address, encoded)| self.send(address, encoded, false))
+        })
     }
 
     /// Writes `value` to the register at `index`, every check made before anything is
     /// sent; a bit or a field of bits of a holding register is read, changed and written
-    /// back as one sequence, and so is a register with `decimals`: its places read, then
-    /// the value checked and encoded at them, then written.
+    /// back as one sequence. A register with `decimals` is written as one sequence too:
+    /// its places read, then the value checked and encoded at them (refused, nothing
+    /// written, if they do not take it), then written.
     ///
     /// # Errors
     /// [`Error::InvalidArgument`] for a read-only register or a value it cannot take
-    /// (nothing sent); any [`Error`] of a request.
+    /// (nothing sent, but the read of its decimal places for a register with `decimals`);
+    /// [`Error::State`] for decimal places read outside 0..9; any [`Error`] of a request.
     pub fn write(&self, index: usize, value: &ProfileValue) -> Result<()> {
-        let r = self.register(index)?;
-        if let Some(at) = self.places_of(index)? {
-            // Its places first, then every check at them, then the write: one sequence.
-            r.precheck(value)?;
-            return self.station.exclusive(|| {
-                let places = self.read(&[at])?;
-                let first = places.first().ok_or_else(|| self.station.short_reply())?;
-                let view = r.at_places(first, self.station.unit())?;
-                self.write_encoded(&view, value)
-            });
-        }
-        self.write_encoded(r, value)
+        self.write_many(&[(index, value.clone())])
     }
 
-    /// Writes `value` to `r` (the profile's register, or its view at its decimal places),
-    /// every check made before anything is sent.
-    fn write_encoded(&self, r: &ProfileRegister, value: &ProfileValue) -> Result<()> {
-        let address = r.register.address;
-        match r.encode(value)? {
+    /// Sends `encoded` to `address`; a bit or field of a word is read, changed and written
+    /// back, as a sequence of its own when `own_sequence` (else the caller holds one).
+    fn send(&self, address: u16, encoded: Encoded, own_sequence: bool) -> Result<()> {
+        match encoded {
             Encoded::Coil(on) => self.station.write_coil(address, on),
             Encoded::Words(words) => self.write_words(address, &words),
-            Encoded::Bits { mask, value } => self.station.exclusive(|| {
-                let word = *self
-                    .station
-                    .read(address, 1)?
-                    .first()
-                    .ok_or_else(|| self.station.short_reply())?;
-                self.write_words(address, &[word & !mask | value])
-            }),
+            Encoded::Bits { mask, value } => {
+                let change = || {
+                    let word = *self
+                        .station
+                        .read(address, 1)?
+                        .first()
+                        .ok_or_else(|| self.station.short_reply())?;
+                    self.write_words(address, &[word & !mask | value])
+                };
+                if own_sequence {
+                    self.station.exclusive(change)
+                } else {
+                    change()
+                }
+            }
         }
     }
 

@@ -495,19 +495,19 @@ impl PyProfile {
     /// ValueError for no such register, a read-only one, a value out of range, off the
     /// scale's steps, not a member or more than the type holds; TypeError for a value of
     /// the wrong kind. A family's rules that ask the device (a drive's registers that take
-    /// writes only while stopped, the J2's SV within LSP..USP) and the range and steps of
-    /// a register with ``decimals`` (known once its places are read) are checked when
-    /// writing.
+    /// writes only while stopped, the J2's SV within LSP..USP) are checked when writing;
+    /// a register with ``decimals`` is checked against the widest range its places allow,
+    /// and at its places (range, steps) when writing.
     fn check(&self, py: Python<'_>, name: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
         let (index, value) = self.value_for(name, value)?;
-        match self.profile.registers.get(index) {
-            Some(register) => register.precheck(&value).map_err(|e| to_pyerr(py, e)),
-            None => Err(PyValueError::new_err(format!("no register {name:?}"))),
-        }
+        self.profile
+            .precheck(index, &value)
+            .map_err(|e| to_pyerr(py, e))
     }
 
     /// The requests that read the registers `names` (repeats once): ``(table, start, count,
-    /// names)`` each, tables apart, neighbours together where the limits allow.
+    /// names)`` each, tables apart, neighbours together where the limits allow; with the
+    /// registers giving any of them their decimal places (``decimals``), read with them.
     fn plan(&self, names: Vec<String>) -> PyResult<Vec<PlannedRead>> {
         let indices = names
             .iter()
@@ -515,7 +515,7 @@ impl PyProfile {
             .collect::<PyResult<Vec<_>>>()?;
         Ok(self
             .profile
-            .plan(&indices)
+            .plan(&self.profile.with_places(&indices))
             .into_iter()
             .map(|b| {
                 let members = b

@@ -225,10 +225,11 @@ class ProfileDevice(RegisterDevice):
         names = {reg.name: reg for reg in regs}
         for reg in regs:
             places = names.get(str(reg.decimals)) if reg.decimals is not None else None
-            if reg.decimals is not None and (
-                places is None or places is reg or places.access == "w" or places.decimals
-            ):
-                raise ValueError(f"{self.path}: {reg.name}'s decimals name no other register")
+            if reg.decimals is not None and not _gives_places(places, reg):
+                raise ValueError(
+                    f"{self.path}: {reg.name}'s decimals name no other readable, unscaled"
+                    " integer register whose values are 0..9 places"
+                )
         self._regs: dict[str, _Register] = {}
         self._at: dict[str, dict[int, list[_Register]]] = {t: {} for t in _TABLES}
         for reg in regs:
@@ -278,7 +279,10 @@ class ProfileDevice(RegisterDevice):
                         self.set_value(reg.name, row["default"])
                 except (TypeError, ValueError) as e:
                     raise ValueError(f"{self.path}: register {reg.name!r}: default: {e}") from e
-        for name, value in (values or {}).items():
+        # The registers giving others their places first: those are set at the places given.
+        assigned = list((values or {}).items())
+        gives = {str(reg.decimals) for reg in regs if reg.decimals is not None}
+        for name, value in sorted(assigned, key=lambda item: item[0] not in gives):
             self.set_value(name, value)
 
     # ---- the profile -------------------------------------------------------------------
@@ -684,6 +688,22 @@ def _ordered(reg: _Register, data: bytes) -> list[int]:
 def _unordered(reg: _Register, words: list[int]) -> bytes:
     """The register's words back as big-endian bytes."""
     return b"".join(w.to_bytes(2, "big") for w in _swap(reg.order, words))
+
+
+def _gives_places(places: _Register | None, reg: _Register) -> bool:
+    """Whether ``places`` may give ``reg`` its decimal places: another readable register,
+    an unscaled integer without places of its own, every value of which (its range, or
+    its enum's numbers) is 0..9."""
+    if places is None or places is reg or places.access == "w" or places.decimals:
+        return False
+    if places.type not in ("u16", "i16", "u32", "i32", "u64", "i64") or places.scaled:
+        return False
+    if places.enum is not None:
+        return all(0 <= n <= 9 for n in places.enum)
+    if places.bits is not None:
+        top = places.field_top if places.max is None else places.max
+        return (places.min or 0) >= 0 and top <= 9
+    return places.min is not None and places.min >= 0 and places.max is not None and places.max <= 9
 
 
 def _decode(reg: _Register, words: list[int]) -> Value:
