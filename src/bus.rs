@@ -312,8 +312,9 @@ pub struct Bus {
     /// The writes in progress, so that each waits for the earlier ones to its unit (see
     /// [`writes`]).
     writes: Writes,
-    /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]).
-    sequences: Mutex<HashMap<u8, Arc<Mutex<()>>>>,
+    /// One lock per unit for device layers' sequences (see [`Bus::exclusive`]), and the
+    /// thread that holds it.
+    sequences: Mutex<HashMap<u8, Arc<Sequence>>>,
     /// The process that opened the Bus, the only one that may use it (see [`Bus::owned`]).
     owner: u32,
 }
@@ -1750,19 +1751,30 @@ impl Bus {
     /// then write MV), whichever device object runs it. Other units and single requests
     /// are not held up. In a process other than the one that opened the Bus, `f` runs
     /// without the lock (a thread of the parent may have held it at the fork), and its
-    /// requests fail with [`Error::Forked`].
+    /// requests fail with [`Error::Forked`]. The thread that holds a unit's lock runs a
+    /// sequence nested in its own at once (a Python signal handler run while the
+    /// sequence's request waits, which reads the same unit): a lock it waited for would
+    /// be its own.
     pub fn exclusive<R>(&self, unit: u8, f: impl FnOnce() -> R) -> R {
         if self.owned().is_err() {
             return f();
         }
-        let lock = {
+        let sequence = {
             let mut all = self
                 .sequences
                 .lock()
                 .unwrap_or_else(|poisoned| poisoned.into_inner());
             Arc::clone(all.entry(unit).or_default())
         };
-        let _held = lock.lock().unwrap_or_else(|poisoned| poisoned.into_inner());
+        let me = std::thread::current().id();
+        if sequence.holder() == Some(me) {
+            return f();
+        }
+        let _held = sequence
+            .lock
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner());
+        let _mine = sequence.hold(me);
         f()
     }
 
@@ -2031,5 +2043,45 @@ impl Bus {
             opts,
             pick!(Response::FifoQueue(values) => values),
         )
+    }
+}
+
+/// A unit's lock for device layers' sequences ([`Bus::exclusive`]) and the thread that
+/// holds it.
+#[derive(Debug, Default)]
+struct Sequence {
+    lock: Mutex<()>,
+    holder: Mutex<Option<std::thread::ThreadId>>,
+}
+
+impl Sequence {
+    /// The thread that holds the lock now, if one does.
+    fn holder(&self) -> Option<std::thread::ThreadId> {
+        *self
+            .holder
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Marks `me` (holding the lock) as its holder until the guard is dropped.
+    fn hold(&self, me: std::thread::ThreadId) -> Holding<'_> {
+        *self
+            .holder
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = Some(me);
+        Holding(self)
+    }
+}
+
+/// While alive, its thread is the [`Sequence`]'s holder.
+struct Holding<'a>(&'a Sequence);
+
+impl Drop for Holding<'_> {
+    fn drop(&mut self) {
+        *self
+            .0
+            .holder
+            .lock()
+            .unwrap_or_else(|poisoned| poisoned.into_inner()) = None;
     }
 }

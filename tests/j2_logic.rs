@@ -311,3 +311,30 @@ fn sequences_for_one_unit_exclude_each_other_whatever_the_object() {
     holder.join().expect("holder");
     assert!(got_in >= released);
 }
+
+#[test]
+fn a_sequence_nested_in_its_own_threads_sequence_runs_at_once() {
+    // What a Python signal handler does while the sequence's request waits: it reads the
+    // same unit on the same thread. Waiting for the lock would be waiting for itself.
+    let (bus, _) = bus(vec![], 0);
+    let bus = Arc::new(bus);
+    let (done, got) = mpsc::channel();
+    let nested = {
+        let bus = Arc::clone(&bus);
+        std::thread::spawn(move || {
+            let _ = done.send(bus.exclusive(1, || bus.exclusive(1, || 7) + 1));
+        })
+    };
+    assert_eq!(
+        got.recv_timeout(Duration::from_secs(5)),
+        Ok(8),
+        "deadlocked"
+    );
+    nested.join().expect("nested");
+    // Once out, another thread takes the unit as before.
+    let other = {
+        let bus = Arc::clone(&bus);
+        std::thread::spawn(move || bus.exclusive(1, || 3))
+    };
+    assert_eq!(other.join().expect("other"), 3);
+}

@@ -938,3 +938,63 @@ def test_a_places_register_is_on_every_model_its_value_is_on() -> None:
     )
     with pytest.raises(bb.ProfileError, match=r"within 0\.\.9"):
         bb.Profile.parse(ranged, "c.toml")
+
+
+BITS_PLACES = """
+[device]
+name = "bits"
+
+[[register]]
+name = "status"
+address = 0x22
+access = "rw"
+
+[[register]]
+name = "dp"
+address = 0x22
+bits = [0, 1]
+access = "rw"
+
+[[register]]
+name = "sp"
+address = 0x20
+type = "i16"
+access = "rw"
+min = 3
+max = 9999
+decimals = "dp"
+"""
+
+
+def test_places_in_a_field_of_bits_written_in_the_sequence_count(tmp_path: Path) -> None:
+    path = tmp_path / "bits.toml"
+    path.write_text(BITS_PLACES)
+    for _, dev, model in rig(path, status=0x80):
+        dev.set_many([("dp", 1), ("sp", 30)])  # 300 digits at the one place just written
+        assert model.registers[0x22] == 0x81 and model.registers[0x20] == 300
+        assert dev.sp == 30.0
+        dev.set_many([("dp", 2), ("sp", 30.55)])
+        assert model.registers[0x20] == 3055
+        # The whole word would change the places behind the sequence: refused, unsent.
+        with pytest.raises(ValueError, match="status shares its register with dp"):
+            dev.set_many([("status", 0x80), ("sp", 30)])
+        assert model.registers[0x22] == 0x82
+        # The digits' range at the most places its field holds (3): 3 digits is 0.003.
+        dev.profile.check("sp", 0.003)
+        with pytest.raises(ValueError, match=r"0\.003 to 9999"):
+            dev.profile.check("sp", 0.002)
+
+
+def test_the_simulator_takes_a_places_register_as_the_core_does(tmp_path: Path) -> None:
+    max_only = DECIMALS.replace("min = 0\nmax = 3\ndefault = 1", "max = 3\ndefault = 1")
+    (tmp_path / "max_only.toml").write_text(max_only)
+    assert ProfileDevice(tmp_path / "max_only.toml").value("pv") == 25.3
+    bb.Profile(tmp_path / "max_only.toml")  # a u16 of max 3: 0..3
+    ranged = max_only.replace('name = "controller"', 'name = "c"\nmodels = ["A", "B"]').replace(
+        "max = 3\ndefault = 1", "max = 3\ndefault = 1\nranges = { B = [0, 12] }"
+    )
+    (tmp_path / "ranged.toml").write_text(ranged)
+    with pytest.raises(ValueError, match=r"0\.\.9 places"):
+        ProfileDevice(tmp_path / "ranged.toml")
+    with pytest.raises(bb.ProfileError):
+        bb.Profile(tmp_path / "ranged.toml")

@@ -262,10 +262,11 @@ def _whole_type(register: ProfileRegister, low: float, high: float) -> bool:
 
 def _places(register: ProfileRegister, profile: Profile) -> int:
     """The most decimal places a register with ``decimals`` may read with: the most its
-    places register holds (9 at most)."""
+    places register holds on any model (9 at most)."""
     given = profile[str(register.decimals)]
-    most = max(given.enum) if given.enum else given.max
-    return min(int(most if most is not None else 9), 9)
+    tops = [given.max, *(high for _, high in given.ranges.values())]
+    most = max(given.enum) if given.enum else max(t for t in tops if t is not None)
+    return min(int(most), 9)
 
 
 def _numeric(register: ProfileRegister, egu: str, profile: Profile) -> tuple[str, dict[str, Any]]:

@@ -251,7 +251,7 @@ mod tests {
         let holder = Arc::clone(&bus);
         std::thread::spawn(move || {
             let sequence = Arc::clone(holder.sequences.lock().unwrap().entry(1).or_default());
-            std::mem::forget(sequence.lock());
+            std::mem::forget(sequence.lock.lock());
             std::mem::forget(holder.queue.turn(&Cancel::default()));
             std::mem::forget(holder.lock());
         })

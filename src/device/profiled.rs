@@ -90,9 +90,11 @@ impl Profile {
         };
         let most = register(self, at)?.most_places().unwrap_or(MAX_DECIMALS);
         let (low, high) = r.register.range;
-        let finest = 10f64.powi(-i32::from(most));
-        let (low, high) = (low.min(low * finest), high.max(high * finest));
-        if !number.is_finite() || number < low || number > high {
+        // Divided, as a read divides: 3 digits at one place is 0.3, not 0.30000000000000004.
+        let finest = 10f64.powi(i32::from(most));
+        let (low, high) = (low.min(low / finest), high.max(high / finest));
+        let slack = 1e-6 / finest;
+        if !number.is_finite() || number < low - slack || number > high + slack {
             return Err(Error::InvalidArgument(format!(
                 "{} must be {} to {}{} (at its decimal places), got {}",
                 r.name(),
@@ -702,6 +704,27 @@ impl ProfiledDevice {
                 self.send(r.register.address, encoded, true)
             });
         }
+        // A register sharing a word with a places register (its whole word, another field
+        // of it) would change the places behind the sequence's back: written apart.
+        for (index, _) in values {
+            let r = self.register(*index)?;
+            for at in &needed {
+                let p = self.register(*at)?;
+                let span = |x: &ProfileRegister| {
+                    let start = u32::from(x.register.address);
+                    start..start + x.value.width()
+                };
+                let (a, b) = (span(r), span(p));
+                if *index != *at && r.table == p.table && a.start < b.end && b.start < a.end {
+                    return Err(Error::InvalidArgument(format!(
+                        "{} shares its register with {}, which gives the decimal places of a \
+                         value written with it: write it in a call of its own",
+                        r.name(),
+                        p.name()
+                    )));
+                }
+            }
+        }
         self.station.exclusive(|| {
             let read = self.read_values(&needed)?;
             let mut places: HashMap<usize, ProfileValue> =
@@ -718,8 +741,18 @@ impl ProfiledDevice {
                     }
                 };
                 // A write of a places register gives the values after it their places.
-                if let (true, Encoded::Words(words)) = (places.contains_key(index), &encoded) {
-                    places.insert(*index, r.decode(words)?);
+                if places.contains_key(index) {
+                    let written = match &encoded {
+                        Encoded::Words(words) => r.decode(words)?,
+                        Encoded::Bits { value, .. } => r.decode(&[*value])?,
+                        Encoded::Coil(_) => {
+                            return Err(Error::InvalidArgument(format!(
+                                "{} is a coil, not a count of places",
+                                r.name()
+                            )))
+                        }
+                    };
+                    places.insert(*index, written);
                 }
                 sends.push((r.register.address, encoded));
             }

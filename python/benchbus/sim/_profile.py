@@ -61,6 +61,15 @@ _REGISTER_KEYS = {
     "decimals",
 }
 _TABLES = ("holding", "input", "coil", "discrete")
+#: The whole numbers each integer type holds.
+_WHOLE_RANGES = {
+    "u16": (0, 2**16 - 1),
+    "i16": (-(2**15), 2**15 - 1),
+    "u32": (0, 2**32 - 1),
+    "i32": (-(2**31), 2**31 - 1),
+    "u64": (0, 2**64 - 1),
+    "i64": (-(2**63), 2**63 - 1),
+}
 _BIT_TABLES = ("coil", "discrete")
 #: struct format (big-endian) and registers of each numeric type.
 _NUMERIC = {
@@ -223,9 +232,10 @@ class ProfileDevice(RegisterDevice):
             _check_models(self.path, i, row, self.models)
         regs = [_register(self.path, i, row) for i, row in enumerate(rows)]
         names = {reg.name: reg for reg in regs}
+        ranges = {reg.name: row.get("ranges", {}) for reg, row in zip(regs, rows)}
         for reg in regs:
             places = names.get(str(reg.decimals)) if reg.decimals is not None else None
-            if reg.decimals is not None and not _gives_places(places, reg):
+            if reg.decimals is not None and not _gives_places(places, reg, ranges):
                 raise ValueError(
                     f"{self.path}: {reg.name}'s decimals name no other readable, unscaled"
                     " integer register whose values are 0..9 places"
@@ -690,20 +700,21 @@ def _unordered(reg: _Register, words: list[int]) -> bytes:
     return b"".join(w.to_bytes(2, "big") for w in _swap(reg.order, words))
 
 
-def _gives_places(places: _Register | None, reg: _Register) -> bool:
+def _gives_places(places: _Register | None, reg: _Register, ranges: Mapping[str, Any]) -> bool:
     """Whether ``places`` may give ``reg`` its decimal places: another readable register,
-    an unscaled integer without places of its own, every value of which (its range, or
-    its enum's numbers) is 0..9."""
+    an unscaled integer without places of its own, every value of which (its range on
+    every model, ``ranges`` by register name, or its enum's numbers) is 0..9."""
     if places is None or places is reg or places.access == "w" or places.decimals:
         return False
-    if places.type not in ("u16", "i16", "u32", "i32", "u64", "i64") or places.scaled:
+    if places.type not in _WHOLE_RANGES or places.scaled:
         return False
     if places.enum is not None:
         return all(0 <= n <= 9 for n in places.enum)
-    if places.bits is not None:
-        top = places.field_top if places.max is None else places.max
-        return (places.min or 0) >= 0 and top <= 9
-    return places.min is not None and places.min >= 0 and places.max is not None and places.max <= 9
+    whole = (0, places.field_top) if places.bits is not None else _WHOLE_RANGES[places.type]
+    low = whole[0] if places.min is None else places.min
+    high = whole[1] if places.max is None else places.max
+    spans = [(low, high), *ranges.get(places.name, {}).values()]
+    return all(span[0] >= 0 and span[1] <= 9 for span in spans)
 
 
 def _decode(reg: _Register, words: list[int]) -> Value:
