@@ -460,3 +460,12 @@ def test_the_async_device_takes_a_name() -> None:
     with Simulator({4: model}) as sim:
         assert asyncio.run(_aio_read(sim.port)) == pytest.approx(49.97, rel=1e-6)
         assert sim.errors == []
+
+
+def test_a_file_or_family_given_for_a_profiles_name_says_the_name() -> None:
+    said = one_line_error(run("read", "--profile", "sdm630.toml", "--port", "/dev/null"), 2)
+    assert said.endswith("; the profile called 'sdm630' is --profile sdm630")
+    said = one_line_error(run("ioc", "pzem-016"), 2)
+    assert "no device family 'pzem-016'" in said
+    assert said.endswith("; the profile called 'pzem-016' is --profile pzem-016")
+    assert "--profile" not in one_line_error(run("ioc", "toaster"), 2)

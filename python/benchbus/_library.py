@@ -15,7 +15,17 @@ from pathlib import Path
 
 from benchbus.exceptions import ProfileError
 
-__all__ = ["ENV", "SHIPPED", "families", "find", "folders", "is_name", "locate", "profiles"]
+__all__ = [
+    "ENV",
+    "SHIPPED",
+    "families",
+    "find",
+    "folders",
+    "is_name",
+    "locate",
+    "meant",
+    "profiles",
+]
 
 #: The environment variable naming a lab's folders of profiles (``os.pathsep`` apart),
 #: searched before the shipped ones.
@@ -40,6 +50,13 @@ def find(name: str) -> str | None:
         if path.is_file():
             return str(path)
     return None
+
+
+def meant(name: str) -> str:
+    """``; the profile called 'NAME' is --profile NAME`` where ``name`` is a profile's name
+    (what a command line's error ends with when a file or a family was given for it), else
+    ""."""
+    return f"; the profile called {name!r} is --profile {name}" if find(name) else ""
 
 
 def profiles() -> dict[str, str]:

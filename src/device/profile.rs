@@ -787,7 +787,7 @@ impl Profile {
     fn check_decimals(&self, path: &str) -> Parsed<()> {
         for (index, r) in self.registers.iter().enumerate() {
             let Some(name) = &r.decimals else { continue };
-            let given = self.registers.iter().find(|g| g.register.name == *name);
+            let given = self.index(name).and_then(|at| self.registers.get(at));
             let refusal = match given {
                 None => Some(format!("no register {name:?} in the file")),
                 Some(g) if g.register.name == r.register.name => {

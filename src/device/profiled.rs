@@ -641,14 +641,13 @@ impl ProfiledDevice {
                 )));
             }
         }
-        let wanted = self.profile.with_places(indices);
-        if wanted.len() == indices.len()
-            && indices
-                .iter()
-                .all(|i| self.profile.places_register(*i).is_none())
+        if indices
+            .iter()
+            .all(|i| self.profile.places_register(*i).is_none())
         {
             return self.read_values(indices);
         }
+        let wanted = self.profile.with_places(indices);
         let read = self.station.exclusive(|| self.read_values(&wanted))?;
         let unit = self.station.unit();
         indices
@@ -701,7 +700,7 @@ impl ProfiledDevice {
             return values.iter().try_for_each(|(index, value)| {
                 let r = self.register(*index)?;
                 let encoded = r.encode(value)?;
-                self.send(r.register.address, encoded, true)
+                self.send(r.register.address, encoded)
             });
         }
         // A register sharing a word with a places register (its whole word, another field
@@ -758,7 +757,7 @@ impl ProfiledDevice {
             }
             sends
                 .into_iter()
-                .try_for_each(|(address, encoded)| self.send(address, encoded, false))
+                .try_for_each(|(address, encoded)| self.send(address, encoded))
         })
     }
 
@@ -777,26 +776,20 @@ impl ProfiledDevice {
     }
 
     /// Sends `encoded` to `address`; a bit or field of a word is read, changed and written
-    /// back, as a sequence of its own when `own_sequence` (else the caller holds one).
-    fn send(&self, address: u16, encoded: Encoded, own_sequence: bool) -> Result<()> {
+    /// back as one sequence (within the caller's, if it holds one: [`Bus::exclusive`]
+    /// nests).
+    fn send(&self, address: u16, encoded: Encoded) -> Result<()> {
         match encoded {
             Encoded::Coil(on) => self.station.write_coil(address, on),
             Encoded::Words(words) => self.write_words(address, &words),
-            Encoded::Bits { mask, value } => {
-                let change = || {
-                    let word = *self
-                        .station
-                        .read(address, 1)?
-                        .first()
-                        .ok_or_else(|| self.station.short_reply())?;
-                    self.write_words(address, &[word & !mask | value])
-                };
-                if own_sequence {
-                    self.station.exclusive(change)
-                } else {
-                    change()
-                }
-            }
+            Encoded::Bits { mask, value } => self.station.exclusive(|| {
+                let word = *self
+                    .station
+                    .read(address, 1)?
+                    .first()
+                    .ok_or_else(|| self.station.short_reply())?;
+                self.write_words(address, &[word & !mask | value])
+            }),
         }
     }
 

@@ -59,15 +59,14 @@ def read_profile(path: str) -> bb.Profile:
     """The device profile at ``path`` (or of that name), read and checked; its mistake
     (file, line, key) or an unreadable file is a UsageError, before any port opens (a file
     that is not there but whose stem is a profile's name says so)."""
-    from benchbus._library import find
+    from benchbus._library import meant
 
     try:
         return bb.Profile(path)
     except (bb.ProfileError, OSError) as exc:
         stem = os.path.splitext(os.path.basename(path))[0]
-        meant = not os.path.exists(path) and path.endswith(".toml") and find(stem)
-        hint = f"; the profile called {stem!r} is --profile {stem}" if meant else ""
-        raise UsageError(f"{exc}{hint}") from None
+        missing = not os.path.exists(path) and path.endswith(".toml")
+        raise UsageError(f"{exc}{meant(stem) if missing else ''}") from None
 
 
 def profile_of(args: argparse.Namespace) -> bb.Profile | None:

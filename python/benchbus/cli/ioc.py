@@ -185,12 +185,11 @@ def _bench_of(target: str) -> Bench:
     """The bench file ``target`` names, read and checked before any port opens; a mistake
     in it (file, line, key) or an unreadable file is a UsageError."""
     if not target.endswith(".toml") and not os.path.isfile(target):
-        from benchbus._library import find
+        from benchbus._library import meant
 
-        meant = f"; the profile called {target!r} is --profile {target}" if find(target) else ""
         raise UsageError(
             f"no device family {target!r}: one of {', '.join(command_keys())}, or a bench"
-            f" file{meant}"
+            f" file{meant(target)}"
         )
     try:
         return read_bench(target)

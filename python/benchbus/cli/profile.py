@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -127,11 +126,15 @@ def listing() -> int:
 def show(name: str) -> int:
     """``benchbus profile show``: the profile ``name`` (a file, a profile's name, else a
     built-in family's key) and its table, as ``check`` prints it."""
-    from benchbus import Profile
-    from benchbus._library import families, find
+    from benchbus import Profile, ProfileError
+    from benchbus._library import families, locate
 
-    family = name in families() and not os.path.isfile(name) and find(name) is None
-    return check(name, Profile.family(name) if family else None)
+    if name in families():
+        try:
+            locate(name)  # a file or a lab's profile of that name wins, as for Profile()
+        except ProfileError:
+            return check(name, Profile.family(name))
+    return check(name)
 
 
 def export(key: str, output: str | None) -> int:

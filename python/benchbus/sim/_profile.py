@@ -61,15 +61,6 @@ _REGISTER_KEYS = {
     "decimals",
 }
 _TABLES = ("holding", "input", "coil", "discrete")
-#: The whole numbers each integer type holds.
-_WHOLE_RANGES = {
-    "u16": (0, 2**16 - 1),
-    "i16": (-(2**15), 2**15 - 1),
-    "u32": (0, 2**32 - 1),
-    "i32": (-(2**31), 2**31 - 1),
-    "u64": (0, 2**64 - 1),
-    "i64": (-(2**63), 2**63 - 1),
-}
 _BIT_TABLES = ("coil", "discrete")
 #: struct format (big-endian) and registers of each numeric type.
 _NUMERIC = {
@@ -706,11 +697,19 @@ def _gives_places(places: _Register | None, reg: _Register, ranges: Mapping[str,
     every model, ``ranges`` by register name, or its enum's numbers) is 0..9."""
     if places is None or places is reg or places.access == "w" or places.decimals:
         return False
-    if places.type not in _WHOLE_RANGES or places.scaled:
+    code = _NUMERIC.get(places.type, ("f", 0))[0]
+    if code in "fd" or places.scaled:
         return False
     if places.enum is not None:
         return all(0 <= n <= 9 for n in places.enum)
-    whole = (0, places.field_top) if places.bits is not None else _WHOLE_RANGES[places.type]
+    # The whole numbers its struct code holds: lower case signed.
+    bits = 8 * struct.calcsize(code)
+    signed = (-(2 ** (bits - 1)), 2 ** (bits - 1) - 1)
+    whole = (
+        (0, places.field_top)
+        if places.bits is not None
+        else (signed if code.islower() else (0, 2**bits - 1))
+    )
     low = whole[0] if places.min is None else places.min
     high = whole[1] if places.max is None else places.max
     spans = [(low, high), *ranges.get(places.name, {}).values()]
